@@ -1,0 +1,1 @@
+"""Pure numerical kernels (numba). Nothing here knows about graphs or YAML."""

@@ -1,0 +1,208 @@
+"""A built, compiled graph: ``run`` on whole arrays, ``step`` one tick, ``reset``.
+
+Time is the first axis everywhere: a scalar port gives shape ``(n,)``, a
+vector port ``(n, *shape)``.
+"""
+
+from __future__ import annotations
+
+import zlib
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import FlowtexError
+from ..node_api import PortSpec
+from ..registry import load_registry
+from .arena import TICK, Layout, plan_layout
+from .codegen import generate
+from .jit import load_generated
+from .resolve import ResolvedGraph, resolve_graph
+from .spec import GraphSpec, load_spec
+
+DEFAULT_BLOCK_ROWS = 1024
+PROGRESS_CHUNK = 1 << 17
+
+
+class Graph:
+    """A compiled graph. Build one with :func:`flowtex.load_graph`."""
+
+    def __init__(self, resolved: ResolvedGraph, block_rows: int = DEFAULT_BLOCK_ROWS):
+        self.resolved = resolved
+        self.spec: GraphSpec = resolved.spec
+        self.layout: Layout = plan_layout(resolved, block_rows)
+        kernels: dict[str, Callable] = {}
+        names: dict[str, str] = {}
+        for idx, (name, rn) in enumerate(resolved.nodes.items()):
+            names[name] = f"k{idx}"
+            kernels[f"k{idx}"] = rn.cls.get_kernel()
+            if resolved.cyclic and rn.cls.breaks_cycles:
+                names[name + ":emit"] = f"k{idx}_emit"
+                names[name + ":absorb"] = f"k{idx}_absorb"
+                kernels[f"k{idx}_emit"] = rn.cls.get_kernel("emit_kernel")
+                kernels[f"k{idx}_absorb"] = rn.cls.get_kernel("absorb_kernel")
+        self.source = generate(resolved, self.layout.nodes, names)
+        versions = ";".join(f"{rn.cls.type_name}@{rn.cls.version}" for rn in resolved.nodes.values())
+        self._module = load_generated(self.source, kernels, versions)
+        self._block = self._module.block
+        self._run = self._module.run
+        # Compile (or load from the disk cache) now, not on the first live tick.
+        self._block.compile("(float64[::1], int64[::1], int64)")
+        self._run.compile("(float64[::1], int64[::1], float64[:, ::1], float64[:, ::1])")
+        self._f0 = self.layout.f.copy()
+        self._i0 = self.layout.i.copy()
+        self.f = self.layout.f
+        self.i = self.layout.i
+        self._in_views = {name: self.f[s.offset:s.offset + s.width] for name, s in self.layout.graph_inputs.items()}
+        self._out_views = {name: self.f[s.offset:s.offset + s.width] for name, s in self.layout.graph_outputs.items()}
+        self._out_scalar = {name: spec.shape == () for name, spec in resolved.output_specs.items()}
+        self.seed = self.spec.seed
+        self.reset()
+
+    # --- description -------------------------------------------------
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    @property
+    def rate(self) -> float:
+        """Base tick rate in Hz."""
+        return self.spec.rate
+
+    @property
+    def inputs(self) -> dict[str, PortSpec]:
+        return dict(self.resolved.input_specs)
+
+    @property
+    def outputs(self) -> dict[str, PortSpec]:
+        return dict(self.resolved.output_specs)
+
+    @property
+    def ticks(self) -> int:
+        """Ticks run since the last reset."""
+        return int(self.i[TICK])
+
+    # --- execution ---------------------------------------------------
+    def reset(self, seed: int | None = None) -> None:
+        """Restore the initial state; re-seed random nodes with ``seed`` (default: the graph's)."""
+        if seed is not None:
+            self.seed = int(seed)
+        self.f[:] = self._f0
+        self.i[:] = self._i0
+        for name, rn in self.resolved.nodes.items():
+            if rn.cls.uses_seed and rn.node is not None:
+                slots = self.layout.nodes[name]
+                s = self.f[self.i[slots.s[0]]:self.i[slots.s[1]]]
+                si = self.i[self.i[slots.si[0]]:self.i[slots.si[1]]]
+                rn.node.seed_state(s, si, np.random.SeedSequence([self.seed, zlib.crc32(name.encode())]))
+
+    def run(self, inputs: Mapping[str, Any], seed: int | None = None, progress: bool = False) -> dict[str, np.ndarray]:
+        """Reset (with ``seed``), then run the whole recording ``inputs``."""
+        self.reset(seed)
+        return self.process(inputs, progress=progress)
+
+    def process(self, inputs: Mapping[str, Any], progress: bool = False) -> dict[str, np.ndarray]:
+        """Continue from the current state over ``inputs`` (chunked runs equal one pass)."""
+        X, total = self._pack_inputs(inputs)
+        width = sum(w for _, w in self.layout.out_columns.values())
+        Y = np.empty((total, width))
+        if progress and total > PROGRESS_CHUNK:
+            from tqdm import tqdm
+
+            with tqdm(total=total, unit="tick", unit_scale=True, desc=self.name, leave=False) as bar:
+                for start in range(0, total, PROGRESS_CHUNK):
+                    stop = min(total, start + PROGRESS_CHUNK)
+                    self._run(self.f, self.i, X[start:stop], Y[start:stop])
+                    bar.update(stop - start)
+        else:
+            self._run(self.f, self.i, X, Y)
+        out = {}
+        for name, (col, w) in self.layout.out_columns.items():
+            shape = self.resolved.output_specs[name].shape
+            out[name] = np.ascontiguousarray(Y[:, col:col + w]).reshape((total, *shape))
+        return out
+
+    def step(self, values: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        """Advance one tick. ``values`` maps graph input names to numbers/arrays.
+
+        Inputs not given keep their previous value. Returns output name ->
+        float (scalar outputs) or a new array.
+        """
+        if values:
+            views = self._in_views
+            for name, value in values.items():
+                try:
+                    views[name][:] = value
+                except KeyError:
+                    raise FlowtexError(f"graph {self.name!r} has no input {name!r}; inputs: {', '.join(views)}") from None
+        self._block(self.f, self.i, 1)
+        return {name: (float(v[0]) if self._out_scalar[name] else v.copy()) for name, v in self._out_views.items()}
+
+    def input_view(self, name: str) -> np.ndarray:
+        """Writable view of the current-tick value of graph input ``name`` (live fast path)."""
+        return self._in_views[name]
+
+    def output_view(self, name: str) -> np.ndarray:
+        """View of the latest value of graph output ``name`` (valid after a step)."""
+        return self._out_views[name]
+
+    def step_block(self, n: int = 1) -> None:
+        """Advance ``n`` ticks using whatever is in the input views (no Python mapping)."""
+        self._block(self.f, self.i, n)
+
+    def _pack_inputs(self, inputs: Mapping[str, Any]) -> tuple[np.ndarray, int]:
+        missing = [n for n in self.layout.in_columns if n not in inputs]
+        if missing:
+            raise FlowtexError(f"graph {self.name!r}: recording lacks input(s) {', '.join(missing)}")
+        total = None
+        arrays = {}
+        for name, (col, w) in self.layout.in_columns.items():
+            arr = np.asarray(inputs[name], dtype=np.float64)
+            shape = self.resolved.input_specs[name].shape
+            if arr.shape[1:] != shape and not (shape == () and arr.ndim == 2 and arr.shape[1] == 1):
+                raise FlowtexError(
+                    f"input {name!r}: expected shape (n, {', '.join(map(str, shape))}) with time first, got {arr.shape}"
+                    if shape else f"input {name!r}: expected a 1-D array over time, got shape {arr.shape}")
+            if total is None:
+                total = arr.shape[0]
+            elif arr.shape[0] != total:
+                raise FlowtexError(f"input {name!r} has {arr.shape[0]} samples, others have {total}")
+            arrays[name] = arr.reshape(arr.shape[0], w)
+        if total is None:
+            raise FlowtexError(f"graph {self.name!r} has no inputs; pass n ticks with run_ticks(n)")
+        X = np.empty((total, sum(w for _, w in self.layout.in_columns.values())))
+        for name, (col, w) in self.layout.in_columns.items():
+            X[:, col:col + w] = arrays[name]
+        return X, total
+
+    def run_ticks(self, n: int, seed: int | None = None) -> dict[str, np.ndarray]:
+        """Reset and run ``n`` ticks of a graph without inputs (e.g. a noise generator)."""
+        self.reset(seed)
+        X = np.empty((n, 0))
+        width = sum(w for _, w in self.layout.out_columns.values())
+        Y = np.empty((n, width))
+        self._run(self.f, self.i, X, Y)
+        return {name: np.ascontiguousarray(Y[:, c:c + w]).reshape((n, *self.resolved.output_specs[name].shape))
+                for name, (c, w) in self.layout.out_columns.items()}
+
+
+def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
+               plugins: tuple[str | Path, ...] = (), block_rows: int = DEFAULT_BLOCK_ROWS) -> Graph:
+    """Read, check and compile the graph file at ``path``.
+
+    ``overrides`` maps ``"node.param"`` to a value (as ``--set`` does);
+    ``plugins`` adds plugin folders to ``./plugins`` and ``$FLOWTEX_PLUGINS``.
+    Raises :class:`flowtex.errors.GraphError` listing every problem.
+    """
+    spec = load_spec(path, dict(overrides or {}))
+    resolved = resolve_graph(spec, load_registry(plugins))
+    return Graph(resolved, block_rows)
+
+
+def check_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
+                plugins: tuple[str | Path, ...] = ()) -> ResolvedGraph:
+    """Validate without compiling (what ``flowtex validate`` does)."""
+    spec = load_spec(path, dict(overrides or {}))
+    return resolve_graph(spec, load_registry(plugins))

@@ -1,0 +1,78 @@
+"""Turn generated source into numba functions, cached on disk.
+
+The source is written once to ``<cache>/codegen/g_<hash>.py``, where the hash
+covers the source text, the identity and source of every kernel it calls,
+and the numba and flowtex versions. numba's own ``cache=True`` then stores the
+machine code beside it, so a second process building a graph of the same
+structure (whatever its parameter values or model files) loads instead of
+compiling.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import inspect
+import os
+import sys
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from types import ModuleType
+
+import numba
+
+CACHE_ENV = "FLOWTEX_CACHE_DIR"
+
+
+def cache_dir() -> Path:
+    """Root of flowtex's on-disk cache (``$FLOWTEX_CACHE_DIR`` or ``~/.cache/flowtex``)."""
+    root = os.environ.get(CACHE_ENV)
+    if root:
+        return Path(root)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".cache") / "flowtex"
+
+
+def kernel_fingerprint(kernel: Callable) -> str:
+    """Identity of a jitted kernel: where it lives and its source text."""
+    func = getattr(kernel, "py_func", kernel)
+    try:
+        source = inspect.getsource(func)
+    except (OSError, TypeError):
+        source = repr(func.__code__.co_code)
+    return f"{func.__module__}.{func.__qualname__}:{hashlib.sha256(source.encode()).hexdigest()}"
+
+
+_LOADED: dict[str, ModuleType] = {}
+
+
+def load_generated(source: str, kernels: dict[str, Callable], extra_key: str = "") -> ModuleType:
+    """Import the generated ``source`` with ``kernels`` as its globals."""
+    from .. import __version__
+
+    h = hashlib.sha256()
+    h.update(source.encode())
+    for name in sorted(kernels):
+        h.update(f"{name}={kernel_fingerprint(kernels[name])}".encode())
+    h.update(f"numba={numba.__version__};flowtex={__version__};{extra_key}".encode())
+    digest = h.hexdigest()[:24]
+    if digest in _LOADED:
+        return _LOADED[digest]
+    folder = cache_dir() / "codegen"
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"g_{digest}.py"
+    if not path.exists() or path.read_text() != source:
+        fd, tmp = tempfile.mkstemp(dir=folder, suffix=".tmp")
+        with os.fdopen(fd, "w") as fh:
+            fh.write(source)
+        os.replace(tmp, path)
+    mod_name = f"flowtex_generated_{digest}"
+    spec = importlib.util.spec_from_file_location(mod_name, path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    module.__dict__.update(kernels)
+    sys.modules[mod_name] = module
+    spec.loader.exec_module(module)
+    _LOADED[digest] = module
+    return module

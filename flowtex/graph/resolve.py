@@ -1,0 +1,304 @@
+"""GraphSpec + registry -> ResolvedGraph: checked, pruned, ordered, with built nodes.
+
+All problems are collected as diagnostics with file:line:col and raised
+together as one :class:`GraphError`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import networkx as nx
+
+from ..errors import DataError, Diagnostic, FlowtexError, GraphError, Location, ParamError
+from ..node_api import BuildContext, Node, NodeState, Port, PortSpec, suggest
+from ..registry import Registry
+from .spec import EdgeSpec, Endpoint, GraphSpec, NodeSpec
+
+
+@dataclass
+class ResolvedNode:
+    spec: NodeSpec
+    cls: type[Node]
+    params: dict[str, Any]
+    node: Node | None = None
+    sources: dict[str, Endpoint | None] = field(default_factory=dict)
+    """Input port -> producer endpoint, or None for an unconnected optional input."""
+    in_specs: dict[str, PortSpec] = field(default_factory=dict)
+    out_specs: dict[str, PortSpec] = field(default_factory=dict)
+    state: NodeState | None = None
+
+
+@dataclass
+class ResolvedGraph:
+    spec: GraphSpec
+    nodes: dict[str, ResolvedNode]
+    """Kept nodes, in execution order."""
+    dropped: list[str]
+    input_specs: dict[str, PortSpec]
+    output_specs: dict[str, PortSpec]
+    cyclic: bool
+    dataflow: nx.DiGraph
+
+    @property
+    def order(self) -> list[str]:
+        return list(self.nodes)
+
+
+class _Checker:
+    def __init__(self, spec: GraphSpec, registry: Registry):
+        self.spec = spec
+        self.registry = registry
+        self.diagnostics: list[Diagnostic] = []
+
+    def error(self, loc: Location, message: str) -> None:
+        self.diagnostics.append(Diagnostic(loc, message))
+
+    def fail_if_any(self) -> None:
+        if self.diagnostics:
+            raise GraphError(self.diagnostics)
+
+
+def resolve_graph(spec: GraphSpec, registry: Registry) -> ResolvedGraph:
+    """Check ``spec`` against the node types in ``registry`` and build its nodes."""
+    ck = _Checker(spec, registry)
+    nodes = _typed_nodes(ck)
+    edge_of = _check_edges(ck, nodes)
+    _check_outputs(ck, nodes)
+    _check_unconnected(ck, nodes)
+    ck.fail_if_any()
+
+    dataflow = nx.DiGraph()
+    dataflow.add_nodes_from(nodes)
+    for (dst, _port), edge in edge_of.items():
+        if edge.src.node is not None:
+            dataflow.add_edge(edge.src.node, dst)
+    ordering = dataflow.copy()
+    ordering.remove_edges_from([(u, v) for u, v in dataflow.edges if nodes[v].cls.breaks_cycles])
+    cyclic = not nx.is_directed_acyclic_graph(dataflow)
+    if not nx.is_directed_acyclic_graph(ordering):
+        for cycle in nx.simple_cycles(ordering):
+            first = nodes[cycle[0]].spec
+            path = " -> ".join(cycle + [cycle[0]])
+            ck.error(first.loc, f"cycle {path} does not pass through a delay node; insert a 'delay' node to break the loop")
+            break
+        ck.fail_if_any()
+
+    wanted = {o.src.node for o in spec.outputs.values() if o.src.node is not None}
+    keep: set[str] = set(wanted)
+    for name in wanted:
+        keep |= nx.ancestors(dataflow, name)
+    position = {name: i for i, name in enumerate(spec.nodes)}
+    order = [n for n in nx.lexicographical_topological_sort(ordering.subgraph(keep), key=lambda n: position[n])]
+    dropped = [n for n in spec.nodes if n in nodes and n not in keep]
+    if not cyclic:
+        cyclic = False
+
+    input_specs = {name: PortSpec(i.shape, i.unit) for name, i in spec.inputs.items()}
+    kept = {name: nodes[name] for name in order}
+    _resolve_ports(ck, kept, input_specs, edge_of, cyclic)
+    ck.fail_if_any()
+    _build_nodes(ck, kept)
+    ck.fail_if_any()
+
+    output_specs: dict[str, PortSpec] = {}
+    for name, out in spec.outputs.items():
+        if out.src.node is None:
+            output_specs[name] = input_specs[out.src.port]
+        else:
+            output_specs[name] = kept[out.src.node].out_specs[out.src.port]
+    return ResolvedGraph(spec, kept, dropped, input_specs, output_specs, cyclic, dataflow)
+
+
+def _typed_nodes(ck: _Checker) -> dict[str, ResolvedNode]:
+    out: dict[str, ResolvedNode] = {}
+    for name, ns in ck.spec.nodes.items():
+        cls = ck.registry.get(ns.type)
+        if cls is None:
+            ck.error(ns.type_loc, f"node {name!r}: unknown node type {ns.type!r}{suggest(ns.type, ck.registry.names())}; run 'flowtex nodes' to list them")
+            continue
+        params = _check_params(ck, ns, cls)
+        if params is not None:
+            out[name] = ResolvedNode(ns, cls, params)
+    return out
+
+
+def _check_params(ck: _Checker, ns: NodeSpec, cls: type[Node]) -> dict[str, Any] | None:
+    ok = True
+    values: dict[str, Any] = {}
+    for key, value in ns.params.items():
+        loc = ns.param_locs.get(key, ns.params_loc)
+        decl = cls.params.get(key) if isinstance(key, str) else None
+        if decl is None:
+            ck.error(loc, f"node {ns.name!r} ({ns.type}): unknown parameter {key!r}{suggest(str(key), list(cls.params))}"
+                     + ("" if suggest(str(key), list(cls.params)) else f"; parameters are: {', '.join(cls.params) or 'none'}"))
+            ok = False
+            continue
+        try:
+            values[key] = decl.coerce(value, ck.spec.path.parent)
+        except ValueError as exc:
+            ck.error(loc, f"node {ns.name!r} ({ns.type}): parameter {key!r} {exc} (expected {decl.describe_type()})")
+            ok = False
+    for key, decl in cls.params.items():
+        if key not in values and key not in ns.params:
+            if decl.required:
+                ck.error(ns.params_loc, f"node {ns.name!r} ({ns.type}): missing required parameter {key!r} ({decl.describe_type()}: {decl.doc})")
+                ok = False
+            else:
+                values[key] = decl.coerce(decl.default, ck.spec.path.parent) if decl.default is not None else None
+    return values if ok else None
+
+
+def _port_names(ports: dict[str, Port]) -> str:
+    return ", ".join(ports) or "none"
+
+
+def _check_edges(ck: _Checker, nodes: dict[str, ResolvedNode]) -> dict[tuple[str, str], EdgeSpec]:
+    edge_of: dict[tuple[str, str], EdgeSpec] = {}
+    for edge in ck.spec.edges:
+        ok = _check_source(ck, nodes, edge.src, edge.loc)
+        dst = edge.dst
+        if dst.node not in ck.spec.nodes:
+            ck.error(edge.loc, f"edge {edge.text!r}: no node {dst.node!r}{suggest(str(dst.node), list(ck.spec.nodes))}")
+            continue
+        if dst.node not in nodes:
+            continue
+        cls = nodes[dst.node].cls
+        if dst.port not in cls.inputs:
+            ck.error(edge.loc, f"edge {edge.text!r}: node {dst.node!r} ({cls.type_name}) has no input {dst.port!r}"
+                     f"{suggest(dst.port, list(cls.inputs))}; its inputs are: {_port_names(cls.inputs)}")
+            continue
+        key = (dst.node, dst.port)
+        if key in edge_of:
+            first = edge_of[key]
+            ck.error(edge.loc, f"input {dst.node}.{dst.port} is connected twice (also at line {first.loc.line}); an input takes exactly one edge")
+            continue
+        if ok:
+            edge_of[key] = edge
+    return edge_of
+
+
+def _check_source(ck: _Checker, nodes: dict[str, ResolvedNode], src: Endpoint, loc: Location) -> bool:
+    if src.node is None:
+        if src.port not in ck.spec.inputs:
+            names = list(ck.spec.inputs) + list(ck.spec.nodes)
+            ck.error(loc, f"{src.port!r} is not a graph input{suggest(src.port, names)}; name a node output as node.port")
+            return False
+        return True
+    if src.node not in ck.spec.nodes:
+        ck.error(loc, f"no node {src.node!r}{suggest(src.node, list(ck.spec.nodes))}")
+        return False
+    if src.node not in nodes:
+        return False
+    cls = nodes[src.node].cls
+    if src.port not in cls.outputs:
+        ck.error(loc, f"node {src.node!r} ({cls.type_name}) has no output {src.port!r}"
+                 f"{suggest(src.port, list(cls.outputs))}; its outputs are: {_port_names(cls.outputs)}")
+        return False
+    return True
+
+
+def _check_outputs(ck: _Checker, nodes: dict[str, ResolvedNode]) -> None:
+    for out in ck.spec.outputs.values():
+        _check_source(ck, nodes, out.src, out.loc)
+
+
+def _check_unconnected(ck: _Checker, nodes: dict[str, ResolvedNode]) -> None:
+    connected = {(e.dst.node, e.dst.port) for e in ck.spec.edges}
+    for name, rn in nodes.items():
+        for port_name, port in rn.cls.inputs.items():
+            if (name, port_name) in connected:
+                rn.sources[port_name] = None  # filled below
+            elif not port.optional:
+                ck.error(rn.spec.loc, f"node {name!r} ({rn.cls.type_name}): input {port_name!r} is not connected; add an edge '... -> {name}.{port_name}'")
+            else:
+                rn.sources[port_name] = None
+    for edge in ck.spec.edges:
+        if edge.dst.node in nodes and edge.dst.port in nodes[edge.dst.node].cls.inputs:
+            nodes[edge.dst.node].sources[edge.dst.port] = edge.src
+
+
+def _port_check(port: Port, name: str, got: PortSpec, specs: dict[str, PortSpec]) -> str | None:
+    shape = port.shape
+    if isinstance(shape, str):
+        ref = specs.get(shape[1:])
+        shape = ref.shape if ref is not None else None
+    if shape is not None and tuple(shape) != got.shape:
+        want = PortSpec(tuple(shape)).describe().split(" [")[0]
+        return f"shape mismatch: {got.describe().split(' [')[0]} arrives at input {name!r}, which takes {want}"
+    unit = port.unit
+    if unit.startswith("="):
+        ref = specs.get(unit[1:])
+        unit = ref.unit if ref is not None else "*"
+    if unit != "*" and unit != got.unit:
+        fix = f"declare unit: {unit}" if got.unit == "" else "convert with a gain node or fix the declared unit"
+        return (f"unit mismatch: '{got.unit or 'dimensionless'}' arrives at input {name!r}, which takes "
+                f"'{unit or 'dimensionless'}' ({fix})")
+    return None
+
+
+def _resolve_ports(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[str, PortSpec],
+                   edge_of: dict[tuple[str, str], EdgeSpec], cyclic: bool) -> None:
+    provisional: dict[str, PortSpec] = {}
+    for name, rn in nodes.items():
+        ctx = BuildContext(rate=ck.spec.rate, base_dir=ck.spec.path.parent, every=rn.spec.every)
+        specs: dict[str, PortSpec] = {}
+        bad = False
+        for port_name, port in rn.cls.inputs.items():
+            src = rn.sources.get(port_name)
+            if src is None:
+                shape = port.shape if isinstance(port.shape, tuple) else ()
+                unit = port.unit if not (port.unit.startswith("=") or port.unit == "*") else ""
+                if isinstance(port.shape, str) and port.shape[1:] in specs:
+                    shape = specs[port.shape[1:]].shape
+                specs[port_name] = PortSpec(tuple(shape), unit)
+                continue
+            if src.node is None:
+                got = inputs[src.port]
+            elif src.node in nodes and nodes[src.node].out_specs:
+                got = nodes[src.node].out_specs[src.port]
+            else:  # feedback into a delay from a node later in the order
+                got = PortSpec()
+                provisional[name] = got
+            problem = _port_check(port, port_name, got, specs)
+            if problem:
+                ck.error(edge_of[(name, port_name)].loc, f"edge {edge_of[(name, port_name)].text!r}: {problem}")
+                bad = True
+            specs[port_name] = got
+        if bad:
+            continue
+        rn.in_specs = specs
+        try:
+            rn.node = rn.cls(name, rn.params, ctx)
+            rn.out_specs = rn.node.resolve(specs)
+        except ParamError as exc:
+            ck.error(_param_loc(rn, exc.param), f"node {name!r} ({rn.cls.type_name}): {exc}")
+        except (DataError, FlowtexError) as exc:
+            ck.error(rn.spec.loc, f"node {name!r} ({rn.cls.type_name}): {exc}")
+    for name, assumed in provisional.items():
+        rn = nodes[name]
+        for port_name, src in rn.sources.items():
+            if src is not None and src.node is not None and nodes[src.node].out_specs:
+                actual = nodes[src.node].out_specs[src.port]
+                if actual != assumed:
+                    ck.error(edge_of[(name, port_name)].loc,
+                             f"feedback into delay {name!r} carries {actual.describe()}; feedback loops must carry dimensionless scalars")
+
+
+def _param_loc(rn: ResolvedNode, param: str | None) -> Location:
+    if param is not None and param in rn.spec.param_locs:
+        return rn.spec.param_locs[param]
+    return rn.spec.params_loc if param is not None else rn.spec.loc
+
+
+def _build_nodes(ck: _Checker, nodes: dict[str, ResolvedNode]) -> None:
+    for name, rn in nodes.items():
+        if rn.node is None:
+            continue
+        try:
+            rn.state = rn.node.build(rn.in_specs, rn.out_specs)
+        except ParamError as exc:
+            ck.error(_param_loc(rn, exc.param), f"node {name!r} ({rn.cls.type_name}): {exc}")
+        except (DataError, FlowtexError) as exc:
+            ck.error(rn.spec.loc, f"node {name!r} ({rn.cls.type_name}): {exc}")

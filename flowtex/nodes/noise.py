@@ -1,0 +1,43 @@
+"""White Gaussian noise, seeded per graph and node."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..dsp.rng import STATE_FLOATS, STATE_INTS, next_normal, seed_rng
+from ..node_api import Node, NodeState, Param, Port, PortSpec
+
+
+@njit(cache=True)
+def _white_noise(p, s, si, variance, y):
+    for t in range(y.shape[0]):
+        var = variance[t, 0]
+        z = next_normal(si, s)
+        y[t, 0] = np.sqrt(var) * z if var > 0.0 else 0.0
+
+
+class WhiteNoise(Node):
+    """Seeded white Gaussian noise with the given variance (parameter, or input when connected)."""
+
+    type_name = "white_noise"
+    uses_seed = True
+    params = {
+        "variance": Param("float", default=1.0, min=0.0, doc="variance when the variance input is not connected"),
+        "unit": Param("str", default="-", doc="unit of y ('-' for dimensionless)"),
+    }
+    inputs = {"variance": Port((), "*", "variance per tick; overrides the parameter when connected", optional=True)}
+    outputs = {"y": Port((), "", "noise sample")}
+    kernel = _white_noise
+
+    def resolve(self, inputs):
+        return {"y": PortSpec((), "" if self.p["unit"] == "-" else self.p["unit"])}
+
+    def input_default(self, name, spec):
+        return np.full(spec.width, self.p["variance"])
+
+    def build(self, inputs, outputs):
+        return NodeState(state=np.zeros(STATE_FLOATS), istate=np.zeros(STATE_INTS, np.int64))
+
+    def seed_state(self, state, istate, seed):
+        seed_rng(istate, state, seed)

@@ -1,0 +1,165 @@
+"""Node type registry: built-ins, installed packages and plugin folders, found one way.
+
+Every source of node types is a Python module; every :class:`~flowtex.node_api.Node`
+subclass with a ``type_name`` defined in it is registered.
+
+* Built-in nodes and installed packages: entry points of group ``flowtex.nodes``
+  (an entry point may name a module, a package -- all its public submodules --
+  or a single Node class). flowtex's own entry point names ``flowtex.nodes``.
+* Plugin folders: every ``*.py`` file in ``./plugins`` (searched automatically),
+  in each folder of ``FLOWTEX_PLUGINS`` (``os.pathsep``-separated) and in each
+  ``--plugins DIR``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import inspect
+import os
+import pkgutil
+import sys
+from collections.abc import Iterable
+from importlib.metadata import entry_points
+from pathlib import Path
+from types import ModuleType
+
+from .errors import FlowtexError
+from .node_api import Node
+
+ENTRY_POINT_GROUP = "flowtex.nodes"
+PLUGIN_ENV = "FLOWTEX_PLUGINS"
+
+# The built-in package, used when flowtex runs from a source tree without
+# installed metadata; the installed entry point names the same package.
+BUILTIN_PACKAGE = "flowtex.nodes"
+
+
+class Registry:
+    """A name -> Node class table with the origin of each entry."""
+
+    def __init__(self) -> None:
+        self.types: dict[str, type[Node]] = {}
+        self.origins: dict[str, str] = {}
+
+    def add_module(self, module: ModuleType, origin: str) -> None:
+        for obj in vars(module).values():
+            if inspect.isclass(obj) and issubclass(obj, Node) and obj.type_name and obj.__module__ == module.__name__:
+                self.add(obj, origin)
+
+    def add(self, cls: type[Node], origin: str) -> None:
+        name = cls.type_name
+        if name in self.types and self.types[name] is not cls:
+            raise FlowtexError(
+                f"{origin}: node type {name!r} is already defined by {self.origins[name]}; rename one of them"
+            )
+        self.types[name] = cls
+        self.origins[name] = origin
+
+    def get(self, name: str) -> type[Node] | None:
+        return self.types.get(name)
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.types
+
+    def names(self) -> list[str]:
+        return sorted(self.types)
+
+
+def plugin_dirs(extra: Iterable[str | Path] = ()) -> list[Path]:
+    """Plugin folders in search order: ``./plugins``, ``$FLOWTEX_PLUGINS``, then ``extra``."""
+    dirs: list[Path] = []
+    local = Path.cwd() / "plugins"
+    if local.is_dir():
+        dirs.append(local)
+    for item in os.environ.get(PLUGIN_ENV, "").split(os.pathsep):
+        if item:
+            dirs.append(Path(item))
+    dirs.extend(Path(d) for d in extra)
+    unique: list[Path] = []
+    for d in dirs:
+        resolved = d.resolve()
+        if resolved not in unique:
+            unique.append(resolved)
+    return unique
+
+
+def load_plugin_file(path: Path) -> ModuleType:
+    """Import one plugin file under a stable private module name."""
+    digest = hashlib.sha1(str(path.resolve()).encode()).hexdigest()[:10]
+    mod_name = f"flowtex_plugin_{path.stem}_{digest}"
+    if mod_name in sys.modules:
+        return sys.modules[mod_name]
+    spec = importlib.util.spec_from_file_location(mod_name, path)
+    if spec is None or spec.loader is None:
+        raise FlowtexError(f"{path}: cannot load plugin file")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[mod_name] = module
+    try:
+        spec.loader.exec_module(module)
+    except FlowtexError:
+        del sys.modules[mod_name]
+        raise
+    except Exception as exc:  # a plugin's own bug: report it as the plugin's error
+        del sys.modules[mod_name]
+        line = _error_line(exc, path)
+        raise FlowtexError(f"{path}:{line}: plugin failed to load: {type(exc).__name__}: {exc}") from exc
+    return module
+
+
+def _error_line(exc: BaseException, path: Path) -> int:
+    if isinstance(exc, SyntaxError) and exc.lineno:
+        return exc.lineno
+    tb = exc.__traceback__
+    line = 0
+    while tb is not None:
+        if Path(tb.tb_frame.f_code.co_filename).resolve() == path.resolve():
+            line = tb.tb_lineno
+        tb = tb.tb_next
+    return line
+
+
+def _with_submodules(module: ModuleType) -> list[ModuleType]:
+    """A module, or a package with all its public submodules (one level)."""
+    found = [module]
+    if hasattr(module, "__path__"):
+        for info in sorted(pkgutil.iter_modules(module.__path__), key=lambda m: m.name):
+            if not info.name.startswith("_"):
+                found.append(importlib.import_module(f"{module.__name__}.{info.name}"))
+    return found
+
+
+_CACHE: dict[tuple[Path, ...], Registry] = {}
+
+
+def load_registry(plugins: Iterable[str | Path] = ()) -> Registry:
+    """Registry with built-ins, installed entry points and plugin folders."""
+    dirs = tuple(plugin_dirs(plugins))
+    if dirs in _CACHE:
+        return _CACHE[dirs]
+    reg = Registry()
+    seen_modules: set[str] = set()
+    for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name):
+        try:
+            obj = ep.load()
+        except Exception as exc:
+            raise FlowtexError(f"entry point {ep.name!r} ({ep.value}) failed to load: {exc}") from exc
+        if isinstance(obj, ModuleType):
+            seen_modules.add(obj.__name__)
+            for module in _with_submodules(obj):
+                reg.add_module(module, f"entry point {ep.value}")
+        elif inspect.isclass(obj) and issubclass(obj, Node):
+            reg.add(obj, f"entry point {ep.value}")
+        else:
+            raise FlowtexError(f"entry point {ep.name!r} ({ep.value}) is neither a module nor a Node class")
+    if BUILTIN_PACKAGE not in seen_modules:
+        for module in _with_submodules(importlib.import_module(BUILTIN_PACKAGE)):
+            reg.add_module(module, module.__name__)
+    for folder in dirs:
+        if not folder.is_dir():
+            raise FlowtexError(f"{folder}: plugin folder does not exist")
+        for path in sorted(folder.glob("*.py")):
+            reg.add_module(load_plugin_file(path), str(path))
+    _CACHE[dirs] = reg
+    return reg
