@@ -298,7 +298,7 @@ def _edges(c: _Collector, data: LocDict) -> list[EdgeSpec]:
         c.error(data.value_pos.get("edges"), 'edges must be a list of "producer.port -> consumer.port" strings')
         return []
     out: list[EdgeSpec] = []
-    for item, pos in zip(raw, raw.item_pos):
+    for item, pos in zip(raw, raw.item_pos, strict=False):
         if not isinstance(item, str):
             c.error(pos, f'edge must be a string "producer.port -> consumer.port", got {item!r}')
             continue
