@@ -1,0 +1,207 @@
+"""DeadlineClock: skip/miss logic with a fake time source (exact), plus a short real run (counts only)."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from flowtex.runtime.clock import DeadlineClock
+
+MS = 1_000_000
+US = 1_000
+
+
+class FakeTime:
+    """Fake monotonic clock: every now() call costs ``step`` ns; sleep(s) advances s (+ oversleep)."""
+
+    def __init__(self, t0: int = 10 * MS, step: int = US, oversleep: int = 0, sleep_fraction: float = 1.0) -> None:
+        self.t = t0
+        self.step = step
+        self.oversleep = oversleep
+        self.sleep_fraction = sleep_fraction
+        self.sleeps: list[float] = []
+        self.now_calls = 0
+
+    def now(self) -> int:
+        v = self.t
+        self.t += self.step
+        self.now_calls += 1
+        return v
+
+    def sleep(self, s: float) -> None:
+        assert s > 0, "never sleeps for a non-positive time"
+        self.sleeps.append(s)
+        self.t += int(round(s * 1e9 * self.sleep_fraction)) + self.oversleep
+
+    def work(self, ns: int) -> None:
+        self.t += ns
+
+
+def make(rate: float = 1000.0, spin_s: float = 200e-6, **kw) -> tuple[DeadlineClock, FakeTime]:
+    ft = FakeTime(**kw)
+    c = DeadlineClock(rate, spin_s=spin_s, sleep=ft.sleep, now=ft.now)
+    return c, ft
+
+
+def test_steady_ticks_hit_absolute_deadlines():
+    c, ft = make()
+    c.start()
+    t0 = 10 * MS  # the first now() call returns t0
+    for k in range(1, 21):
+        ft.work(300 * US)
+        nsleep = len(ft.sleeps)
+        late = c.wait()
+        assert c.tick == k
+        assert c.deadline_ns == t0 + k * MS  # absolute: no drift
+        assert c.missed == 0 and c.skipped == 0
+        # exactly one sleep, ending spin_s before the deadline (sleep then spin, never pure spin)
+        assert len(ft.sleeps) == nsleep + 1
+        # returned lateness is what the fake clock said at return; spin steps are 1 us
+        assert 0 <= late < US
+        assert ft.t - ft.step == c.deadline_ns + late
+
+
+def test_sleep_argument_leaves_spin_margin():
+    c, ft = make(step=0 + 1)  # 1 ns per now() call
+    c.start()  # now() -> t0, t becomes t0+1
+    ft.work(300 * US - 1)  # wait's first now() returns exactly t0 + 300 us
+    c.wait()
+    # remaining = 700 us, spin 200 us -> sleep 500 us
+    assert ft.sleeps[0] == pytest.approx(500e-6, abs=1e-12)
+
+
+def test_spin_duration_bounded_by_spin_s():
+    c, ft = make(spin_s=200e-6, step=US)
+    c.start()
+    ft.work(100 * US)
+    before = ft.now_calls
+    c.wait()
+    # one now() at entry, one after the sleep, then the spin: <= 200 us / 1 us + 1 calls
+    spin_calls = ft.now_calls - before - 2
+    assert 0 <= spin_calls <= 201
+
+
+def test_overrun_skips_without_burst():
+    c, ft = make()
+    c.start()
+    t0 = 10 * MS
+    ft.work(300 * US)
+    c.wait()  # tick 1 at t0 + 1 ms
+    assert c.tick == 1
+    # the work of tick 1 lasts 2.5 ms: deadlines of ticks 2 and 3 pass (t0+2ms, t0+3ms)
+    ft.work(2_500 * US)
+    late = c.wait()
+    assert c.skipped == 2
+    assert c.missed == 2
+    assert c.tick == 4
+    assert c.deadline_ns == t0 + 4 * MS
+    assert 0 <= late < US
+    # no catch-up afterwards: the next normal tick is tick 5 at t0 + 5 ms
+    ft.work(100 * US)
+    c.wait()
+    assert (c.tick, c.skipped, c.missed, c.deadline_ns) == (5, 0, 2, t0 + 5 * MS)
+
+
+def test_arriving_exactly_at_deadline_is_not_a_miss():
+    c, ft = make(step=1)
+    c.start()  # t0 returned, t = t0 + 1
+    t0 = 10 * MS
+    ft.work(MS - 1)  # wait()'s first now() returns exactly t0 + 1 ms
+    late = c.wait()
+    assert (c.tick, c.skipped, late) == (1, 0, 0)
+    assert ft.sleeps == []  # nothing to sleep
+    assert c.deadline_ns == t0 + MS
+
+
+def test_one_ns_past_deadline_is_one_miss():
+    c, ft = make(step=1)
+    c.start()
+    t0 = 10 * MS
+    ft.work(MS)  # first now() inside wait returns t0 + 1 ms + 1 ns
+    c.wait()
+    assert (c.tick, c.skipped, c.missed) == (2, 1, 1)
+    assert c.deadline_ns == t0 + 2 * MS
+
+
+def test_landing_exactly_on_a_later_deadline():
+    c, ft = make(step=1)
+    c.start()
+    t0 = 10 * MS
+    ft.work(3 * MS - 1)  # first now() returns exactly t0 + 3 ms: deadlines 1 and 2 passed, 3 is now
+    late = c.wait()
+    assert (c.tick, c.skipped, c.missed, late) == (3, 2, 2, 0)
+    assert c.deadline_ns == t0 + 3 * MS
+
+
+def test_oversleep_makes_a_late_tick_then_a_miss():
+    # the OS wakes us 1.5 ms late: the tick is late (not missed) ...
+    c, ft = make(oversleep=1_500 * US, step=1)
+    c.start()
+    t0 = 10 * MS
+    ft.work(100 * US)
+    late = c.wait()
+    assert c.tick == 1 and c.missed == 0
+    # wake-up = t0 + 100us (+1 for each now) + sleep to deadline - 200 us + 1.5 ms
+    assert late == pytest.approx(1_300 * US, abs=10)
+    assert late > MS
+    # ... and the next wait finds deadline 2 (t0 + 2 ms) already passed: one miss
+    ft.oversleep = 0
+    c.wait()
+    assert (c.tick, c.skipped, c.missed) == (3, 1, 1)
+    assert c.deadline_ns == t0 + 3 * MS
+
+
+def test_early_wakeups_sleep_again():
+    c, ft = make(sleep_fraction=0.5, step=1)
+    c.start()
+    ft.work(100 * US)
+    late = c.wait()
+    assert c.tick == 1 and c.missed == 0
+    assert len(ft.sleeps) > 1  # slept again after each early return
+    assert 0 <= late <= 1
+    assert all(s > 0 for s in ft.sleeps)
+
+
+def test_non_integer_period_rounds_to_ns():
+    c, ft = make(rate=3000.0)
+    assert c.period_ns == 333_333
+    c.start()
+    for _ in range(3):
+        c.wait()
+    assert c.deadline_ns == 10 * MS + 3 * 333_333
+
+
+def test_restart_resets_counters():
+    c, ft = make()
+    c.start()
+    ft.work(5 * MS)
+    c.wait()
+    assert c.missed > 0
+    c.start()
+    assert (c.tick, c.missed, c.skipped) == (0, 0, 0)
+
+
+def test_errors():
+    with pytest.raises(ValueError, match="rate_hz"):
+        DeadlineClock(0.0)
+    with pytest.raises(ValueError, match="rate_hz"):
+        DeadlineClock(float("nan"))
+    with pytest.raises(ValueError, match="spin_s"):
+        DeadlineClock(1000.0, spin_s=-1e-6)
+    with pytest.raises(RuntimeError, match="start"):
+        DeadlineClock(1000.0).wait()
+
+
+def test_short_real_run_is_consistent():
+    """Real clock, 1 kHz, 60 waits: only consistency of counts, no timing assertions."""
+    c = DeadlineClock(1000.0)
+    c.start()
+    t0 = c.deadline_ns
+    lates = []
+    for _ in range(60):
+        lates.append(c.wait())
+        assert time.perf_counter_ns() >= c.deadline_ns
+    assert c.tick == 60 + c.missed
+    assert c.deadline_ns == t0 + c.tick * c.period_ns
+    assert all(late >= 0 for late in lates)
