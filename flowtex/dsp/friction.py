@@ -1,0 +1,150 @@
+"""Friction kernels: HaTT's Coulomb/viscous rule and Dahl stick-slip (ALGORITHMS.md §5; seeds 000, 002 §3.3.1).
+
+Units: velocity mm/s, position mm, normal force N, friction force N. Forces
+are 3-vectors in the tangent plane; docs/friction.md derives the choices.
+
+Common conventions
+* A negative normal force is treated as 0 (no contact, no friction).
+* A non-finite normal force or velocity/position gives zero friction for that
+  tick; the Dahl state is then left untouched, so the next valid sample
+  continues from the last valid one (no NaN is ever stored).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .motion import finite3, update_normal
+
+VISCOUS_PER_MM_S = 0.004
+"""HaTT's viscous factor: F = -mu F_n 0.004 v with v in mm/s."""
+
+# ---- Coulomb / viscous layout ----------------------------------------------
+CF_MU, CF_THRESHOLD = 0, 1
+COULOMB_PARAMS = 2
+
+
+def coulomb_threshold(mu: float, mode: str) -> float:
+    """Speed (mm/s) at which the rule switches from viscous to Coulomb.
+
+    ``hatt``: mu / 0.004 (HaTT's rule; the force jumps from mu^2 F_n to mu F_n
+    there). ``continuous``: 1 / 0.004 = 250 mm/s, where the viscous line
+    mu F_n 0.004 v meets mu F_n, so the force is continuous in v.
+    """
+    if mode == "hatt":
+        return mu / VISCOUS_PER_MM_S
+    if mode == "continuous":
+        return 1.0 / VISCOUS_PER_MM_S
+    raise ValueError(f"unknown friction mode {mode!r}; use continuous or hatt")
+
+
+@njit(cache=True)
+def coulomb_block(p: np.ndarray, vel: np.ndarray, fn: np.ndarray, out: np.ndarray) -> None:
+    """Viscous below the threshold speed, Coulomb above, always opposing the velocity.
+
+    |v| < v_th: F = -mu F_n 0.004 v;  |v| >= v_th: F = -mu F_n v/|v|.
+    """
+    mu = p[CF_MU]
+    vth = p[CF_THRESHOLD]
+    for t in range(vel.shape[0]):
+        f = fn[t, 0]
+        if not (finite3(vel, t) and math.isfinite(f)) or f <= 0.0:
+            out[t, 0] = 0.0
+            out[t, 1] = 0.0
+            out[t, 2] = 0.0
+            continue
+        v0 = vel[t, 0]
+        v1 = vel[t, 1]
+        v2 = vel[t, 2]
+        speed = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+        if speed < vth:
+            k = -mu * f * VISCOUS_PER_MM_S
+        else:
+            k = -mu * f / speed
+        out[t, 0] = k * v0
+        out[t, 1] = k * v1
+        out[t, 2] = k * v2
+
+
+# ---- Dahl layout ---------------------------------------------------------------
+DP_MU, DP_ZMAX = 0, 1
+DAHL_PARAMS = 2
+DS_W = 0          # adhesion point w (3, mm)
+DS_XPREV = 3      # last valid tool position (3, mm)
+DS_NORMAL = 6     # last valid unit normal (3)
+DS_FN = 9         # normal force of the last valid tick (N, >= 0)
+DAHL_STATE = 10
+DI_STARTED = 0
+DAHL_ISTATE = 1
+
+
+@njit(cache=True)
+def dahl_block(p: np.ndarray, s: np.ndarray, si: np.ndarray, pos: np.ndarray, fn: np.ndarray, nrm: np.ndarray,
+               out: np.ndarray) -> None:
+    """Dahl stick-slip friction in the tangent plane, energy-limited under a varying normal force.
+
+    Per valid tick i (P = I - n n^T projects onto the tangent plane):
+
+    1. If F_n rose (F_n,i > F_n,i-1 > ... ), shrink the spring so its stored
+       energy mu F_n |z|^2 / (2 z_max) does not grow: w moves towards x_{i-1}
+       by the factor sqrt(F_n,i-1 / F_n,i) (to x_{i-1} itself after lift-off).
+    2. z = P (x_i - w_{i-1}); if |z| > z_max: z <- z z_max / |z| and
+       w_i = x_i - z (the adhesion point is dragged along), else w_i = w_{i-1}.
+       On a straight path this is exactly 002 eq. (1).
+    3. F = -mu F_n z / z_max (002 eq. (2), opposing the stretch).
+
+    The first valid tick places w at the tool (F = 0).
+    """
+    mu = p[DP_MU]
+    zmax = p[DP_ZMAX]
+    for t in range(pos.shape[0]):
+        update_normal(nrm, t, s, DS_NORMAL)
+        f = fn[t, 0]
+        if not (finite3(pos, t) and math.isfinite(f)):
+            out[t, 0] = 0.0
+            out[t, 1] = 0.0
+            out[t, 2] = 0.0
+            continue
+        if f < 0.0:
+            f = 0.0
+        if si[DI_STARTED] == 0:
+            si[DI_STARTED] = 1
+            for c in range(3):
+                s[DS_W + c] = pos[t, c]
+                s[DS_XPREV + c] = pos[t, c]
+            s[DS_FN] = f
+        fprev = s[DS_FN]
+        if f > fprev:
+            shrink = math.sqrt(fprev / f)
+            for c in range(3):
+                xp = s[DS_XPREV + c]
+                s[DS_W + c] = xp - shrink * (xp - s[DS_W + c])
+        s[DS_FN] = f
+        n0 = s[DS_NORMAL]
+        n1 = s[DS_NORMAL + 1]
+        n2 = s[DS_NORMAL + 2]
+        r0 = pos[t, 0] - s[DS_W]
+        r1 = pos[t, 1] - s[DS_W + 1]
+        r2 = pos[t, 2] - s[DS_W + 2]
+        rn = r0 * n0 + r1 * n1 + r2 * n2
+        z0 = r0 - rn * n0
+        z1 = r1 - rn * n1
+        z2 = r2 - rn * n2
+        length = math.sqrt(z0 * z0 + z1 * z1 + z2 * z2)
+        if length > zmax:
+            k = zmax / length
+            z0 *= k
+            z1 *= k
+            z2 *= k
+            s[DS_W] = pos[t, 0] - z0
+            s[DS_W + 1] = pos[t, 1] - z1
+            s[DS_W + 2] = pos[t, 2] - z2
+        for c in range(3):
+            s[DS_XPREV + c] = pos[t, c]
+        g = -mu * f / zmax
+        out[t, 0] = g * z0
+        out[t, 1] = g * z1
+        out[t, 2] = g * z2

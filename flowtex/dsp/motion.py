@@ -1,0 +1,267 @@
+"""Speed estimation and contact detection kernels (ALGORITHMS.md §3, §6; seeds 000, 001 §4.1, 002 §3.3.2).
+
+Units: position in mm, velocity and speed in mm/s, force in N, normal vectors
+dimensionless. Every kernel works row by row over a block (``n`` rows), keeps
+all of its memory in the caller's ``p`` / ``s`` / ``si`` arrays and allocates
+nothing, so any split of a recording into blocks gives identical numbers.
+
+Speed estimator
+---------------
+velocity = backward difference of position times the rate (mm/s), low-passed
+per axis by one biquad (direct form I), then projected onto the tangent plane
+(v_t = v - (v.n) n); speed = |v_t|. The biquad is either
+
+* ``lowpass``: the first-order low-pass ``y += alpha (x - y)`` with its pole
+  at ``exp(-2 pi fc / fs)`` (the 20 Hz rendering filter of 000/001), or
+* ``hatt``: a second-order Butterworth (zeta = 1/sqrt 2) low-pass with its
+  corner at 125 rad/s, discretised by the bilinear transform with the corner
+  pre-warped (the same digital filter as ``scipy.signal.butter(2, 125/(2 pi),
+  fs=fs)``). The seeds say only "2nd-order low-pass at 125 rad/s"; the
+  Butterworth damping and the bilinear transform are flowtex's choice.
+
+Stationary-pen fix, streaming (001 §4.1): the position is high-passed at
+10 Hz (``x - LP10(x)``, first order) and then low-passed at 100 Hz (first
+order); both filters start at the first valid position, so there is no start
+transient. When the tangential part of that filtered displacement is shorter
+than ``threshold`` (0.06 mm in 001) the outputs are 0. For steady sliding at
+speed v the filtered displacement is about v / (2 pi 10 Hz), so 0.06 mm
+gates speeds below about 3.8 mm/s; a threshold of 0 disables the gate. The
+velocity filter keeps running while gated, so leaving the gate is smooth.
+
+Invalid samples: a position sample with a NaN/inf component is skipped: the
+filters do not advance and the outputs hold their last values. The next valid
+sample is differentiated against the last valid one over the whole gap
+(``(x - x_last) * fs / (gap + 1)``), i.e. the mean velocity across the gap,
+so a dropout neither poisons the state nor produces a spike. A normal input
+that is non-finite or shorter than 1e-9 is replaced by the last valid normal.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# ---- speed estimator layout -------------------------------------------------
+SP_RATE, SP_B0, SP_B1, SP_B2, SP_A1, SP_A2, SP_HP_ALPHA, SP_LP_ALPHA, SP_THRESHOLD = range(9)
+SPEED_PARAMS = 9
+SS_XPREV = 0      # last valid position (3)
+SS_NORMAL = 3     # last valid unit normal (3)
+SS_BIQUAD = 6     # per axis x1, x2, y1, y2 (12)
+SS_HP = 18        # 10 Hz low-pass state used by the high-pass (3)
+SS_LP = 21        # 100 Hz low-pass state of the high-passed position (3)
+SS_VEL = 24       # last output velocity (3)
+SS_SPEED = 27     # last output speed (1)
+SPEED_STATE = 28
+SI_STARTED, SI_GAP = 0, 1
+SPEED_ISTATE = 2
+
+# ---- contact layout -----------------------------------------------------------
+CP_RATE, CP_ON, CP_OFF = range(3)
+CONTACT_PARAMS = 3
+CS_XPREV = 0      # last valid position (3)
+CS_NORMAL = 3     # last valid unit normal (3)
+CS_INCOMING = 6   # held incoming speed (mm/s)
+CS_VN = 7         # latest approach speed estimate -(v.n) (mm/s)
+CONTACT_STATE = 8
+CI_STARTED, CI_GAP, CI_IN = 0, 1, 2
+CONTACT_ISTATE = 3
+
+MIN_NORMAL = 1e-9
+"""A normal vector shorter than this is treated as missing."""
+
+
+def first_order_biquad(cutoff_hz: float, rate_hz: float) -> tuple[float, float, float, float, float]:
+    """(b0, b1, b2, a1, a2) of ``y += alpha (x - y)`` with the pole at exp(-2 pi fc / fs)."""
+    pole = math.exp(-2.0 * math.pi * cutoff_hz / rate_hz)
+    return (1.0 - pole, 0.0, 0.0, -pole, 0.0)
+
+
+def butter2_biquad(omega_rad_s: float, rate_hz: float) -> tuple[float, float, float, float, float]:
+    """(b0, b1, b2, a1, a2) of a 2nd-order Butterworth low-pass, corner ``omega`` rad/s.
+
+    Bilinear transform of wc^2 / (s^2 + sqrt(2) wc s + wc^2) with the corner
+    pre-warped: K = tan(omega / (2 fs)), norm = 1 + sqrt(2) K + K^2.
+    """
+    if not 0.0 < omega_rad_s < math.pi * rate_hz:
+        raise ValueError(f"corner {omega_rad_s:g} rad/s must be between 0 and Nyquist ({math.pi * rate_hz:g} rad/s)")
+    k = math.tan(omega_rad_s / (2.0 * rate_hz))
+    norm = 1.0 + math.sqrt(2.0) * k + k * k
+    b0 = k * k / norm
+    return (b0, 2.0 * b0, b0, 2.0 * (k * k - 1.0) / norm, (1.0 - math.sqrt(2.0) * k + k * k) / norm)
+
+
+def speed_params(biquad: tuple[float, ...], rate_hz: float, threshold_mm: float) -> np.ndarray:
+    """Parameter array for :func:`speed_block` (layout ``SP_*``)."""
+    p = np.zeros(SPEED_PARAMS)
+    p[SP_RATE] = rate_hz
+    p[SP_B0:SP_A2 + 1] = biquad
+    p[SP_HP_ALPHA] = 1.0 - math.exp(-2.0 * math.pi * 10.0 / rate_hz)
+    p[SP_LP_ALPHA] = 1.0 - math.exp(-2.0 * math.pi * min(100.0, 0.45 * rate_hz) / rate_hz)
+    p[SP_THRESHOLD] = threshold_mm
+    return p
+
+
+def initial_normal_state(size: int, offset: int, normal: tuple[float, ...] | np.ndarray) -> np.ndarray:
+    """A zeroed state array of ``size`` with the unit ``normal`` stored at ``offset``."""
+    s = np.zeros(size)
+    n = np.asarray(normal, dtype=np.float64)
+    s[offset:offset + 3] = n / np.linalg.norm(n)
+    return s
+
+
+@njit(cache=True, inline="always")
+def update_normal(nrm: np.ndarray, t: int, s: np.ndarray, off: int) -> None:
+    """Store the normal of row ``t`` (normalised) in ``s[off:off+3]`` if it is finite and non-zero."""
+    a = nrm[t, 0]
+    b = nrm[t, 1]
+    c = nrm[t, 2]
+    length = math.sqrt(a * a + b * b + c * c)
+    if length > MIN_NORMAL and math.isfinite(length):
+        s[off] = a / length
+        s[off + 1] = b / length
+        s[off + 2] = c / length
+
+
+@njit(cache=True, inline="always")
+def finite3(x: np.ndarray, t: int) -> bool:
+    """True when row ``t`` of the 3-column array ``x`` is finite."""
+    return math.isfinite(x[t, 0]) and math.isfinite(x[t, 1]) and math.isfinite(x[t, 2])
+
+
+@njit(cache=True)
+def speed_block(p: np.ndarray, s: np.ndarray, si: np.ndarray, pos: np.ndarray, nrm: np.ndarray,
+                speed: np.ndarray, vel: np.ndarray) -> None:
+    """Tangential speed and velocity (mm/s) from position (mm); see the module docstring."""
+    rate = p[SP_RATE]
+    b0 = p[SP_B0]
+    b1 = p[SP_B1]
+    b2 = p[SP_B2]
+    a1 = p[SP_A1]
+    a2 = p[SP_A2]
+    ahp = p[SP_HP_ALPHA]
+    alp = p[SP_LP_ALPHA]
+    thr = p[SP_THRESHOLD]
+    for t in range(pos.shape[0]):
+        update_normal(nrm, t, s, SS_NORMAL)
+        if not finite3(pos, t):
+            si[SI_GAP] += 1
+            for c in range(3):
+                vel[t, c] = s[SS_VEL + c]
+            speed[t, 0] = s[SS_SPEED]
+            continue
+        if si[SI_STARTED] == 0:
+            si[SI_STARTED] = 1
+            for c in range(3):
+                s[SS_XPREV + c] = pos[t, c]
+                s[SS_HP + c] = pos[t, c]
+                s[SS_LP + c] = 0.0
+        scale = rate / (si[SI_GAP] + 1.0)
+        si[SI_GAP] = 0
+        n0 = s[SS_NORMAL]
+        n1 = s[SS_NORMAL + 1]
+        n2 = s[SS_NORMAL + 2]
+        # velocity filter and stationary displacement filter, per axis
+        f0 = 0.0
+        f1 = 0.0
+        f2 = 0.0
+        d0 = 0.0
+        d1 = 0.0
+        d2 = 0.0
+        for c in range(3):
+            x = pos[t, c]
+            v = (x - s[SS_XPREV + c]) * scale
+            s[SS_XPREV + c] = x
+            base = SS_BIQUAD + 4 * c
+            x1 = s[base]
+            x2 = s[base + 1]
+            y1 = s[base + 2]
+            y2 = s[base + 3]
+            y = b0 * v + b1 * x1 + b2 * x2 - a1 * y1 - a2 * y2
+            s[base] = v
+            s[base + 1] = x1
+            s[base + 2] = y
+            s[base + 3] = y1
+            lp10 = s[SS_HP + c] + ahp * (x - s[SS_HP + c])
+            s[SS_HP + c] = lp10
+            disp = s[SS_LP + c] + alp * ((x - lp10) - s[SS_LP + c])
+            s[SS_LP + c] = disp
+            if c == 0:
+                f0 = y
+                d0 = disp
+            elif c == 1:
+                f1 = y
+                d1 = disp
+            else:
+                f2 = y
+                d2 = disp
+        vn = f0 * n0 + f1 * n1 + f2 * n2
+        t0 = f0 - vn * n0
+        t1 = f1 - vn * n1
+        t2 = f2 - vn * n2
+        dn = d0 * n0 + d1 * n1 + d2 * n2
+        e0 = d0 - dn * n0
+        e1 = d1 - dn * n1
+        e2 = d2 - dn * n2
+        if thr > 0.0 and e0 * e0 + e1 * e1 + e2 * e2 < thr * thr:
+            t0 = 0.0
+            t1 = 0.0
+            t2 = 0.0
+        sp = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+        vel[t, 0] = t0
+        vel[t, 1] = t1
+        vel[t, 2] = t2
+        speed[t, 0] = sp
+        s[SS_VEL] = t0
+        s[SS_VEL + 1] = t1
+        s[SS_VEL + 2] = t2
+        s[SS_SPEED] = sp
+
+
+@njit(cache=True)
+def contact_block(p: np.ndarray, s: np.ndarray, si: np.ndarray, force: np.ndarray, pos: np.ndarray, nrm: np.ndarray,
+                  in_contact: np.ndarray, incoming: np.ndarray, onset: np.ndarray) -> None:
+    """Contact state with hysteresis, onset pulse and incoming (approach) speed.
+
+    Contact begins on the first tick with ``force >= on`` and ends on the first
+    tick with ``force < off`` (``off <= on``). The approach speed of a tick is
+    ``-(v . n)`` with ``v`` the backward-difference velocity of the position
+    (mm/s; over the whole gap after invalid samples), clamped at 0 (a tool
+    moving away has no incoming speed). At onset it is latched and held while
+    in contact; it reads 0 out of contact. A NaN/inf force keeps the contact
+    state unchanged (no onset); an invalid position keeps the last approach
+    speed estimate.
+    """
+    rate = p[CP_RATE]
+    on = p[CP_ON]
+    off = p[CP_OFF]
+    for t in range(force.shape[0]):
+        update_normal(nrm, t, s, CS_NORMAL)
+        if finite3(pos, t):
+            if si[CI_STARTED] != 0:
+                scale = rate / (si[CI_GAP] + 1.0)
+                vn = 0.0
+                for c in range(3):
+                    vn -= (pos[t, c] - s[CS_XPREV + c]) * scale * s[CS_NORMAL + c]
+                s[CS_VN] = vn if vn > 0.0 else 0.0
+            si[CI_STARTED] = 1
+            si[CI_GAP] = 0
+            for c in range(3):
+                s[CS_XPREV + c] = pos[t, c]
+        elif si[CI_STARTED] != 0:
+            si[CI_GAP] += 1
+        f = force[t, 0]
+        pulse = 0.0
+        if math.isfinite(f):
+            if si[CI_IN] == 0:
+                if f >= on:
+                    si[CI_IN] = 1
+                    s[CS_INCOMING] = s[CS_VN]
+                    pulse = 1.0
+            elif f < off:
+                si[CI_IN] = 0
+                s[CS_INCOMING] = 0.0
+        in_contact[t, 0] = float(si[CI_IN])
+        incoming[t, 0] = s[CS_INCOMING]
+        onset[t, 0] = pulse

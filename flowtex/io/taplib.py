@@ -1,0 +1,121 @@
+"""Read and write tap library files (JSON, format ``flowtex-tap-library`` version 1; docs/tap-library.md).
+
+Every problem with a file raises :class:`flowtex.errors.DataError` naming the
+file, the field (``taps[2].speed``) and the fix.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import DataError
+from ..models.taps import TapLibrary
+from ..node_api import suggest
+
+FORMAT = "flowtex-tap-library"
+VERSION = 1
+SPEED_UNIT = "mm/s"
+ACCEL_UNIT = "m/s^2"
+_TOP_KEYS = ("format", "version", "name", "notes", "sample_rate_hz", "speed_unit", "acceleration_unit", "taps")
+_TAP_KEYS = ("speed", "acceleration")
+
+
+def _number(path: Path, field: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise DataError(f"{path}: field {field!r}: expected a finite number, got {value!r}")
+    return float(value)
+
+
+def read_tap_library(path: str | Path) -> TapLibrary:
+    """Load a tap library file; see docs/tap-library.md for the format.
+
+    Transients shorter than the longest are padded with zeros at the end.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise DataError(f"{path}: tap library file not found (check the path; relative paths resolve against the graph file's folder)") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataError(f"{path}: cannot read tap library: {exc}") from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise DataError(f"{path}:{exc.lineno}:{exc.colno}: not valid JSON: {exc.msg}") from None
+    if not isinstance(doc, dict):
+        raise DataError(f"{path}: expected a JSON object with \"format\": \"{FORMAT}\" at the top level")
+    if doc.get("format") != FORMAT:
+        raise DataError(f"{path}: field 'format': expected {FORMAT!r}, got {doc.get('format')!r} (is this a tap library?)")
+    version = doc.get("version")
+    if version != VERSION:
+        raise DataError(f"{path}: field 'version': this flowtex reads version {VERSION}, got {version!r}")
+    for key in doc:
+        if key not in _TOP_KEYS:
+            raise DataError(f"{path}: unknown field {key!r}{suggest(str(key), _TOP_KEYS)}; allowed: {', '.join(_TOP_KEYS)}")
+    for key, unit in (("speed_unit", SPEED_UNIT), ("acceleration_unit", ACCEL_UNIT)):
+        if key in doc and doc[key] != unit:
+            raise DataError(f"{path}: field {key!r}: must be {unit!r}, got {doc[key]!r} (convert the data to {unit})")
+    if "sample_rate_hz" not in doc:
+        raise DataError(f"{path}: missing field 'sample_rate_hz' (the rate the transients were sampled at, Hz)")
+    rate = _number(path, "sample_rate_hz", doc["sample_rate_hz"])
+    if rate <= 0:
+        raise DataError(f"{path}: field 'sample_rate_hz': must be > 0, got {rate:g}")
+    name = doc.get("name", path.stem)
+    if not isinstance(name, str):
+        raise DataError(f"{path}: field 'name': expected a string, got {name!r}")
+    taps = doc.get("taps")
+    if not isinstance(taps, list) or not taps:
+        raise DataError(f"{path}: field 'taps': expected a non-empty list of {{\"speed\": mm/s, \"acceleration\": [m/s^2, ...]}}")
+    speeds: list[float] = []
+    series: list[np.ndarray] = []
+    for k, tap in enumerate(taps):
+        where = f"taps[{k}]"
+        if not isinstance(tap, dict):
+            raise DataError(f"{path}: field {where!r}: expected an object with 'speed' and 'acceleration'")
+        for key in tap:
+            if key not in _TAP_KEYS:
+                raise DataError(f"{path}: field '{where}.{key}' is unknown{suggest(str(key), _TAP_KEYS)}; a tap has 'speed' and 'acceleration'")
+        for key in _TAP_KEYS:
+            if key not in tap:
+                raise DataError(f"{path}: field '{where}.{key}' is missing")
+        speed = _number(path, f"{where}.speed", tap["speed"])
+        if speed <= 0:
+            raise DataError(f"{path}: field '{where}.speed': incoming speed must be > 0 mm/s, got {speed:g}")
+        acc = tap["acceleration"]
+        if not isinstance(acc, list) or not acc:
+            raise DataError(f"{path}: field '{where}.acceleration': expected a non-empty list of numbers (m/s^2)")
+        values = np.array([_number(path, f"{where}.acceleration[{i}]", a) for i, a in enumerate(acc)])
+        if speed in speeds:
+            other = speeds.index(speed)
+            raise DataError(f"{path}: field '{where}.speed': speed {speed:g} mm/s repeats taps[{other}].speed; average or drop one of them")
+        speeds.append(speed)
+        series.append(values)
+    length = max(len(a) for a in series)
+    order = np.argsort(speeds)
+    tr = np.zeros((len(series), length))
+    for row, k in enumerate(order):
+        tr[row, :len(series[k])] = series[k]
+    return TapLibrary(np.asarray(speeds)[order], tr, rate, name)
+
+
+def write_tap_library(path: str | Path, lib: TapLibrary, notes: str = "") -> Path:
+    """Write ``lib`` as a version-1 tap library file (JSON, numbers with full float64 precision)."""
+    path = Path(path)
+    doc: dict[str, Any] = {
+        "format": FORMAT,
+        "version": VERSION,
+        "name": lib.name,
+        "sample_rate_hz": lib.sample_rate_hz,
+        "speed_unit": SPEED_UNIT,
+        "acceleration_unit": ACCEL_UNIT,
+    }
+    if notes:
+        doc["notes"] = notes
+    doc["taps"] = [{"speed": float(v), "acceleration": [float(a) for a in row]} for v, row in zip(lib.speeds, lib.transients, strict=True)]
+    path.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+    return path

@@ -1,0 +1,118 @@
+"""Tap libraries: recorded (or synthetic) tapping transients labelled by incoming speed.
+
+A :class:`TapLibrary` holds K transients (accelerations in m/s^2, all L
+samples long at ``sample_rate_hz``) recorded at K distinct incoming speeds
+(mm/s), sorted by speed. Playback rules are in :mod:`flowtex.dsp.taps` and
+ALGORITHMS.md §6; the file format is in docs/tap-library.md and
+:mod:`flowtex.io.taplib`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class TapLibrary:
+    """Transients ``(K, L)`` in m/s^2 at increasing ``speeds`` ``(K,)`` in mm/s, sampled at ``sample_rate_hz``."""
+
+    speeds: np.ndarray
+    transients: np.ndarray
+    sample_rate_hz: float
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        speeds = np.asarray(self.speeds, dtype=np.float64)
+        tr = np.asarray(self.transients, dtype=np.float64)
+        if speeds.ndim != 1 or speeds.size == 0:
+            raise ValueError("a tap library needs at least one speed")
+        if tr.ndim != 2 or tr.shape[0] != speeds.size or tr.shape[1] == 0:
+            raise ValueError(f"transients must have shape ({speeds.size}, L) with L >= 1, got {tr.shape}")
+        if not (np.all(np.isfinite(speeds)) and np.all(speeds > 0)):
+            raise ValueError("speeds must be finite and > 0 mm/s")
+        if np.any(np.diff(speeds) <= 0):
+            raise ValueError("speeds must be strictly increasing (sort the taps; merge or drop taps with equal speeds)")
+        if not np.all(np.isfinite(tr)):
+            raise ValueError("transients must be finite")
+        if not (np.isfinite(self.sample_rate_hz) and self.sample_rate_hz > 0):
+            raise ValueError(f"sample rate must be > 0 Hz, got {self.sample_rate_hz!r}")
+        object.__setattr__(self, "speeds", speeds)
+        object.__setattr__(self, "transients", tr)
+        object.__setattr__(self, "sample_rate_hz", float(self.sample_rate_hz))
+
+    @property
+    def length(self) -> int:
+        """Samples per transient."""
+        return int(self.transients.shape[1])
+
+    @property
+    def duration_s(self) -> float:
+        """Length of a transient in seconds."""
+        return self.length / self.sample_rate_hz
+
+    def transient(self, speed_mm_s: float) -> np.ndarray:
+        """The acceleration transient (m/s^2) played for an incoming speed, by the rules of ALGORITHMS §6."""
+        v = float(speed_mm_s)
+        s = self.speeds
+        if not v > 0.0:
+            return np.zeros(self.length)
+        if v <= s[0]:
+            return self.transients[0] * (v / s[0])
+        if v >= s[-1]:
+            return self.transients[-1].copy()
+        j = int(np.searchsorted(s, v, side="left")) - 1
+        u = (v - s[j]) / (s[j + 1] - s[j])
+        return (1.0 - u) * self.transients[j] + u * self.transients[j + 1]
+
+
+def synthetic_tap_library(speeds: tuple[float, ...] = (20.0, 50.0, 100.0, 200.0), sample_rate_hz: float = 1000.0,
+                          duration_s: float = 0.1, freq_hz: float = 150.0, decay_s: float = 0.015,
+                          gain: float = 0.25, stiffening: float = 0.2, name: str = "synthetic") -> TapLibrary:
+    """Decaying sinusoids a_k(t) = gain v_k exp(-t / decay) sin(2 pi f_k t) (m/s^2), for tests and examples.
+
+    Amplitude grows linearly with the incoming speed v_k (mm/s; ``gain`` in
+    (m/s^2)/(mm/s)) as momentum does (002); the frequency rises mildly with
+    speed, f_k = freq_hz (1 + stiffening v_k / max v), so that interpolated
+    transients differ from scaled ones. Hard surfaces: high ``freq_hz``,
+    short ``decay_s``.
+    """
+    speeds_arr = np.asarray(sorted(speeds), dtype=np.float64)
+    n = int(round(duration_s * sample_rate_hz))
+    t = np.arange(n) / sample_rate_hz
+    freqs = freq_hz * (1.0 + stiffening * speeds_arr / speeds_arr[-1])
+    tr = gain * speeds_arr[:, None] * np.exp(-t[None, :] / decay_s) * np.sin(2 * np.pi * freqs[:, None] * t[None, :])
+    return TapLibrary(speeds_arr, tr, sample_rate_hz, name)
+
+
+def resample_tap_library(lib: TapLibrary, sample_rate_hz: float) -> TapLibrary:
+    """The library at another sample rate (polyphase resampling with scipy, same duration)."""
+    from scipy.signal import resample_poly
+
+    if sample_rate_hz == lib.sample_rate_hz:
+        return lib
+    ratio = Fraction(sample_rate_hz / lib.sample_rate_hz).limit_denominator(1000)
+    tr = resample_poly(lib.transients, ratio.numerator, ratio.denominator, axis=1)
+    n = max(1, int(round(lib.duration_s * sample_rate_hz)))
+    out = np.zeros((tr.shape[0], n))
+    m = min(n, tr.shape[1])
+    out[:, :m] = tr[:, :m]
+    return TapLibrary(lib.speeds, out, sample_rate_hz, lib.name)
+
+
+def spectral_centroid(lib: TapLibrary, speeds: tuple[float, ...] = (50.0, 60.0, 70.0, 80.0, 90.0, 100.0)) -> float:
+    """Mean tap spectral centroid (Hz) over the transients played at ``speeds`` (002 eq. 4; hardness predictor).
+
+    SC = sum X(f)^2 f / sum X(f)^2 with X the DFT magnitude of one transient.
+    Silent transients are skipped; returns 0 when all are silent.
+    """
+    values = []
+    freqs = np.fft.rfftfreq(lib.length, 1.0 / lib.sample_rate_hz)
+    for v in speeds:
+        power = np.abs(np.fft.rfft(lib.transient(v))) ** 2
+        total = power.sum()
+        if total > 0:
+            values.append(float((power * freqs).sum() / total))
+    return float(np.mean(values)) if values else 0.0

@@ -1,0 +1,122 @@
+"""Friction nodes: coulomb_friction (HaTT's viscous/Coulomb rule) and dahl_friction (stick-slip, 002 §3.3.1).
+
+Both output a tangential force 3-vector (N) opposing the motion; the math and
+its NaN policy live in flowtex.dsp.friction, the reasoning in docs/friction.md.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..dsp.friction import (
+    DAHL_ISTATE,
+    DAHL_STATE,
+    DS_NORMAL,
+    coulomb_block,
+    coulomb_threshold,
+    dahl_block,
+)
+from ..dsp.motion import initial_normal_state
+from ..errors import FlowtexError, ParamError
+from ..node_api import Node, NodeState, Param, Port, check
+
+DAHL_ZMAX_PER_MU_MM = 4.0
+"""002: z_max = 4 mm * mu_k."""
+
+
+def _mu(node: Node) -> float:
+    """Friction coefficient from ``mu`` or from the model set named by ``models``."""
+    mu, models = node.p["mu"], node.p.get("models")
+    if mu is not None and models is not None:
+        raise ParamError("models", "give either mu or models, not both")
+    if models is not None:
+        try:
+            from ..io.modelset import load_model_set
+        except ImportError:
+            raise ParamError("models", "this flowtex cannot read model sets (flowtex.io.modelset is missing); give mu instead") from None
+        try:
+            mu = load_model_set(models).mu
+        except FlowtexError as exc:
+            raise ParamError("models", str(exc)) from None
+        if mu is None or not math.isfinite(mu) or mu < 0:
+            raise ParamError("models", f"{models}: the model set has no usable friction coefficient (mu = {mu!r}); give mu instead")
+        return float(mu)
+    if mu is None:
+        raise ParamError("mu", "missing friction coefficient: give mu (e.g. mu: 0.3) or models (a model set file)")
+    return float(mu)
+
+
+@njit(cache=True)
+def _coulomb(p, s, si, velocity, normal_force, force):
+    coulomb_block(p, velocity, normal_force, force)
+
+
+class CoulombFriction(Node):
+    """Kinetic friction F = -mu F_n 0.004 v below a threshold speed, -mu F_n v/|v| above (HaTT's rule, 000).
+
+    mode ``continuous`` (default) puts the threshold at 1/0.004 = 250 mm/s
+    where both branches meet; ``hatt`` uses HaTT's mu/0.004 mm/s, with its
+    jump from mu^2 F_n to mu F_n. NaN velocity or force gives zero force.
+    """
+
+    type_name = "coulomb_friction"
+    params = {
+        "mu": Param("float", default=None, min=0.0, doc="kinetic friction coefficient mu_k (or give models)"),
+        "models": Param("path", default=None, doc="model set file whose friction coefficient is used instead of mu"),
+        "mode": Param("choice", default="continuous", choices=("continuous", "hatt"), doc="threshold rule (see summary)"),
+    }
+    inputs = {"velocity": Port((3,), "mm/s", "tangential velocity"), "normal_force": Port((), "N", "normal force (< 0 counts as 0)")}
+    outputs = {"force": Port((3,), "N", "friction force on the tool")}
+    kernel = _coulomb
+
+    def build(self, inputs, outputs):
+        mu = _mu(self)
+        return NodeState(params=np.array([mu, coulomb_threshold(mu, self.p["mode"])]))
+
+
+@njit(cache=True)
+def _dahl(p, s, si, position, normal_force, normal, force):
+    dahl_block(p, s, si, position, normal_force, normal, force)
+
+
+class DahlFriction(Node):
+    """Dahl stick-slip friction (002 §3.3.1) in the tangent plane: spring of stretch z <= z_max to an adhesion point.
+
+    F = -mu F_n z / z_max; the adhesion point is dragged along once the tool
+    is z_max away. When F_n rises the spring is shortened so its stored
+    energy never grows (passive; docs/friction.md).
+    """
+
+    type_name = "dahl_friction"
+    params = {
+        "mu": Param("float", default=None, min=0.0, doc="kinetic friction coefficient mu_k (or give models)"),
+        "models": Param("path", default=None, doc="model set file whose friction coefficient is used instead of mu"),
+        "z_max": Param("float", default=None, unit="mm", min=0.0, min_exclusive=True,
+                       doc="largest spring stretch; default 4 mm * mu (002)"),
+        "normal": Param("floats", default=(0.0, 0.0, 1.0), length=(3, 3), doc="surface normal when the normal input is not connected"),
+    }
+    inputs = {
+        "position": Port((3,), "mm", "tool position"),
+        "normal_force": Port((), "N", "normal force (< 0 counts as 0)"),
+        "normal": Port((3,), "", "surface normal (normalised; zero/NaN keeps the last valid one)", optional=True),
+    }
+    outputs = {"force": Port((3,), "N", "friction force on the tool")}
+    kernel = _dahl
+
+    def input_default(self, name, spec):
+        return np.asarray(self.p["normal"], dtype=np.float64)
+
+    def build(self, inputs, outputs):
+        check(math.hypot(*self.p["normal"]) > 1e-9, "normal", f"the normal {list(self.p['normal'])} has zero length")
+        mu = _mu(self)
+        z_max = self.p["z_max"]
+        if z_max is None:
+            z_max = DAHL_ZMAX_PER_MU_MM * mu
+            if z_max <= 0.0:
+                z_max = 1.0  # mu = 0: no force whatever z_max is
+        return NodeState(params=np.array([mu, z_max]),
+                         state=initial_normal_state(DAHL_STATE, DS_NORMAL, self.p["normal"]),
+                         istate=np.zeros(DAHL_ISTATE, np.int64))

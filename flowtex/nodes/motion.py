@@ -1,0 +1,125 @@
+"""Motion nodes: speed_estimator (tangential speed and velocity) and contact (hysteresis, onset, incoming speed)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ..dsp.motion import (
+    CONTACT_ISTATE,
+    CONTACT_STATE,
+    CS_NORMAL,
+    SPEED_ISTATE,
+    SPEED_STATE,
+    SS_NORMAL,
+    butter2_biquad,
+    contact_block,
+    first_order_biquad,
+    initial_normal_state,
+    speed_block,
+    speed_params,
+)
+from ..errors import ParamError
+from ..node_api import Node, NodeState, Param, Port, check
+
+HATT_CORNER_RAD_S = 125.0
+"""HaTT's speed filter corner (ALGORITHMS §3)."""
+
+_NORMAL_PARAM = Param("floats", default=(0.0, 0.0, 1.0), length=(3, 3),
+                      doc="surface normal used when the normal input is not connected (normalised; need not be unit)")
+_NORMAL_PORT = Port((3,), "", "surface normal (normalised; a zero/NaN normal keeps the last valid one)", optional=True)
+
+
+def _check_normal(normal: tuple[float, ...]) -> None:
+    check(math.hypot(*normal) > 1e-9, "normal", f"the normal {list(normal)} has zero length; give a direction such as [0, 0, 1]")
+
+
+@njit(cache=True)
+def _speed(p, s, si, position, normal, speed, velocity):
+    speed_block(p, s, si, position, normal, speed, velocity)
+
+
+class SpeedEstimator(Node):
+    """Tangential tool speed and velocity (mm/s) from position (mm): backward difference, low-pass, projection, stationary gate.
+
+    ``lowpass``: first-order low-pass at ``cutoff_hz`` (20 Hz as in HaTT/001).
+    ``hatt``: 2nd-order Butterworth at 125 rad/s (bilinear, pre-warped). The
+    stationary gate (001 §4.1) zeroes the outputs while the 10 Hz high-passed,
+    100 Hz low-passed tangential displacement is shorter than ``stationary_mm``.
+    NaN/inf positions are skipped (outputs hold); see flowtex.dsp.motion.
+    """
+
+    type_name = "speed_estimator"
+    params = {
+        "method": Param("choice", default="lowpass", choices=("lowpass", "hatt"), doc="velocity filter"),
+        "cutoff_hz": Param("float", default=20.0, unit="Hz", min=0.0, min_exclusive=True, doc="corner of the lowpass method"),
+        "stationary_mm": Param("float", default=0.06, unit="mm", min=0.0,
+                               doc="stationary threshold on the filtered displacement (001 §4.1); 0 disables it"),
+        "normal": _NORMAL_PARAM,
+    }
+    inputs = {"position": Port((3,), "mm", "tool position"), "normal": _NORMAL_PORT}
+    outputs = {"speed": Port((), "mm/s", "tangential speed |v_t|"), "velocity": Port((3,), "mm/s", "tangential velocity v_t")}
+    kernel = _speed
+
+    def input_default(self, name, spec):
+        return np.asarray(self.p["normal"], dtype=np.float64)
+
+    def build(self, inputs, outputs):
+        _check_normal(self.p["normal"])
+        rate = self.context.node_rate
+        if self.p["method"] == "lowpass":
+            if self.p["cutoff_hz"] >= rate / 2:
+                raise ParamError("cutoff_hz", f"cutoff {self.p['cutoff_hz']:g} Hz must be below Nyquist ({rate / 2:g} Hz)")
+            biquad = first_order_biquad(self.p["cutoff_hz"], rate)
+        else:
+            try:
+                biquad = butter2_biquad(HATT_CORNER_RAD_S, rate)
+            except ValueError as exc:
+                raise ParamError("method", f"hatt filter at node rate {rate:g} Hz: {exc}") from None
+        return NodeState(params=speed_params(biquad, rate, self.p["stationary_mm"]),
+                         state=initial_normal_state(SPEED_STATE, SS_NORMAL, self.p["normal"]),
+                         istate=np.zeros(SPEED_ISTATE, np.int64))
+
+
+@njit(cache=True)
+def _contact(p, s, si, normal_force, position, normal, in_contact, incoming_speed, onset):
+    contact_block(p, s, si, normal_force, position, normal, in_contact, incoming_speed, onset)
+
+
+class Contact(Node):
+    """Contact detection with force hysteresis: in_contact (0/1), onset pulse, incoming normal speed (mm/s) held while in contact.
+
+    Contact begins when normal_force >= on_n and ends when it falls below
+    off_n. incoming_speed is the approach speed -(v . n) of the backward
+    difference velocity at the onset tick (clamped at 0), held until release.
+    """
+
+    type_name = "contact"
+    params = {
+        "on_n": Param("float", default=0.1, unit="N", min=0.0, doc="force at or above which contact begins"),
+        "off_n": Param("float", default=0.05, unit="N", min=0.0, doc="force below which contact ends (<= on_n)"),
+        "normal": _NORMAL_PARAM,
+    }
+    inputs = {
+        "normal_force": Port((), "N", "normal force"),
+        "position": Port((3,), "mm", "tool position"),
+        "normal": _NORMAL_PORT,
+    }
+    outputs = {
+        "in_contact": Port((), "", "1 while in contact, else 0"),
+        "incoming_speed": Port((), "mm/s", "approach speed at the onset, held while in contact; 0 out of contact"),
+        "onset": Port((), "", "1 on the tick contact begins, else 0"),
+    }
+    kernel = _contact
+
+    def input_default(self, name, spec):
+        return np.asarray(self.p["normal"], dtype=np.float64)
+
+    def build(self, inputs, outputs):
+        _check_normal(self.p["normal"])
+        check(self.p["off_n"] <= self.p["on_n"], "off_n", f"off_n ({self.p['off_n']:g} N) must be <= on_n ({self.p['on_n']:g} N)")
+        return NodeState(params=np.array([self.context.node_rate, self.p["on_n"], self.p["off_n"]]),
+                         state=initial_normal_state(CONTACT_STATE, CS_NORMAL, self.p["normal"]),
+                         istate=np.zeros(CONTACT_ISTATE, np.int64))

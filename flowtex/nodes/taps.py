@@ -1,0 +1,54 @@
+"""tap_player: speed-dependent tapping transients played as a force from each contact onset (002 §3.3.2)."""
+
+from __future__ import annotations
+
+from numba import njit
+
+from ..dsp.taps import initial_tap_state, tap_block, tap_params
+from ..errors import DataError, ParamError
+from ..io.taplib import read_tap_library
+from ..node_api import Node, NodeState, Param, Port
+
+HAND_MASS_KG = 0.05
+"""Effective mass of hand + handle (000, 002)."""
+
+
+@njit(cache=True)
+def _taps(p, s, si, in_contact, incoming_speed, force):
+    tap_block(p, s, si, in_contact, incoming_speed, force)
+
+
+class TapPlayer(Node):
+    """Tap transient F = m a(t; v_in) (N) started on each rising edge of in_contact, interpolated by incoming speed.
+
+    Below the slowest recorded tap the slowest transient is scaled by
+    v_in / v_min, above the fastest the fastest is played, in between the two
+    bounding transients are mixed linearly in speed. Playback lasts one
+    transient (about 100 ms) and restarts on a new contact.
+    """
+
+    type_name = "tap_player"
+    params = {
+        "library": Param("path", doc="tap library file (docs/tap-library.md); relative to the graph file"),
+        "mass": Param("float", default=HAND_MASS_KG, unit="kg", min=0.0, doc="effective mass m of hand + handle"),
+    }
+    inputs = {
+        "in_contact": Port((), "", "contact state 0/1 (a rising edge starts a tap)"),
+        "incoming_speed": Port((), "mm/s", "incoming speed, read on the onset tick"),
+    }
+    outputs = {"force": Port((), "N", "tap transient force")}
+    kernel = _taps
+
+    def build(self, inputs, outputs):
+        path = self.p["library"]
+        try:
+            lib = read_tap_library(path)
+        except DataError as exc:
+            raise ParamError("library", str(exc)) from None
+        rate = self.context.node_rate
+        if abs(lib.sample_rate_hz - rate) > 1e-9 * rate:
+            raise ParamError("library", f"{path}: tap library is sampled at {lib.sample_rate_hz:g} Hz but this node runs at {rate:g} Hz; "
+                             f"resample it (flowtex.models.taps.resample_tap_library, then flowtex.io.taplib.write_tap_library) "
+                             f"or run the node at the library's rate")
+        s, si = initial_tap_state(lib.length)
+        return NodeState(params=tap_params(self.p["mass"], lib.speeds, lib.transients), state=s, istate=si)
