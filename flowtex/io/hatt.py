@@ -1,0 +1,304 @@
+"""Penn Haptic Texture Toolkit (HaTT) model files: read them, and write files of the same shape.
+
+The format is documented in ``/work/shared/formats/hatt-models.md`` and
+``docs/model-sets.md``: one ``<modelSet>`` root with scalar children
+(``material``, ``SampleRate``, ``mu``, ``numMod``, ``numTri``, ``maxSpeed``,
+``maxForce``, ``numARCoeff``, ``numMACoeff``, units and picture paths),
+``<speedList>``/``<forceList>`` arrays of ``<value>`` elements, ``numTri``
+``<tri>`` arrays of three **1-based** model numbers, and ``numMod``
+``<model>`` elements (``modNum``, ``ARcoeff``, ``ARlsf``, ``MAcoeff``,
+``MAlsf``, ``var``, ``gain``, ``speedMod``, ``forceMod``).
+
+Reading is one ``xml.etree`` parse and one pass over the elements (all 100
+published files load in well under a second). Every problem is reported as a
+:class:`~flowtex.errors.DataError` naming the file, the element and, inside a
+``<model>``, its ``modNum``.
+
+flowtex ships no HaTT file: :func:`write_hatt_xml` writes files of exactly
+this shape for tests and examples.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataError
+from ..models.synthetic import lsf_to_poly_reference
+from ..models.texture import TextureModelSet
+
+HATT_NAMES = {
+    "speeds": "<speedList>",
+    "forces": "<forceList>",
+    "triangles": "<tri>",
+    "ar_lsf": "<ARlsf>",
+    "ma_lsf": "<MAlsf>",
+    "variance": "<var>",
+    "gain": "<gain>",
+    "ar_coeff": "<ARcoeff>",
+    "ma_coeff": "<MAcoeff>",
+    "max_speed": "<maxSpeed>",
+    "max_force": "<maxForce>",
+    "sample_rate": "<SampleRate>",
+    "mu": "<mu>",
+    "model": "<model> modNum",
+}
+"""Element names used in validation messages for HaTT files."""
+
+_REQUIRED_SCALARS = ("material", "SampleRate", "mu", "numMod", "numTri", "maxSpeed", "maxForce", "numARCoeff", "numMACoeff")
+_MODEL_ARRAYS = ("ARcoeff", "ARlsf", "MAcoeff", "MAlsf")
+_MODEL_SCALARS = ("var", "gain")
+_EXPECTED_UNITS = {"SpeedUnits": "mm/s", "ForceUnits": "N", "AccelUnits": "m/s^2"}
+
+
+def _values(elem: ET.Element, where: str) -> list[float]:
+    """Numbers of an array element: its ``<value>`` children (or, failing that, whitespace-separated text)."""
+    items = [v.text for v in elem if v.tag == "value"]
+    if not items and elem.text and elem.text.strip():
+        items = elem.text.split()
+    try:
+        return [float(t) for t in items]
+    except (TypeError, ValueError):
+        bad = next((t for t in items if not _is_number(t)), None)
+        raise DataError(f"{where}: {bad!r} is not a number") from None
+
+
+def _is_number(text: str | None) -> bool:
+    try:
+        float(text)  # type: ignore[arg-type]
+        return True
+    except (TypeError, ValueError):
+        return False
+
+
+def read_hatt_xml(path: str | Path) -> TextureModelSet:
+    """Read one HaTT ``Models_<name>.xml`` file into a validated :class:`TextureModelSet`.
+
+    Triangles become 0-based. ``numARCoeff``/``numMACoeff`` are the orders
+    p and q (``ARlsf`` holds p values, ``ARcoeff`` p+1 with the leading 1); a
+    file that counts the leading 1 in ``numARCoeff`` is accepted too when its
+    arrays agree with that reading. Models are ordered by ``modNum``.
+    ``metadata`` keeps the texture index and the units. Raises
+    :class:`DataError` naming the file and element for anything missing,
+    malformed or inconsistent.
+    """
+    path = Path(path)
+    name = str(path)
+    try:
+        root = ET.parse(path).getroot()
+    except FileNotFoundError:
+        raise DataError(f"{name}: no such model file") from None
+    except ET.ParseError as exc:
+        raise DataError(f"{name}: not well-formed XML ({exc})") from None
+    except OSError as exc:
+        raise DataError(f"{name}: cannot read the model file ({exc.strerror or exc})") from None
+    if root.tag != "modelSet":
+        raise DataError(f"{name}: root element is <{root.tag}>, expected <modelSet> (is this a HaTT model file?)")
+
+    scalars: dict[str, str] = {}
+    speed_el = force_el = None
+    tris: list[ET.Element] = []
+    models: list[ET.Element] = []
+    for child in root:
+        tag = child.tag
+        if tag == "model":
+            models.append(child)
+        elif tag == "tri":
+            tris.append(child)
+        elif tag == "speedList":
+            speed_el = child
+        elif tag == "forceList":
+            force_el = child
+        else:
+            scalars[tag] = (child.text or "").strip()
+
+    missing = [k for k in _REQUIRED_SCALARS if k not in scalars]
+    if missing:
+        raise DataError(f"{name}: missing element(s) {', '.join('<' + k + '>' for k in missing)} under <modelSet>")
+    for key, want in _EXPECTED_UNITS.items():
+        got = scalars.get(key)
+        if got is not None and got != want:
+            raise DataError(f"{name}: <{key}> is {got!r}; flowtex reads HaTT files in {want} only (convert the file)")
+
+    def number(key: str) -> float:
+        try:
+            value = float(scalars[key])
+        except ValueError:
+            raise DataError(f"{name}: <{key}> is {scalars[key]!r}, not a number") from None
+        if not math.isfinite(value):
+            raise DataError(f"{name}: <{key}> is {scalars[key]!r}; it must be finite")
+        return value
+
+    def integer(key: str) -> int:
+        value = number(key)
+        if value != int(value) or value < 0:
+            raise DataError(f"{name}: <{key}> is {scalars[key]!r}; expected a whole number >= 0")
+        return int(value)
+
+    num_mod = integer("numMod")
+    num_tri = integer("numTri")
+    n_ar = integer("numARCoeff")
+    n_ma = integer("numMACoeff")
+    if speed_el is None or force_el is None:
+        raise DataError(f"{name}: missing element {'<speedList>' if speed_el is None else '<forceList>'} under <modelSet>")
+    speeds = _values(speed_el, f"{name}: <speedList>")
+    forces = _values(force_el, f"{name}: <forceList>")
+    for tag, vals in (("speedList", speeds), ("forceList", forces)):
+        if len(vals) != num_mod:
+            raise DataError(f"{name}: <{tag}> has {len(vals)} values but <numMod> is {num_mod}")
+    if len(tris) != num_tri:
+        raise DataError(f"{name}: found {len(tris)} <tri> elements but <numTri> is {num_tri}")
+    if len(models) != num_mod:
+        raise DataError(f"{name}: found {len(models)} <model> elements but <numMod> is {num_mod}")
+
+    triangles = np.empty((num_tri, 3), dtype=np.int64)
+    for t, el in enumerate(tris):
+        vals = _values(el, f"{name}: <tri> {t + 1}")
+        if len(vals) != 3:
+            raise DataError(f"{name}: <tri> {t + 1} has {len(vals)} values; a triangle names 3 models")
+        for v in vals:
+            if v != int(v) or not 1 <= v <= num_mod:
+                raise DataError(f"{name}: <tri> {t + 1} names model {v:g}, but models are numbered 1..{num_mod} (1-based)")
+        triangles[t] = [int(v) - 1 for v in vals]
+
+    per_model: list[dict[str, list[float] | float] | None] = [None] * num_mod
+    for k, el in enumerate(models):
+        fields: dict[str, ET.Element] = {c.tag: c for c in el}
+        mod_el = fields.get("modNum")
+        if mod_el is None:
+            raise DataError(f"{name}: <model> element {k + 1} has no <modNum>")
+        try:
+            mod_num = int(float((mod_el.text or "").strip()))
+        except ValueError:
+            raise DataError(f"{name}: <model> element {k + 1}: <modNum> is {mod_el.text!r}, not a number") from None
+        where = f"{name}: <model> modNum {mod_num}"
+        if not 1 <= mod_num <= num_mod:
+            raise DataError(f"{where}: modNum outside 1..{num_mod} (<numMod>)")
+        if per_model[mod_num - 1] is not None:
+            raise DataError(f"{where}: two <model> elements have this modNum")
+        entry: dict[str, list[float] | float] = {}
+        for tag in _MODEL_ARRAYS:
+            if tag not in fields:
+                raise DataError(f"{where}: missing <{tag}>")
+            entry[tag] = _values(fields[tag], f"{where} <{tag}>")
+        for tag in _MODEL_SCALARS:
+            if tag not in fields:
+                raise DataError(f"{where}: missing <{tag}>")
+            text = (fields[tag].text or "").strip()
+            try:
+                entry[tag] = float(text)
+            except ValueError:
+                raise DataError(f"{where}: <{tag}> is {text!r}, not a number") from None
+        per_model[mod_num - 1] = entry
+
+    p, q = _orders(name, per_model, n_ar, n_ma)
+    ar_lsf = np.empty((num_mod, p))
+    ma_lsf = np.empty((num_mod, q))
+    ar_coeff = np.empty((num_mod, p + 1))
+    ma_coeff = np.empty((num_mod, q + 1))
+    variance = np.empty(num_mod)
+    gain = np.empty(num_mod)
+    for m, entry in enumerate(per_model):
+        assert entry is not None
+        where = f"{name}: <model> modNum {m + 1}"
+        for tag, arr, want in (("ARlsf", ar_lsf, p), ("MAlsf", ma_lsf, q), ("ARcoeff", ar_coeff, p + 1), ("MAcoeff", ma_coeff, q + 1)):
+            vals = entry[tag]
+            assert isinstance(vals, list)
+            if len(vals) != want:
+                raise DataError(f"{where}: <{tag}> has {len(vals)} values, expected {want} "
+                                f"(<numARCoeff> {n_ar}, <numMACoeff> {n_ma})")
+            arr[m] = vals
+        for tag, arr in (("ARcoeff", ar_coeff), ("MAcoeff", ma_coeff)):
+            if arr[m, 0] != 1.0:
+                raise DataError(f"{where}: <{tag}> starts with {arr[m, 0]!r}; HaTT polynomials start with 1")
+        variance[m] = entry["var"]
+        gain[m] = entry["gain"]
+
+    ms = TextureModelSet(
+        material=scalars["material"], sample_rate=number("SampleRate"), speeds=np.array(speeds), forces=np.array(forces),
+        triangles=triangles, ar_lsf=ar_lsf, ma_lsf=ma_lsf, variance=variance, gain=gain,
+        max_speed=number("maxSpeed"), max_force=number("maxForce"), mu=number("mu"),
+        ar_coeff=ar_coeff, ma_coeff=ma_coeff, source=path,
+        metadata={"format": "hatt-xml", "texture": root.get("texture"),
+                  "units": {"speed": scalars.get("SpeedUnits", "mm/s"), "force": scalars.get("ForceUnits", "N"),
+                            "accel": scalars.get("AccelUnits", "m/s^2")}},
+    )
+    return ms.validate(HATT_NAMES)
+
+
+def _orders(name: str, models: list, n_ar: int, n_ma: int) -> tuple[int, int]:
+    """AR and MA orders from <numARCoeff>/<numMACoeff>, which name the orders (or, in some files, the coefficient counts)."""
+    first = models[0]
+    if first is None:
+        raise DataError(f"{name}: no <model> with modNum 1")
+    orders = []
+    for count, lsf_tag, tag in ((n_ar, "ARlsf", "numARCoeff"), (n_ma, "MAlsf", "numMACoeff")):
+        got = len(first[lsf_tag])
+        if got == count:
+            orders.append(count)
+        elif got == count - 1:
+            orders.append(count - 1)
+        else:
+            raise DataError(f"{name}: <model> modNum 1 <{lsf_tag}> has {got} values but <{tag}> is {count}")
+    return orders[0], orders[1]
+
+
+def _fmt(x: float) -> str:
+    return repr(float(x))
+
+
+def write_hatt_xml(ms: TextureModelSet, path: str | Path, texture: int = 0, digits: int | None = None) -> Path:
+    """Write ``ms`` as a HaTT model file (exactly HaTT's documented shape); returns the path.
+
+    Triangles are written 1-based; ``numARCoeff``/``numMACoeff`` hold the
+    orders p and q. Coefficients are ``ms.ar_coeff``/``ms.ma_coeff`` when
+    present, else computed from the LSFs with the float64 reference
+    conversion. ``digits=None`` writes every float with ``repr`` (exact
+    round trip); an integer writes that many significant digits, like a file
+    produced by other software.
+    """
+    path = Path(path)
+    fmt = _fmt if digits is None else (lambda x: f"{float(x):.{digits}g}")
+    ar_coeff = ms.ar_coeff if ms.ar_coeff is not None else np.array([lsf_to_poly_reference(r) for r in ms.ar_lsf])
+    ma_coeff = ms.ma_coeff if ms.ma_coeff is not None else np.array([lsf_to_poly_reference(r) for r in ms.ma_lsf])
+
+    def arr(tag: str, values: np.ndarray, indent: str = "  ") -> str:
+        inner = "".join(f"{indent}  <value>{fmt(v)}</value>\n" for v in values)
+        return f'{indent}<{tag} type="array">\n{inner}{indent}</{tag}>\n'
+
+    def esc(text: str) -> str:
+        return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+
+    out = ['<?xml version="1.0" encoding="utf-8"?>\n', f'<modelSet texture="{int(texture)}">\n']
+    pic = esc(ms.material.replace(" ", "_"))
+    out.append(f"  <material>{esc(ms.material)}</material>\n")
+    out.append(f"  <htmlPicture>images/{pic}.jpg</htmlPicture>\n  <htmlLinuxPicture>images/{pic}.jpg</htmlLinuxPicture>\n")
+    out.append(f"  <renderPicture>images/{pic}_square.bmp</renderPicture>\n")
+    out.append(f"  <DTpicture>images/{pic}_DT.bmp</DTpicture>\n  <LinuxDTpicture>images/{pic}_DT.bmp</LinuxDTpicture>\n")
+    out.append("  <AccelUnits>m/s^2</AccelUnits>\n  <SpeedUnits>mm/s</SpeedUnits>\n  <ForceUnits>N</ForceUnits>\n")
+    out.append(f"  <SampleRate>{ms.sample_rate:g}</SampleRate>\n")
+    out.append(f"  <mu>{fmt(ms.mu if ms.mu is not None else 0.0)}</mu>\n")
+    out.append(f"  <numMod>{ms.num_models}</numMod>\n  <numTri>{len(ms.triangles)}</numTri>\n")
+    out.append(f"  <maxSpeed>{fmt(ms.max_speed)}</maxSpeed>\n  <maxForce>{fmt(ms.max_force)}</maxForce>\n")
+    out.append(f"  <numARCoeff>{ms.ar_order}</numARCoeff>\n  <numMACoeff>{ms.ma_order}</numMACoeff>\n")
+    out.append(arr("speedList", ms.speeds))
+    out.append(arr("forceList", ms.forces))
+    for t in np.asarray(ms.triangles):
+        inner = "".join(f"    <value>{int(v) + 1}</value>\n" for v in t)
+        out.append(f'  <tri type="array">\n{inner}  </tri>\n')
+    for m in range(ms.num_models):
+        out.append("  <model>\n")
+        out.append(f"    <modNum>{m + 1}</modNum>\n")
+        out.append(arr("ARcoeff", ar_coeff[m], "    "))
+        out.append(arr("ARlsf", ms.ar_lsf[m], "    "))
+        out.append(arr("MAcoeff", ma_coeff[m], "    "))
+        out.append(arr("MAlsf", ms.ma_lsf[m], "    "))
+        out.append(f"    <var>{fmt(ms.variance[m])}</var>\n    <gain>{fmt(ms.gain[m])}</gain>\n")
+        out.append(f"    <speedMod>{fmt(ms.speeds[m])}</speedMod>\n    <forceMod>{fmt(ms.forces[m])}</forceMod>\n")
+        out.append("  </model>\n")
+    out.append("</modelSet>\n")
+    path.write_text("".join(out), encoding="utf-8")
+    return path

@@ -1,0 +1,180 @@
+"""Synthetic texture model sets built from known, stable ARMA models.
+
+flowtex ships no HaTT file, so tests and the bundled example build their own
+model sets here: every model is made from chosen poles and zeros (so its
+stability and coefficients are known exactly), placed on a (speed, force) grid
+or scatter, with HaTT's silent corner models at zero speed and zero force
+(variance 0: no vibration when not moving or not touching).
+
+The polynomial <-> LSF conversions here are *reference* implementations in
+numpy (polynomial roots and products in float64). They build ground-truth data
+and serve as independent oracles in tests; the per-tick conversion used while
+rendering is ``flowtex.dsp.lsf.lsf_to_poly``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial import Delaunay
+
+from .texture import TextureModelSet
+
+
+def lsf_to_poly_reference(lsf: np.ndarray) -> np.ndarray:
+    """A(z) = [1, a1, ..., ap] from ``p`` increasing LSFs, by float64 polynomial products.
+
+    Even-index LSFs (0-based) are the root angles of the symmetric polynomial
+    (times ``1 + z^-1`` for even p), odd-index ones those of the antisymmetric
+    one (times ``1 - z^-1`` for even p, ``1 - z^-2`` for odd p); A is their
+    mean with the last coefficient (zero) dropped.
+    """
+    lsf = np.asarray(lsf, dtype=np.float64)
+    order = lsf.shape[0]
+    sym = np.array([1.0])
+    anti = np.array([1.0])
+    for k, w in enumerate(lsf):
+        quad = np.array([1.0, -2.0 * math.cos(w), 1.0])
+        if k % 2 == 0:
+            sym = np.convolve(sym, quad)
+        else:
+            anti = np.convolve(anti, quad)
+    if order % 2 == 0:
+        sym = np.convolve(sym, [1.0, 1.0])
+        anti = np.convolve(anti, [1.0, -1.0])
+    else:
+        anti = np.convolve(anti, [1.0, 0.0, -1.0])
+    a = 0.5 * (sym + anti)
+    return a[:order + 1]
+
+
+def poly_to_lsf_reference(a: np.ndarray) -> np.ndarray:
+    """The ``p`` LSFs (radians, increasing in (0, pi)) of a minimum-phase A(z) = [1, a1, ..., ap].
+
+    Roots of P(z) = A(z) - z^-(p+1) A(1/z) and Q(z) = A(z) + z^-(p+1) A(1/z)
+    with numpy; the trivial roots at z = +-1 are dropped. Raises ValueError
+    when A is not minimum phase (the angles would not interlace).
+    """
+    a = np.asarray(a, dtype=np.float64)
+    order = a.shape[0] - 1
+    ext = np.concatenate([a, [0.0]])
+    ang = np.concatenate([np.angle(np.roots(ext - ext[::-1])), np.angle(np.roots(ext + ext[::-1]))])
+    ang = np.sort(ang[(ang > 1e-9) & (ang < math.pi - 1e-9)])
+    if ang.shape[0] != order or np.any(np.diff(ang) <= 0):
+        raise ValueError("polynomial is not minimum phase (its LSFs do not interlace)")
+    return ang
+
+
+def poly_from_roots(radii: np.ndarray, angles: np.ndarray, real_roots: np.ndarray = ()) -> np.ndarray:
+    """Real polynomial [1, c1, ...] with conjugate root pairs r e^{+-j theta} and the given real roots."""
+    roots = [r * np.exp(1j * t) for r, t in zip(radii, angles, strict=True)]
+    roots = roots + [np.conj(z) for z in roots] + [complex(x) for x in real_roots]
+    return np.real(np.poly(np.array(roots))) if roots else np.array([1.0])
+
+
+def _arma_at(speed: float, force: float, ar_order: int, ma_order: int, max_speed: float, max_force: float) -> tuple[np.ndarray, np.ndarray]:
+    """A smooth, stable, minimum-phase ARMA pair whose resonances move with speed and force.
+
+    Pole angles grow with speed (a faster stroke over the same texture gives
+    higher temporal frequencies); pole radii grow with force (harder contact,
+    sharper resonances) but stay below 0.98.
+    """
+    s = speed / max_speed
+    f = force / max_force
+    npair = ar_order // 2
+    ang = np.linspace(0.25, 2.7, npair) * (0.8 + 0.25 * s) + 0.05 * f
+    rad = 0.80 + 0.12 * f + 0.04 * np.cos(np.arange(npair) * 1.3 + s)
+    a = poly_from_roots(rad, ang, [0.3 + 0.2 * s] if ar_order % 2 else [])
+    mpair = ma_order // 2
+    mang = np.linspace(0.4, 2.9, mpair) * (0.9 + 0.1 * s) + 0.1 * f
+    mrad = 0.6 + 0.2 * f + 0.05 * np.sin(np.arange(mpair) + s)
+    c = poly_from_roots(mrad, mang, [-0.2 - 0.1 * f] if ma_order % 2 else [])
+    return a, c
+
+
+def synthetic_model_set(speeds: np.ndarray, forces: np.ndarray, ar_order: int = 19, ma_order: int = 17,
+                        grid: bool = True, sample_rate: float = 1000.0, mu: float = 0.3,
+                        material: str = "synthetic", corners: bool = True) -> TextureModelSet:
+    """A model set of known stable ARMA models at the given (speed mm/s, force N) points.
+
+    ``grid=True`` places a model at every (speed, force) pair of the two
+    lists (Romano 2012's table); ``grid=False`` takes ``speeds[i], forces[i]``
+    as a scatter of points (HaTT's free-exploration segments). With
+    ``corners`` a silent model (variance 0, coefficients copied from the
+    nearest measured model) is added at speed 0 for every distinct force and
+    at force 0 for every distinct speed, plus (0, 0): the lookup then fades to
+    silence when the tool stops or lifts. The triangulation is scipy's
+    Delaunay of the points; ``max_speed``/``max_force`` are the largest ones.
+    """
+    speeds = np.asarray(speeds, dtype=np.float64)
+    forces = np.asarray(forces, dtype=np.float64)
+    if grid:
+        sg, fg = np.meshgrid(speeds, forces, indexing="ij")
+        pts = np.column_stack([sg.ravel(), fg.ravel()])
+    else:
+        pts = np.column_stack([speeds, forces])
+    max_speed = float(pts[:, 0].max())
+    max_force = float(pts[:, 1].max())
+    measured = len(pts)
+    if corners:
+        extra = [(0.0, f) for f in np.unique(pts[:, 1])] + [(s, 0.0) for s in np.unique(pts[:, 0])] + [(0.0, 0.0)]
+        pts = np.vstack([pts, np.array(extra)])
+    count = len(pts)
+    ar_lsf = np.empty((count, ar_order))
+    ma_lsf = np.empty((count, ma_order))
+    ar_coeff = np.empty((count, ar_order + 1))
+    ma_coeff = np.empty((count, ma_order + 1))
+    variance = np.empty(count)
+    gain = np.empty(count)
+    scale = np.array([max_speed, max_force])
+    for m in range(count):
+        src = m
+        if m >= measured:  # silent corner: copy the nearest measured model
+            src = int(np.argmin(np.sum(((pts[:measured] - pts[m]) / scale) ** 2, axis=1)))
+        s, f = pts[src]
+        a, c = _arma_at(s, f, ar_order, ma_order, max_speed, max_force)
+        ar_coeff[m] = a
+        ma_coeff[m] = c
+        ar_lsf[m] = poly_to_lsf_reference(a)
+        ma_lsf[m] = poly_to_lsf_reference(c)
+        gain[m] = 0.5 + 0.5 * s / max_speed + 0.2 * f / max_force
+        variance[m] = 0.0 if m >= measured else 1e-3 * (0.2 + s / max_speed) * (0.3 + f / max_force)
+    tri = Delaunay(pts).simplices.astype(np.int64)
+    ms = TextureModelSet(material=material, sample_rate=sample_rate, speeds=pts[:, 0].copy(), forces=pts[:, 1].copy(),
+                         triangles=tri, ar_lsf=ar_lsf, ma_lsf=ma_lsf, variance=variance, gain=gain,
+                         max_speed=max_speed, max_force=max_force, mu=mu, ar_coeff=ar_coeff, ma_coeff=ma_coeff,
+                         metadata={"generator": "flowtex.models.synthetic"})
+    return ms.validate()
+
+
+def cork_like_model_set(seed: int = 3) -> TextureModelSet:
+    """45 models and 60 triangles at orders 19/17, the size of HaTT's cork surface.
+
+    17 scattered (speed, force) points inside (20..380 mm/s) x (0.3..4 N),
+    5 on the maximum-force edge, 5 on the maximum-speed edge, the
+    (max speed, max force) corner, and 17 silent corner models (8 at speed 0,
+    8 at force 0, and the origin) copying their nearest measured model with
+    variance 0. A planar triangulation of n points with h on its hull has
+    2n - 2 - h triangles: 90 - 2 - 28 = 60.
+    """
+    rng = np.random.default_rng(seed)
+    max_speed, max_force = 380.0, 4.0
+    measured = np.vstack([
+        np.column_stack([rng.uniform(20.0, 370.0, 17), rng.uniform(0.3, 3.9, 17)]),
+        np.column_stack([rng.uniform(40.0, 360.0, 5), np.full(5, max_force)]),
+        np.column_stack([np.full(5, max_speed), rng.uniform(0.6, 3.6, 5)]),
+        [[max_speed, max_force]],
+    ])
+    corner = np.array([(0.0, f) for f in np.linspace(0.5, max_force, 8)] + [(s, 0.0) for s in np.linspace(50.0, max_speed, 8)]
+                      + [(0.0, 0.0)])
+    allpts = np.vstack([measured, corner])
+    full = synthetic_model_set(allpts[:, 0], allpts[:, 1], 19, 17, grid=False, corners=False, material="cork-like")
+    n = len(measured)
+    for k, c in enumerate(corner):
+        src = int(np.argmin(np.sum(((measured - c) / [max_speed, max_force]) ** 2, axis=1)))
+        m = n + k
+        for key in ("ar_lsf", "ma_lsf", "ar_coeff", "ma_coeff", "gain"):
+            getattr(full, key)[m] = getattr(full, key)[src]
+        full.variance[m] = 0.0
+    return full.validate()
