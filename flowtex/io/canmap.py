@@ -1,0 +1,288 @@
+"""Map files: which DBC signals feed which graph inputs, which graph outputs drive which signals.
+
+The format is documented in docs/live.md. In short::
+
+    flowtex_map: 1
+    overrun_limit_ms: 2          # optional: a tick this late forces safe values
+    inputs:
+      position:                  # graph input (shape [3])
+        signals: [ToolPosition.PosX, ToolPosition.PosY, ToolPosition.PosZ]
+        scale: 0.001             # graph value = DBC physical value * scale + offset
+        offset: 0.0
+        timeout_ms: 10           # required: older than this -> watchdog -> safe outputs
+    outputs:
+      vibration:                 # graph output (scalar)
+        signal: VoiceCoilCmd.Current
+        scale: 1.0               # DBC physical value = graph value * scale + offset
+        clamp: [-1.5, 1.5]       # required, in graph units
+        safe: 0.0                # optional (default 0), in graph units, inside clamp
+        peak: {limit: 2.0, max_ms: 20}   # optional: |value| up to limit for max_ms
+
+:func:`load_map` checks the file against the DBC and (when given) the graph's
+input/output shapes and raises :class:`~flowtex.errors.GraphError` whose lines
+read ``map.yaml:LINE:COL: problem (fix)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from cantools.database.can import Database
+
+from ..errors import DataError, Diagnostic, GraphError, Location
+from ..yamlsource import LocDict, LocList, load_yaml
+from .dbc import find_signal, suggest
+
+TOP_KEYS = ("flowtex_map", "description", "overrun_limit_ms", "inputs", "outputs")
+INPUT_KEYS = ("signal", "signals", "scale", "offset", "timeout_ms", "doc")
+OUTPUT_KEYS = ("signal", "signals", "scale", "offset", "clamp", "safe", "peak", "doc")
+PEAK_KEYS = ("limit", "max_ms")
+DEFAULT_OVERRUN_MS = 2.0
+
+
+@dataclass
+class Binding:
+    """One graph input or output bound to ``width`` DBC signals (C order over the port's shape)."""
+
+    name: str
+    width: int
+    signals: list[tuple[str, str]]
+    """``(message name, signal name)`` per component."""
+    scale: np.ndarray
+    offset: np.ndarray
+    loc: Location
+
+
+@dataclass
+class InputBinding(Binding):
+    timeout_ms: float = 0.0
+
+
+@dataclass
+class OutputBinding(Binding):
+    lo: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    hi: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    safe: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    peak_limit: np.ndarray | None = None
+    peak_ms: float = 0.0
+
+
+@dataclass
+class CanMap:
+    """A checked map file."""
+
+    path: Path
+    inputs: dict[str, InputBinding]
+    outputs: dict[str, OutputBinding]
+    overrun_limit_ms: float = DEFAULT_OVERRUN_MS
+
+    def sensor_messages(self) -> list[str]:
+        """Messages read by the runtime, in order of first use."""
+        return list(dict.fromkeys(m for b in self.inputs.values() for m, _ in b.signals))
+
+    def actuator_messages(self) -> list[str]:
+        """Messages sent by the runtime every tick, in order of first use (the send order)."""
+        return list(dict.fromkeys(m for b in self.outputs.values() for m, _ in b.signals))
+
+
+class _Problems:
+    def __init__(self, path: str):
+        self.path = path
+        self.items: list[Diagnostic] = []
+
+    def add(self, pos: tuple[int, int] | None, msg: str) -> None:
+        self.items.append(Diagnostic(Location(self.path, *(pos or (0, 0))), msg))
+
+
+def _number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(float(v))
+
+
+def load_map(path: str | Path, db: Database, dbc_path: str | Path = "DBC",
+             graph_inputs: dict[str, int] | None = None, graph_outputs: dict[str, int] | None = None) -> CanMap:
+    """Read and check the map file ``path`` against ``db`` and the graph.
+
+    ``graph_inputs``/``graph_outputs`` map port names to widths (number of
+    scalars); None skips the graph checks (the stand-alone device simulator).
+    Every graph input must be bound; graph outputs may stay unbound (not sent).
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise DataError(f"{path}: map file not found") from None
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read map file: {exc.strerror or exc}") from None
+    data = load_yaml(text, str(path))
+    p = _Problems(str(path))
+    if not isinstance(data, LocDict):
+        raise GraphError([Diagnostic(Location(str(path), 1, 1), "a map file is a mapping with keys 'inputs' and 'outputs'")])
+    for key in data:
+        if key not in TOP_KEYS:
+            p.add(data.key_pos[key], f"unknown key {key!r}{suggest(str(key), list(TOP_KEYS))}")
+    version = data.get("flowtex_map", 1)
+    if version != 1:
+        p.add(data.value_pos.get("flowtex_map"), f"unsupported map format version {version!r} (this flowtex reads version 1)")
+    overrun = data.get("overrun_limit_ms", DEFAULT_OVERRUN_MS)
+    if not _number(overrun) or overrun <= 0:
+        p.add(data.value_pos.get("overrun_limit_ms"), f"overrun_limit_ms must be a positive number of milliseconds, got {overrun!r}")
+        overrun = DEFAULT_OVERRUN_MS
+    used: dict[tuple[str, str], str] = {}
+    inputs: dict[str, InputBinding] = {}
+    outputs: dict[str, OutputBinding] = {}
+    for section, keys, known, dest in (("inputs", INPUT_KEYS, graph_inputs, inputs), ("outputs", OUTPUT_KEYS, graph_outputs, outputs)):
+        raw = data.get(section)
+        if raw is None:
+            p.add(data.pos if section not in data.key_pos else data.key_pos[section],
+                  f"missing '{section}:' section (a mapping from graph {section[:-1]} names to signals)")
+            continue
+        if not isinstance(raw, LocDict):
+            p.add(data.value_pos.get(section), f"'{section}' must be a mapping from graph {section[:-1]} names to bindings")
+            continue
+        for name, entry in raw.items():
+            pos = raw.key_pos[name]
+            if known is not None and name not in known:
+                p.add(pos, f"the graph has no {section[:-1]} {name!r}{suggest(str(name), list(known))}")
+                continue
+            if not isinstance(entry, LocDict):
+                p.add(raw.value_pos[name], f"{section[:-1]} {name!r}: expected a mapping with 'signal' or 'signals'")
+                continue
+            b = _binding(p, db, dbc_path, section, str(name), entry, pos, known[name] if known is not None else None, keys, used)
+            if b is not None:
+                dest[str(name)] = b
+    if graph_inputs is not None and isinstance(data.get("inputs"), LocDict):
+        for name in graph_inputs:
+            if name not in data["inputs"]:
+                p.add(data.key_pos["inputs"], f"graph input {name!r} is not bound: add '{name}: {{signal: MESSAGE.SIGNAL, timeout_ms: N}}'")
+    sensor = {m for b in inputs.values() for m, _ in b.signals}
+    for b in outputs.values():
+        both = sorted({m for m, _ in b.signals} & sensor)
+        if both:
+            p.add((b.loc.line, b.loc.column), f"output {b.name!r} writes message {both[0]!r}, which inputs also read; "
+                  "a message is either sensor or actuator")
+    if p.items:
+        raise GraphError(p.items)
+    return CanMap(path, inputs, outputs, float(overrun))
+
+
+def _per_component(p: _Problems, entry: LocDict, key: str, width: int, default: float, what: str) -> np.ndarray | None:
+    v = entry.get(key, default)
+    pos = entry.value_pos.get(key)
+    if _number(v):
+        return np.full(width, float(v))
+    if isinstance(v, LocList) and len(v) == width and all(_number(x) for x in v):
+        return np.array([float(x) for x in v])
+    p.add(pos, f"{what}: '{key}' must be a number or a list of {width} numbers, got {v!r}")
+    return None
+
+
+def _binding(p: _Problems, db: Database, dbc_path: str | Path, section: str, name: str, entry: LocDict,
+             pos: tuple[int, int], width: int | None, keys: tuple[str, ...], used: dict) -> Binding | None:
+    what = f"{section[:-1]} {name!r}"
+    ok = True
+    for key in entry:
+        if key not in keys:
+            p.add(entry.key_pos[key], f"{what}: unknown key {key!r}{suggest(str(key), list(keys))}")
+            ok = False
+    if ("signal" in entry) == ("signals" in entry):
+        p.add(pos, f"{what}: give exactly one of 'signal: MESSAGE.SIGNAL' or 'signals: [MESSAGE.SIGNAL, ...]'")
+        return None
+    key = "signal" if "signal" in entry else "signals"
+    names = entry[key]
+    names_pos = [entry.value_pos[key]] if key == "signal" else list(getattr(names, "item_pos", []))
+    if key == "signal":
+        names = [names]
+    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
+        p.add(entry.value_pos[key], f"{what}: '{key}' must name DBC signals as MESSAGE.SIGNAL strings")
+        return None
+    if width is not None and len(names) != width:
+        p.add(entry.value_pos[key], f"{what} has {width} component(s) but {len(names)} signal(s) are listed; list one signal per component")
+        return None
+    width = len(names)
+    signals: list[tuple[str, str]] = []
+    for n, npos in zip(names, names_pos or [entry.value_pos[key]] * len(names), strict=False):
+        try:
+            msg, sig = find_signal(db, n, dbc_path)
+        except DataError as exc:
+            p.add(npos, str(exc).replace(f"{dbc_path}: ", "", 1) + f" in {dbc_path}")
+            ok = False
+            continue
+        if msg.is_multiplexed():
+            p.add(npos, f"message {msg.name!r} is multiplexed; flowtex maps only plain messages")
+            ok = False
+            continue
+        k = (msg.name, sig.name)
+        if k in used:
+            p.add(npos, f"signal {msg.name}.{sig.name} is already bound to {used[k]}; bind each signal once")
+            ok = False
+            continue
+        used[k] = what
+        signals.append(k)
+    scale = _per_component(p, entry, "scale", width, 1.0, what)
+    offset = _per_component(p, entry, "offset", width, 0.0, what)
+    if scale is not None and np.any(scale == 0):
+        p.add(entry.value_pos.get("scale"), f"{what}: scale must not be 0")
+        ok = False
+    if not ok or scale is None or offset is None:
+        return None
+    loc = Location(p.path, *pos)
+    if section == "inputs":
+        t = entry.get("timeout_ms")
+        if t is None:
+            p.add(pos, f"{what}: missing 'timeout_ms' (how old, in ms, a sensor value may get before outputs go safe)")
+            return None
+        if not _number(t) or t <= 0:
+            p.add(entry.value_pos["timeout_ms"], f"{what}: timeout_ms must be a positive number of milliseconds, got {t!r}")
+            return None
+        return InputBinding(name, width, signals, scale, offset, loc, timeout_ms=float(t))
+    return _output(p, entry, name, width, signals, scale, offset, loc, what)
+
+
+def _output(p: _Problems, entry: LocDict, name: str, width: int, signals, scale, offset, loc: Location, what: str) -> OutputBinding | None:
+    clamp = entry.get("clamp")
+    cpos = entry.value_pos.get("clamp")
+    if clamp is None:
+        p.add((loc.line, loc.column), f"{what}: missing 'clamp: [LOW, HIGH]' (the range, in graph units, the actuator may be commanded)")
+        return None
+    lo = hi = None
+    if isinstance(clamp, LocList) and len(clamp) == 2 and all(_number(x) for x in clamp):
+        lo, hi = np.full(width, float(clamp[0])), np.full(width, float(clamp[1]))
+    elif isinstance(clamp, LocList) and len(clamp) == width and all(
+            isinstance(c, LocList) and len(c) == 2 and all(_number(x) for x in c) for c in clamp):
+        lo, hi = np.array([float(c[0]) for c in clamp]), np.array([float(c[1]) for c in clamp])
+    if lo is None:
+        p.add(cpos, f"{what}: clamp must be [LOW, HIGH] or one [LOW, HIGH] per component ({width}), got {clamp!r}")
+        return None
+    if np.any(lo > hi):
+        p.add(cpos, f"{what}: clamp LOW must not exceed HIGH, got {clamp!r}")
+        return None
+    safe = _per_component(p, entry, "safe", width, 0.0, what)
+    if safe is None:
+        return None
+    if np.any(safe < lo) or np.any(safe > hi):
+        p.add(entry.value_pos.get("safe", cpos), f"{what}: safe value {safe.tolist()} lies outside clamp {clamp!r}; "
+              "choose a safe value inside the clamp range")
+        return None
+    peak_limit, peak_ms = None, 0.0
+    if "peak" in entry:
+        peak = entry["peak"]
+        ppos = entry.value_pos["peak"]
+        if not isinstance(peak, LocDict) or set(peak) != set(PEAK_KEYS):
+            p.add(ppos, f"{what}: peak must be {{limit: L, max_ms: D}} (allow |value| up to L for at most D ms)")
+            return None
+        dur = peak["max_ms"]
+        if not _number(dur) or dur < 0:
+            p.add(peak.value_pos["max_ms"], f"{what}: peak max_ms must be a non-negative number of milliseconds, got {dur!r}")
+            return None
+        limit = _per_component(p, peak, "limit", width, 0.0, what + " peak")
+        if limit is None:
+            return None
+        if np.any(limit < hi):
+            p.add(peak.value_pos["limit"], f"{what}: peak limit {limit.tolist()} must be at least the clamp HIGH {hi.tolist()}")
+            return None
+        peak_limit, peak_ms = limit, float(dur)
+    return OutputBinding(name, width, signals, scale, offset, loc, lo=lo, hi=hi, safe=safe, peak_limit=peak_limit, peak_ms=peak_ms)

@@ -1,0 +1,83 @@
+"""DBC files: load a device description with cantools and look signals up by name.
+
+The DBC grammar is cantools' business; this module only turns cantools'
+exceptions into one-line :class:`~flowtex.errors.DataError` messages that name
+the file, and resolves the ``Message.Signal`` names used in map files (with
+"did you mean" suggestions for typos).
+"""
+
+from __future__ import annotations
+
+import difflib
+from pathlib import Path
+
+import cantools
+from cantools.database.can import Database, Message, Signal
+
+from ..errors import DataError
+
+
+def load_dbc(path: str | Path) -> Database:
+    """Load the DBC file at ``path`` (strict: overlapping signals are errors).
+
+    Raises :class:`DataError` naming the file (and the line when cantools
+    reports one) for a missing, unreadable or malformed file.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(f"{path}: DBC file not found")
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read DBC file: {exc.strerror or exc}") from None
+    try:
+        db = cantools.database.load_string(text, database_format="dbc", strict=True)
+    except Exception as exc:  # cantools raises ParseError, Error, ValueError... all mean "bad file"
+        raise DataError(f"{path}: not a valid DBC file: {_one_line(exc)}") from None
+    if not db.messages:
+        raise DataError(f"{path}: the DBC file defines no messages (BO_ lines)")
+    return db
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return text if len(text) <= 300 else text[:297] + "..."
+
+
+def find_signal(db: Database, name: str, dbc_path: str | Path = "DBC") -> tuple[Message, Signal]:
+    """Resolve ``"Message.Signal"`` (or a bare signal name that is unique in the DBC).
+
+    Raises :class:`DataError` with the closest known names when ``name`` does
+    not exist, or with the candidates when a bare name is ambiguous.
+    """
+    msg_name, dot, sig_name = name.partition(".")
+    if dot:
+        try:
+            msg = db.get_message_by_name(msg_name)
+        except KeyError:
+            hint = suggest(msg_name, [m.name for m in db.messages])
+            raise DataError(f"{dbc_path}: no message {msg_name!r} for signal {name!r}{hint}") from None
+        for sig in msg.signals:
+            if sig.name == sig_name:
+                return msg, sig
+        hint = suggest(sig_name, [s.name for s in msg.signals], prefix=f"{msg.name}.")
+        raise DataError(f"{dbc_path}: message {msg.name!r} has no signal {sig_name!r}{hint}")
+    hits = [(m, s) for m in db.messages for s in m.signals if s.name == name]
+    if len(hits) == 1:
+        return hits[0]
+    if hits:
+        options = ", ".join(f"{m.name}.{s.name}" for m, s in hits)
+        raise DataError(f"{dbc_path}: signal name {name!r} is used by several messages; write one of {options}")
+    everything = [f"{m.name}.{s.name}" for m in db.messages for s in m.signals]
+    bare = {s.name: f"{m.name}.{s.name}" for m in db.messages for s in m.signals}
+    close = difflib.get_close_matches(name, list(bare) + everything, n=3, cutoff=0.6)
+    hint = f" (did you mean {', '.join(repr(bare.get(c, c)) for c in close)}?)" if close else ""
+    raise DataError(f"{dbc_path}: no signal {name!r}{hint}")
+
+
+def suggest(name: str, known: list[str], prefix: str = "") -> str:
+    """`` (did you mean 'x'?)`` for the closest names in ``known``, or ``""``."""
+    close = difflib.get_close_matches(name, known, n=3, cutoff=0.6)
+    if not close:
+        return f"; known: {', '.join(prefix + k for k in known[:12])}" if known else ""
+    return f" (did you mean {', '.join(repr(prefix + c) for c in close)}?)"
