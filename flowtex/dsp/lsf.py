@@ -1,0 +1,303 @@
+"""Line spectral frequencies (LSF) <-> polynomial, in double precision.
+
+Convention (the one of HaTT and of MATLAB's ``poly2lsf``/``lsf2poly``): for a
+monic polynomial A(z) = 1 + a1 z^-1 + ... + ap z^-p of order p, let
+
+    S(z) = A(z) + z^-(p+1) A(z^-1)      (palindromic, degree p+1)
+    D(z) = A(z) - z^-(p+1) A(z^-1)      (anti-palindromic, degree p+1)
+
+so that A = (S + D) / 2. A is minimum phase iff all roots of S and D lie on
+the unit circle, are simple and interlace. The LSFs are the angles in (0, pi)
+of those roots, sorted, without the trivial roots at z = +-1. For the LSF
+vector w (0-based): the even-index ones w[0], w[2], ... are S's conjugate
+root pairs, the odd-index ones w[1], w[3], ... are D's. For even p,
+S = (1 + z^-1) * prod_even and D = (1 - z^-1) * prod_odd; for odd p,
+S = prod_even and D = (1 - z^-2) * prod_odd (the smaller product gets the
+(1 - z^-2) factor), where each product is over second-order factors
+1 - 2 cos(w) z^-1 + z^-2.
+
+HaTT rebuilds polynomials from LSFs in single precision (its coefficients are
+off by up to 2.4e-3, pole radii by up to 0.13 on real surfaces); everything
+here is float64 and :func:`lsf_to_poly` allocates nothing, so it can run
+every tick inside a graph kernel.
+
+Storage trick of :func:`lsf_to_poly`: both products are palindromic, so only
+their first half (without the leading 1) is needed: the even-index product's
+half goes ascending into ``out[1], out[2], ...``, the odd-index product's half
+descending into ``out[p], out[p-1], ...``; together they take exactly p slots.
+The final combination A[k] = (S[k] + D[k]) / 2, A[p+1-k] = (S[k] - D[k]) / 2
+is then an in-place butterfly on the slot pair (k, p+1-k).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+DEFAULT_MIN_GAP = 1e-6
+"""Smallest gap (rad) :func:`repair_lsf` accepts between neighbouring LSFs and to 0 and pi.
+
+Published HaTT surfaces have MA LSF gaps down to 2e-4 rad and LSFs within
+5e-4 rad of pi; 1e-6 is 200x below both, so no real model is ever altered.
+An isolated close pair (or one LSF next to 0 or pi) at this gap still gives a
+float64 polynomial that is minimum phase (pole ~1e-6 inside the circle, far
+above the ~1e-15 rounding of the coefficients). Limit: a cluster of three or
+more LSFs within ~1e-4 of each other puts a pole so close to the circle that
+float64 coefficients no longer resolve it (it can land on or outside the
+circle); no LSF-side gap small enough to leave real models alone prevents
+that, so consumers of the coefficients (arma_synth) check the reflection
+coefficients and refuse such models.
+"""
+
+
+@njit(cache=True, inline="always")
+def _get(out, base, step, k):
+    """Coefficient k (k >= 0 implicit 1 at k == 0, 0 below) of a half-stored palindromic product."""
+    if k < 0:
+        return 0.0
+    if k == 0:
+        return 1.0
+    return out[base + step * k]
+
+
+@njit(cache=True)
+def _mul_factors(lsf, first, out, base, step):
+    """Multiply 1 by (1 - 2 cos(w) z^-1 + z^-2) for w = lsf[first], lsf[first+2], ..., half-stored in out."""
+    p = lsf.shape[0]
+    j = 0  # current product has degree 2j; its half k = 1..j is stored
+    for i in range(first, p, 2):
+        c2 = 2.0 * math.cos(lsf[i])
+        # New half: r[k] = s[k] - c2 s[k-1] + s[k-2] for k = j+1 .. 1, with s[j+1] = s[j-1] (palindrome).
+        for k in range(j + 1, 0, -1):
+            sk = _get(out, base, step, k) if k <= j else _get(out, base, step, j - 1)
+            out[base + step * k] = sk - c2 * _get(out, base, step, k - 1) + _get(out, base, step, k - 2)
+        j += 1
+    return j
+
+
+@njit(cache=True)
+def lsf_to_poly(lsf: np.ndarray, out: np.ndarray) -> None:
+    """Monic polynomial of order p = len(lsf) from its LSFs (radians, increasing in (0, pi)).
+
+    Writes the p+1 coefficients [1, a1, ..., ap] of A(z) = 1 + a1 z^-1 + ...
+    into ``out`` (length >= p+1). No allocation, no scratch. The result is
+    minimum phase whenever ``lsf`` is strictly increasing in (0, pi); the
+    caller checks that (see :func:`is_valid_lsf`, :func:`repair_lsf`).
+    """
+    p = lsf.shape[0]
+    out[0] = 1.0
+    if p == 0:
+        return
+    # Even-index LSFs: ascending half in out[1..ne]; odd-index: descending half in out[p..p+1-no].
+    ne = _mul_factors(lsf, 0, out, 0, 1)
+    no = _mul_factors(lsf, 1, out, p + 1, -1)
+    if p % 2 == 0:
+        # S = prod_even * (1 + z^-1): S[k] = E[k] + E[k-1], k = 1..ne (ne = p/2)
+        for k in range(ne, 0, -1):
+            out[k] = out[k] + _get(out, 0, 1, k - 1)
+        # D = prod_odd * (1 - z^-1): D[k] = O[k] - O[k-1], k = 1..no
+        for k in range(no, 0, -1):
+            out[p + 1 - k] = out[p + 1 - k] - _get(out, p + 1, -1, k - 1)
+        # Butterfly on slot pairs (k, p+1-k), k = 1..p/2.
+        for k in range(1, p // 2 + 1):
+            s = out[k]
+            d = out[p + 1 - k]
+            out[k] = 0.5 * (s + d)
+            out[p + 1 - k] = 0.5 * (s - d)
+    else:
+        # S = prod_even (degree p+1, its half k = 1..(p+1)/2 is in place already).
+        # D = prod_odd * (1 - z^-2): D[k] = O[k] - O[k-2], k = 1..no; middle D[(p+1)/2] = 0.
+        for k in range(no, 0, -1):
+            out[p + 1 - k] = out[p + 1 - k] - _get(out, p + 1, -1, k - 2)
+        for k in range(1, no + 1):
+            s = out[k]
+            d = out[p + 1 - k]
+            out[k] = 0.5 * (s + d)
+            out[p + 1 - k] = 0.5 * (s - d)
+        mid = (p + 1) // 2
+        out[mid] = 0.5 * out[mid]
+
+
+def lsf_to_poly_new(lsf: np.ndarray) -> np.ndarray:
+    """Allocating convenience wrapper of :func:`lsf_to_poly` for Python callers."""
+    lsf = np.ascontiguousarray(lsf, dtype=np.float64)
+    out = np.empty(lsf.shape[0] + 1)
+    lsf_to_poly(lsf, out)
+    return out
+
+
+@njit(cache=True)
+def is_valid_lsf(lsf: np.ndarray, min_gap: float = 0.0) -> bool:
+    """True if ``lsf`` is finite, strictly increasing and inside (0, pi) with all gaps >= ``min_gap``.
+
+    With ``min_gap = 0`` this is exactly the condition for the polynomial to
+    be minimum phase. Gaps are also measured to 0 and to pi.
+    """
+    prev = 0.0
+    for i in range(lsf.shape[0]):
+        w = lsf[i]
+        if not (w - prev > 0.0 and w - prev >= min_gap):  # False for NaN too
+            return False
+        prev = w
+    last = math.pi - prev
+    return last > 0.0 and last >= min_gap
+
+
+@njit(cache=True)
+def repair_lsf(lsf: np.ndarray, min_gap: float = DEFAULT_MIN_GAP) -> bool:
+    """Make ``lsf`` a valid LSF vector in place, changing it only where it is invalid.
+
+    A vector that is already valid (finite, increasing, every gap -- also to
+    0 and pi -- at least ``min_gap``) is left bit-for-bit unchanged and False
+    is returned. Otherwise, and True is returned:
+
+    * out-of-order entries are sorted;
+    * entries closer than ``min_gap`` to 0 or pi, or outside (0, pi), are
+      moved to ``min_gap`` / ``pi - min_gap``;
+    * coincident entries (gap < ``min_gap``) are pushed apart to ``min_gap``
+      (forward pass, then a backward pass if the top hit pi).
+
+    Non-finite entries (NaN, inf): the whole vector is replaced by the LSFs of
+    A(z) = 1, i.e. (k+1) pi / (p+1). A NaN means the source of the vector is
+    broken, so its other entries are not trusted either; the result is a flat,
+    valid model rather than a propagated NaN. Callers that can do better
+    (texture_lookup holds the last valid model on NaN input) should not pass
+    NaN here. Choose ``min_gap`` well below real gaps (see
+    :data:`DEFAULT_MIN_GAP`) and below pi / (p+1).
+    """
+    p = lsf.shape[0]
+    if is_valid_lsf(lsf, min_gap):
+        return False
+    for i in range(p):
+        if not math.isfinite(lsf[i]):
+            for j in range(p):
+                lsf[j] = (j + 1) * math.pi / (p + 1)
+            return True
+    # insertion sort (p is small)
+    for i in range(1, p):
+        w = lsf[i]
+        j = i - 1
+        while j >= 0 and lsf[j] > w:
+            lsf[j + 1] = lsf[j]
+            j -= 1
+        lsf[j + 1] = w
+    lo = min_gap
+    hi = math.pi - min_gap
+    for i in range(p):
+        if lsf[i] < lo:
+            lsf[i] = lo
+        elif lsf[i] > hi:
+            lsf[i] = hi
+    for i in range(1, p):
+        if lsf[i] - lsf[i - 1] < min_gap:
+            lsf[i] = lsf[i - 1] + min_gap
+    if p > 0 and lsf[p - 1] > hi:
+        lsf[p - 1] = hi
+        for i in range(p - 2, -1, -1):
+            if lsf[i + 1] - lsf[i] < min_gap:
+                lsf[i] = lsf[i + 1] - min_gap
+    return True
+
+
+def _half_product_roots(a: np.ndarray, sign: float, trivial: np.ndarray) -> np.ndarray:
+    """Angles in (0, pi) of the roots of A(z) + sign z^-(p+1) A(z^-1) after dividing out ``trivial``.
+
+    The deflated polynomial is palindromic of even degree 2m; on the unit
+    circle e^{jmw} R(e^{jw}) = r_m + 2 sum_k r_k cos((m-k) w) is a Chebyshev
+    series in x = cos w, whose m real roots in (-1, 1) are found with the
+    (well conditioned) colleague matrix and then polished by Newton's method
+    in w (:func:`_polish`), which stays accurate for roots near 0 and pi where
+    arccos is not.
+    """
+    p = a.shape[0] - 1
+    full = np.zeros(p + 2)
+    full[: p + 1] += a
+    full[1:] += sign * a[::-1]
+    # deflate: exact synthetic division by the trivial factor (coefficients in z^-1)
+    r = full
+    for fac in trivial:
+        # divide r by (1 + fac z^-1)
+        q = np.zeros(r.shape[0] - 1)
+        acc = 0.0
+        for k in range(q.shape[0]):
+            acc = r[k] - fac * acc
+            q[k] = acc
+        r = q
+    m = (r.shape[0] - 1) // 2
+    if m == 0:
+        return np.zeros(0)
+    r = 0.5 * (r + r[::-1])  # enforce exact palindromic symmetry
+    cheb = np.empty(m + 1)
+    cheb[0] = r[m]
+    cheb[1:] = 2.0 * r[m - 1 :: -1]
+    x = np.polynomial.chebyshev.chebroots(cheb)
+    if np.any(np.abs(x.imag) > 1e-6) or x.shape[0] != m:
+        raise ValueError("polynomial is not minimum phase (line spectral roots are off the unit circle)")
+    w = np.sort(np.arccos(np.clip(x.real, -1.0, 1.0)))
+    return _polish(a, w, sign)
+
+
+def _polish(a: np.ndarray, w: np.ndarray, sign: float) -> np.ndarray:
+    """Newton-polish line spectral roots ``w`` of S (sign +1) or D (sign -1) in extended precision.
+
+    On the unit circle, with h = (p+1)/2, e^{jwh} S(e^{jw}) = 2 sum_k a_k cos((h-k) w) and
+    e^{jwh} D(e^{jw}) = 2j sum_k a_k sin((h-k) w): evaluated straight from ``a`` (no deflation,
+    no basis change) in numpy's long double, so cancellation among large coefficients (which
+    reach ~1e2 for clustered poles near z = 1) does not limit the float64 result.
+    """
+    ld = np.longdouble
+    p = a.shape[0] - 1
+    orders = (ld(p + 1) / ld(2)) - np.arange(p + 1, dtype=ld)
+    al = a.astype(ld)
+    wl = w.astype(ld)
+    for _ in range(8):
+        ang = np.outer(wl, orders)
+        if sign > 0:
+            f = np.cos(ang) @ al
+            df = -(np.sin(ang) @ (al * orders))
+        else:
+            f = np.sin(ang) @ al
+            df = np.cos(ang) @ (al * orders)
+        safe = np.where(df != 0, df, ld(1))
+        step = np.where(df != 0, f / safe, ld(0))
+        w_new = wl - step
+        ok = (w_new > 0) & (w_new < ld(np.pi)) & (np.abs(step) < ld(1e-3))
+        wl = np.where(ok, w_new, wl)
+    return np.sort(wl.astype(np.float64))
+
+
+def poly_to_lsf(a: np.ndarray) -> np.ndarray:
+    """LSFs (radians, increasing in (0, pi), float64) of a monic minimum-phase polynomial.
+
+    ``a`` = [1, a1, ..., ap] in the A(z) = 1 + a1 z^-1 + ... convention (also
+    used for MA polynomials C(z)). Accurate to ~1e-13 rad for poles near the
+    unit circle, LSF gaps down to 1e-4 and LSFs within 1e-4 of 0 or pi.
+    Raises ValueError if ``a`` is not monic, not finite or not minimum phase.
+    """
+    a = np.asarray(a, dtype=np.float64).ravel()
+    if a.shape[0] == 0 or not np.all(np.isfinite(a)):
+        raise ValueError("polynomial must be a non-empty finite vector")
+    if a[0] != 1.0:
+        raise ValueError(f"polynomial must be monic (leading coefficient 1), got {a[0]!r}")
+    p = a.shape[0] - 1
+    if p == 0:
+        return np.zeros(0)
+    roots = np.roots(a)
+    if roots.size and np.max(np.abs(roots)) >= 1.0:
+        raise ValueError(f"polynomial is not minimum phase: a root has magnitude {np.max(np.abs(roots)):.6g} >= 1")
+    if p % 2 == 0:
+        ws = _half_product_roots(a, 1.0, np.array([1.0]))  # S / (1 + z^-1)
+        wd = _half_product_roots(a, -1.0, np.array([-1.0]))  # D / (1 - z^-1)
+    else:
+        ws = _half_product_roots(a, 1.0, np.zeros(0))
+        wd = _half_product_roots(a, -1.0, np.array([1.0, -1.0]))  # D / (1 - z^-2)
+    lsf = np.empty(p)
+    if ws.shape[0] != (p + 1) // 2 or wd.shape[0] != p // 2:
+        raise ValueError("polynomial is not minimum phase (wrong number of line spectral roots)")
+    lsf[0::2] = ws
+    lsf[1::2] = wd
+    if not is_valid_lsf(lsf):
+        raise ValueError("polynomial is not minimum phase (line spectral frequencies do not interlace)")
+    return lsf

@@ -1,0 +1,277 @@
+"""Line spectral frequencies: round trips, hard cases of real surfaces, repair, float32 comparison.
+
+References are independent of flowtex.dsp.lsf: polynomials are built from
+chosen roots with numpy.poly, stability is checked with numpy.roots, and the
+LSF -> polynomial convention is checked against a plain full-complex-product
+construction written here (MATLAB's lsf2poly formulation).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from flowtex.dsp.lsf import DEFAULT_MIN_GAP, is_valid_lsf, lsf_to_poly, lsf_to_poly_new, poly_to_lsf, repair_lsf
+
+
+def random_stable_poly(rng: np.random.Generator, p: int, rmin: float = 0.2, rmax: float = 0.995) -> np.ndarray:
+    """Monic real polynomial of order p with random roots of radius in [rmin, rmax] (numpy.poly)."""
+    roots: list[complex] = []
+    while len(roots) < p:
+        if p - len(roots) >= 2 and rng.random() < 0.75:
+            rad = rng.uniform(rmin, rmax)
+            th = rng.uniform(0.0, np.pi)
+            roots += [rad * np.exp(1j * th), rad * np.exp(-1j * th)]
+        else:
+            roots.append(rng.uniform(-rmax, rmax))
+    return np.real(np.poly(roots)) if p else np.ones(1)
+
+
+def reference_lsf_to_poly(lsf: np.ndarray) -> np.ndarray:
+    """Full complex products, as MATLAB's lsf2poly: even-index LSFs (0-based) with (1+z^-1), odd with (1-z^-1)."""
+    p = len(lsf)
+    z = np.exp(1j * np.asarray(lsf))
+    even = np.real(np.poly(np.r_[z[0::2], np.conj(z[0::2])]))
+    odd = np.real(np.poly(np.r_[z[1::2], np.conj(z[1::2])]))
+    if p % 2 == 0:
+        s = np.convolve(even, [1.0, 1.0])
+        d = np.convolve(odd, [1.0, -1.0])
+    else:
+        s = even
+        d = np.convolve(odd, [1.0, 0.0, -1.0])
+    return (0.5 * (s + d))[: p + 1]
+
+
+def max_root(a: np.ndarray) -> float:
+    return float(np.max(np.abs(np.roots(a)))) if len(a) > 1 else 0.0
+
+
+@pytest.mark.parametrize("p", list(range(1, 21)))
+def test_round_trip_random_orders(p: int) -> None:
+    rng = np.random.default_rng(100 + p)
+    for _ in range(5):
+        a = random_stable_poly(rng, p)
+        lsf = poly_to_lsf(a)
+        assert lsf.shape == (p,)
+        assert np.all(np.diff(lsf) > 0) and lsf[0] > 0 and lsf[-1] < np.pi
+        back = lsf_to_poly_new(lsf)
+        assert back[0] == 1.0
+        np.testing.assert_allclose(back, a, rtol=0, atol=1e-12 * max(1.0, np.abs(a).max()))
+
+
+@pytest.mark.parametrize("p", [1, 2, 5, 8, 17, 19, 20])
+def test_convention_matches_full_product_reference(p: int) -> None:
+    """Our in-place half-storage construction equals the textbook full-product one (HaTT/MATLAB meaning)."""
+    rng = np.random.default_rng(p)
+    lsf = np.sort(rng.uniform(0.01, np.pi - 0.01, p))
+    ref = reference_lsf_to_poly(lsf)
+    np.testing.assert_allclose(lsf_to_poly_new(lsf), ref, rtol=0, atol=1e-12 * max(1.0, np.abs(ref).max()))
+
+
+def test_analytic_cases() -> None:
+    # A(z) = 1 has LSFs k pi / (p+1), k = 1..p (roots of 1 +- z^-(p+1)).
+    for p in (1, 2, 7, 10):
+        lsf = np.arange(1, p + 1) * np.pi / (p + 1)
+        np.testing.assert_allclose(lsf_to_poly_new(lsf), np.r_[1.0, np.zeros(p)], atol=1e-14)
+        np.testing.assert_allclose(poly_to_lsf(np.r_[1.0, np.zeros(p)]), lsf, atol=1e-14)
+    # order 1: S = 1 + 2 a1 z^-1 + z^-2 = 1 - 2 cos(w) z^-1 + z^-2  =>  a1 = -cos(w)
+    for w in (0.1, 1.0, 3.0):
+        np.testing.assert_allclose(lsf_to_poly_new(np.array([w])), [1.0, -math.cos(w)], atol=1e-16)
+    # order 0
+    out = np.empty(1)
+    lsf_to_poly(np.zeros(0), out)
+    assert out[0] == 1.0
+    assert poly_to_lsf(np.array([1.0])).shape == (0,)
+
+
+def test_out_may_be_longer_and_is_written_only_up_to_p() -> None:
+    lsf = np.array([0.3, 0.9, 1.7, 2.5])
+    out = np.full(8, 7.0)
+    lsf_to_poly(lsf, out)
+    np.testing.assert_allclose(out[:5], reference_lsf_to_poly(lsf), atol=1e-14)
+    assert np.all(out[5:] == 7.0)
+
+
+def test_poles_near_unit_circle() -> None:
+    """Resonances at radius 0.995..0.9995 survive the round trip (pole radii to ~1e-10)."""
+    for p, radius in ((2, 0.9995), (10, 0.995), (19, 0.997), (20, 0.998)):
+        thetas = np.linspace(0.2, 2.9, p // 2)
+        roots = np.r_[radius * np.exp(1j * thetas), radius * np.exp(-1j * thetas)]
+        if p % 2:
+            roots = np.r_[roots, -0.5]
+        a = np.real(np.poly(roots))
+        back = lsf_to_poly_new(poly_to_lsf(a))
+        np.testing.assert_allclose(back, a, atol=1e-12 * max(1.0, np.abs(a).max()))
+        got = np.sort(np.abs(np.roots(back)))
+        np.testing.assert_allclose(got, np.sort(np.abs(roots)), atol=1e-9)
+        assert got.max() < 1.0
+
+
+def test_ma_like_vector_with_tiny_gap_and_lsf_next_to_pi() -> None:
+    """Real MA models: gaps of 2e-4 and an LSF within 5e-4 of pi must convert unchanged."""
+    q = 17
+    lsf = np.linspace(0.15, 3.0, q)
+    lsf[7] = lsf[6] + 2e-4
+    lsf[-1] = np.pi - 4e-4
+    lsf[-2] = lsf[-1] - 2e-4
+    assert is_valid_lsf(lsf) and is_valid_lsf(lsf, DEFAULT_MIN_GAP)
+    c = lsf_to_poly_new(lsf)
+    np.testing.assert_allclose(c, reference_lsf_to_poly(lsf), atol=1e-12)
+    assert max_root(c) < 1.0
+    back = poly_to_lsf(c)
+    np.testing.assert_allclose(back, lsf, rtol=0, atol=1e-10)
+    copy = lsf.copy()
+    assert repair_lsf(copy, DEFAULT_MIN_GAP) is False
+    assert copy.tobytes() == lsf.tobytes()
+
+
+def test_any_increasing_vector_gives_minimum_phase() -> None:
+    rng = np.random.default_rng(7)
+    for trial in range(200):
+        p = int(rng.integers(1, 21))
+        lsf = np.sort(rng.uniform(0.0, np.pi, p))
+        if not is_valid_lsf(lsf):
+            continue
+        assert max_root(lsf_to_poly_new(lsf)) < 1.0, (trial, lsf)
+
+
+def test_lsf_interpolation_stable_where_coefficient_interpolation_is_not() -> None:
+    r = 0.95
+    a1 = np.real(np.poly(r * np.exp(1j * np.array([0.9, -0.9, 1.95, -1.95]))))
+    a2 = np.real(np.poly(r * np.exp(1j * np.array([0.15, -0.15, 0.22, -0.22]))))
+    assert max_root(a1) < 1.0 and max_root(a2) < 1.0
+    # averaging coefficients leaves the unit circle ...
+    assert max_root(0.5 * (a1 + a2)) > 1.1
+    # ... averaging LSFs (any convex weight) never does
+    l1, l2 = poly_to_lsf(a1), poly_to_lsf(a2)
+    for w in np.linspace(0.0, 1.0, 21):
+        lsf = (1 - w) * l1 + w * l2
+        assert is_valid_lsf(lsf)
+        assert max_root(lsf_to_poly_new(lsf)) < 1.0
+
+
+def test_poly_to_lsf_rejects_non_minimum_phase() -> None:
+    with pytest.raises(ValueError, match="minimum phase"):
+        poly_to_lsf(np.real(np.poly([1.01, 0.5])))
+    with pytest.raises(ValueError, match="minimum phase"):
+        poly_to_lsf(np.real(np.poly([1.05 * np.exp(0.3j), 1.05 * np.exp(-0.3j)])))
+    with pytest.raises(ValueError, match="monic"):
+        poly_to_lsf(np.array([2.0, 0.1]))
+    with pytest.raises(ValueError):
+        poly_to_lsf(np.array([1.0, np.nan]))
+
+
+def test_is_valid_lsf() -> None:
+    assert is_valid_lsf(np.array([0.1, 0.2, 3.0]))
+    assert is_valid_lsf(np.zeros(0))
+    assert not is_valid_lsf(np.array([0.2, 0.1]))
+    assert not is_valid_lsf(np.array([0.1, 0.1]))
+    assert not is_valid_lsf(np.array([0.0, 0.1]))
+    assert not is_valid_lsf(np.array([0.1, np.pi]))
+    assert not is_valid_lsf(np.array([0.1, np.nan, 0.3]))
+    assert not is_valid_lsf(np.array([0.1, 0.1 + 1e-8]), 1e-6)
+
+
+def test_repair_leaves_valid_vectors_bit_identical() -> None:
+    rng = np.random.default_rng(3)
+    for _ in range(100):
+        p = int(rng.integers(1, 21))
+        lsf = poly_to_lsf(random_stable_poly(rng, p))
+        before = lsf.tobytes()
+        assert repair_lsf(lsf, DEFAULT_MIN_GAP) is False
+        assert lsf.tobytes() == before
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        [0.5, 0.3, 1.0, 2.0],  # out of order
+        [0.5, 0.5, 1.0, 2.0],  # coincident
+        [0.5, 0.5 + 1e-9, 1.0, 2.0],  # closer than min_gap
+        [-0.1, 0.5, 1.0, 2.0],  # below 0
+        [0.0, 0.5, 1.0, 2.0],  # at 0
+        [0.5, 1.0, 2.0, 3.5],  # above pi
+        [0.5, 1.0, 3.0, 3.3, 3.4],  # two above pi (backward pass)
+        [3.0, 2.0, 1.0, 0.5],  # reversed
+        [0.5, np.nan, 1.0, 2.0],  # NaN
+        [0.5, np.inf, 1.0, 2.0],  # inf
+    ],
+)
+def test_repair_fixes_invalid_vectors(bad: list[float]) -> None:
+    lsf = np.array(bad, dtype=np.float64)
+    assert repair_lsf(lsf, DEFAULT_MIN_GAP) is True
+    assert is_valid_lsf(lsf, DEFAULT_MIN_GAP * (1 - 1e-9))
+    assert max_root(lsf_to_poly_new(lsf)) < 1.0
+    finite = np.array(bad)
+    if np.all(np.isfinite(finite)):
+        # entries that were fine and in order stay where they were
+        assert np.any(np.isin(lsf, finite))
+    else:
+        np.testing.assert_allclose(lsf, np.arange(1, len(bad) + 1) * np.pi / (len(bad) + 1))
+
+
+def test_repair_of_a_cluster_is_valid_but_clusters_are_numerically_fragile() -> None:
+    """Three entries above pi become a cluster 1e-6 apart below pi: a valid LSF vector.
+
+    Documented limit (also in lsf.py): a cluster of 3 or more LSFs within ~1e-4 puts poles so close to the
+    unit circle that float64 coefficients cannot represent them reliably; arma_synth checks the reflection
+    coefficients and refuses such a model. Pairs (real surfaces: gaps >= 2e-4) are fine even at 1e-6.
+    """
+    lsf = np.array([0.5, 1.0, 3.2, 3.3, 3.4])
+    assert repair_lsf(lsf, DEFAULT_MIN_GAP)
+    assert is_valid_lsf(lsf, DEFAULT_MIN_GAP * (1 - 1e-9))
+    np.testing.assert_allclose(lsf[2:], np.pi - DEFAULT_MIN_GAP * np.array([3, 2, 1]), rtol=0, atol=1e-15)
+    pair = np.array([0.5, 1.0, 2.0, np.pi - 2e-6, np.pi - 1e-6])
+    assert is_valid_lsf(pair, DEFAULT_MIN_GAP * (1 - 1e-9))
+    assert max_root(lsf_to_poly_new(pair)) < 1.0
+
+
+def test_repair_keeps_valid_entries_of_an_out_of_order_vector() -> None:
+    lsf = np.array([0.2, 0.9, 0.6, 1.5, 2.5])
+    assert repair_lsf(lsf, DEFAULT_MIN_GAP)
+    assert lsf.tolist() == [0.2, 0.6, 0.9, 1.5, 2.5]
+
+
+def hatt_float32_lsf_to_poly(lsf: np.ndarray) -> np.ndarray:
+    """Emulation of HaTT's reconstruction: the same products done in single-precision complex arithmetic."""
+    p = len(lsf)
+    z = np.exp(1j * lsf.astype(np.float32)).astype(np.complex64)
+
+    def poly32(roots: np.ndarray) -> np.ndarray:
+        c = np.ones(1, np.complex64)
+        for r in roots:
+            c = (np.convolve(c, np.array([1.0, -r], np.complex64))).astype(np.complex64)
+        return c
+
+    even = poly32(np.r_[z[0::2], np.conj(z[0::2])])
+    odd = poly32(np.r_[z[1::2], np.conj(z[1::2])])
+    if p % 2 == 0:
+        s = np.convolve(even, np.array([1, 1], np.complex64)).astype(np.complex64)
+        d = np.convolve(odd, np.array([1, -1], np.complex64)).astype(np.complex64)
+    else:
+        s = even
+        d = np.convolve(odd, np.array([1, 0, -1], np.complex64)).astype(np.complex64)
+    return (np.float32(0.5) * (s + d).real.astype(np.float32))[: p + 1]
+
+
+def test_float64_beats_hatt_float32_near_unit_circle() -> None:
+    """Order-19 model with a pole pair at radius 0.995: float32 reconstruction visibly moves poles; ours does not."""
+    rng = np.random.default_rng(11)
+    thetas = np.array([0.12, 0.35, 0.6, 0.9, 1.2, 1.6, 2.0, 2.4, 2.9])
+    radii = np.r_[0.995, rng.uniform(0.8, 0.97, len(thetas) - 1)]
+    roots = np.r_[radii * np.exp(1j * thetas), radii * np.exp(-1j * thetas), 0.3]
+    a = np.real(np.poly(roots))
+    lsf = poly_to_lsf(a)
+    ours = lsf_to_poly_new(lsf)
+    theirs = hatt_float32_lsf_to_poly(lsf).astype(np.float64)
+    true_r = np.sort(np.abs(roots))
+    err64 = np.max(np.abs(np.sort(np.abs(np.roots(ours))) - true_r))
+    err32 = np.max(np.abs(np.sort(np.abs(np.roots(theirs))) - true_r))
+    coef64 = np.max(np.abs(ours - a))
+    coef32 = np.max(np.abs(theirs - a))
+    assert err64 < 1e-9
+    assert coef64 < 1e-11
+    assert err32 > 1e3 * err64 and err32 > 1e-5
+    assert coef32 > 1e3 * coef64
