@@ -158,10 +158,11 @@ class Graph:
             raise FlowtexError(f"graph {self.name!r}: recording lacks input(s) {', '.join(missing)}")
         total = None
         arrays = {}
-        for name, (col, w) in self.layout.in_columns.items():
+        for name, (_col, w) in self.layout.in_columns.items():
             arr = np.asarray(inputs[name], dtype=np.float64)
             shape = self.resolved.input_specs[name].shape
-            if arr.shape[1:] != shape and not (shape == () and arr.ndim == 2 and arr.shape[1] == 1):
+            flat_ok = arr.ndim == 2 and arr.shape[1] == w  # e.g. a CSV's name[0..k] columns
+            if arr.shape[1:] != shape and not flat_ok:
                 raise FlowtexError(
                     f"input {name!r}: expected shape (n, {', '.join(map(str, shape))}) with time first, got {arr.shape}"
                     if shape else f"input {name!r}: expected a 1-D array over time, got shape {arr.shape}")

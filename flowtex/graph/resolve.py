@@ -6,6 +6,7 @@ together as one :class:`GraphError`.
 
 from __future__ import annotations
 
+import difflib
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -76,7 +77,6 @@ def resolve_graph(spec: GraphSpec, registry: Registry) -> ResolvedGraph:
             dataflow.add_edge(edge.src.node, dst)
     ordering = dataflow.copy()
     ordering.remove_edges_from([(u, v) for u, v in dataflow.edges if nodes[v].cls.breaks_cycles])
-    cyclic = not nx.is_directed_acyclic_graph(dataflow)
     if not nx.is_directed_acyclic_graph(ordering):
         for cycle in nx.simple_cycles(ordering):
             first = nodes[cycle[0]].spec
@@ -90,15 +90,16 @@ def resolve_graph(spec: GraphSpec, registry: Registry) -> ResolvedGraph:
     for name in wanted:
         keep |= nx.ancestors(dataflow, name)
     position = {name: i for i, name in enumerate(spec.nodes)}
-    order = [n for n in nx.lexicographical_topological_sort(ordering.subgraph(keep), key=lambda n: position[n])]
+    order = list(nx.lexicographical_topological_sort(ordering, key=lambda n: position[n]))
     dropped = [n for n in spec.nodes if n in nodes and n not in keep]
-    if not cyclic:
-        cyclic = False
 
     input_specs = {name: PortSpec(i.shape, i.unit) for name, i in spec.inputs.items()}
-    kept = {name: nodes[name] for name in order}
-    _resolve_ports(ck, kept, input_specs, edge_of, cyclic)
+    # Ports of every node are checked (a mistake in an unused node is still a mistake);
+    # only the nodes an output depends on are built and compiled.
+    _resolve_ports(ck, {name: nodes[name] for name in order}, input_specs, edge_of)
     ck.fail_if_any()
+    kept = {name: nodes[name] for name in order if name in keep}
+    cyclic = not nx.is_directed_acyclic_graph(dataflow.subgraph(keep))
     _build_nodes(ck, kept)
     ck.fail_if_any()
 
@@ -127,10 +128,12 @@ def _typed_nodes(ck: _Checker) -> dict[str, ResolvedNode]:
 def _check_params(ck: _Checker, ns: NodeSpec, cls: type[Node]) -> dict[str, Any] | None:
     ok = True
     values: dict[str, Any] = {}
+    misspelt: set[str] = set()
     for key, value in ns.params.items():
         loc = ns.param_locs.get(key, ns.params_loc)
         decl = cls.params.get(key) if isinstance(key, str) else None
         if decl is None:
+            misspelt.update(difflib.get_close_matches(str(key), list(cls.params), n=3, cutoff=0.6))
             ck.error(loc, f"node {ns.name!r} ({ns.type}): unknown parameter {key!r}{suggest(str(key), list(cls.params))}"
                      + ("" if suggest(str(key), list(cls.params)) else f"; parameters are: {', '.join(cls.params) or 'none'}"))
             ok = False
@@ -142,10 +145,10 @@ def _check_params(ck: _Checker, ns: NodeSpec, cls: type[Node]) -> dict[str, Any]
             ok = False
     for key, decl in cls.params.items():
         if key not in values and key not in ns.params:
-            if decl.required:
+            if decl.required and key not in misspelt:
                 ck.error(ns.params_loc, f"node {ns.name!r} ({ns.type}): missing required parameter {key!r} ({decl.describe_type()}: {decl.doc})")
                 ok = False
-            else:
+            elif not decl.required:
                 values[key] = decl.coerce(decl.default, ck.spec.path.parent) if decl.default is not None else None
     return values if ok else None
 
@@ -239,7 +242,7 @@ def _port_check(port: Port, name: str, got: PortSpec, specs: dict[str, PortSpec]
 
 
 def _resolve_ports(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[str, PortSpec],
-                   edge_of: dict[tuple[str, str], EdgeSpec], cyclic: bool) -> None:
+                   edge_of: dict[tuple[str, str], EdgeSpec]) -> None:
     provisional: dict[str, PortSpec] = {}
     for name, rn in nodes.items():
         ctx = BuildContext(rate=ck.spec.rate, base_dir=ck.spec.path.parent, every=rn.spec.every)

@@ -1,0 +1,212 @@
+"""Recordings on disk: ``.npz``, ``.csv`` and ``.h5`` (HDF5, when h5py is installed).
+
+One array per signal, time on the first axis. A recording may state its
+sample rate in Hz; a graph refuses a recording whose stated rate is not its own.
+
+* ``.npz``: one array per signal; an optional 0-d entry ``rate`` states the rate.
+* ``.csv``: a header row of column names; a vector signal ``position`` of
+  shape (3,) is written as columns ``position[0]``, ``position[1]``,
+  ``position[2]``; an optional first line ``# rate: 1000`` states the rate.
+* ``.h5``: one dataset per signal at the file's root; an optional root
+  attribute ``rate``.
+"""
+
+from __future__ import annotations
+
+import csv
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataError
+
+SUFFIXES = (".npz", ".csv", ".h5", ".hdf5")
+_COLUMN = re.compile(r"^(?P<name>[^\[\]]+)(?:\[(?P<index>\d+)\])?$")
+
+
+@dataclass
+class Recording:
+    """Signals of one recording (time first) and the rate the file states, if any."""
+
+    arrays: dict[str, np.ndarray]
+    rate: float | None = None
+    path: Path | None = None
+
+    @property
+    def samples(self) -> int:
+        return next(iter(self.arrays.values())).shape[0] if self.arrays else 0
+
+
+def load_recording(path: str | Path) -> Recording:
+    """Read a recording; raises :class:`DataError` naming the file and the problem."""
+    path = Path(path)
+    if not path.exists():
+        raise DataError(f"{path}: recording not found")
+    suffix = path.suffix.lower()
+    if suffix == ".npz":
+        rec = _load_npz(path)
+    elif suffix == ".csv":
+        rec = _load_csv(path)
+    elif suffix in (".h5", ".hdf5"):
+        rec = _load_h5(path)
+    else:
+        raise DataError(f"{path}: unknown recording format {suffix!r}; use .npz, .csv or .h5")
+    _check_lengths(rec, path)
+    rec.path = path
+    return rec
+
+
+def _check_lengths(rec: Recording, path: Path) -> None:
+    lengths = {name: a.shape[0] for name, a in rec.arrays.items()}
+    if len(set(lengths.values())) > 1:
+        detail = ", ".join(f"{n}: {k}" for n, k in lengths.items())
+        raise DataError(f"{path}: signals have different lengths ({detail}); time must be the first axis of every array")
+
+
+def _stated_rate(value: object, path: Path) -> float:
+    try:
+        rate = float(np.asarray(value))
+    except (TypeError, ValueError):
+        raise DataError(f"{path}: 'rate' must be a number of Hz, got {value!r}") from None
+    if not np.isfinite(rate) or rate <= 0:
+        raise DataError(f"{path}: 'rate' must be a positive number of Hz, got {rate!r}")
+    return rate
+
+
+def _load_npz(path: Path) -> Recording:
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {}
+            rate = None
+            for name in data.files:
+                arr = data[name]
+                if name == "rate" and arr.ndim == 0:
+                    rate = _stated_rate(arr, path)
+                elif arr.ndim == 0:
+                    raise DataError(f"{path}: entry {name!r} is a single number; signals need time on the first axis")
+                else:
+                    arrays[name] = np.asarray(arr, dtype=np.float64)
+    except DataError:
+        raise
+    except (OSError, ValueError) as exc:
+        raise DataError(f"{path}: not a readable .npz recording ({exc})") from None
+    return Recording(arrays, rate)
+
+
+def _load_csv(path: Path) -> Recording:
+    rate = None
+    with path.open(newline="", encoding="utf-8") as fh:
+        first = fh.readline()
+        if first.startswith("#"):
+            m = re.match(r"#\s*rate\s*:\s*(\S+)", first)
+            if m:
+                rate = _stated_rate(m.group(1), path)
+        else:
+            fh.seek(0)
+        reader = csv.reader(fh)
+        try:
+            header = next(reader)
+        except StopIteration:
+            raise DataError(f"{path}: empty CSV; the first row must name the columns") from None
+        rows = []
+        for lineno, row in enumerate(reader, start=3 if rate is not None else 2):
+            if not row:
+                continue
+            if len(row) != len(header):
+                raise DataError(f"{path}:{lineno}: {len(row)} values but {len(header)} columns in the header")
+            try:
+                rows.append([float(v) for v in row])
+            except ValueError:
+                raise DataError(f"{path}:{lineno}: non-numeric value in {row!r}") from None
+    table = np.array(rows, dtype=np.float64).reshape(len(rows), len(header))
+    columns: dict[str, dict[int, int]] = {}
+    for col, name in enumerate(header):
+        m = _COLUMN.match(name.strip())
+        if not m:
+            raise DataError(f"{path}:1: column name {name!r} is not 'name' or 'name[i]'")
+        index = int(m.group("index")) if m.group("index") is not None else -1
+        columns.setdefault(m.group("name"), {})[index] = col
+    arrays = {}
+    for name, parts in columns.items():
+        if -1 in parts:
+            if len(parts) > 1:
+                raise DataError(f"{path}:1: column {name!r} appears both as a scalar and as {name}[i]")
+            arrays[name] = table[:, parts[-1]].copy()
+        else:
+            width = max(parts) + 1
+            missing = [i for i in range(width) if i not in parts]
+            if missing:
+                raise DataError(f"{path}:1: vector {name!r} lacks column(s) " + ", ".join(f"{name}[{i}]" for i in missing))
+            arrays[name] = table[:, [parts[i] for i in range(width)]].copy()
+    return Recording(arrays, rate)
+
+
+def _h5py():
+    try:
+        import h5py
+    except ImportError:
+        raise DataError("reading .h5 recordings needs h5py: pip install 'flowtex[hdf5]'") from None
+    return h5py
+
+
+def _load_h5(path: Path) -> Recording:
+    h5py = _h5py()
+    try:
+        with h5py.File(path, "r") as fh:
+            rate = _stated_rate(fh.attrs["rate"], path) if "rate" in fh.attrs else None
+            arrays = {}
+            for name, item in fh.items():
+                if isinstance(item, h5py.Dataset):
+                    if item.ndim == 0:
+                        raise DataError(f"{path}: dataset {name!r} is a single number; signals need time on the first axis")
+                    arrays[name] = np.asarray(item[()], dtype=np.float64)
+    except DataError:
+        raise
+    except OSError as exc:
+        raise DataError(f"{path}: not a readable HDF5 recording ({exc})") from None
+    return Recording(arrays, rate)
+
+
+def save_recording(path: str | Path, arrays: Mapping[str, np.ndarray], rate: float | None = None) -> None:
+    """Write signals (time first) in the format named by the file's suffix."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    suffix = path.suffix.lower()
+    arrays = {name: np.asarray(a, dtype=np.float64) for name, a in arrays.items()}
+    if suffix == ".npz":
+        extra = {"rate": np.float64(rate)} if rate is not None else {}
+        np.savez(path, **arrays, **extra)
+    elif suffix == ".csv":
+        _save_csv(path, arrays, rate)
+    elif suffix in (".h5", ".hdf5"):
+        h5py = _h5py()
+        with h5py.File(path, "w") as fh:
+            for name, a in arrays.items():
+                fh.create_dataset(name, data=a)
+            if rate is not None:
+                fh.attrs["rate"] = float(rate)
+    else:
+        raise DataError(f"{path}: unknown output format {suffix!r}; use .npz, .csv or .h5")
+
+
+def _save_csv(path: Path, arrays: Mapping[str, np.ndarray], rate: float | None) -> None:
+    header: list[str] = []
+    columns: list[np.ndarray] = []
+    for name, a in arrays.items():
+        flat = a.reshape(a.shape[0], -1) if a.ndim > 1 else a[:, None]
+        if a.ndim == 1:
+            header.append(name)
+        else:
+            header += [f"{name}[{i}]" for i in range(flat.shape[1])]
+        columns.append(flat)
+    table = np.hstack(columns) if columns else np.zeros((0, 0))
+    with path.open("w", newline="", encoding="utf-8") as fh:
+        if rate is not None:
+            fh.write(f"# rate: {rate:g}\n")
+        writer = csv.writer(fh)
+        writer.writerow(header)
+        for row in table:
+            writer.writerow([repr(float(v)) for v in row])
