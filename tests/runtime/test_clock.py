@@ -205,3 +205,87 @@ def test_short_real_run_is_consistent():
     assert c.tick == 60 + c.missed
     assert c.deadline_ns == t0 + c.tick * c.period_ns
     assert all(late >= 0 for late in lates)
+
+
+# -- real-time setup (flowtex.runtime.realtime) -------------------------------------
+
+REFUSED_SCRIPT = """
+import os, sys
+from flowtex.runtime.realtime import enter_realtime
+os.setgid(65534); os.setuid(65534)   # drop root: SCHED_FIFO must now be refused
+s = enter_realtime(priority=10)
+print(s.granted, os.sched_getscheduler(0) == os.SCHED_OTHER, repr(s.message))
+"""
+
+
+def test_enter_realtime_refused_warns_and_continues():
+    import os
+    import subprocess
+    import sys
+
+    if os.geteuid() == 0:
+        proc = subprocess.run([sys.executable, "-c", REFUSED_SCRIPT], capture_output=True, text=True, timeout=60)
+        assert proc.returncode == 0, proc.stderr
+        granted, other, message = proc.stdout.strip().split(" ", 2)
+        assert (granted, other) == ("False", "True")
+        assert "SCHED_FIFO refused" in message and "continuing" in message
+    else:
+        from flowtex.runtime.realtime import enter_realtime, leave_realtime
+
+        s = enter_realtime(priority=10)
+        leave_realtime(s)
+        assert s.granted or "SCHED_FIFO refused" in s.message
+
+
+def test_enter_realtime_bad_arguments_never_raise():
+    import os
+
+    from flowtex.runtime.realtime import enter_realtime, leave_realtime
+
+    before = (os.sched_getscheduler(0), os.sched_getaffinity(0))
+    s = enter_realtime(priority=1000, cpu=10_000)
+    try:
+        assert s.granted is False and s.cpu is None
+        assert "outside SCHED_FIFO range" in s.message
+        assert "CPU 10000 is not among the allowed CPUs" in s.message
+        assert "\n" not in s.message
+    finally:
+        leave_realtime(s)
+    assert (os.sched_getscheduler(0), os.sched_getaffinity(0)) == before
+
+
+def test_enter_and_leave_realtime_restore_policy_and_affinity():
+    import os
+
+    from flowtex.runtime.realtime import enter_realtime, leave_realtime
+
+    before = (os.sched_getscheduler(0), os.sched_getaffinity(0))
+    s = enter_realtime(priority=5)
+    try:
+        if s.granted:
+            assert os.sched_getscheduler(0) == os.SCHED_FIFO
+            assert os.sched_getparam(0).sched_priority == 5
+        if s.cpu is not None:
+            assert os.sched_getaffinity(0) == {s.cpu}
+    finally:
+        leave_realtime(s)
+    assert (os.sched_getscheduler(0), os.sched_getaffinity(0)) == before
+
+
+def test_freeze_gc_disables_and_restores():
+    import gc
+
+    from flowtex.runtime.realtime import freeze_gc
+
+    assert gc.isenabled()
+    with freeze_gc():
+        assert not gc.isenabled()
+        assert gc.get_freeze_count() > 0
+    assert gc.isenabled() and gc.get_freeze_count() == 0
+    gc.disable()
+    try:
+        with freeze_gc():
+            pass
+        assert not gc.isenabled()  # restores the previous state, not "enabled"
+    finally:
+        gc.enable()
