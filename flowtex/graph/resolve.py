@@ -117,7 +117,8 @@ def _typed_nodes(ck: _Checker) -> dict[str, ResolvedNode]:
     for name, ns in ck.spec.nodes.items():
         cls = ck.registry.get(ns.type)
         if cls is None:
-            ck.error(ns.type_loc, f"node {name!r}: unknown node type {ns.type!r}{suggest(ns.type, ck.registry.names())}; run 'flowtex nodes' to list them")
+            hint = suggest(ns.type, ck.registry.names())
+            ck.error(ns.type_loc, f"node {name!r}: unknown node type {ns.type!r}{hint}; run 'flowtex nodes' to list them")
             continue
         params = _check_params(ck, ns, cls)
         if params is not None:
@@ -214,7 +215,8 @@ def _check_unconnected(ck: _Checker, nodes: dict[str, ResolvedNode]) -> None:
             if (name, port_name) in connected:
                 rn.sources[port_name] = None  # filled below
             elif not port.optional:
-                ck.error(rn.spec.loc, f"node {name!r} ({rn.cls.type_name}): input {port_name!r} is not connected; add an edge '... -> {name}.{port_name}'")
+                ck.error(rn.spec.loc, f"node {name!r} ({rn.cls.type_name}): input {port_name!r} is not connected; "
+                                      f"add an edge '... -> {name}.{port_name}'")
             else:
                 rn.sources[port_name] = None
     for edge in ck.spec.edges:

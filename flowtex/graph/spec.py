@@ -113,7 +113,8 @@ def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -
     c = _Collector(str(path))
     data = load_yaml(text, str(path))
     if not isinstance(data, LocDict):
-        raise GraphError([Diagnostic(Location(str(path), 1, 1), "a graph file must be a mapping with keys flowtex, name, rate, nodes, edges, outputs")])
+        message = "a graph file must be a mapping with keys flowtex, name, rate, nodes, edges, outputs"
+        raise GraphError([Diagnostic(Location(str(path), 1, 1), message)])
     for key in data:
         if key not in TOP_KEYS:
             c.error(data.key_pos[key], f"unknown top-level key {key!r}{suggest(str(key), TOP_KEYS)}")
