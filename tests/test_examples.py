@@ -1,0 +1,65 @@
+"""Every example graph in graphs/ runs, and its outputs are pinned by a golden file.
+
+Regenerate after an intended change with ``pytest tests/test_examples.py --update-golden``
+and review the new files before committing them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flowtex.cli import main
+
+REPO = Path(__file__).resolve().parents[1]
+GRAPHS = REPO / "graphs"
+GOLDEN = REPO / "tests" / "golden"
+
+# graph file -> (recording it runs on, extra options for the golden check)
+EXAMPLES: dict[str, tuple[str, dict]] = {
+    "accel_preprocess.yaml": ("data/accel_demo.npz", {}),
+    "actuator_drive.yaml": ("data/accel_demo.npz", {"plugins": (str(REPO / "plugins"),)}),
+    "multirate_feedback.yaml": ("data/accel_demo.npz", {}),
+}
+
+
+def test_every_example_graph_has_a_golden_test():
+    graphs = sorted(p.name for p in GRAPHS.glob("*.yaml"))
+    assert graphs, "graphs/ holds no example"
+    missing = [g for g in graphs if g not in EXAMPLES]
+    assert not missing, f"example graphs without a golden test: {missing}; add them to EXAMPLES"
+
+
+@pytest.mark.parametrize("name", sorted(EXAMPLES))
+def test_example_matches_golden(golden, name):
+    recording, options = EXAMPLES[name]
+    outputs = golden.check(GRAPHS / name, GRAPHS / recording, GOLDEN / (Path(name).stem + ".npz"), **options)
+    for value in outputs.values():
+        assert np.all(np.isfinite(value))
+
+
+@pytest.mark.parametrize("name", sorted(EXAMPLES))
+def test_example_validates_from_the_command_line(name, monkeypatch, capsys):
+    monkeypatch.chdir(REPO)  # ./plugins is found from the repository root, as in the README
+    assert main(["validate", f"graphs/{name}"]) == 0
+    assert "ok" in capsys.readouterr().out
+
+
+def test_golden_mismatch_is_reported(tmp_path):
+    from flowtex.testing import GoldenMismatch, check_golden
+
+    golden_file = tmp_path / "g.npz"
+    graph, rec = GRAPHS / "accel_preprocess.yaml", GRAPHS / "data/accel_demo.npz"
+    with pytest.raises(GoldenMismatch, match="--update-golden"):
+        check_golden(graph, rec, golden_file)
+    outputs = check_golden(graph, rec, golden_file, update=True)
+    check_golden(graph, rec, golden_file)
+    tampered = dict(outputs)
+    tampered["envelope"] = outputs["envelope"].copy()
+    tampered["envelope"][100] += 1e-12
+    np.savez(golden_file, **tampered)
+    with pytest.raises(GoldenMismatch, match=r"output 'envelope': 1 of 8000 values differ; first at \(100,\)"):
+        check_golden(graph, rec, golden_file)
+    check_golden(graph, rec, golden_file, rtol=1e-9)
