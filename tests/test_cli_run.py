@@ -1,0 +1,161 @@
+"""`flowtex run`, `graph`, `nodes` from the command line, and recording formats."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import flowtex
+from flowtex.cli import main
+from flowtex.errors import DataError
+from flowtex.io.recordings import load_recording, save_recording
+
+GRAPH = """
+flowtex: 1
+name: t
+rate: 1000
+inputs:
+  p: {shape: [3], unit: mm}
+  f: {unit: N}
+nodes:
+  lp: {type: first_order_lowpass, params: {cutoff_hz: 30}}
+  mag: {type: norm}
+  g: {type: gain, params: {k: 2}}
+edges:
+  - p -> lp.x
+  - lp.y -> mag.x
+  - f -> g.x
+outputs:
+  smooth: lp.y
+  speed: mag.y
+  force: g.y
+"""
+
+
+@pytest.fixture
+def rec():
+    rng = np.random.default_rng(3)
+    return {"p": rng.standard_normal((1500, 3)), "f": rng.standard_normal(1500)}
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".csv", ".h5"])
+def test_run_reads_and_writes_every_format(write_graph, tmp_path, rec, suffix, capsys):
+    graph = write_graph(GRAPH)
+    src = tmp_path / f"in{suffix}"
+    dst = tmp_path / f"out{suffix}"
+    save_recording(src, rec, rate=1000)
+    assert main(["run", str(graph), "--input", str(src), "--output", str(dst)]) == 0
+    assert "1500 ticks" in capsys.readouterr().out
+    out = load_recording(dst)
+    assert out.rate == 1000
+    expected = flowtex.load_graph(graph).run(rec)
+    for name, value in expected.items():
+        np.testing.assert_array_equal(out.arrays[name], value)  # CSV uses repr: exact round trip
+
+
+def test_csv_vector_columns(tmp_path):
+    path = tmp_path / "r.csv"
+    path.write_text("# rate: 500\np[0],p[1],f\n1,2,3\n4,5,6\n")
+    rec = load_recording(path)
+    assert rec.rate == 500
+    np.testing.assert_array_equal(rec.arrays["p"], [[1, 2], [4, 5]])
+    np.testing.assert_array_equal(rec.arrays["f"], [3, 6])
+
+
+@pytest.mark.parametrize("content, message", [
+    ("p[0],p[2]\n1,2\n", "lacks column(s) p[1]"),
+    ("a,b\n1,2,3\n", ":2: 3 values but 2 columns"),
+    ("a\nx\n", ":2: non-numeric value"),
+])
+def test_bad_csv_errors_name_file_and_line(tmp_path, content, message):
+    path = tmp_path / "bad.csv"
+    path.write_text(content)
+    with pytest.raises(DataError) as info:
+        load_recording(path)
+    assert str(info.value).startswith(str(path)) and message in str(info.value)
+
+
+def test_recording_rate_must_match_graph(write_graph, tmp_path, rec, capsys):
+    graph = write_graph(GRAPH)
+    src = tmp_path / "in.npz"
+    save_recording(src, rec, rate=800)
+    assert main(["run", str(graph), "--input", str(src)]) == 1
+    err = capsys.readouterr().err
+    assert "recorded at 800 Hz but graph 't' runs at 1000 Hz" in err and "Traceback" not in err
+
+
+def test_missing_input_signal_is_named(write_graph, tmp_path, rec, capsys):
+    src = tmp_path / "in.npz"
+    save_recording(src, {"p": rec["p"]})
+    assert main(["run", str(write_graph(GRAPH)), "--input", str(src)]) == 1
+    assert "lacks graph input(s) f (the file has: p)" in capsys.readouterr().err
+
+
+def test_seed_and_set_options(write_graph, tmp_path, rec):
+    graph = write_graph(GRAPH)
+    src = tmp_path / "in.npz"
+    save_recording(src, rec)
+    assert main(["run", str(graph), "-i", str(src), "-o", str(tmp_path / "a.npz"), "--set", "g.k=5", "--seed", "3"]) == 0
+    np.testing.assert_array_equal(np.load(tmp_path / "a.npz")["force"], 5 * rec["f"])
+
+
+def test_graph_command_shows_order_dropped_dot_and_code(write_graph, capsys):
+    graph = write_graph(GRAPH.replace("  force: g.y\n", ""))
+    assert main(["graph", str(graph)]) == 0
+    text = capsys.readouterr().out
+    assert "execution order:" in text and "1. lp (first_order_lowpass)" in text
+    assert "dropped (no output depends on them): g" in text
+    assert main(["graph", str(graph), "--dot"]) == 0
+    assert capsys.readouterr().out.startswith('digraph "t"')
+    assert main(["graph", str(graph), "--show-code"]) == 0
+    code = capsys.readouterr().out
+    assert "def block(f, i, n):" in code and "# lp: first_order_lowpass" in code
+
+
+def test_nodes_command_lists_ports_and_params(capsys):
+    assert main(["nodes"]) == 0
+    text = capsys.readouterr().out
+    for name in ("butterworth", "white_noise", "delay", "gain", "biquad", "differentiator"):
+        assert f"\n{name} — " in "\n" + text
+    assert main(["nodes", "butterworth"]) == 0
+    text = capsys.readouterr().out
+    assert "cutoff_hz" in text and "lowpass|highpass|bandpass|bandstop" in text and "required" in text
+    assert main(["nodes", "buterworth"]) == 1
+    assert "did you mean 'butterworth'" in capsys.readouterr().err
+
+
+def test_plugins_option_and_environment(tmp_path, write_graph, monkeypatch, capsys):
+    plugdir = tmp_path / "myplugins"
+    plugdir.mkdir()
+    (plugdir / "twice.py").write_text(
+        "import numpy as np\nfrom numba import njit\nfrom flowtex.node_api import Node, Port\n\n"
+        "@njit(cache=True)\ndef k(p, s, si, x, y):\n    for t in range(x.shape[0]):\n        y[t, 0] = 2 * x[t, 0]\n\n"
+        "class Twice(Node):\n    '''Double it.'''\n    type_name = 'twice_test'\n"
+        "    inputs = {'x': Port((), '*')}\n    outputs = {'y': Port((), '=x')}\n    kernel = k\n")
+    graph = write_graph("flowtex: 1\nname: p\nrate: 100\ninputs: {x: {}}\nnodes: {t: {type: twice_test}}\n"
+                        "edges: [x -> t.x]\noutputs: {y: t.y}\n")
+    monkeypatch.chdir(tmp_path)
+    assert main(["validate", str(graph)]) == 1
+    assert "unknown node type 'twice_test'" in capsys.readouterr().err
+    assert main(["validate", str(graph), "--plugins", str(plugdir)]) == 0
+    monkeypatch.setenv("FLOWTEX_PLUGINS", str(plugdir))
+    assert main(["validate", str(graph)]) == 0
+    g = flowtex.load_graph(graph)
+    np.testing.assert_array_equal(g.run({"x": np.arange(4.0)})["y"], [0, 2, 4, 6])
+
+
+def test_broken_plugin_is_reported_with_its_file_and_line(tmp_path, write_graph, capsys):
+    plugdir = tmp_path / "bad"
+    plugdir.mkdir()
+    (plugdir / "oops.py").write_text("x = 1\nraise RuntimeError('boom')\n")
+    assert main(["nodes", "--plugins", str(plugdir)]) == 1
+    err = capsys.readouterr().err
+    assert f"{plugdir / 'oops.py'}:2: plugin failed to load: RuntimeError: boom" in err
+
+
+def test_console_script_is_installed():
+    out = subprocess.run([sys.executable, "-m", "flowtex", "--version"], capture_output=True, text=True, check=True)
+    assert out.stdout.startswith("flowtex ")
