@@ -1,0 +1,83 @@
+"""CAN session logs (.blf, .log, .asc, .csv, .trc via python-can): write and read, with clear errors.
+
+The live runtime records every frame it read (``is_rx=True``) and wrote
+(``is_rx=False``) in the order it handled them. Both Vector BLF and the
+candump ``.log`` format (python-can's trailing ``R``/``T``) and ASCII ``.asc``
+keep the direction, so :func:`read_session` gives it back unchanged.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import can
+
+from ..errors import DataError
+
+WRITE_SUFFIXES = (".blf", ".log", ".asc")
+READ_SUFFIXES = (".blf", ".log", ".asc")
+
+
+def check_log_path(path: str | Path, for_writing: bool) -> Path:
+    """``path`` as a Path if its suffix is a supported CAN log format, else DataError."""
+    path = Path(path)
+    suffixes = WRITE_SUFFIXES if for_writing else READ_SUFFIXES
+    if path.suffix.lower() not in suffixes:
+        raise DataError(f"{path}: CAN logs must end in {', '.join(suffixes)} (got {path.suffix or 'no suffix'!r})")
+    if for_writing and not path.parent.exists():
+        raise DataError(f"{path}: folder {path.parent} does not exist")
+    return path
+
+
+class SessionWriter:
+    """Append frames to a CAN log; marks direction (``is_rx``) in every format.
+
+    BLF files are written with zlib level 1 to keep the periodic compression
+    of a 128 KiB container short (it runs inside the live loop's slack time).
+    """
+
+    def __init__(self, path: str | Path):
+        self.path = check_log_path(path, for_writing=True)
+        suffix = self.path.suffix.lower()
+        try:
+            if suffix == ".blf":
+                self._writer = can.BLFWriter(self.path, compression_level=1)
+            else:
+                self._writer = can.Logger(self.path)
+        except OSError as exc:
+            raise DataError(f"{self.path}: cannot write CAN log: {exc.strerror or exc}") from None
+        self.frames = 0
+
+    def write(self, msg: can.Message, is_rx: bool) -> None:
+        """Log ``msg`` as received (``is_rx``) or sent by the runtime. ``msg`` may be reused afterwards."""
+        msg.is_rx = is_rx
+        self._writer.on_message_received(msg)
+        self.frames += 1
+
+    def close(self) -> None:
+        """Flush and close the file (idempotent)."""
+        if self._writer is not None:
+            self._writer.stop()
+            self._writer = None
+
+
+def read_session(path: str | Path) -> Iterator[can.Message]:
+    """Frames of a session log in file order (with their ``is_rx`` direction)."""
+    path = check_log_path(path, for_writing=False)
+    if not path.is_file():
+        raise DataError(f"{path}: CAN log not found")
+    try:
+        reader = can.LogReader(path)
+    except Exception as exc:  # python-can raises various errors for unreadable files
+        raise DataError(f"{path}: cannot read CAN log: {exc}") from None
+    try:
+        yield from reader
+    except DataError:
+        raise
+    except Exception as exc:
+        raise DataError(f"{path}: malformed CAN log: {exc}") from None
+    finally:
+        stop = getattr(reader, "stop", None)
+        if stop is not None:
+            stop()

@@ -1,0 +1,162 @@
+"""Replay a recorded live session (.blf/.log) offline through the same graph.
+
+Tick boundaries come from the runtime's own frames. The live loop sends exactly
+one frame per actuator message every tick, in the map's order, after decoding the
+frames it received in that tick, and logs them in that order. So a session log is
+
+    [received frames of tick 0] [actuator block of tick 0] [received of tick 1] [block 1] ... [exit block]
+
+where a *block* is the map's actuator messages, once each, in map order. Rule:
+every complete block closes one tick; the frames received (``is_rx=True``) since
+the previous block are that tick's inputs. The **last** block is the safe values
+sent at exit and is not a graph tick; received frames after the last regular
+block (a tick that failed) are ignored. Frames with ids the map does not read are
+skipped, as the live loop skips them.
+
+For every tick the replay decodes the same frames with the same codecs into the
+graph inputs, steps the graph (reset with the same seed), guards the outputs with
+the same clamps/peak allowance (never forcing safe values) and encodes them. If a
+live block differs from the replayed one, the tick is reported: as ``watchdog``
+when the replay's own input watchdog (same timeouts, tick-counted) says a sensor
+was stale then, otherwise as ``unexplained`` (an overrun watchdog, skipped ticks,
+or a real mismatch).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import can
+import numpy as np
+
+from ..errors import DataError
+from ..io.canlog import SessionWriter, read_session
+from .live import load_io
+
+
+@dataclass
+class ReplayReport:
+    """Outcome of :func:`replay_session`."""
+
+    ticks: int
+    frames_in: int
+    frames_out: int
+    exit_block: bool
+    """True when the log ends with the exit block of safe values (a clean live exit)."""
+    mismatched_ticks: list[int] = field(default_factory=list)
+    watchdog_ticks: list[int] = field(default_factory=list)
+    """Ticks at which the replay's input watchdog found a stale sensor (live sent safe values)."""
+    unexplained_ticks: list[int] = field(default_factory=list)
+    """Mismatched ticks not explained by a stale sensor (overrun watchdog, skipped deadlines...)."""
+    output_path: Path | None = None
+
+    @property
+    def identical(self) -> bool:
+        return not self.mismatched_ticks
+
+    def summary(self) -> str:
+        """A few lines for the terminal."""
+        lines = [f"replayed {self.ticks} ticks ({self.frames_in} frames received, {self.frames_out} sent live)"
+                 + ("" if self.exit_block else "; no exit block found (session was killed?)")]
+        if self.identical:
+            lines.append("every replayed tick's actuator frames equal the live ones byte for byte")
+        else:
+            lines.append(f"{len(self.mismatched_ticks)} tick(s) differ from the live frames: "
+                         f"{len(self.mismatched_ticks) - len(self.unexplained_ticks)} with stale sensors (watchdog safe values), "
+                         f"{len(self.unexplained_ticks)} other (overrun watchdog or skipped deadlines)"
+                         + (f"; first: {_first(self.unexplained_ticks)}" if self.unexplained_ticks else ""))
+        if self.watchdog_ticks:
+            lines.append(f"sensor inputs were stale at {len(self.watchdog_ticks)} tick(s), first {_first(self.watchdog_ticks)}")
+        if self.output_path is not None:
+            lines.append(f"wrote {self.output_path}")
+        return "\n".join(lines)
+
+
+def _first(ticks: list[int], n: int = 8) -> str:
+    return ", ".join(map(str, ticks[:n])) + (" ..." if len(ticks) > n else "")
+
+
+def _split_ticks(frames: list[can.Message], tx_ids: list[tuple[int, bool]], path: Path) -> tuple[list[tuple[list, list]], bool]:
+    """Group frames into ``(received, sent block)`` per tick, following the module's rule."""
+    ticks: list[tuple[list, list]] = []
+    rx: list[can.Message] = []
+    block: list[can.Message] = []
+    k = len(tx_ids)
+    for msg in frames:
+        if msg.is_error_frame:
+            continue
+        if msg.is_rx:
+            if block:
+                raise DataError(f"{path}: frame {msg.arbitration_id:#x} received in the middle of an actuator block; "
+                                "not a flowtex live session log")
+            rx.append(msg)
+            continue
+        expect = tx_ids[len(block)]
+        if (msg.arbitration_id, bool(msg.is_extended_id)) != expect:
+            raise DataError(f"{path}: sent frame {msg.arbitration_id:#x} where the map's actuator message {expect[0]:#x} was expected; "
+                            "was this session recorded with the same map?")
+        block.append(msg)
+        if len(block) == k:
+            ticks.append((rx, block))
+            rx, block = [], []
+    exit_block = bool(ticks)
+    if exit_block:
+        ticks.pop()
+    return ticks, exit_block
+
+
+def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, map_path: str | Path,
+                   output_path: str | Path | None = None, seed: int | None = None) -> ReplayReport:
+    """Run ``graph`` over the frames a live session received, and compare with what it sent.
+
+    ``output_path``: ``.npz`` writes the graph outputs (time first, plus ``rate``);
+    ``.blf``/``.log``/``.asc`` writes the actuator frames the graph would have sent
+    (timestamps copied from the live frames); None writes nothing.
+    ``seed`` must be the live session's (``--seed``; default the graph's).
+    """
+    session_path = Path(session_path)
+    io = load_io(graph, dbc_path, map_path)
+    if not io.tx:
+        raise DataError(f"{map_path}: the map binds no outputs, so the session has no actuator blocks to mark ticks")
+    frames = list(read_session(session_path))
+    ticks, exit_block = _split_ticks(frames, io.tx_ids, session_path)
+    suffix = Path(output_path).suffix.lower() if output_path is not None else ""
+    if output_path is not None and suffix not in (".npz", ".blf", ".log", ".asc"):
+        raise DataError(f"{output_path}: replay output must end in .npz (graph outputs) or .blf/.log/.asc (actuator frames)")
+    writer = SessionWriter(output_path) if suffix in (".blf", ".log", ".asc") else None
+    outputs = {name: np.zeros((len(ticks), *spec.shape)) for name, spec in graph.outputs.items()} if suffix == ".npz" else None
+    graph.reset(seed)
+    watchdog = io.new_watchdog(1 << 62, emit_log=False)
+    report = ReplayReport(ticks=len(ticks), frames_in=sum(1 for m in frames if m.is_rx and not m.is_error_frame),
+                          frames_out=sum(1 for m in frames if not m.is_rx and not m.is_error_frame), exit_block=exit_block)
+    try:
+        for k, (rx, live_block) in enumerate(ticks):
+            for msg in rx:
+                io.decode(msg, k, watchdog)
+            graph.step_block(1)
+            stale = watchdog.check(k, 0)
+            io.guard_outputs(False)
+            io.encode()
+            if stale:
+                report.watchdog_ticks.append(k)
+            if any(bytes(a.data) != bytes(b.data) for a, b in zip(io.tx, live_block, strict=True)):
+                report.mismatched_ticks.append(k)
+                if not stale:
+                    report.unexplained_ticks.append(k)
+            if outputs is not None:
+                for name, arr in outputs.items():
+                    arr[k] = graph.output_view(name).reshape(arr.shape[1:])
+            if writer is not None:
+                for m, live in zip(io.tx, live_block, strict=True):
+                    m.timestamp = live.timestamp
+                    writer.write(m, False)
+    finally:
+        if writer is not None:
+            writer.close()
+    if outputs is not None:
+        np.savez(output_path, rate=np.float64(graph.rate), **outputs)
+    if output_path is not None:
+        report.output_path = Path(output_path)
+    return report

@@ -1,0 +1,174 @@
+"""A simulated haptic device: plays a recording's sensor signals as CAN frames, collects actuator frames.
+
+The map file says which DBC signals feed which graph input (``graph = physical *
+scale + offset``); the device inverts that to turn the recording's graph-input
+arrays (time first, keyed by graph input name) back into DBC physical values
+and encodes them with the same generated codecs. Sample ``k`` of the recording
+(wrapping around at its end) is published as tick ``k``'s sensor frames.
+
+In ``flowtex live --simulate`` the device shares the runtime's process and is
+stepped by the runtime's clock: ``publish(k)`` before tick ``k`` starts and
+``collect(k)`` after the runtime sent tick ``k``'s actuator frames, so a
+simulated session is deterministic. :func:`run_device` runs the same device as
+its own process with its own clock (``flowtex simulate-device``).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Mapping
+from typing import Any, TextIO
+
+import can
+import numpy as np
+
+from ..errors import DataError, FlowtexError
+from ..io.canmap import CanMap
+from ..io.codec import MessageCodec
+
+
+class SimulatedDevice:
+    """Publish sensor frames from recorded arrays; decode received actuator frames into graph units.
+
+    ``drop`` maps a sensor message name to ``(first_tick, stop_tick)`` (stop None:
+    forever) during which the device does not send that message (sensor dropout).
+    ``history``: keep the actuator values seen after each collect (rows = ticks).
+    """
+
+    def __init__(self, bus: can.BusABC, canmap: CanMap, codecs: Mapping[str, MessageCodec], arrays: Mapping[str, np.ndarray],
+                 rate_hz: float = 1000.0, drop: Mapping[str, tuple[int, int | None]] | None = None, history: int = 0):
+        self.bus = bus
+        self.rate_hz = float(rate_hz)
+        columns = []
+        width = 0
+        sources: dict[str, list[Any]] = {}
+        for b in canmap.inputs.values():
+            if b.name not in arrays:
+                raise DataError(f"recording has no signal {b.name!r} for sensor input {b.name!r} (it has: {', '.join(arrays)})")
+            a = np.asarray(arrays[b.name], dtype=np.float64)
+            if a.ndim == 0 or int(np.prod(a.shape[1:])) != b.width:
+                raise DataError(f"recording signal {b.name!r} has shape {a.shape}; the map binds {b.width} signal(s) per sample")
+            columns.append(a.reshape(a.shape[0], b.width))
+            for j, (m, s) in enumerate(b.signals):
+                c = codecs[m]
+                src = sources.setdefault(m, [None] * len(c.signals))
+                src[c.index[s]] = (None, width + j, 1.0 / float(b.scale[j]), -float(b.offset[j]) / float(b.scale[j]))
+            width += b.width
+        lengths = {c.shape[0] for c in columns}
+        if len(lengths) > 1 or not columns or 0 in lengths:
+            raise DataError("recording signals for the sensor inputs must be non-empty and of equal length")
+        self.samples = np.ascontiguousarray(np.concatenate(columns, axis=1))
+        self.n = self.samples.shape[0]
+        self.vals = np.zeros(width)
+        self.tx: list[tuple[str, can.Message, Any]] = []
+        for m in canmap.sensor_messages():
+            c = codecs[m]
+            src = [None if t is None else (self.vals, t[1], t[2], t[3]) for t in sources[m]]
+            msg = can.Message(arbitration_id=c.frame_id, is_extended_id=c.is_extended, is_fd=c.is_fd, data=bytearray(c.length))
+            self.tx.append((m, msg, c.encoder(src)))
+        self.drop = dict(drop or {})
+        unknown = [m for m in self.drop if m not in {t[0] for t in self.tx}]
+        if unknown:
+            raise FlowtexError(f"drop: {', '.join(unknown)} is not a sensor message of the map ({', '.join(t[0] for t in self.tx)})")
+        # actuator side: decode into graph units
+        out_width = sum(b.width for b in canmap.outputs.values())
+        self.actuators = np.zeros(out_width)
+        per_msg: dict[str, list[Any]] = {}
+        start = 0
+        for b in canmap.outputs.values():
+            for j, (m, s) in enumerate(b.signals):
+                c = codecs[m]
+                t = per_msg.setdefault(m, [None] * len(c.signals))
+                t[c.index[s]] = (self.actuators, start + j, 1.0 / float(b.scale[j]), -float(b.offset[j]) / float(b.scale[j]))
+            start += b.width
+        self.decoders = {codecs[m].frame_id: codecs[m].decoder(t) for m, t in per_msg.items()}
+        self.frames_sent = 0
+        self.frames_received = 0
+        self.history = np.full((history, out_width), np.nan) if history else None
+        self.frames_per_collect = np.zeros(history, dtype=np.int64) if history else None
+        self.publish_time = 0.0
+        self.latency_s = np.zeros(max(history, 1))
+        self.latency_count = 0
+
+    def publish(self, k: int) -> None:
+        """Send sensor frames for tick ``k`` (sample ``k`` modulo the recording length)."""
+        self.vals[:] = self.samples[k % self.n]
+        send = self.bus.send
+        for name, msg, enc in self.tx:
+            d = self.drop.get(name)
+            if d is not None and k >= d[0] and (d[1] is None or k < d[1]):
+                continue
+            enc(msg.data)
+            send(msg)
+            self.frames_sent += 1
+        self.publish_time = time.time()
+
+    def collect(self, k: int) -> int:
+        """Receive every pending actuator frame (sent during tick ``k``); returns how many arrived."""
+        count = 0
+        msg = self.bus.recv(0.0)
+        while msg is not None:
+            dec = self.decoders.get(msg.arbitration_id)
+            if dec is not None and dec(msg.data):
+                count += 1
+                if self.latency_count < self.latency_s.shape[0]:
+                    self.latency_s[self.latency_count] = msg.timestamp - self.publish_time
+                    self.latency_count += 1
+            msg = self.bus.recv(0.0)
+        self.frames_received += count
+        if self.history is not None and 0 <= k < self.history.shape[0]:
+            self.history[k] = self.actuators
+            self.frames_per_collect[k] = count
+        return count
+
+
+def run_device(bus_spec: str, dbc_path: str, map_path: str, recording: str, rate_hz: float | None = None,
+               duration_s: float | None = None, bitrate: int | None = None, status: TextIO | None = sys.stderr) -> int:
+    """Run the simulated device as its own process on ``bus_spec`` until ``duration_s`` or Ctrl-C/SIGTERM.
+
+    Returns the number of ticks run. Each tick: collect actuator frames, publish
+    the next sensor sample. The rate is ``rate_hz``, else the recording's stated
+    rate, else 1000 Hz.
+    """
+    import signal
+
+    from ..io.canmap import load_map
+    from ..io.dbc import load_dbc
+    from ..io.recordings import load_recording
+    from .clock import DeadlineClock
+    from .live import open_bus
+
+    db = load_dbc(dbc_path)
+    canmap = load_map(map_path, db, dbc_path)
+    used = set(canmap.sensor_messages()) | set(canmap.actuator_messages())
+    codecs = {m.name: MessageCodec(m) for m in db.messages if m.name in used}
+    rec = load_recording(recording)
+    rate = float(rate_hz or rec.rate or 1000.0)
+    bus = open_bus(bus_spec, bitrate)
+    stop: list[bool] = [False]
+
+    def handler(signum: int, frame: Any) -> None:
+        stop[0] = True
+
+    old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        dev = SimulatedDevice(bus, canmap, codecs, rec.arrays, rate_hz=rate)
+        clock = DeadlineClock(rate)
+        n = int(round(duration_s * rate)) if duration_s else None
+        clock.start()
+        k = 0
+        while not stop[0] and (n is None or k < n):
+            dev.collect(k - 1)
+            dev.publish(k)
+            k += 1
+            clock.wait()
+        dev.collect(k - 1)
+        if status is not None:
+            print(f"simulated device: {k} ticks at {rate:g} Hz, sent {dev.frames_sent} sensor frames, "
+                  f"received {dev.frames_received} actuator frames", file=status)
+        return k
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        bus.shutdown()
