@@ -1,0 +1,182 @@
+"""Texture-model interpolation: (speed, force) -> one ARMA model, every tick, allocation-free.
+
+Per query (Culbertson et al. 2012 §4.2, HaTT's renderer):
+
+1. clamp speed and force HaTT's way (:func:`~flowtex.dsp.triangulation.clamp_query`);
+2. locate the triangle and barycentric weights (:func:`~flowtex.dsp.triangulation.locate`);
+3. blend the three models' AR LSFs, MA LSFs, excitation variance and MA gain
+   with those weights (never raw coefficients: convex combinations of
+   increasing LSF vectors stay increasing, so the model stays stable);
+4. convert the LSFs to A(z) and C(z) in float64 with
+   :func:`~flowtex.dsp.lsf.lsf_to_poly`, after :func:`~flowtex.dsp.lsf.repair_lsf`
+   (which leaves valid vectors bit-identical and only guards against rounding).
+
+NaN in speed or force holds the last model (HaTT turns one NaN into NaN
+output forever); before any valid query the held model is silence:
+A = C = 1, gain 0, variance 0. A query equal to the previous one (after
+clamping) reuses the previous result without recomputing it.
+
+Everything is read from one packed float64 table (:func:`pack_texture_table`)
+and kept in caller-owned state arrays sized by :func:`state_sizes`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .lsf import DEFAULT_MIN_GAP, lsf_to_poly, repair_lsf
+from .triangulation import clamp_query, locate, pack_triangulation
+
+# Packed table header (float64 slots).
+T_P = 0
+T_Q = 1
+T_NMOD = 2
+T_OFF_TRI = 3
+T_OFF_MOD = 4
+T_MAX_SPEED = 5
+T_MAX_FORCE = 6
+T_SPEED_MARGIN = 7
+T_LOW_SPEED = 8
+T_LOW_SPEED_VALUE = 9
+T_FORCE_MARGIN = 10
+T_LOW_FORCE = 11
+T_LOW_FORCE_VALUE = 12
+T_MIN_GAP = 13
+T_HEADER = 16
+
+# Float state slots.
+S_X = 0
+S_Y = 1
+S_W = 2  # 3 weights
+S_VAR = 5
+S_GAIN = 6
+S_AR = 7  # p+1 values, then q+1 values of C(z), then max(p, q) scratch
+
+# Int state slots.
+SI_HINT = 0
+SI_VALID = 1
+SI_V = 2  # 3 vertex indices
+SI_SIZE = 5
+
+
+def pack_texture_table(speeds: np.ndarray, forces: np.ndarray, triangles: np.ndarray, ar_lsf: np.ndarray, ma_lsf: np.ndarray,
+                       variance: np.ndarray, gain: np.ndarray, max_speed: float, max_force: float,
+                       speed_margin: float = 0.01, low_speed: float = 0.05, low_speed_value: float = 0.0001,
+                       force_margin: float = 0.01, low_force: float = 0.05, low_force_value: float = 0.0001,
+                       min_gap: float = DEFAULT_MIN_GAP) -> np.ndarray:
+    """One float64 array holding the clamping rule, the triangulation and the models, for :func:`texture_lookup_block`.
+
+    Units: speeds, margins and thresholds on speed in mm/s; forces in N. The
+    clamping defaults are HaTT's: above the maximum -> maximum - 0.01,
+    below 0.05 -> 0.0001. The hull projection measures distance in units of
+    (max_speed, max_force). ``min_gap`` (rad) is passed to ``repair_lsf``.
+    """
+    ar_lsf = np.ascontiguousarray(ar_lsf, dtype=np.float64)
+    ma_lsf = np.ascontiguousarray(ma_lsf, dtype=np.float64)
+    count, p = ar_lsf.shape
+    q = ma_lsf.shape[1]
+    tri_tab = pack_triangulation(speeds, forces, triangles, max_speed, max_force)
+    models = np.column_stack([ar_lsf, ma_lsf, np.asarray(variance, np.float64), np.asarray(gain, np.float64)])
+    head = np.zeros(T_HEADER)
+    head[T_P] = p
+    head[T_Q] = q
+    head[T_NMOD] = count
+    head[T_OFF_TRI] = T_HEADER
+    head[T_OFF_MOD] = T_HEADER + tri_tab.size
+    head[T_MAX_SPEED] = max_speed
+    head[T_MAX_FORCE] = max_force
+    head[T_SPEED_MARGIN] = speed_margin
+    head[T_LOW_SPEED] = low_speed
+    head[T_LOW_SPEED_VALUE] = low_speed_value
+    head[T_FORCE_MARGIN] = force_margin
+    head[T_LOW_FORCE] = low_force
+    head[T_LOW_FORCE_VALUE] = low_force_value
+    head[T_MIN_GAP] = min_gap
+    return np.concatenate([head, tri_tab, models.ravel()])
+
+
+def state_sizes(ar_order: int, ma_order: int) -> tuple[int, int]:
+    """Lengths of the float and int state arrays for orders p, q."""
+    return S_AR + (ar_order + 1) + (ma_order + 1) + max(ar_order, ma_order), SI_SIZE
+
+
+def initial_state(ar_order: int, ma_order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Fresh state: no query seen, held model silent (A = C = 1, gain 0, variance 0)."""
+    nf, ni = state_sizes(ar_order, ma_order)
+    s = np.zeros(nf)
+    s[S_X] = np.nan
+    s[S_Y] = np.nan
+    s[S_AR] = 1.0
+    s[S_AR + ar_order + 1] = 1.0
+    si = np.zeros(ni, dtype=np.int64)
+    si[SI_HINT] = -1
+    return s, si
+
+
+@njit(cache=True)
+def _blend(models, width, col, n, v, w, out):
+    b0 = v[0] * width + col
+    b1 = v[1] * width + col
+    b2 = v[2] * width + col
+    w0 = w[0]
+    w1 = w[1]
+    w2 = w[2]
+    for j in range(n):
+        out[j] = w0 * models[b0 + j] + w1 * models[b1 + j] + w2 * models[b2 + j]
+
+
+@njit(cache=True)
+def lookup_model(tab: np.ndarray, s: np.ndarray, si: np.ndarray, speed: float, force: float) -> None:
+    """Update the held model in ``s`` for one (speed mm/s, force N) query (see the module docstring)."""
+    if speed != speed or force != force:
+        return  # NaN: hold
+    p = int(tab[T_P])
+    q = int(tab[T_Q])
+    x = clamp_query(speed, tab[T_MAX_SPEED], tab[T_SPEED_MARGIN], tab[T_LOW_SPEED], tab[T_LOW_SPEED_VALUE])
+    y = clamp_query(force, tab[T_MAX_FORCE], tab[T_FORCE_MARGIN], tab[T_LOW_FORCE], tab[T_LOW_FORCE_VALUE])
+    if x == s[S_X] and y == s[S_Y] and si[SI_VALID] != 0:
+        return
+    o_tri = int(tab[T_OFF_TRI])
+    o_mod = int(tab[T_OFF_MOD])
+    tri_tab = tab[o_tri:o_mod]
+    models = tab[o_mod:]
+    w = s[S_W:S_W + 3]
+    v = si[SI_V:SI_V + 3]
+    si[SI_HINT] = locate(tri_tab, x, y, si[SI_HINT], w, v)
+    width = p + q + 2
+    o_ma = S_AR + p + 1
+    scratch = s[o_ma + q + 1:o_ma + q + 1 + max(p, q)]
+    min_gap = tab[T_MIN_GAP]
+    lsf = scratch[:p]
+    _blend(models, width, 0, p, v, w, lsf)
+    repair_lsf(lsf, min_gap)
+    lsf_to_poly(lsf, s[S_AR:S_AR + p + 1])
+    lsf = scratch[:q]
+    _blend(models, width, p, q, v, w, lsf)
+    repair_lsf(lsf, min_gap)
+    lsf_to_poly(lsf, s[o_ma:o_ma + q + 1])
+    b = p + q
+    s[S_VAR] = w[0] * models[v[0] * width + b] + w[1] * models[v[1] * width + b] + w[2] * models[v[2] * width + b]
+    b += 1
+    s[S_GAIN] = w[0] * models[v[0] * width + b] + w[1] * models[v[1] * width + b] + w[2] * models[v[2] * width + b]
+    s[S_X] = x
+    s[S_Y] = y
+    si[SI_VALID] = 1
+
+
+@njit(cache=True)
+def texture_lookup_block(tab: np.ndarray, s: np.ndarray, si: np.ndarray, speed: np.ndarray, force: np.ndarray,
+                         ar: np.ndarray, ma: np.ndarray, gain: np.ndarray, variance: np.ndarray) -> None:
+    """Run :func:`lookup_model` for each row of ``speed``/``force`` (n, 1) and write the model to the (n, width) outputs."""
+    p = int(tab[T_P])
+    q = int(tab[T_Q])
+    o_ma = S_AR + p + 1
+    for t in range(speed.shape[0]):
+        lookup_model(tab, s, si, speed[t, 0], force[t, 0])
+        for j in range(p + 1):
+            ar[t, j] = s[S_AR + j]
+        for j in range(q + 1):
+            ma[t, j] = s[o_ma + j]
+        gain[t, 0] = s[S_GAIN]
+        variance[t, 0] = s[S_VAR]

@@ -1,0 +1,97 @@
+"""Texture-model lookup: (speed, force) -> the interpolated ARMA model of a HaTT or native model set."""
+
+from __future__ import annotations
+
+from numba import njit
+
+from ..dsp.interp import initial_state, pack_texture_table, texture_lookup_block
+from ..errors import DataError, ParamError
+from ..io.modelset import load_model_set
+from ..models.texture import TextureModelSet
+from ..node_api import Node, NodeState, Param, Port, PortSpec
+
+
+@njit(cache=True)
+def _texture_lookup(p, s, si, speed, force, ar, ma, gain, variance):
+    texture_lookup_block(p, s, si, speed, force, ar, ma, gain, variance)
+
+
+class TextureLookup(Node):
+    """Interpolate a texture model set at the current (speed, force): AR and MA polynomials, gain and excitation variance.
+
+    Barycentric interpolation of line spectral frequencies in the Delaunay
+    triangle containing the (clamped) query, as HaTT's renderer does, but in
+    float64 and with a bounded point location that never loops. Queries
+    outside the triangulation's hull (after clamping) use the nearest point of
+    the hull (distance measured in units of max speed and max force). NaN in
+    either input holds the last model; before the first valid input the model
+    is silent (A = C = 1, gain 0, variance 0).
+    """
+
+    type_name = "texture_lookup"
+    params = {
+        "models": Param("path", doc="texture model set: a HaTT Models_<name>.xml file or a flowtex JSON model set"),
+        "low_speed": Param("float", default=0.05, unit="mm/s", min=0.0, doc="speeds below this are replaced by low_speed_value (HaTT: 0.05)"),
+        "low_speed_value": Param("float", default=0.0001, unit="mm/s", min=0.0, doc="speed used below low_speed (HaTT: 0.0001)"),
+        "speed_margin": Param("float", default=0.01, unit="mm/s", min=0.0,
+                              doc="speeds above the set's maxSpeed become maxSpeed - speed_margin (HaTT: 0.01)"),
+        "low_force": Param("float", default=0.05, unit="N", min=0.0, doc="forces below this are replaced by low_force_value (HaTT: 0.05)"),
+        "low_force_value": Param("float", default=0.0001, unit="N", min=0.0, doc="force used below low_force (HaTT: 0.0001)"),
+        "force_margin": Param("float", default=0.01, unit="N", min=0.0,
+                              doc="forces above the set's maxForce become maxForce - force_margin (HaTT: 0.01)"),
+    }
+    inputs = {
+        "speed": Port((), "mm/s", "tangential speed of the tool"),
+        "force": Port((), "N", "normal force"),
+    }
+    outputs = {
+        "ar": Port((1,), "", "A(z) = [1, a1, ..., ap] (shape p+1, set by the model file)"),
+        "ma": Port((1,), "", "C(z) = [1, c1, ..., cq] (shape q+1, set by the model file)"),
+        "gain": Port((), "", "MA gain g"),
+        "variance": Port((), "", "variance of the white excitation (HaTT's var)"),
+    }
+    kernel = _texture_lookup
+
+    def __init__(self, name, params, context):
+        super().__init__(name, params, context)
+        path = params["models"]
+        try:
+            self.model_set: TextureModelSet = load_model_set(path)
+        except DataError as exc:
+            raise ParamError("models", str(exc)) from None
+        ms = self.model_set
+        if ms.sample_rate != context.rate:
+            raise ParamError("models", f"{path}: the models are for {ms.sample_rate:g} Hz (<SampleRate>) but the graph runs at "
+                                       f"{context.rate:g} Hz; rate conversion of texture models is not supported yet: "
+                                       f"set the graph's rate to {ms.sample_rate:g} or use a model set fitted at {context.rate:g} Hz")
+        p = self.p
+        for low, value in (("low_speed", "low_speed_value"), ("low_force", "low_force_value")):
+            if p[value] > p[low]:
+                raise ParamError(value, f"{value} ({p[value]:g}) must not exceed {low} ({p[low]:g})")
+        if p["speed_margin"] >= ms.max_speed:
+            raise ParamError("speed_margin", f"speed_margin ({p['speed_margin']:g}) must be below the set's max speed {ms.max_speed:g} mm/s")
+        if p["force_margin"] >= ms.max_force:
+            raise ParamError("force_margin", f"force_margin ({p['force_margin']:g}) must be below the set's max force {ms.max_force:g} N")
+
+    def resolve(self, inputs):
+        ms = self.model_set
+        return {
+            "ar": PortSpec((ms.ar_order + 1,), ""),
+            "ma": PortSpec((ms.ma_order + 1,), ""),
+            "gain": PortSpec((), ""),
+            "variance": PortSpec((), ""),
+        }
+
+    def build(self, inputs, outputs):
+        ms = self.model_set
+        p = self.p
+        try:
+            table = pack_texture_table(ms.speeds, ms.forces, ms.triangles, ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain,
+                                       ms.max_speed, ms.max_force,
+                                       speed_margin=p["speed_margin"], low_speed=p["low_speed"], low_speed_value=p["low_speed_value"],
+                                       force_margin=p["force_margin"], low_force=p["low_force"], low_force_value=p["low_force_value"])
+        except ValueError as exc:
+            raise ParamError("models", f"{p['models']}: {exc}") from None
+        s, si = initial_state(ms.ar_order, ms.ma_order)
+        return NodeState(params=table, state=s, istate=si)
+
