@@ -122,7 +122,7 @@ class MessageCodec:
             unknown = [k for k in values if k not in self.index]
             if unknown:
                 raise DataError(f"message {self.name!r} has no signal(s) {', '.join(unknown)}")
-            values = [float(values.get(n, 0.0)) for n in self.signals]
+            values = [values.get(n, 0.0) for n in self.signals]
         elif len(values) != len(self.signals):
             raise DataError(f"message {self.name!r} has {len(self.signals)} signals, got {len(values)} values")
         buf = bytearray(self.length)
@@ -210,6 +210,8 @@ class MessageCodec:
             word = "wb" if s.big_endian else "wl"
             if s.is_float:
                 lines.append(f"    r = _b{s.length}((v - {s.offset!r}) / {s.scale!r})")
+            elif s.scale == 1 and s.offset == 0:
+                lines.append("    r = round(v)")  # cantools' IdentityConversion: exact for big ints
             else:
                 lines.append(f"    r = round((v - {s.offset!r}) / {s.scale!r})")
                 lines.append(f"    if r > {s.raw_max}:\n        r = {s.raw_max}\n    elif r < {s.raw_min}:\n        r = {s.raw_min}")
