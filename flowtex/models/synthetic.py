@@ -178,3 +178,57 @@ def cork_like_model_set(seed: int = 3) -> TextureModelSet:
             getattr(full, key)[m] = getattr(full, key)[src]
         full.variance[m] = 0.0
     return full.validate()
+
+
+def hard_model_set(ar_order: int = 12, ma_order: int = 10) -> TextureModelSet:
+    """A small model set with the numerically hard features of real HaTT surfaces, for tests.
+
+    * AR poles at radius 0.995..0.998 (one conjugate pair at 0.998 in every model);
+    * MA LSFs with a gap of 2e-4 between two neighbours and the last LSF
+      within 5e-4 of pi;
+    * silent (variance 0) corner models at speed 0 and at force 0;
+    * a hull that is not a rectangle: the (max speed, max force) corner has no
+      model, so a saturated query lies outside the hull.
+
+    Measured models sit on a 3 x 3 grid of speeds (60, 140, 220 mm/s) and
+    forces (0.5, 1.5, 2.5 N). Stored coefficients are the float64 reference
+    conversion of the stored LSFs, so file and LSFs agree to rounding.
+    """
+    if ar_order % 2 or ar_order < 4 or ma_order < 4:
+        raise ValueError("hard_model_set needs an even AR order >= 4 and an MA order >= 4")
+    speeds = [60.0, 140.0, 220.0]
+    forces = [0.5, 1.5, 2.5]
+    measured = [(s, f) for s in speeds for f in forces if not (s == speeds[-1] and f == forces[-1])]
+    measured.append((180.0, 2.0))  # an interior model instead of the missing corner
+    corner = [(0.0, f) for f in forces] + [(s, 0.0) for s in speeds] + [(0.0, 0.0)]
+    pts = np.array(measured + corner)
+    count = len(pts)
+    npair = ar_order // 2
+    ar_lsf = np.empty((count, ar_order))
+    ma_lsf = np.empty((count, ma_order))
+    variance = np.empty(count)
+    gain = np.empty(count)
+    for m, (s, f) in enumerate(pts):
+        src = m
+        if m >= len(measured):
+            src = int(np.argmin(np.sum(((np.array(measured) - pts[m]) / [220.0, 2.5]) ** 2, axis=1)))
+        s, f = pts[src]
+        u = s / 220.0
+        g = f / 2.5
+        radii = np.full(npair, 0.995 + 0.002 * u)
+        radii[npair // 2] = 0.998
+        angles = np.linspace(0.3, 2.8, npair) + 0.05 * u + 0.02 * g
+        ar_lsf[m] = poly_to_lsf_reference(poly_from_roots(radii, angles))
+        lsf = np.linspace(0.4, 2.9, ma_order) + 0.03 * u - 0.02 * g
+        lsf[2] = lsf[1] + 2e-4
+        lsf[-1] = math.pi - 4e-4 - 5e-5 * g
+        ma_lsf[m] = lsf
+        variance[m] = 0.0 if m >= len(measured) else 2e-3 * (0.5 + u) * (0.5 + g)
+        gain[m] = 0.8 + 0.3 * u
+    ms = TextureModelSet(material="hard cases", sample_rate=1000.0, speeds=pts[:, 0].copy(), forces=pts[:, 1].copy(),
+                         triangles=Delaunay(pts).simplices.astype(np.int64), ar_lsf=ar_lsf, ma_lsf=ma_lsf,
+                         variance=variance, gain=gain, max_speed=220.0, max_force=2.5, mu=0.5,
+                         ar_coeff=np.array([lsf_to_poly_reference(r) for r in ar_lsf]),
+                         ma_coeff=np.array([lsf_to_poly_reference(r) for r in ma_lsf]),
+                         metadata={"generator": "flowtex.models.synthetic.hard_model_set"})
+    return ms.validate()
