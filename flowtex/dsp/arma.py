@@ -1,0 +1,311 @@
+"""ARMA synthesis that stays bounded under per-tick model changes: a normalized lattice-ladder.
+
+The model (HaTT's, per tick): y_n = -sum_i a_i y_{n-i} + g (e_n + sum_j c_j e_{n-j}),
+e_n ~ N(0, var), i.e. y = g C(z) / A(z) e with A = 1 + a1 z^-1 + ... + ap z^-p
+and C = 1 + c1 z^-1 + ... + cq z^-q (units of y: m/s^2 for HaTT models).
+
+Why not the direct form: each model is stable, but switching between two of
+them every tick is a time-varying system whose state matrix product can have
+spectral radius > 1; a direct-form filter then grows without bound (1e235 on
+a real surface). The Gray-Markel *normalized* lattice realises 1/A(z) as a
+cascade of plane rotations::
+
+    [f_{m-1}]   [ c_m  -k_m ] [ f_m              ]        c_m = sqrt(1 - k_m^2)
+    [g_m    ] = [ k_m   c_m ] [ g_{m-1}[n - 1]   ]
+
+(k_m: reflection coefficients of A, from the step-down recursion). Each tick
+maps (input, old state) to (new state, leaked g_L) by an orthogonal matrix
+*whatever the k's are*, so the state energy can never grow by more than the
+input energy, for any sequence of valid models (|k_m| < 1). The MA part is a
+ladder: y = sum_m v_m g_m, with v solving g C(z) = sum_m v_m (prod_{i>m} c_i)
+B_m(z), B_m(z) = z^-m A_m(z^-1) (backward predictor polynomials). For a
+fixed model the transfer function is exactly g C(z) / A(z).
+
+Rules implemented by :func:`arma_lattice_block` (all documented in the node):
+
+* the new model is used on the tick it arrives (no smoothing, no lag); the
+  filter state is kept across model changes;
+* reflection and ladder coefficients are recomputed only when the incoming
+  ar/ma/gain differ (by ``!=``) from the previous tick's;
+* an invalid model -- any NaN/inf, a0 == 0, |k_m| > K_MAX = 1 - 1e-12 (not
+  minimum phase, also numerically), non-finite ladder weights, non-finite gain, negative or
+  non-finite variance -- is not used: the last valid model (all four parts)
+  is held. Before any valid model arrives the output is 0;
+* state values below 1e-200 in magnitude are flushed to 0 every tick, so a
+  zero-variance (silent) model never leaves subnormal numbers behind (they
+  make every later multiply ~100x slower on x86);
+* the excitation is one standard normal per tick from :mod:`flowtex.dsp.rng`
+  (drawn whatever the variance, so the noise sequence does not depend on
+  the model), scaled by sqrt(var).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .rng import next_normal
+
+FLUSH_BELOW = 1e-200
+"""State values smaller than this in magnitude are set to 0 (subnormal guard)."""
+
+K_MAX = 1.0 - 1e-12
+"""Largest accepted |reflection coefficient|. A pole within ~1e-12 of the unit circle (a resonance with
+Q ~ 1e12) cannot be told apart from an unstable one after float64 rounding (a root exactly at z = -1
+comes out of the step-down as |k| = 1 - 2e-16), so such models are refused like |k| >= 1."""
+
+HEADER_FLOATS = 1
+"""s[0]: cached normal of the RNG (flowtex.dsp.rng STATE_FLOATS)."""
+RNG_INTS = 5
+"""si[0:5]: RNG words (flowtex.dsp.rng STATE_INTS)."""
+ISTATE_INTS = 8
+"""si[5]: 1 once a valid model is active; si[6]: 1 if the last seen ar/ma/gain were valid (trial
+coefficients usable); si[7]: 1 once those trial coefficients have been made active."""
+
+
+def lattice_order(p: int, q: int) -> int:
+    """Number of lattice sections L = max(p, q) (sections above p have k = 0)."""
+    return max(p, q)
+
+
+def state_size(p: int, q: int) -> int:
+    """Length of the float state array for AR order p and MA order q (see :func:`_offsets`)."""
+    L = lattice_order(p, q)
+    return HEADER_FLOATS + 3 * L + (L + 1) + 1 + L + (p + 1) + (q + 1) + 1 + 2 * L + (L + 1) + 2 * (L + 1)
+
+
+@njit(cache=True, inline="always")
+def _offsets(p, q):
+    L = max(p, q)
+    o_k = HEADER_FLOATS  # active reflection coefficients k_1..k_L at o_k + m - 1
+    o_c = o_k + L  # active c_m = sqrt(1 - k_m^2)
+    o_v = o_c + L  # active ladder weights v_0..v_L
+    o_var = o_v + L + 1  # active variance
+    o_g = o_var + 1  # lattice state g_0..g_{L-1} (previous tick)
+    o_la = o_g + L  # last seen ar (p+1)
+    o_lm = o_la + p + 1  # last seen ma (q+1)
+    o_lg = o_lm + q + 1  # last seen gain
+    o_tk = o_lg + 1  # trial k, c, v (computed here, copied to active if valid)
+    o_tc = o_tk + L
+    o_tv = o_tc + L
+    o_wa = o_tv + L + 1  # work: step-down polynomial
+    o_wr = o_wa + L + 1  # work: ladder remainder
+    return L, o_k, o_c, o_v, o_var, o_g, o_la, o_lm, o_lg, o_tk, o_tc, o_tv, o_wa, o_wr
+
+
+@njit(cache=True)
+def lattice_ladder_coefficients(ar, ma, gain, k, c, v, wa, wr) -> bool:
+    """Reflection coefficients ``k``, ``c = sqrt(1 - k^2)`` and ladder weights ``v`` of g C(z) / A(z).
+
+    ``ar`` (p+1), ``ma`` (q+1); ``k``, ``c`` have length >= L = max(p, q),
+    ``v``, ``wa``, ``wr`` length >= L+1 (``wa``, ``wr`` are scratch). Section
+    m (1-based) uses ``k[m-1]``. Returns False (outputs then meaningless) if
+    the model is not usable: non-finite input, a0 == 0, |k_m| >= 1 or
+    non-finite weights. No allocation.
+    """
+    p = ar.shape[0] - 1
+    q = ma.shape[0] - 1
+    L = max(p, q)
+    a0 = ar[0]
+    if not (math.isfinite(a0) and a0 != 0.0 and math.isfinite(gain)):
+        return False
+    for i in range(L + 1):
+        wa[i] = ar[i] / a0 if i <= p else 0.0
+        wr[i] = gain * ma[i] / a0 if i <= q else 0.0
+        if not (math.isfinite(wa[i]) and math.isfinite(wr[i])):
+            return False
+    prod = 1.0  # prod_{i > m} c_i
+    for m in range(L, 0, -1):
+        # ladder: remainder -= lambda_m B_m, B_m[j] = A_m[m - j]
+        lam = wr[m]
+        v[m] = lam / prod
+        if lam != 0.0:
+            for j in range(m + 1):
+                wr[j] -= lam * wa[m - j]
+        km = wa[m]
+        if not (abs(km) <= K_MAX):
+            return False
+        den = 1.0 - km * km
+        cm = math.sqrt(den)
+        inv = 1.0 / den
+        k[m - 1] = km
+        c[m - 1] = cm
+        # step-down A_m -> A_{m-1}, in place on pairs (i, m - i)
+        for i in range(1, (m + 1) // 2):
+            j = m - i
+            ai = wa[i]
+            aj = wa[j]
+            wa[i] = (ai - km * aj) * inv
+            wa[j] = (aj - km * ai) * inv
+        if m % 2 == 0 and m > 0:
+            h = m // 2
+            wa[h] = wa[h] * (1.0 - km) * inv
+        wa[m] = 0.0
+        prod *= cm
+    v[0] = wr[0] / prod
+    for m in range(L + 1):
+        if not math.isfinite(v[m]):
+            return False
+    return True
+
+
+@njit(cache=True)
+def arma_lattice_block(s, si, ar, ma, gain, variance, y) -> None:
+    """Normalized lattice-ladder ARMA synthesis over a block of ticks.
+
+    ``ar`` (n, p+1), ``ma`` (n, q+1), ``gain`` (n, 1), ``variance`` (n, 1):
+    the model of each tick; ``y`` (n, 1) output. ``s`` (float64,
+    :func:`state_size`) and ``si`` (int64, :data:`ISTATE_INTS`, RNG seeded)
+    hold all state, so any split into blocks gives the same numbers.
+    """
+    n = y.shape[0]
+    p = ar.shape[1] - 1
+    q = ma.shape[1] - 1
+    L, o_k, o_c, o_v, o_var, o_g, o_la, o_lm, o_lg, o_tk, o_tc, o_tv, o_wa, o_wr = _offsets(p, q)
+    rng_f = s[0:1]
+    for t in range(n):
+        e = next_normal(si, rng_f)
+        # --- model update (only when ar/ma/gain changed) ---
+        changed = gain[t, 0] != s[o_lg]
+        if not changed:
+            for i in range(p + 1):
+                if ar[t, i] != s[o_la + i]:
+                    changed = True
+                    break
+        if not changed:
+            for i in range(q + 1):
+                if ma[t, i] != s[o_lm + i]:
+                    changed = True
+                    break
+        if changed:
+            for i in range(p + 1):
+                s[o_la + i] = ar[t, i]
+            for i in range(q + 1):
+                s[o_lm + i] = ma[t, i]
+            s[o_lg] = gain[t, 0]
+            ok = lattice_ladder_coefficients(
+                ar[t], ma[t], gain[t, 0],
+                s[o_tk:o_tk + L], s[o_tc:o_tc + L], s[o_tv:o_tv + L + 1], s[o_wa:o_wa + L + 1], s[o_wr:o_wr + L + 1],
+            )
+            si[6] = 1 if ok else 0
+            si[7] = 0
+        var = variance[t, 0]
+        if si[6] == 1 and math.isfinite(var) and var >= 0.0:
+            if si[7] == 0:  # trial coefficients not active yet: commit them
+                for i in range(L):
+                    s[o_k + i] = s[o_tk + i]
+                    s[o_c + i] = s[o_tc + i]
+                for i in range(L + 1):
+                    s[o_v + i] = s[o_tv + i]
+                si[7] = 1
+            s[o_var] = var
+            si[5] = 1
+        if si[5] == 0:
+            y[t, 0] = 0.0
+            continue
+        # --- one tick of the normalized lattice-ladder ---
+        y[t, 0] = lattice_step(s, o_k, o_c, o_v, o_g, L, math.sqrt(s[o_var]) * e)
+
+
+@njit(cache=True, inline="always")
+def lattice_step(s, o_k, o_c, o_v, o_g, L, x) -> float:
+    """One tick of the normalized lattice-ladder with input ``x``; returns the output.
+
+    Coefficients k, c (L each), v (L+1) and the state g_0..g_{L-1} live in
+    ``s`` at the given offsets. Updates the state, flushing values below
+    :data:`FLUSH_BELOW` to zero.
+    """
+    f = x
+    acc = 0.0
+    for m in range(L, 0, -1):
+        km = s[o_k + m - 1]
+        cm = s[o_c + m - 1]
+        gp = s[o_g + m - 1]  # g_{m-1}[n-1]
+        gm = km * f + cm * gp  # g_m[n]
+        f = cm * f - km * gp  # f_{m-1}[n]
+        acc += s[o_v + m] * gm
+        if m < L:
+            s[o_g + m] = gm if abs(gm) >= FLUSH_BELOW else 0.0
+    acc += s[o_v] * f
+    if L > 0:
+        s[o_g] = f if abs(f) >= FLUSH_BELOW else 0.0
+    return acc
+
+
+def new_state(p: int, q: int) -> tuple[np.ndarray, np.ndarray]:
+    """Zeroed (float state, int state) arrays for orders p, q; seed the RNG with flowtex.dsp.rng.seed_rng."""
+    s = np.zeros(state_size(p, q))
+    si = np.zeros(ISTATE_INTS, np.int64)
+    # last seen ar/ma/gain start as NaN so that the first model always counts as "changed"
+    _, _, _, _, _, _, o_la, o_lm, o_lg, _, _, _, _, _ = _offsets(p, q)
+    s[o_la:o_lg + 1] = np.nan
+    return s, si
+
+
+# ----------------------------------------------------------------------------- Python helpers
+
+
+def _check_model(ar: np.ndarray, ma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    ar = np.asarray(ar, dtype=np.float64).ravel()
+    ma = np.asarray(ma, dtype=np.float64).ravel()
+    if ar.size == 0 or ma.size == 0 or ar[0] == 0.0:
+        raise ValueError("ar and ma need at least one coefficient and ar[0] must be non-zero")
+    return ar, ma
+
+
+def arma_impulse_response(ar: np.ndarray, ma: np.ndarray, gain: float, n: int) -> np.ndarray:
+    """First ``n`` samples of the impulse response of g C(z) / A(z) (scipy.signal.lfilter)."""
+    import scipy.signal
+
+    ar, ma = _check_model(ar, ma)
+    impulse = np.zeros(n)
+    if n:
+        impulse[0] = 1.0
+    return scipy.signal.lfilter(gain * ma, ar, impulse)
+
+
+def arma_output_variance(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float) -> float:
+    """Stationary output variance var * g^2 * sum_n h_n^2 of the model (h: impulse response of C/A).
+
+    Exact (no truncation): solves the discrete Lyapunov equation of a
+    state-space realisation. Units: those of y squared (m^2/s^4).
+    Raises ValueError for a model that is not stable.
+    """
+    import scipy.linalg
+    import scipy.signal
+
+    ar, ma = _check_model(ar, ma)
+    if ar.size > 1 and np.max(np.abs(np.roots(ar))) >= 1.0:
+        raise ValueError("AR polynomial is not stable (a root on or outside the unit circle)")
+    num = gain * ma / ar[0]
+    den = ar / ar[0]
+    n = max(num.size, den.size)
+    num = np.r_[num, np.zeros(n - num.size)]
+    den = np.r_[den, np.zeros(n - den.size)]
+    if n == 1:
+        return float(variance * num[0] ** 2)
+    A, B, C, D = scipy.signal.tf2ss(num, den)
+    P = scipy.linalg.solve_discrete_lyapunov(A, B @ B.T)
+    return float(variance * ((C @ P @ C.T)[0, 0] + D[0, 0] ** 2))
+
+
+def arma_psd(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, freqs_hz: np.ndarray, rate_hz: float,
+             onesided: bool = True) -> np.ndarray:
+    """Model power spectral density at ``freqs_hz``: var g^2 |C/A|^2 / fs, in (m/s^2)^2/Hz.
+
+    ``onesided`` (default, matching scipy.signal.welch for real signals)
+    doubles every frequency strictly between 0 and fs/2, so the PSD
+    integrates over [0, fs/2] to the output variance.
+    """
+    ar, ma = _check_model(ar, ma)
+    freqs_hz = np.asarray(freqs_hz, dtype=np.float64)
+    z = np.exp(-2j * np.pi * freqs_hz / rate_hz)
+    num = np.polynomial.polynomial.polyval(z, ma)
+    den = np.polynomial.polynomial.polyval(z, ar)
+    psd = variance * gain**2 * np.abs(num / den) ** 2 / rate_hz
+    if onesided:
+        inner = (freqs_hz > 0) & (freqs_hz < rate_hz / 2)
+        psd = np.where(inner, 2.0 * psd, psd)
+    return psd
