@@ -46,7 +46,8 @@ Watchdog rules (:class:`Watchdog`):
   tick t and return at the first later tick by which every sensor has sent a new frame.
 - At construction the watchdog is tripped (reason ``"startup"``, not counted as an
   event): outputs stay safe until every input has reported once.
-- ``events`` counts transitions from OK to tripped; each is appended to ``log`` as
+- ``events`` counts transitions from OK to tripped (split by cause into
+  ``stale_events`` and ``overrun_events``; a tick with both counts as stale); each is appended to ``log`` as
   ``(tick, reason, detail)`` (reason ``"stale"`` with the input index, or ``"overrun"``
   with the overrun in ns) and logged through :mod:`logging` (logger
   ``flowtex.runtime.safety``). The log keeps the first ``log_capacity`` events;
@@ -256,6 +257,8 @@ class Watchdog:
         self.reason = "startup"
         self.trip_tick = _NEVER
         self.events = 0
+        self.stale_events = 0
+        self.overrun_events = 0
         self.log: list[tuple[int, str, int]] = []
         self.log_capacity = int(log_capacity)
         self.emit_log = emit_log
@@ -275,8 +278,10 @@ class Watchdog:
                 self.events += 1
                 if stale >= 0:
                     self.reason, detail = "stale", int(stale)
+                    self.stale_events += 1
                 else:
                     self.reason, detail = "overrun", int(overrun_ns)
+                    self.overrun_events += 1
                 if len(self.log) < self.log_capacity:
                     self.log.append((int(tick), self.reason, detail))
                 if self.emit_log:

@@ -167,6 +167,7 @@ def test_stale_exactly_at_timeout_is_still_fresh():
     assert w.events == 1
     assert w.log == [(14, "stale", 0)]
     assert w.reason == "stale"
+    assert (w.stale_events, w.overrun_events) == (1, 0)
 
 
 def test_stale_recovery_needs_fresh_data_after_trip():
@@ -242,7 +243,7 @@ def test_log_capacity_caps_log_not_count():
         tick += 1
         w.check(tick, 1)  # overrun trip
         tick += 1
-    assert w.events == 5
+    assert w.events == 5 and w.overrun_events == 5 and w.stale_events == 0
     assert len(w.log) == 2
 
 
