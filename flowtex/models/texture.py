@@ -132,8 +132,13 @@ class TextureModelSet:
 
         for key in ("sample_rate", "max_speed", "max_force"):
             value = getattr(self, key)
-            if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+            if isinstance(value, (np.integer, np.floating)):
+                value = float(value)
+                setattr(self, key, value)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
                 fail(f"{n[key]} must be a finite number > 0, got {value!r}")
+        if self.mu is not None:
+            self.mu = float(self.mu)
         if self.mu is not None and (not math.isfinite(self.mu) or self.mu < 0):
             fail(f"{n['mu']} must be a finite number >= 0, got {self.mu!r}")
 
@@ -151,11 +156,11 @@ class TextureModelSet:
                 fail(f"{n[key]} has {arr.shape[0]} values but there are {m_count} models (from {n['speeds']})")
             bad = np.flatnonzero(~np.isfinite(arr))
             if bad.size:
-                fail(f"{model_name(int(bad[0]))}: {n[key]} is {arr[bad[0]]!r}; it must be a finite number")
+                fail(f"{model_name(int(bad[0]))}: {n[key]} is {float(arr[bad[0]])!r}; it must be a finite number")
             setattr(self, key, arr)
         neg = np.flatnonzero(vec["variance"] < 0)
         if neg.size:
-            fail(f"{model_name(int(neg[0]))}: {n['variance']} is {vec['variance'][neg[0]]!r}; a variance must be >= 0")
+            fail(f"{model_name(int(neg[0]))}: {n['variance']} is {float(vec['variance'][neg[0]])!r}; a variance must be >= 0")
 
         for key in ("ar_lsf", "ma_lsf"):
             arr = np.ascontiguousarray(getattr(self, key), dtype=np.float64)
@@ -210,14 +215,14 @@ class TextureModelSet:
         bad = np.argwhere(~np.isfinite(arr))
         if bad.size:
             m, k = int(bad[0, 0]), int(bad[0, 1])
-            fail(f"{model_name(m)}: {n[key]} value {k + 1} is {arr[m, k]!r}; LSFs must be finite")
+            fail(f"{model_name(m)}: {n[key]} value {k + 1} is {float(arr[m, k])!r}; LSFs must be finite")
         out = np.argwhere((arr <= 0.0) | (arr >= math.pi))
         if out.size:
             m, k = int(out[0, 0]), int(out[0, 1])
-            fail(f"{model_name(m)}: {n[key]} value {k + 1} is {arr[m, k]!r}; LSFs must lie strictly between 0 and pi")
+            fail(f"{model_name(m)}: {n[key]} value {k + 1} is {float(arr[m, k])!r}; LSFs must lie strictly between 0 and pi")
         if arr.shape[1] > 1:
             dec = np.argwhere(np.diff(arr, axis=1) <= 0.0)
             if dec.size:
                 m, k = int(dec[0, 0]), int(dec[0, 1])
-                fail(f"{model_name(m)}: {n[key]} is not strictly increasing: value {k + 2} ({arr[m, k + 1]!r}) "
-                     f"<= value {k + 1} ({arr[m, k]!r}); the model is unstable or the file is corrupt")
+                fail(f"{model_name(m)}: {n[key]} is not strictly increasing: value {k + 2} ({float(arr[m, k + 1])!r}) "
+                     f"<= value {k + 1} ({float(arr[m, k])!r}); the model is unstable or the file is corrupt")
