@@ -5,7 +5,8 @@ overshoot) and, measured here, misses 1 ms deadlines hundreds of times per 30 s 
 load. A pure spin holds time well but burns a whole core and is preempted by the
 kernel scheduler anyway. The compromise used here: deadlines are absolute
 (``t0 + k * period``, no drift), the thread sleeps until ``spin_s`` before the next
-deadline and then spins on the clock for the last stretch. Under SCHED_FIFO
+deadline and then spins on the clock for the last stretch (``spin_s`` is capped at
+half a period, so the loop never degenerates into a pure spin). Under SCHED_FIFO
 (see :mod:`flowtex.runtime.realtime`) this gave p99 lateness of 2-6 us.
 
 Overrun rule (no catch-up bursts). ``wait()`` is called once per tick, after the
@@ -66,7 +67,8 @@ class DeadlineClock:
             raise ValueError(f"DeadlineClock: rate_hz={rate_hz!r} gives a period below 1 ns")
         self.rate_hz = float(rate_hz)
         self.period_ns = period_ns
-        self.spin_ns = int(round(spin_s * 1e9))
+        # spin at most half a period, so every period has a sleep (never a pure spin)
+        self.spin_ns = min(int(round(spin_s * 1e9)), period_ns // 2)
         self._sleep = sleep
         self._now = now
         self.tick = 0

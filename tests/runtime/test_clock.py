@@ -82,6 +82,15 @@ def test_spin_duration_bounded_by_spin_s():
     assert 0 <= spin_calls <= 201
 
 
+def test_spin_is_capped_at_half_a_period():
+    c, ft = make(rate=1000.0, spin_s=5e-3, step=1)
+    assert c.spin_ns == 500_000
+    c.start()
+    ft.work(100 * US - 1)
+    c.wait()
+    assert ft.sleeps and ft.sleeps[0] == pytest.approx(400e-6, abs=1e-12)
+
+
 def test_overrun_skips_without_burst():
     c, ft = make()
     c.start()
