@@ -7,7 +7,8 @@ Common conventions
 * A negative normal force is treated as 0 (no contact, no friction).
 * A non-finite normal force or velocity/position gives zero friction for that
   tick; the Dahl state is then left untouched, so the next valid sample
-  continues from the last valid one (no NaN is ever stored).
+  continues from the last valid one (no NaN is ever stored). Finite inputs so
+  large that squaring them overflows (|x| > ~1e154) are treated the same way.
 """
 
 from __future__ import annotations
@@ -60,6 +61,11 @@ def coulomb_block(p: np.ndarray, vel: np.ndarray, fn: np.ndarray, out: np.ndarra
         v1 = vel[t, 1]
         v2 = vel[t, 2]
         speed = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+        if not math.isfinite(speed * f):  # overflowing velocity: no direction to oppose
+            out[t, 0] = 0.0
+            out[t, 1] = 0.0
+            out[t, 2] = 0.0
+            continue
         if speed < vth:
             k = -mu * f * VISCOUS_PER_MM_S
         else:
@@ -116,6 +122,14 @@ def dahl_block(p: np.ndarray, s: np.ndarray, si: np.ndarray, pos: np.ndarray, fn
                 s[DS_W + c] = pos[t, c]
                 s[DS_XPREV + c] = pos[t, c]
             s[DS_FN] = f
+        q0 = pos[t, 0] - s[DS_W]
+        q1 = pos[t, 1] - s[DS_W + 1]
+        q2 = pos[t, 2] - s[DS_W + 2]
+        if not math.isfinite(q0 * q0 + q1 * q1 + q2 * q2 + f * f):  # overflowing jump: treat as invalid
+            out[t, 0] = 0.0
+            out[t, 1] = 0.0
+            out[t, 2] = 0.0
+            continue
         fprev = s[DS_FN]
         if f > fprev:
             shrink = math.sqrt(fprev / f)

@@ -32,7 +32,8 @@ Invalid samples: a position sample with a NaN/inf component is skipped: the
 filters do not advance and the outputs hold their last values. The next valid
 sample is differentiated against the last valid one over the whole gap
 (``(x - x_last) * fs / (gap + 1)``), i.e. the mean velocity across the gap,
-so a dropout neither poisons the state nor produces a spike. A normal input
+so a dropout neither poisons the state nor produces a spike. A finite sample
+whose velocity overflows (a jump near 1e308 mm) is skipped the same way. A normal input
 that is non-finite or shorter than 1e-9 is replaced by the last valid normal.
 """
 
@@ -158,6 +159,15 @@ def speed_block(p: np.ndarray, s: np.ndarray, si: np.ndarray, pos: np.ndarray, n
                 s[SS_HP + c] = pos[t, c]
                 s[SS_LP + c] = 0.0
         scale = rate / (si[SI_GAP] + 1.0)
+        d0 = (pos[t, 0] - s[SS_XPREV]) * scale
+        d1 = (pos[t, 1] - s[SS_XPREV + 1]) * scale
+        d2 = (pos[t, 2] - s[SS_XPREV + 2]) * scale
+        if not math.isfinite(d0 * d0 + d1 * d1 + d2 * d2):  # finite but absurd (overflowing) jump: skip it too
+            si[SI_GAP] += 1
+            for c in range(3):
+                vel[t, c] = s[SS_VEL + c]
+            speed[t, 0] = s[SS_SPEED]
+            continue
         si[SI_GAP] = 0
         n0 = s[SS_NORMAL]
         n1 = s[SS_NORMAL + 1]
@@ -244,7 +254,8 @@ def contact_block(p: np.ndarray, s: np.ndarray, si: np.ndarray, force: np.ndarra
                 vn = 0.0
                 for c in range(3):
                     vn -= (pos[t, c] - s[CS_XPREV + c]) * scale * s[CS_NORMAL + c]
-                s[CS_VN] = vn if vn > 0.0 else 0.0
+                if math.isfinite(vn):
+                    s[CS_VN] = vn if vn > 0.0 else 0.0
             si[CI_STARTED] = 1
             si[CI_GAP] = 0
             for c in range(3):

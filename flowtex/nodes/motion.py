@@ -26,6 +26,8 @@ from ..node_api import Node, NodeState, Param, Port, check
 
 HATT_CORNER_RAD_S = 125.0
 """HaTT's speed filter corner (ALGORITHMS §3)."""
+DEFAULT_CUTOFF_HZ = 20.0
+"""Rendering speed filter of 000/001."""
 
 _NORMAL_PARAM = Param("floats", default=(0.0, 0.0, 1.0), length=(3, 3),
                       doc="surface normal used when the normal input is not connected (normalised; need not be unit)")
@@ -54,7 +56,8 @@ class SpeedEstimator(Node):
     type_name = "speed_estimator"
     params = {
         "method": Param("choice", default="lowpass", choices=("lowpass", "hatt"), doc="velocity filter"),
-        "cutoff_hz": Param("float", default=20.0, unit="Hz", min=0.0, min_exclusive=True, doc="corner of the lowpass method"),
+        "cutoff_hz": Param("float", default=None, unit="Hz", min=0.0, min_exclusive=True,
+                           doc="corner of the lowpass method (default 20 Hz); not used by hatt"),
         "stationary_mm": Param("float", default=0.06, unit="mm", min=0.0,
                                doc="stationary threshold on the filtered displacement (001 §4.1); 0 disables it"),
         "normal": _NORMAL_PARAM,
@@ -69,11 +72,15 @@ class SpeedEstimator(Node):
     def build(self, inputs, outputs):
         _check_normal(self.p["normal"])
         rate = self.context.node_rate
+        cutoff = self.p["cutoff_hz"]
         if self.p["method"] == "lowpass":
-            if self.p["cutoff_hz"] >= rate / 2:
-                raise ParamError("cutoff_hz", f"cutoff {self.p['cutoff_hz']:g} Hz must be below Nyquist ({rate / 2:g} Hz)")
-            biquad = first_order_biquad(self.p["cutoff_hz"], rate)
+            cutoff = DEFAULT_CUTOFF_HZ if cutoff is None else cutoff
+            if cutoff >= rate / 2:
+                raise ParamError("cutoff_hz", f"cutoff {cutoff:g} Hz must be below Nyquist ({rate / 2:g} Hz)")
+            biquad = first_order_biquad(cutoff, rate)
         else:
+            if cutoff is not None:
+                raise ParamError("cutoff_hz", "method hatt has a fixed 125 rad/s corner; remove cutoff_hz or use method: lowpass")
             try:
                 biquad = butter2_biquad(HATT_CORNER_RAD_S, rate)
             except ValueError as exc:

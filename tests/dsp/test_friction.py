@@ -251,3 +251,18 @@ def test_zero_order_hold_pairing_leak_is_bounded_by_half_k_step_squared():
     x = 0.5 * np.sin(np.linspace(0, 8 * np.pi, 401))
     f = dahl(on_x(x), fn, mu, zmax)
     assert np.sum(f[:-1, 0] * np.diff(x)) > 0.0
+
+
+def test_overflowing_inputs_never_poison_the_state():
+    x = np.linspace(0, 3, 40)
+    pos = on_x(x)
+    bad = pos.copy()
+    bad[10] = [1e300, -1e300, 0.0]
+    f = dahl(bad, 1.0, 0.4, 1.6)
+    assert np.all(np.isfinite(f)) and np.all(f[10] == 0.0)
+    keep = np.arange(40) != 10
+    np.testing.assert_allclose(f[keep], dahl(pos[keep], 1.0, 0.4, 1.6), rtol=1e-12, atol=1e-14)
+    vel = np.array([[1e300, 1e300, 0.0], [10.0, 0.0, 0.0]])
+    out = coulomb(0.5, "hatt", vel, np.array([1e300, 1.0]))
+    assert np.all(np.isfinite(out))
+    np.testing.assert_allclose(out[1], [-0.5 * 0.004 * 10.0, 0.0, 0.0], rtol=1e-12)

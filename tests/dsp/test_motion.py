@@ -200,3 +200,17 @@ def test_incoming_speed_along_a_tilted_normal_and_receding_tool():
     assert incoming[3] == pytest.approx(20 / math.sqrt(2), rel=1e-9)
     _, incoming, _ = run_contact([0, 0, 0, 1, 1], -pos, normal=normal)
     assert incoming[3] == 0.0  # moving away: no incoming speed
+
+
+def test_overflowing_jumps_are_skipped_like_nan():
+    t = np.arange(300) / FS
+    pos = np.stack([30 * t, 0 * t, 0 * t], 1)
+    bad = pos.copy()
+    bad[100] = [1e300, -1e300, 0.0]
+    speed, vel = run_speed(bad)
+    assert np.all(np.isfinite(speed)) and np.all(np.isfinite(vel))
+    assert speed[-1] == pytest.approx(30.0, rel=1e-6)
+    force = np.ones(300)
+    force[:50] = 0.0
+    _, incoming, _ = run_contact(force, bad)
+    assert np.all(np.isfinite(incoming))

@@ -152,3 +152,14 @@ def test_contact_graph_hysteresis_incoming_speed_and_chunks(tmp_path):
 def test_contact_off_above_on_is_refused(tmp_path):
     with pytest.raises(GraphError, match="off_n"):
         graph(tmp_path, CONTACT_GRAPH.replace("off_n: 0.1", "off_n: 0.3"))
+
+
+def test_default_cutoff_is_20_hz_and_hatt_refuses_a_cutoff(tmp_path):
+    g = graph(tmp_path, SPEED_GRAPH.format(params="{stationary_mm: 0}"))
+    pos = path3(300, seed=4)
+    alpha = 1 - math.exp(-2 * math.pi * 20 / FS)
+    ref = lfilter([alpha], [1, alpha - 1], backward_difference(pos), axis=0)
+    ref[:, 2] = 0.0
+    np.testing.assert_allclose(g.run({"position": pos})["velocity"], ref, rtol=1e-10, atol=1e-9)
+    with pytest.raises(GraphError, match="fixed 125 rad/s"):
+        graph(tmp_path, SPEED_GRAPH.format(params="{method: hatt, cutoff_hz: 30}"), name="h.yaml")
