@@ -47,11 +47,14 @@ class SessionWriter:
                 self._writer = can.Logger(self.path)
         except OSError as exc:
             raise DataError(f"{self.path}: cannot write CAN log: {exc.strerror or exc}") from None
+        self._blf = suffix == ".blf"
         self.frames = 0
 
     def write(self, msg: can.Message, is_rx: bool) -> None:
         """Log ``msg`` as received (``is_rx``) or sent by the runtime. ``msg`` may be reused afterwards."""
         msg.is_rx = is_rx
+        if self._blf:
+            msg.channel = None  # BLF stores small channel numbers; bus channel names (e.g. virtual's) do not fit
         self._writer.on_message_received(msg)
         self.frames += 1
 

@@ -384,7 +384,6 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
         overrun = 0
         try:
             while True:
-                ctick = clock.tick
                 n_in = 0
                 msg = recv(0.0)
                 while msg is not None:
@@ -403,9 +402,9 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                     entry = decoders.get(msg.arbitration_id)
                     if entry is not None and entry[0](msg.data):
                         for w in entry[1]:
-                            fresh(w, ctick)
+                            fresh(w, k)
                 step(1)
-                force = check(ctick, overrun)
+                force = check(k, overrun)  # executed-tick count: replay recomputes it exactly
                 guard_events += guard_outputs(force)
                 for i in range(n_tx):
                     encoders[i](tx[i].data)
