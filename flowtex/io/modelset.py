@@ -46,7 +46,8 @@ NATIVE_NAMES = {
     "gain": "gain",
     "ar_coeff": "ar_coeff",
     "ma_coeff": "ma_coeff",
-    "model": "models[] entry",
+    "model": "models[{}]",
+    "index_base": "0",
 }
 
 

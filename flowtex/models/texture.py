@@ -45,8 +45,13 @@ FIELD_NAMES = {
     "sample_rate": "sample_rate",
     "mu": "mu",
     "model": "model",
+    "index_base": "1",
 }
-"""Default names used in validation messages; file readers pass their own element names."""
+"""Default names used in validation messages; file readers pass their own element names.
+
+``model`` labels one model (``"{}"`` in it is replaced by the model number); ``index_base``
+is the number of the first model (and of model indices in triangles) in messages.
+"""
 
 
 @dataclass
@@ -127,8 +132,11 @@ class TextureModelSet:
         def fail(msg: str) -> None:
             raise DataError(f"{where}: {msg}")
 
+        base = int(n.get("index_base", "1"))  # HaTT numbers models from 1, JSON lists from 0
+
         def model_name(m: int) -> str:
-            return f"{n['model']} {m + 1}"  # 1-based, as HaTT's modNum
+            label = n["model"]
+            return label.format(m + base) if "{}" in label else f"{label} {m + base}"
 
         for key in ("sample_rate", "max_speed", "max_force"):
             value = getattr(self, key)
@@ -190,7 +198,6 @@ class TextureModelSet:
             if not np.all(np.isfinite(tri)) or np.any(tri != np.round(tri)):
                 fail(f"{n['triangles']}: model numbers must be integers")
         tri = np.ascontiguousarray(tri, dtype=np.int64)
-        base = 1  # messages number models from 1, as HaTT's modNum does
         for t, row in enumerate(tri):
             for v in row:
                 if not 0 <= v < m_count:
