@@ -21,21 +21,21 @@ HEADER_SOURCE = '''\
 # Every offset and width is read from the int arena `i`, so this source
 # depends only on the graph's structure and node types.
 from numba import njit
-from flowtex.graph.kernels import view, copy_row
+from flowtex.graph.kernels import view, fslice, islice, copy_row
 '''
 
 
 def _view(slot: PortSlot, rows: str) -> str:
-    return f"view(f, i[{slot.offset_index}], i[{slot.width_index}], {rows})"
+    return f"view(fb, i[{slot.offset_index}], i[{slot.width_index}], {rows})"
 
 
 def _row_view(slot: PortSlot, row: str) -> str:
-    return f"view(f, i[{slot.offset_index}] + {row} * i[{slot.width_index}], i[{slot.width_index}], 1)"
+    return f"view(fb, i[{slot.offset_index}] + {row} * i[{slot.width_index}], i[{slot.width_index}], 1)"
 
 
 def _args(slots: NodeSlots) -> str:
-    return (f"f[i[{slots.p[0]}]:i[{slots.p[1]}]], f[i[{slots.s[0]}]:i[{slots.s[1]}]], "
-            f"i[i[{slots.si[0]}]:i[{slots.si[1]}]]")
+    return (f"fslice(fb, i[{slots.p[0]}], i[{slots.p[1]}]), fslice(fb, i[{slots.s[0]}], i[{slots.s[1]}]), "
+            f"islice(ib, i[{slots.si[0]}], i[{slots.si[1]}])")
 
 
 def generate(rg: ResolvedGraph, slots: dict[str, NodeSlots], kernel_names: dict[str, str]) -> str:
@@ -45,7 +45,7 @@ def generate(rg: ResolvedGraph, slots: dict[str, NodeSlots], kernel_names: dict[
     and ``node + ':absorb'``.
     """
     lines = [HEADER_SOURCE.format(name=rg.spec.name), "", "@njit(cache=True, nogil=True)", "def block(f, i, n):",
-             f"    t0 = i[{TICK}]"]
+             f"    t0 = i[{TICK}]", "    fb = f.ctypes.data", "    ib = i.ctypes.data"]
     if rg.cyclic:
         lines.append("    for r in range(n):")
         absorbs = []
@@ -69,7 +69,7 @@ def generate(rg: ResolvedGraph, slots: dict[str, NodeSlots], kernel_names: dict[
                 body = _tick_call(False, name, ns, kernel_names, rn)
                 lines += _guard_every(rn.spec.every, ns, body, "        ", "t0 + r", "r")
     lines.append(f"    i[{TICK}] = t0 + n")
-    lines += ["", "", RUN_SOURCE]
+    lines += ["", "", TICK_SOURCE, "", RUN_SOURCE]
     return "\n".join(lines)
 
 
@@ -94,6 +94,12 @@ def _guard_every(every: int, ns: NodeSlots, call: str, indent: str, tick: str, r
         out.append(f"{indent}    copy_row(f, i[{o.offset_index}] + {row} * i[{o.width_index}], i[{hold.offset_index}], i[{o.width_index}])")
     return out
 
+
+TICK_SOURCE = '''\
+@njit(cache=True, nogil=True)
+def tick(f, i):
+    block(f, i, 1)
+'''
 
 RUN_SOURCE = '''\
 @njit(cache=True, nogil=True)

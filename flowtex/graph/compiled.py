@@ -48,9 +48,11 @@ class Graph:
         self._module = load_generated(self.source, kernels, versions)
         self._block = self._module.block
         self._run = self._module.run
+        self._tick = self._module.tick
         # Compile (or load from the disk cache) now, not on the first live tick.
         self._block.compile("(float64[::1], int64[::1], int64)")
         self._run.compile("(float64[::1], int64[::1], float64[:, ::1], float64[:, ::1])")
+        self._tick.compile("(float64[::1], int64[::1])")
         self._f0 = self.layout.f.copy()
         self._i0 = self.layout.i.copy()
         self.f = self.layout.f
@@ -58,6 +60,10 @@ class Graph:
         self._in_views = {name: self.f[s.offset:s.offset + s.width] for name, s in self.layout.graph_inputs.items()}
         self._out_views = {name: self.f[s.offset:s.offset + s.width] for name, s in self.layout.graph_outputs.items()}
         self._out_scalar = {name: spec.shape == () for name, spec in resolved.output_specs.items()}
+        # step() fast path: scalar ports are read and written as single arena items.
+        self._in_scalar_off = {name: s.offset for name, s in self.layout.graph_inputs.items() if s.width == 1
+                               and resolved.input_specs[name].shape == ()}
+        self._out_items = [(name, s.offset, self._out_scalar[name]) for name, s in self.layout.graph_outputs.items()]
         self.seed = self.spec.seed
         self.reset()
 
@@ -128,17 +134,24 @@ class Graph:
         """Advance one tick. ``values`` maps graph input names to numbers/arrays.
 
         Inputs not given keep their previous value. Returns output name ->
-        float (scalar outputs) or a new array.
+        a float (``numpy.float64``) for scalar outputs, or a new array of the
+        port's shape.
         """
+        f = self.f
         if values:
-            views = self._in_views
+            scalar_off = self._in_scalar_off
             for name, value in values.items():
-                try:
-                    views[name][:] = value
-                except KeyError:
-                    raise FlowtexError(f"graph {self.name!r} has no input {name!r}; inputs: {', '.join(views)}") from None
-        self._block(self.f, self.i, 1)
-        return {name: (float(v[0]) if self._out_scalar[name] else v.copy()) for name, v in self._out_views.items()}
+                off = scalar_off.get(name)
+                if off is not None:
+                    f[off] = value
+                elif name in self._in_views:
+                    self._in_views[name][:] = np.ravel(value)
+                else:
+                    raise FlowtexError(f"graph {self.name!r} has no input {name!r}; inputs: {', '.join(self._in_views)}")
+        self._tick(f, self.i)
+        views = self._out_views
+        return {name: (f[off] if scalar else views[name].reshape(self.resolved.output_specs[name].shape).copy())
+                for name, off, scalar in self._out_items}
 
     def input_view(self, name: str) -> np.ndarray:
         """Writable view of the current-tick value of graph input ``name`` (live fast path)."""

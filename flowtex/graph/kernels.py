@@ -1,15 +1,58 @@
-"""Tiny jitted helpers the generated graph code calls (inlined by numba)."""
+"""Tiny jitted helpers the generated graph code calls (inlined by numba).
+
+Port, parameter and state views are made with ``numba.carray`` from the
+arena's data pointer rather than by slicing: a sliced view carries the
+arena's reference count, which numba increments and decrements atomically at
+every kernel call; a ``carray`` view carries none. Over a 10-node graph
+stepped one tick at a time this is the difference between ~0.75 µs and
+~0.3 µs per tick. The arena outlives every view: the Graph object owns it.
+"""
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import carray, njit, types
+from numba.extending import intrinsic
+
+ITEM = 8  # bytes per float64 / int64 arena element
+
+
+@intrinsic
+def _float_ptr(typingctx, address):
+    sig = types.CPointer(types.float64)(address)
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.float64)))
+
+    return sig, codegen
+
+
+@intrinsic
+def _int_ptr(typingctx, address):
+    sig = types.CPointer(types.int64)(address)
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int64)))
+
+    return sig, codegen
 
 
 @njit(inline="always", cache=True)
-def view(f: np.ndarray, offset: int, width: int, rows: int) -> np.ndarray:
-    """``rows x width`` row-major view of the float arena starting at ``offset``."""
-    return f[offset:offset + rows * width].reshape((rows, width))
+def view(base: int, offset: int, width: int, rows: int) -> np.ndarray:
+    """``rows x width`` view of the float arena (data address ``base``) starting at ``offset``."""
+    return carray(_float_ptr(base + offset * ITEM), (rows, width))
+
+
+@njit(inline="always", cache=True)
+def fslice(base: int, start: int, stop: int) -> np.ndarray:
+    """``f[start:stop]`` of the float arena at data address ``base``, without reference counting."""
+    return carray(_float_ptr(base + start * ITEM), stop - start)
+
+
+@njit(inline="always", cache=True)
+def islice(base: int, start: int, stop: int) -> np.ndarray:
+    """``i[start:stop]`` of the int arena at data address ``base``, without reference counting."""
+    return carray(_int_ptr(base + start * ITEM), stop - start)
 
 
 @njit(inline="always", cache=True)
