@@ -88,7 +88,8 @@ class SimulatedDevice:
         self.history = np.full((history, out_width), np.nan) if history else None
         self.frames_per_collect = np.zeros(history, dtype=np.int64) if history else None
         self.publish_time = 0.0
-        self.latency_s = np.zeros(max(history, 1))
+        self.latency_s = np.zeros(8192)
+        """Latest publish -> actuator-frame delays in s (ring; ``latency_count`` is the total)."""
         self.latency_count = 0
 
     def publish(self, k: int) -> None:
@@ -112,9 +113,8 @@ class SimulatedDevice:
             dec = self.decoders.get(msg.arbitration_id)
             if dec is not None and dec(msg.data):
                 count += 1
-                if self.latency_count < self.latency_s.shape[0]:
-                    self.latency_s[self.latency_count] = msg.timestamp - self.publish_time
-                    self.latency_count += 1
+                self.latency_s[self.latency_count % self.latency_s.shape[0]] = msg.timestamp - self.publish_time
+                self.latency_count += 1
             msg = self.bus.recv(0.0)
         self.frames_received += count
         if self.history is not None and 0 <= k < self.history.shape[0]:
