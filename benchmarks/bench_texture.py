@@ -1,0 +1,265 @@
+"""Per-tick cost of texture_lookup + arma_synth (orders 19/17) and spectral error vs lookup rate.
+
+    python benchmarks/bench_texture.py [--ticks 1000000] [--repeats 5]
+
+Prints (numbers, not assertions):
+
+1. the synthesis kernel alone (flowtex.dsp.arma.arma_lattice_block), ns/tick,
+   with the model changing every tick and with a fixed model;
+2. the "floor": one plain numba loop doing the same arithmetic without any
+   safety (triangle search with a last-triangle hint, barycentric LSF
+   interpolation, float64 lsf_to_poly for AR and MA, direct-form synthesis);
+3. the compiled graph speed/force -> texture_lookup -> arma_synth, offline
+   (blocks) and live (step_block(1) per tick), median over repeats of
+   >= 10^6 ticks each, against the targets (<= 1.5 us, <= 2.5x the floor);
+4. for lookup every 1, 2, 4, 8 ticks: ns/tick and the GFC between the
+   output's Welch PSD and the time-averaged model PSD along the trajectory
+   (the models of the every-1 lookup, i.e. the exact per-tick models).
+
+The input is a trajectory that sweeps speed and force across the model set's
+hull at a few Hz, so the interpolated model changes on every tick.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+import flowtex
+from flowtex.dsp.arma import arma_lattice_block, arma_psd, new_state
+from flowtex.dsp.lsf import lsf_to_poly
+from flowtex.dsp.rng import next_normal, seed_rng
+from flowtex.dsp.spectral import gfc, welch_psd
+from flowtex.io.modelset import save_model_set
+from flowtex.models.synthetic import cork_like_model_set
+
+RATE = 1000.0
+
+GRAPH = """
+flowtex: 1
+name: bench-texture
+rate: 1000
+seed: 1
+inputs:
+  speed: {{unit: mm/s}}
+  force: {{unit: N}}
+nodes:
+  lookup:
+    type: texture_lookup
+    every: {every}
+    params: {{models: {models}}}
+  synth: {{type: arma_synth}}
+edges:
+  - speed -> lookup.speed
+  - force -> lookup.force
+  - lookup.ar -> synth.ar
+  - lookup.ma -> synth.ma
+  - lookup.gain -> synth.gain
+  - lookup.variance -> synth.variance
+outputs:
+  accel: synth.y
+{extra}
+"""
+
+EXTRA_OUTPUTS = """  ar: lookup.ar
+  ma: lookup.ma
+  gain: lookup.gain
+  variance: lookup.variance
+"""
+
+
+def trajectory(n: int, max_speed: float, max_force: float) -> dict[str, np.ndarray]:
+    """Speed and force sweeping most of the hull (3.1 Hz and 1.7 Hz), never zero."""
+    t = np.arange(n) / RATE
+    speed = max_speed * (0.5 + 0.45 * np.sin(2 * np.pi * 3.1 * t))
+    force = max_force * (0.5 + 0.45 * np.sin(2 * np.pi * 1.7 * t + 0.4))
+    return {"speed": speed, "force": force}
+
+
+# ----------------------------------------------------------------------------- the floor
+
+
+@njit(cache=True)
+def floor_kernel(pts, tris, ar_lsf, ma_lsf, var, gain, speed, force, lsf_a, lsf_m, a, c, ybuf, ebuf, si, sf, y):
+    """Same arithmetic as lookup + synthesis, no safety: hint-first triangle search, LSF blend, lsf_to_poly, direct form."""
+    p = ar_lsf.shape[1]
+    q = ma_lsf.shape[1]
+    hint = 0
+    ntri = tris.shape[0]
+    for t in range(speed.shape[0]):
+        x = speed[t]
+        z = force[t]
+        w0 = w1 = w2 = 0.0
+        for k in range(ntri):
+            tri = (hint + k) % ntri
+            i0, i1, i2 = tris[tri, 0], tris[tri, 1], tris[tri, 2]
+            x0, y0 = pts[i0, 0], pts[i0, 1]
+            det = (pts[i1, 1] - pts[i2, 1]) * (x0 - pts[i2, 0]) + (pts[i2, 0] - pts[i1, 0]) * (y0 - pts[i2, 1])
+            w0 = ((pts[i1, 1] - pts[i2, 1]) * (x - pts[i2, 0]) + (pts[i2, 0] - pts[i1, 0]) * (z - pts[i2, 1])) / det
+            w1 = ((pts[i2, 1] - y0) * (x - pts[i2, 0]) + (x0 - pts[i2, 0]) * (z - pts[i2, 1])) / det
+            w2 = 1.0 - w0 - w1
+            if w0 >= -1e-12 and w1 >= -1e-12 and w2 >= -1e-12:
+                hint = tri
+                break
+        i0, i1, i2 = tris[hint, 0], tris[hint, 1], tris[hint, 2]
+        for j in range(p):
+            lsf_a[j] = w0 * ar_lsf[i0, j] + w1 * ar_lsf[i1, j] + w2 * ar_lsf[i2, j]
+        for j in range(q):
+            lsf_m[j] = w0 * ma_lsf[i0, j] + w1 * ma_lsf[i1, j] + w2 * ma_lsf[i2, j]
+        v = w0 * var[i0] + w1 * var[i1] + w2 * var[i2]
+        g = w0 * gain[i0] + w1 * gain[i1] + w2 * gain[i2]
+        lsf_to_poly(lsf_a, a)
+        lsf_to_poly(lsf_m, c)
+        # direct form with circular buffers of past y and e
+        e = np.sqrt(v) * next_normal(si, sf)
+        pos = t % 64
+        ebuf[pos] = e
+        acc = 0.0
+        for j in range(q + 1):
+            acc += g * c[j] * ebuf[(pos - j) % 64]
+        for i in range(1, p + 1):
+            acc -= a[i] * ybuf[(pos - i) % 64]
+        ybuf[pos] = acc
+        y[t] = acc
+
+
+def run_floor(ms, inputs) -> float:
+    n = inputs["speed"].size
+    pts = np.column_stack([ms.speeds, ms.forces])
+    tris = ms.triangles.astype(np.int64)
+    p, q = ms.ar_order, ms.ma_order
+    si = np.zeros(5, np.int64)
+    sf = np.zeros(1)
+    seed_rng(si, sf, np.random.SeedSequence(1))
+    args = (pts, tris, ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain, inputs["speed"], inputs["force"],
+            np.zeros(p), np.zeros(q), np.zeros(p + 1), np.zeros(q + 1), np.zeros(64), np.zeros(64), si, sf, np.zeros(n))
+    t0 = time.perf_counter()
+    floor_kernel(*args)
+    return (time.perf_counter() - t0) / n * 1e9
+
+
+# ----------------------------------------------------------------------------- pieces
+
+
+def synth_kernel_ns(ms, n: int) -> tuple[float, float]:
+    """arma_lattice_block alone: (model changes every tick, fixed model) in ns/tick."""
+    from flowtex.dsp.lsf import lsf_to_poly_new
+
+    p, q = ms.ar_order, ms.ma_order
+    m0, m1 = 0, 1
+    a0, a1 = lsf_to_poly_new(ms.ar_lsf[m0]), lsf_to_poly_new(ms.ar_lsf[m1])
+    c0, c1 = lsf_to_poly_new(ms.ma_lsf[m0]), lsf_to_poly_new(ms.ma_lsf[m1])
+    ar = np.empty((n, p + 1))
+    ma = np.empty((n, q + 1))
+    ar[0::2], ar[1::2], ma[0::2], ma[1::2] = a0, a1, c0, c1
+    gain = np.ones((n, 1))
+    var = np.ones((n, 1))
+    y = np.empty((n, 1))
+    out = []
+    for ar_, ma_ in ((ar, ma), (np.ascontiguousarray(np.broadcast_to(a0, ar.shape)), np.ascontiguousarray(np.broadcast_to(c0, ma.shape)))):
+        s, si = new_state(p, q)
+        seed_rng(si, s[0:1], np.random.SeedSequence(1))
+        arma_lattice_block(s, si, ar_[:10], ma_[:10], gain[:10], var[:10], y[:10])  # compile / warm
+        t0 = time.perf_counter()
+        arma_lattice_block(s, si, ar_, ma_, gain, var, y)
+        out.append((time.perf_counter() - t0) / n * 1e9)
+    return out[0], out[1]
+
+
+def graph_ns(graph, inputs, repeats: int) -> float:
+    n = inputs["speed"].size
+    graph.run({k: v[:100] for k, v in inputs.items()})  # warm
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        graph.run(inputs)
+        times.append((time.perf_counter() - t0) / n * 1e9)
+    return statistics.median(times)
+
+
+def live_ns(graph, inputs, n_live: int, repeats: int) -> float:
+    """step_block(1) per tick with the inputs written into the live input views (the CAN loop's path)."""
+    sp = graph.input_view("speed")
+    fo = graph.input_view("force")
+    speed, force = inputs["speed"], inputs["force"]
+    times = []
+    for _ in range(repeats):
+        graph.reset()
+        t0 = time.perf_counter()
+        for t in range(n_live):
+            sp[0] = speed[t]
+            fo[0] = force[t]
+            graph.step_block(1)
+        times.append((time.perf_counter() - t0) / n_live * 1e9)
+    return statistics.median(times)
+
+
+def mean_model_psd(out: dict[str, np.ndarray], freqs: np.ndarray, stride: int = 25) -> np.ndarray:
+    """Time average of the instantaneous model PSDs (one model every ``stride`` ticks)."""
+    acc = np.zeros(freqs.size)
+    idx = range(0, out["ar"].shape[0], stride)
+    for t in idx:
+        acc += arma_psd(out["ar"][t], out["ma"][t], float(out["gain"][t]), float(out["variance"][t]), freqs, RATE)
+    return acc / len(idx)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--ticks", type=int, default=1_000_000)
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--live-ticks", type=int, default=200_000)
+    args = parser.parse_args()
+    n = args.ticks
+
+    ms = cork_like_model_set()
+    print(f"model set: {ms.material}, AR {ms.ar_order} / MA {ms.ma_order}, {ms.num_models} models, {len(ms.triangles)} triangles")
+    inputs = trajectory(n, ms.max_speed, ms.max_force)
+
+    changing, fixed = synth_kernel_ns(ms, n)
+    print(f"synthesis kernel (arma_lattice_block, {n} ticks): {changing:7.1f} ns/tick model changing every tick, "
+          f"{fixed:7.1f} ns/tick fixed model")
+
+    run_floor(ms, {k: v[:100] for k, v in inputs.items()})  # compile
+    floor = statistics.median(run_floor(ms, inputs) for _ in range(args.repeats))
+    print(f"floor (plain numba: triangle search + LSF blend + lsf_to_poly x2 + direct form): {floor:7.1f} ns/tick")
+
+    with tempfile.TemporaryDirectory() as tmp:
+        models = save_model_set(ms, Path(tmp) / "cork_like.json")
+        rows = []
+        reference = None
+        for every in (1, 2, 4, 8):
+            path = Path(tmp) / f"bench_{every}.yaml"
+            path.write_text(GRAPH.format(every=every, models=models, extra=EXTRA_OUTPUTS if every == 1 else ""))
+            graph = flowtex.load_graph(path)
+            ns = graph_ns(graph, inputs, args.repeats)
+            live = live_ns(graph, inputs, min(args.live_ticks, n), max(1, args.repeats // 2)) if every == 1 else float("nan")
+            out = graph.run(inputs)
+            y = out["accel"]
+            freqs, psd = welch_psd(y, RATE, nperseg=1024)
+            if reference is None:
+                reference = mean_model_psd(out, freqs)
+            fit = gfc(np.sqrt(psd), np.sqrt(reference))
+            rows.append((every, ns, live, fit, float(np.max(np.abs(y))), float(np.sqrt(np.mean(y * y)))))
+
+    print()
+    print("graph speed/force -> texture_lookup -> arma_synth (median of repeats, offline blocks; live = step_block(1) per tick)")
+    print(f"{'every':>5} {'ns/tick':>9} {'live ns/tick':>13} {'x floor':>8} {'GFC':>8} {'peak/rms':>9}")
+    print("(peak/rms: whole-run peak over whole-run RMS of a non-stationary output; not the switching bound, see tests)")
+    for every, ns, live, fit, peak, rms in rows:
+        live_s = f"{live:13.1f}" if live == live else f"{'-':>13}"
+        print(f"{every:>5} {ns:9.1f} {live_s} {ns / floor:8.2f} {fit:8.5f} {peak / rms:9.2f}")
+    one = rows[0][1]
+    print()
+    print(f"targets (every 1): <= 1500 ns/tick -> {'met' if one <= 1500 else 'NOT met'} ({one:.0f} ns); "
+          f"<= 2.5x floor -> {'met' if one <= 2.5 * floor else 'NOT met'} ({one / floor:.2f}x)")
+    print("GFC: Welch PSD of the output vs the time-averaged per-tick model PSD (models of the every-1 lookup).")
+
+
+if __name__ == "__main__":
+    main()
