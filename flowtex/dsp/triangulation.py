@@ -26,9 +26,10 @@ The weights returned are always >= 0 and sum to 1 (to rounding): a weight
 computed as slightly negative (>= -``INSIDE_TOL``, points on edges) is set to
 0 and the three are renormalised. A query exactly on a vertex gets the weight
 exactly 1 on that vertex and exactly 0 on the others (the orientation
-determinants are evaluated in a form that makes this exact). Queries must be
+determinants are evaluated in a form that makes this exact). Queries should be
 finite: the caller clamps them first (see :func:`clamp_query`, which maps
 +-inf into range) and handles NaN itself (texture lookup holds its last model).
+A NaN query still terminates, with meaningless but valid (>= 0, sum 1) weights.
 """
 
 from __future__ import annotations

@@ -181,3 +181,12 @@ def test_clamp_query_follows_hatt(x, want):
 
 def test_clamp_query_passes_nan_through():
     assert math.isnan(clamp_query(math.nan, 10.0, 0.01, 0.05, 0.0001))
+
+
+def test_nan_query_terminates_with_valid_weights():
+    # Callers must not pass NaN (texture lookup holds its model instead), but even then: no loop, weights sum to 1.
+    ms = hard_model_set()
+    tab = pack_triangulation(ms.speeds, ms.forces, ms.triangles, ms.max_speed, ms.max_force)
+    tri, w, v = locate_many(tab, np.array([[math.nan, 1.0], [1.0, math.nan], [math.nan, math.nan]]))
+    assert np.all(w >= 0) and np.all(w.sum(axis=1) == 1.0)
+    assert np.all((0 <= tri) & (tri < len(ms.triangles)))

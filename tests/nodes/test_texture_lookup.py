@@ -269,3 +269,16 @@ def test_native_model_set_and_custom_clamping(tmp_path):
     assert np.array_equal(out["ar"][0], out["ar"][1])  # 7 mm/s < low_speed -> 5 mm/s
     ar, ma, gain, var = reference_model(ms, (5.0, 1.0))
     assert np.allclose(out["ar"][0], ar, rtol=0, atol=1e-11) and out["gain"][0] == pytest.approx(gain, rel=1e-13)
+
+
+def test_vertex_matches_stored_coefficients_to_file_precision(tmp_path):
+    # A file written with 10 significant digits, like files from other software: the output at a vertex is
+    # lsf_to_poly of the file's (rounded) LSFs, and agrees with the file's ARcoeff to the precision of the file.
+    ms = cork_like_model_set()
+    path = write_hatt_xml(ms, tmp_path / "Models_Ten Digits.xml", digits=10)
+    g = load_graph(graph_file(tmp_path / "g", str(path)))
+    for m in in_range(ms)[:6]:
+        out = g.step({"speed": float(f"{ms.speeds[m]:.10g}"), "force": float(f"{ms.forces[m]:.10g}")})
+        assert np.allclose(out["ar"], ms.ar_coeff[m], rtol=0, atol=1e-7)
+        assert np.allclose(out["ma"], ms.ma_coeff[m], rtol=0, atol=1e-7)
+        assert out["gain"] == float(f"{ms.gain[m]:.10g}")
