@@ -32,6 +32,8 @@ N_IN = 2
 N_OUT = 3
 IN_TABLE = 4
 OUT_TABLE = 5
+IN_WIDTH = 6
+OUT_WIDTH = 7
 HEADER = 8
 
 
@@ -70,7 +72,8 @@ class Layout:
     graph_outputs: dict[str, PortSlot]
     nodes: dict[str, NodeSlots]
     in_columns: dict[str, tuple[int, int]]
-    """Graph input name -> (first column, width) in the 2-D input block."""
+    """Graph input name -> (first column, width). ``run`` takes all inputs as one
+    1-D array: input k's ``total x width`` values, time-major, start at ``total * column``."""
     out_columns: dict[str, tuple[int, int]]
 
 
@@ -171,5 +174,7 @@ def plan_layout(rg: ResolvedGraph, block_rows: int) -> Layout:
     ints[N_OUT] = len(graph_outputs)
     ints[IN_TABLE] = in_table
     ints[OUT_TABLE] = out_table
+    ints[IN_WIDTH] = sum(s.width for s in graph_inputs.values())
+    ints[OUT_WIDTH] = sum(s.width for s in graph_outputs.values())
     f = np.concatenate(b.f_chunks) if b.f_chunks else np.zeros(0)
     return Layout(f, ints, block_rows, graph_inputs, graph_outputs, node_slots, in_columns, out_columns)

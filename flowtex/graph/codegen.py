@@ -104,7 +104,12 @@ def tick(f, i):
 RUN_SOURCE = '''\
 @njit(cache=True, nogil=True)
 def run(f, i, X, Y):
-    total = X.shape[0]
+    # X holds each graph input's (total x width) values one input after the
+    # other; Y likewise for the outputs. Copies are contiguous runs of memory.
+    if i[6] > 0:
+        total = X.shape[0] // i[6]
+    else:
+        total = Y.shape[0] // i[7]
     rows = i[1]
     t = 0
     while t < total:
@@ -113,18 +118,16 @@ def run(f, i, X, Y):
         for k in range(i[2]):
             off = i[tab + 3 * k]
             w = i[tab + 3 * k + 1]
-            c = i[tab + 3 * k + 2]
-            for r in range(n):
-                for q in range(w):
-                    f[off + r * w + q] = X[t + r, c + q]
+            src = total * i[tab + 3 * k + 2] + t * w
+            for j in range(n * w):
+                f[off + j] = X[src + j]
         block(f, i, n)
         tab = i[5]
         for k in range(i[3]):
             off = i[tab + 3 * k]
             w = i[tab + 3 * k + 1]
-            c = i[tab + 3 * k + 2]
-            for r in range(n):
-                for q in range(w):
-                    Y[t + r, c + q] = f[off + r * w + q]
+            dst = total * i[tab + 3 * k + 2] + t * w
+            for j in range(n * w):
+                Y[dst + j] = f[off + j]
         t += n
 '''

@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import FlowtexError
 from ..node_api import PortSpec
 from ..registry import load_registry
-from .arena import TICK, Layout, plan_layout
+from .arena import OUT_WIDTH, TICK, Layout, plan_layout
 from .codegen import generate
 from .jit import load_generated
 from .resolve import ResolvedGraph, resolve_graph
@@ -51,7 +51,7 @@ class Graph:
         self._tick = self._module.tick
         # Compile (or load from the disk cache) now, not on the first live tick.
         self._block.compile("(float64[::1], int64[::1], int64)")
-        self._run.compile("(float64[::1], int64[::1], float64[:, ::1], float64[:, ::1])")
+        self._run.compile("(float64[::1], int64[::1], float64[::1], float64[::1])")
         self._tick.compile("(float64[::1], int64[::1])")
         self._f0 = self.layout.f.copy()
         self._i0 = self.layout.i.copy()
@@ -111,23 +111,35 @@ class Graph:
 
     def process(self, inputs: Mapping[str, Any], progress: bool = False) -> dict[str, np.ndarray]:
         """Continue from the current state over ``inputs`` (chunked runs equal one pass)."""
-        X, total = self._pack_inputs(inputs)
-        width = sum(w for _, w in self.layout.out_columns.values())
-        Y = np.empty((total, width))
+        arrays, total = self._check_inputs(inputs)
         if progress and total > PROGRESS_CHUNK:
             from tqdm import tqdm
 
+            parts = []
             with tqdm(total=total, unit="tick", unit_scale=True, desc=self.name, leave=False) as bar:
                 for start in range(0, total, PROGRESS_CHUNK):
                     stop = min(total, start + PROGRESS_CHUNK)
-                    self._run(self.f, self.i, X[start:stop], Y[start:stop])
+                    parts.append(self._run_chunk({k: a[start:stop] for k, a in arrays.items()}, stop - start))
                     bar.update(stop - start)
+            return {name: np.concatenate([p[name] for p in parts]) for name in self.layout.out_columns}
+        return self._run_chunk(arrays, total)
+
+    def _run_chunk(self, arrays: dict[str, np.ndarray], total: int) -> dict[str, np.ndarray]:
+        if len(arrays) == 1:  # one input: its own memory is already the layout run() reads
+            X = np.ascontiguousarray(next(iter(arrays.values()))).reshape(-1)
         else:
-            self._run(self.f, self.i, X, Y)
+            X = np.concatenate([np.ascontiguousarray(arrays[name]).reshape(-1) for name in self.layout.in_columns]) \
+                if arrays else np.empty(0)
+        Y = np.empty(total * int(self.i[OUT_WIDTH]))
+        self._run(self.f, self.i, X, Y)
+        return self._split_outputs(Y, total)
+
+    def _split_outputs(self, Y: np.ndarray, total: int) -> dict[str, np.ndarray]:
+        """Per-output arrays: contiguous views into ``Y`` (no copy)."""
         out = {}
         for name, (col, w) in self.layout.out_columns.items():
             shape = self.resolved.output_specs[name].shape
-            out[name] = np.ascontiguousarray(Y[:, col:col + w]).reshape((total, *shape))
+            out[name] = Y[total * col: total * (col + w)].reshape((total, *shape))
         return out
 
     def step(self, values: Mapping[str, Any] | None = None) -> dict[str, Any]:
@@ -165,7 +177,8 @@ class Graph:
         """Advance ``n`` ticks using whatever is in the input views (no Python mapping)."""
         self._block(self.f, self.i, n)
 
-    def _pack_inputs(self, inputs: Mapping[str, Any]) -> tuple[np.ndarray, int]:
+    def _check_inputs(self, inputs: Mapping[str, Any]) -> tuple[dict[str, np.ndarray], int]:
+        """Graph inputs as float64 arrays of shape (n, width), with n checked equal."""
         missing = [n for n in self.layout.in_columns if n not in inputs]
         if missing:
             raise FlowtexError(f"graph {self.name!r}: recording lacks input(s) {', '.join(missing)}")
@@ -186,20 +199,13 @@ class Graph:
             arrays[name] = arr.reshape(arr.shape[0], w)
         if total is None:
             raise FlowtexError(f"graph {self.name!r} has no inputs; pass n ticks with run_ticks(n)")
-        X = np.empty((total, sum(w for _, w in self.layout.in_columns.values())))
-        for name, (col, w) in self.layout.in_columns.items():
-            X[:, col:col + w] = arrays[name]
-        return X, total
+        return arrays, total
 
     def run_ticks(self, n: int, seed: int | None = None) -> dict[str, np.ndarray]:
-        """Reset and run ``n`` ticks of a graph without inputs (e.g. a noise generator)."""
+        """Reset and run ``n`` ticks with every graph input held at zero (e.g. a noise generator)."""
         self.reset(seed)
-        X = np.empty((n, 0))
-        width = sum(w for _, w in self.layout.out_columns.values())
-        Y = np.empty((n, width))
-        self._run(self.f, self.i, X, Y)
-        return {name: np.ascontiguousarray(Y[:, c:c + w]).reshape((n, *self.resolved.output_specs[name].shape))
-                for name, (c, w) in self.layout.out_columns.items()}
+        zeros = {name: np.zeros((n, w)) for name, (_col, w) in self.layout.in_columns.items()}
+        return self._run_chunk(zeros, n)
 
 
 def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
