@@ -22,6 +22,9 @@ EXAMPLES: dict[str, tuple[str, dict]] = {
     "accel_preprocess.yaml": ("data/accel_demo.npz", {}),
     "actuator_drive.yaml": ("data/accel_demo.npz", {"plugins": (str(REPO / "plugins"),)}),
     "multirate_feedback.yaml": ("data/accel_demo.npz", {}),
+    "hatt_texture.yaml": ("data/exploration.npz", {}),
+    "surface_render.yaml": ("data/exploration.npz", {}),
+    "live_texture.yaml": ("data/exploration.npz", {}),
 }
 
 
