@@ -7,7 +7,8 @@ Writes (all synthetic; flowtex ships no HaTT file):
 * ``synthetic_texture.json`` -- a texture model set in flowtex's native format
   (docs/model-sets.md) shaped like HaTT's cork surface: 45 ARMA(19, 17)
   models over (0..380 mm/s) x (0..4 N), silent at zero speed and zero force,
-  friction coefficient mu = 0.3 (``flowtex.models.synthetic.cork_like_model_set``);
+  vibration RMS growing with speed and force, friction coefficient mu = 0.3
+  (:func:`example_model_set`);
 * ``synthetic_taps.json`` -- a tap library (docs/tap-library.md): decaying
   150 Hz sinusoids at incoming speeds 20, 50, 100 and 200 mm/s
   (``flowtex.models.taps.synthetic_tap_library``);
@@ -26,11 +27,13 @@ import math
 from pathlib import Path
 
 import numpy as np
+from scipy.signal import lfilter
 
 from flowtex.io.modelset import save_model_set
 from flowtex.io.taplib import write_tap_library
 from flowtex.models.synthetic import cork_like_model_set
 from flowtex.models.taps import synthetic_tap_library
+from flowtex.models.texture import TextureModelSet
 
 HERE = Path(__file__).parent
 RATE = 1000.0
@@ -42,6 +45,37 @@ FORCE_STEP_N = 0.001
 """Resolution of the example device (graphs/devices/example.dbc): recorded values lie on its grid."""
 ORIGIN_MM = np.array([12.0, -30.0, 0.0])
 """Where the exploration starts on the surface (mm)."""
+
+
+RMS_AT_MAX_M_S2 = 2.0
+"""Vibration RMS (m/s^2) of the example surface's model at (max speed, max force)."""
+
+
+def example_model_set() -> TextureModelSet:
+    """The example surface: ``cork_like_model_set`` with excitation variances rescaled to a plausible vibration level.
+
+    A real surface vibrates more the faster and harder it is stroked (001,
+    003). The cork-like set's resonances move with speed and force, which
+    changes each model's power gain, so its raw variances do not make the
+    level grow with speed. Here every measured model's variance is set so
+    that its stationary output RMS, sqrt(var) g sqrt(sum h^2) with h the
+    impulse response of C(z)/A(z), equals
+    ``RMS_AT_MAX_M_S2 * (speed / max_speed) * (0.4 + 0.6 * force / max_force)``;
+    the silent corner models keep variance 0.
+    """
+    ms = cork_like_model_set()
+    ms.material = "synthetic cork-like surface (flowtex example, not HaTT data)"
+    impulse = np.zeros(4000)
+    impulse[0] = 1.0
+    for m in range(ms.num_models):
+        if ms.variance[m] == 0.0:
+            continue
+        h = lfilter(ms.ma_coeff[m], ms.ar_coeff[m], impulse)
+        power = ms.gain[m] ** 2 * float(h @ h)
+        target = RMS_AT_MAX_M_S2 * (ms.speeds[m] / ms.max_speed) * (0.4 + 0.6 * ms.forces[m] / ms.max_force)
+        ms.variance[m] = target ** 2 / power
+    ms.metadata = dict(ms.metadata, variance=f"rescaled by graphs/data/make_texture_examples.py (RMS {RMS_AT_MAX_M_S2} m/s^2 at max)")
+    return ms.validate()
 
 
 class _Vertical:
@@ -172,15 +206,15 @@ def exploration(seconds: float = 16.0) -> dict[str, np.ndarray]:
     return {"position": position, "normal_force": force, "normal": normal}
 
 
-def main() -> None:
-    ms = cork_like_model_set()
-    ms.material = "synthetic cork-like surface (flowtex example, not HaTT data)"
-    save_model_set(ms, HERE / "synthetic_texture.json")
-    write_tap_library(HERE / "synthetic_taps.json", synthetic_tap_library(name="synthetic taps"),
+def main(out_dir: Path = HERE) -> None:
+    """Write the three files into ``out_dir`` (default: this folder)."""
+    out_dir = Path(out_dir)
+    save_model_set(example_model_set(), out_dir / "synthetic_texture.json")
+    write_tap_library(out_dir / "synthetic_taps.json", synthetic_tap_library(name="synthetic taps"),
                       notes="synthetic decaying sinusoids (flowtex.models.taps.synthetic_tap_library), not measured data")
     rec = exploration()
     # compressed npz: same layout as flowtex.io.recordings.save_recording writes, a quarter of the size
-    np.savez_compressed(HERE / "exploration.npz", **rec, rate=np.float64(RATE))
+    np.savez_compressed(out_dir / "exploration.npz", **rec, rate=np.float64(RATE))
 
 
 if __name__ == "__main__":
