@@ -38,7 +38,8 @@ def _args(slots: NodeSlots) -> str:
             f"islice(ib, i[{slots.si[0]}], i[{slots.si[1]}])")
 
 
-def generate(rg: ResolvedGraph, slots: dict[str, NodeSlots], kernel_names: dict[str, str]) -> str:
+def generate(rg: ResolvedGraph, slots: dict[str, NodeSlots], kernel_names: dict[str, str],
+             step_inputs: list[PortSlot], step_outputs: list[PortSlot]) -> str:
     """Source text of the module; ``kernel_names[node] -> global name of its kernel``.
 
     For delays in feedback graphs ``kernel_names`` also holds ``node + ':emit'``
@@ -69,7 +70,7 @@ def generate(rg: ResolvedGraph, slots: dict[str, NodeSlots], kernel_names: dict[
                 body = _tick_call(False, name, ns, kernel_names, rn)
                 lines += _guard_every(rn.spec.every, ns, body, "        ", "t0 + r", "r")
     lines.append(f"    i[{TICK}] = t0 + n")
-    lines += ["", "", TICK_SOURCE, "", RUN_SOURCE]
+    lines += ["", "", _step_source(step_inputs, step_outputs), "", RUN_SOURCE]
     return "\n".join(lines)
 
 
@@ -95,11 +96,17 @@ def _guard_every(every: int, ns: NodeSlots, call: str, indent: str, tick: str, r
     return out
 
 
-TICK_SOURCE = '''\
-@njit(cache=True, nogil=True)
-def tick(f, i):
-    block(f, i, 1)
-'''
+def _step_source(inputs: list[PortSlot], outputs: list[PortSlot]) -> str:
+    """``step(f, i, x0, x1, ...)``: one tick from Python with scalar inputs as arguments
+    and scalar outputs returned as a tuple (cheaper than item access from Python)."""
+    args = "".join(f", x{k}" for k in range(len(inputs)))
+    lines = ["@njit(cache=True, nogil=True)", f"def step(f, i{args}):"]
+    lines += [f"    f[i[{slot.offset_index}]] = x{k}" for k, slot in enumerate(inputs)]
+    lines.append("    block(f, i, 1)")
+    values = [f"f[i[{slot.offset_index}]]" for slot in outputs] or ["0.0"]
+    lines.append(f"    return ({', '.join(values)},)")
+    return "\n".join(lines) + "\n"
+
 
 RUN_SOURCE = '''\
 @njit(cache=True, nogil=True)
