@@ -271,20 +271,31 @@ def test_live_graph_has_what_the_map_binds(rec, hatt):
 
 
 def test_live_session_on_the_simulated_device_replays_as_the_offline_run(tmp_path, rec, monkeypatch):
-    """flowtex live --simulate, recorded; the replay of the session equals the offline run tick for tick."""
+    """flowtex live --simulate, recorded; the replay of the session equals the offline run tick for tick.
+
+    The simulated device plays the exploration from 2.6 s on (stroking in
+    contact), so the compared numbers are texture and friction, not silence.
+    Which live ticks the watchdog forced to safe values depends on the
+    machine's load; the replay recomputes the graph from the frames received,
+    and those must give exactly the offline numbers.
+    """
     from flowtex.runtime.replay import replay_session
 
+    start = int(2.6 * RATE)
+    part = {"position": rec["position"][start:start + 600], "normal_force": rec["normal_force"][start:start + 600]}
+    np.savez(tmp_path / "strokes.npz", **part, rate=np.float64(RATE))
     monkeypatch.chdir(REPO)
     session = tmp_path / "session.log"
     dbc, cmap = "graphs/devices/example.dbc", "graphs/devices/example_map.yaml"
     assert main(["live", "graphs/live_texture.yaml", "--bus", "virtual", "--dbc", dbc, "--map", cmap,
-                 "--simulate", "graphs/data/exploration.npz", "--duration", "0.3", "--quiet", "--record", str(session)]) == 0
+                 "--simulate", str(tmp_path / "strokes.npz"), "--duration", "0.4", "--quiet", "--record", str(session)]) == 0
     out = tmp_path / "replay.npz"
-    g = load("live_texture.yaml")
-    report = replay_session(g, session, dbc, cmap, out)
-    assert report.ticks > 100 and not report.unexplained_ticks
-    offline = load("live_texture.yaml").run({"position": rec["position"], "normal_force": rec["normal_force"]})
+    report = replay_session(load("live_texture.yaml"), session, dbc, cmap, out)
+    assert report.ticks > 100
+    offline = load("live_texture.yaml").run(part)
     with np.load(out) as d:
         n = d["vibration"].shape[0]
+        assert n == report.ticks
         np.testing.assert_array_equal(d["vibration"], offline["vibration"][:n])
         np.testing.assert_array_equal(d["force"], offline["force"][:n])
+    assert np.sum(offline["vibration"][:n] != 0) > 50 and np.sum(np.abs(offline["force"][:n, 0]) > 0.01) > 50
