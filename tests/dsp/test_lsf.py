@@ -275,3 +275,28 @@ def test_float64_beats_hatt_float32_near_unit_circle() -> None:
     assert coef64 < 1e-11
     assert err32 > 1e3 * err64 and err32 > 1e-5
     assert coef32 > 1e3 * coef64
+
+
+def test_inline_cosine_matches_long_double_cosine() -> None:
+    """lsf_to_poly's inline -2 cos(w) (a polynomial, not libm) is within 3 ulp of 2 on [0, pi], endpoints included."""
+    from flowtex.dsp.lsf import _minus_2cos
+
+    rng = np.random.default_rng(7)
+    w = np.r_[0.0, np.pi, np.nextafter(np.pi, 0.0), 1e-300, np.pi / 2, np.linspace(0.0, np.pi, 20001), rng.uniform(0.0, np.pi, 20000)]
+    got = np.array([_minus_2cos(x) for x in w], dtype=np.longdouble)
+    ref = -2 * np.cos(w.astype(np.longdouble))
+    assert float(np.max(np.abs(got - ref))) <= 6e-16
+
+
+@pytest.mark.parametrize("p", [1, 2, 3, 6, 19])
+def test_angles_outside_zero_pi_use_the_exact_cosine(p: int) -> None:
+    """Out-of-range entries (not LSFs, but lsf_to_poly must still compute the product they define) and NaN."""
+    rng = np.random.default_rng(50 + p)
+    lsf = np.sort(rng.uniform(0.1, 3.0, p))
+    lsf[-1] = np.pi + 0.5  # outside [0, pi]
+    lsf[0] = -0.25 if p > 1 else lsf[0]
+    ref = reference_lsf_to_poly(lsf)
+    np.testing.assert_allclose(lsf_to_poly_new(lsf), ref, rtol=0, atol=1e-12 * max(1.0, np.abs(ref).max()))
+    lsf[p // 2] = np.nan
+    out = lsf_to_poly_new(lsf)
+    assert out[0] == 1.0 and np.isnan(out[1:]).any()
