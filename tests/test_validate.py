@@ -195,3 +195,14 @@ def test_set_override_is_validated(write_graph, capsys):
     path = write_graph(GOOD)
     assert main(["validate", str(path), "--set", "lp.order=0"]) == 1
     assert "--set lp.order: node 'lp' (butterworth): parameter 'order' must be >= 1" in capsys.readouterr().err
+
+
+def test_no_follow_on_errors_after_a_failed_node(write_graph):
+    text = GOOD.replace("cutoff_hz: 50", "cutoff_hz: 900")
+    msgs, _ = problems(write_graph, text)
+    assert len(msgs) == 1 and "Nyquist" in msgs[0]
+
+
+def test_dash_unit_on_an_input_means_dimensionless(write_graph):
+    path = write_graph(GOOD.replace("x: {unit: N}", "x: {unit: '-'}"))
+    assert check_graph(path).input_specs["x"].unit == ""

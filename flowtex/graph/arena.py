@@ -32,6 +32,7 @@ N_IN = 2
 N_OUT = 3
 IN_TABLE = 4
 OUT_TABLE = 5
+TABLE_STRIDE = 5
 IN_WIDTH = 6
 OUT_WIDTH = 7
 HEADER = 8
@@ -73,7 +74,11 @@ class Layout:
     nodes: dict[str, NodeSlots]
     in_columns: dict[str, tuple[int, int]]
     """Graph input name -> (first column, width). ``run`` takes all inputs as one
-    1-D array: input k's ``total x width`` values, time-major, start at ``total * column``."""
+    1-D array: input k's ``total x width`` values, time-major, start at ``total * column``.
+
+    The input and output tables in ``i`` hold, per signal, ``TABLE_STRIDE`` values:
+    position in ``i`` of the port's offset, width, column, the port's own arena
+    offset, and whether ``run`` redirects the port into the caller's array."""
     out_columns: dict[str, tuple[int, int]]
 
 
@@ -152,13 +157,17 @@ def plan_layout(rg: ResolvedGraph, block_rows: int) -> Layout:
     col = 0
     in_table = len(b.ints)
     for name, slot in graph_inputs.items():
-        b.ints += [slot.offset, slot.width, col]
+        b.ints += [slot.offset_index, slot.width, col, slot.offset, 1]
         in_columns[name] = (col, slot.width)
         col += slot.width
     col = 0
     out_table = len(b.ints)
+    redirected = {id(s) for s in graph_inputs.values()}
     for name, slot in graph_outputs.items():
-        b.ints += [slot.offset, slot.width, col]
+        # The first output of a port not read from the inputs is written in place (zero copy).
+        in_place = id(slot) not in redirected
+        redirected.add(id(slot))
+        b.ints += [slot.offset_index, slot.width, col, slot.offset, int(in_place)]
         out_columns[name] = (col, slot.width)
         col += slot.width
 

@@ -56,7 +56,13 @@ def islice(base: int, start: int, stop: int) -> np.ndarray:
 
 
 @njit(inline="always", cache=True)
-def copy_row(f: np.ndarray, dst: int, src: int, width: int) -> None:
-    """Copy ``width`` values inside the float arena (hold logic of multi-rate nodes)."""
+def copy_row(base: int, dst: int, src: int, width: int) -> None:
+    """Copy ``width`` values between arena offsets (hold logic of multi-rate nodes).
+
+    Offsets are relative to the float arena's data address ``base``; during
+    ``run`` a port's offset may point into the caller's input or output array.
+    """
+    d = carray(_float_ptr(base + dst * ITEM), width)
+    s = carray(_float_ptr(base + src * ITEM), width)
     for q in range(width):
-        f[dst + q] = f[src + q]
+        d[q] = s[q]

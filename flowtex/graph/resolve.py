@@ -246,10 +246,16 @@ def _port_check(port: Port, name: str, got: PortSpec, specs: dict[str, PortSpec]
 def _resolve_ports(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[str, PortSpec],
                    edge_of: dict[tuple[str, str], EdgeSpec]) -> None:
     provisional: dict[str, PortSpec] = {}
+    done: set[str] = set()
+    failed: set[str] = set()  # nodes with an error: their consumers are not checked (no follow-on errors)
     for name, rn in nodes.items():
+        done.add(name)
         ctx = BuildContext(rate=ck.spec.rate, base_dir=ck.spec.path.parent, every=rn.spec.every)
         specs: dict[str, PortSpec] = {}
         bad = False
+        if any(src is not None and src.node in failed for src in rn.sources.values()):
+            failed.add(name)
+            continue
         for port_name, port in rn.cls.inputs.items():
             src = rn.sources.get(port_name)
             if src is None:
@@ -261,7 +267,7 @@ def _resolve_ports(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[st
                 continue
             if src.node is None:
                 got = inputs[src.port]
-            elif src.node in nodes and nodes[src.node].out_specs:
+            elif src.node in done:
                 got = nodes[src.node].out_specs[src.port]
             else:  # feedback into a delay from a node later in the order
                 got = PortSpec()
@@ -272,19 +278,22 @@ def _resolve_ports(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[st
                 bad = True
             specs[port_name] = got
         if bad:
+            failed.add(name)
             continue
         rn.in_specs = specs
         try:
             rn.node = rn.cls(name, rn.params, ctx)
             rn.out_specs = rn.node.resolve(specs)
         except ParamError as exc:
+            failed.add(name)
             ck.error(_param_loc(rn, exc.param), f"node {name!r} ({rn.cls.type_name}): {exc}")
         except (DataError, FlowtexError) as exc:
+            failed.add(name)
             ck.error(rn.spec.loc, f"node {name!r} ({rn.cls.type_name}): {exc}")
     for name, assumed in provisional.items():
         rn = nodes[name]
         for port_name, src in rn.sources.items():
-            if src is not None and src.node is not None and nodes[src.node].out_specs:
+            if src is not None and src.node is not None and src.node not in failed and nodes[src.node].out_specs:
                 actual = nodes[src.node].out_specs[src.port]
                 if actual != assumed:
                     ck.error(edge_of[(name, port_name)].loc,

@@ -200,7 +200,7 @@ def _inputs(c: _Collector, data: LocDict) -> dict[str, InputSpec]:
             if not isinstance(value["unit"], str):
                 c.error(value.value_pos["unit"], f"input {name!r}: unit must be a string such as 'mm' or 'N'")
             else:
-                unit = value["unit"]
+                unit = "" if value["unit"] == "-" else value["unit"]  # '-' means dimensionless, as in node params
         out[name] = InputSpec(name, shape, unit, c.loc(raw.key_pos[name]))
     return out
 
