@@ -43,13 +43,16 @@ def register(subparsers: Any) -> None:
     s = subparsers.add_parser("simulate-device", help="run the simulated CAN device as its own process",
                               description="Play RECORDING's sensor signals as CAN frames and collect actuator frames, at the given rate.")
     s.add_argument("recording", help="recording (.npz/.csv/.h5) whose arrays are named like the map's graph inputs")
-    s.add_argument("--bus", required=True, help="INTERFACE[:CHANNEL] shared with the runtime (e.g. socketcand:vcan0@127.0.0.1:29536, "
-                                                "or slcan over a pseudo-terminal)")
+    where = s.add_mutually_exclusive_group(required=True)
+    where.add_argument("--bus", help="INTERFACE[:CHANNEL] shared with the runtime (e.g. socketcan:vcan0, socketcand:vcan0@127.0.0.1:29536)")
+    where.add_argument("--pty", action="store_true", help="act as an slcan adapter on a new pseudo-terminal; prints the "
+                                                          "--bus flowtex_slcan:/dev/pts/N to give the runtime")
     s.add_argument("--bitrate", type=int, help="bus bitrate in bit/s")
     s.add_argument("--dbc", required=True, help="DBC file")
     s.add_argument("--map", required=True, help="map YAML (its inputs say which signals to publish)")
     s.add_argument("--rate", type=float, help="ticks per second (default: the recording's rate, else 1000)")
     s.add_argument("--duration", type=float, help="seconds to run (default: until Ctrl-C / SIGTERM)")
+    s.add_argument("--exit-on-close", action="store_true", help="stop when the runtime closes the channel (slcan: after its 'C' command)")
     s.set_defaults(func=cmd_simulate_device)
 
 
@@ -90,15 +93,20 @@ def cmd_live(args: argparse.Namespace) -> int:
 
 def cmd_simulate_device(args: argparse.Namespace) -> int:
     """``flowtex simulate-device``: returns 0 after a clean stop, 1 on errors."""
+    import can
+
     from ..errors import FlowtexError
     from .simdevice import run_device
 
     try:
-        run_device(args.bus, args.dbc, args.map, args.recording, rate_hz=args.rate, duration_s=args.duration, bitrate=args.bitrate)
+        run_device(args.bus, args.dbc, args.map, args.recording, rate_hz=args.rate, duration_s=args.duration, bitrate=args.bitrate,
+                   pty=args.pty, exit_on_close=args.exit_on_close)
     except FlowtexError as exc:
         return _error("simulate-device", str(exc))
     except OSError as exc:
         return _error("simulate-device", f"CAN bus failure: {exc}")
+    except can.CanError as exc:
+        return _error("simulate-device", f"CAN bus failure: {' '.join(str(exc).split())}")
     return 0
 
 

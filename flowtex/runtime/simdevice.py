@@ -10,7 +10,18 @@ In ``flowtex live --simulate`` the device shares the runtime's process and is
 stepped by the runtime's clock: ``publish(k)`` before tick ``k`` starts and
 ``collect(k)`` after the runtime sent tick ``k``'s actuator frames, so a
 simulated session is deterministic. :func:`run_device` runs the same device as
-its own process with its own clock (``flowtex simulate-device``).
+its own process with its own clock (``flowtex simulate-device``), on any
+python-can bus or on a pseudo-terminal speaking slcan (``pty=True``: the runtime
+then opens ``--bus flowtex_slcan:/dev/pts/N``).
+
+Sensor-to-actuator latency. ``publish(k)`` stamps the tick (and wall time) of the
+oldest sensor sample not yet answered; the next ``collect(q)`` that receives
+actuator frames records ``q - k`` in ``latency_ticks`` and the wall time from the
+publish to the first such frame's timestamp in ``latency_s``. In the in-process
+simulation, 0 ticks means the actuator frames computed from sample ``k`` were sent
+within tick ``k``. Across processes the device collects at the start of each of its
+own ticks, so an answer sent within the runtime's tick is seen one device tick later
+(1 tick).
 """
 
 from __future__ import annotations
@@ -88,34 +99,65 @@ class SimulatedDevice:
         self.history = np.full((history, out_width), np.nan) if history else None
         self.frames_per_collect = np.zeros(history, dtype=np.int64) if history else None
         self.publish_time = 0.0
-        self.latency_s = np.zeros(8192)
-        """Latest publish -> actuator-frame delays in s (ring; ``latency_count`` is the total)."""
+        self._pending_tick = -1
+        """Tick of the oldest published sensor sample without an actuator answer yet (-1: none)."""
+        self.latency_s = np.zeros(1 << 17)
+        """Publish -> first actuator frame after it, in s (ring; ``latency_count`` is the total)."""
+        self.latency_ticks = np.zeros(1 << 17, dtype=np.int64)
+        """Publish tick -> tick of the collect that saw the answer (ring, same slots as ``latency_s``)."""
         self.latency_count = 0
+        self._recv_available = getattr(bus, "recv_available", None)
+        self._send_many = getattr(bus, "send_many", None)
+        self._batch: list[can.Message] = []
 
     def publish(self, k: int) -> None:
         """Send sensor frames for tick ``k`` (sample ``k`` modulo the recording length)."""
         self.vals[:] = self.samples[k % self.n]
-        send = self.bus.send
+        batch = self._batch
+        batch.clear()
         for name, msg, enc in self.tx:
             d = self.drop.get(name)
             if d is not None and k >= d[0] and (d[1] is None or k < d[1]):
                 continue
             enc(msg.data)
-            send(msg)
-            self.frames_sent += 1
-        self.publish_time = time.time()
+            batch.append(msg)
+        if self._pending_tick < 0:
+            self._pending_tick = k
+            self.publish_time = time.time()
+        if self._send_many is not None:
+            self._send_many(batch)
+        else:
+            send = self.bus.send
+            for msg in batch:
+                send(msg)
+        self.frames_sent += len(batch)
+
+    def _received(self) -> list[can.Message]:
+        if self._recv_available is not None:
+            return self._recv_available()
+        out = []
+        msg = self.bus.recv(0.0)
+        while msg is not None:
+            out.append(msg)
+            msg = self.bus.recv(0.0)
+        return out
 
     def collect(self, k: int) -> int:
         """Receive every pending actuator frame (sent during tick ``k``); returns how many arrived."""
         count = 0
-        msg = self.bus.recv(0.0)
-        while msg is not None:
+        first_ts = None
+        for msg in self._received():
             dec = self.decoders.get(msg.arbitration_id)
             if dec is not None and dec(msg.data):
                 count += 1
-                self.latency_s[self.latency_count % self.latency_s.shape[0]] = msg.timestamp - self.publish_time
-                self.latency_count += 1
-            msg = self.bus.recv(0.0)
+                if first_ts is None:
+                    first_ts = msg.timestamp
+        if count and self._pending_tick >= 0:
+            i = self.latency_count % self.latency_s.shape[0]
+            self.latency_s[i] = first_ts - self.publish_time
+            self.latency_ticks[i] = k - self._pending_tick
+            self.latency_count += 1
+            self._pending_tick = -1
         self.frames_received += count
         if self.history is not None and 0 <= k < self.history.shape[0]:
             self.history[k] = self.actuators
@@ -123,13 +165,21 @@ class SimulatedDevice:
         return count
 
 
-def run_device(bus_spec: str, dbc_path: str, map_path: str, recording: str, rate_hz: float | None = None,
-               duration_s: float | None = None, bitrate: int | None = None, status: TextIO | None = sys.stderr) -> int:
+def run_device(bus_spec: str | None, dbc_path: str, map_path: str, recording: str, rate_hz: float | None = None,
+               duration_s: float | None = None, bitrate: int | None = None, status: TextIO | None = sys.stderr,
+               pty: bool = False, exit_on_close: bool = False, announce: TextIO | None = sys.stdout) -> int:
     """Run the simulated device as its own process on ``bus_spec`` until ``duration_s`` or Ctrl-C/SIGTERM.
 
     Returns the number of ticks run. Each tick: collect actuator frames, publish
     the next sensor sample. The rate is ``rate_hz``, else the recording's stated
     rate, else 1000 Hz.
+
+    ``pty=True`` (``bus_spec`` None): serve the slcan protocol on a new
+    pseudo-terminal as the adapter would (:class:`~flowtex.io.slcan_fast.FastSlcanBus`
+    in the device role) and print ``--bus flowtex_slcan:/dev/pts/N`` on ``announce``
+    for the runtime; frames are only sent while the host has the channel open.
+    ``exit_on_close``: stop once a host that had opened the channel closes it (the
+    end of a runtime session), after collecting its last frames.
     """
     import signal
 
@@ -139,13 +189,25 @@ def run_device(bus_spec: str, dbc_path: str, map_path: str, recording: str, rate
     from .clock import DeadlineClock
     from .live import open_bus
 
+    if pty == (bus_spec is not None):
+        raise FlowtexError("simulate-device: give either --bus INTERFACE[:CHANNEL] or --pty")
     db = load_dbc(dbc_path)
     canmap = load_map(map_path, db, dbc_path)
     used = set(canmap.sensor_messages()) | set(canmap.actuator_messages())
     codecs = {m.name: MessageCodec(m) for m in db.messages if m.name in used}
     rec = load_recording(recording)
     rate = float(rate_hz or rec.rate or 1000.0)
-    bus = open_bus(bus_spec, bitrate)
+    pty_pair = None
+    if pty:
+        from ..io.slcan_fast import FastSlcanBus, open_pty
+
+        pty_pair = open_pty()
+        bus = FastSlcanBus(pty_pair.master_fd, role="device")
+        if announce is not None:
+            print(f"simulated device on {pty_pair.slave_path}: run the runtime with --bus flowtex_slcan:{pty_pair.slave_path}",
+                  file=announce, flush=True)
+    else:
+        bus = open_bus(bus_spec, bitrate)
     stop: list[bool] = [False]
 
     def handler(signum: int, frame: Any) -> None:
@@ -156,19 +218,29 @@ def run_device(bus_spec: str, dbc_path: str, map_path: str, recording: str, rate
         dev = SimulatedDevice(bus, canmap, codecs, rec.arrays, rate_hz=rate)
         clock = DeadlineClock(rate)
         n = int(round(duration_s * rate)) if duration_s else None
+        was_open = False
         clock.start()
         k = 0
         while not stop[0] and (n is None or k < n):
-            dev.collect(k - 1)
+            dev.collect(k)
+            if exit_on_close:
+                is_open = bool(getattr(bus, "is_open", True))
+                if was_open and not is_open:
+                    break
+                was_open = was_open or is_open
             dev.publish(k)
             k += 1
             clock.wait()
-        dev.collect(k - 1)
+        dev.collect(k)
+        dropped = int(getattr(bus, "tx_dropped", 0))
         if status is not None:
-            print(f"simulated device: {k} ticks at {rate:g} Hz, sent {dev.frames_sent} sensor frames, "
-                  f"received {dev.frames_received} actuator frames", file=status)
+            print(f"simulated device: {k} ticks at {rate:g} Hz, sent {dev.frames_sent - dropped} sensor frames"
+                  + (f" ({dropped} dropped while the channel was closed)" if dropped else "")
+                  + f", received {dev.frames_received} actuator frames", file=status, flush=True)
         return k
     finally:
         for s, h in old.items():
             signal.signal(s, h)
         bus.shutdown()
+        if pty_pair is not None:
+            pty_pair.close()

@@ -141,3 +141,237 @@ def test_signal_leaves_safe_values_last(setup, sig):
     assert db.decode_message(0x200, tx[-2].data)["Current"] == 0.0
     assert [db.decode_message(0x201, tx[-1].data)[k] for k in ("Fx", "Fy", "Fz")] == [0, 0, 0]
     assert db.decode_message(0x200, tx[-4].data)["Current"] > 0.4  # the tick before was a live one
+
+
+# --- compiled table codecs (the live hot path) against cantools ------------------------------
+TABLE_DBC = """VERSION ""
+
+NS_ :
+    SIG_VALTYPE_
+
+BS_:
+
+BU_: A B
+
+BO_ 100 Mixed: 8 A
+ SG_ LeOdd : 3|11@1- (0.25,-3.5) [0|0] "" B
+ SG_ BeOdd : 21|13@0+ (0.1,100) [0|0] "" B
+ SG_ OneBit : 24|1@1+ (1,0) [0|1] "" B
+ SG_ BeSigned7 : 38|7@0- (2,1) [0|0] "" B
+ SG_ LeTail : 52|12@1+ (0.5,0) [0|2000] "" B
+
+BO_ 101 Floats: 8 A
+ SG_ F32 : 0|32@1- (1,0) [0|0] "" B
+ SG_ F32Be : 39|32@0- (0.5,2) [0|0] "" B
+
+BO_ 102 Double: 8 A
+ SG_ F64 : 7|64@0- (1,0) [0|0] "" B
+
+BO_ 103 Short: 3 A
+ SG_ Cur : 0|16@1- (0.0001,0) [-2|2] "A" B
+ SG_ Id : 16|8@1+ (1,0) [0|0] "" B
+
+BO_ 104 BigOnly: 5 A
+ SG_ W : 7|40@0+ (0.001,-5) [0|0] "" B
+
+SIG_VALTYPE_ 101 F32 : 1;
+SIG_VALTYPE_ 101 F32Be : 1;
+SIG_VALTYPE_ 102 F64 : 2;
+"""
+
+
+@pytest.fixture(scope="module")
+def table_db(tmp_path_factory):
+    path = tmp_path_factory.mktemp("dbc") / "t.dbc"
+    path.write_text(TABLE_DBC)
+    return cantools.database.load_file(path)
+
+
+def _random_payload(rng, msg):
+    data = bytearray(rng.integers(0, 256, msg.length, dtype=np.uint8).tobytes())
+    if any(s.is_float for s in msg.signals):  # keep floats finite (NaN != NaN would hide nothing but complicates ==)
+        for s in msg.signals:
+            if s.is_float:
+                ref = msg.decode(bytes(data), decode_choices=False)
+                if not np.isfinite(ref[s.name]):
+                    data = bytearray(msg.encode({n: (1.25 if n == s.name else v) for n, v in ref.items()}, strict=False))
+    return data
+
+
+def test_table_decoder_equals_cantools_bit_for_bit(table_db):
+    from flowtex.io.codec import MessageCodec, TableDecoder, fast_ok
+
+    rng = np.random.default_rng(7)
+    msgs = table_db.messages
+    codecs = [MessageCodec(m) for m in msgs]
+    assert all(fast_ok(c) for c in codecs)
+    arena = np.full(64, np.nan)
+    stamps = np.full(len(msgs), -1, dtype=np.int64)
+    entries, where = [], []
+    pos = 0
+    for mi, c in enumerate(codecs):
+        targets = []
+        for si in range(len(c.signals)):
+            k, off = (1.0, 0.0) if si % 2 == 0 else (0.5, 3.25)  # the map's graph = physical * scale + offset
+            targets.append((pos, k, off))
+            where.append((mi, c.signals[si], pos, k, off))
+            pos += 1
+        entries.append((c, targets, [mi]))
+    dec = TableDecoder(entries)
+    for trial in range(300):
+        payloads = [_random_payload(rng, m) for m in msgs]
+        present = [i for i in range(len(msgs)) if rng.random() < 0.7]
+        before = arena.copy()
+        mask = 0
+        for i in present:
+            dec.words[dec.slot_of[msgs[i].frame_id]] = int.from_bytes(payloads[i], "little", signed=True)
+            mask |= 1 << dec.slot_of[msgs[i].frame_id]
+        dec.run(mask, trial, arena, stamps)
+        for mi, sig, p, k, off in where:
+            if mi in present:
+                ref = msgs[mi].decode(bytes(payloads[mi]), decode_choices=False)[sig]
+                expect = float(ref) if (k, off) == (1.0, 0.0) else float(ref) * k + off
+                assert arena[p] == expect or (np.isnan(arena[p]) and np.isnan(expect)), (msgs[mi].name, sig, payloads[mi].hex())
+            else:
+                assert arena[p] == before[p] or np.isnan(before[p])
+        assert [int(stamps[i]) for i in present] == [trial] * len(present)
+
+
+def _clamped(sig, v):
+    if sig.minimum is not None and v < sig.minimum:
+        return sig.minimum
+    if sig.maximum is not None and v > sig.maximum:
+        return sig.maximum
+    return v
+
+
+def test_table_encoder_equals_cantools_with_clamp_and_saturation(table_db):
+    from flowtex.io.codec import MessageCodec, TableEncoder
+
+    rng = np.random.default_rng(11)
+    msgs = table_db.messages
+    codecs = [MessageCodec(m) for m in msgs]
+    values = np.zeros(64)
+    entries, bound = [], []
+    pos = 0
+    for c in codecs:
+        src = []
+        for si, name in enumerate(c.signals):
+            if name == "Id":  # unbound: sent as physical 0
+                src.append(None)
+                continue
+            k, off = (1.0, 0.0) if si % 2 == 0 else (2.0, -0.5)  # DBC physical = graph value * k + off
+            src.append((pos, k, off))
+            bound.append(pos)
+            pos += 1
+        entries.append((c, src))
+    enc = TableEncoder(entries)
+    half_steps = 0
+    for _trial in range(300):
+        # physical values inside each signal's raw range (so cantools can be the reference), some exactly halfway
+        # between two raw steps (round half to even), some beyond the DBC [min|max] (clamped first)
+        for c, (_, src) in zip(codecs, entries, strict=True):
+            for s, t in zip(c.message.signals, src, strict=True):
+                if t is None:
+                    continue
+                if s.is_float:
+                    phys = float(np.float32(rng.normal(0, 1000))) if s.length == 32 else rng.normal(0, 1e6)
+                else:
+                    raw_lo, raw_hi = (-(1 << (s.length - 1)), (1 << (s.length - 1)) - 1) if s.is_signed else (0, (1 << s.length) - 1)
+                    raw = int(rng.integers(raw_lo, raw_hi + 1)) if raw_hi > raw_lo else raw_lo
+                    frac = 0.5 if (rng.random() < 0.3 and raw < raw_hi) else 0.0
+                    half_steps += frac > 0
+                    phys = (raw + frac) * s.scale + s.offset
+                    if s.maximum is not None and rng.random() < 0.1:
+                        phys = s.maximum + 1.0
+                values[t[0]] = (phys - t[2]) / t[1]
+        enc.run(values)
+        for mi, (c, src) in enumerate(zip(codecs, (e[1] for e in entries), strict=True)):
+            phys = {}
+            for s, t in zip(c.message.signals, src, strict=True):
+                v = 0.0 if t is None else values[t[0]] * t[1] + t[2]
+                phys[s.name] = _clamped(s, v)
+            expect = c.message.encode(phys, strict=False)
+            got = bytes(enc.payload[enc.offsets[mi]:enc.offsets[mi + 1]])
+            assert got == expect, (c.name, phys, got.hex(), expect.hex())
+    assert half_steps > 100
+    # saturation: a raw value beyond the bit length saturates (cantools would wrap), here without a DBC range
+    for p in bound:
+        values[p] = 0.0
+    mixed = codecs[0]
+    i_le = [i for i, (c, src) in enumerate(entries) if c is mixed][0]
+    values[entries[i_le][1][0][0]] = 1e9      # LeOdd: 11-bit signed, scale 0.25 -> raw max 1023
+    values[entries[i_le][1][1][0]] = -1e9     # BeOdd: 13-bit unsigned -> raw 0
+    enc.run(values)
+    got = mixed.message.decode(bytes(enc.payload[enc.offsets[i_le]:enc.offsets[i_le + 1]]), decode_choices=False)
+    assert got["LeOdd"] == 1023 * 0.25 - 3.5
+    assert got["BeOdd"] == pytest.approx(100.0)
+
+
+def test_fast_ok_refuses_what_the_tables_cannot_reproduce(tmp_path):
+    from flowtex.io.codec import MessageCodec, fast_ok
+
+    (tmp_path / "w.dbc").write_text(TABLE_DBC.replace('BO_ 104 BigOnly: 5 A\n SG_ W : 7|40@0+ (0.001,-5) [0|0] "" B',
+                                                      'BO_ 104 Wide: 8 A\n SG_ W : 7|64@0- (1,0) [0|0] "" B'))
+    db = cantools.database.load_file(tmp_path / "w.dbc")
+    assert not fast_ok(MessageCodec(db.get_message_by_name("Wide")))  # 64-bit integers: the Python path is exact
+    assert fast_ok(MessageCodec(db.get_message_by_name("Double")))
+
+
+OVERLOAD_PLUGIN = '''
+import numpy as np
+from numba import njit
+from flowtex.node_api import Node, NodeState, Param, Port
+
+
+@njit
+def overload_kernel(p, s, si, x, y):
+    for t in range(x.shape[0]):
+        if x[t, 0] > p[0]:
+            raise ValueError("sensor overload")
+        y[t, 0] = x[t, 0]
+
+
+class Overload(Node):
+    """Pass x through; raise inside the compiled kernel when x exceeds a limit (a graph that fails mid-session)."""
+
+    type_name = "test_overload"
+    params = {"limit": Param("float", doc="largest accepted x")}
+    inputs = {"x": Port((), "*", "signal")}
+    outputs = {"y": Port("=x", "=x", "x")}
+    kernel = overload_kernel
+
+    def build(self, inputs, outputs):
+        return NodeState(params=np.array([self.p["limit"]]))
+'''
+
+
+def test_exception_inside_the_graph_sends_safe_values_last(setup):
+    plugins = setup / "plugins"
+    plugins.mkdir()
+    (plugins / "overload.py").write_text(OVERLOAD_PLUGIN)
+    (setup / "boom.yaml").write_text(textwrap.dedent(GRAPH).replace("normal_force -> v.x", "normal_force -> ov.x\n  - ov.y -> v.x")
+                                     .replace("  v: {type: gain", "  ov: {type: test_overload, params: {limit: 3.5}}\n  v: {type: gain"))
+    g = load_graph(setup / "boom.yaml", plugins=(plugins,))
+    # the first tick whose normal force, as the DBC carries it (0.001 N steps), exceeds 3.5 N
+    nf = np.load(setup / "rec.npz")["normal_force"]
+    first = int(np.argmax(np.round(nf / 0.001) * 0.001 > 3.5))
+    assert 10 < first < 100
+    log = setup / "boom.log"
+    r = run_live(g, DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=500, record=log, status=None)
+    assert r.exit_reason == "error" and r.ticks == first
+    assert r.error == f"tick {first}: ValueError: sensor overload"
+    tx = _tx(log)
+    assert len(tx) == 2 * first + 2
+    db = cantools.database.load_file(DBC)
+    assert db.decode_message(0x200, tx[-2].data)["Current"] == 0.0
+    assert [db.decode_message(0x201, tx[-1].data)[k] for k in ("Fx", "Fy", "Fz")] == [0, 0, 0]
+    assert db.decode_message(0x200, tx[-4].data)["Current"] > 0.4  # the last regular tick was live
+    assert r.device.frames_received == 2 * first + 2
+
+    # the command line reports it as one line and exit code 1
+    cmd = [sys.executable, "-m", "flowtex.runtime.commands", "live", str(setup / "boom.yaml"), "--plugins", str(plugins), "--dbc", str(DBC),
+           "--map", str(setup / "m.yaml"), "--simulate", str(setup / "rec.npz"), "--duration", "0.5", "--quiet"]
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 1
+    assert p.stderr == f"flowtex live: error: tick {first}: ValueError: sensor overload (safe values sent)\n"

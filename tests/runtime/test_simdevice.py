@@ -1,0 +1,81 @@
+"""The simulated device: in-process latency bookkeeping and a two-process session over a pseudo-terminal (slcan)."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+
+import cantools
+import numpy as np
+from test_live import DBC, setup  # noqa: F401  (fixture; rootdir-relative import as pytest does)
+
+from flowtex.graph.compiled import load_graph
+from flowtex.io.canlog import read_session
+from flowtex.runtime.live import run_live
+
+
+def test_in_process_latency_is_zero_ticks(setup):  # noqa: F811
+    g = load_graph(setup / "g.yaml")
+    r = run_live(g, DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=300, status=None)
+    assert r.error is None
+    dev = r.device
+    # one answer per executed tick, plus the exit safe values answering the sample published after the last tick
+    assert dev.latency_count == 301
+    assert np.all(dev.latency_ticks[:301] == 0)
+    assert np.all(dev.latency_s[:301] >= 0.0)
+    assert dev.frames_received == 2 * 300 + 2
+
+
+def _expected_payloads(db, rec):
+    """Every sensor payload the device may send for the recording, encoded by cantools (unbound signals 0)."""
+    pos, nf = rec["position"], rec["normal_force"]
+    tp, tf = db.get_message_by_name("ToolPosition"), db.get_message_by_name("ToolForce")
+    a = {tp.encode({"PosX": x, "PosY": y, "PosZ": z, "PosCounter": 0}) for x, y, z in pos}
+    b = {tf.encode({"NormalForce": f, "SurfNormalX": 0, "SurfNormalY": 0, "SurfNormalZ": 0}) for f in nf}
+    return {tp.frame_id: a, tf.frame_id: b}
+
+
+def test_two_process_session_over_a_pty(setup):  # noqa: F811
+    cmd = [sys.executable, "-m", "flowtex.runtime.commands", "simulate-device", str(setup / "rec.npz"), "--pty", "--exit-on-close",
+           "--duration", "60", "--dbc", str(DBC), "--map", str(setup / "m.yaml")]
+    dev = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    try:
+        line = dev.stdout.readline()
+        m = re.search(r"--bus (flowtex_slcan:/dev/pts/\d+)", line)
+        assert m, (line, dev.stderr.read() if dev.poll() is not None else "")
+        g = load_graph(setup / "g.yaml")
+        log = setup / "pty.log"
+        r = run_live(g, DBC, setup / "m.yaml", bus=m.group(1), max_ticks=1500, record=log, status=None, install_signals=False)
+        out, err = dev.communicate(timeout=60)
+    finally:
+        if dev.poll() is None:
+            dev.kill()
+    assert dev.returncode == 0, err
+    assert r.error is None and r.ticks == 1500
+    s = re.search(r"sent (\d+) sensor frames.*received (\d+) actuator frames", err)
+    assert s, err
+    sent, received = int(s.group(1)), int(s.group(2))
+    # the device closed only after the runtime's 'C': every actuator frame, the exit safe values included, arrived
+    assert received == r.frames_out + 2 == 2 * 1500 + 2
+    assert 0 < r.frames_in <= sent
+    # what crossed the pty is what the device encoded from the recording, byte for byte
+    db = cantools.database.load_file(DBC)
+    expected = _expected_payloads(db, np.load(setup / "rec.npz"))
+    rx = [f for f in read_session(log) if f.is_rx]
+    assert len(rx) == r.frames_in
+    for f in rx:
+        assert bytes(f.data) in expected[f.arbitration_id]
+    tx = [f for f in read_session(log) if not f.is_rx]
+    assert db.decode_message(0x200, tx[-2].data)["Current"] == 0.0
+
+
+def test_simulate_device_needs_bus_or_pty(setup):  # noqa: F811
+    base = [sys.executable, "-m", "flowtex.runtime.commands", "simulate-device", str(setup / "rec.npz"), "--dbc", str(DBC),
+            "--map", str(setup / "m.yaml")]
+    p = subprocess.run(base, capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2 and "--bus" in p.stderr and "--pty" in p.stderr
+    p = subprocess.run(base + ["--bus", "socketcan:flowtexnone0", "--duration", "0.1"], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 1
+    assert p.stderr.strip().count("\n") == 0 and p.stderr.startswith("flowtex simulate-device: error: cannot open CAN bus")
