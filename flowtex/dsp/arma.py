@@ -48,6 +48,9 @@ from numba import njit
 
 from .rng import next_normal
 
+_FAST = {"contract"}
+"""numba fast-math flags: FMA contraction only (NaN and inf are still handled exactly)."""
+
 FLUSH_BELOW = 1e-200
 """State values smaller than this in magnitude are set to 0 (subnormal guard)."""
 
@@ -95,7 +98,7 @@ def _offsets(p, q):
     return L, o_k, o_c, o_v, o_var, o_g, o_la, o_lm, o_lg, o_tk, o_tc, o_tv, o_wa, o_wr
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=_FAST)
 def lattice_ladder_coefficients(ar, ma, gain, k, c, v, wa, wr) -> bool:
     """Reflection coefficients ``k``, ``c = sqrt(1 - k^2)`` and ladder weights ``v`` of g C(z) / A(z).
 
@@ -104,6 +107,13 @@ def lattice_ladder_coefficients(ar, ma, gain, k, c, v, wa, wr) -> bool:
     m (1-based) uses ``k[m-1]``. Returns False (outputs then meaningless) if
     the model is not usable: non-finite input, a0 == 0, |k_m| >= 1 or
     non-finite weights. No allocation.
+
+    Cost: the step-down is a chain of L dependent stages, each waiting for one
+    reciprocal 1 / (1 - k_m^2) (every coefficient of the stage is then
+    multiplied by it, not divided). The ladder weights v_m = lambda_m / prod_{i>m} c_i
+    use the running reciprocal of that product, 1 / c_m = c_m / (1 - k_m^2),
+    so they need no division at all; and a monic A (a0 == 1, always the case
+    for texture_lookup's output) is used as is instead of being divided by a0.
     """
     p = ar.shape[0] - 1
     q = ma.shape[0] - 1
@@ -111,40 +121,49 @@ def lattice_ladder_coefficients(ar, ma, gain, k, c, v, wa, wr) -> bool:
     a0 = ar[0]
     if not (math.isfinite(a0) and a0 != 0.0 and math.isfinite(gain)):
         return False
+    if a0 == 1.0:
+        for i in range(L + 1):
+            wa[i] = ar[i] if i <= p else 0.0
+            wr[i] = gain * ma[i] if i <= q else 0.0
+    else:
+        for i in range(L + 1):
+            wa[i] = ar[i] / a0 if i <= p else 0.0
+            wr[i] = gain * ma[i] / a0 if i <= q else 0.0
     for i in range(L + 1):
-        wa[i] = ar[i] / a0 if i <= p else 0.0
-        wr[i] = gain * ma[i] / a0 if i <= q else 0.0
         if not (math.isfinite(wa[i]) and math.isfinite(wr[i])):
             return False
-    prod = 1.0  # prod_{i > m} c_i
+    rprod = 1.0  # 1 / prod_{i > m} c_i
     for m in range(L, 0, -1):
-        # ladder: remainder -= lambda_m B_m, B_m[j] = A_m[m - j]
         lam = wr[m]
-        v[m] = lam / prod
-        if lam != 0.0:
-            for j in range(m + 1):
-                wr[j] -= lam * wa[m - j]
+        v[m] = lam * rprod
         km = wa[m]
         if not (abs(km) <= K_MAX):
             return False
         den = 1.0 - km * km
-        cm = math.sqrt(den)
         inv = 1.0 / den
+        cm = math.sqrt(den)
         k[m - 1] = km
         c[m - 1] = cm
-        # step-down A_m -> A_{m-1}, in place on pairs (i, m - i)
+        # One pass over the index pairs (i, m - i) does both:
+        # ladder: remainder -= lambda_m B_m with B_m[j] = A_m[m - j] (A_m before the step-down; A_m[0] = 1, so wr[m] becomes 0);
+        # step-down A_m -> A_{m-1}: a_i <- (a_i - k_m a_{m-i}) / (1 - k_m^2).
+        wr[0] -= lam * km
+        wr[m] = 0.0
         for i in range(1, (m + 1) // 2):
             j = m - i
             ai = wa[i]
             aj = wa[j]
+            wr[i] -= lam * aj
+            wr[j] -= lam * ai
             wa[i] = (ai - km * aj) * inv
             wa[j] = (aj - km * ai) * inv
-        if m % 2 == 0 and m > 0:
+        if m % 2 == 0:
             h = m // 2
+            wr[h] -= lam * wa[h]
             wa[h] = wa[h] * (1.0 - km) * inv
         wa[m] = 0.0
-        prod *= cm
-    v[0] = wr[0] / prod
+        rprod *= cm * inv
+    v[0] = wr[0] * rprod
     for m in range(L + 1):
         if not math.isfinite(v[m]):
             return False

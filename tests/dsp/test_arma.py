@@ -344,3 +344,13 @@ def test_coefficients_reject_non_minimum_phase_and_accept_pole_near_circle() -> 
     assert np.all(np.abs(k) < 1)
     # sum v^2 is the output variance of the model at unit excitation (normalized lattice property)
     np.testing.assert_allclose(np.sum(v**2), arma_output_variance(a, ma, 1.0, 1.0), rtol=1e-8)
+
+
+@pytest.mark.parametrize("a0", [2.5, -0.75])
+def test_non_monic_ar_matches_lfilter(a0: float) -> None:
+    """A(z) with a0 != 1 (the general path, divided by a0) realises g C(z) / A(z) like the monic fast path."""
+    a, c = model_19_17(11)
+    g, var, n = 1.3, 0.5, 3000
+    y, _, _ = run(*fixed(a0 * a, c, n), g, var)
+    ref = scipy.signal.lfilter(g * c, a0 * a, np.sqrt(var) * normals(1, n))
+    np.testing.assert_allclose(y, ref, rtol=0, atol=1e-10 * np.abs(ref).max())
