@@ -375,3 +375,27 @@ def test_exception_inside_the_graph_sends_safe_values_last(setup):
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert p.returncode == 1
     assert p.stderr == f"flowtex live: error: tick {first}: ValueError: sensor overload (safe values sent)\n"
+
+
+def test_map_peak_limit_is_mirrored_below_the_clamp(setup):
+    from flowtex.runtime.live import load_io
+
+    (setup / "peak.yaml").write_text(textwrap.dedent(MAP).replace(
+        "vibration: {signal: VoiceCoilCmd.Current, clamp: [-1, 1], safe: 0}",
+        "vibration: {signal: VoiceCoilCmd.Current, clamp: [-1, 1], safe: 0, peak: {limit: 1.5, max_ms: 3}}").replace(
+        "clamp: [-4, 4], safe: [0, 0, 0]}", "clamp: [[-4, 4], [-4, 4], [0, 8]], safe: [0, 0, 0], peak: {limit: [4, 4, 10], max_ms: 2}}"))
+    g = load_graph(setup / "g.yaml")
+    io = load_io(g, DBC, setup / "peak.yaml")
+    # outputs in map order: vibration, force x/y/z. "|value| up to 1.5" for the symmetric clamp; the margin
+    # above HIGH (10 - 8 = 2) mirrored below LOW (0 - 2) for the asymmetric one
+    assert io.guard.peak_hi.tolist() == [1.5, 4, 4, 10]
+    assert io.guard.peak_lo.tolist() == [-1.5, -4, -4, -2]
+    assert io.guard._ip[0].tolist() == [3, 2, 2, 2]  # max_ms in ticks at 1 kHz
+    # a command of -3 N on z: within the peak range -2 for 2 ticks, then the clamp's 0
+    fz = g.output_view("force")
+    seen = []
+    for _ in range(4):
+        fz[:] = [0.0, 0.0, -3.0]
+        io.guard_outputs(False)
+        seen.append(io.out[3])
+    assert seen == [-2.0, -2.0, 0.0, 0.0]
