@@ -22,6 +22,8 @@ and kept in caller-owned state arrays sized by :func:`state_sizes`.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -114,16 +116,30 @@ def initial_state(ar_order: int, ma_order: int) -> tuple[np.ndarray, np.ndarray]
     return s, si
 
 
-@njit(cache=True)
-def _blend(models, width, col, n, v, w, out):
+@njit(cache=True, inline="always")
+def _blend_valid(models, width, col, n, v, w, min_gap, out):
+    """Blend the three models' entries col..col+n-1 with weights ``w`` into ``out``; True if the result is a valid LSF vector.
+
+    Valid exactly as :func:`~flowtex.dsp.lsf.is_valid_lsf` (``min_gap``):
+    checked in the same pass, without branches, so the common case (a valid
+    blend) needs no second loop; :func:`~flowtex.dsp.lsf.repair_lsf` runs only otherwise.
+    """
     b0 = v[0] * width + col
     b1 = v[1] * width + col
     b2 = v[2] * width + col
     w0 = w[0]
     w1 = w[1]
     w2 = w[2]
+    prev = 0.0
+    ok = True
     for j in range(n):
-        out[j] = w0 * models[b0 + j] + w1 * models[b1 + j] + w2 * models[b2 + j]
+        x = w0 * models[b0 + j] + w1 * models[b1 + j] + w2 * models[b2 + j]
+        out[j] = x
+        gap = x - prev
+        ok &= (gap > 0.0) & (gap >= min_gap)  # False for NaN too
+        prev = x
+    last = math.pi - prev
+    return ok & (last > 0.0) & (last >= min_gap)
 
 
 @njit(cache=True)
@@ -149,12 +165,12 @@ def lookup_model(tab: np.ndarray, s: np.ndarray, si: np.ndarray, speed: float, f
     scratch = s[o_ma + q + 1:o_ma + q + 1 + max(p, q)]
     min_gap = tab[T_MIN_GAP]
     lsf = scratch[:p]
-    _blend(models, width, 0, p, v, w, lsf)
-    repair_lsf(lsf, min_gap)
+    if not _blend_valid(models, width, 0, p, v, w, min_gap, lsf):
+        repair_lsf(lsf, min_gap)
     lsf_to_poly(lsf, s[S_AR:S_AR + p + 1])
     lsf = scratch[:q]
-    _blend(models, width, p, q, v, w, lsf)
-    repair_lsf(lsf, min_gap)
+    if not _blend_valid(models, width, p, q, v, w, min_gap, lsf):
+        repair_lsf(lsf, min_gap)
     lsf_to_poly(lsf, s[o_ma:o_ma + q + 1])
     b = p + q
     s[S_VAR] = w[0] * models[v[0] * width + b] + w[1] * models[v[1] * width + b] + w[2] * models[v[2] * width + b]
