@@ -23,9 +23,10 @@ every tick inside a graph kernel.
 
 Storage trick of :func:`lsf_to_poly`: both products are palindromic, so only
 their first half (without the leading 1) is needed: the even-index product's
-half goes ascending into ``out[1], out[2], ...``, the odd-index product's half
-descending into ``out[p], out[p-1], ...``; together they take exactly p slots.
-The final combination A[k] = (S[k] + D[k]) / 2, A[p+1-k] = (S[k] - D[k]) / 2
+half goes ascending into ``out[1..ne]``, the odd-index product's half into
+``out[ne+1..p]`` (ne = ceil(p/2)); together they take exactly p slots, and
+before the products are built the same slots hold the factors' -2 cos(w).
+The odd half is then reversed (``out[p], out[p-1], ...``) and the final combination A[k] = (S[k] + D[k]) / 2, A[p+1-k] = (S[k] - D[k]) / 2
 is then an in-place butterfly on the slot pair (k, p+1-k).
 """
 
@@ -88,44 +89,36 @@ def _minus_2cos(x):
 
 
 @njit(cache=True, inline="always", fastmath=_FAST)
-def _factor_coef(w, fast):
-    """b = -2 cos(w) of the factor 1 + b z^-1 + z^-2: the inline polynomial when ``fast`` (w in [0, pi]), else libm."""
-    if fast:
-        return _minus_2cos(w)
-    return -2.0 * math.cos(w)
+def _half_product(out, base, m):
+    """Half of prod_{i=1..m} (1 + b_i z^-1 + z^-2) in place: out[base + i] holds b_i on entry, coefficient i on exit.
 
-
-@njit(cache=True, inline="always", fastmath=_FAST)
-def _half_product(lsf, first, out, base, step, fast):
-    """Half of prod (1 + b_i z^-1 + z^-2), b_i = -2 cos(lsf[first + 2 i]), stored as out[base + step * k], k = 1..m.
-
-    The product is palindromic of degree 2m, so coefficients k = 1..m determine
-    it (k = 0 is an implicit 1). Multiplying a degree-2(i-1) product s by one
-    more factor gives r[k] = s[k] + b s[k-1] + s[k-2], with s[i] = s[i-2] by
-    symmetry for the new middle (r[i] = 2 s[i-2] + b s[i-1]). The low indices
-    k = 1, 2 (which would read the implicit 1 or a 0) are peeled off, so the
-    inner loop has no branches. Returns m.
+    The product is palindromic of degree 2m, so coefficients 1..m determine it
+    (coefficient 0 is an implicit 1; out[base] is never read or written).
+    Multiplying a degree-2(i-1) product s by factor i gives
+    r[k] = s[k] + b_i s[k-1] + s[k-2], with s[i] = s[i-2] by symmetry for the
+    new middle (r[i] = 2 s[i-2] + b_i s[i-1]), which lands on the slot that held
+    b_i (read first); later factors' b's sit above it, untouched. k = 1, 2 (which
+    would read the implicit 1 or a 0) are peeled off, so the inner loop has
+    no branches, and it walks downwards with the old values rolling through
+    registers (one load per coefficient).
     """
-    p = lsf.shape[0]
-    m = (p - first + 1) // 2
-    if m == 0:
-        return 0
-    out[base + step] = _factor_coef(lsf[first], fast)
-    if m == 1:
-        return 1
-    b = _factor_coef(lsf[first + 2], fast)
-    f1 = out[base + step]
-    out[base + 2 * step] = (1.0 + b * f1) + 1.0
-    out[base + step] = f1 + b
+    if m >= 2:
+        b = out[base + 2]
+        f1 = out[base + 1]
+        out[base + 2] = (1.0 + b * f1) + 1.0
+        out[base + 1] = f1 + b
     for i in range(3, m + 1):
-        b = _factor_coef(lsf[first + 2 * i - 2], fast)
-        s1 = out[base + step * (i - 1)]
-        s2 = out[base + step * (i - 2)]
-        out[base + step * i] = (s2 + b * s1) + s2
-        for k in range(i - 1, 2, -1):
-            out[base + step * k] = (out[base + step * k] + b * out[base + step * (k - 1)]) + out[base + step * (k - 2)]
-        out[base + 2 * step] = (out[base + 2 * step] + b * out[base + step]) + 1.0
-        out[base + step] = out[base + step] + b
+        b = out[base + i]
+        s1 = out[base + i - 1]
+        s2 = out[base + i - 2]
+        out[base + i] = (s2 + b * s1) + s2
+        for k in range(base + i - 1, base + 2, -1):
+            s3 = out[k - 2]
+            out[k] = (s1 + b * s2) + s3
+            s1 = s2
+            s2 = s3
+        out[base + 2] = (s1 + b * s2) + 1.0
+        out[base + 1] = s2 + b
     return m
 
 
@@ -138,9 +131,9 @@ def lsf_to_poly(lsf: np.ndarray, out: np.ndarray) -> None:
     minimum phase whenever ``lsf`` is strictly increasing in (0, pi); the
     caller checks that (see :func:`is_valid_lsf`, :func:`repair_lsf`).
 
-    Cost (orders 19 and 17 together, shared 2-core machine): ~0.2-0.3 us,
-    against ~0.8 us for the first version (libm cosines, a branch per
-    coefficient read); see benchmarks/bench_texture.py. Accuracy is that of
+    Cost (orders 19 and 17 together, shared 2-core machine): ~0.25 us,
+    against ~0.8 us for the first version (a libm cosine per factor, a branch
+    per coefficient read); see benchmarks/bench_texture.py. Accuracy is that of
     the products themselves (float64 rounding amplified by cancellation among
     coefficients, ~1e-12 relative to the largest coefficient at order 20):
     the cosines add at most ~2 ulp. Entries outside [0, pi] (or NaN) fall
@@ -150,14 +143,36 @@ def lsf_to_poly(lsf: np.ndarray, out: np.ndarray) -> None:
     out[0] = 1.0
     if p == 0:
         return
+    ne = (p + 1) // 2
+    no = p // 2
     fast = True
     for i in range(p):
         w = lsf[i]
         if not (w >= 0.0 and w <= math.pi):  # also False for NaN
             fast = False
-    # Even-index LSFs: ascending half in out[1..ne]; odd-index: descending half in out[p..p+1-no].
-    ne = _half_product(lsf, 0, out, 0, 1, fast)
-    no = _half_product(lsf, 1, out, p + 1, -1, fast)
+    # b = -2 cos(w) of every factor, even-index LSFs into out[1..ne], odd-index into out[ne+1..p]: a tight loop of
+    # polynomials the compiler vectorises (libm only for vectors with entries outside [0, pi]).
+    if fast:
+        for k in range(ne):
+            out[1 + k] = _minus_2cos(lsf[2 * k])
+        for k in range(no):
+            out[ne + 1 + k] = _minus_2cos(lsf[2 * k + 1])
+    else:
+        for k in range(ne):
+            out[1 + k] = -2.0 * math.cos(lsf[2 * k])
+        for k in range(no):
+            out[ne + 1 + k] = -2.0 * math.cos(lsf[2 * k + 1])
+    _half_product(out, 0, ne)
+    _half_product(out, ne, no)
+    # odd half: ascending in out[ne+1..p] -> descending (O[k] in out[p+1-k]) for the in-place butterfly below
+    lo = ne + 1
+    hi = p
+    while lo < hi:
+        t = out[lo]
+        out[lo] = out[hi]
+        out[hi] = t
+        lo += 1
+        hi -= 1
     if p % 2 == 0:
         # S = prod_even * (1 + z^-1): S[k] = E[k] + E[k-1], k = 1..ne (ne = p/2, E[0] = 1)
         for k in range(ne, 1, -1):
