@@ -63,9 +63,10 @@ HEADER_FLOATS = 1
 """s[0]: cached normal of the RNG (flowtex.dsp.rng STATE_FLOATS)."""
 RNG_INTS = 5
 """si[0:5]: RNG words (flowtex.dsp.rng STATE_INTS)."""
-ISTATE_INTS = 8
+ISTATE_INTS = 9
 """si[5]: 1 once a valid model is active; si[6]: 1 if the last seen ar/ma/gain were valid (trial
-coefficients usable); si[7]: 1 once those trial coefficients have been made active."""
+coefficients usable); si[7]: 1 once those trial coefficients have been made active; si[8]: which of
+the two coefficient sets is active (0: the one at o_k, 1: the one at o_tk; see :func:`_offsets`)."""
 
 
 def lattice_order(p: int, q: int) -> int:
@@ -82,15 +83,18 @@ def state_size(p: int, q: int) -> int:
 @njit(cache=True, inline="always")
 def _offsets(p, q):
     L = max(p, q)
-    o_k = HEADER_FLOATS  # active reflection coefficients k_1..k_L at o_k + m - 1
-    o_c = o_k + L  # active c_m = sqrt(1 - k_m^2)
-    o_v = o_c + L  # active ladder weights v_0..v_L
+    # Two coefficient sets [k_1..k_L, c_1..c_L, v_0..v_L] (k_m at o + m - 1, c_m = sqrt(1 - k_m^2), ladder
+    # weights v), at o_k and o_tk: one active (si[8]), the other the trial set a new model is computed into;
+    # making the trial set active is a flip of si[8], not a copy.
+    o_k = HEADER_FLOATS
+    o_c = o_k + L
+    o_v = o_c + L
     o_var = o_v + L + 1  # active variance
     o_g = o_var + 1  # lattice state g_0..g_{L-1} (previous tick)
     o_la = o_g + L  # last seen ar (p+1)
     o_lm = o_la + p + 1  # last seen ma (q+1)
     o_lg = o_lm + q + 1  # last seen gain
-    o_tk = o_lg + 1  # trial k, c, v (computed here, copied to active if valid)
+    o_tk = o_lg + 1  # the second coefficient set
     o_tc = o_tk + L
     o_tv = o_tc + L
     o_wa = o_tv + L + 1  # work: step-down polynomial
@@ -187,7 +191,8 @@ def arma_lattice_block(s, si, ar, ma, gain, variance, y) -> None:
     for t in range(n):
         e = next_normal(si, rng_f)
         # --- model update (only when ar/ma/gain changed) ---
-        changed = gain[t, 0] != s[o_lg]
+        g = gain[t, 0]
+        changed = g != s[o_lg]
         if not changed:
             for i in range(p + 1):
                 if ar[t, i] != s[o_la + i]:
@@ -203,21 +208,18 @@ def arma_lattice_block(s, si, ar, ma, gain, variance, y) -> None:
                 s[o_la + i] = ar[t, i]
             for i in range(q + 1):
                 s[o_lm + i] = ma[t, i]
-            s[o_lg] = gain[t, 0]
+            s[o_lg] = g
+            o_t = o_tk if si[8] == 0 else o_k  # the coefficient set that is not active
             ok = lattice_ladder_coefficients(
-                ar[t], ma[t], gain[t, 0],
-                s[o_tk:o_tk + L], s[o_tc:o_tc + L], s[o_tv:o_tv + L + 1], s[o_wa:o_wa + L + 1], s[o_wr:o_wr + L + 1],
+                ar[t], ma[t], g,
+                s[o_t:o_t + L], s[o_t + L:o_t + 2 * L], s[o_t + 2 * L:o_t + 3 * L + 1], s[o_wa:o_wa + L + 1], s[o_wr:o_wr + L + 1],
             )
             si[6] = 1 if ok else 0
             si[7] = 0
         var = variance[t, 0]
         if si[6] == 1 and math.isfinite(var) and var >= 0.0:
-            if si[7] == 0:  # trial coefficients not active yet: commit them
-                for i in range(L):
-                    s[o_k + i] = s[o_tk + i]
-                    s[o_c + i] = s[o_tc + i]
-                for i in range(L + 1):
-                    s[o_v + i] = s[o_tv + i]
+            if si[7] == 0:  # trial coefficients not active yet: make them the active set (no copy)
+                si[8] = 1 - si[8]
                 si[7] = 1
             s[o_var] = var
             si[5] = 1
@@ -225,7 +227,8 @@ def arma_lattice_block(s, si, ar, ma, gain, variance, y) -> None:
             y[t, 0] = 0.0
             continue
         # --- one tick of the normalized lattice-ladder ---
-        y[t, 0] = lattice_step(s, o_k, o_c, o_v, o_g, L, math.sqrt(s[o_var]) * e)
+        o_a = o_k if si[8] == 0 else o_tk
+        y[t, 0] = lattice_step(s, o_a, o_a + L, o_a + 2 * L, o_g, L, math.sqrt(s[o_var]) * e)
 
 
 @njit(cache=True, inline="always")
