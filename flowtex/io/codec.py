@@ -321,6 +321,26 @@ def _row(s: SignalLayout, slot: int, index: int, k: float, c: float) -> tuple[li
     return ints, floats
 
 
+def pack_int64(parts: Sequence[np.ndarray], header: int = 0) -> tuple[np.ndarray, list[np.ndarray], list[int]]:
+    """One int64 buffer holding ``header`` free slots then every part; returns it, views of the parts, their offsets.
+
+    The compiled calls take one buffer instead of one argument per table: each
+    array argument costs the numba dispatcher a type check and an unboxing, about
+    0.04 us warm and several times that right after the thread slept.
+    """
+    sizes = [int(np.size(p)) for p in parts]
+    buf = np.zeros(header + sum(sizes), dtype=np.int64)
+    views, offsets = [], []
+    o = header
+    for p, n in zip(parts, sizes, strict=True):
+        v = buf[o:o + n]
+        v[:] = np.ravel(p)
+        views.append(v.reshape(np.shape(p)))
+        offsets.append(o)
+        o += n
+    return buf, views, offsets
+
+
 class TableDecoder:
     """Decode several sensor messages into one float64 arena with one compiled call.
 
@@ -353,16 +373,19 @@ class TableDecoder:
                     ints.append(i)
                     floats.append(f)
             marks.extend((slot, int(w)) for w in wd)
-        self.itab = np.array(ints, dtype=np.int64).reshape(len(ints), _NI)
+        n = max(1, len(entries))
+        parts = [np.zeros(n, dtype=np.int64), np.array(self.lengths + [0] * (n + 1 - len(self.lengths)), dtype=np.int64),
+                 np.array(marks, dtype=np.int64).reshape(len(marks), 2), np.array(ints, dtype=np.int64).reshape(len(ints), _NI),
+                 np.zeros(1, dtype=np.int64)]
+        self.ibuf, (self.words, self.blen, self.marks, self.itab, self._scratch), offs = pack_int64(parts, header=8)
+        """All integer tables in one buffer (header: slots, then offset/size of each table); ``words`` etc. are views."""
+        self.ibuf[:8] = [n, offs[0], offs[1], offs[2], len(marks), offs[3], len(ints), offs[4]]
         self.ftab = np.array(floats, dtype=np.float64).reshape(len(floats), _NF)
-        self.marks = np.array(marks, dtype=np.int64).reshape(len(marks), 2)
-        self.blen = np.array(self.lengths + [0], dtype=np.int64)
-        self.words = np.zeros(max(1, len(entries)), dtype=np.int64)
-        self._scratch = np.zeros(1, dtype=np.int64)
+        self.fbuf = self.ftab.reshape(-1)
 
     def run(self, mask: int, tick: int, arena: np.ndarray, stamps: np.ndarray) -> None:
         """Decode the messages whose bit is set in ``mask`` from ``words`` into ``arena``; stamp their marks with ``tick``."""
-        _decode_tables(self.words, mask, tick, self.itab, self.ftab, self.blen, self.marks, arena, stamps, self._scratch)
+        decode_packed(self.ibuf, self.fbuf, mask, tick, arena, stamps)
 
 
 class TableEncoder:
@@ -438,6 +461,14 @@ def _decode_tables(words, mask, tick, itab, ftab, blen, marks, arena, stamps, sc
     for i in range(marks.shape[0]):
         if (mask >> marks[i, 0]) & 1:
             stamps[marks[i, 1]] = tick
+
+
+@njit(cache=True)
+def decode_packed(ib, fb, mask, tick, arena, stamps):  # pragma: no cover - compiled
+    """:meth:`TableDecoder.run` on the packed tables (``TableDecoder.ibuf``, ``fbuf``): one call per tick in the live loop."""
+    n, ow, ob, om, m, oi, r, osc = ib[0], ib[1], ib[2], ib[3], ib[4], ib[5], ib[6], ib[7]
+    _decode_tables(ib[ow:ow + n], mask, tick, ib[oi:oi + r * _NI].reshape((r, _NI)), fb[:r * _NF].reshape((r, _NF)),
+                   ib[ob:ob + n + 1], ib[om:om + 2 * m].reshape((m, 2)), arena, stamps, ib[osc:osc + 1])
 
 
 @njit(cache=True)

@@ -42,7 +42,7 @@ from numba import njit
 from ..errors import DataError, FlowtexError
 from ..io.canlog import SessionWriter
 from ..io.canmap import CanMap, load_map
-from ..io.codec import MessageCodec, TableDecoder, TableEncoder, _decode_tables, _encode_tables, fast_ok
+from ..io.codec import _NF, _NI, MessageCodec, TableDecoder, TableEncoder, _encode_tables, decode_packed, fast_ok, pack_int64
 from ..io.dbc import load_dbc
 from .clock import DeadlineClock
 from .safety import OutputGuard, Watchdog, first_stale, guard_kernel
@@ -153,8 +153,11 @@ class CanIO:
         self.out_names = list(canmap.outputs)
         widths = [canmap.outputs[n].width for n in self.out_names]
         total = int(sum(widths))
-        self.raw = np.zeros(total)
-        self.out = np.zeros(total)
+        rows = sum(len(codecs[m].signals) for m in canmap.actuator_messages() if fast_ok(codecs[m]))
+        self._fbuf = np.zeros(7 * total + _NF * rows)
+        """Float tables of the compiled output call: raw outputs | guarded outputs | guard parameters (5 x n) | encoder table."""
+        self.raw = self._fbuf[:total]
+        self.out = self._fbuf[total:2 * total]
         self._copies: list[tuple[np.ndarray, np.ndarray]] = []
         gather: list[int] = []
         lo, hi, safe, plo, phi, pmax = [], [], [], [], [], []
@@ -200,10 +203,20 @@ class CanIO:
                 fast_out.append((c, [None if t is None else (t[1], t[2], t[3]) for t in sources[m]], msg))
             else:
                 self._tx_slow.append((enc, msg.data))
-        self.table_encoder = TableEncoder([(c, src) for c, src, _ in fast_out]) if fast_out else None
-        if self.table_encoder is not None:
-            offs = self.table_encoder.offsets
+        te = self.table_encoder = TableEncoder([(c, src) for c, src, _ in fast_out]) if fast_out else None
+        self._ibuf = None
+        """Integer tables of the compiled output call (None: no compiled output path), see :func:`_out_packed`."""
+        if te is not None:
+            offs = te.offsets
             self._tx_fast = [(msg.data, int(offs[i]), int(offs[i + 1])) for i, (_, _, msg) in enumerate(fast_out)]
+            if self._gather is not None:
+                nm, r = len(fast_out), te.itab.shape[0]
+                self._ibuf, (self._gather, te.offsets, te._words, te._scratch, te.itab, _), o = pack_int64(
+                    [self._gather, te.offsets, te._words, te._scratch, te.itab, self.timeouts_ticks], header=16)
+                self._ibuf[:10] = [total, o[0], nm, o[1], o[2], o[3], r, o[4], self.timeouts_ticks.shape[0], o[5]]
+                self._fbuf[2 * total:7 * total] = self._gfp.reshape(-1)
+                self._fbuf[7 * total:] = te.ftab.reshape(-1)
+                te.ftab = self._fbuf[7 * total:].reshape(r, _NF)
         self.tx_ids = [(m.arbitration_id, m.is_extended_id) for m in self.tx]
         self._warm_up()
 
@@ -217,11 +230,9 @@ class CanIO:
             self.table_decoder.run(0, 0, self.arena, np.zeros(1, dtype=np.int64))
         if self.guard is not None:
             self.guard_and_encode(True)
-            te = self.table_encoder
-            if te is not None and self._gather is not None:
-                one = np.zeros(1, dtype=np.int64)
-                _tick_out(self.arena, self._gather, self.raw, self.out, self._gfp, self._gip, te.itab, te.ftab, te.offsets,
-                          te._words, te.payload_view, te._scratch, one, one, 0, 0, 0, True)
+            if self._ibuf is not None:
+                _tick_out(self.arena, self._ibuf, self._fbuf, self._gip, np.zeros(1, dtype=np.int64), self.table_encoder.payload_view,
+                          0, 0, 0, True)
             self.guard_outputs(True)
             self.encode()
 
@@ -261,12 +272,11 @@ class CanIO:
     def guard_and_encode(self, force_safe: bool) -> int:
         """:meth:`guard_outputs` then :meth:`encode` (one compiled call when possible); returns the guard's event count."""
         te = self.table_encoder
-        if te is None or self._gather is None:
+        if self._ibuf is None:
             events = self.guard_outputs(force_safe)
             self.encode()
             return events
-        events = _guard_encode(self.arena, self._gather, self.raw, self.out, self._gfp, self._gip, force_safe,
-                               te.itab, te.ftab, te.offsets, te._words, te.payload_view, te._scratch)
+        events = _out_packed(self.arena, self._ibuf, self._fbuf, self._gip, te.payload_view, force_safe)
         payload = te.payload
         for data, a, b in self._tx_fast:
             data[:] = payload[a:b]
@@ -321,30 +331,39 @@ def _gather_guard(arena, gather, raw, out, gfp, gip, force_safe):  # pragma: no 
 
 
 @njit(cache=True)
-def _tick_out(arena, gather, raw, out, gfp, gip, itab, ftab, offsets, words, payload, scratch,
-              wd_last, wd_timeouts, tick, overrun_ns, overrun_limit_ns, tripped):  # pragma: no cover - compiled
-    """The quiet tick's watchdog test, then gather, guard and encode; -1 (nothing done) when the watchdog needs its own check.
+def _out_packed(arena, ib, fb, gip, payload, force_safe):  # pragma: no cover - compiled
+    """Gather the bound graph outputs from the arena, guard them, encode every compiled actuator payload; returns guard events.
 
-    Quiet means: not tripped, no input older than its timeout, no overrun; then
-    :meth:`Watchdog.check` would return False and change nothing, so the outputs are
-    guarded unforced. Otherwise the caller runs ``Watchdog.check`` and :func:`_guard_encode`.
+    ``ib`` (int64) header: outputs n, gather offset, messages, payload offsets offset, words offset,
+    scratch offset, encoder rows, encoder table offset, watchdog entries, timeouts offset; ``fb``
+    (float64): raw n | guarded n | guard parameters 5 x n | encoder table (see ``CanIO.__init__``).
     """
-    if tripped or overrun_ns > overrun_limit_ns or first_stale(wd_last, wd_timeouts, tick) >= 0:
-        return -1
-    for i in range(gather.shape[0]):
+    n, og, nm, oo, ow, osc, r, oi = ib[0], ib[1], ib[2], ib[3], ib[4], ib[5], ib[6], ib[7]
+    gather = ib[og:og + n]
+    raw = fb[:n]
+    out = fb[n:2 * n]
+    for i in range(n):
         raw[i] = arena[gather[i]]
-    events = guard_kernel(gfp, gip, raw, out, False)
-    _encode_tables(out, itab, ftab, offsets, words, payload, scratch)
+    events = guard_kernel(fb[2 * n:7 * n].reshape((5, n)), gip, raw, out, force_safe)
+    _encode_tables(out, ib[oi:oi + r * _NI].reshape((r, _NI)), fb[7 * n:7 * n + r * _NF].reshape((r, _NF)), ib[oo:oo + nm + 1],
+                   ib[ow:ow + 2 * nm].reshape((nm, 2)), payload, ib[osc:osc + 1])
     return events
 
 
 @njit(cache=True)
-def _guard_encode(arena, gather, raw, out, gfp, gip, force_safe, itab, ftab, offsets, words, payload, scratch):  # pragma: no cover
-    for i in range(gather.shape[0]):
-        raw[i] = arena[gather[i]]
-    events = guard_kernel(gfp, gip, raw, out, force_safe)
-    _encode_tables(out, itab, ftab, offsets, words, payload, scratch)
-    return events
+def _tick_out(arena, ib, fb, gip, wd_last, payload, tick, overrun_ns, overrun_limit_ns, tripped):  # pragma: no cover - compiled
+    """The quiet tick's watchdog test, then :func:`_out_packed`; -1 (nothing done) when the watchdog needs its own check.
+
+    Quiet means: not tripped, no input older than its timeout, no overrun; then
+    :meth:`Watchdog.check` would return False and change nothing, so the outputs are
+    guarded unforced. Otherwise the caller runs ``Watchdog.check`` and ``CanIO.guard_and_encode``.
+    """
+    if tripped or overrun_ns > overrun_limit_ns:
+        return -1
+    nw, ot = ib[8], ib[9]
+    if first_stale(wd_last, ib[ot:ot + nw], tick) >= 0:
+        return -1
+    return _out_packed(arena, ib, fb, gip, payload, False)
 
 
 def load_io(graph: Any, dbc_path: str | Path, map_path: str | Path) -> CanIO:
@@ -376,11 +395,10 @@ def _warming_sleep(io: CanIO, watchdog: Watchdog) -> Callable[[float], None]:
     td, te = io.table_decoder, io.table_encoder
     calls: list[Callable[[], Any]] = []
     if td is not None:
-        args = (td.words, 0, 0, td.itab, td.ftab, td.blen, td.marks, io.arena, watchdog.last, td._scratch)
-        calls.append(lambda: _decode_tables(*args))
-    if te is not None and io._gather is not None:
-        out_args = (io.arena, io._gather, io.raw, io.out, io._gfp, io._gip, te.itab, te.ftab, te.offsets, te._words,
-                    te.payload_view, te._scratch, watchdog.last, watchdog.timeouts, 0, 0, 0, True)
+        args = (td.ibuf, td.fbuf, 0, 0, io.arena, watchdog.last)
+        calls.append(lambda: decode_packed(*args))
+    if io._ibuf is not None:
+        out_args = (io.arena, io._ibuf, io._fbuf, io._gip, watchdog.last, te.payload_view, 0, 0, 0, True)
         calls.append(lambda: _tick_out(*out_args))
 
     def warming_sleep(seconds: float) -> None:
@@ -556,7 +574,7 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     slot_len = td.lengths if td is not None else []
     words = td.words if td is not None else None
     if td is not None:
-        d_itab, d_ftab, d_blen, d_marks, d_scratch = td.itab, td.ftab, td.blen, td.marks, td._scratch
+        d_ib, d_fb = td.ibuf, td.fbuf
     arena = io.arena
     from_bytes = int.from_bytes
     decoders = io.decoders
@@ -566,14 +584,13 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     step = graph.step_block
     guard_and_encode = io.guard_and_encode
     te = io.table_encoder
-    fused = te is not None and io._gather is not None
+    fused = io._ibuf is not None
     tick_out = _tick_out
-    gather, raw, out, gfp, gip = io._gather, io.raw, io.out, io._gfp, io._gip
-    wd_timeouts, overrun_limit = watchdog.timeouts, watchdog.overrun_limit_ns
+    o_ib, o_fb, gip = io._ibuf, io._fbuf, io._gip
+    overrun_limit = watchdog.overrun_limit_ns
     tx_fast, tx_slow = io._tx_fast, io._tx_slow
     if fused:
-        e_itab, e_ftab, e_offsets, e_words, e_payload, e_scratch = te.itab, te.ftab, te.offsets, te._words, te.payload_view, te._scratch
-        payload = te.payload
+        e_payload, payload = te.payload_view, te.payload
     tx = io.tx
     n_tx = len(tx)
     now = time.perf_counter_ns
@@ -617,13 +634,12 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                         for w in entry[1]:
                             fresh(w, k)
                 if mask:
-                    _decode_tables(words, mask, k, d_itab, d_ftab, d_blen, d_marks, arena, wd_last, d_scratch)
+                    decode_packed(d_ib, d_fb, mask, k, arena, wd_last)
                 # 4. one graph tick; 5. watchdog, guard, encode (one compiled call)
                 step(1)
                 # watchdog on executed-tick counts (replay recomputes it exactly); its quiet case is tested
                 # inside the compiled call, anything else goes through Watchdog.check
-                ev = tick_out(arena, gather, raw, out, gfp, gip, e_itab, e_ftab, e_offsets, e_words, e_payload, e_scratch,
-                              wd_last, wd_timeouts, k, overrun, overrun_limit, watchdog.tripped) if fused else -1
+                ev = tick_out(arena, o_ib, o_fb, gip, wd_last, e_payload, k, overrun, overrun_limit, watchdog.tripped) if fused else -1
                 if ev < 0:
                     ev = guard_and_encode(check(k, overrun))
                 else:
