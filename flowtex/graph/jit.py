@@ -17,21 +17,11 @@ import os
 import sys
 import tempfile
 from collections.abc import Callable
-from pathlib import Path
 from types import ModuleType
 
 import numba
 
-CACHE_ENV = "FLOWTEX_CACHE_DIR"
-
-
-def cache_dir() -> Path:
-    """Root of flowtex's on-disk cache (``$FLOWTEX_CACHE_DIR`` or ``~/.cache/flowtex``)."""
-    root = os.environ.get(CACHE_ENV)
-    if root:
-        return Path(root)
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg) if xdg else Path.home() / ".cache") / "flowtex"
+from ..cache import cache_dir
 
 
 def kernel_fingerprint(kernel: Callable) -> str:
@@ -49,13 +39,13 @@ _LOADED: dict[str, ModuleType] = {}
 
 def load_generated(source: str, kernels: dict[str, Callable], extra_key: str = "") -> ModuleType:
     """Import the generated ``source`` with ``kernels`` as its globals."""
-    from .. import __version__
+    from .. import SOURCE_FINGERPRINT, __version__
 
     h = hashlib.sha256()
     h.update(source.encode())
     for name in sorted(kernels):
         h.update(f"{name}={kernel_fingerprint(kernels[name])}".encode())
-    h.update(f"numba={numba.__version__};flowtex={__version__};{extra_key}".encode())
+    h.update(f"numba={numba.__version__};flowtex={__version__};tree={SOURCE_FINGERPRINT};{extra_key}".encode())
     digest = h.hexdigest()[:24]
     if digest in _LOADED:
         return _LOADED[digest]
