@@ -137,10 +137,10 @@ def lattice_ladder_coefficients(ar, ma, gain, k, c, v, wa, wr) -> bool:
         if not (math.isfinite(wa[i]) and math.isfinite(wr[i])):
             return False
     rprod = 1.0  # 1 / prod_{i > m} c_i
+    km = wa[L]
     for m in range(L, 0, -1):
         lam = wr[m]
         v[m] = lam * rprod
-        km = wa[m]
         if not (abs(km) <= K_MAX):
             return False
         den = 1.0 - km * km
@@ -148,9 +148,14 @@ def lattice_ladder_coefficients(ar, ma, gain, k, c, v, wa, wr) -> bool:
         cm = math.sqrt(den)
         k[m - 1] = km
         c[m - 1] = cm
-        # One pass over the index pairs (i, m - i) does both:
-        # ladder: remainder -= lambda_m B_m with B_m[j] = A_m[m - j] (A_m before the step-down; A_m[0] = 1, so wr[m] becomes 0);
-        # step-down A_m -> A_{m-1}: a_i <- (a_i - k_m a_{m-i}) / (1 - k_m^2).
+        # The next reflection coefficient (A_{m-1}[m-1], the same expression the pair loop stores) goes
+        # straight into a register: the stage-to-stage dependency chain then skips a store and a reload.
+        if m >= 3:
+            kn = (wa[m - 1] - km * wa[1]) * inv
+        elif m == 2:
+            kn = wa[1] * (1.0 - km) * inv
+        else:
+            kn = 0.0
         wr[0] -= lam * km
         wr[m] = 0.0
         for i in range(1, (m + 1) // 2):
@@ -167,6 +172,7 @@ def lattice_ladder_coefficients(ar, ma, gain, k, c, v, wa, wr) -> bool:
             wa[h] = wa[h] * (1.0 - km) * inv
         wa[m] = 0.0
         rprod *= cm * inv
+        km = kn
     v[0] = wr[0] * rprod
     for m in range(L + 1):
         if not math.isfinite(v[m]):
