@@ -3,22 +3,27 @@
 Per tick (the order is the contract replay relies on, see docs/live.md):
 
 1. wait for the tick's deadline (:class:`~flowtex.runtime.clock.DeadlineClock`);
-2. receive every pending frame (``bus.recv(timeout=0)`` until None) and decode
-   the mapped ones with the generated codecs straight into the graph's input
-   views (inputs hold their last value between frames); mark their watchdog
-   entries fresh;
+2. receive every pending frame (``bus.recv_available()`` if the bus has it,
+   else ``bus.recv(timeout=0)`` until None) and decode the mapped ones straight
+   into the graph's input arena with one compiled call
+   (:class:`~flowtex.io.codec.TableDecoder`; the generated Python codecs for what
+   it cannot take); inputs hold their last value between frames; mark their
+   watchdog entries fresh;
 3. ``graph.step_block(1)``;
-4. copy the bound graph outputs into one vector, evaluate the watchdog (stale
-   input or overrun -> safe values), apply the :class:`OutputGuard` (clamp,
-   NaN/inf -> safe, peak allowance);
-5. encode and send exactly one frame per actuator message, in map order;
+4. one compiled call (:func:`_tick_out`): the watchdog's quiet case (else
+   :meth:`Watchdog.check`: stale input or overrun -> safe values), gather the
+   bound graph outputs, the :class:`OutputGuard` kernel (clamp, NaN/inf -> safe,
+   peak allowance), encode every actuator payload;
+5. send exactly one frame per actuator message, in map order (``send_many`` if
+   the bus has it);
 6. in the slack: write the tick's received and sent frames to the ``--record``
    log, step the simulated device, statistics and the status line.
 
 On every exit path (duration reached, Ctrl-C, SIGTERM, exception in the graph,
 bus error) the safe values are encoded and sent once more, as the last frames
-(and logged). Nothing in steps 2-5 allocates beyond python-can's own message
-objects and small ints; the garbage collector is frozen during the loop.
+(and logged). Steps 2-4 allocate nothing beyond python-can's own message objects
+and small ints; the garbage collector is frozen during the loop. Compute time in
+the statistics is steps 2-4 without the bus receive.
 """
 
 from __future__ import annotations
