@@ -29,7 +29,6 @@ the statistics is steps 2-4 without the bus receive.
 from __future__ import annotations
 
 import contextlib
-import gc
 import math
 import signal
 import sys
@@ -50,6 +49,7 @@ from ..io.canmap import CanMap, load_map
 from ..io.codec import _NF, _NI, MessageCodec, TableDecoder, TableEncoder, _encode_tables, decode_packed, fast_ok, pack_int64
 from ..io.dbc import load_dbc
 from .clock import DeadlineClock
+from .realtime import enter_realtime, freeze_gc, leave_realtime
 from .safety import OutputGuard, Watchdog, first_stale, guard_kernel
 from .stats import TickStats
 
@@ -190,7 +190,7 @@ class CanIO:
                                  peak_max_ticks=np.array(pmax, dtype=np.int64)) if total else None
         # gather indices into the arena (the compiled path), or None: copy through the views
         self._gather = np.array(gather, dtype=np.int64) if arena is not None and total else None
-        self._gfp, self._gip = (self.guard._fp, self.guard._ip) if self.guard is not None else (None, None)
+        self._gfp, self._gip = self.guard.tables if self.guard is not None else (None, None)
         self.tx: list[can.Message] = []
         self.encoders: list[Callable[[bytearray], None]] = []
         fast_out = []
@@ -406,6 +406,8 @@ def _warming_sleep(io: CanIO, watchdog: Watchdog) -> Callable[[float], None]:
         out_args = (io.arena, io._ibuf, io._fbuf, io._gip, watchdog.last, te.payload_view, 0, 0, 0, True)
         calls.append(lambda: _tick_out(*out_args))
 
+    calls.append(io.graph.warm)
+
     def warming_sleep(seconds: float) -> None:
         sleep(seconds)
         for c in calls:
@@ -433,27 +435,6 @@ def _stop_signals(flag: list[str | None], install: bool) -> Iterator[None]:
             signal.signal(s, h)
 
 
-@contextlib.contextmanager
-def _frozen_gc() -> Iterator[None]:
-    """No garbage collection during the loop (flowtex.runtime.realtime.freeze_gc when available)."""
-    try:
-        from .realtime import freeze_gc
-    except ImportError:
-        freeze_gc = None
-    if freeze_gc is not None:
-        with freeze_gc():
-            yield
-        return
-    was = gc.isenabled()
-    gc.collect()
-    gc.freeze()
-    gc.disable()
-    try:
-        yield
-    finally:
-        gc.unfreeze()
-        if was:
-            gc.enable()
 
 
 # --- the session ----------------------------------------------------------------------
@@ -557,8 +538,6 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     rt_message = ""
     rt_status = None
     if rt:
-        from .realtime import enter_realtime
-
         rt_status = enter_realtime(rt_priority, rt_cpu)
         rt_granted, rt_message = bool(rt_status.granted), str(rt_status.message)
         if rt_granted and not rt_message:
@@ -603,7 +582,7 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     k = 0
     if device is not None:
         device.publish(0)
-    with _stop_signals(stop, install_signals), _frozen_gc():
+    with _stop_signals(stop, install_signals), freeze_gc():
         clock.start()
         lateness = 0
         overrun = 0
@@ -702,8 +681,6 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
             if device is not None:
                 device.collect(k)
             if rt_status is not None:
-                from .realtime import leave_realtime
-
                 leave_realtime(rt_status)
     if safe_error and error is None:
         error = safe_error

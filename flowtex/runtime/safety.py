@@ -170,6 +170,11 @@ class OutputGuard:
         self._ip[_PMAX] = pmax
 
     @property
+    def tables(self) -> tuple[np.ndarray, np.ndarray]:
+        """The float and int arrays ``guard_kernel`` works on (for callers that fuse it into their own kernel)."""
+        return self._fp, self._ip
+
+    @property
     def lo(self) -> np.ndarray:
         return self._fp[_LO]
 
