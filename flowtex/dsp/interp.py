@@ -8,8 +8,10 @@ Per query (Culbertson et al. 2012 §4.2, HaTT's renderer):
    with those weights (never raw coefficients: convex combinations of
    increasing LSF vectors stay increasing, so the model stays stable);
 4. convert the LSFs to A(z) and C(z) in float64 with
-   :func:`~flowtex.dsp.lsf.lsf_to_poly`, after :func:`~flowtex.dsp.lsf.repair_lsf`
-   (which leaves valid vectors bit-identical and only guards against rounding).
+   :func:`~flowtex.dsp.lsf.lsf_to_poly`. The blend loop also checks the
+   result is a valid LSF vector (as :func:`~flowtex.dsp.lsf.is_valid_lsf`
+   with the table's ``min_gap``); only an invalid one (LSFs closer than
+   ``min_gap``, rounding) goes through :func:`~flowtex.dsp.lsf.repair_lsf`.
 
 NaN in speed or force holds the last model (HaTT turns one NaN into NaN
 output forever); before any valid query the held model is silence:
