@@ -245,20 +245,24 @@ def lattice_step(s, o_k, o_c, o_v, o_g, L, x) -> float:
     ``s`` at the given offsets. Updates the state, flushing values below
     :data:`FLUSH_BELOW` to zero.
     """
-    f = x
-    acc = 0.0
-    for m in range(L, 0, -1):
+    if L == 0:
+        return s[o_v] * x
+    # top section peeled off: its output g_L is not stored (no section above reads it), so the loop has no branch
+    km = s[o_k + L - 1]
+    cm = s[o_c + L - 1]
+    gp = s[o_g + L - 1]
+    acc = s[o_v + L] * (km * x + cm * gp)
+    f = cm * x - km * gp
+    for m in range(L - 1, 0, -1):
         km = s[o_k + m - 1]
         cm = s[o_c + m - 1]
         gp = s[o_g + m - 1]  # g_{m-1}[n-1]
         gm = km * f + cm * gp  # g_m[n]
         f = cm * f - km * gp  # f_{m-1}[n]
         acc += s[o_v + m] * gm
-        if m < L:
-            s[o_g + m] = gm if abs(gm) >= FLUSH_BELOW else 0.0
+        s[o_g + m] = gm if abs(gm) >= FLUSH_BELOW else 0.0
     acc += s[o_v] * f
-    if L > 0:
-        s[o_g] = f if abs(f) >= FLUSH_BELOW else 0.0
+    s[o_g] = f if abs(f) >= FLUSH_BELOW else 0.0
     return acc
 
 
