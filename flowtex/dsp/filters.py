@@ -37,8 +37,9 @@ def sos_block(coef: np.ndarray, state: np.ndarray, x: np.ndarray, y: np.ndarray)
     ``coef`` holds ``sections * 5`` values; ``state`` holds
     ``channels * sections * 4``. Direct form I keeps the feedback recursion to
     one fused multiply-add per sample, which is what lets a chain of these
-    run as fast as scipy's ``sosfilt``; the input enters two operations before
-    the output, which keeps a chain of nodes stepped one tick at a time short.
+    run as fast as scipy's ``sosfilt``. (Unrolling the recursion over two
+    samples is faster still, but its rounding would depend on where a run is
+    split into blocks, and chunked runs must equal one pass exactly.)
     """
     n = x.shape[0]
     channels = x.shape[1]
@@ -58,9 +59,10 @@ def sos_block(coef: np.ndarray, state: np.ndarray, x: np.ndarray, y: np.ndarray)
             src = x if k == 0 else y
             for t in range(n):
                 x0 = src[t, c]
-                # Grouped so the recursion through y1 is one fused multiply-add (block
-                # throughput) and a new input x0 is two away from y0 (tick latency).
-                y0 = (b0 * x0 + (b1 * x1 + b2 * x2 - a2 * y2)) - a1 * y1
+                # Evaluated left to right, so that (with contraction to fused multiply-adds)
+                # the recursion through y1 and y2 costs one operation per sample: this
+                # order measured fastest over blocks (benchmarks/bench_engine.py).
+                y0 = (b0 * x0 + b1 * x1 + b2 * x2 - a2 * y2) - a1 * y1
                 y[t, c] = y0
                 x2 = x1
                 x1 = x0
