@@ -17,7 +17,9 @@ Prints (numbers, not assertions):
    GFC between the output's Welch PSD and the time-averaged model PSD along
    the trajectory (the models of an every-1 lookup, i.e. the exact per-tick
    models, taken from a separate graph that also outputs them); then the
-   absolute targets (<= 1.5 us, <= 2.5x the floor for lookup every tick).
+   targets for lookup every tick: <= 1.5 us, and <= 2.5x the floor, taken as
+   the median ratio of graph and floor runs made back to back (the machine's
+   load changes between runs; a pair sees the same load).
 
 The machine is shared: run it when it is quiet and quote ``uptime`` with
 the numbers (medians move by up to ~2x under load).
@@ -200,6 +202,20 @@ def graph_ns(graph, inputs, repeats: int) -> float:
     return statistics.median(times)
 
 
+def paired_ns(graph, ms, inputs, repeats: int) -> tuple[float, float, float]:
+    """Graph and floor timed alternately (so both see the same machine load): medians of each and of the ratios."""
+    graph.run({k: v[:100] for k, v in inputs.items()})  # warm
+    run_floor(ms, {k: v[:100] for k, v in inputs.items()})
+    n = inputs["speed"].size
+    g_ns, f_ns = [], []
+    for _ in range(repeats):
+        f_ns.append(run_floor(ms, inputs))
+        t0 = time.perf_counter()
+        graph.run(inputs)
+        g_ns.append((time.perf_counter() - t0) / n * 1e9)
+    return statistics.median(g_ns), statistics.median(f_ns), statistics.median(g / f for g, f in zip(g_ns, f_ns, strict=True))
+
+
 def live_ns(graph, inputs, n_live: int, repeats: int) -> float:
     """step_block(1) per tick with the inputs written into the live input views (the CAN loop's path)."""
     sp = graph.input_view("speed")
@@ -288,10 +304,6 @@ def main() -> None:
     lookup = lookup_kernel_ns(ms, inputs, args.repeats)
     print(f"lookup kernel alone (texture_lookup_block, moving query): {lookup:7.1f} ns/tick")
 
-    run_floor(ms, {k: v[:100] for k, v in inputs.items()})  # compile
-    floor = statistics.median(run_floor(ms, inputs) for _ in range(args.repeats))
-    print(f"floor (plain numba, no safety: triangle search + LSF blend + lsf_to_poly x2 + direct form): {floor:7.1f} ns/tick")
-
     with tempfile.TemporaryDirectory() as tmp:
         models = save_model_set(ms, Path(tmp) / "cork_like.json")
         # Reference models: the every-1 lookup's per-tick models (a separate graph, so that the timed graphs
@@ -309,7 +321,10 @@ def main() -> None:
             path = Path(tmp) / f"bench_{every}.yaml"
             path.write_text(GRAPH.format(every=every, models=models, extra=""))
             graph = flowtex.load_graph(path)
-            ns = graph_ns(graph, inputs, args.repeats)
+            if every == 1:
+                ns, floor, ratio = paired_ns(graph, ms, inputs, args.repeats)
+            else:
+                ns = graph_ns(graph, inputs, args.repeats)
             live = live_ns(graph, inputs, min(args.live_ticks, n), max(1, args.repeats // 2))
             y = graph.run(inputs)["accel"]
             _, psd = welch_psd(y, RATE, nperseg=1024)
@@ -320,17 +335,19 @@ def main() -> None:
             lsd = model_lsd_db(held, exact, freqs)
             rows.append((every, ns, live, fit, lsd, float(np.max(np.abs(y))), float(np.sqrt(np.mean(y * y)))))
 
+    print(f"floor (plain numba, no safety: triangle search + LSF blend + lsf_to_poly x2 + direct form): {floor:7.1f} ns/tick")
     print()
     print("graph speed/force -> texture_lookup (every k ticks) -> arma_synth, output: acceleration only")
     print("(ns/tick: offline run(), blocks; live: step_block(1) per tick from Python, the CAN loop's path)")
+    print("(x floor: ns/tick over the floor's median; the floor runs alternate with the every-1 graph's)")
     print(f"{'every':>5} {'ns/tick':>9} {'x floor':>8} {'GFC':>8} {'model LSD dB':>13} {'live ns/tick':>13} {'peak/rms':>9}")
     for every, ns, live, fit, lsd, peak, rms in rows:
         print(f"{every:>5} {ns:9.1f} {ns / floor:8.2f} {fit:8.5f} {lsd:13.5f} {live:13.1f} {peak / rms:9.2f}")
     one = rows[0][1]
     print()
-    print(f"target: lookup every tick <= 1500 ns/tick ............ {'met' if one <= 1500 else 'NOT met'} ({one:.0f} ns/tick)")
-    print(f"target: lookup every tick <= 2.5 x floor ({2.5 * floor:.0f} ns) ... {'met' if one <= 2.5 * floor else 'NOT met'} "
-          f"({one / floor:.2f} x floor)")
+    print(f"target: lookup every tick <= 1500 ns/tick ... {'met' if one <= 1500 else 'NOT met'} ({one:.0f} ns/tick)")
+    print(f"target: lookup every tick <= 2.5 x floor .... {'met' if ratio <= 2.5 else 'NOT met'} "
+          f"({ratio:.2f} x floor: median of {args.repeats} graph/floor ratios, each pair run back to back)")
     print("reference: HaTT's C++ renderer ~4000 ns/tick on this machine (issue 3; not measured here)")
     print("GFC: Welch PSD of the output vs the time-averaged per-tick model PSD (models of the every-1 lookup); 1 = identical shape;")
     print("     every 1 shows the Welch estimation floor. model LSD: mean RMS log-spectral distance (dB) between the model a")
