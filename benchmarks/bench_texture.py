@@ -7,8 +7,9 @@ Prints (numbers, not assertions):
 1. the synthesis kernel alone (flowtex.dsp.arma.arma_lattice_block), ns/tick,
    with the model changing every tick and with a fixed model; the lookup
    kernel alone (flowtex.dsp.interp.texture_lookup_block);
-2. the "floor": one plain numba loop doing the same arithmetic without any
-   safety (triangle search with a last-triangle hint, barycentric LSF
+2. pieces: lsf_to_poly (AR + MA), the lattice-ladder coefficients of one
+   model, locate; and the "floor": one plain numba loop doing the same
+   arithmetic without any safety (triangle search with a last-triangle hint, barycentric LSF
    interpolation, float64 lsf_to_poly for AR and MA, direct-form synthesis);
 3. the compiled graph speed/force -> texture_lookup -> arma_synth (output:
    the acceleration only), offline (``run``, blocks) and live
@@ -41,10 +42,11 @@ import numpy as np
 from numba import njit
 
 import flowtex
-from flowtex.dsp.arma import arma_lattice_block, arma_psd, new_state
-from flowtex.dsp.lsf import lsf_to_poly
+from flowtex.dsp.arma import arma_lattice_block, arma_psd, lattice_ladder_coefficients, new_state
+from flowtex.dsp.lsf import lsf_to_poly, lsf_to_poly_new
 from flowtex.dsp.rng import next_normal, seed_rng
 from flowtex.dsp.spectral import gfc, welch_psd
+from flowtex.dsp.triangulation import locate
 from flowtex.io.modelset import save_model_set
 from flowtex.models.synthetic import cork_like_model_set
 
@@ -168,8 +170,6 @@ def run_floor(ms, inputs) -> float:
 
 def synth_kernel_ns(ms, n: int) -> tuple[float, float]:
     """arma_lattice_block alone: (model changes every tick, fixed model) in ns/tick."""
-    from flowtex.dsp.lsf import lsf_to_poly_new
-
     p, q = ms.ar_order, ms.ma_order
     m0, m1 = 0, 1
     a0, a1 = lsf_to_poly_new(ms.ar_lsf[m0]), lsf_to_poly_new(ms.ar_lsf[m1])
@@ -262,6 +262,53 @@ def model_lsd_db(held: dict[str, np.ndarray], exact: dict[str, np.ndarray], freq
     return total / max(count, 1)
 
 
+@njit(cache=True)
+def _pieces_kernel(which, lsf_a, lsf_m, a, c, ar, ma, k, cc, v, wa, wr, tri_tab, speed, force, w, vv):
+    """One piece of the per-tick work, n times (which: 0 lsf_to_poly x2, 1 reflection/ladder coefficients, 2 locate)."""
+    n = speed.shape[0]
+    acc = 0.0
+    hint = -1
+    for t in range(n):
+        if which == 0:
+            lsf_a[0] = 0.05 + 1e-9 * (t & 7)  # a new vector every tick, as in the lookup
+            lsf_to_poly(lsf_a, a)
+            lsf_to_poly(lsf_m, c)
+            acc += a[1] + c[1]
+        elif which == 1:
+            r = t & 3
+            lattice_ladder_coefficients(ar[r], ma[r], 1.0 + 0.1 * r, k, cc, v, wa, wr)
+            acc += v[1]
+        else:
+            hint = locate(tri_tab, speed[t], force[t], hint, w, vv)
+            acc += w[0]
+    return acc
+
+
+def pieces_ns(ms, inputs, repeats: int, n: int = 200_000) -> tuple[float, float, float]:
+    """Median ns of: lsf_to_poly for one AR + one MA vector; lattice-ladder coefficients of one model; locate of a moving query."""
+    from flowtex.dsp.interp import T_OFF_MOD, T_OFF_TRI, pack_texture_table
+
+    p, q = ms.ar_order, ms.ma_order
+    L = max(p, q)
+    tab = pack_texture_table(ms.speeds, ms.forces, ms.triangles, ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain, ms.max_speed, ms.max_force)
+    tri_tab = np.ascontiguousarray(tab[int(tab[T_OFF_TRI]):int(tab[T_OFF_MOD])])
+    ar = np.array([lsf_to_poly_new(ms.ar_lsf[i]) for i in range(4)])
+    ma = np.array([lsf_to_poly_new(ms.ma_lsf[i]) for i in range(4)])
+    args = [ms.ar_lsf[5].copy(), ms.ma_lsf[5].copy(), np.empty(p + 1), np.empty(q + 1), ar, ma,
+            np.empty(L), np.empty(L), np.empty(L + 1), np.empty(L + 1), np.empty(L + 1), tri_tab,
+            inputs["speed"][:n], inputs["force"][:n], np.empty(3), np.empty(3, np.int64)]
+    out = []
+    for which in range(3):
+        _pieces_kernel(which, *args[:12], args[12][:10], args[13][:10], *args[14:])  # compile / warm
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            _pieces_kernel(which, *args)
+            times.append((time.perf_counter() - t0) / args[12].size * 1e9)
+        out.append(statistics.median(times))
+    return out[0], out[1], out[2]
+
+
 def lookup_kernel_ns(ms, inputs, repeats: int) -> float:
     """texture_lookup_block alone on the trajectory (model changes every tick), median ns/tick."""
     from flowtex.dsp.interp import initial_state, pack_texture_table, texture_lookup_block
@@ -303,6 +350,9 @@ def main() -> None:
     print(f"synthesis kernel alone (arma_lattice_block): {changing:7.1f} ns/tick model changing every tick, {fixed:7.1f} ns/tick fixed model")
     lookup = lookup_kernel_ns(ms, inputs, args.repeats)
     print(f"lookup kernel alone (texture_lookup_block, moving query): {lookup:7.1f} ns/tick")
+    l2p, coef, loc = pieces_ns(ms, inputs, args.repeats)
+    print(f"pieces: lsf_to_poly AR {ms.ar_order} + MA {ms.ma_order} {l2p:6.1f} ns; reflection + ladder coefficients of one model "
+          f"{coef:6.1f} ns; locate (moving query) {loc:5.1f} ns")
 
     with tempfile.TemporaryDirectory() as tmp:
         models = save_model_set(ms, Path(tmp) / "cork_like.json")
