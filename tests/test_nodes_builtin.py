@@ -192,3 +192,20 @@ def test_white_noise_variance_input_and_zero_variance(write_graph):
     y = g.run({"v": v})["y"]
     np.testing.assert_array_equal(y[:1000], 0.0)
     assert abs(y[1000:].var() / 0.25 - 1) < 5 * np.sqrt(2 / 100_000)
+
+
+def test_unseeded_generator_does_not_hang():
+    from flowtex.dsp.rng import next_normal
+
+    si, sf = np.zeros(5, np.int64), np.zeros(1)  # never seeded: xoshiro stays at zero
+    assert next_normal(si, sf) == 0.0
+
+
+def test_warm_leaves_the_state_alone(write_graph):
+    g = one_node_graph(write_graph, "{type: white_noise, params: {variance: 1.0}}", inputs="x: {}", edges="[]")
+    g.reset()
+    before = g.f.copy(), g.i.copy()
+    g.warm()
+    g.warm()
+    np.testing.assert_array_equal(g.f, before[0])
+    np.testing.assert_array_equal(g.i, before[1])

@@ -66,12 +66,17 @@ def next_normal(si: np.ndarray, sf: np.ndarray) -> float:
     if si[4] != 0:
         si[4] = 0
         return sf[0]
-    while True:
+    # Accepts with probability pi/4; 200 rejections in a row only happen to a
+    # generator that was never seeded (all-zero state, which xoshiro never leaves):
+    # return 0 then rather than loop forever.
+    for _ in range(200):
         u = 2.0 * next_uniform(si) - 1.0
         v = 2.0 * next_uniform(si) - 1.0
         r2 = u * u + v * v
         if 0.0 < r2 < 1.0:
             break
+    else:
+        return 0.0
     m = np.sqrt(-2.0 * np.log(r2) / r2)
     sf[0] = v * m
     si[4] = 1

@@ -219,8 +219,8 @@ class Graph:
         The live runtime calls it just before a deadline, after sleeping, so that
         the tick's code and tables are back in the CPU caches when the real tick runs.
         """
-        if self._scratch is None:
-            self._scratch = (self._f0.copy(), self._i0.copy())
+        if self._scratch is None:  # a copy of the live (seeded) state: random nodes need seeded generators
+            self._scratch = (self.f.copy(), self.i.copy())
         f, i = self._scratch
         self._step_entry(f, i, *([0.0] * len(self._step_in)))
 

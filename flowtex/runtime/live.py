@@ -50,7 +50,7 @@ from ..io.codec import _NF, _NI, MessageCodec, TableDecoder, TableEncoder, _enco
 from ..io.dbc import load_dbc
 from .clock import DeadlineClock
 from .realtime import enter_realtime, freeze_gc, leave_realtime
-from .safety import OutputGuard, Watchdog, first_stale, guard_kernel
+from .safety import OutputGuard, Watchdog, all_updated_after, first_stale, guard_kernel
 from .stats import TickStats
 
 CAN_ERR_BUSOFF = 0x40
@@ -531,6 +531,10 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     stats = TickStats(capacity)
     send_offset = np.zeros(capacity, dtype=np.int64)
     watchdog = io.new_watchdog(int(round(io.map.overrun_limit_ms * 1e6)))
+    # Load the watchdog's compiled checks now (pure functions), not on the first live tick.
+    first_stale(watchdog.last, watchdog.timeouts, 0)
+    all_updated_after(watchdog.last, 0)
+    graph.warm()
     clock = DeadlineClock(rate, sleep=_warming_sleep(io, watchdog) if warm else time.sleep)
     period = clock.period_ns
     graph.reset(seed)
