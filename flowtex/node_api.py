@@ -308,6 +308,15 @@ def resolve_declared(port: Port, inputs: dict[str, PortSpec]) -> PortSpec:
     return PortSpec(tuple(shape), unit)
 
 
+def unit_product(a: str, b: str) -> str:
+    """Unit of a product: dimensionless factors drop out, otherwise ``a*b``."""
+    if not a:
+        return b
+    if not b:
+        return a
+    return f"{a}*{b}"
+
+
 def suggest(word: str, candidates: Sequence[str]) -> str:
     """A ``" (did you mean 'x'?)"`` hint, or ``""`` when nothing is close."""
     close = difflib.get_close_matches(word, list(candidates), n=3, cutoff=0.6)

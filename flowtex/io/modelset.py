@@ -36,16 +36,9 @@ FORMAT_NAME = "flowtex-texture-models"
 FORMAT_VERSION = 1
 SUPPORTED_VERSIONS = (1,)
 
-NATIVE_NAMES = {
+NATIVE_NAMES = {  # only what differs from TextureModelSet's default names
     "speeds": "models[].speed",
     "forces": "models[].force",
-    "triangles": "triangles",
-    "ar_lsf": "ar_lsf",
-    "ma_lsf": "ma_lsf",
-    "variance": "variance",
-    "gain": "gain",
-    "ar_coeff": "ar_coeff",
-    "ma_coeff": "ma_coeff",
     "model": "models[{}]",
     "index_base": "0",
 }

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..node_api import Node, NodeState, Param, Port, PortSpec, check
+from ..node_api import Node, NodeState, Param, Port, PortSpec, check, unit_product
 
 
 @njit(cache=True)
@@ -104,13 +104,6 @@ def _multiply(p, s, si, a, b, y):
             y[t, c] = a[t, c] * b[t, c if wb > 1 else 0]
 
 
-def _unit_product(a: str, b: str) -> str:
-    if not a:
-        return b
-    if not b:
-        return a
-    return f"{a}*{b}"
-
 
 class Multiply(Node):
     """Element-wise product y = a * b; b may be a scalar that scales a vector a."""
@@ -123,7 +116,7 @@ class Multiply(Node):
     def resolve(self, inputs):
         a, b = inputs["a"], inputs["b"]
         check(b.shape in ((), a.shape), None, f"input b must be a scalar or have a's shape {a.shape}, got {b.shape}")
-        return {"y": PortSpec(a.shape, _unit_product(a.unit, b.unit))}
+        return {"y": PortSpec(a.shape, unit_product(a.unit, b.unit))}
 
 
 @njit(cache=True)

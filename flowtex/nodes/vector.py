@@ -12,16 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..node_api import Node, NodeState, Param, Port, PortSpec, check
-
-
-def _unit_product(a: str, b: str) -> str:
-    """Unit of a product: dimensionless factors drop out, otherwise ``a*b``."""
-    if not a:
-        return b
-    if not b:
-        return a
-    return f"{a}*{b}"
+from ..node_api import Node, NodeState, Param, Port, PortSpec, check, unit_product
 
 
 @njit(cache=True)
@@ -47,7 +38,7 @@ class Cross(Node):
     kernel = _cross
 
     def resolve(self, inputs: dict[str, PortSpec]) -> dict[str, PortSpec]:
-        return {"y": PortSpec((3,), _unit_product(inputs["a"].unit, inputs["b"].unit))}
+        return {"y": PortSpec((3,), unit_product(inputs["a"].unit, inputs["b"].unit))}
 
 
 @njit(cache=True)
@@ -71,7 +62,7 @@ class Dot(Node):
         a, b = inputs["a"], inputs["b"]
         check(len(a.shape) == 1, None, f"input a must be a vector, got shape {a.shape or 'scalar'}")
         check(b.shape == a.shape, None, f"input b must have a's shape {a.shape}, got {b.shape or 'scalar'}")
-        return {"y": PortSpec((), _unit_product(a.unit, b.unit))}
+        return {"y": PortSpec((), unit_product(a.unit, b.unit))}
 
 
 @njit(cache=True)
