@@ -220,10 +220,41 @@ class Graph:
         The live runtime calls it just before a deadline, after sleeping, so that
         the tick's code and tables are back in the CPU caches when the real tick runs.
         """
-        if self._scratch is None:  # a copy of the live (seeded) state: random nodes need seeded generators
-            self._scratch = (self.f.copy(), self.i.copy())
-        f, i = self._scratch
+        f, i = self.scratch_arenas()
         self._step_entry(f, i, *([0.0] * len(self._step_in)))
+
+    def scratch_arenas(self) -> tuple[np.ndarray, np.ndarray]:
+        """Float and int arenas that are copies of this graph's state, for effect-free warm-up ticks.
+
+        Copied once, from the live (seeded) state on the first call: random nodes
+        need seeded generators to produce anything.
+        """
+        if self._scratch is None:
+            self._scratch = (self.f.copy(), self.i.copy())
+        return self._scratch
+
+    def with_block_rows(self, rows: int) -> Graph:
+        """This graph (same structure, parameters and seed; fresh state) laid out for blocks of ``rows`` ticks.
+
+        The generated code is shared (offsets are data), so this costs a layout, not a
+        compilation. ``rows=1`` suits tick-by-tick use (the live runtime): every port
+        buffer shrinks to one row, and the arena from hundreds of KB to what the
+        parameters and state need, so a tick touches a few cache lines per port.
+        Returns ``self`` if it already has ``rows``.
+        """
+        if rows == self.layout.block_rows:
+            return self
+        other = Graph(self.resolved, rows)
+        other.reset(self.seed)
+        return other
+
+    @property
+    def block_function(self) -> Any:
+        """The compiled ``block(f, i, n)`` numba function: ``n`` ticks on the arenas ``f`` (float64) and ``i`` (int64).
+
+        For code that fuses a graph tick into its own compiled function (the live runtime).
+        """
+        return self._block
 
     def input_view(self, name: str) -> np.ndarray:
         """Writable view of the current-tick value of graph input ``name`` (live fast path)."""

@@ -17,24 +17,30 @@ from numba.extending import intrinsic
 ITEM = 8  # bytes per float64 / int64 arena element
 
 
-@intrinsic
-def _float_ptr(typingctx, address):
-    sig = types.CPointer(types.float64)(address)
+def _pointer_to(item: types.Type):
+    """A numba intrinsic turning an integer address into a ``CPointer(item)`` (for ``carray``)."""
 
-    def codegen(context, builder, signature, args):
-        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.float64)))
+    def pointer(typingctx, address):
+        sig = types.CPointer(item)(address)
 
-    return sig, codegen
+        def codegen(context, builder, signature, args):
+            return builder.inttoptr(args[0], context.get_value_type(types.CPointer(item)))
+
+        return sig, codegen
+
+    pointer.__name__ = pointer.__qualname__ = f"{item}_pointer"
+    return intrinsic(pointer)
 
 
-@intrinsic
-def _int_ptr(typingctx, address):
-    sig = types.CPointer(types.int64)(address)
+_float_ptr = _pointer_to(types.float64)
+_int_ptr = _pointer_to(types.int64)
+_byte_ptr = _pointer_to(types.uint8)
 
-    def codegen(context, builder, signature, args):
-        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int64)))
 
-    return sig, codegen
+@njit(inline="always", cache=True)
+def bytes_at(address: int, n: int) -> np.ndarray:
+    """The ``n`` bytes at ``address`` as a uint8 array (no reference counting: the caller keeps the memory alive)."""
+    return carray(_byte_ptr(address), n)
 
 
 @njit(inline="always", cache=True)

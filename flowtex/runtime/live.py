@@ -49,6 +49,7 @@ from ..io.canmap import CanMap, load_map
 from ..io.codec import _NF, _NI, MessageCodec, TableDecoder, TableEncoder, _encode_tables, decode_packed, fast_ok, pack_int64
 from ..io.dbc import load_dbc
 from .clock import DeadlineClock
+from .fused import FusedTick, fuse_tick
 from .realtime import enter_realtime, freeze_gc, leave_realtime
 from .safety import OutputGuard, Watchdog, all_updated_after, first_stale, guard_kernel
 from .stats import TickStats
@@ -194,8 +195,9 @@ class CanIO:
         self.tx: list[can.Message] = []
         self.encoders: list[Callable[[bytearray], None]] = []
         fast_out = []
-        self._tx_fast: list[tuple[bytearray, int, int]] = []
-        """(frame data, start, stop) in the table encoder's payload, for the compiled actuator messages."""
+        self._tx_fast: list[tuple[bytearray, memoryview]] = []
+        """(frame data, its bytes in the table encoder's payload) for the compiled actuator messages: ``data[:] = src``
+        copies without allocating."""
         self._tx_slow: list[tuple[Callable[[bytearray], None], bytearray]] = []
         for m in canmap.actuator_messages():
             c = codecs[m]
@@ -213,7 +215,8 @@ class CanIO:
         """Integer tables of the compiled output call (None: no compiled output path), see :func:`_out_packed`."""
         if te is not None:
             offs = te.offsets
-            self._tx_fast = [(msg.data, int(offs[i]), int(offs[i + 1])) for i, (_, _, msg) in enumerate(fast_out)]
+            whole = memoryview(te.payload)
+            self._tx_fast = [(msg.data, whole[int(offs[i]):int(offs[i + 1])]) for i, (_, _, msg) in enumerate(fast_out)]
             if self._gather is not None:
                 nm, r = len(fast_out), te.itab.shape[0]
                 self._ibuf, (self._gather, te.offsets, te._words, te._scratch, te.itab, _), o = pack_int64(
@@ -265,28 +268,25 @@ class CanIO:
 
     def encode(self) -> None:
         """Encode ``self.out`` into the reusable actuator frames ``self.tx``."""
-        te = self.table_encoder
-        if te is not None:
-            te.run(self.out)
-            payload = te.payload
-            for data, a, b in self._tx_fast:
-                data[:] = payload[a:b]
+        if self.table_encoder is not None:
+            self.table_encoder.run(self.out)
+        self.fill_frames()
+
+    def fill_frames(self) -> None:
+        """Copy the encoded payloads into the actuator frames ``self.tx``; run the Python encoders of the others."""
+        for data, src in self._tx_fast:
+            data[:] = src
         for enc, data in self._tx_slow:
             enc(data)
 
     def guard_and_encode(self, force_safe: bool) -> int:
         """:meth:`guard_outputs` then :meth:`encode` (one compiled call when possible); returns the guard's event count."""
-        te = self.table_encoder
         if self._ibuf is None:
             events = self.guard_outputs(force_safe)
             self.encode()
             return events
-        events = _out_packed(self.arena, self._ibuf, self._fbuf, self._gip, te.payload_view, force_safe)
-        payload = te.payload
-        for data, a, b in self._tx_fast:
-            data[:] = payload[a:b]
-        for enc, data in self._tx_slow:
-            enc(data)
+        events = _out_packed(self.arena, self._ibuf, self._fbuf, self._gip, self.table_encoder.payload_view, force_safe)
+        self.fill_frames()
         return events
 
     def encode_safe(self) -> None:
@@ -393,35 +393,81 @@ def port_widths(ports: Mapping[str, Any]) -> dict[str, int]:
     return {name: int(np.prod(spec.shape)) if spec.shape else 1 for name, spec in ports.items()}
 
 
-def _warming_sleep(io: CanIO, watchdog: Watchdog) -> Callable[[float], None]:
-    """``time.sleep`` followed by one effect-free pass through the compiled hot-path calls (cache warming).
+def _rx_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[Any], int, Any], int]:
+    """``decode_rx(rx, tick, words) -> mask``: step 2 of a tick for the received frames ``rx``.
 
-    The clock sleeps until its spin window (the last 200 us before a deadline) and
-    then spins; while the thread sleeps other processes evict its caches, and the
-    first tick's calls after waking ran 3-4x slower than warm ones. Passed as the
-    clock's ``sleep``, this re-touches the decoder and the output call right after
-    each sleep, inside the spin window, so lateness accounting is unchanged. Nothing
-    observable changes: mask 0 decodes nothing and ``tripped=True`` makes
-    ``_tick_out`` return before touching any array.
+    A frame the compiled decoder takes has its payload stored as one integer in
+    ``words[slot]`` and its bit set in the returned mask (for :func:`decode_packed`);
+    any other mapped frame goes through its generated Python decoder into the graph
+    inputs and marks its watchdog entries fresh at ``tick``. An error frame reporting
+    bus-off raises :class:`BusError`.
     """
-    sleep = time.sleep
+    td = io.table_decoder
+    slot_get = td.slot_of.get if td is not None else {}.get
+    slot_len = td.lengths if td is not None else []
+    from_bytes = int.from_bytes
+    decoders = io.decoders
+    fresh = watchdog.fresh
+
+    def decode_rx(rx: list[Any], tick: int, words: Any) -> int:
+        mask = 0
+        for msg in rx:
+            if msg.is_error_frame:
+                if msg.arbitration_id & CAN_ERR_BUSOFF:
+                    raise BusError("CAN bus went bus-off (error frame with CAN_ERR_BUSOFF)")
+                continue
+            j = slot_get(msg.arbitration_id)
+            if j is not None:
+                data = msg.data
+                if len(data) == slot_len[j]:
+                    words[j] = from_bytes(data, "little", signed=True)
+                    mask |= 1 << j
+                    continue
+                mask &= ~(1 << j)  # an odd-length frame after a regular one: the later frame wins
+            entry = decoders.get(msg.arbitration_id)
+            if entry is not None and entry[0](msg.data):
+                for w in entry[1]:
+                    fresh(w, tick)
+        return mask
+
+    return decode_rx
+
+
+def _warmer(io: CanIO, watchdog: Watchdog, fused: FusedTick | None, decode_rx: Callable[[list[Any], int, Any], int]) -> Callable[[], None]:
+    """One effect-free pass through a tick's code, for the clock to call shortly before each deadline.
+
+    After the clock's sleep the tick's first run was 2-4x slower than in a tight loop
+    (see :mod:`flowtex.runtime.clock`); this re-runs its Python and compiled parts
+    with nothing observable changing: the Python decode on one template frame per
+    compiled slot into scratch words, then the fused tick on scratch copies of the
+    arenas and watchdog stamps with ``tripped=True`` (the output call returns before
+    touching anything). Without a fused tick: the decoder with mask 0, the output call
+    tripped, and :meth:`Graph.warm`.
+    """
     td, te = io.table_decoder, io.table_encoder
     calls: list[Callable[[], Any]] = []
     if td is not None:
-        args = (td.ibuf, td.fbuf, 0, 0, io.arena, watchdog.last)
-        calls.append(lambda: decode_packed(*args))
-    if io._ibuf is not None:
-        out_args = (io.arena, io._ibuf, io._fbuf, io._gip, watchdog.last, te.payload_view, 0, 0, 0, True)
-        calls.append(lambda: _tick_out(*out_args))
+        templates = [can.Message(arbitration_id=fid, is_extended_id=fid > 0x7FF, data=bytearray(int(td.lengths[j])))
+                     for fid, j in td.slot_of.items()]
+        scratch_words = np.zeros_like(td.words)
+        calls.append(lambda: decode_rx(templates, 0, scratch_words))
+    if fused is not None:
+        every_slot = (1 << len(td.slot_of)) - 1 if td is not None else 0
+        calls.append(lambda: fused.warm(every_slot))
+    else:
+        if td is not None:
+            args = (td.ibuf, td.fbuf, 0, 0, io.arena, watchdog.last)
+            calls.append(lambda: decode_packed(*args))
+        if io._ibuf is not None:
+            out_args = (io.arena, io._ibuf, io._fbuf, io._gip, watchdog.last, te.payload_view, 0, 0, 0, True)
+            calls.append(lambda: _tick_out(*out_args))
+        calls.append(io.graph.warm)
 
-    calls.append(io.graph.warm)
-
-    def warming_sleep(seconds: float) -> None:
-        sleep(seconds)
+    def warm() -> None:
         for c in calls:
             c()
 
-    return warming_sleep
+    return warm
 
 
 # --- exit handling ------------------------------------------------------------------
@@ -483,11 +529,15 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
     bus, stepped once per executed tick, and ``bus`` must be None or ``virtual``.
     ``drop`` (simulation only) silences sensor messages: name -> (first tick, stop tick or None).
     ``max_ticks`` ends the session after that many executed ticks (deterministic
-    length for tests). ``warm``: cache warming before each deadline (see :func:`_warming_sleep`).
-    Raises :class:`FlowtexError` for bad files or a bus that cannot
+    length for tests). The session runs on ``graph.with_block_rows(1)`` (same code,
+    parameters and seed, one-row port buffers), so ``graph`` itself is not stepped.
+    ``warm``: cache warming before each deadline (see :func:`_warmer`). Raises :class:`FlowtexError` for bad files or a bus that cannot
     be opened; failures during the loop end the session with safe values and are
     returned in ``LiveReport.error``.
     """
+    relayout = getattr(graph, "with_block_rows", None)
+    if relayout is not None:  # one tick per call: port buffers of one row keep the tick's data in a few KB
+        graph = relayout(1)
     io = load_io(graph, dbc_path, map_path)
     rate = float(graph.rate)
     device = None
@@ -543,7 +593,9 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     first_stale(watchdog.last, watchdog.timeouts, 0)
     all_updated_after(watchdog.last, 0)
     graph.warm()
-    clock = DeadlineClock(rate, sleep=_warming_sleep(io, watchdog) if warm else time.sleep)
+    fused = fuse_tick(graph, io, _tick_out, watchdog.last)
+    decode_rx = _rx_decoder(io, watchdog)
+    clock = DeadlineClock(rate, warm=_warmer(io, watchdog, fused, decode_rx) if warm else None)
     period = clock.period_ns
     graph.reset(seed)
     rt_granted = False
@@ -566,28 +618,25 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     send_many = getattr(bus, "send_many", None)
     # compiled codecs: sensor payload words by slot, decoded in one call per tick
     td = io.table_decoder
-    slot_get = td.slot_of.get if td is not None else {}.get
-    slot_len = td.lengths if td is not None else []
     words = td.words if td is not None else None
-    if td is not None:
-        d_ib, d_fb = td.ibuf, td.fbuf
     arena = io.arena
-    from_bytes = int.from_bytes
-    decoders = io.decoders
     wd_last = watchdog.last
-    fresh = watchdog.fresh
     check = watchdog.check
     step = graph.step_block
     guard_and_encode = io.guard_and_encode
-    te = io.table_encoder
-    fused = io._ibuf is not None
+    out_fused = io._ibuf is not None
     tick_out = _entry_point(_tick_out)
     decode_packed_ = _entry_point(decode_packed)
-    o_ib, o_fb, gip = io._ibuf, io._fbuf, io._gip
     overrun_limit = watchdog.overrun_limit_ns
     tx_fast, tx_slow = io._tx_fast, io._tx_slow
-    if fused:
-        e_payload, payload = te.payload_view, te.payload
+    if fused is not None:  # the whole tick in one compiled call
+        live_tick = fused.call
+        gf, gi, d_ib, d_fb, o_ib, o_fb, gip, e_payload, frames = (fused.f, fused.i, fused.d_ib, fused.d_fb, fused.o_ib, fused.o_fb, fused.gip,
+                                                                    fused.payload, fused.frames)
+    else:
+        d_ib, d_fb = (td.ibuf, td.fbuf) if td is not None else (None, None)
+        o_ib, o_fb, gip = io._ibuf, io._fbuf, io._gip
+        e_payload = io.table_encoder.payload_view if out_fused else None
     tx = io.tx
     n_tx = len(tx)
     now = time.perf_counter_ns
@@ -612,38 +661,28 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                         msg = recv(0.0)
                 t0 = now()
                 # 3. decode: payload words for the compiled decoder, Python codecs for the rest
-                mask = 0
-                for msg in rx:
-                    if msg.is_error_frame:
-                        if msg.arbitration_id & CAN_ERR_BUSOFF:
-                            raise BusError("CAN bus went bus-off (error frame with CAN_ERR_BUSOFF)")
-                        continue
-                    j = slot_get(msg.arbitration_id)
-                    if j is not None:
-                        data = msg.data
-                        if len(data) == slot_len[j]:
-                            words[j] = from_bytes(data, "little", signed=True)
-                            mask |= 1 << j
-                            continue
-                        mask &= ~(1 << j)  # an odd-length frame after a regular one: the later frame wins
-                    entry = decoders.get(msg.arbitration_id)
-                    if entry is not None and entry[0](msg.data):
-                        for w in entry[1]:
-                            fresh(w, k)
-                if mask:
-                    decode_packed_(d_ib, d_fb, mask, k, arena, wd_last)
-                # 4. one graph tick; 5. watchdog, guard, encode (one compiled call)
-                step(1)
-                # watchdog on executed-tick counts (replay recomputes it exactly); its quiet case is tested
-                # inside the compiled call, anything else goes through Watchdog.check
-                ev = tick_out(arena, o_ib, o_fb, gip, wd_last, e_payload, k, overrun, overrun_limit, watchdog.tripped) if fused else -1
+                mask = decode_rx(rx, k, words)
+                # 4. one graph tick; 5. watchdog, guard, encode. The watchdog counts executed ticks (replay
+                # recomputes it exactly); its quiet case is tested in compiled code, anything else goes
+                # through Watchdog.check.
+                if fused is not None:  # also fills the compiled messages' frames
+                    ev = live_tick(gf, gi, d_ib, d_fb, mask, k, wd_last, o_ib, o_fb, gip, e_payload, frames, overrun, overrun_limit,
+                                   watchdog.tripped)
+                    if ev >= 0:
+                        for enc, data in tx_slow:
+                            enc(data)
+                else:
+                    if mask:
+                        decode_packed_(d_ib, d_fb, mask, k, arena, wd_last)
+                    step(1)
+                    ev = tick_out(arena, o_ib, o_fb, gip, wd_last, e_payload, k, overrun, overrun_limit, watchdog.tripped) if out_fused else -1
+                    if ev >= 0:
+                        for data, src in tx_fast:
+                            data[:] = src
+                        for enc, data in tx_slow:
+                            enc(data)
                 if ev < 0:
                     ev = guard_and_encode(check(k, overrun))
-                else:
-                    for data, a, b in tx_fast:
-                        data[:] = payload[a:b]
-                    for enc, data in tx_slow:
-                        enc(data)
                 guard_events += ev
                 t1 = now()
                 # 6. send

@@ -191,6 +191,36 @@ def test_restart_resets_counters():
     assert (c.tick, c.missed, c.skipped) == (0, 0, 0)
 
 
+def test_warm_runs_once_per_wait_at_its_lead_before_the_deadline():
+    ft = FakeTime()
+    calls: list[int] = []
+    c = DeadlineClock(1000.0, spin_s=200e-6, sleep=ft.sleep, now=ft.now, warm=lambda: calls.append(ft.t), warm_lead_s=50e-6)
+    c.start()
+    for k in range(1, 11):
+        ft.work(300 * US)
+        late = c.wait()
+        assert len(calls) == k
+        # called in the spin, once the clock read >= deadline - 50 us (1 us steps), before the deadline
+        assert c.deadline_ns - 50 * US < calls[-1] <= c.deadline_ns - 49 * US
+        assert 0 <= late < 3 * US
+
+
+def test_warm_is_skipped_when_the_sleep_overshoots_its_moment():
+    ft = FakeTime(oversleep=180 * US)  # wakes 20 us before the deadline, after the 50 us warming moment
+    calls: list[int] = []
+    c = DeadlineClock(1000.0, spin_s=200e-6, sleep=ft.sleep, now=ft.now, warm=lambda: calls.append(ft.t), warm_lead_s=50e-6)
+    c.start()
+    for _ in range(5):
+        ft.work(300 * US)
+        assert 0 <= c.wait() < 3 * US
+    assert calls == []
+
+
+def test_warm_lead_is_capped_at_the_spin_window():
+    c = DeadlineClock(1000.0, spin_s=100e-6, warm=lambda: None, warm_lead_s=1.0)
+    assert c.warm_lead_ns == c.spin_ns == 100 * US
+
+
 def test_errors():
     with pytest.raises(ValueError, match="rate_hz"):
         DeadlineClock(0.0)
@@ -198,6 +228,8 @@ def test_errors():
         DeadlineClock(float("nan"))
     with pytest.raises(ValueError, match="spin_s"):
         DeadlineClock(1000.0, spin_s=-1e-6)
+    with pytest.raises(ValueError, match="warm_lead_s"):
+        DeadlineClock(1000.0, warm_lead_s=float("nan"))
     with pytest.raises(RuntimeError, match="start"):
         DeadlineClock(1000.0).wait()
 
