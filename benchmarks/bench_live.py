@@ -11,8 +11,8 @@ Per run it reports:
 
 - lateness (tick start - deadline) p50/p99/p99.9/max and ticks later than 1 ms;
 - compute p50/p99/p99.9/max: from after the tick's frames were received to before the
-  first send: decode into the graph inputs, watchdog, ``graph.step_block(1)``, output
-  guard, encode (bus receive and send excluded, see docs/live.md);
+  first send: decode into the graph inputs, one graph tick, watchdog, output guard,
+  encode into the frames (bus receive and send excluded, see docs/live.md);
 - the share of ticks whose actuator frames were all sent before the next deadline
   ("command for tick n sent within tick n");
 - the time from each tick's deadline until its last actuator frame was sent;
@@ -21,8 +21,9 @@ Per run it reports:
   (0 = within the same tick), and the wall time from publish to that frame (the
   in-process device publishes sample n in the slack after tick n-1, so this includes
   the wait for tick n's deadline);
-- whether SCHED_FIFO was granted, and the machine's load average before/after (the
-  machine is shared: the numbers depend on what else runs).
+- whether SCHED_FIFO was granted, the machine's load average before/after and the CPU
+  time the hypervisor stole from this virtual machine during the run (``steal`` in
+  /proc/stat, Linux): the machine is shared, and the numbers depend on what else runs.
 
 Targets with --rt: lateness p99 <= 50 us, < 0.1 % ticks late > 1 ms, compute p99 <= 20 us,
 actuator command for tick n sent within tick n.
@@ -72,6 +73,15 @@ def _files() -> tuple[Path, Path, str]:
     return graph_path, rec, f"STAND-IN graph ({GRAPH.name} or {RECORDING.name} missing) on a synthetic recording"
 
 
+def _steal_ms() -> float | None:
+    """CPU time stolen by the hypervisor from this machine so far (all CPUs, ms), or None where /proc/stat has no steal column."""
+    try:
+        fields = Path("/proc/stat").read_text().split("\n", 1)[0].split()
+        return int(fields[8]) * 1000.0 / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return None
+
+
 def _dist(d: dict) -> str:
     return f"p50 {d['p50']:.1f} p99 {d['p99']:.1f} p99.9 {d['p999']:.1f} max {d['max']:.1f}"
 
@@ -79,9 +89,9 @@ def _dist(d: dict) -> str:
 def run(seconds: float, rt: bool, graph_path: Path, rec: Path) -> dict:
     """One session of ``seconds``; prints the report and returns the numbers."""
     g = load_graph(graph_path)
-    load_before = os.getloadavg()
+    load_before, steal_before = os.getloadavg(), _steal_ms()
     r = run_live(g, DBC, MAP, simulate=rec, duration_s=seconds, rt=rt, status=None)
-    load_after = os.getloadavg()
+    load_after, steal_after = os.getloadavg(), _steal_ms()
     s = r.summary
     period_ns = 1e9 / g.rate
     within = float(np.mean(r.send_offset_ns < period_ns)) if r.ticks else 0.0
@@ -91,7 +101,8 @@ def run(seconds: float, rt: bool, graph_path: Path, rec: Path) -> dict:
     lat_us = dev.latency_s[:n] * 1e6
     print(f"--rt {'on ' if rt else 'off'}: SCHED_FIFO {'granted' if s['rt'] else 'NOT granted'}"
           + (f" ({r.rt_message})" if r.rt_message else ""))
-    print(f"  load average before {load_before[0]:.2f} after {load_after[0]:.2f} (1 min), {os.cpu_count()} CPUs")
+    steal = f", hypervisor steal during the run {steal_after - steal_before:.0f} ms" if steal_before is not None and steal_after is not None else ""
+    print(f"  load average before {load_before[0]:.2f} after {load_after[0]:.2f} (1 min), {os.cpu_count()} CPUs{steal}")
     print(f"  ticks {s['ticks']} missed {s['missed']} late>1ms {s['late_over_1ms']} ({100 * s['late_over_1ms'] / max(1, s['ticks']):.3f} %)"
           f" watchdog events {s['watchdog_events']} (stale {s['timeouts']}) error {r.error}")
     print(f"  lateness us: {_dist(s['lateness_us'])}")
