@@ -21,6 +21,11 @@ Per run it reports:
   (0 = within the same tick), and the wall time from publish to that frame (the
   in-process device publishes sample n in the slack after tick n-1, so this includes
   the wait for tick n's deadline);
+- the machine's noise floor, side by side: right after each session, the same clock
+  (same rate, same --rt setting, warming off) runs a fixed busy-wait as long as the
+  session's compute p50 in place of the tick, for up to 20 s, and reports how long that
+  fixed work measured (p50/p99/p99.9/max): whatever its p99 exceeds its p50 by is the
+  machine's, not flowtex's;
 - whether SCHED_FIFO was granted, the machine's load average before/after and the CPU
   time the hypervisor stole from this virtual machine during the run (``steal`` in
   /proc/stat, Linux): the machine is shared, and the numbers depend on what else runs.
@@ -34,12 +39,15 @@ from __future__ import annotations
 import os
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
 
 from flowtex.graph.compiled import load_graph
+from flowtex.runtime.clock import DeadlineClock
 from flowtex.runtime.live import run_live
+from flowtex.runtime.realtime import enter_realtime, freeze_gc, leave_realtime
 
 REPO = Path(__file__).resolve().parents[1]
 GRAPH = REPO / "graphs" / "live_texture.yaml"
@@ -82,6 +90,30 @@ def _steal_ms() -> float | None:
         return None
 
 
+def noise_floor(work_ns: int, seconds: float, rate: float, rt: bool) -> np.ndarray:
+    """Measured durations (ns) of a fixed ``work_ns`` busy-wait run once per tick of a :class:`DeadlineClock`."""
+    n = int(seconds * rate)
+    took = np.zeros(n, dtype=np.int64)
+    now = time.perf_counter_ns
+    status = enter_realtime(80) if rt else None
+    try:
+        with freeze_gc():
+            clock = DeadlineClock(rate)
+            clock.start()
+            for k in range(n):
+                t0 = now()
+                end = t0 + work_ns
+                t1 = now()
+                while t1 < end:
+                    t1 = now()
+                took[k] = t1 - t0
+                clock.wait()
+    finally:
+        if status is not None:
+            leave_realtime(status)
+    return took
+
+
 def _dist(d: dict) -> str:
     return f"p50 {d['p50']:.1f} p99 {d['p99']:.1f} p99.9 {d['p999']:.1f} max {d['max']:.1f}"
 
@@ -117,6 +149,12 @@ def run(seconds: float, rt: bool, graph_path: Path, rec: Path) -> dict:
         print(f"  sensor->actuator latency over {n} samples: ticks 0: {hist[0]}, 1: {hist[1]}, 2: {hist[2]}, >=3: {hist[3]}; "
               f"wall (publish in the slack after tick n-1 -> first actuator frame) p50 {np.percentile(lat_us, 50):.1f} "
               f"p99 {np.percentile(lat_us, 99):.1f} max {lat_us.max():.1f} us")
+    work_ns = int(s["compute_us"]["p50"] * 1000)
+    if work_ns > 0:
+        probe_s = min(seconds, 20.0)
+        took = noise_floor(work_ns, probe_s, g.rate, rt) / 1e3
+        print(f"  noise floor ({probe_s:g} s, a fixed {work_ns / 1e3:.1f} us busy-wait per tick on the same clock): "
+              f"p50 {np.percentile(took, 50):.1f} p99 {np.percentile(took, 99):.1f} p99.9 {np.percentile(took, 99.9):.1f} max {took.max():.1f} us")
     return {"summary": s, "within": within, "latency_ticks_max": int(lat_ticks.max()) if n else None}
 
 

@@ -2,28 +2,30 @@
 
 Per tick (the order is the contract replay relies on, see docs/live.md):
 
-1. wait for the tick's deadline (:class:`~flowtex.runtime.clock.DeadlineClock`);
+1. wait for the tick's deadline (:class:`~flowtex.runtime.clock.DeadlineClock`; 50 us
+   before it, one effect-free warming pass through the tick's code, :func:`_warmer`);
 2. receive every pending frame (``bus.recv_available()`` if the bus has it,
-   else ``bus.recv(timeout=0)`` until None) and decode the mapped ones straight
-   into the graph's input arena with one compiled call
-   (:class:`~flowtex.io.codec.TableDecoder`; the generated Python codecs for what
-   it cannot take); inputs hold their last value between frames; mark their
-   watchdog entries fresh;
-3. ``graph.step_block(1)``;
-4. one compiled call (:func:`_tick_out`): the watchdog's quiet case (else
-   :meth:`Watchdog.check`: stale input or overrun -> safe values), gather the
-   bound graph outputs, the :class:`OutputGuard` kernel (clamp, NaN/inf -> safe,
-   peak allowance), encode every actuator payload;
-5. send exactly one frame per actuator message, in map order (``send_many`` if
+   else ``bus.recv(timeout=0)`` until None); store each payload the compiled
+   decoder takes as one integer (:func:`_rx_decoder`), decode the others with the
+   generated Python codecs; inputs hold their last value between frames;
+3. one compiled call (:mod:`flowtex.runtime.fused`): decode the stored payloads
+   straight into the graph's input arena and mark their watchdog entries fresh,
+   one graph tick, the watchdog's quiet case, gather the bound graph outputs, the
+   :class:`OutputGuard` kernel (clamp, NaN/inf -> safe, peak allowance), encode every
+   actuator payload into its reused frame. Any other watchdog case goes through
+   :meth:`Watchdog.check` (stale input or overrun -> safe values) and
+   :meth:`CanIO.guard_and_encode`. Graphs that cannot be fused make the same steps
+   as three compiled calls (decoder, ``graph.step_block(1)``, :func:`_tick_out`);
+4. send exactly one frame per actuator message, in map order (``send_many`` if
    the bus has it);
-6. in the slack: write the tick's received and sent frames to the ``--record``
+5. in the slack: write the tick's received and sent frames to the ``--record``
    log, step the simulated device, statistics and the status line.
 
 On every exit path (duration reached, Ctrl-C, SIGTERM, exception in the graph,
 bus error) the safe values are encoded and sent once more, as the last frames
-(and logged). Steps 2-4 allocate nothing beyond python-can's own message objects
+(and logged). Steps 2-3 allocate nothing beyond python-can's own message objects
 and small ints; the garbage collector is frozen during the loop. Compute time in
-the statistics is steps 2-4 without the bus receive.
+the statistics is steps 2-3 without the bus receive.
 """
 
 from __future__ import annotations
@@ -630,13 +632,10 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     overrun_limit = watchdog.overrun_limit_ns
     tx_fast, tx_slow = io._tx_fast, io._tx_slow
     if fused is not None:  # the whole tick in one compiled call
-        live_tick = fused.call
-        gf, gi, d_ib, d_fb, o_ib, o_fb, gip, e_payload, frames = (fused.f, fused.i, fused.d_ib, fused.d_fb, fused.o_ib, fused.o_fb, fused.gip,
-                                                                    fused.payload, fused.frames)
-    else:
-        d_ib, d_fb = (td.ibuf, td.fbuf) if td is not None else (None, None)
-        o_ib, o_fb, gip = io._ibuf, io._fbuf, io._gip
-        e_payload = io.table_encoder.payload_view if out_fused else None
+        live_tick, ptrs = fused.call, fused.ptrs
+    d_ib, d_fb = (td.ibuf, td.fbuf) if td is not None else (None, None)
+    o_ib, o_fb, gip = io._ibuf, io._fbuf, io._gip
+    e_payload = io.table_encoder.payload_view if out_fused else None
     tx = io.tx
     n_tx = len(tx)
     now = time.perf_counter_ns
@@ -660,14 +659,13 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                         rx.append(msg)
                         msg = recv(0.0)
                 t0 = now()
-                # 3. decode: payload words for the compiled decoder, Python codecs for the rest
+                # 2. decode: payload words for the compiled decoder, Python codecs for the rest
                 mask = decode_rx(rx, k, words)
-                # 4. one graph tick; 5. watchdog, guard, encode. The watchdog counts executed ticks (replay
-                # recomputes it exactly); its quiet case is tested in compiled code, anything else goes
+                # 3. compiled decode, one graph tick, watchdog, guard, encode. The watchdog counts executed ticks
+                # (replay recomputes it exactly); its quiet case is tested in compiled code, anything else goes
                 # through Watchdog.check.
                 if fused is not None:  # also fills the compiled messages' frames
-                    ev = live_tick(gf, gi, d_ib, d_fb, mask, k, wd_last, o_ib, o_fb, gip, e_payload, frames, overrun, overrun_limit,
-                                   watchdog.tripped)
+                    ev = live_tick(ptrs, mask, k, overrun, overrun_limit, watchdog.tripped)
                     if ev >= 0:
                         for enc, data in tx_slow:
                             enc(data)
@@ -685,14 +683,14 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                     ev = guard_and_encode(check(k, overrun))
                 guard_events += ev
                 t1 = now()
-                # 6. send
+                # 4. send
                 if send_many is not None:
                     send_many(tx)
                 else:
                     for m in tx:
                         send(m)
                 t2 = now()
-                # 7. slack
+                # 5. slack
                 n_in = len(rx)
                 stats.record(lateness, t1 - t0)
                 send_offset[k % capacity] = t2 - clock.deadline_ns

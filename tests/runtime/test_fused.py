@@ -82,7 +82,7 @@ def test_frames_written_by_compiled_code_cannot_be_resized():
     io = live.load_io(g, DBC, MAP)
     wd = io.new_watchdog(2_000_000)
     fused = fuse_tick(g, io, live._tick_out, wd.last)
-    assert fused.frames.shape == (len(io.tx), 3)
+    assert fused.arrays["frames"].shape == (len(io.tx), 3)
     with pytest.raises(BufferError):
         io.tx[0].data.append(0)  # the address the compiled copy writes to must stay valid
 
