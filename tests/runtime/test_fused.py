@@ -99,3 +99,19 @@ def test_one_row_layout_gives_the_same_outputs_and_keeps_the_seed():
     for name in ref:
         np.testing.assert_array_equal(out[name], ref[name])
     assert one.with_block_rows(1) is one
+
+
+def test_pointer_table_refuses_arrays_the_generated_views_would_misread():
+    from flowtex.runtime.fused import POINTER_ORDER, pointer_table
+
+    good = {name: np.zeros((2, 3) if name in ("gip", "frames") else 4,
+                           dtype=np.float64 if name in ("f", "d_fb", "o_fb") else np.uint8 if name == "payload" else np.int64)
+            for name in POINTER_ORDER}
+    table = pointer_table(good)
+    assert table.shape == (3 * len(POINTER_ORDER),)
+    assert table[0] == good["f"].ctypes.data and table[1:3].tolist() == [4, 1]
+    k = POINTER_ORDER.index("gip")
+    assert table[3 * k + 1:3 * k + 3].tolist() == [2, 3]
+    for name, bad in [("f", np.zeros(4, dtype=np.float32)), ("i", np.zeros(8, dtype=np.int64)[::2]), ("gip", np.zeros(6, dtype=np.int64))]:
+        with pytest.raises(ValueError, match=f"fused tick: {name} must be"):
+            pointer_table({**good, name: bad})
