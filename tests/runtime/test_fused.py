@@ -38,6 +38,9 @@ def test_fused_tick_sends_the_frames_of_the_separate_calls(setup, monkeypatch, g
         canmap.write_text(MAP.read_text().replace("overrun_limit_ms: 2 ", "overrun_limit_ms: 100000 "))
     kw = dict(simulate=RECORDING if graph_file == "texture" else setup / "rec.npz", max_ticks=ticks, status=None, seed=5,
               drop={"ToolPosition": (drop, drop + 40)})
+    g = load_graph(graph, block_rows=1)
+    io = live.load_io(g, DBC, canmap)
+    assert fuse_tick(g, io, live._tick_out, io.new_watchdog(1).last) is not None  # the first two runs take the fused path
     logs = []
     for name, fused, warm in [("fused", True, True), ("cold", True, False), ("separate", False, True)]:
         if not fused:
