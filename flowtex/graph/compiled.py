@@ -217,8 +217,9 @@ class Graph:
     def warm(self) -> None:
         """Run one tick on scratch copies of the arenas: no effect on this graph's state.
 
-        The live runtime calls it just before a deadline, after sleeping, so that
-        the tick's code and tables are back in the CPU caches when the real tick runs.
+        The live runtime calls it just before a deadline (when it cannot fuse the tick
+        into one call), so that the tick's code and tables are back in the CPU caches
+        when the real tick runs.
         """
         f, i = self.scratch_arenas()
         self._step_entry(f, i, *([0.0] * len(self._step_in)))

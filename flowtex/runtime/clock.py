@@ -104,9 +104,10 @@ class DeadlineClock:
 
         Sleeps (possibly in several pieces, should a sleep return early) until
         ``spin_ns`` before the deadline, then spins on ``now()`` until the deadline is
-        reached, calling ``warm`` once ``warm_lead_ns`` before it. If the next deadline has already passed when called, skips to the
-        first deadline at or after now (see the module docstring) and counts the
-        skipped ones in ``missed`` and ``skipped``.
+        reached, calling ``warm`` once ``warm_lead_ns`` before it. If the next deadline
+        has already passed when called, skips to the first deadline at or after now
+        (see the module docstring) and counts the skipped ones in ``missed`` and
+        ``skipped``.
         """
         if not self._started:
             raise RuntimeError("DeadlineClock.wait() called before start()")
