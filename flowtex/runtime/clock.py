@@ -29,13 +29,14 @@ Usage::
         lateness_ns = clock.wait() # now at tick clock.tick
         if clock.skipped: ...      # deadlines skipped by this wait (also summed in clock.missed)
 
-Warming. ``warm`` (optional) is called once per wait, ``warm_lead_s`` before the
-deadline, in the spin. The live loop passes an effect-free pass through the tick's
-code: after a sleep the first run of that code was 2-4x slower than in a tight
-loop (caches and branch predictors belong to whatever ran while this thread slept),
-and warming during the spin, close to the deadline, brings it most of the way back.
-If the sleep overshot past the warming moment, ``warm`` is skipped for that tick
-rather than made to delay it.
+Preparing. ``prepare`` (optional) is called once per wait, ``prepare_lead_s`` before
+the deadline, in the spin. The live loop passes the work that belongs just before a
+tick: receiving the frames that have already arrived, and one effect-free warming
+pass through the tick's code (after a sleep the first run of that code was 2-4x
+slower than in a tight loop: caches and branch predictors belong to whatever ran
+while this thread slept, and warming during the spin, close to the deadline, brings
+it most of the way back). If the sleep overshot past that moment, ``prepare`` is
+skipped for that tick rather than made to delay it.
 
 ``now`` and ``sleep`` are injectable so tests can drive the clock with a fake time
 source; ``now`` must return integer nanoseconds, ``sleep`` takes seconds.
@@ -65,8 +66,8 @@ class DeadlineClock:
         spin_s: float = 200e-6,
         sleep: Callable[[float], None] = time.sleep,
         now: Callable[[], int] = time.perf_counter_ns,
-        warm: Callable[[], object] | None = None,
-        warm_lead_s: float = 50e-6,
+        prepare: Callable[[], object] | None = None,
+        prepare_lead_s: float = 50e-6,
     ) -> None:
         if not (rate_hz > 0.0) or rate_hz == float("inf"):
             raise ValueError(f"DeadlineClock: rate_hz must be a positive finite number of Hz, got {rate_hz!r}")
@@ -79,12 +80,12 @@ class DeadlineClock:
         self.period_ns = period_ns
         # spin at most half a period, so every period has a sleep (never a pure spin)
         self.spin_ns = min(int(round(spin_s * 1e9)), period_ns // 2)
-        if not (warm_lead_s >= 0.0) or warm_lead_s == float("inf"):
-            raise ValueError(f"DeadlineClock: warm_lead_s must be a finite number of seconds >= 0, got {warm_lead_s!r}")
+        if not (prepare_lead_s >= 0.0) or prepare_lead_s == float("inf"):
+            raise ValueError(f"DeadlineClock: prepare_lead_s must be a finite number of seconds >= 0, got {prepare_lead_s!r}")
         self._sleep = sleep
         self._now = now
-        self._warm = warm
-        self.warm_lead_ns = min(int(round(warm_lead_s * 1e9)), self.spin_ns)
+        self._prepare = prepare
+        self.prepare_lead_ns = min(int(round(prepare_lead_s * 1e9)), self.spin_ns)
         self.tick = 0
         self.deadline_ns = 0
         self.missed = 0
@@ -104,7 +105,7 @@ class DeadlineClock:
 
         Sleeps (possibly in several pieces, should a sleep return early) until
         ``spin_ns`` before the deadline, then spins on ``now()`` until the deadline is
-        reached, calling ``warm`` once ``warm_lead_ns`` before it. If the next deadline
+        reached, calling ``prepare`` once ``prepare_lead_ns`` before it. If the next deadline
         has already passed when called, skips to the first deadline at or after now
         (see the module docstring) and counts the skipped ones in ``missed`` and
         ``skipped``.
@@ -132,13 +133,13 @@ class DeadlineClock:
             sleep((remaining - spin) * 1e-9)
             now = self._now()
             remaining = target - now
-        warm = self._warm
-        if warm is not None:
-            warm_at = target - self.warm_lead_ns
-            if now < warm_at:
-                while now < warm_at:
+        prepare = self._prepare
+        if prepare is not None:
+            prepare_at = target - self.prepare_lead_ns
+            if now < prepare_at:
+                while now < prepare_at:
                     now = self._now()
-                warm()
+                prepare()
                 now = self._now()
         while now < target:
             now = self._now()

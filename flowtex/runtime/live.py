@@ -2,10 +2,12 @@
 
 Per tick (the order is the contract replay relies on, see docs/live.md):
 
-1. wait for the tick's deadline (:class:`~flowtex.runtime.clock.DeadlineClock`; 50 us
-   before it, one effect-free warming pass through the tick's code, :func:`_warmer`);
-2. receive every pending frame (``bus.recv_available()`` if the bus has it,
-   else ``bus.recv(timeout=0)`` until None); store each payload the compiled
+1. wait for the tick's deadline (:class:`~flowtex.runtime.clock.DeadlineClock`); 50 us
+   before it, receive the frames already there and make one effect-free warming
+   pass through the tick's code (:func:`_warmer`);
+2. receive every frame that arrived since (``bus.recv_available()`` if the bus has
+   it, else ``bus.recv(timeout=0)`` until None): the tick's inputs are every frame
+   received before its compute starts; store each payload the compiled
    decoder takes as one integer (:func:`_rx_decoder`), decode the others with the
    generated Python codecs; inputs hold their last value between frames;
 3. one compiled call (:mod:`flowtex.runtime.fused`): decode the stored payloads
@@ -395,6 +397,25 @@ def port_widths(ports: Mapping[str, Any]) -> dict[str, int]:
     return {name: int(np.prod(spec.shape)) if spec.shape else 1 for name, spec in ports.items()}
 
 
+def _receiver(bus: can.BusABC) -> Callable[[list[Any]], None]:
+    """``receive(frames)``: append every frame pending on ``bus`` (``recv_available()`` if the bus has it, else
+    ``recv(timeout=0)`` until None)."""
+    recv_available = getattr(bus, "recv_available", None)
+    if recv_available is not None:
+        def receive(frames: list[Any]) -> None:
+            frames.extend(recv_available())
+        return receive
+    recv = bus.recv
+
+    def receive_each(frames: list[Any]) -> None:
+        msg = recv(0.0)
+        while msg is not None:
+            frames.append(msg)
+            msg = recv(0.0)
+
+    return receive_each
+
+
 def _rx_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[Any], int, Any], int]:
     """``decode_rx(rx, tick, words) -> mask``: step 2 of a tick for the received frames ``rx``.
 
@@ -597,7 +618,17 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     graph.warm()
     fused = fuse_tick(graph, io, _tick_out, watchdog.last)
     decode_rx = _rx_decoder(io, watchdog)
-    clock = DeadlineClock(rate, warm=_warmer(io, watchdog, fused, decode_rx) if warm else None)
+    receive = _receiver(bus)
+    rx: list[Any] = []
+    """Frames received for the current tick: those already there shortly before its deadline, then the rest."""
+    warm_pass = _warmer(io, watchdog, fused, decode_rx) if warm else None
+
+    def prepare() -> None:  # shortly before each deadline (bus time and warming, not compute)
+        receive(rx)
+        if warm_pass is not None:
+            warm_pass()
+
+    clock = DeadlineClock(rate, prepare=prepare)
     period = clock.period_ns
     graph.reset(seed)
     rt_granted = False
@@ -614,8 +645,6 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     error: str | None = None
     guard_events = 0
     status_every = max(1, int(rate / 2))
-    recv = bus.recv
-    recv_available = getattr(bus, "recv_available", None)
     send = bus.send
     send_many = getattr(bus, "send_many", None)
     # compiled codecs: sensor payload words by slot, decoded in one call per tick
@@ -639,7 +668,6 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     tx = io.tx
     n_tx = len(tx)
     now = time.perf_counter_ns
-    rx: list[Any] = []
     k = 0
     if device is not None:
         device.publish(0)
@@ -649,15 +677,8 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
         overrun = 0
         try:
             while True:
-                # 2. receive everything pending (bus time, not compute)
-                if recv_available is not None:
-                    rx = recv_available()
-                else:
-                    rx.clear()
-                    msg = recv(0.0)
-                    while msg is not None:
-                        rx.append(msg)
-                        msg = recv(0.0)
+                # 2. receive whatever arrived since prepare() (bus time, not compute)
+                receive(rx)
                 t0 = now()
                 # 2. decode: payload words for the compiled decoder, Python codecs for the rest
                 mask = decode_rx(rx, k, words)
@@ -703,6 +724,7 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                     for m in tx:
                         m.timestamp = ts
                         writer.write(m, False)
+                rx.clear()
                 k += 1
                 if device is not None:
                     device.collect(k - 1)

@@ -191,10 +191,10 @@ def test_restart_resets_counters():
     assert (c.tick, c.missed, c.skipped) == (0, 0, 0)
 
 
-def test_warm_runs_once_per_wait_at_its_lead_before_the_deadline():
+def test_prepare_runs_once_per_wait_at_its_lead_before_the_deadline():
     ft = FakeTime()
     calls: list[int] = []
-    c = DeadlineClock(1000.0, spin_s=200e-6, sleep=ft.sleep, now=ft.now, warm=lambda: calls.append(ft.t), warm_lead_s=50e-6)
+    c = DeadlineClock(1000.0, spin_s=200e-6, sleep=ft.sleep, now=ft.now, prepare=lambda: calls.append(ft.t), prepare_lead_s=50e-6)
     c.start()
     for k in range(1, 11):
         ft.work(300 * US)
@@ -205,10 +205,10 @@ def test_warm_runs_once_per_wait_at_its_lead_before_the_deadline():
         assert 0 <= late < 3 * US
 
 
-def test_warm_is_skipped_when_the_sleep_overshoots_its_moment():
-    ft = FakeTime(oversleep=180 * US)  # wakes 20 us before the deadline, after the 50 us warming moment
+def test_prepare_is_skipped_when_the_sleep_overshoots_its_moment():
+    ft = FakeTime(oversleep=180 * US)  # wakes 20 us before the deadline, after the 50 us preparing moment
     calls: list[int] = []
-    c = DeadlineClock(1000.0, spin_s=200e-6, sleep=ft.sleep, now=ft.now, warm=lambda: calls.append(ft.t), warm_lead_s=50e-6)
+    c = DeadlineClock(1000.0, spin_s=200e-6, sleep=ft.sleep, now=ft.now, prepare=lambda: calls.append(ft.t), prepare_lead_s=50e-6)
     c.start()
     for _ in range(5):
         ft.work(300 * US)
@@ -216,9 +216,9 @@ def test_warm_is_skipped_when_the_sleep_overshoots_its_moment():
     assert calls == []
 
 
-def test_warm_lead_is_capped_at_the_spin_window():
-    c = DeadlineClock(1000.0, spin_s=100e-6, warm=lambda: None, warm_lead_s=1.0)
-    assert c.warm_lead_ns == c.spin_ns == 100 * US
+def test_prepare_lead_is_capped_at_the_spin_window():
+    c = DeadlineClock(1000.0, spin_s=100e-6, prepare=lambda: None, prepare_lead_s=1.0)
+    assert c.prepare_lead_ns == c.spin_ns == 100 * US
 
 
 def test_errors():
@@ -228,8 +228,8 @@ def test_errors():
         DeadlineClock(float("nan"))
     with pytest.raises(ValueError, match="spin_s"):
         DeadlineClock(1000.0, spin_s=-1e-6)
-    with pytest.raises(ValueError, match="warm_lead_s"):
-        DeadlineClock(1000.0, warm_lead_s=float("nan"))
+    with pytest.raises(ValueError, match="prepare_lead_s"):
+        DeadlineClock(1000.0, prepare_lead_s=float("nan"))
     with pytest.raises(RuntimeError, match="start"):
         DeadlineClock(1000.0).wait()
 
