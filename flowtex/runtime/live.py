@@ -611,7 +611,11 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     capacity = int(min(n_ticks if n_ticks else 600 * rate, 3600 * rate)) + 1
     stats = TickStats(capacity)
     send_offset = np.zeros(capacity, dtype=np.int64)
-    watchdog = io.new_watchdog(int(round(io.map.overrun_limit_ms * 1e6)))
+    # with a status line, events are printed on their own lines with names (below), not through logging
+    watchdog = io.new_watchdog(int(round(io.map.overrun_limit_ms * 1e6)), emit_log=status is None)
+    wd_log = watchdog.log
+    events_shown = 0
+    status_len = 0
     # Load the watchdog's compiled checks now (pure functions), not on the first live tick.
     first_stale(watchdog.last, watchdog.timeouts, 0)
     all_updated_after(watchdog.last, 0)
@@ -731,10 +735,15 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                     device.publish(k)
                 if stop[0] is not None or (n_ticks is not None and k >= n_ticks):
                     break
-                if status is not None and k % status_every == 0:
-                    stats.watchdog_events = watchdog.events
-                    stats.timeouts = watchdog.stale_events
-                    print("\r" + stats.status_line(), end="", file=status, flush=True)
+                if status is not None:
+                    if len(wd_log) != events_shown:
+                        events_shown = _print_events(io, watchdog, events_shown, status, status_len)
+                    if k % status_every == 0:
+                        stats.watchdog_events = watchdog.events
+                        stats.timeouts = watchdog.stale_events
+                        line = stats.status_line()
+                        status_len = len(line)
+                        print("\r" + line, end="", file=status, flush=True)
                 lateness = clock.wait()
                 if clock.skipped:
                     stats.missed += clock.skipped
@@ -761,6 +770,7 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     stats.watchdog_events = watchdog.events
     stats.timeouts = watchdog.stale_events
     if status is not None:
+        _print_events(io, watchdog, events_shown, status, status_len)
         print("\r" + stats.status_line(), file=status)
         print(stats.format_summary(rt_granted), file=status)
     if stats_path is not None:
@@ -769,6 +779,25 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     return LiveReport(ticks=k, frames_in=stats.frames_in, frames_out=stats.frames_out, watchdog_events=watchdog.events,
                       guard_events=guard_events, exit_reason=reason, error=error, summary=stats.summary(rt_granted),
                       rt_message=rt_message, send_offset_ns=send_offset[:min(k, capacity)], device=device)
+
+
+def describe_event(io: CanIO, watchdog: Watchdog, tick: int, reason: str, detail: int) -> str:
+    """One line for a watchdog event of ``watchdog.log`` (``reason`` "stale": ``detail`` is the watchdog entry;
+    "overrun": how late the tick started, in ns), naming the graph input and sensor message."""
+    if reason == "stale":
+        name, message = io.watchdog_keys[detail]
+        what = f"no {message} frame for input {name!r} in {int(watchdog.timeouts[detail])} ticks"
+    else:
+        what = f"the tick started {detail / 1e6:.2f} ms late (limit {watchdog.overrun_limit_ns / 1e6:g} ms)"
+    return f"watchdog: tick {tick}: {what}; outputs safe until every sensor has sent a fresh frame"
+
+
+def _print_events(io: CanIO, watchdog: Watchdog, shown: int, status: TextIO, status_len: int) -> int:
+    """Print the watchdog events after the first ``shown`` on their own lines, over the status line; returns how many are shown."""
+    for tick, reason, detail in watchdog.log[shown:]:
+        line = describe_event(io, watchdog, tick, reason, detail)
+        print("\r" + line.ljust(status_len), file=status, flush=True)
+    return len(watchdog.log)
 
 
 def _send_safe(io: CanIO, send: Callable[[can.Message], None], writer: SessionWriter | None) -> str | None:

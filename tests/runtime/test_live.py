@@ -109,6 +109,25 @@ def test_sensor_dropout_trips_watchdog_and_sends_safe_values(setup):
     assert cur[-1] == 0.0
 
 
+def test_watchdog_events_get_their_own_named_line_beside_the_status_line(setup, caplog):
+    import io as _io
+    import logging
+
+    out = _io.StringIO()
+    g = load_graph(setup / "g.yaml")
+    with caplog.at_level(logging.WARNING, logger="flowtex.runtime.safety"):
+        r = run_live(g, DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=1000, status=out,
+                     drop={"ToolForce": (300, 600)})
+    assert r.error is None and r.watchdog_events == 1
+    text = out.getvalue()
+    event = ("watchdog: tick 305: no ToolForce frame for input 'normal_force' in 5 ticks; "
+             "outputs safe until every sensor has sent a fresh frame")
+    lines = [chunk.strip() for chunk in text.replace("\r", "\n").split("\n")]
+    assert event in lines  # a line of its own, not glued to the status line
+    assert f"\r{event}" in text and text.count("watchdog: tick") == 1
+    assert not caplog.records  # printed once, not also logged
+
+
 def test_bus_that_cannot_be_opened(setup):
     g = load_graph(setup / "g.yaml")
     with pytest.raises(BusError) as e:
