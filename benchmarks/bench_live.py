@@ -24,8 +24,9 @@ Per run it reports:
 - the machine's noise floor, side by side: right after each session, the same clock
   (same rate, same --rt setting, warming off) runs a fixed busy-wait as long as the
   session's compute p50 in place of the tick, for up to 20 s, and reports how long that
-  fixed work measured (p50/p99/p99.9/max): whatever its p99 exceeds its p50 by is the
-  machine's, not flowtex's;
+  fixed work measured (p50/p99/p99.9/max): what it shows beyond its p50 is preemption
+  and steal on this machine (a busy-wait does not feel cold caches, so it is a lower
+  bound on the machine's share of compute's tail);
 - whether SCHED_FIFO was granted, the machine's load average before/after and the CPU
   time the hypervisor stole from this virtual machine during the run (``steal`` in
   /proc/stat, Linux): the machine is shared, and the numbers depend on what else runs.
