@@ -31,6 +31,7 @@ import numpy as np
 from ..errors import DataError
 from ..models.texture import TextureModelSet
 from .hatt import read_hatt_xml
+from .jsondoc import read_json_document
 
 FORMAT_NAME = "flowtex-texture-models"
 FORMAT_VERSION = 1
@@ -117,22 +118,7 @@ def read_native(path: str | Path) -> TextureModelSet:
     """Read a native flowtex JSON model set (see the module docstring); validated."""
     path = Path(path)
     name = str(path)
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"), parse_constant=_no_constant)
-    except json.JSONDecodeError as exc:
-        raise DataError(f"{name}:{exc.lineno}:{exc.colno}: not valid JSON ({exc.msg})") from None
-    except ValueError as exc:
-        raise DataError(f"{name}: {exc}") from None
-    except OSError as exc:
-        raise DataError(f"{name}: cannot read the model file ({exc.strerror or exc})") from None
-    if not isinstance(doc, dict):
-        raise DataError(f"{name}: expected a JSON object at the top level")
-    if doc.get("format") != FORMAT_NAME:
-        raise DataError(f"{name}: key 'format' is {doc.get('format')!r}, expected {FORMAT_NAME!r} (is this a flowtex model set?)")
-    version = doc.get("version")
-    if version not in SUPPORTED_VERSIONS:
-        raise DataError(f"{name}: model-set format version {version!r} is not supported by this flowtex "
-                        f"(it reads version {', '.join(map(str, SUPPORTED_VERSIONS))}); upgrade flowtex or re-export the file")
+    doc = read_json_document(path, "model-set", FORMAT_NAME, SUPPORTED_VERSIONS)
 
     def need(key: str, kind: type | tuple[type, ...], where: dict = doc, label: str = "") -> Any:
         if key not in where:
@@ -220,10 +206,6 @@ def delaunay_triangles(points: np.ndarray, where: str = "model set") -> np.ndarr
         raise DataError(f"{where}: cannot triangulate the models' (speed, force) points: they lie on one line; "
                         "add models at other speeds or forces, or give 'triangles' explicitly") from None
     return tri.simplices.astype(np.int64)
-
-
-def _no_constant(token: str) -> None:
-    raise ValueError(f"{token} is not allowed in a model set (only finite numbers)")
 
 
 def _kind_name(kind: type | tuple[type, ...]) -> str:

@@ -16,6 +16,7 @@ import numpy as np
 from ..errors import DataError
 from ..models.taps import TapLibrary
 from ..node_api import suggest
+from .jsondoc import read_json_document
 
 FORMAT = "flowtex-tap-library"
 VERSION = 1
@@ -37,23 +38,7 @@ def read_tap_library(path: str | Path) -> TapLibrary:
     Transients shorter than the longest are padded with zeros at the end.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise DataError(f"{path}: tap library file not found (check the path; relative paths resolve against the graph file's folder)") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DataError(f"{path}: cannot read tap library: {exc}") from None
-    try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise DataError(f"{path}:{exc.lineno}:{exc.colno}: not valid JSON: {exc.msg}") from None
-    if not isinstance(doc, dict):
-        raise DataError(f"{path}: expected a JSON object with \"format\": \"{FORMAT}\" at the top level")
-    if doc.get("format") != FORMAT:
-        raise DataError(f"{path}: field 'format': expected {FORMAT!r}, got {doc.get('format')!r} (is this a tap library?)")
-    version = doc.get("version")
-    if version != VERSION:
-        raise DataError(f"{path}: field 'version': this flowtex reads version {VERSION}, got {version!r}")
+    doc = read_json_document(path, "tap library", FORMAT, (VERSION,))
     for key in doc:
         if key not in _TOP_KEYS:
             raise DataError(f"{path}: unknown field {key!r}{suggest(str(key), _TOP_KEYS)}; allowed: {', '.join(_TOP_KEYS)}")

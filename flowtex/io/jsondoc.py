@@ -1,0 +1,42 @@
+"""Read a versioned flowtex JSON document (model set, tap library): the checks every such file starts with.
+
+Every problem raises :class:`flowtex.errors.DataError` naming the file (and, for
+broken JSON, line and column): unreadable file, invalid JSON, a NaN or Infinity
+constant (not JSON, though Python's reader accepts it), a top level that is not an
+object, the wrong ``format``, an unsupported ``version``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from ..errors import DataError
+
+
+def read_json_document(path: Path, kind: str, format_name: str, versions: tuple[int, ...]) -> dict[str, Any]:
+    """The top-level object of the JSON file ``path``, checked to be a ``kind`` of format ``format_name`` in one of ``versions``."""
+
+    def no_constant(token: str) -> None:
+        raise ValueError(f"{token} is not allowed in a {kind} (only finite numbers)")
+
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"), parse_constant=no_constant)
+    except FileNotFoundError:
+        raise DataError(f"{path}: {kind} file not found (check the path; relative paths resolve against the graph file's folder)") from None
+    except json.JSONDecodeError as exc:
+        raise DataError(f"{path}:{exc.lineno}:{exc.colno}: not valid JSON ({exc.msg})") from None
+    except ValueError as exc:  # the constants above, undecodable UTF-8
+        raise DataError(f"{path}: {exc}") from None
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read the {kind} file ({exc.strerror or exc})") from None
+    if not isinstance(doc, dict):
+        raise DataError(f"{path}: expected a JSON object with \"format\": \"{format_name}\" at the top level")
+    if doc.get("format") != format_name:
+        raise DataError(f"{path}: key 'format' is {doc.get('format')!r}, expected {format_name!r} (is this a {kind}?)")
+    version = doc.get("version")
+    if version not in versions:
+        raise DataError(f"{path}: {kind} format version {version!r} is not supported by this flowtex "
+                        f"(it reads version {', '.join(map(str, versions))}; key 'version'); upgrade flowtex or re-export the file")
+    return doc
