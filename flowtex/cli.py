@@ -8,7 +8,7 @@ internal errors.
 from __future__ import annotations
 
 import argparse
-import importlib.util
+import importlib
 import os
 import sys
 from collections.abc import Sequence
@@ -17,6 +17,11 @@ from pathlib import Path
 from .errors import FlowtexError
 
 REPLAY_SUFFIXES = (".blf", ".log", ".asc")
+
+COMMAND_MODULES = (
+    "flowtex.runtime.commands",
+)
+"""Modules that add subcommands: each has ``register(subparsers)`` (one job per module, one line here)."""
 
 
 def _add_graph_options(p: argparse.ArgumentParser) -> None:
@@ -127,10 +132,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plugins", action="append", default=[], metavar="DIR")
     p.set_defaults(func=cmd_nodes)
 
-    if importlib.util.find_spec("flowtex.runtime.commands") is not None:
-        from .runtime.commands import register
-
-        register(sub)
+    for module_name in COMMAND_MODULES:
+        importlib.import_module(module_name).register(sub)
     return parser
 
 
