@@ -1,0 +1,5 @@
+"""Fitting pipelines: recordings -> surfaces (texture model sets, friction, taps, patterns, compliance).
+
+This layer sits above ``flowtex.dsp`` (the math) and ``flowtex.models`` / ``flowtex.io``
+(the data objects and file formats); it never reaches into graphs or the live runtime.
+"""
