@@ -8,7 +8,8 @@ keep the direction, so :func:`read_session` gives it back unchanged.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import time
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import can
@@ -57,6 +58,15 @@ class SessionWriter:
             msg.channel = None  # BLF stores small channel numbers; bus channel names (e.g. virtual's) do not fit
         self._writer.on_message_received(msg)
         self.frames += 1
+
+    def write_tick(self, received: Iterable[can.Message], sent: Iterable[can.Message]) -> None:
+        """Log one tick of the live loop: the frames it received, then those it sent (stamped with the present wall time, s)."""
+        ts = time.time()
+        for m in received:
+            self.write(m, True)
+        for m in sent:
+            m.timestamp = ts
+            self.write(m, False)
 
     def close(self) -> None:
         """Flush and close the file (idempotent)."""

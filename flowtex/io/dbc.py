@@ -33,14 +33,15 @@ def load_dbc(path: str | Path) -> Database:
     try:
         db = cantools.database.load_string(text, database_format="dbc", strict=True)
     except Exception as exc:  # cantools raises ParseError, Error, ValueError... all mean "bad file"
-        raise DataError(f"{path}: not a valid DBC file: {_one_line(exc)}") from None
+        raise DataError(f"{path}: not a valid DBC file: {one_line(exc)}") from None
     if not db.messages:
         raise DataError(f"{path}: the DBC file defines no messages (BO_ lines)")
     return db
 
 
-def _one_line(exc: BaseException) -> str:
-    text = " ".join(str(exc).split())
+def one_line(exc: BaseException) -> str:
+    """An exception's message on one line (whitespace collapsed, at most 300 characters; its type name if empty)."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
     return text if len(text) <= 300 else text[:297] + "..."
 
 

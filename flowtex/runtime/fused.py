@@ -102,13 +102,13 @@ _NO_DECODER = (np.zeros(16, dtype=np.int64), np.zeros(1))
 
 
 class FusedTick:
-    """The fused tick of one :class:`~flowtex.runtime.live.CanIO` on its graph.
+    """The fused tick of one :class:`~flowtex.runtime.canio.CanIO` on its graph.
 
     ``call(ptrs, mask, tick, overrun_ns, overrun_limit_ns, tripped)`` is the compiled
     entry point (numba's type dispatch skipped: the argument types never change);
     ``ptrs`` is :attr:`ptrs`, ``mask`` and ``tick`` those of
     :func:`~flowtex.io.codec.decode_packed`, the rest the overrun and tripped state of
-    :func:`~flowtex.runtime.live._tick_out`. Returns guard events, or -1 (frames not
+    :func:`~flowtex.runtime.canio.tick_out`. Returns guard events, or -1 (frames not
     filled) when the watchdog needs its own check.
     """
 

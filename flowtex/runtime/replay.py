@@ -33,7 +33,7 @@ import numpy as np
 
 from ..errors import DataError
 from ..io.canlog import SessionWriter, read_session
-from .live import load_io
+from .canio import load_io
 
 
 @dataclass

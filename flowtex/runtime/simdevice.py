@@ -35,8 +35,12 @@ import can
 import numpy as np
 
 from ..errors import DataError, FlowtexError
-from ..io.canmap import CanMap
+from ..io.canmap import CanMap, load_map
 from ..io.codec import MessageCodec
+from ..io.dbc import load_dbc
+from ..io.recordings import Recording, load_recording
+from .buses import BusError, open_bus, parse_bus_spec
+from .clock import DeadlineClock
 
 
 class SimulatedDevice:
@@ -165,6 +169,32 @@ class SimulatedDevice:
         return count
 
 
+def in_process_device(bus_spec: str | None, canmap: CanMap, codecs: Mapping[str, MessageCodec], recording: Any, rate_hz: float,
+                      drop: Mapping[str, tuple[int, int | None]] | None = None,
+                      graph_name: str = "graph") -> tuple[can.BusABC, can.BusABC, SimulatedDevice]:
+    """``flowtex live --simulate``: a private ``virtual`` bus pair and a :class:`SimulatedDevice` on one end of it.
+
+    ``recording``: a path or :class:`~flowtex.io.recordings.Recording` whose stated
+    rate (if any) must equal ``rate_hz``; ``bus_spec`` must be None or ``virtual[:CHANNEL]``.
+    Returns (the runtime's bus, the device's bus, the device); the caller shuts both buses down.
+    """
+    rec = recording if isinstance(recording, Recording) else load_recording(recording)
+    if rec.rate is not None and abs(rec.rate - rate_hz) > 1e-9 * rate_hz:
+        raise DataError(f"{recording}: the recording states rate {rec.rate:g} Hz but graph {graph_name!r} runs at {rate_hz:g} Hz")
+    interface, channel, _ = parse_bus_spec(bus_spec or "virtual")
+    if interface != "virtual":
+        raise BusError(f"--simulate runs the device on a 'virtual' bus in this process; drop --bus {bus_spec!r} or use --bus virtual")
+    channel = channel or f"flowtex-sim-{id(rec):x}"
+    runtime_bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+    device_bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+    try:
+        return runtime_bus, device_bus, SimulatedDevice(device_bus, canmap, codecs, rec.arrays, rate_hz=rate_hz, drop=drop)
+    except Exception:
+        runtime_bus.shutdown()
+        device_bus.shutdown()
+        raise
+
+
 def run_device(bus_spec: str | None, dbc_path: str, map_path: str, recording: str, rate_hz: float | None = None,
                duration_s: float | None = None, bitrate: int | None = None, status: TextIO | None = sys.stderr,
                pty: bool = False, exit_on_close: bool = False, announce: TextIO | None = sys.stdout) -> int:
@@ -182,12 +212,6 @@ def run_device(bus_spec: str | None, dbc_path: str, map_path: str, recording: st
     end of a runtime session), after collecting its last frames.
     """
     import signal
-
-    from ..io.canmap import load_map
-    from ..io.dbc import load_dbc
-    from ..io.recordings import load_recording
-    from .clock import DeadlineClock
-    from .live import open_bus
 
     if pty == (bus_spec is not None):
         raise FlowtexError("simulate-device: give either --bus INTERFACE[:CHANNEL] or --pty")

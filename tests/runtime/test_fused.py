@@ -12,7 +12,9 @@ import flowtex.runtime.live as live
 from flowtex.graph.compiled import load_graph
 from flowtex.io.canlog import read_session
 from flowtex.io.recordings import load_recording
+from flowtex.runtime.canio import tick_out
 from flowtex.runtime.fused import fuse_tick
+from flowtex.runtime.tick import rx_decoder, warmer
 
 REPO = Path(__file__).resolve().parents[2]
 TEXTURE = REPO / "graphs" / "live_texture.yaml"
@@ -40,7 +42,7 @@ def test_fused_tick_sends_the_frames_of_the_separate_calls(setup, monkeypatch, g
               drop={"ToolPosition": (drop, drop + 40)})
     g = load_graph(graph, block_rows=1)
     io = live.load_io(g, DBC, canmap)
-    assert fuse_tick(g, io, live._tick_out, io.new_watchdog(1).last) is not None  # the first two runs take the fused path
+    assert fuse_tick(g, io, tick_out, io.new_watchdog(1).last) is not None  # the first two runs take the fused path
     logs = []
     for name, fused, warm in [("fused", True, True), ("cold", True, False), ("separate", False, True)]:
         if not fused:
@@ -64,9 +66,9 @@ def test_warming_has_no_observable_effect():
     for _ in range(50):
         g.step_block(1)
     io.guard_and_encode(False)
-    fused = fuse_tick(g, io, live._tick_out, wd.last)
+    fused = fuse_tick(g, io, tick_out, wd.last)
     assert fused is not None
-    warm = live._warmer(io, wd, fused, live._rx_decoder(io, wd))
+    warm = warmer(io, wd, fused, rx_decoder(io, wd))
     before = (g.f.copy(), g.i.copy(), wd.last.copy(), io.table_decoder.words.copy(), bytes(io.table_encoder.payload),
               [bytes(m.data) for m in io.tx], io._fbuf.copy(), io._ibuf.copy())
     for _ in range(5):
@@ -84,7 +86,7 @@ def test_frames_written_by_compiled_code_cannot_be_resized():
     g = load_graph(TEXTURE, block_rows=1)
     io = live.load_io(g, DBC, MAP)
     wd = io.new_watchdog(2_000_000)
-    fused = fuse_tick(g, io, live._tick_out, wd.last)
+    fused = fuse_tick(g, io, tick_out, wd.last)
     assert fused.arrays["frames"].shape == (len(io.tx), 3)
     with pytest.raises(BufferError):
         io.tx[0].data.append(0)  # the address the compiled copy writes to must stay valid

@@ -1,0 +1,309 @@
+"""The runtime side of a CAN map: sensor frames into the graph's inputs, guarded graph outputs into actuator frames.
+
+:class:`CanIO` is shared by the live loop and the replay so that both compute frames
+the same way: decoders from DBC payloads into graph inputs (with one watchdog entry
+per graph input and sensor message), the :class:`~flowtex.runtime.safety.OutputGuard`
+of the map's clamps and peak rules, and encoders into reusable ``can.Message`` frames.
+The compiled output calls (:func:`tick_out`, :func:`out_packed`) gather the bound graph
+outputs from the graph's float64 arena, guard and encode them in one call; the live
+loop calls them directly or inside its fused tick (:mod:`flowtex.runtime.fused`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import can
+import numpy as np
+from numba import njit
+
+from ..errors import DataError
+from ..io.canmap import CanMap, load_map
+from ..io.codec import _NF, _NI, MessageCodec, TableDecoder, TableEncoder, _encode_tables, fast_ok, pack_int64
+from ..io.dbc import load_dbc
+from .safety import OutputGuard, Watchdog, first_stale, guard_kernel
+
+
+class CanIO:
+    """Decoders into graph inputs, the output guard and encoders into reusable frames.
+
+    Watchdog entries are one per (graph input, sensor message) pair, so a vector input
+    assembled from several messages goes stale when any of them stops.
+
+    Two equivalent paths: the generated Python codecs (:meth:`decode`, always
+    available) and, when the graph's ports live in one float64 arena (the compiled
+    :class:`~flowtex.graph.compiled.Graph`), table-driven compiled codecs
+    (:class:`~flowtex.io.codec.TableDecoder`/:class:`~flowtex.io.codec.TableEncoder`):
+    one call decodes every sensor payload of a tick straight into the arena, one call
+    gathers the outputs, applies the guard and encodes every actuator payload. Both give
+    identical values and bytes (tested against cantools).
+    """
+
+    def __init__(self, graph: Any, canmap: CanMap, codecs: Mapping[str, MessageCodec], rate_hz: float):
+        self.graph = graph
+        self.map = canmap
+        self.codecs = codecs
+        arena = _arena(graph, canmap)
+        self.arena = arena
+        # inputs -> decoders
+        wd_keys: list[tuple[str, str]] = []
+        wd_timeouts: list[int] = []
+        per_msg: dict[str, list[Any]] = {}
+        per_msg_idx: dict[str, list[Any]] = {}
+        for b in canmap.inputs.values():
+            view = graph.input_view(b.name)
+            base = _offset(arena, view)
+            for j, (m, s) in enumerate(b.signals):
+                c = codecs[m]
+                targets = per_msg.setdefault(m, [None] * len(c.signals))
+                targets[c.index[s]] = (view, j, float(b.scale[j]), float(b.offset[j]))
+                if base is not None:
+                    per_msg_idx.setdefault(m, [None] * len(c.signals))[c.index[s]] = (base + j, float(b.scale[j]), float(b.offset[j]))
+                if (b.name, m) not in wd_keys:
+                    wd_keys.append((b.name, m))
+                    wd_timeouts.append(max(1, math.ceil(b.timeout_ms * rate_hz / 1000.0 - 1e-9)))
+        self.watchdog_keys = wd_keys
+        self.timeouts_ticks = np.array(wd_timeouts, dtype=np.int64)
+        self.decoders: dict[int, tuple[Callable[[Any], bool], tuple[int, ...]]] = {}
+        fast_in = []
+        for m, targets in per_msg.items():
+            c = codecs[m]
+            if c.frame_id in self.decoders:
+                raise DataError(f"two sensor messages share frame id {c.frame_id:#x}")
+            entries = tuple(i for i, (_, mm) in enumerate(wd_keys) if mm == m)
+            self.decoders[c.frame_id] = (c.decoder(targets), entries)
+            if arena is not None and fast_ok(c) and len(fast_in) < 62:
+                fast_in.append((c, per_msg_idx[m], entries))
+        self.table_decoder = TableDecoder(fast_in) if fast_in else None
+        """Compiled decoder of the sensor messages it can take (None: Python decoders only)."""
+        # outputs -> guard -> encoders
+        self.out_names = list(canmap.outputs)
+        widths = [canmap.outputs[n].width for n in self.out_names]
+        total = int(sum(widths))
+        rows = sum(len(codecs[m].signals) for m in canmap.actuator_messages() if fast_ok(codecs[m]))
+        self._fbuf = np.zeros(7 * total + _NF * rows)
+        """Float tables of the compiled output call: raw outputs | guarded outputs | guard parameters (5 x n) | encoder table."""
+        self.raw = self._fbuf[:total]
+        self.out = self._fbuf[total:2 * total]
+        self._copies: list[tuple[np.ndarray, np.ndarray]] = []
+        gather: list[int] = []
+        lo, hi, safe, plo, phi, pmax = [], [], [], [], [], []
+        start = 0
+        sources: dict[str, list[Any]] = {}
+        for name, w in zip(self.out_names, widths, strict=True):
+            b = canmap.outputs[name]
+            view = graph.output_view(name)
+            self._copies.append((view, self.raw[start:start + w]))
+            base = _offset(arena, view)
+            gather.extend(range(base, base + w) if base is not None else [])
+            lo.extend(b.lo)
+            hi.extend(b.hi)
+            safe.extend(b.safe)
+            lim = b.peak_limit if b.peak_limit is not None else b.hi
+            phi.extend(lim)
+            plo.extend(peak_low(b.lo, b.hi, lim))
+            pmax.extend([int(round(b.peak_ms * rate_hz / 1000.0)) if b.peak_limit is not None else 0] * w)
+            for j, (m, s) in enumerate(b.signals):
+                c = codecs[m]
+                src = sources.setdefault(m, [None] * len(c.signals))
+                src[c.index[s]] = (self.out, start + j, float(b.scale[j]), float(b.offset[j]))
+            start += w
+        self.guard = OutputGuard(np.array(lo), np.array(hi), np.array(safe), peak_hi=np.array(phi), peak_lo=np.array(plo),
+                                 peak_max_ticks=np.array(pmax, dtype=np.int64)) if total else None
+        # gather indices into the arena (the compiled path), or None: copy through the views
+        self._gather = np.array(gather, dtype=np.int64) if arena is not None and total else None
+        self._gfp, self._gip = self.guard.tables if self.guard is not None else (None, None)
+        self.tx: list[can.Message] = []
+        self.encoders: list[Callable[[bytearray], None]] = []
+        fast_out = []
+        self._tx_fast: list[tuple[bytearray, memoryview]] = []
+        """(frame data, its bytes in the table encoder's payload) for the compiled actuator messages: ``data[:] = src``
+        copies without allocating."""
+        self._tx_slow: list[tuple[Callable[[bytearray], None], bytearray]] = []
+        for m in canmap.actuator_messages():
+            c = codecs[m]
+            msg = can.Message(arbitration_id=c.frame_id, is_extended_id=c.is_extended, is_fd=c.is_fd,
+                              data=bytearray(c.length), is_rx=False)
+            self.tx.append(msg)
+            enc = c.encoder(sources[m])
+            self.encoders.append(enc)
+            if fast_ok(c) and self.guard is not None:
+                fast_out.append((c, [None if t is None else (t[1], t[2], t[3]) for t in sources[m]], msg))
+            else:
+                self._tx_slow.append((enc, msg.data))
+        te = self.table_encoder = TableEncoder([(c, src) for c, src, _ in fast_out]) if fast_out else None
+        self._ibuf = None
+        """Integer tables of the compiled output call (None: no compiled output path), see :func:`out_packed`."""
+        if te is not None:
+            offs = te.offsets
+            whole = memoryview(te.payload)
+            self._tx_fast = [(msg.data, whole[int(offs[i]):int(offs[i + 1])]) for i, (_, _, msg) in enumerate(fast_out)]
+            if self._gather is not None:
+                nm, r = len(fast_out), te.itab.shape[0]
+                self._ibuf, (self._gather, te.offsets, te._words, te._scratch, te.itab, _), o = pack_int64(
+                    [self._gather, te.offsets, te._words, te._scratch, te.itab, self.timeouts_ticks], header=16)
+                self._ibuf[:10] = [total, o[0], nm, o[1], o[2], o[3], r, o[4], self.timeouts_ticks.shape[0], o[5]]
+                self._fbuf[2 * total:7 * total] = self._gfp.reshape(-1)
+                self._fbuf[7 * total:] = te.ftab.reshape(-1)
+                te.ftab = self._fbuf[7 * total:].reshape(r, _NF)
+        self.tx_ids = [(m.arbitration_id, m.is_extended_id) for m in self.tx]
+        self._warm_up()
+
+    def _warm_up(self) -> None:
+        """Compile (or load from numba's disk cache) the compiled codec calls now, not on the first live tick.
+
+        Nothing observable changes: mask 0 decodes nothing, and forced-safe guarding
+        leaves the peak counters alone; the frames are re-encoded before any send.
+        """
+        if self.table_decoder is not None:
+            self.table_decoder.run(0, 0, self.arena, np.zeros(1, dtype=np.int64))
+        if self.guard is not None:
+            self.guard_and_encode(True)
+            if self._ibuf is not None:
+                tick_out(self.arena, self._ibuf, self._fbuf, self._gip, np.zeros(1, dtype=np.int64), self.table_encoder.payload_view,
+                         0, 0, 0, True)
+            self.guard_outputs(True)
+            self.encode()
+
+    def new_watchdog(self, overrun_limit_ns: int, emit_log: bool = True) -> Watchdog:
+        return Watchdog(self.timeouts_ticks, overrun_limit_ns, emit_log=emit_log)
+
+    def decode(self, msg: can.Message, tick: int, watchdog: Watchdog) -> bool:
+        """Decode one received frame into the graph inputs; True if it was a mapped sensor frame."""
+        entry = self.decoders.get(msg.arbitration_id)
+        if entry is None or not entry[0](msg.data):
+            return False
+        for w in entry[1]:
+            watchdog.fresh(w, tick)
+        return True
+
+    def guard_outputs(self, force_safe: bool) -> int:
+        """Copy bound graph outputs, guard them into ``self.out``; returns the guard's event count."""
+        if self.guard is None:
+            return 0
+        if self._gather is not None:
+            return _gather_guard(self.arena, self._gather, self.raw, self.out, self._gfp, self._gip, force_safe)
+        for src, dst in self._copies:
+            dst[:] = src
+        return self.guard.apply(self.raw, self.out, force_safe)
+
+    def encode(self) -> None:
+        """Encode ``self.out`` into the reusable actuator frames ``self.tx``."""
+        if self.table_encoder is not None:
+            self.table_encoder.run(self.out)
+        self.fill_frames()
+
+    def fill_frames(self) -> None:
+        """Copy the encoded payloads into the actuator frames ``self.tx``; run the Python encoders of the others."""
+        for data, src in self._tx_fast:
+            data[:] = src
+        for enc, data in self._tx_slow:
+            enc(data)
+
+    def guard_and_encode(self, force_safe: bool) -> int:
+        """:meth:`guard_outputs` then :meth:`encode` (one compiled call when possible); returns the guard's event count."""
+        if self._ibuf is None:
+            events = self.guard_outputs(force_safe)
+            self.encode()
+            return events
+        events = out_packed(self.arena, self._ibuf, self._fbuf, self._gip, self.table_encoder.payload_view, force_safe)
+        self.fill_frames()
+        return events
+
+    def encode_safe(self) -> None:
+        """Encode every output's safe value into ``self.tx``."""
+        if self.guard is not None:
+            self.guard.safe_values(self.out)
+        self.encode()
+
+
+def peak_low(lo: np.ndarray, hi: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    """Lower peak bound for a map's ``peak: {limit: L}``: the margin above HIGH mirrored below LOW, ``LOW - (L - HIGH)``.
+
+    The map's ``limit`` is the largest value a transient may reach above the clamp
+    (``|value| up to L`` for a symmetric clamp ``[-H, H]``, where this gives ``-L``);
+    for an asymmetric clamp the same margin ``L - HIGH`` is allowed below ``LOW``.
+    """
+    return np.asarray(lo, dtype=np.float64) - (np.asarray(limit, dtype=np.float64) - np.asarray(hi, dtype=np.float64))
+
+
+def _arena(graph: Any, canmap: CanMap) -> np.ndarray | None:
+    """The one C-contiguous float64 array every bound port view lives in, else None (then the Python path is used)."""
+    views = [graph.input_view(n) for n in canmap.inputs] + [graph.output_view(n) for n in canmap.outputs]
+    if not views:
+        return None
+    base = views[0].base
+    if not isinstance(base, np.ndarray) or base.dtype != np.float64 or base.ndim != 1 or not base.flags.c_contiguous:
+        return None
+    for v in views:
+        if v.base is not base or v.dtype != np.float64 or v.ndim != 1 or not v.flags.c_contiguous:
+            return None
+    return base
+
+
+def _offset(arena: np.ndarray | None, view: np.ndarray) -> int | None:
+    """Index of ``view[0]`` in ``arena``."""
+    if arena is None:
+        return None
+    delta = view.__array_interface__["data"][0] - arena.__array_interface__["data"][0]
+    return delta // arena.itemsize
+
+
+@njit(cache=True)
+def _gather_guard(arena, gather, raw, out, gfp, gip, force_safe):  # pragma: no cover - compiled
+    for i in range(gather.shape[0]):
+        raw[i] = arena[gather[i]]
+    return guard_kernel(gfp, gip, raw, out, force_safe)
+
+
+@njit(cache=True)
+def out_packed(arena, ib, fb, gip, payload, force_safe):  # pragma: no cover - compiled
+    """Gather the bound graph outputs from the arena, guard them, encode every compiled actuator payload; returns guard events.
+
+    ``ib`` (int64) header: outputs n, gather offset, messages, payload offsets offset, words offset,
+    scratch offset, encoder rows, encoder table offset, watchdog entries, timeouts offset; ``fb``
+    (float64): raw n | guarded n | guard parameters 5 x n | encoder table (see ``CanIO.__init__``).
+    """
+    n, og, nm, oo, ow, osc, r, oi = ib[0], ib[1], ib[2], ib[3], ib[4], ib[5], ib[6], ib[7]
+    gather = ib[og:og + n]
+    raw = fb[:n]
+    out = fb[n:2 * n]
+    for i in range(n):
+        raw[i] = arena[gather[i]]
+    events = guard_kernel(fb[2 * n:7 * n].reshape((5, n)), gip, raw, out, force_safe)
+    _encode_tables(out, ib[oi:oi + r * _NI].reshape((r, _NI)), fb[7 * n:7 * n + r * _NF].reshape((r, _NF)), ib[oo:oo + nm + 1],
+                   ib[ow:ow + 2 * nm].reshape((nm, 2)), payload, ib[osc:osc + 1])
+    return events
+
+
+@njit(cache=True)
+def tick_out(arena, ib, fb, gip, wd_last, payload, tick, overrun_ns, overrun_limit_ns, tripped):  # pragma: no cover - compiled
+    """The quiet tick's watchdog test, then :func:`out_packed`; -1 (nothing done) when the watchdog needs its own check.
+
+    Quiet means: not tripped, no input older than its timeout, no overrun; then
+    :meth:`Watchdog.check` would return False and change nothing, so the outputs are
+    guarded unforced. Otherwise the caller runs ``Watchdog.check`` and ``CanIO.guard_and_encode``.
+    """
+    if tripped or overrun_ns > overrun_limit_ns:
+        return -1
+    nw, ot = ib[8], ib[9]
+    if first_stale(wd_last, ib[ot:ot + nw], tick) >= 0:
+        return -1
+    return out_packed(arena, ib, fb, gip, payload, False)
+
+
+def load_io(graph: Any, dbc_path: str | Path, map_path: str | Path) -> CanIO:
+    """Load the DBC and map (checked against ``graph``) and build the :class:`CanIO`."""
+    db = load_dbc(dbc_path)
+    canmap = load_map(map_path, db, dbc_path, port_widths(graph.inputs), port_widths(graph.outputs))
+    used = set(canmap.sensor_messages()) | set(canmap.actuator_messages())
+    codecs = {m.name: MessageCodec(m) for m in db.messages if m.name in used}
+    return CanIO(graph, canmap, codecs, float(graph.rate))
+
+
+def port_widths(ports: Mapping[str, Any]) -> dict[str, int]:
+    """Graph port name -> number of scalars (product of its shape)."""
+    return {name: int(np.prod(spec.shape)) if spec.shape else 1 for name, spec in ports.items()}

@@ -1,0 +1,163 @@
+"""The compute of one live tick as one Python callable, and its warming pass.
+
+:func:`tick_compute` hides how a tick is computed from the loop: the Python loop
+over the received frames (:func:`rx_decoder`), then either the fused compiled call
+(:mod:`flowtex.runtime.fused`: decode, graph block, watchdog's quiet case, guard,
+encode, frame copies) or, for graphs the runtime cannot fuse, the same steps as
+separate compiled calls; any watchdog case other than the quiet one goes through
+:meth:`~flowtex.runtime.safety.Watchdog.check` and
+:meth:`~flowtex.runtime.canio.CanIO.guard_and_encode`. Both ways send the same bytes
+(tests/runtime/test_fused.py). :func:`warmer` is the effect-free pass the clock makes
+shortly before each deadline.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import can
+import numpy as np
+
+from ..io.codec import decode_packed
+from .buses import CAN_ERR_BUSOFF, BusError
+from .canio import CanIO, tick_out
+from .fused import FusedTick
+from .safety import Watchdog
+
+
+def entry_point(fn: Any) -> Callable[..., Any]:
+    """The compiled entry point of a numba function compiled for exactly one signature
+    (by the warm-up before the loop): calling it skips numba's per-call type dispatch,
+    about 0.1-0.2 us per array argument. Otherwise the function itself."""
+    sigs = getattr(fn, "signatures", ())
+    return fn.overloads[sigs[0]].entry_point if len(sigs) == 1 else fn
+
+
+def rx_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[Any], int, Any], int]:
+    """``decode_rx(rx, tick, words) -> mask``: step 2 of a tick for the received frames ``rx``.
+
+    A frame the compiled decoder takes has its payload stored as one integer in
+    ``words[slot]`` and its bit set in the returned mask (for :func:`decode_packed`);
+    any other mapped frame goes through its generated Python decoder into the graph
+    inputs and marks its watchdog entries fresh at ``tick``. An error frame reporting
+    bus-off raises :class:`BusError`.
+    """
+    td = io.table_decoder
+    slot_get = td.slot_of.get if td is not None else {}.get
+    slot_len = td.lengths if td is not None else []
+    from_bytes = int.from_bytes
+    decoders = io.decoders
+    fresh = watchdog.fresh
+
+    def decode_rx(rx: list[Any], tick: int, words: Any) -> int:
+        mask = 0
+        for msg in rx:
+            if msg.is_error_frame:
+                if msg.arbitration_id & CAN_ERR_BUSOFF:
+                    raise BusError("CAN bus went bus-off (error frame with CAN_ERR_BUSOFF)")
+                continue
+            j = slot_get(msg.arbitration_id)
+            if j is not None:
+                data = msg.data
+                if len(data) == slot_len[j]:
+                    words[j] = from_bytes(data, "little", signed=True)
+                    mask |= 1 << j
+                    continue
+                mask &= ~(1 << j)  # an odd-length frame after a regular one: the later frame wins
+            entry = decoders.get(msg.arbitration_id)
+            if entry is not None and entry[0](msg.data):
+                for w in entry[1]:
+                    fresh(w, tick)
+        return mask
+
+    return decode_rx
+
+
+def tick_compute(graph: Any, io: CanIO, watchdog: Watchdog, fused: FusedTick | None,
+                 decode_rx: Callable[[list[Any], int, Any], int]) -> Callable[[list[Any], int, int], int]:
+    """``compute(rx, tick, overrun_ns) -> guard events``: steps 2-5 of a live tick (docs/live.md) for the received frames ``rx``.
+
+    Decodes ``rx`` into the graph inputs, steps the graph once, runs the watchdog
+    (``overrun_ns``: how late the tick started, skipped deadlines included), guards
+    the outputs and encodes every actuator frame of ``io.tx``. ``fused``: the fused
+    call of :func:`~flowtex.runtime.fused.fuse_tick`, or None for separate calls.
+    """
+    td = io.table_decoder
+    words = td.words if td is not None else None
+    check = watchdog.check
+    guard_and_encode = io.guard_and_encode
+    overrun_limit = watchdog.overrun_limit_ns
+    tx_fast, tx_slow = io._tx_fast, io._tx_slow
+    if fused is not None:  # the whole tick in one compiled call, which also fills the compiled messages' frames
+        live_tick, ptrs = fused.call, fused.ptrs
+
+        def compute_fused(rx: list[Any], k: int, overrun: int) -> int:
+            ev = live_tick(ptrs, decode_rx(rx, k, words), k, overrun, overrun_limit, watchdog.tripped)
+            if ev < 0:
+                return guard_and_encode(check(k, overrun))
+            for enc, data in tx_slow:
+                enc(data)
+            return ev
+
+        return compute_fused
+    arena, wd_last, step = io.arena, watchdog.last, graph.step_block
+    d_ib, d_fb = (td.ibuf, td.fbuf) if td is not None else (None, None)
+    o_ib, o_fb, gip = io._ibuf, io._fbuf, io._gip
+    out_fused = o_ib is not None
+    e_payload = io.table_encoder.payload_view if out_fused else None
+    tick_out_ = entry_point(tick_out)
+    decode_packed_ = entry_point(decode_packed)
+
+    def compute_separately(rx: list[Any], k: int, overrun: int) -> int:
+        mask = decode_rx(rx, k, words)
+        if mask:
+            decode_packed_(d_ib, d_fb, mask, k, arena, wd_last)
+        step(1)
+        ev = tick_out_(arena, o_ib, o_fb, gip, wd_last, e_payload, k, overrun, overrun_limit, watchdog.tripped) if out_fused else -1
+        if ev < 0:
+            return guard_and_encode(check(k, overrun))
+        for data, src in tx_fast:
+            data[:] = src
+        for enc, data in tx_slow:
+            enc(data)
+        return ev
+
+    return compute_separately
+
+
+def warmer(io: CanIO, watchdog: Watchdog, fused: FusedTick | None, decode_rx: Callable[[list[Any], int, Any], int]) -> Callable[[], None]:
+    """One effect-free pass through a tick's code, for the clock to call shortly before each deadline.
+
+    After the clock's sleep the tick's first run was 2-4x slower than in a tight loop
+    (see :mod:`flowtex.runtime.clock`); this re-runs its Python and compiled parts
+    with nothing observable changing: the Python decode on one template frame per
+    compiled slot into scratch words, then the fused tick on scratch copies of the
+    arenas and watchdog stamps with ``tripped=True`` (the output call returns before
+    touching anything). Without a fused tick: the decoder with mask 0, the output call
+    tripped, and :meth:`Graph.warm`.
+    """
+    td, te = io.table_decoder, io.table_encoder
+    calls: list[Callable[[], Any]] = []
+    if td is not None:
+        templates = [can.Message(arbitration_id=fid, is_extended_id=fid > 0x7FF, data=bytearray(int(td.lengths[j])))
+                     for fid, j in td.slot_of.items()]
+        scratch_words = np.zeros_like(td.words)
+        calls.append(lambda: decode_rx(templates, 0, scratch_words))
+    if fused is not None:
+        every_slot = (1 << len(td.slot_of)) - 1 if td is not None else 0
+        calls.append(lambda: fused.warm(every_slot))
+    else:
+        if td is not None:
+            args = (td.ibuf, td.fbuf, 0, 0, io.arena, watchdog.last)
+            calls.append(lambda: decode_packed(*args))
+        if io._ibuf is not None:
+            out_args = (io.arena, io._ibuf, io._fbuf, io._gip, watchdog.last, te.payload_view, 0, 0, 0, True)
+            calls.append(lambda: tick_out(*out_args))
+        calls.append(io.graph.warm)
+
+    def warm() -> None:
+        for c in calls:
+            c()
+
+    return warm
