@@ -52,9 +52,7 @@ def run_deadline_clock(seconds: float, rate: float, work_ns: int) -> TickStats:
     while clock.tick < n:
         busy(work_ns)
         late = clock.wait()
-        stats.missed += clock.skipped
-        if clock.skipped:
-            stats.overruns += 1
+        stats.record_skipped(clock.skipped, late, clock.period_ns)
         stats.record(late, work_ns)
     return stats
 

@@ -192,9 +192,8 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                 if display is not None:
                     display.tick(k)
                 lateness = overrun = clock.wait()  # 1. the next deadline
-                if clock.skipped:
-                    stats.missed += clock.skipped
-                    stats.overruns += 1
+                if clock.skipped:  # a stall: the skipped deadlines count as late, until now
+                    stats.record_skipped(clock.skipped, lateness, period)
                     overrun = lateness + clock.skipped * period
         except (can.CanError, BusError, OSError) as exc:
             error = f"CAN bus error at tick {k}: {one_line(exc)}"

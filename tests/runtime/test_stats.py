@@ -6,6 +6,7 @@ import json
 import math
 import tracemalloc
 
+import numpy as np
 import pytest
 
 from flowtex.runtime.stats import TickStats
@@ -138,3 +139,106 @@ def test_record_does_not_grow_memory():
         tracemalloc.stop()
     assert cur - base < 512
     assert peak - base < 2048
+
+
+# --- skipped deadlines count as late (issue 8 item 4) ---------------------------------------------
+class _FakeTime:
+    """Monotonic fake clock in ns: every now() advances 1 ns; sleep advances exactly; work(ns) is the tick's work."""
+
+    def __init__(self, t0: int) -> None:
+        self.t = t0
+
+    def now(self) -> int:
+        self.t += 1
+        return self.t - 1
+
+    def sleep(self, s: float) -> None:
+        self.t += int(round(s * 1e9))
+
+    def work(self, ns: int) -> None:
+        self.t += ns
+
+
+def test_a_3ms_stall_at_1khz_counts_its_skipped_deadlines_as_late():
+    from flowtex.runtime.clock import DeadlineClock
+
+    ms = 1_000_000
+    t0 = 10 * ms
+    ft = _FakeTime(t0)
+    clock = DeadlineClock(1000.0, sleep=ft.sleep, now=ft.now)
+    s = TickStats(100)
+    clock.start()
+    lateness = 0
+    started = []  # (deadline, the clock's last reading, i.e. when the tick started) of every executed tick
+    for k in range(10):  # the live loop's order: record the tick, wait, count what the wait skipped
+        started.append((clock.deadline_ns, ft.t - 1))
+        s.record(lateness, 50_000)
+        ft.work(3_100_000 if k == 5 else 100_000)  # tick 5 stalls for 3.1 ms
+        lateness = clock.wait()
+        if clock.skipped:
+            s.record_skipped(clock.skipped, lateness, clock.period_ns)
+    # ground truth from the fake time: tick 5 ran at t0 + 5 ms and its work ended at t0 + 8.1 ms, so the deadlines
+    # t0 + 6, 7, 8 ms had no tick; the loop resumed at the next executed tick, whose deadline is t0 + 9 ms
+    deadlines = [d for d, _ in started]
+    assert deadlines[:7] == [t0 + k * ms for k in range(6)] + [t0 + 9 * ms]
+    resumed = started[6][1]
+    expected_skipped = [resumed - (t0 + k * ms) for k in (6, 7, 8)]
+    assert s.missed == 3 and s.overruns == 1 and s.ticks == 10 and s.deadlines == 13
+    ring = sorted(int(v) for v in s.lateness_ns[:s.deadlines])
+    executed = [t - d for d, t in started]
+    assert ring == sorted(expected_skipped + executed)
+    # each skipped deadline is exactly 1 ms apart: 3 ms, 2 ms, 1 ms plus the resumed tick's few-ns lateness
+    assert [e - expected_skipped[-1] for e in expected_skipped] == [2 * ms, ms, 0]
+    assert 0 <= resumed - (t0 + 9 * ms) < 1_000
+    out = s.summary(False)
+    assert out["late_over_1ms"] == sum(e > ms for e in expected_skipped) + sum(e > ms for e in executed)
+    assert 2 <= out["late_over_1ms"] <= 3
+    assert out["longest_stall_us"] == pytest.approx(expected_skipped[0] / 1e3)  # from t0 + 6 ms to the resume
+    assert out["longest_stall_us"] == pytest.approx(3000.0, abs=1.0)
+    assert out["lateness_us"]["max"] == pytest.approx(expected_skipped[0] / 1e3)
+    # p99 over 13 deadlines is interpolated between the two largest: numpy on the same values, computed here
+    assert out["lateness_us"]["p99"] == pytest.approx(float(np.percentile(ring, 99)) / 1e3)
+    assert out["lateness_window"] == 13 and out["window_ticks"] == 10
+    text = s.format_summary(False)
+    assert "missed 3 in 1 stall(s), longest 3.00 ms" in text
+
+
+def test_record_skipped_counts_match_a_brute_force_count():
+    # the count of skipped deadlines later than 1 ms is computed in closed form; compare with counting each one
+    for period in (1_000_000, 500_000, 333_333, 2_000_000):
+        for late in (0, 1, 999_999, 1_000_000, 1_000_001, 250_000, 3_000_000):
+            for skipped in (1, 2, 3, 7):
+                s = TickStats(64)
+                s.record_skipped(skipped, late, period)
+                values = [j * period + late for j in range(skipped, 0, -1)]
+                assert s.late_over_1ms == sum(v > 1_000_000 for v in values), (period, late, skipped)
+                assert list(s.lateness_ns[:skipped]) == values
+                assert s.longest_stall_ns == values[0] == s.lateness_max_ns
+                assert s.missed == skipped and s.deadlines == skipped and s.ticks == 0
+
+
+def test_a_stall_longer_than_the_ring_keeps_exact_counts():
+    s = TickStats(8)
+    s.record(1_000, 5_000)
+    s.record_skipped(20, 500, 1_000_000)  # a 20 ms stall at 1 kHz, 500 ns late on resuming
+    s.record(500, 5_000)
+    assert s.deadlines == 22 and s.missed == 20 and s.ticks == 2
+    assert s.late_over_1ms == 20  # j ms + 500 ns > 1 ms for every j >= 1
+    # the ring of 8 holds the latest 8 deadlines: skipped ones 7 ms .. 1 ms (plus 500 ns) and the resumed tick
+    assert sorted(int(v) for v in s.lateness_ns) == sorted([j * 1_000_000 + 500 for j in range(1, 8)] + [500])
+    out = s.summary(True)
+    assert out["lateness_us"]["max"] == pytest.approx(20_000.5) and out["longest_stall_us"] == pytest.approx(20_000.5)
+    assert out["compute_us"]["p50"] == pytest.approx(5.0)  # skipped deadlines have no compute sample
+    line = s.status_line()
+    assert "max  20000.5" not in line and "max   7000.5 us" in line  # the status window is the ring's latest deadlines
+    s.record_skipped(0, 123, 1_000_000)  # no skip: nothing changes
+    assert s.missed == 20 and s.overruns == 1
+
+
+def test_no_stall_reports_zero_longest_stall():
+    s = TickStats(4)
+    s.record(2_000_000, 1_000)  # late, but no deadline skipped
+    out = s.summary(False)
+    assert out["longest_stall_us"] == 0.0 and out["late_over_1ms"] == 1 and out["deadlines"] == 1
+    with pytest.raises(ValueError):
+        s.record_skipped(1, 0, 0)
