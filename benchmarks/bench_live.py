@@ -1,6 +1,6 @@
 """Live loop at the graph's rate against the in-process simulated device, without and with --rt.
 
-    python benchmarks/bench_live.py [SECONDS=60] [--only-rt | --no-rt]
+    python benchmarks/bench_live.py [SECONDS=60] [--only-rt | --no-rt] [--no-cyclictest]
 
 Graph: graphs/live_texture.yaml with its recording graphs/data/exploration.npz and the
 example device (graphs/devices/example.dbc + example_map.yaml). Only if those files are
@@ -9,7 +9,17 @@ gain -> vibration) and a synthetic 3 s recording run instead; the output says wh
 
 Per run it reports:
 
-- lateness (tick start - deadline) p50/p99/p99.9/max and ticks later than 1 ms;
+- the machine's floor, measured just before the session when ``cyclictest`` (Debian/Ubuntu
+  package ``rt-tests``) is installed: cyclictest, the standard C measurement of a machine's
+  scheduling latency, runs one thread at the session's rate, scheduling policy, priority and
+  CPU for as long as the session (at most 60 s); its wake-up latency p50/p99/p99.9/max and
+  the wake-ups later than 1 ms are printed beside flowtex's lateness. A stall that both show
+  belongs to the machine (steal, another task, an interrupt storm), not to flowtex.
+  cyclictest sleeps until each deadline (``clock_nanosleep``) while flowtex sleeps until 200
+  us before it and spins, so cyclictest's p50 includes the kernel's timer latency that
+  flowtex's spin hides: compare the tails and the stalls, not the medians;
+- lateness (tick start - deadline, skipped deadlines included, see docs/live.md) p50/p99/
+  p99.9/max, deadlines later than 1 ms, and the longest stall;
 - compute p50/p99/p99.9/max: from after the tick's frames were received to before the
   first send: decode into the graph inputs, one graph tick, watchdog, output guard,
   encode into the frames (bus receive and send excluded, see docs/live.md);
@@ -37,7 +47,11 @@ actuator command for tick n sent within tick n.
 
 from __future__ import annotations
 
+import logging
 import os
+import re
+import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -115,15 +129,91 @@ def noise_floor(work_ns: int, seconds: float, rate: float, rt: bool) -> np.ndarr
     return took
 
 
+CYCLICTEST_RANGE_US = 20_000
+"""Histogram range of cyclictest (1 us bins); later wake-ups are counted as overflows, their maximum is still exact."""
+
+
+def parse_cyclictest(text: str) -> dict:
+    """Wake-up latencies (us) from the output of ``cyclictest -q -t 1 -h RANGE``: the histogram and its summary lines.
+
+    Returns ``count`` (wake-ups, overflows included), ``p50``/``p99``/``p999`` (nearest rank over
+    the 1 us bins; ``None`` when the rank falls among the overflows, i.e. beyond the histogram
+    range), ``max`` (cyclictest's own, exact), ``over_1ms`` (wake-ups in bins above 1000 us plus the
+    overflows; None when there are overflows and the range ends below 1 ms) and ``overflows``. Lines it does not know (comments of other versions, the
+    overflow cycle list) are ignored; a text without a histogram or a ``Max Latencies`` line
+    raises ValueError.
+    """
+    bins: dict[int, int] = {}
+    summary: dict[str, int] = {}
+    for line in text.splitlines():
+        m = re.fullmatch(r"\s*(\d+)\s+(\d+)(?:\s+\d+)*\s*", line)
+        if m:
+            bins[int(m.group(1))] = bins.get(int(m.group(1)), 0) + int(m.group(2))
+            continue
+        m = re.fullmatch(r"#\s*(Total|Min Latencies|Avg Latencies|Max Latencies|Histogram Overflows)\s*:\s*(\d+)(?:\s+\d+)*\s*", line)
+        if m:
+            summary[m.group(1)] = int(m.group(2))
+    if not bins or "Max Latencies" not in summary:
+        raise ValueError("no cyclictest histogram (-h) or summary in the output")
+    overflows = summary.get("Histogram Overflows", 0)
+    in_range = sum(bins.values())
+    count = in_range + overflows
+    values = np.array(sorted(bins), dtype=np.int64)
+    cum = np.cumsum([bins[v] for v in values])
+
+    # cyclictest prints every bin 0 .. RANGE-1, so the overflows are known to be later than 1 ms only for RANGE > 1000
+    over_1ms = int(sum(c for v, c in bins.items() if v > 1000)) + overflows if overflows == 0 or values[-1] >= 1000 else None
+
+    def rank(q: float) -> float | None:
+        need = max(1, int(np.ceil(q / 100.0 * count)))
+        return float(values[np.searchsorted(cum, need)]) if need <= in_range else None
+
+    return {"count": count, "p50": rank(50), "p99": rank(99), "p999": rank(99.9), "max": float(summary["Max Latencies"]),
+            "over_1ms": over_1ms, "overflows": overflows}
+
+
+def machine_floor(seconds: float, rate: float, rt: bool, priority: int, cpu: int | None) -> tuple[dict | None, str]:
+    """Run cyclictest for ``seconds`` like the session will run (rate; with ``rt`` SCHED_FIFO ``priority`` on ``cpu``).
+
+    Returns (the parsed latencies or None, one line saying what ran or why nothing did).
+    """
+    exe = shutil.which("cyclictest")
+    if exe is None:
+        return None, "machine floor: cyclictest not installed (Debian/Ubuntu: apt-get install rt-tests), not measured"
+    interval_us = max(1, int(round(1e6 / rate)))
+    cmd = [exe, "-q", "-t", "1", "-i", str(interval_us), "-D", f"{max(1, int(round(seconds)))}", "-h", str(CYCLICTEST_RANGE_US)]
+    if rt:
+        cmd += ["--policy=fifo", "-p", str(priority)] + (["-a", str(cpu)] if cpu is not None else [])
+    else:
+        cmd += ["--policy=other", "-p", "0"]
+    what = " ".join(["cyclictest"] + cmd[1:])
+    try:
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=seconds + 30)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return None, f"machine floor: {what} failed: {exc}"
+    try:
+        return parse_cyclictest(p.stdout), f"machine floor: {what}"
+    except ValueError:
+        why = (p.stderr.strip().splitlines() or [f"exit code {p.returncode}"])[-1]
+        return None, f"machine floor: {what} failed: {why}"
+
+
+def _num(v: float | None, width: int = 9) -> str:
+    return f"{v:>{width}.1f}" if v is not None else f"{'>' + str(CYCLICTEST_RANGE_US):>{width}}"
+
+
 def _dist(d: dict) -> str:
     return f"p50 {d['p50']:.1f} p99 {d['p99']:.1f} p99.9 {d['p999']:.1f} max {d['max']:.1f}"
 
 
-def run(seconds: float, rt: bool, graph_path: Path, rec: Path) -> dict:
+def run(seconds: float, rt: bool, graph_path: Path, rec: Path, cyclictest: bool = True) -> dict:
     """One session of ``seconds``; prints the report and returns the numbers."""
     g = load_graph(graph_path)
+    cpu = max(os.sched_getaffinity(0)) if rt and hasattr(os, "sched_getaffinity") else None  # enter_realtime's own choice
+    floor, floor_line = (machine_floor(min(seconds, 60.0), g.rate, rt, 80, cpu) if cyclictest
+                         else (None, "machine floor: not measured (--no-cyclictest)"))
     load_before, steal_before = os.getloadavg(), _steal_ms()
-    r = run_live(g, DBC, MAP, simulate=rec, duration_s=seconds, rt=rt, status=None)
+    r = run_live(g, DBC, MAP, simulate=rec, duration_s=seconds, rt=rt, rt_priority=80, rt_cpu=cpu, status=None)
     load_after, steal_after = os.getloadavg(), _steal_ms()
     s = r.summary
     period_ns = 1e9 / g.rate
@@ -136,8 +226,17 @@ def run(seconds: float, rt: bool, graph_path: Path, rec: Path) -> dict:
           + (f" ({r.rt_message})" if r.rt_message else ""))
     steal = f", hypervisor steal during the run {steal_after - steal_before:.0f} ms" if steal_before is not None and steal_after is not None else ""
     print(f"  load average before {load_before[0]:.2f} after {load_after[0]:.2f} (1 min), {os.cpu_count()} CPUs{steal}")
-    print(f"  ticks {s['ticks']} missed {s['missed']} late>1ms {s['late_over_1ms']} ({100 * s['late_over_1ms'] / max(1, s['ticks']):.3f} %)"
+    print(f"  ticks {s['ticks']} missed {s['missed']} (longest stall {s['longest_stall_us'] / 1e3:.2f} ms) late>1ms {s['late_over_1ms']} "
+          f"({100 * s['late_over_1ms'] / max(1, s['deadlines']):.3f} % of deadlines, skipped ones included)"
           f" watchdog events {s['watchdog_events']} (stale {s['timeouts']}) error {r.error}")
+    print(f"  {floor_line}")
+    print(f"  {'latency us':<34}{'p50':>9}{'p99':>9}{'p99.9':>9}{'max':>10}   later than 1 ms")
+    if floor is not None:
+        print(f"  {'machine: cyclictest wake-up':<34}{_num(floor['p50'])}{_num(floor['p99'])}{_num(floor['p999'])}{floor['max']:>10.1f}"
+              f"   {floor['over_1ms']} of {floor['count']} ({100 * floor['over_1ms'] / max(1, floor['count']):.3f} %)")
+    lat = s["lateness_us"]
+    print(f"  {'flowtex: tick start - deadline':<34}{_num(lat['p50'])}{_num(lat['p99'])}{_num(lat['p999'])}{_num(lat['max'], 10)}"
+          f"   {s['late_over_1ms']} of {s['deadlines']} ({100 * s['late_over_1ms'] / max(1, s['deadlines']):.3f} %)")
     print(f"  lateness us: {_dist(s['lateness_us'])}")
     print(f"  compute us:  {_dist(s['compute_us'])}")
     print(f"  actuator command for tick n sent within tick n: {100 * within:.3f} % of ticks")
@@ -156,7 +255,7 @@ def run(seconds: float, rt: bool, graph_path: Path, rec: Path) -> dict:
         took = noise_floor(work_ns, probe_s, g.rate, rt) / 1e3
         print(f"  noise floor ({probe_s:g} s, a fixed {work_ns / 1e3:.1f} us busy-wait per tick on the same clock): "
               f"p50 {np.percentile(took, 50):.1f} p99 {np.percentile(took, 99):.1f} p99.9 {np.percentile(took, 99.9):.1f} max {took.max():.1f} us")
-    return {"summary": s, "within": within, "latency_ticks_max": int(lat_ticks.max()) if n else None}
+    return {"summary": s, "within": within, "latency_ticks_max": int(lat_ticks.max()) if n else None, "floor": floor}
 
 
 def main(argv: list[str]) -> None:
@@ -164,8 +263,10 @@ def main(argv: list[str]) -> None:
     modes = [True] if "--only-rt" in argv else [False] if "--no-rt" in argv else [False, True]
     graph_path, rec, what = _files()
     print(f"{what}, {seconds:g} s per run")
+    # watchdog events are counted in the report; logged one by one they would bury it
+    logging.getLogger("flowtex.runtime.safety").setLevel(logging.ERROR)
     for rt in modes:
-        run(seconds, rt, graph_path, rec)
+        run(seconds, rt, graph_path, rec, cyclictest="--no-cyclictest" not in argv)
 
 
 if __name__ == "__main__":
