@@ -18,11 +18,16 @@ import sys
 from pathlib import Path
 from typing import Any
 
+EXIT_NO_SENSOR_FRAMES = 3
+"""Exit code of ``flowtex live`` when the session ended without one sensor frame received (0: clean stop, 1: error)."""
+
 
 def register(subparsers: Any) -> None:
     """Add the ``live`` and ``simulate-device`` subcommands to an argparse subparsers object."""
     p = subparsers.add_parser("live", help="run a graph live against a CAN device at the graph's rate",
-                              description="Run GRAPH live: CAN sensor frames -> graph inputs, graph outputs -> guarded actuator frames.")
+                              description="Run GRAPH live: CAN sensor frames -> graph inputs, graph outputs -> guarded actuator frames.",
+                              epilog="Exit codes: 0 clean stop (duration, Ctrl-C, SIGTERM); 1 error (safe values sent); "
+                                     "3 no sensor frame arrived during the whole session (outputs stayed safe).")
     p.add_argument("graph", help="graph YAML file")
     p.add_argument("--bus", help="INTERFACE[:CHANNEL], e.g. virtual, socketcan:can0, slcan:/dev/ttyACM0, pcan, kvaser, "
                                  "socketcand:can0@127.0.0.1:29536")
@@ -69,7 +74,7 @@ def _error(command: str, message: str) -> int:
 
 
 def cmd_live(args: argparse.Namespace) -> int:
-    """``flowtex live``: returns 0 after a clean stop (duration, Ctrl-C, SIGTERM), 1 on errors."""
+    """``flowtex live``: returns 0 after a clean stop (duration, Ctrl-C, SIGTERM), 1 on errors, 3 when no sensor frame arrived."""
     from ..errors import FlowtexError
     from ..graph.compiled import load_graph
     from ..graph.spec import parse_override
@@ -88,6 +93,11 @@ def cmd_live(args: argparse.Namespace) -> int:
         return _error("live", "interrupted before the loop started")
     if report.error:
         return _error("live", report.error + " (safe values sent)")
+    if report.no_sensor_frames:
+        _error("live", report.silence)
+        return EXIT_NO_SENSOR_FRAMES
+    if report.silence:
+        print(f"flowtex live: warning: {report.silence}", file=sys.stderr)
     return 0
 
 

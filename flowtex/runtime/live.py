@@ -72,6 +72,12 @@ class LiveReport:
     """Per tick (first ``ticks``, up to capacity): time from the tick's deadline until its last frame was sent."""
     device: Any = None
     """The in-process :class:`~flowtex.runtime.simdevice.SimulatedDevice`, if any."""
+    silent_messages: list[str] = field(default_factory=list)
+    """Sensor messages of the map of which not one frame arrived during the session."""
+    silence: str | None = None
+    """One line naming the silent sensor messages (frame ids) and the bus, or None when every sensor message arrived."""
+    no_sensor_frames: bool = False
+    """Not one sensor frame arrived (outputs were safe throughout): ``flowtex live`` then exits with code 3."""
 
     @property
     def ok(self) -> bool:
@@ -118,8 +124,9 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
     writer = None
     try:
         writer = SessionWriter(record) if record is not None else None
+        where = "the simulated device's virtual bus" if device is not None else f"bus {bus!r}"
         return _loop(graph, io, bus_obj, device, writer, n_ticks, rt, rt_priority, rt_cpu, stats_path, seed, status,
-                     install_signals, warm)
+                     install_signals, warm, where)
     finally:
         if writer is not None:
             writer.close()
@@ -131,7 +138,7 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
 
 def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWriter | None, n_ticks: int | None,
           rt: bool, rt_priority: int, rt_cpu: int | None, stats_path: str | Path | None, seed: int | None,
-          status: TextIO | None, install_signals: bool, warm: bool) -> LiveReport:
+          status: TextIO | None, install_signals: bool, warm: bool, where: str) -> LiveReport:
     rate = float(graph.rate)
     capacity = int(min(n_ticks if n_ticks else 600 * rate, 3600 * rate)) + 1
     stats = TickStats(capacity)
@@ -216,10 +223,27 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
         display.finish(rt_granted)
     if stats_path is not None:
         stats.write_json(stats_path, rt_granted)
+    silent, silence = _silent_sensors(io, watchdog.last, k, stats.frames_in, where)
     return LiveReport(ticks=k, frames_in=stats.frames_in, frames_out=stats.frames_out, watchdog_events=watchdog.events,
                       guard_events=guard_events, exit_reason="error" if error else (stop[0] or "duration"), error=error,
                       summary=stats.summary(rt_granted), rt_message=rt_message, send_offset_ns=send_offset[:min(k, capacity)],
-                      device=device)
+                      device=device, silent_messages=silent, silence=silence,
+                      no_sensor_frames=bool(k) and len(silent) == len(io.map.sensor_messages()) > 0)
+
+
+def _silent_sensors(io: CanIO, last: np.ndarray, ticks: int, frames_in: int, where: str) -> tuple[list[str], str | None]:
+    """The map's sensor messages of which no frame arrived (watchdog stamps never set), and one line saying so."""
+    heard = {m for (_, m), t in zip(io.watchdog_keys, last, strict=True) if t >= 0}
+    silent = [m for m in io.map.sensor_messages() if m not in heard]
+    if not silent or not ticks:
+        return silent, None
+    names = ", ".join(f"{m} (id {io.codecs[m].frame_id:#x})" for m in silent)
+    if len(silent) == len(io.map.sensor_messages()):
+        other = f"; the {frames_in} frame(s) that arrived were none of them" if frames_in else ""
+        return silent, (f"no sensor frame received in {ticks} ticks on {where}: expected {names}{other}. Outputs stayed at their "
+                        "safe values. Check that the device is connected and powered, the --bus channel and --bitrate, and that "
+                        "--dbc describes the device's messages")
+    return silent, f"no frame of {names} received in {ticks} ticks on {where}; outputs stayed at their safe values"
 
 
 def _enter_rt(rt: bool, priority: int, cpu: int | None, status: TextIO | None) -> tuple[RealtimeStatus | None, str]:

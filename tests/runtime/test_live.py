@@ -418,3 +418,28 @@ def test_map_peak_limit_is_mirrored_below_the_clamp(setup):
         io.guard_outputs(False)
         seen.append(io.out[3])
     assert seen == [-2.0, -2.0, 0.0, 0.0]
+
+
+# --- a session that hears nothing (issue 9 item 5) -------------------------------------------------
+def test_a_session_without_any_sensor_frame_says_so_and_exits_3(setup):
+    # the user's mistake: no --simulate and no device on the bus; a private virtual channel nobody sends on
+    channel = f"flowtex-silent-{os.getpid()}"
+    cmd = [sys.executable, "-m", "flowtex.runtime.commands", "live", str(setup / "g.yaml"), "--bus", f"virtual:{channel}",
+           "--dbc", str(DBC), "--map", str(setup / "m.yaml"), "--duration", "0.3", "--quiet"]
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 3, p.stderr
+    last = p.stderr.strip().splitlines()[-1]
+    assert last.startswith("flowtex live: error: no sensor frame received in ")
+    # names the expected messages with the DBC's frame ids, and the bus
+    assert "ToolPosition (id 0x100)" in last and "ToolForce (id 0x101)" in last, last
+    assert f"bus 'virtual:{channel}'" in last and "safe values" in last
+
+
+def test_one_silent_sensor_message_is_named_but_not_an_error(setup):
+    g = load_graph(setup / "g.yaml")
+    r = run_live(g, DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=200, status=None, drop={"ToolForce": (0, None)})
+    assert r.error is None and not r.no_sensor_frames
+    assert r.silent_messages == ["ToolForce"]
+    assert r.silence.startswith("no frame of ToolForce (id 0x101) received in 200 ticks on the simulated device's virtual bus")
+    r = run_live(g, DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=50, status=None)
+    assert r.silent_messages == [] and r.silence is None and not r.no_sensor_frames
