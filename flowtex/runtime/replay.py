@@ -18,8 +18,9 @@ graph inputs, steps the graph (reset with the same seed), guards the outputs wit
 the same clamps/peak allowance (never forcing safe values) and encodes them. If a
 live block differs from the replayed one, the tick is reported: as ``watchdog``
 when the replay's own input watchdog (same timeouts, tick-counted) says a sensor
-was stale then, otherwise as ``unexplained`` (an overrun watchdog, skipped ticks,
-or a real mismatch).
+was stale then, as ``overrun`` when live sent exactly the safe values with every
+sensor fresh (the overrun watchdog, which the frames alone cannot show otherwise),
+else as ``unexplained`` (a real mismatch).
 """
 
 from __future__ import annotations
@@ -38,7 +39,12 @@ from .canio import load_io
 
 @dataclass
 class ReplayReport:
-    """Outcome of :func:`replay_session`."""
+    """Outcome of :func:`replay_session`; ``str(report)`` is :meth:`summary`, what ``flowtex run --input SESSION`` prints.
+
+    Every tick whose live actuator frames differ from the replayed ones is in
+    ``mismatched_ticks`` and in exactly one of ``watchdog_ticks`` (a stale sensor),
+    ``overrun_ticks`` (the overrun watchdog) or ``unexplained_ticks`` (neither).
+    """
 
     ticks: int
     frames_in: int
@@ -47,35 +53,61 @@ class ReplayReport:
     """True when the log ends with the exit block of safe values (a clean live exit)."""
     mismatched_ticks: list[int] = field(default_factory=list)
     watchdog_ticks: list[int] = field(default_factory=list)
-    """Ticks at which the replay's input watchdog found a stale sensor (live sent safe values)."""
+    """Mismatched ticks at which the replay's input watchdog finds a stale sensor: live sent the safe values."""
+    overrun_ticks: list[int] = field(default_factory=list)
+    """Mismatched ticks with every sensor fresh at which live sent exactly the safe values: the overrun watchdog
+    (a tick that started more than ``overrun_limit_ms`` late, skipped deadlines included, and the ticks after it
+    until every sensor had sent a fresh frame). The live run logged each such event; the log of frames cannot
+    show the lateness, so the replay recognises them by the safe values."""
     unexplained_ticks: list[int] = field(default_factory=list)
-    """Mismatched ticks not explained by a stale sensor (overrun watchdog, skipped deadlines...)."""
+    """Mismatched ticks no watchdog explains: live sent values other than the safe ones. A real difference: was the
+    session run with another graph, parameters, ``--seed``, DBC or map?"""
     output_path: Path | None = None
+    session_path: Path | None = None
 
     @property
     def identical(self) -> bool:
         return not self.mismatched_ticks
 
     def summary(self) -> str:
-        """A few lines for the terminal."""
-        lines = [f"replayed {self.ticks} ticks ({self.frames_in} frames received, {self.frames_out} sent live)"
-                 + ("" if self.exit_block else "; no exit block found (session was killed?)")]
-        if self.identical:
-            lines.append("every replayed tick's actuator frames equal the live ones byte for byte")
-        else:
-            lines.append(f"{len(self.mismatched_ticks)} tick(s) differ from the live frames: "
-                         f"{len(self.mismatched_ticks) - len(self.unexplained_ticks)} with stale sensors (watchdog safe values), "
-                         f"{len(self.unexplained_ticks)} other (overrun watchdog or skipped deadlines)"
-                         + (f"; first: {_first(self.unexplained_ticks)}" if self.unexplained_ticks else ""))
+        """A few lines for the terminal: what was replayed, which ticks match, and why the others differ."""
+        source = f" of {self.session_path}" if self.session_path is not None else ""
+        ending = "ends with the exit block of safe values" if self.exit_block else "has no exit block (was the session killed?)"
+        lines = [f"replayed {self.ticks} ticks{source} ({self.frames_in} frames received, {self.frames_out} sent live; the log {ending})"]
+        same = self.ticks - len(self.mismatched_ticks)
+        lines.append(f"{_count(same)}: actuator frames equal to the live ones byte for byte"
+                     + (" (all of them)" if self.identical and self.ticks else ""))
         if self.watchdog_ticks:
-            lines.append(f"sensor inputs were stale at {len(self.watchdog_ticks)} tick(s), first {_first(self.watchdog_ticks)}")
+            lines.append(f"{_count(len(self.watchdog_ticks))} ({_ranges(self.watchdog_ticks)}): live sent the safe values because a sensor "
+                         "was stale (input watchdog, recomputed by the replay)")
+        if self.overrun_ticks:
+            lines.append(f"{_count(len(self.overrun_ticks))} ({_ranges(self.overrun_ticks)}): live sent the safe values with every sensor "
+                         "fresh: the overrun watchdog (a tick started more than overrun_limit_ms late, or the ticks after it until "
+                         "every sensor sent a fresh frame; the live run logged it)")
+        if self.unexplained_ticks:
+            lines.append(f"{_count(len(self.unexplained_ticks))} ({_ranges(self.unexplained_ticks)}): DIFFER from the live frames and no "
+                         "watchdog explains it: was the session run with another graph, parameters, --seed, DBC or map?")
         if self.output_path is not None:
             lines.append(f"wrote {self.output_path}")
         return "\n".join(lines)
 
+    __str__ = summary
 
-def _first(ticks: list[int], n: int = 8) -> str:
-    return ", ".join(map(str, ticks[:n])) + (" ..." if len(ticks) > n else "")
+
+def _count(n: int) -> str:
+    return f"{n} tick" + ("" if n == 1 else "s")
+
+
+def _ranges(ticks: list[int], n: int = 6) -> str:
+    """``[3, 4, 5, 9]`` -> ``"3-5, 9"`` (the first ``n`` runs, then ``...``)."""
+    runs: list[list[int]] = []
+    for t in ticks:
+        if runs and t == runs[-1][1] + 1:
+            runs[-1][1] = t
+        else:
+            runs.append([t, t])
+    text = ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in runs[:n])
+    return text + (", ..." if len(runs) > n else "")
 
 
 def _split_ticks(frames: list[can.Message], tx_ids: list[tuple[int, bool]], path: Path) -> tuple[list[tuple[list, list]], bool]:
@@ -127,10 +159,14 @@ def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, m
         raise DataError(f"{output_path}: replay output must end in .npz (graph outputs) or .blf/.log/.asc (actuator frames)")
     writer = SessionWriter(output_path) if suffix in (".blf", ".log", ".asc") else None
     outputs = {name: np.zeros((len(ticks), *spec.shape)) for name, spec in graph.outputs.items()} if suffix == ".npz" else None
+    io.encode_safe()
+    safe = [bytes(m.data) for m in io.tx]
+    """The actuator payloads of the safe values: what live sends while the watchdog holds the outputs."""
     graph.reset(seed)
     watchdog = io.new_watchdog(1 << 62, emit_log=False)
     report = ReplayReport(ticks=len(ticks), frames_in=sum(1 for m in frames if m.is_rx and not m.is_error_frame),
-                          frames_out=sum(1 for m in frames if not m.is_rx and not m.is_error_frame), exit_block=exit_block)
+                          frames_out=sum(1 for m in frames if not m.is_rx and not m.is_error_frame), exit_block=exit_block,
+                          session_path=session_path)
     try:
         for k, (rx, live_block) in enumerate(ticks):
             for msg in rx:
@@ -139,11 +175,13 @@ def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, m
             stale = watchdog.check(k, 0)
             io.guard_outputs(False)
             io.encode()
-            if stale:
-                report.watchdog_ticks.append(k)
             if any(bytes(a.data) != bytes(b.data) for a, b in zip(io.tx, live_block, strict=True)):
                 report.mismatched_ticks.append(k)
-                if not stale:
+                if stale:
+                    report.watchdog_ticks.append(k)
+                elif [bytes(b.data) for b in live_block] == safe:
+                    report.overrun_ticks.append(k)
+                else:
                     report.unexplained_ticks.append(k)
             if outputs is not None:
                 for name, arr in outputs.items():

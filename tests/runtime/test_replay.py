@@ -22,8 +22,9 @@ def test_replay_equals_live_and_offline(setup):  # noqa: F811
     rep = replay_session(g2, live_log, DBC, setup / "m.yaml", setup / "replay.log", seed=3)
     assert rep.ticks == 600 and rep.exit_block
     # every tick the graph produced matches; the dropout ticks are explained by the watchdog
-    assert rep.unexplained_ticks == []
+    assert rep.unexplained_ticks == [] and rep.overrun_ticks == []
     assert rep.mismatched_ticks == list(range(205, 260))  # last frame at tick 199, 5-tick timeout; back at 260
+    assert rep.watchdog_ticks == rep.mismatched_ticks
     live_tx = [m for m in read_session(live_log) if not m.is_rx][:-2]
     replay_tx = [m for m in read_session(setup / "replay.log")]
     assert len(live_tx) == len(replay_tx) == 1200
@@ -54,3 +55,48 @@ def test_replay_equals_live_and_offline(setup):  # noqa: F811
     out = np.load(setup / "out.npz")
     np.testing.assert_array_equal(out["force"], ref["force"])
     np.testing.assert_array_equal(out["vibration"], ref["vibration"])
+
+
+def test_replay_names_overrun_watchdog_ticks_and_real_mismatches_and_prints_a_summary(setup, capsys):  # noqa: F811
+    """A live log where tick 300 carries the safe values (what the overrun watchdog sends) and tick 400 other bytes."""
+    from flowtex.cli import main
+    from flowtex.io.canlog import SessionWriter
+
+    g = load_graph(setup / "g.yaml")
+    live_log = setup / "live.log"
+    r = run_live(g, DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=500, record=live_log, status=None,
+                 drop={"ToolPosition": (100, 130)}, seed=3)
+    assert r.error is None
+    frames = list(read_session(live_log))
+    sent = [m for m in frames if not m.is_rx]
+    assert len(sent) == 2 * 501  # 500 ticks of (VoiceCoilCmd, ForceCmd) and the exit block of safe values
+    safe_voice, safe_force = bytes(sent[-2].data), bytes(sent[-1].data)
+    # tick 300: the live run held the outputs safe with every sensor fresh (an overrun); tick 400: a real difference
+    assert bytes(sent[600].data) != safe_voice
+    sent[600].data, sent[601].data = bytearray(safe_voice), bytearray(safe_force)
+    sent[800].data = bytearray(bytes([sent[800].data[0] ^ 0x10]) + bytes(sent[800].data[1:]))
+    edited = setup / "edited.log"
+    w = SessionWriter(edited)
+    for m in frames:
+        w.write(m, m.is_rx)
+    w.close()
+
+    rep = replay_session(load_graph(setup / "g.yaml"), edited, DBC, setup / "m.yaml", seed=3)
+    assert rep.overrun_ticks == [300]
+    assert rep.unexplained_ticks == [400]
+    assert rep.watchdog_ticks == list(range(105, 130))  # last ToolPosition frame at tick 99, 5-tick timeout; back at 130
+    assert rep.mismatched_ticks == sorted(rep.watchdog_ticks + rep.overrun_ticks + rep.unexplained_ticks)
+
+    assert main(["run", str(setup / "g.yaml"), "--input", str(edited), "--dbc", str(DBC), "--map", str(setup / "m.yaml"),
+                 "--seed", "3", "--output", str(setup / "replay.npz")]) == 0
+    out = capsys.readouterr().out
+    assert "ReplayReport(" not in out and "unexplained" not in out
+    lines = out.strip().splitlines()
+    received = 2 * 500 - 30  # two sensor frames a tick, no ToolPosition in ticks 100-129
+    assert sum(m.is_rx for m in frames) == received
+    assert lines[0] == f"replayed 500 ticks of {edited} ({received} frames received, 1002 sent live; the log ends with the exit block of safe values)"
+    assert lines[1] == "473 ticks: actuator frames equal to the live ones byte for byte"
+    assert lines[2].startswith("25 ticks (105-129): live sent the safe values because a sensor was stale")
+    assert lines[3].startswith("1 tick (300): live sent the safe values with every sensor fresh: the overrun watchdog")
+    assert lines[4].startswith("1 tick (400): DIFFER from the live frames and no watchdog explains it")
+    assert lines[5] == f"wrote {setup / 'replay.npz'}"
