@@ -42,6 +42,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--stats", help="write the end-of-run statistics as JSON to this file")
     p.add_argument("--simulate", metavar="RECORDING", help="run a simulated device in this process playing RECORDING (.npz/.csv/.h5)")
     p.add_argument("--quiet", action="store_true", help="no status line")
+    p.add_argument("--show", action="append", default=[], metavar="SIGNAL",
+                   help="add a graph output or input (NAME, or NAME[i] for one component) to the status line (repeatable)")
     _common(p)
     p.set_defaults(func=cmd_live)
 
@@ -86,7 +88,7 @@ def cmd_live(args: argparse.Namespace) -> int:
         report = run_live(graph, args.dbc, args.map, args.bus, simulate=args.simulate, duration_s=args.duration,
                           record=args.record, rt=args.rt, rt_priority=args.rt_priority, rt_cpu=args.cpu,
                           stats_path=args.stats, seed=args.seed, status=None if args.quiet else sys.stderr,
-                          bitrate=args.bitrate)
+                          bitrate=args.bitrate, show=args.show)
     except FlowtexError as exc:
         return _error("live", str(exc))
     except KeyboardInterrupt:

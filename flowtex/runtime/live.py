@@ -29,7 +29,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
@@ -48,7 +48,7 @@ from .realtime import RealtimeStatus, enter_realtime, freeze_gc, leave_realtime
 from .safety import all_updated_after, first_stale
 from .simdevice import in_process_device
 from .stats import TickStats
-from .status import StatusDisplay
+from .status import Shown, StatusDisplay, resolve_shown
 from .tick import rx_decoder, tick_compute, warmer
 
 __all__ = ["BusError", "CanIO", "LiveReport", "load_io", "run_live"]
@@ -89,7 +89,7 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
              rt: bool = False, rt_priority: int = 80, rt_cpu: int | None = None, stats_path: str | Path | None = None,
              seed: int | None = None, status: TextIO | None = sys.stderr, bitrate: int | None = None,
              drop: Mapping[str, tuple[int, int | None]] | None = None, install_signals: bool = True,
-             max_ticks: int | None = None, warm: bool = True) -> LiveReport:
+             max_ticks: int | None = None, warm: bool = True, show: Sequence[str] = ()) -> LiveReport:
     """Run ``graph`` live against a CAN bus until ``duration_s`` (None: until Ctrl-C/SIGTERM).
 
     ``simulate``: a recording path (or :class:`~flowtex.io.recordings.Recording`);
@@ -99,6 +99,7 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
     ``max_ticks`` ends the session after that many executed ticks (deterministic
     length for tests). The session runs on ``graph.with_block_rows(1)`` (same code,
     parameters and seed, one-row port buffers), so ``graph`` itself is not stepped.
+    ``show``: graph outputs or inputs (``NAME`` or ``NAME[i]``) whose current values follow the status line.
     ``warm``: cache warming before each deadline (see :func:`~flowtex.runtime.tick.warmer`). Raises :class:`FlowtexError`
     for bad files or a bus that cannot be opened; failures during the loop end the session with safe values and are
     returned in ``LiveReport.error``.
@@ -111,6 +112,7 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
         if not duration_s > 0:
             raise FlowtexError(f"--duration must be a positive number of seconds, got {duration_s!r}")
         n_ticks = min(n_ticks or 1 << 62, int(round(duration_s * float(graph.rate))))
+    shown = resolve_shown(graph, show)
     io = load_io(graph, dbc_path, map_path)
     device = dev_bus = None
     if simulate is not None:
@@ -126,7 +128,7 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
         writer = SessionWriter(record) if record is not None else None
         where = "the simulated device's virtual bus" if device is not None else f"bus {bus!r}"
         return _loop(graph, io, bus_obj, device, writer, n_ticks, rt, rt_priority, rt_cpu, stats_path, seed, status,
-                     install_signals, warm, where)
+                     install_signals, warm, where, shown)
     finally:
         if writer is not None:
             writer.close()
@@ -138,7 +140,7 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
 
 def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWriter | None, n_ticks: int | None,
           rt: bool, rt_priority: int, rt_cpu: int | None, stats_path: str | Path | None, seed: int | None,
-          status: TextIO | None, install_signals: bool, warm: bool, where: str) -> LiveReport:
+          status: TextIO | None, install_signals: bool, warm: bool, where: str, shown: list[Shown]) -> LiveReport:
     rate = float(graph.rate)
     capacity = int(min(n_ticks if n_ticks else 600 * rate, 3600 * rate)) + 1
     stats = TickStats(capacity)
@@ -164,7 +166,7 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
 
     clock = DeadlineClock(rate, prepare=prepare)
     period = clock.period_ns
-    display = StatusDisplay(status, io, watchdog, stats, int(rate / 2)) if status is not None else None
+    display = StatusDisplay(status, io, watchdog, stats, int(rate / 2), shown) if status is not None else None
     graph.reset(seed)
     rt_status, rt_message = _enter_rt(rt, rt_priority, rt_cpu, status)
     stop: list[str | None] = [None]

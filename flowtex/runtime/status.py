@@ -3,13 +3,21 @@
 The status line (``\\r``-rewritten every 0.5 s) comes from
 :meth:`~flowtex.runtime.stats.TickStats.status_line`; each watchdog event gets a line
 of its own naming the graph input and sensor message (:func:`describe_event`).
-Everything here runs in the slack after a tick's frames were sent.
+``--show SIGNAL`` appends chosen graph outputs or inputs to the status line
+(:func:`resolve_shown`, :func:`format_values`), read from the graph's port views
+when the line is printed. Everything here runs in the slack after a tick's frames were sent.
 """
 
 from __future__ import annotations
 
-from typing import TextIO
+import re
+from collections.abc import Sequence
+from typing import Any, TextIO
 
+import numpy as np
+
+from ..errors import FlowtexError
+from ..node_api import suggest
 from .canio import CanIO
 from .safety import Watchdog
 from .stats import TickStats
@@ -26,15 +34,63 @@ def describe_event(io: CanIO, watchdog: Watchdog, tick: int, reason: str, detail
     return f"watchdog: tick {tick}: {what}; outputs safe until every sensor has sent a fresh frame"
 
 
+Shown = tuple[str, np.ndarray, str]
+"""(label, the port's current-tick view or one element of it, unit) of a ``--show`` signal."""
+
+_NO_UNIT = ("", "1", "dimensionless")
+
+
+def resolve_shown(graph: Any, names: Sequence[str]) -> list[Shown]:
+    """``--show`` arguments -> what the status line shows: ``NAME`` (a graph output, else a graph input; a vector shows
+    every component) or ``NAME[i]`` (component ``i`` in C order). :class:`FlowtexError` naming the known ports otherwise."""
+    outputs, inputs = graph.outputs, graph.inputs
+    shown: list[Shown] = []
+    for text in names:
+        m = re.fullmatch(r"\s*([A-Za-z_][\w.]*)\s*(?:\[\s*(\d+)\s*\])?\s*", text)
+        name = m.group(1) if m else text
+        if name in outputs:
+            view, spec = graph.output_view(name), outputs[name]
+        elif name in inputs:
+            view, spec = graph.input_view(name), inputs[name]
+        else:
+            known = list(outputs) + list(inputs)
+            raise FlowtexError(f"--show {text!r}: graph {graph.name!r} has no output or input {name!r}{suggest(name, known)}; "
+                               f"outputs: {', '.join(outputs) or 'none'}; inputs: {', '.join(inputs) or 'none'}")
+        if m is None:
+            raise FlowtexError(f"--show {text!r}: write a graph output or input as NAME or NAME[INDEX], e.g. {name}[0]")
+        unit = "" if spec.unit in _NO_UNIT else spec.unit
+        if m.group(2) is None:
+            shown.append((name, view, unit))
+            continue
+        i = int(m.group(2))
+        if not 0 <= i < view.shape[0]:
+            raise FlowtexError(f"--show {text!r}: {name!r} has {view.shape[0]} component(s) (shape {list(spec.shape)}); "
+                               f"the index must be 0..{view.shape[0] - 1}")
+        shown.append((f"{name}[{i}]", view[i:i + 1], unit))
+    return shown
+
+
+def format_values(shown: Sequence[Shown]) -> str:
+    """``"vibration 0.25 A | force [0.0123 -0.0045 0] N"``: each value with 4 significant digits (nan/inf as such)."""
+    parts = []
+    for label, view, unit in shown:
+        vals = " ".join(f"{float(v):.4g}" for v in view)
+        text = f"{label} {vals}" if view.shape[0] == 1 else f"{label} [{vals}]"
+        parts.append(f"{text} {unit}" if unit else text)
+    return " | ".join(parts)
+
+
 class StatusDisplay:
     """The status line and watchdog event lines of one session on ``out`` (a text stream, e.g. stderr).
 
     :meth:`tick` after every executed tick: prints new watchdog events at once and the
-    status line every ``every`` ticks; :meth:`finish` prints what is left and the end summary.
+    status line every ``every`` ticks, followed by the ``shown`` values (:func:`resolve_shown`);
+    :meth:`finish` prints what is left and the end summary.
     """
 
-    def __init__(self, out: TextIO, io: CanIO, watchdog: Watchdog, stats: TickStats, every: int) -> None:
+    def __init__(self, out: TextIO, io: CanIO, watchdog: Watchdog, stats: TickStats, every: int, shown: Sequence[Shown] = ()) -> None:
         self.out = out
+        self.shown = list(shown)
         self.io = io
         self.watchdog = watchdog
         self.stats = stats
@@ -49,9 +105,14 @@ class StatusDisplay:
         if k % self.every == 0:
             self.stats.watchdog_events = self.watchdog.events
             self.stats.timeouts = self.watchdog.stale_events
-            line = self.stats.status_line()
+            line = self.line()
             self._line_len = len(line)
             print("\r" + line, end="", file=self.out, flush=True)
+
+    def line(self) -> str:
+        """The status line: timing and counters, then the shown values."""
+        line = self.stats.status_line()
+        return f"{line} | {format_values(self.shown)}" if self.shown else line
 
     def _events(self) -> None:
         """Print the watchdog events not shown yet on their own lines, over the status line."""
@@ -63,5 +124,5 @@ class StatusDisplay:
     def finish(self, rt_granted: bool) -> None:
         """The remaining events, a last status line and the end-of-run summary."""
         self._events()
-        print("\r" + self.stats.status_line(), file=self.out)
+        print("\r" + self.line(), file=self.out)
         print(self.stats.format_summary(rt_granted), file=self.out)
