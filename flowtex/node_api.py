@@ -253,6 +253,9 @@ class Node:
     ``absorb_kernel(p, s, si, inp)`` used when the graph has a feedback loop.
     """
 
+    latency_doc: ClassVar[str] = ""
+    """How the node's latency follows from its parameters (shown by ``flowtex nodes``); see :meth:`latency_samples`."""
+
     def __init__(self, name: str, params: dict[str, Any], context: BuildContext):
         self.name = name
         self.p = params
@@ -281,6 +284,15 @@ class Node:
         :class:`ParamError` for an input the node cannot accept.
         """
         return {name: resolve_declared(port, inputs) for name, port in self.outputs.items()}
+
+    def latency_samples(self) -> int:
+        """Fixed delay from input to output, in ticks of this node (0: none, the default).
+
+        Nodes that work on frames or FIR filters override it; ``flowtex graph``
+        states it in samples and milliseconds. Called after construction, with
+        ``self.p`` and ``self.context`` set.
+        """
+        return 0
 
     def input_default(self, name: str, spec: PortSpec) -> np.ndarray:
         """Value an unconnected optional input reads (shape ``spec.width``)."""
