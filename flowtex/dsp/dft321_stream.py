@@ -1,8 +1,8 @@
 """Streaming DFT321: frame-wise overlap-add version of :func:`flowtex.dsp.dft321.dft321`.
 
 Every ``hop`` samples the last ``frame`` samples of the three axes are
-windowed, transformed with a direct real DFT (precomputed cos/sin tables,
-no allocation), combined bin by bin as in the offline function (magnitude
+windowed, transformed (in-place radix-2 FFT for power-of-two frames, else a
+direct real DFT from precomputed cos/sin tables; neither allocates), combined bin by bin as in the offline function (magnitude
 root-sum-square, phase of the sum; no spectral smoothing), transformed back,
 multiplied by the synthesis window (all ones for ``hann`` and ``hamming``),
 scaled by 1 / (overlap-add sum of analysis x synthesis window) and
@@ -26,9 +26,10 @@ energies over ~POWER_TAU_FRAMES frames: E_in of the input sample being played
 out (sum over the axes), E_out of the uncorrected output. With one moving axis
 the two are equal to rounding, so the gain is 1 and the identity holds.
 
-Why a direct DFT and not rocket-fft's ``np.fft.rfft`` inside numba: the
-direct DFT allocates nothing and is faster at the frames this node is meant
-for (32-128 samples); see benchmarks/bench_dft321.py.
+Why not rocket-fft's ``np.fft.rfft`` inside numba: it allocates its result
+arrays on every hop, and the node must not allocate while ticking. The
+in-place radix-2 FFT here is about as fast at frames 32-128, and the direct DFT
+(O(frame^2) per hop) is slower from frame 64 on; see benchmarks/bench_dft321.py.
 
 Before the first sample the input is taken as zero (the first frames are
 zero-padded).
@@ -43,7 +44,7 @@ from numba import njit
 
 WINDOWS = ("hann", "hamming", "sqrt_hann")
 MAX_FRAME = 1024
-_HEADER = 3  # p[0] = frame, p[1] = hop, p[2] = forgetting factor of the power correction (0: off)
+_HEADER = 4  # p[0] = frame, p[1] = hop, p[2] = forgetting factor of the power correction (0: off), p[3] = 1 for fft
 POWER_TAU_FRAMES = 8.0
 """Time constant of the power correction, in frames."""
 
@@ -81,9 +82,29 @@ def windows(frame: int, hop: int, window: str) -> tuple[np.ndarray, np.ndarray]:
     return wa, ws / ola.mean()
 
 
-def stream_params(frame: int, hop: int, window: str, correct_power: bool = True) -> np.ndarray:
-    """Kernel parameters: header, analysis window, scaled synthesis window, DFT tables, inverse weights."""
+def is_power_of_two(n: int) -> bool:
+    return n >= 2 and n & (n - 1) == 0
+
+
+def stream_params(frame: int, hop: int, window: str, correct_power: bool = True, method: str = "auto") -> np.ndarray:
+    """Kernel parameters: header, analysis window, scaled synthesis window, then transform tables.
+
+    ``method``: ``fft`` (in-place radix-2, power-of-two frames: bit-reversal
+    table and twiddles), ``dft`` (direct real DFT, any frame: cos/sin tables
+    and inverse weights), ``auto`` (fft when the frame is a power of two).
+    """
     wa, ws = windows(frame, hop, window)
+    if method == "auto":
+        method = "fft" if is_power_of_two(frame) else "dft"
+    if method == "fft" and not is_power_of_two(frame):
+        raise ValueError(f"frame: the fft method needs a power of two, got {frame}; use method dft or frame {1 << frame.bit_length()}")
+    lam = math.exp(-1.0 / (POWER_TAU_FRAMES * frame)) if correct_power else 0.0
+    head = [frame, hop, lam, 1.0 if method == "fft" else 0.0]
+    if method == "fft":
+        bits = frame.bit_length() - 1
+        rev = np.array([int(format(j, f"0{bits}b")[::-1], 2) for j in range(frame)], dtype=np.float64)
+        ang = 2.0 * np.pi * np.arange(frame // 2) / frame
+        return np.concatenate([head, wa, ws, rev, np.cos(ang), -np.sin(ang)])
     m = frame // 2 + 1
     k = np.arange(m)[:, None]
     j = np.arange(frame)[None, :]
@@ -92,15 +113,141 @@ def stream_params(frame: int, hop: int, window: str, correct_power: bool = True)
     weights[0] = 1.0 / frame
     if frame % 2 == 0:
         weights[-1] = 1.0 / frame
-    lam = math.exp(-1.0 / (POWER_TAU_FRAMES * frame)) if correct_power else 0.0
-    return np.concatenate([[frame, hop, lam], wa, ws, np.cos(ang).ravel(), np.sin(ang).ravel(), weights])
+    return np.concatenate([head, wa, ws, np.cos(ang).ravel(), np.sin(ang).ravel(), weights])
 
 
 def stream_state_sizes(frame: int) -> tuple[int, int]:
-    """(float state, int state) sizes: input ring 3N, overlap-add ring N, windowed frame 3N, spectrum 2m,
-    two energies; tick."""
+    """(float state, int state) sizes: input ring 3N, overlap-add ring N, work 6N + 2m, two energies; tick."""
     m = frame // 2 + 1
-    return 7 * frame + 2 * m + 2, 1
+    return 10 * frame + 2 * m + 2, 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _combine(sq, sr, si_, w):
+    """Magnitude sqrt(sq) with the phase of sr + j si_, times w; phase 0 where the sum is 0."""
+    mag = math.sqrt(sq)
+    h = math.hypot(sr, si_)
+    if h > 0.0:
+        return w * mag * sr / h, w * mag * si_ / h
+    return w * mag, 0.0
+
+
+@njit(cache=True, nogil=True)
+def _fft_inplace(re, im, nf, tr, ti):
+    """Radix-2 decimation-in-time butterflies on data already in bit-reversed order (no allocation)."""
+    size = 2
+    while size <= nf:
+        half = size // 2
+        step = nf // size
+        for start in range(0, nf, size):
+            for k in range(half):
+                wr = tr[k * step]
+                wi = ti[k * step]
+                a = start + k
+                b = a + half
+                xr = re[b] * wr - im[b] * wi
+                xi = re[b] * wi + im[b] * wr
+                re[b] = re[a] - xr
+                im[b] = im[a] - xi
+                re[a] += xr
+                im[a] += xi
+        size *= 2
+
+
+@njit(cache=True, nogil=True)
+def _frame_fft(p, ring, acc, work, start, nf):
+    """FFT path: frame (ring from slot ``start``) -> DFT321 -> overlap-added into acc."""
+    o = _HEADER
+    wa = p[o:o + nf]
+    ws = p[o + nf:o + 2 * nf]
+    rev = p[o + 2 * nf:o + 3 * nf]
+    tr = p[o + 3 * nf:o + 3 * nf + nf // 2]
+    ti = p[o + 3 * nf + nf // 2:o + 4 * nf]
+    re = work[0:3 * nf]
+    im = work[3 * nf:6 * nf]
+    for a in range(3):
+        base = a * nf
+        for j in range(nf):
+            q = start + j
+            if q >= nf:
+                q -= nf
+            d = base + int(rev[j])
+            re[d] = ring[base + q] * wa[j]
+            im[d] = 0.0
+        _fft_inplace(re[base:base + nf], im[base:base + nf], nf, tr, ti)
+    # Combine bin by bin into axis 0's slots, conjugated and bit-reversed for the inverse
+    # (ifft(Y) = conj(fft(conj(Y))) / N; only the real part is needed).
+    yr = re[3 * nf - nf:3 * nf]  # axis 2's slots are free once read, bin by bin in reversed order below
+    yi = im[3 * nf - nf:3 * nf]
+    for k in range(nf):
+        sq = 0.0
+        sr = 0.0
+        sim = 0.0
+        for a in range(3):
+            vr = re[a * nf + k]
+            vi = im[a * nf + k]
+            sq += vr * vr + vi * vi
+            sr += vr
+            sim += vi
+        cr, ci = _combine(sq, sr, sim, 1.0 / nf)
+        re[k] = cr
+        im[k] = -ci
+    for k in range(nf):
+        d = int(rev[k])
+        yr[d] = re[k]
+        yi[d] = im[k]
+    _fft_inplace(yr, yi, nf, tr, ti)
+    for j in range(nf):
+        q = start + j
+        if q >= nf:
+            q -= nf
+        acc[q] += yr[j] * ws[j]
+
+
+@njit(cache=True, nogil=True)
+def _frame_dft(p, ring, acc, work, start, nf):
+    """Direct real-DFT path (any frame length): same result as :func:`_frame_fft`."""
+    m = nf // 2 + 1
+    o = _HEADER
+    wa = p[o:o + nf]
+    ws = p[o + nf:o + 2 * nf]
+    ct = o + 2 * nf
+    st = ct + m * nf
+    wt = st + m * nf
+    fr = work[0:3 * nf]
+    yr = work[3 * nf:3 * nf + m]
+    yi = work[3 * nf + m:3 * nf + 2 * m]
+    for a in range(3):
+        for j in range(nf):
+            q = start + j
+            if q >= nf:
+                q -= nf
+            fr[a * nf + j] = ring[a * nf + q] * wa[j]
+    for k in range(m):
+        sq = 0.0
+        sr = 0.0
+        sim = 0.0
+        row = k * nf
+        for a in range(3):
+            re = 0.0
+            im = 0.0
+            base = a * nf
+            for j in range(nf):
+                v = fr[base + j]
+                re += v * p[ct + row + j]
+                im -= v * p[st + row + j]
+            sq += re * re + im * im
+            sr += re
+            sim += im
+        yr[k], yi[k] = _combine(sq, sr, sim, p[wt + k])
+    for j in range(nf):
+        v = 0.0
+        for k in range(m):
+            v += yr[k] * p[ct + k * nf + j] - yi[k] * p[st + k * nf + j]
+        q = start + j
+        if q >= nf:
+            q -= nf
+        acc[q] += v * ws[j]
 
 
 @njit(cache=True, nogil=True)
@@ -108,19 +255,12 @@ def dft321_stream_block(p, s, si, x, y):
     """Advance by ``x.shape[0]`` ticks: x (n, 3) in, y (n, 1) out. ``si[0]`` counts ticks."""
     nf = int(p[0])
     hop = int(p[1])
-    m = nf // 2 + 1
-    wa = p[_HEADER:_HEADER + nf]
-    ws = p[_HEADER + nf:_HEADER + 2 * nf]
-    ct = _HEADER + 2 * nf
-    st = ct + m * nf
-    wt = st + m * nf
+    lam = p[2]
+    fft = p[3] > 0.5
     ring = s[0:3 * nf]
     acc = s[3 * nf:4 * nf]
-    fr = s[4 * nf:7 * nf]
-    yr = s[7 * nf:7 * nf + m]
-    yi = s[7 * nf + m:7 * nf + 2 * m]
-    lam = p[2]
-    en = 7 * nf + 2 * m  # s[en]: input energy, s[en + 1]: uncorrected output energy
+    en = s.shape[0] - 2  # s[en]: input energy, s[en + 1]: uncorrected output energy
+    work = s[4 * nf:en]
     t = si[0]
     for r in range(x.shape[0]):
         pos = t % nf
@@ -128,45 +268,10 @@ def dft321_stream_block(p, s, si, x, y):
             ring[a * nf + pos] = x[r, a]
         if (t + 1) % hop == 0:
             start = (t + 1) % nf  # ring slot of the frame's oldest sample
-            for a in range(3):
-                for j in range(nf):
-                    q = start + j
-                    if q >= nf:
-                        q -= nf
-                    fr[a * nf + j] = ring[a * nf + q] * wa[j]
-            for k in range(m):
-                sq = 0.0
-                sr = 0.0
-                sim = 0.0
-                row = k * nf
-                for a in range(3):
-                    re = 0.0
-                    im = 0.0
-                    base = a * nf
-                    for j in range(nf):
-                        v = fr[base + j]
-                        re += v * p[ct + row + j]
-                        im -= v * p[st + row + j]
-                    sq += re * re + im * im
-                    sr += re
-                    sim += im
-                mag = math.sqrt(sq)
-                h = math.hypot(sr, sim)
-                w = p[wt + k]
-                if h > 0.0:
-                    yr[k] = w * mag * sr / h
-                    yi[k] = w * mag * sim / h
-                else:
-                    yr[k] = w * mag
-                    yi[k] = 0.0
-            for j in range(nf):
-                v = 0.0
-                for k in range(m):
-                    v += yr[k] * p[ct + k * nf + j] - yi[k] * p[st + k * nf + j]
-                q = start + j
-                if q >= nf:
-                    q -= nf
-                acc[q] += v * ws[j]
+            if fft:
+                _frame_fft(p, ring, acc, work, start, nf)
+            else:
+                _frame_dft(p, ring, acc, work, start, nf)
         out = (t + 1) % nf  # slot of sample t - (nf - 1): complete now
         v = acc[out]
         acc[out] = 0.0
@@ -184,7 +289,8 @@ def dft321_stream_block(p, s, si, x, y):
     si[0] = t
 
 
-def dft321_stream(x: np.ndarray, frame: int = 128, hop: int = 64, window: str = "hann", correct_power: bool = True) -> np.ndarray:
+def dft321_stream(x: np.ndarray, frame: int = 128, hop: int = 64, window: str = "hann", correct_power: bool = True,
+                  method: str = "auto") -> np.ndarray:
     """Run the streaming DFT321 over a whole (n, 3) array from a fresh state; returns (n,), same unit.
 
     Output sample t is the DFT321 of the frames around input sample
@@ -193,7 +299,7 @@ def dft321_stream(x: np.ndarray, frame: int = 128, hop: int = 64, window: str = 
     x = np.ascontiguousarray(x, dtype=np.float64)
     if x.ndim != 2 or x.shape[1] != 3:
         raise ValueError(f"dft321_stream needs an array of shape (n, 3), got shape {x.shape}")
-    p = stream_params(frame, hop, window, correct_power)
+    p = stream_params(frame, hop, window, correct_power, method)
     nfs, nis = stream_state_sizes(frame)
     s, si = np.zeros(nfs), np.zeros(nis, np.int64)
     y = np.zeros((x.shape[0], 1))

@@ -20,10 +20,13 @@ class Dft321(Node):
 
     type_name = "dft321"
     params = {
-        "frame": Param("int", default=128, min=4, max=1024, doc="frame length in samples (any length; latency frame - 1)"),
+        "frame": Param("int", default=128, min=4, max=1024, doc="frame length in samples (latency frame - 1); a power of two for the fft method"),
         "hop": Param("int", default=64, min=1, doc="samples between frames; must divide frame and be <= frame/2"),
         "window": Param("choice", default="hann", choices=WINDOWS,
                         doc="analysis window (sqrt_hann: also synthesis); COLA at every allowed hop"),
+        "method": Param("choice", default="auto", choices=("auto", "fft", "dft"),
+                        doc="transform: in-place radix-2 fft (power-of-two frames), direct dft (any frame); auto picks fft "
+                            "when it can"),
         "correct_power": Param("bool", default=True,
                                doc="keep total power (overlap-add of phase-changed frames loses 0.3-10 %) with a slow gain "
                                    "(~8 frames); exactly 1 when one axis moves"),
@@ -42,7 +45,7 @@ class Dft321(Node):
     def build(self, inputs, outputs):
         try:
             check_config(self.p["frame"], self.p["hop"], self.p["window"])
-            params = stream_params(self.p["frame"], self.p["hop"], self.p["window"], self.p["correct_power"])
+            params = stream_params(self.p["frame"], self.p["hop"], self.p["window"], self.p["correct_power"], self.p["method"])
         except ValueError as exc:
             raise ParamError(str(exc).partition(": ")[0], str(exc)) from None
         nf, ni = stream_state_sizes(self.p["frame"])

@@ -102,12 +102,21 @@ def test_chunked_and_live_equal_one_pass(load) -> None:
     np.testing.assert_array_equal(live, whole[:200])
 
 
+def test_fft_and_direct_dft_agree(load) -> None:
+    # Two independent transforms of the same frames: only round-off apart (~1e-14 measured).
+    x = three_spectra(600, seed=4)
+    a = load(frame=64, hop=16, method="fft").run({"acc": x})["y"]
+    b = load(frame=64, hop=16, method="dft").run({"acc": x})["y"]
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.max(np.abs(b)))
+
+
 def test_zero_input_gives_zero_output(load) -> None:
     assert np.all(load(frame=16, hop=8).run({"acc": np.zeros((100, 3))})["y"] == 0.0)
 
 
 @pytest.mark.parametrize("params,match", [({"hop": 48}, "hop: must divide frame"), ({"hop": 128}, "at most frame/2"),
-                                          ({"frame": 2}, "frame"), ({"window": "kaiser"}, "window")])
+                                          ({"frame": 2}, "frame"), ({"window": "kaiser"}, "window"),
+                                          ({"frame": 100, "hop": 50, "method": "fft"}, "power of two")])
 def test_bad_params_give_one_line_errors(load, params, match) -> None:
     with pytest.raises(GraphError, match=match) as info:
         load(**params)
