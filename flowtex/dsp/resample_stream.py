@@ -24,8 +24,7 @@ from numba import njit
 
 from .filter_design import resampling_fir
 
-_HEADER = 3  # p[0] = 1 for up-sampling, 0 for down-sampling; p[1] = factor; p[2] = filter length
-
+_HEADER = 4  # p[0] = 1 up / 0 down; p[1] = factor; p[2] = filter length; p[3] = history length per component
 
 def polyphase_filter(up: int, down: int, atten_db: float, passband: float = 0.8) -> np.ndarray:
     """The resampling FIR, symmetric zero padding so that (len - 1) / 2 is a multiple of max(up, down)."""
@@ -42,60 +41,64 @@ def latency_samples(h: np.ndarray) -> int:
 
 
 def stream_params(h: np.ndarray, up: int, down: int) -> np.ndarray:
-    """Kernel parameters for an integer ratio (``up == 1`` or ``down == 1``)."""
+    """Kernel parameters for an integer ratio (``up == 1`` or ``down == 1``).
+
+    Coefficients are stored time-reversed (oldest sample first) so that each
+    output is one contiguous dot product: down-sampling, ``h`` itself; up-sampling,
+    the U polyphase branches ``U * h[phase::U]`` (zero-padded to one length).
+    """
     if up != 1 and down != 1:
         raise ValueError(f"the streaming resampler needs an integer ratio, got {up}/{down}")
     if up > 1:
-        return np.concatenate([[1.0, up, h.size], up * h])
-    return np.concatenate([[0.0, down, h.size], h])
+        hist = -(-h.size // up)
+        branches = np.zeros((up, hist))
+        for phase in range(up):
+            g = up * h[phase::up]
+            branches[phase, :g.size] = g
+        return np.concatenate([[1.0, up, h.size, hist], branches[:, ::-1].ravel()])
+    return np.concatenate([[0.0, down, h.size, h.size], h[::-1]])
 
 
 def stream_state_sizes(h: np.ndarray, up: int, down: int, width: int) -> tuple[int, int]:
-    """(float state, int state): history ring of (taps per phase) x width plus the held output; call counter, ring slot."""
+    """(float state, int state): a doubled history ring per component plus the held output; call counter, ring slot."""
     hist = -(-h.size // up) if up > 1 else h.size
-    return hist * width + width, 2
+    return 2 * hist * width + width, 2
 
 
 @njit(cache=True, nogil=True)
 def resample_block(p, s, si, x, y):
-    """Advance by ``x.shape[0]`` calls; x (n, w) input rows, y (n, w) output rows (see module docstring)."""
+    """Advance by ``x.shape[0]`` calls; x (n, w) input rows, y (n, w) output rows (see module docstring).
+
+    Each component's history is a ring of ``hist`` samples stored twice
+    (slots k and k + hist), so the last ``hist`` samples, oldest first, are
+    always the contiguous run ``pos + 1 .. pos + hist``.
+    """
     up = p[0] > 0.5
     factor = int(p[1])
-    taps = int(p[2])
-    h = p[_HEADER:_HEADER + taps]
+    hist = int(p[3])
+    coef = p[_HEADER:]
     w = x.shape[1]
-    hist = (taps + factor - 1) // factor if up else taps
-    held = hist * w
+    span = 2 * hist
+    held = span * w
     c = si[0]
     pos = si[1]  # ring slot of the newest input sample
     for r in range(x.shape[0]):
-        if up:
-            phase = c % factor
-            if phase == 0:
-                pos = pos + 1 if pos + 1 < hist else 0
-                for q in range(w):
-                    s[pos * w + q] = x[r, q]
-            for q in range(w):
-                acc = 0.0
-                slot = pos
-                for j in range(phase, taps, factor):
-                    acc += h[j] * s[slot * w + q]
-                    slot = slot - 1 if slot > 0 else hist - 1
-                y[r, q] = acc
-        else:
+        fresh = (c == 0) if up else True
+        if fresh:
             pos = pos + 1 if pos + 1 < hist else 0
             for q in range(w):
-                s[pos * w + q] = x[r, q]
-            if c % factor == 0:
-                for q in range(w):
-                    acc = 0.0
-                    slot = pos
-                    for j in range(taps):
-                        acc += h[j] * s[slot * w + q]
-                        slot = slot - 1 if slot > 0 else hist - 1
-                    s[held + q] = acc
+                s[q * span + pos] = x[r, q]
+                s[q * span + pos + hist] = x[r, q]
+        if up or c == 0:
+            g = c * hist if up else 0
             for q in range(w):
-                y[r, q] = s[held + q]
+                base = q * span + pos + 1
+                acc = 0.0
+                for j in range(hist):
+                    acc += coef[g + j] * s[base + j]
+                s[held + q] = acc
+        for q in range(w):
+            y[r, q] = s[held + q]
         c += 1
         if c == factor:
             c = 0
