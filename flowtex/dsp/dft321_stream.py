@@ -32,7 +32,8 @@ in-place radix-2 FFT here is about as fast at frames 32-128, and the direct DFT
 (O(frame^2) per hop) is slower from frame 64 on; see benchmarks/bench_dft321.py.
 
 Before the first sample the input is taken as zero (the first frames are
-zero-padded).
+zero-padded). A NaN or inf input sample spoils the frames that contain it
+(about 2 frames of output) and then leaves the state: the node recovers.
 """
 
 from __future__ import annotations
@@ -282,7 +283,10 @@ def dft321_stream_block(p, s, si, x, y):
                     e_in += ring[a * nf + out] * ring[a * nf + out]
             s[en] = lam * s[en] + e_in
             s[en + 1] = lam * s[en + 1] + v * v
-            if s[en + 1] > 0.0:
+            if not (math.isfinite(s[en]) and math.isfinite(s[en + 1])):
+                s[en] = 0.0  # a NaN/inf input passes through once; the correction restarts instead of staying NaN
+                s[en + 1] = 0.0
+            elif s[en + 1] > 0.0:
                 v *= math.sqrt(s[en] / s[en + 1])
         y[r, 0] = v
         t += 1

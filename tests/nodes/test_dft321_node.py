@@ -110,6 +110,17 @@ def test_fft_and_direct_dft_agree(load) -> None:
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.max(np.abs(b)))
 
 
+def test_a_nan_input_spoils_two_frames_then_the_node_recovers(load) -> None:
+    # The frames containing the NaN give NaN (~2 frames); afterwards the one-axis identity holds again.
+    x = np.zeros((1000, 3))
+    x[:, 0] = np.random.default_rng(7).standard_normal(1000)
+    x[300, 0] = np.nan
+    y = load(frame=32, hop=16).run({"acc": x})["y"]
+    assert np.isnan(y[300 + 31])
+    after = 300 + 31 + 2 * 32
+    np.testing.assert_allclose(y[after:], x[after - 31:1000 - 31, 0], rtol=0, atol=1e-12)
+
+
 def test_zero_input_gives_zero_output(load) -> None:
     assert np.all(load(frame=16, hop=8).run({"acc": np.zeros((100, 3))})["y"] == 0.0)
 
