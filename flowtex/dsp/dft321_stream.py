@@ -28,7 +28,7 @@ the two are equal to rounding, so the gain is 1 and the identity holds.
 
 Why not rocket-fft's ``np.fft.rfft`` inside numba: it allocates its result
 arrays on every hop, and the node must not allocate while ticking. The
-in-place radix-2 FFT here is about as fast at frames 32-128, and the direct DFT
+in-place radix-2 FFT here (three complex FFTs per frame) is close to it at frames 32-128, and the direct DFT
 (O(frame^2) per hop) is slower from frame 64 on; see benchmarks/bench_dft321.py.
 
 Before the first sample the input is taken as zero (the first frames are
@@ -157,46 +157,53 @@ def _fft_inplace(re, im, nf, tr, ti):
 
 @njit(cache=True, nogil=True)
 def _frame_fft(p, ring, acc, work, start, nf):
-    """FFT path: frame (ring from slot ``start``) -> DFT321 -> overlap-added into acc."""
+    """FFT path: frame (ring from slot ``start``) -> DFT321 -> overlap-added into acc.
+
+    Three N-point complex FFTs per frame: axes 0 and 1 share one (x0 + j x1,
+    separated by conjugate symmetry), axis 2 has its own, and the inverse is
+    ifft(Y) = conj(fft(conj(Y))) / N, of which only the real part is needed.
+    """
     o = _HEADER
     wa = p[o:o + nf]
     ws = p[o + nf:o + 2 * nf]
     rev = p[o + 2 * nf:o + 3 * nf]
     tr = p[o + 3 * nf:o + 3 * nf + nf // 2]
     ti = p[o + 3 * nf + nf // 2:o + 4 * nf]
-    re = work[0:3 * nf]
-    im = work[3 * nf:6 * nf]
-    for a in range(3):
-        base = a * nf
-        for j in range(nf):
-            q = start + j
-            if q >= nf:
-                q -= nf
-            d = base + int(rev[j])
-            re[d] = ring[base + q] * wa[j]
-            im[d] = 0.0
-        _fft_inplace(re[base:base + nf], im[base:base + nf], nf, tr, ti)
-    # Combine bin by bin into axis 0's slots, conjugated and bit-reversed for the inverse
-    # (ifft(Y) = conj(fft(conj(Y))) / N; only the real part is needed).
-    yr = re[3 * nf - nf:3 * nf]  # axis 2's slots are free once read, bin by bin in reversed order below
-    yi = im[3 * nf - nf:3 * nf]
-    for k in range(nf):
-        sq = 0.0
-        sr = 0.0
-        sim = 0.0
-        for a in range(3):
-            vr = re[a * nf + k]
-            vi = im[a * nf + k]
-            sq += vr * vr + vi * vi
-            sr += vr
-            sim += vi
-        cr, ci = _combine(sq, sr, sim, 1.0 / nf)
-        re[k] = cr
-        im[k] = -ci
-    for k in range(nf):
+    zr = work[0:nf]
+    zi = work[nf:2 * nf]
+    cr = work[2 * nf:3 * nf]
+    ci = work[3 * nf:4 * nf]
+    yr = work[4 * nf:5 * nf]
+    yi = work[5 * nf:6 * nf]
+    for j in range(nf):
+        q = start + j
+        if q >= nf:
+            q -= nf
+        d = int(rev[j])
+        zr[d] = ring[q] * wa[j]
+        zi[d] = ring[nf + q] * wa[j]
+        cr[d] = ring[2 * nf + q] * wa[j]
+        ci[d] = 0.0
+    _fft_inplace(zr, zi, nf, tr, ti)
+    _fft_inplace(cr, ci, nf, tr, ti)
+    scale = 1.0 / nf
+    for k in range(nf // 2 + 1):  # Y is Hermitian: bins above N/2 are conjugates
+        km = nf - k if k > 0 else 0
+        br = zr[km]
+        bi = -zi[km]
+        x0r = 0.5 * (zr[k] + br)
+        x0i = 0.5 * (zi[k] + bi)
+        x1r = 0.5 * (zi[k] - bi)
+        x1i = -0.5 * (zr[k] - br)
+        sq = x0r * x0r + x0i * x0i + x1r * x1r + x1i * x1i + cr[k] * cr[k] + ci[k] * ci[k]
+        vr, vi = _combine(sq, x0r + x1r + cr[k], x0i + x1i + ci[k], scale)
         d = int(rev[k])
-        yr[d] = re[k]
-        yi[d] = im[k]
+        yr[d] = vr
+        yi[d] = -vi
+        if 0 < k < nf - k:
+            d = int(rev[nf - k])
+            yr[d] = vr
+            yi[d] = vi
     _fft_inplace(yr, yi, nf, tr, ti)
     for j in range(nf):
         q = start + j
