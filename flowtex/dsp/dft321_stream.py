@@ -28,8 +28,8 @@ the two are equal to rounding, so the gain is 1 and the identity holds.
 
 Why not rocket-fft's ``np.fft.rfft`` inside numba: it allocates its result
 arrays on every hop, and the node must not allocate while ticking. The
-in-place radix-2 FFT here (three complex FFTs per frame) is close to it at frames 32-128, and the direct DFT
-(O(frame^2) per hop) is slower from frame 64 on; see benchmarks/bench_dft321.py.
+in-place radix-2 FFT here (three complex FFTs per frame) is as fast at frames 64-128 and
+faster at 32; the direct DFT (O(frame^2) per hop) is slower at all three; see benchmarks/bench_dft321.py.
 
 Before the first sample the input is taken as zero (the first frames are
 zero-padded). A NaN or inf input sample spoils the frames that contain it
