@@ -229,6 +229,9 @@ class BuildContext:
     """Folder of the graph file; relative ``path`` parameters resolve against it."""
     every: int = 1
     """This node runs every ``every`` ticks, so its own rate is ``rate / every``."""
+    input_every: dict[str, int] = field(default_factory=dict)
+    """Connected input port -> ``every`` of the node (or 1 for a graph input) that produces it:
+    the input's sample rate is ``rate / input_every[port]``."""
 
     @property
     def node_rate(self) -> float:
@@ -252,6 +255,9 @@ class Node:
     Such nodes also provide ``emit_kernel(p, s, si, out)`` and
     ``absorb_kernel(p, s, si, inp)`` used when the graph has a feedback loop.
     """
+
+    latency_doc: ClassVar[str] = ""
+    """How the node's latency follows from its parameters (shown by ``flowtex nodes``); see :meth:`latency_samples`."""
 
     def __init__(self, name: str, params: dict[str, Any], context: BuildContext):
         self.name = name
@@ -281,6 +287,27 @@ class Node:
         :class:`ParamError` for an input the node cannot accept.
         """
         return {name: resolve_declared(port, inputs) for name, port in self.outputs.items()}
+
+    @classmethod
+    def own_every(cls, params: dict[str, Any], rate: float, input_every: dict[str, int]) -> int | None:
+        """Ticks between runs for a node whose parameters and inputs fix its schedule (e.g. ``resample``), else None.
+
+        ``params`` are validated; ``rate`` is the graph's base rate in Hz;
+        ``input_every`` is as in :attr:`BuildContext.input_every`. The
+        graph then runs the node every that many ticks (a different ``every:``
+        in the graph file is an error). Raise :class:`ParamError` for a rate
+        that does not divide the base rate.
+        """
+        return None
+
+    def latency_samples(self) -> int:
+        """Fixed delay from input to output, in ticks of this node (0: none, the default).
+
+        Nodes that work on frames or FIR filters override it; ``flowtex graph``
+        states it in samples and milliseconds. Called after construction, with
+        ``self.p`` and ``self.context`` set.
+        """
+        return 0
 
     def input_default(self, name: str, spec: PortSpec) -> np.ndarray:
         """Value an unconnected optional input reads (shape ``spec.width``)."""

@@ -19,6 +19,10 @@ def describe_graph(graph: Graph) -> str:
     lines.append("execution order:")
     for k, (name, rn) in enumerate(rg.nodes.items(), start=1):
         every = f" every {rn.spec.every} ticks ({graph.rate / rn.spec.every:g} Hz)" if rn.spec.every > 1 else ""
+        latency = rn.node.latency_samples() if rn.node is not None else 0
+        if latency:
+            node_rate = graph.rate / rn.spec.every
+            every += f", latency {latency} samples ({1000.0 * latency / node_rate:g} ms)"
         lines.append(f"  {k}. {name} ({rn.cls.type_name}){every}")
         for port, src in rn.sources.items():
             origin = "default" if src is None else (src.port if src.node is None else f"{src.node}.{src.port}")
@@ -63,6 +67,8 @@ def graph_dot(graph: Graph) -> str:
 def describe_node_type(cls: type[Node], origin: str) -> str:
     """Ports, parameters and doc of one node type."""
     lines = [f"{cls.type_name} — {cls.summary()}", f"  from {origin}"]
+    if cls.latency_doc:
+        lines.append(f"  latency: {cls.latency_doc}")
     for title, ports in (("inputs", cls.inputs), ("outputs", cls.outputs)):
         if ports:
             lines.append(f"  {title}:")

@@ -250,12 +250,12 @@ def _resolve_ports(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[st
     failed: set[str] = set()  # nodes with an error: their consumers are not checked (no follow-on errors)
     for name, rn in nodes.items():
         done.add(name)
-        ctx = BuildContext(rate=ck.spec.rate, base_dir=ck.spec.path.parent, every=rn.spec.every)
         specs: dict[str, PortSpec] = {}
         bad = False
         if any(src is not None and src.node in failed for src in rn.sources.values()):
             failed.add(name)
             continue
+        input_every: dict[str, int] = {}
         for port_name, port in rn.cls.inputs.items():
             src = rn.sources.get(port_name)
             if src is None:
@@ -267,8 +267,10 @@ def _resolve_ports(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[st
                 continue
             if src.node is None:
                 got = inputs[src.port]
+                input_every[port_name] = 1
             elif src.node in done:
                 got = nodes[src.node].out_specs[src.port]
+                input_every[port_name] = nodes[src.node].spec.every
             else:  # feedback into a delay from a node later in the order
                 got = PortSpec()
                 provisional[name] = got
@@ -281,6 +283,10 @@ def _resolve_ports(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[st
             failed.add(name)
             continue
         rn.in_specs = specs
+        if not _own_schedule(ck, rn, input_every):
+            failed.add(name)
+            continue
+        ctx = BuildContext(rate=ck.spec.rate, base_dir=ck.spec.path.parent, every=rn.spec.every, input_every=input_every)
         try:
             rn.node = rn.cls(name, rn.params, ctx)
             rn.out_specs = rn.node.resolve(specs)
@@ -298,6 +304,23 @@ def _resolve_ports(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[st
                 if actual != assumed:
                     ck.error(edge_of[(name, port_name)].loc,
                              f"feedback into delay {name!r} carries {actual.describe()}; feedback loops must carry dimensionless scalars")
+
+
+def _own_schedule(ck: _Checker, rn: ResolvedNode, input_every: dict[str, int]) -> bool:
+    """Apply a node's own schedule (:meth:`Node.own_every`) to ``rn.spec.every``; False after an error."""
+    try:
+        own = rn.cls.own_every(rn.params, ck.spec.rate, input_every)
+    except ParamError as exc:
+        ck.error(_param_loc(rn, exc.param), f"node {rn.spec.name!r} ({rn.cls.type_name}): {exc}")
+        return False
+    if own is None:
+        return True
+    if rn.spec.every not in (1, own):
+        ck.error(rn.spec.loc, f"node {rn.spec.name!r} ({rn.cls.type_name}): its parameters make it run every {own} ticks, "
+                              f"but the graph says every: {rn.spec.every}; drop every:")
+        return False
+    rn.spec.every = own
+    return True
 
 
 def _param_loc(rn: ResolvedNode, param: str | None) -> Location:

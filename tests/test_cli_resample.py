@@ -1,0 +1,81 @@
+"""``flowtex resample``: the issue's 1 kHz -> 800 Hz tone example, rates, lengths, vector signals, errors.
+
+References: analytic tones (least-squares amplitude and phase at the output
+times k / 800 s), flowtex.dsp.resample.resample_signal for per-signal values.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from flowtex.cli import main
+from flowtex.dsp.resample import resample_signal
+from flowtex.io.recordings import load_recording, save_recording
+
+
+def tone_fit(y: np.ndarray, rate: float, freqs, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares amplitude and phase of cos(2 pi f t + phase) at each f over samples lo:hi."""
+    t = np.arange(lo, hi) / rate
+    cols = [c for f in freqs for c in (np.cos(2 * np.pi * f * t), -np.sin(2 * np.pi * f * t))]
+    coef, *_ = np.linalg.lstsq(np.stack(cols, axis=1), y[lo:hi], rcond=None)
+    c = coef[0::2] + 1j * coef[1::2]
+    return np.abs(c), np.angle(c)
+
+
+def test_1000_to_800_hz_keeps_tones_removes_450_hz_and_stays_aligned(tmp_path, capsys) -> None:
+    t = np.arange(3000) / 1000.0
+    freqs, amps, phases = [50.0, 170.0, 310.0], [1.0, 0.7, 0.4], [0.1, 1.2, -2.0]
+    tones = sum(a * np.cos(2 * np.pi * f * t + p) for f, a, p in zip(freqs, amps, phases, strict=True))
+    x = tones + np.cos(2 * np.pi * 450.0 * t)
+    save_recording(tmp_path / "in.npz", {"acc": x, "vec": np.stack([x, -x], axis=1)}, rate=1000.0)
+    assert main(["resample", str(tmp_path / "in.npz"), "--rate", "800", "-o", str(tmp_path / "out.npz")]) == 0
+    rec = load_recording(tmp_path / "out.npz")
+    assert rec.rate == 800.0
+    y = rec.arrays["acc"]
+    assert y.shape == (2400,) and rec.arrays["vec"].shape == (2400, 2)
+    amp, ph = tone_fit(y, 800.0, freqs + [350.0], 150, 2250)  # 450 Hz would alias to 350 Hz
+    assert np.all(np.abs(20 * np.log10(amp[:3] / amps)) <= 0.1)
+    assert 20 * np.log10(amp[3]) <= -60.0
+    np.testing.assert_allclose(ph[:3], phases, atol=1e-3)  # aligned: zero delay
+    np.testing.assert_allclose(rec.arrays["vec"], np.stack([y, -y], axis=1), rtol=0, atol=1e-12)
+    assert "x 4/5" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("rate_in,rate_out,n", [(800.0, 1000.0, 333), (10000.0, 1000.0, 1234), (2500.0, 1000.0, 7)])
+def test_rates_and_lengths_with_from_rate_and_csv(tmp_path, rate_in, rate_out, n) -> None:
+    rng = np.random.default_rng(n)
+    pos = rng.standard_normal((n, 3))
+    save_recording(tmp_path / "in.csv", {"position": pos})  # states no rate
+    out = tmp_path / "out.csv"
+    assert main(["resample", str(tmp_path / "in.csv"), "--rate", str(rate_out), "--from-rate", str(rate_in), "-o", str(out)]) == 0
+    rec = load_recording(out)
+    assert rec.rate == rate_out
+    assert rec.arrays["position"].shape == (int(np.floor(n * rate_out / rate_in + 0.5)), 3)
+    np.testing.assert_allclose(rec.arrays["position"], resample_signal(pos, rate_in, rate_out), rtol=0, atol=1e-12)
+
+
+def test_no_rate_and_no_from_rate_is_a_one_line_error(tmp_path, capsys) -> None:
+    save_recording(tmp_path / "in.npz", {"x": np.zeros(10)})
+    assert main(["resample", str(tmp_path / "in.npz"), "--rate", "800", "-o", str(tmp_path / "out.npz")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "in.npz" in err and "--from-rate" in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "out.npz").exists()
+
+
+@pytest.mark.parametrize("args,match", [(["--rate", "1000.5"], "not p/q"), (["--rate", "800", "--from-rate", "500"], "states 1000 Hz")])
+def test_bad_rates_are_one_line_errors(tmp_path, capsys, args, match) -> None:
+    save_recording(tmp_path / "in.npz", {"x": np.zeros(10)}, rate=1000.0)
+    assert main(["resample", str(tmp_path / "in.npz"), *args, "-o", str(tmp_path / "out.npz")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert match in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "out.npz").exists()
+
+
+def test_nan_signal_is_named_and_nothing_is_written(tmp_path, capsys) -> None:
+    x = np.zeros(10)
+    x[3] = np.nan
+    save_recording(tmp_path / "in.npz", {"good": np.zeros(10), "bad": x}, rate=1000.0)
+    assert main(["resample", str(tmp_path / "in.npz"), "--rate", "500", "-o", str(tmp_path / "out.npz")]) == 1
+    assert "'bad'" in capsys.readouterr().err
+    assert not (tmp_path / "out.npz").exists()
