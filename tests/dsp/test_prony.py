@@ -10,7 +10,7 @@ from flowtex.dsp.prony import fit_iir, impulse_response, is_stable, prony, refit
 
 
 def _filter(radii=(0.95, 0.8), angles=(0.6, 1.5), b=(0.0, 1.0, -0.5, 0.3, 0.1)):
-    poles = [r * np.exp(s * 1j * w) for r, w in zip(radii, angles) for s in (1, -1)]
+    poles = [r * np.exp(s * 1j * w) for r, w in zip(radii, angles, strict=True) for s in (1, -1)]
     return np.asarray(b, float), np.real(np.poly(poles))
 
 
