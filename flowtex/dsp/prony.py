@@ -124,9 +124,9 @@ def refit_numerator(h: np.ndarray, a: np.ndarray, q: int, solver: Solver = lstsq
     return solver(G, h)
 
 
-def steiglitz_mcbride(h: np.ndarray, p: int, q: int, iterations: int = 12,
-                      solver: Solver = lstsq_numpy) -> tuple[np.ndarray, np.ndarray]:
-    """Guarded Steiglitz-McBride fit of orders (p, q); the result is always stable (all poles within STABLE_RADIUS).
+def steiglitz_mcbride(h: np.ndarray, p: int, q: int, iterations: int = 6, solver: Solver = lstsq_numpy,
+                      radius: float = STABLE_RADIUS) -> tuple[np.ndarray, np.ndarray]:
+    """Guarded Steiglitz-McBride fit of orders (p, q); the result is always stable (all poles within ``radius`` < 1).
 
     Starts from Prony (stabilised, numerator refitted). Each iteration prefilters
     the target and the unit impulse by the previous 1/a and solves
@@ -139,8 +139,8 @@ def steiglitz_mcbride(h: np.ndarray, p: int, q: int, iterations: int = 12,
     h = _check(h, p, q)
     n = h.size
     b, a = prony(h, p, q, solver)
-    if not is_stable(a):
-        a = stabilize(a)
+    if not is_stable(a, radius):
+        a = stabilize(a, radius)
         b = refit_numerator(h, a, q, solver)
     best = (sad(h, b, a), b, a)
     if p == 0:
@@ -160,13 +160,13 @@ def steiglitz_mcbride(h: np.ndarray, p: int, q: int, iterations: int = 12,
         b_new = theta[p:]
         if not np.all(np.isfinite(theta)):
             break
-        if not is_stable(a_new):
-            a_new = stabilize(a_new)
+        if not is_stable(a_new, radius):
+            a_new = stabilize(a_new, radius)
             b_new = refit_numerator(h, a_new, q, solver)
         err = sad(h, b_new, a_new)
         if err < best[0]:
             best = (err, b_new, a_new)
-        if np.allclose(a_new, a, rtol=1e-10, atol=1e-12):
+        if np.max(np.abs(a_new - a)) < 1e-12:
             break
         a = a_new
     return best[1], best[2]
@@ -184,7 +184,7 @@ class IIRFit:
 
 
 def fit_iir(h: np.ndarray, orders: Iterable[int | tuple[int, int]] = range(2, 9), method: str = "smb",
-            tie_tolerance: float = 0.02, solver: Solver = lstsq_numpy) -> IIRFit:
+            tie_tolerance: float = 0.02, solver: Solver = lstsq_numpy, radius: float = STABLE_RADIUS) -> IIRFit:
     """Best stable IIR filter for the impulse response ``h`` over ``orders`` (N = M = order, or (p, q) pairs).
 
     ``method`` is ``"smb"`` (guarded Steiglitz-McBride) or ``"prony"`` (Prony, then
@@ -192,7 +192,8 @@ def fit_iir(h: np.ndarray, orders: Iterable[int | tuple[int, int]] = range(2, 9)
     SAD wins; an order whose SAD is within ``tie_tolerance`` (relative) of a lower
     order's is not preferred -- a gain below 2 % is noise being fitted (and SADs within
     1e-12 of the mean |h| are rounding, so equal).
-    Orders needing more samples than ``h`` has are skipped.
+    Orders needing more samples than ``h`` has are skipped. Every pole ends within
+    ``radius`` (unstable or slower poles are reflected / pulled in, numerator refitted).
     """
     h = np.asarray(h, dtype=np.float64).ravel()
     rounding = 1e-12 * float(np.mean(np.abs(h))) if h.size else 0.0  # SADs this close are equal (exact fits)
@@ -202,11 +203,11 @@ def fit_iir(h: np.ndarray, orders: Iterable[int | tuple[int, int]] = range(2, 9)
         if h.size < p + q + 2:
             continue
         if method == "smb":
-            b, a = steiglitz_mcbride(h, p, q, solver=solver)
+            b, a = steiglitz_mcbride(h, p, q, solver=solver, radius=radius)
         elif method == "prony":
             b, a = prony(h, p, q, solver)
-            if not is_stable(a):
-                a = stabilize(a)
+            if not is_stable(a, radius):
+                a = stabilize(a, radius)
                 b = refit_numerator(h, a, q, solver)
         else:
             raise ValueError(f"unknown method {method!r}; use 'smb' or 'prony'")
@@ -218,13 +219,15 @@ def fit_iir(h: np.ndarray, orders: Iterable[int | tuple[int, int]] = range(2, 9)
     return best
 
 
-def ring_length(a: np.ndarray, decay: float = 1e-4, max_samples: int = 20000) -> int:
-    """Samples until the slowest pole of ``a`` decays to ``decay`` of its start (at most ``max_samples``)."""
-    if a.size <= 1:
+def ring_length(b: np.ndarray, a: np.ndarray, decay: float = 1e-6, max_samples: int = 20000) -> int:
+    """Samples until the impulse response of b / a stays below ``decay`` times its peak (at most ``max_samples``).
+
+    Measured on the response itself, not on the slowest pole: a slow pole with a
+    tiny residue should not keep a ring-down alive for seconds.
+    """
+    h = np.abs(impulse_response(b, a, max_samples))
+    peak = float(h.max()) if h.size else 0.0
+    if peak == 0.0:
         return 1
-    r = float(np.max(np.abs(np.roots(a))))
-    if r <= 0.0:
-        return a.size
-    if r >= 1.0:
-        return max_samples
-    return int(min(max_samples, max(a.size, np.ceil(np.log(decay) / np.log(r)))))
+    above = np.nonzero(h > decay * peak)[0]
+    return int(above[-1]) + 1

@@ -1,16 +1,11 @@
-"""Helpers shared by the pattern and compliance fits: named signals from a recording, atomic JSON output."""
+"""Helpers shared by the pattern and compliance fits: named, checked signals from a recording."""
 
 from __future__ import annotations
-
-import json
-import os
-import tempfile
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from ..errors import DataError
+from ..io.atomic import write_json_atomic  # noqa: F401 -- re-exported for the fit modules
 from ..io.recordings import Recording
 
 
@@ -38,18 +33,3 @@ def signal(rec: Recording, name: str, option: str, widths: tuple[int, ...]) -> n
         bad = int(np.argmax(~np.all(np.isfinite(flat), axis=1)))
         raise DataError(f"{rec.path}: signal {name!r} ({option}) has NaN or infinite values (first at sample {bad}); clean the recording")
     return flat[:, 0].copy() if flat.shape[1] == 1 and 1 in widths else flat
-
-
-def write_json_atomic(path: str | Path, doc: dict[str, Any]) -> Path:
-    """Write ``doc`` as indented JSON through a temporary file renamed into place (no partial file on failure)."""
-    path = Path(path).expanduser()
-    text = json.dumps(doc, indent=1, allow_nan=False) + "\n"
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent if str(path.parent) else ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
