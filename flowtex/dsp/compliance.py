@@ -21,7 +21,7 @@ One streaming kernel serves both the offline fit (``flowtex fit compliance``) an
 
 ``k_g`` (N per m/s^2, i.e. kg) is 004 eq. 6's normalisation. ``sigma`` is the fit's
 weighted residual standard deviation (m/s^2). The estimate is *not valid*
-(an answer, not an error) when: fewer than 3 bins hold ``min_per_bin`` ticks
+(an answer, not an error) when: fewer than MIN_BINS (6) bins hold ``min_per_bin`` ticks
 (``REASON_TOO_FEW``); every bin's mean RMS vibration is below ``smooth_floor``
 (0.1 m/s^2: a smooth surface, ``REASON_SMOOTH``); the slope is not positive
 (``REASON_NO_GROWTH``); the weighted R^2 is below ``r2_min`` (0.8: foams,
@@ -37,6 +37,8 @@ from numba import njit
 
 N_BINS = 24
 """Bins along force (004 §5.2.2)."""
+MIN_BINS = 6
+"""A fit needs this many filled bins (a quarter of the force range): fewer give wild early slopes when streaming."""
 # parameter vector layout
 P_FB0, P_FB1, P_FA1, P_HB0, P_HA1, P_FTHR, P_ATHR, P_FLO, P_FHI, P_KG, P_FLOOR, P_R2, P_MINBIN, P_SETTLE, P_LEN = range(15)
 # float state layout: force filter (x_prev, y), mean-square filter (x_prev, y), last a_rms, last f_lp,
@@ -49,7 +51,7 @@ STATE_LEN = S_BINS + N_BINS * BIN_FIELDS
 REASON_OK, REASON_TOO_FEW, REASON_SMOOTH, REASON_NO_GROWTH, REASON_POOR_FIT = range(5)
 REASONS = {
     REASON_OK: "ok",
-    REASON_TOO_FEW: "too few contact samples: fewer than 3 force bins are filled (stroke longer, over a wider force range)",
+    REASON_TOO_FEW: "too few contact samples: fewer than 6 of the 24 force bins are filled (stroke longer, over a wider force range)",
     REASON_SMOOTH: "surface too smooth: RMS vibration stays below the floor whatever the force",
     REASON_NO_GROWTH: "vibration does not grow with force (slope <= 0)",
     REASON_POOR_FIT: "poor line fit (weighted R^2 below the minimum; typical of foams)",
@@ -173,7 +175,7 @@ def compliance_fit(p, s, out) -> None:
     out[1] = math.nan
     out[2] = 0.0
     out[4] = used
-    if used < 3:
+    if used < MIN_BINS:
         out[3] = REASON_TOO_FEW
         return
     fbar = swf / sw
