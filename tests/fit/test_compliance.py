@@ -85,6 +85,9 @@ def test_streaming_node_agrees_with_the_offline_fit_at_the_end(tmp_path):
     np.testing.assert_allclose(out["k_c"][-1], offline["k_c"], rtol=1e-12)
     np.testing.assert_allclose(out["sigma"][-1], offline["sigma"], rtol=1e-12)
     assert out["k_c"][0] == 0.25 and out["valid"][0] == 0.0  # fallback until valid
+    g = flowtex.load_graph(tmp_path / "g.yaml")
+    parts = [g.process({"normal_force": rec["force"][a:b], "acceleration": accel[a:b]})["k_c"] for a, b in [(0, 1), (1, 7000), (7000, 20000)]]
+    np.testing.assert_array_equal(np.concatenate(parts), out["k_c"])  # blocks of any size give the same numbers
     assert abs(offline["k_c"] / (0.3 * np.sqrt(1.05)) - 1) < 0.1  # 3 axes scale the vibration by sqrt(1.05)
 
 

@@ -141,3 +141,17 @@ def test_cli_and_bad_pattern_files(tmp_path, capsys):
         flowtex.load_graph(tmp_path / "g.yaml")
     assert main(["fit", "pattern", str(tmp_path / "r.npz"), "--accel", "a", "--position", "a", "-o", str(tmp_path / "x.json")]) == 1
     assert "has 1 components per sample, expected 3" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
+
+
+def test_chunked_and_live_runs_equal_one_pass(fitted):
+    rec, _, folder = fitted
+    pos = rec["position"][:400]
+    (folder / "g.yaml").write_text(GRAPH.format(pattern="p.json", extra=", max_active: 4"))
+    g = flowtex.load_graph(folder / "g.yaml")
+    whole = g.run({"position": pos})["y"]
+    g.reset()
+    parts = [g.process({"position": pos[a:b]})["y"] for a, b in [(0, 1), (1, 37), (37, 400)]]
+    np.testing.assert_array_equal(np.concatenate(parts), whole)
+    g.reset()
+    live = [g.step({"position": p})["y"] for p in pos[:50]]
+    np.testing.assert_array_equal(np.asarray(live, float), whole[:50])
