@@ -105,6 +105,14 @@ def test_cli_writes_valid_and_invalid_results(tmp_path, capsys):
     assert doc["valid"] is False and "smooth" in doc["reason"]
     assert main(["fit", "compliance", str(tmp_path / "s.npz"), "--force", "nope", "--accel", "a", "-o", str(tmp_path / "x.json")]) == 1
     assert "no signal 'nope'" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
+    bad = smooth["accel"].copy()
+    bad[123] = np.nan
+    save_recording(tmp_path / "n.npz", {"f": smooth["force"], "a": bad}, rate=1000.0)
+    assert main(["fit", "compliance", str(tmp_path / "n.npz"), "--force", "f", "--accel", "a", "-o", str(tmp_path / "x.json")]) == 1
+    assert "NaN or infinite values (first at sample 123)" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
+    save_recording(tmp_path / "norate.npz", {"f": smooth["force"], "a": smooth["accel"]})
+    assert main(["fit", "compliance", str(tmp_path / "norate.npz"), "--force", "f", "--accel", "a", "-o", str(tmp_path / "x.json")]) == 1
+    assert "states no sample rate; pass --rate HZ" in capsys.readouterr().err
 
 
 def test_kc_er_relation_and_its_range():
