@@ -72,10 +72,10 @@ def segment_starts(x: np.ndarray, min_peak_fraction: float = 0.25, guard: int = 
     starts: list[int] = []
     prev_start = -1
     prev_peak = -1
-    prev_height = np.inf
+    prev_height = 0.0
     for pk in peaks:
         h = ax[pk]
-        if h > prev_height and h > floor or prev_peak < 0 and h > floor:
+        if h > floor and (prev_peak < 0 or h > prev_height):
             j = pk
             while j > 0 and ax[j - 1] < ax[j]:  # back to the local minimum just before the peak (004 §4.3.3)
                 j -= 1

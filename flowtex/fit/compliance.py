@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from ..dsp import compliance as cm
+from ..errors import DataError
 from ..io.recordings import load_recording
 from .recording_signals import recording_rate, signal, write_json_atomic
 
@@ -83,8 +84,6 @@ def register_fit(kinds: Any) -> None:
 
 
 def cmd_fit_compliance(args: argparse.Namespace) -> int:
-    from ..errors import DataError
-
     rec = load_recording(args.recording)
     rate = recording_rate(rec, args.rate)
     force = signal(rec, args.force, "--force", (1,))
