@@ -27,6 +27,9 @@ from ..io.patternfile import Pattern, write_pattern
 from ..io.recordings import load_recording
 from .recording_signals import recording_rate, signal
 
+MIN_SAMPLES = 256
+"""Shortest recording a pattern is fitted to: one Welch segment."""
+
 
 def principal_axis(position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(unit axis, origin) of a path (n, 3) mm: the direction of largest spread, pointing along the motion; origin = first point."""
@@ -46,6 +49,8 @@ def fit_pattern(accel: np.ndarray, position: np.ndarray, rate_hz: float, orders:
     if accel.ndim == 2 and accel.shape[1] > 1:  # project on the principal vibration axis
         accel = (accel - accel.mean(axis=0)) @ np.linalg.svd(accel - accel.mean(axis=0), full_matrices=False)[2][0]
     a = accel.ravel() - np.mean(accel)
+    if a.size < MIN_SAMPLES:
+        raise DataError(f"the recording has {a.size} samples; a pattern fit needs at least {MIN_SAMPLES} (the band-pass alone needs 34)")
     if np.max(np.abs(a)) == 0.0:
         raise DataError("the acceleration is constant: there is no texture to fit")
     freqs, psd = welch_psd(a, rate_hz, nperseg=min(256, a.size))
