@@ -5,7 +5,10 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-FIT_COMMAND_MODULES: tuple[str, ...] = ()
+FIT_COMMAND_MODULES: tuple[str, ...] = (
+    "flowtex.fit.pattern",
+    "flowtex.fit.compliance",
+)
 """Modules that add a ``flowtex fit`` kind: each has ``register_fit(fit_subparsers)``."""
 
 

@@ -1,0 +1,172 @@
+"""Patterned textures (004 ch. 4): band edges, segmentation by rising peaks, and the ring-down rendering kernel.
+
+Rendering (``pattern_block``): features sit at positions x_k (mm) along the pattern's
+axis u. Each tick the tool position is projected, x = u . (position - origin); every
+feature crossed since the previous tick (in either direction) starts a ring-down:
+filter k excited by an impulse of amplitude A_k. The output is the **sum** of all
+active ring-downs; a new feature never truncates an older one (004's time aliasing).
+At most ``max_active`` ring-downs play at once; when all slots are busy the oldest is
+replaced. A ring-down ends after ``length_k`` ticks, when its impulse response has fallen
+for good below RING_DECAY (1e-6) of its peak (dsp.prony.ring_length).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+# parameter header: features K, filter order P (coefficients per filter: P + 1), slots, axis (3), origin (3)
+H_K, H_P, H_SLOTS, H_AXIS, H_ORIGIN, H_LEN = 0, 1, 2, 3, 6, 9
+RING_DECAY = 1e-6
+"""A ring-down stops when its slowest pole has decayed to this fraction."""
+
+
+def smoothed_spectrum_db(psd: np.ndarray, bins: int = 9) -> np.ndarray:
+    """The PSD in dB, low-passed along frequency by a centred moving average over ``bins`` bins (edges: shorter windows)."""
+    db = 10.0 * np.log10(np.maximum(np.asarray(psd, dtype=np.float64), 1e-300))
+    kernel = np.ones(bins)
+    num = np.convolve(db, kernel, mode="same")
+    den = np.convolve(np.ones_like(db), kernel, mode="same")
+    return num / den
+
+
+def band_edges(freqs: np.ndarray, psd: np.ndarray, smooth_hz: float = 100.0) -> tuple[float, float]:
+    """Edges (Hz) of the band around the dominant peak: the minima either side of the smoothed spectrum's global maximum.
+
+    The dB spectrum is smoothed over ``smooth_hz`` (default 100 Hz, at least 3 bins):
+    wide enough to average out the harmonics of the feature rate (speed / spacing,
+    30 Hz for 2 mm at 60 mm/s), which would otherwise put a "minimum" between every
+    pair of harmonics and give a band far too narrow.
+    """
+    df = float(freqs[1] - freqs[0]) if freqs.size > 1 else 1.0
+    bins = max(3, int(round(smooth_hz / df)) | 1)
+    s = smoothed_spectrum_db(psd, bins)
+    k = int(np.argmax(s[1:])) + 1  # skip the DC bin
+    lo = k
+    while lo > 1 and s[lo - 1] < s[lo]:
+        lo -= 1
+    hi = k
+    while hi < s.size - 1 and s[hi + 1] < s[hi]:
+        hi += 1
+    return float(freqs[lo]), float(freqs[hi])
+
+
+def segment_starts(x: np.ndarray, min_peak_fraction: float = 0.25, guard: int = 2) -> np.ndarray:
+    """Start ticks of segments of the (band-passed) signal ``x`` by 004's rising-peak rule.
+
+    Peaks are the local maxima of |x|. A segment starts at a peak larger than the
+    peak before it, provided it exceeds ``min_peak_fraction`` times the 95th
+    percentile of all peaks (smaller rises are noise in a ring-down's tail). The
+    segment begins at the local minimum of |x| just before that peak, moved
+    ``guard`` ticks earlier: the band-pass blurs onsets, and an early start costs the
+    IIR fit only a small leading numerator coefficient, a late one loses the onset.
+    """
+    ax = np.abs(np.asarray(x, dtype=np.float64))
+    if ax.size < 3:
+        return np.zeros(0, np.int64)
+    inner = ax[1:-1]
+    peaks = np.nonzero((inner > ax[:-2]) & (inner >= ax[2:]))[0] + 1
+    if peaks.size == 0:
+        return np.zeros(0, np.int64)
+    floor = min_peak_fraction * np.percentile(ax[peaks], 95)
+    starts: list[int] = []
+    prev_start = -1
+    prev_peak = -1
+    prev_height = 0.0
+    for pk in peaks:
+        h = ax[pk]
+        if h > floor and (prev_peak < 0 or h > prev_height):
+            j = pk
+            while j > 0 and ax[j - 1] < ax[j]:  # back to the local minimum just before the peak (004 §4.3.3)
+                j -= 1
+            starts.append(max(j - guard, prev_start + 1))
+            prev_start = starts[-1]
+        prev_peak, prev_height = pk, h
+    return np.unique(np.asarray(starts, np.int64))
+
+
+def pattern_params(axis: np.ndarray, origin: np.ndarray, positions: np.ndarray, amplitudes: np.ndarray,
+                   lengths: np.ndarray, b: np.ndarray, a: np.ndarray, max_active: int) -> np.ndarray:
+    """Pack the kernel's parameter vector; ``b``, ``a`` are (K, P + 1) with a[:, 0] == 1, positions sorted."""
+    k, width = b.shape
+    head = np.zeros(H_LEN)
+    head[H_K], head[H_P], head[H_SLOTS] = k, width - 1, max_active
+    head[H_AXIS:H_AXIS + 3] = axis
+    head[H_ORIGIN:H_ORIGIN + 3] = origin
+    return np.concatenate([head, positions, amplitudes, lengths.astype(np.float64), b.ravel(), a.ravel()])
+
+
+def pattern_state(order: int, max_active: int) -> tuple[np.ndarray, np.ndarray]:
+    """Float state [x_prev, slot input (S), slot z (S x P)]; int state [started, slot filter (S), slot age (S)]."""
+    s = np.zeros(1 + max_active + max_active * max(order, 1))
+    si = np.zeros(1 + 2 * max_active, np.int64)
+    si[1:1 + max_active] = -1
+    return s, si
+
+
+@njit(cache=True)
+def _start(p, s, si, k, amp, slots, order) -> None:
+    best = 0
+    best_age = -1
+    for j in range(slots):  # a free slot, else the oldest ring-down
+        if si[1 + j] < 0:
+            best = j
+            break
+        if si[1 + slots + j] > best_age:
+            best_age = si[1 + slots + j]
+            best = j
+    si[1 + best] = k
+    si[1 + slots + best] = 0
+    s[1 + best] = amp
+    z0 = 1 + slots + best * order
+    for i in range(order):
+        s[z0 + i] = 0.0
+
+
+@njit(cache=True)
+def pattern_block(p, s, si, position, in_contact, y) -> None:
+    """Render the patterned texture for a block: position (n, 3) mm, in_contact (n, 1), y (n, 1) m/s^2."""
+    nk = int(p[H_K])
+    order = int(p[H_P])
+    slots = int(p[H_SLOTS])
+    pos = p[H_LEN:H_LEN + nk]
+    amps = p[H_LEN + nk:H_LEN + 2 * nk]
+    lens = p[H_LEN + 2 * nk:H_LEN + 3 * nk]
+    w = order + 1
+    b0 = H_LEN + 3 * nk
+    a0 = b0 + nk * w
+    zord = max(order, 1)
+    for t in range(position.shape[0]):
+        x = (p[H_AXIS] * (position[t, 0] - p[H_ORIGIN]) + p[H_AXIS + 1] * (position[t, 1] - p[H_ORIGIN + 1])
+             + p[H_AXIS + 2] * (position[t, 2] - p[H_ORIGIN + 2]))
+        if si[0] == 1 and in_contact[t, 0] >= 0.5 and x != s[0]:
+            if x > s[0]:
+                i0 = np.searchsorted(pos, s[0], side="right")
+                i1 = np.searchsorted(pos, x, side="right")
+            else:
+                i0 = np.searchsorted(pos, x, side="left")
+                i1 = np.searchsorted(pos, s[0], side="left")
+            for k in range(i0, i1):
+                _start(p, s, si, k, amps[k], slots, zord)
+        si[0] = 1
+        s[0] = x
+        acc = 0.0
+        for j in range(slots):
+            k = si[1 + j]
+            if k < 0:
+                continue
+            u = s[1 + j]
+            s[1 + j] = 0.0
+            bk = b0 + k * w
+            ak = a0 + k * w
+            z = 1 + slots + j * zord
+            out = p[bk] * u + s[z]
+            for i in range(order - 1):
+                s[z + i] = p[bk + i + 1] * u - p[ak + i + 1] * out + s[z + i + 1]
+            if order >= 1:
+                s[z + order - 1] = p[bk + order] * u - p[ak + order] * out
+            acc += out
+            si[1 + slots + j] += 1
+            if si[1 + slots + j] >= lens[k]:
+                si[1 + j] = -1
+        y[t, 0] = acc

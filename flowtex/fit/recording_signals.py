@@ -1,0 +1,35 @@
+"""Helpers shared by the pattern and compliance fits: named, checked signals from a recording."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import DataError
+from ..io.atomic import write_json_atomic  # noqa: F401 -- re-exported for the fit modules
+from ..io.recordings import Recording
+
+
+def recording_rate(rec: Recording, override: float | None) -> float:
+    """The rate in Hz: ``override`` (``--rate``) if given, else the one the file states; an error if neither."""
+    rate = override if override is not None else rec.rate
+    if rate is None:
+        raise DataError(f"{rec.path}: the recording states no sample rate; pass --rate HZ")
+    if not np.isfinite(rate) or rate <= 0:
+        raise DataError(f"{rec.path}: sample rate must be a positive number of Hz, got {rate!r}")
+    return float(rate)
+
+
+def signal(rec: Recording, name: str, option: str, widths: tuple[int, ...]) -> np.ndarray:
+    """Signal ``name`` as float64 (n,) if 1 is in ``widths`` and it is a scalar, else (n, width); checked finite."""
+    if name not in rec.arrays:
+        have = ", ".join(sorted(rec.arrays)) or "none"
+        raise DataError(f"{rec.path}: no signal {name!r} (given by {option}); the recording has: {have}")
+    arr = np.asarray(rec.arrays[name], dtype=np.float64)
+    flat = arr.reshape(arr.shape[0], -1)
+    if flat.shape[1] not in widths:
+        want = " or ".join(map(str, widths))
+        raise DataError(f"{rec.path}: signal {name!r} ({option}) has {flat.shape[1]} components per sample, expected {want}")
+    if not np.all(np.isfinite(flat)):
+        bad = int(np.argmax(~np.all(np.isfinite(flat), axis=1)))
+        raise DataError(f"{rec.path}: signal {name!r} ({option}) has NaN or infinite values (first at sample {bad}); clean the recording")
+    return flat[:, 0].copy() if flat.shape[1] == 1 and 1 in widths else flat

@@ -1,0 +1,103 @@
+"""Pattern files (docs/pattern-format.md): versioned JSON holding a patterned texture's features and IIR filters."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import DataError
+from .atomic import write_json_atomic
+from .jsondoc import read_json_document
+
+FORMAT_NAME = "flowtex-pattern"
+FORMAT_VERSION = 1
+MAX_ORDER = 32
+
+
+@dataclass
+class Pattern:
+    """Features along a straight axis: position (mm along ``axis`` from ``origin``), amplitude A_k (m/s^2) and filter b_k / a_k."""
+
+    sample_rate_hz: float
+    axis: np.ndarray
+    origin: np.ndarray
+    positions_mm: np.ndarray
+    amplitudes: np.ndarray
+    b: list[np.ndarray]
+    a: list[np.ndarray]
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+    def padded(self) -> tuple[np.ndarray, np.ndarray]:
+        """(b, a) as (K, P + 1) arrays padded with zeros to the largest order P."""
+        order = max(max(len(x) for x in self.b), max(len(x) for x in self.a)) - 1
+        b = np.zeros((len(self.b), order + 1))
+        a = np.zeros((len(self.a), order + 1))
+        for k, (bk, ak) in enumerate(zip(self.b, self.a, strict=True)):
+            b[k, :len(bk)] = bk
+            a[k, :len(ak)] = ak
+        return b, a
+
+
+def write_pattern(path: str | Path, pat: Pattern) -> Path:
+    """Write ``pat`` (bit-exact floats) through a temporary file; returns the path."""
+    doc = {
+        "format": FORMAT_NAME, "version": FORMAT_VERSION, "sample_rate_hz": float(pat.sample_rate_hz),
+        "axis": [float(v) for v in pat.axis], "origin_mm": [float(v) for v in pat.origin],
+        "features": [{"position_mm": float(x), "amplitude": float(amp), "b": [float(v) for v in b], "a": [float(v) for v in a]}
+                     for x, amp, b, a in zip(pat.positions_mm, pat.amplitudes, pat.b, pat.a, strict=True)],
+        "metadata": pat.metadata,
+    }
+    return write_json_atomic(path, doc)
+
+
+def _numbers(value: Any, where: str, path: Path, length: int | None = None) -> np.ndarray:
+    if not isinstance(value, list) or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        raise DataError(f"{path}: {where} must be a list of numbers")
+    if length is not None and len(value) != length:
+        raise DataError(f"{path}: {where} must have {length} numbers, got {len(value)}")
+    return np.asarray(value, dtype=np.float64)
+
+
+def read_pattern(path: str | Path) -> Pattern:
+    """Read and check a pattern file; every problem raises DataError naming the file and the key."""
+    path = Path(path).expanduser()
+    doc = read_json_document(path, "pattern", FORMAT_NAME, (FORMAT_VERSION,))
+    rate = doc.get("sample_rate_hz")
+    if not isinstance(rate, (int, float)) or isinstance(rate, bool) or not rate > 0:
+        raise DataError(f"{path}: key 'sample_rate_hz' must be a positive number of Hz, got {rate!r}")
+    axis = _numbers(doc.get("axis"), "key 'axis'", path, 3)
+    norm = float(np.linalg.norm(axis))
+    if not norm > 0:
+        raise DataError(f"{path}: key 'axis' must be a non-zero direction")
+    origin = _numbers(doc.get("origin_mm"), "key 'origin_mm'", path, 3)
+    feats = doc.get("features")
+    if not isinstance(feats, list) or not feats:
+        raise DataError(f"{path}: key 'features' must be a non-empty list of features")
+    xs, amps, bs, as_ = [], [], [], []
+    for i, f in enumerate(feats):
+        where = f"features[{i}]"
+        if not isinstance(f, dict):
+            raise DataError(f"{path}: {where} must be an object with position_mm, amplitude, b, a")
+        for key in ("position_mm", "amplitude"):
+            v = f.get(key)
+            if not isinstance(v, (int, float)) or isinstance(v, bool):
+                raise DataError(f"{path}: {where}.{key} must be a number, got {v!r}")
+        b = _numbers(f.get("b"), f"{where}.b", path)
+        a = _numbers(f.get("a"), f"{where}.a", path)
+        if not 1 <= b.size <= MAX_ORDER + 1 or not 1 <= a.size <= MAX_ORDER + 1:
+            raise DataError(f"{path}: {where}: b and a need 1 to {MAX_ORDER + 1} coefficients")
+        if a[0] != 1.0:
+            raise DataError(f"{path}: {where}.a[0] must be 1 (normalised denominator), got {a[0]!r}")
+        if a.size > 1 and np.max(np.abs(np.roots(a))) >= 1.0:
+            raise DataError(f"{path}: {where}: the filter is unstable (pole radius {np.max(np.abs(np.roots(a))):.6g} >= 1); refit the pattern")
+        xs.append(float(f["position_mm"]))
+        amps.append(float(f["amplitude"]))
+        bs.append(b)
+        as_.append(a)
+    order = np.argsort(xs, kind="stable")
+    meta = doc.get("metadata", {})
+    return Pattern(float(rate), axis / norm, origin, np.asarray(xs)[order], np.asarray(amps)[order],
+                   [bs[i] for i in order], [as_[i] for i in order], meta if isinstance(meta, dict) else {})

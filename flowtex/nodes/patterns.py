@@ -1,0 +1,56 @@
+"""patterned_texture: a sum of IIR ring-downs excited as the tool crosses recorded surface features (004 ch. 4)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..dsp.patterns import RING_DECAY, pattern_block, pattern_params, pattern_state
+from ..dsp.prony import ring_length
+from ..errors import DataError, ParamError
+from ..io.patternfile import read_pattern
+from ..node_api import Node, NodeState, Param, Port
+
+
+@njit(cache=True)
+def _pattern(p, s, si, position, in_contact, y):
+    pattern_block(p, s, si, position, in_contact, y)
+
+
+class PatternedTexture(Node):
+    """Patterned texture vibration (m/s^2): crossing feature k, either way, excites filter k with amplitude A_k; ring-downs add.
+
+    Amplitude does not depend on speed (004 §6.1 saw none): speed only sets how
+    often features are crossed. A ring-down lasts until its slowest pole has
+    decayed to 1e-6; at most ``max_active`` play at once (the oldest is replaced).
+    docs/patterns.md.
+    """
+
+    type_name = "patterned_texture"
+    params = {
+        "pattern": Param("path", doc="pattern file (docs/pattern-format.md); relative to the graph file"),
+        "max_active": Param("int", default=16, min=1, max=256, doc="most ring-downs playing at once"),
+    }
+    inputs = {
+        "position": Port((3,), "mm", "tool position"),
+        "in_contact": Port((), "", "contact state 0/1: features excite only in contact (unconnected: always)", optional=True, default=1.0),
+    }
+    outputs = {"y": Port((), "m/s^2", "texture vibration")}
+    kernel = _pattern
+
+    def build(self, inputs, outputs):
+        path = self.p["pattern"]
+        try:
+            pat = read_pattern(path)
+        except DataError as exc:
+            raise ParamError("pattern", str(exc)) from None
+        rate = self.context.node_rate
+        if abs(pat.sample_rate_hz - rate) > 1e-9 * rate:
+            raise ParamError("pattern", f"{path}: pattern filters are sampled at {pat.sample_rate_hz:g} Hz but this node runs at "
+                             f"{rate:g} Hz; refit the pattern at {rate:g} Hz or run the node at the pattern's rate")
+        b, a = pat.padded()
+        lengths = [ring_length(bk, ak, RING_DECAY) for bk, ak in zip(pat.b, pat.a, strict=True)]
+        slots = self.p["max_active"]
+        s, si = pattern_state(b.shape[1] - 1, slots)
+        params = pattern_params(pat.axis, pat.origin, pat.positions_mm, pat.amplitudes, np.asarray(lengths), b, a, slots)
+        return NodeState(params=params, state=s, istate=si)
