@@ -17,6 +17,8 @@ import os
 import shutil
 from pathlib import Path
 
+from .dsp.fastmath import CONTRACT
+
 CACHE_ENV = "FLOWTEX_CACHE_DIR"
 KEEP_OLD = 3
 
@@ -31,12 +33,13 @@ def cache_dir() -> Path:
 
 
 def source_fingerprint() -> str:
-    """Hash of the path, size and modification time of every flowtex source file."""
+    """Hash of the path, size and modification time of every flowtex source file, and of the FMA-contraction setting."""
     package = Path(__file__).resolve().parent
     h = hashlib.sha256()
     for path in sorted(package.rglob("*.py")):
         st = path.stat()
         h.update(f"{path.relative_to(package)}:{st.st_size}:{st.st_mtime_ns};".encode())
+    h.update(f"contract={CONTRACT};".encode())  # flowtex.dsp.fastmath's setting changes the machine code
     return h.hexdigest()[:16]
 
 

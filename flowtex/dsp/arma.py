@@ -46,10 +46,11 @@ import math
 import numpy as np
 from numba import njit
 
+from .fastmath import FASTMATH
 from .rng import next_normal
 
-_FAST = {"contract"}
-"""numba fast-math flags: FMA contraction only (NaN and inf are still handled exactly)."""
+_FAST = FASTMATH
+"""numba fast-math flags: FMA contraction only, unless FLOWTEX_CONTRACT=0 (flowtex.dsp.fastmath)."""
 
 FLUSH_BELOW = 1e-200
 """State values smaller than this in magnitude are set to 0 (subnormal guard)."""

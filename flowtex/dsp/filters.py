@@ -12,6 +12,8 @@ import math
 import numpy as np
 from numba import njit
 
+from .fastmath import FASTMATH
+
 SECTION_PARAMS = 5
 """Per biquad: b0, b1, b2, a1, a2 (a0 normalised to 1)."""
 SECTION_STATE = 4
@@ -30,7 +32,7 @@ def sos_to_params(sos: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(norm[:, [0, 1, 2, 4, 5]].ravel())
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, fastmath=FASTMATH)
 def sos_block(coef: np.ndarray, state: np.ndarray, x: np.ndarray, y: np.ndarray) -> None:
     """Cascade of biquads (direct form I) over a block.
 
@@ -79,7 +81,7 @@ def lowpass_alpha(cutoff_hz: float, rate_hz: float) -> float:
     return 1.0 - math.exp(-2.0 * math.pi * cutoff_hz / rate_hz)
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, fastmath=FASTMATH)
 def first_order_lowpass_block(alpha: float, state: np.ndarray, x: np.ndarray, y: np.ndarray) -> None:
     """y[t] = y[t-1] + alpha * (x[t] - y[t-1]) per channel; ``state`` holds y[t-1]."""
     for c in range(x.shape[1]):

@@ -37,6 +37,8 @@ import math
 import numpy as np
 from numba import njit
 
+from .fastmath import FASTMATH
+
 DEFAULT_MIN_GAP = 1e-6
 """Smallest gap (rad) :func:`repair_lsf` accepts between neighbouring LSFs and to 0 and pi.
 
@@ -58,8 +60,8 @@ _S1, _S2, _S3, _S4, _S5, _S6, _S7, _S8, _S9, _S10, _S11 = ((-1) ** n / math.fact
 _PIO2_HI = 1.5707963267948966  # float64 nearest pi/2
 _PIO2_LO = 6.123233995736766e-17  # pi/2 - _PIO2_HI
 
-_FAST = {"contract"}
-"""numba fast-math flags used here: FMA contraction only (no NaN/inf or reassociation assumptions)."""
+_FAST = FASTMATH
+"""numba fast-math flags: FMA contraction only, unless FLOWTEX_CONTRACT=0 (flowtex.dsp.fastmath)."""
 
 
 @njit(cache=True, inline="always", fastmath=_FAST)
