@@ -13,7 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import FlowtexError
+from ..dsp.nonfinite import NONFINITE_POLICIES, fill_nonfinite, find_nonfinite
+from ..errors import DataError, FlowtexError
 from ..node_api import PortSpec
 from ..registry import load_registry
 from .arena import OUT_WIDTH, TICK, Layout, plan_layout
@@ -116,14 +117,21 @@ class Graph:
                 si = self.i[self.i[slots.si[0]]:self.i[slots.si[1]]]
                 rn.node.seed_state(s, si, np.random.SeedSequence([self.seed, zlib.crc32(name.encode())]))
 
-    def run(self, inputs: Mapping[str, Any], seed: int | None = None, progress: bool = False) -> dict[str, np.ndarray]:
-        """Reset (with ``seed``), then run the whole recording ``inputs``."""
-        self.reset(seed)
-        return self.process(inputs, progress=progress)
+    def run(self, inputs: Mapping[str, Any], seed: int | None = None, progress: bool = False,
+            nonfinite: str = "error") -> dict[str, np.ndarray]:
+        """Reset (with ``seed``), then run the whole recording ``inputs``.
 
-    def process(self, inputs: Mapping[str, Any], progress: bool = False) -> dict[str, np.ndarray]:
-        """Continue from the current state over ``inputs`` (chunked runs equal one pass)."""
+        ``nonfinite`` says what to do with NaN/inf input samples: ``error``
+        (refuse, naming the input, the count and the first index), ``hold``
+        (last finite value of the channel, 0 before any) or ``zero``.
+        """
+        self.reset(seed)
+        return self.process(inputs, progress=progress, nonfinite=nonfinite)
+
+    def process(self, inputs: Mapping[str, Any], progress: bool = False, nonfinite: str = "error") -> dict[str, np.ndarray]:
+        """Continue from the current state over ``inputs`` (chunked runs equal one pass); ``nonfinite`` as in :meth:`run`."""
         arrays, total = self._check_inputs(inputs)
+        arrays = apply_nonfinite_policy(arrays, nonfinite)
         if progress and total > PROGRESS_CHUNK:
             from tqdm import tqdm
 
@@ -298,6 +306,28 @@ class Graph:
         self.reset(seed)
         zeros = {name: np.zeros((n, w)) for name, (_col, w) in self.layout.in_columns.items()}
         return self._run_chunk(zeros, n)
+
+
+def apply_nonfinite_policy(arrays: dict[str, np.ndarray], policy: str, source: str = "",
+                           fix: str = "or pass nonfinite='hold' or 'zero'") -> dict[str, np.ndarray]:
+    """``arrays`` with non-finite samples handled by ``policy`` (see :mod:`flowtex.dsp.nonfinite`).
+
+    ``error`` raises :class:`DataError` naming ``source`` (a file, if any), the signal,
+    the count and the first index; a recursive filter fed one NaN would output NaN for good.
+    """
+    if policy not in NONFINITE_POLICIES:
+        raise FlowtexError(f"unknown non-finite policy {policy!r}; use one of {', '.join(NONFINITE_POLICIES)}")
+    out = {}
+    for name, a in arrays.items():
+        found = find_nonfinite(a)
+        if found is None:
+            out[name] = a
+        elif policy == "error":
+            prefix = f"{source}: " if source else ""
+            raise DataError(f"{prefix}input {name!r} has {found.describe()}; clean the recording {fix}")
+        else:
+            out[name] = fill_nonfinite(a, policy)
+    return out
 
 
 def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
