@@ -27,7 +27,8 @@ COMMAND_MODULES = (
 
 def _add_graph_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plugins", action="append", default=[], metavar="DIR",
-                   help="extra plugin folder (repeatable; ./plugins and $FLOWTEX_PLUGINS are always searched)")
+                   help="extra plugin folder (repeatable; ./plugins, the graph file's plugins/ and $FLOWTEX_PLUGINS "
+                        "are always searched)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="NODE.PARAM=VALUE",
                    help="override a node parameter (repeatable), e.g. --set lookup.models=Models_Cork.xml")
 
@@ -118,9 +119,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=None, help="noise seed (default: the graph's seed)")
     p.add_argument("--dbc", help="DBC file (replay of a CAN session)")
     p.add_argument("--map", help="signal map file (replay of a CAN session)")
-    p.add_argument("--nonfinite", choices=("error", "hold", "zero"), default="error",
+    p.add_argument("--nonfinite", choices=("error", "hold", "zero", "pass"), default="error",
                    help="NaN/inf in the recording: error (default; names signal, count, first index), "
-                        "hold (last finite value) or zero")
+                        "hold (last finite value), zero, or pass (unchanged)")
     _add_graph_options(p)
     p.set_defaults(func=cmd_run)
 

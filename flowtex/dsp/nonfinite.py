@@ -8,7 +8,9 @@ of these policies (``flowtex run --nonfinite``, ``Graph.run(nonfinite=...)``):
   first index (the default);
 * ``hold``: replace each non-finite sample by the last finite one of the same
   channel (0 before the first finite one);
-* ``zero``: replace each non-finite sample by 0.
+* ``zero``: replace each non-finite sample by 0;
+* ``pass``: feed them to the graph unchanged (for graphs whose nodes handle
+  them on purpose, e.g. ``clip``'s ``nan`` parameter or ``texture_lookup``).
 
 Arrays have time on the first axis; values keep their unit.
 """
@@ -19,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-NONFINITE_POLICIES = ("error", "hold", "zero")
+NONFINITE_POLICIES = ("error", "hold", "zero", "pass")
 
 
 @dataclass(frozen=True)
