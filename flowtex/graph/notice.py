@@ -46,11 +46,14 @@ def compile_notice(what: str, cached_in: str, delay: float = NOTICE_DELAY_S, str
 
     thread = threading.Thread(target=watch, name="flowtex-compile-notice", daemon=True)
     thread.start()
+    ok = False
     try:
         yield
+        ok = True
     finally:
         done.set()
         thread.join()
         if announced.is_set() and tty:
-            out.write(f"\rflowtex: compiled {what} in {time.monotonic() - start:.1f} s (cached in {cached_in})\x1b[K\n")
+            end = f"\rflowtex: compiled {what} in {time.monotonic() - start:.1f} s (cached in {cached_in})\x1b[K" if ok else ""
+            out.write(end + "\n")  # on an error, end the spinner's line so the message starts on its own
             out.flush()
