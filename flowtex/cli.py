@@ -28,7 +28,8 @@ COMMAND_MODULES = (
 
 def _add_graph_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--plugins", action="append", default=[], metavar="DIR",
-                   help="extra plugin folder (repeatable; ./plugins and $FLOWTEX_PLUGINS are always searched)")
+                   help="extra plugin folder (repeatable; ./plugins, the graph file's plugins/ and $FLOWTEX_PLUGINS "
+                        "are always searched)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="NODE.PARAM=VALUE",
                    help="override a node parameter (repeatable), e.g. --set lookup.models=Models_Cork.xml")
 
@@ -62,7 +63,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         return 0
     from .runtime.offline import run_recording
 
-    outputs = run_recording(graph, args.input, args.output, seed=args.seed, progress=sys.stderr.isatty())
+    outputs = run_recording(graph, args.input, args.output, seed=args.seed, progress=sys.stderr.isatty(),
+                            nonfinite=args.nonfinite)
     n = next(iter(outputs.values())).shape[0] if outputs else 0
     target = f" -> {args.output}" if args.output else ""
     print(f"{graph.name}: {n} ticks at {graph.rate:g} Hz, outputs {', '.join(outputs)}{target}")
@@ -118,6 +120,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=None, help="noise seed (default: the graph's seed)")
     p.add_argument("--dbc", help="DBC file (replay of a CAN session)")
     p.add_argument("--map", help="signal map file (replay of a CAN session)")
+    p.add_argument("--nonfinite", choices=("error", "hold", "zero", "pass"), default="error",
+                   help="NaN/inf in the recording: error (default; names signal, count, first index), "
+                        "hold (last finite value), zero, or pass (unchanged)")
     _add_graph_options(p)
     p.set_defaults(func=cmd_run)
 

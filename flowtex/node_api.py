@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -179,14 +180,20 @@ class Port:
     doc: str = ""
     optional: bool = False
     default: float = 0.0
+    shape_doc: str = ""
+    """How the shape is set when the node's ``resolve`` computes it (shown by ``flowtex nodes``), e.g. ``"p+1, from the model file"``."""
+    unit_doc: str = ""
+    """How the unit is set when ``resolve`` computes it, e.g. ``"unit of x per second"``."""
 
     def describe(self) -> str:
         shape = "any shape" if self.shape is None else (
             f"shape of {self.shape[1:]}" if isinstance(self.shape, str) else
             ("scalar" if self.shape == () else "x".join(map(str, self.shape))))
+        shape = self.shape_doc or shape
         unit = {"*": "any unit", "": "dimensionless"}.get(self.unit, self.unit)
         if self.unit.startswith("="):
             unit = f"unit of {self.unit[1:]}"
+        unit = self.unit_doc or unit
         return f"{shape}, {unit}" + (", optional" if self.optional else "")
 
 
@@ -336,12 +343,47 @@ def resolve_declared(port: Port, inputs: dict[str, PortSpec]) -> PortSpec:
 
 
 def unit_product(a: str, b: str) -> str:
-    """Unit of a product: dimensionless factors drop out, otherwise ``a*b``."""
+    """Unit of a product, simplified: dimensionless factors drop out, powers combine (``mm/s``, ``mm/s`` -> ``mm^2/s^2``)."""
     if not a:
-        return b
+        return simplify_unit(b)
     if not b:
-        return a
-    return f"{a}*{b}"
+        return simplify_unit(a)
+    return simplify_unit(f"{a}*{b}")
+
+
+_UNIT_FACTOR = re.compile(r"^([A-Za-z_%°µΩ][A-Za-z0-9_%°µΩ]*)(?:\^(-?\d+))?$")
+
+
+def simplify_unit(unit: str) -> str:
+    """Collect powers of a unit written with ``*``, ``/`` and integer ``^n``: ``mm/s*mm/s`` -> ``mm^2/s^2``.
+
+    Read left to right (``a/b*c`` is ``a*c/b``); factors keep the order of their
+    first appearance, cancelled factors drop out, ``1`` and empty factors are
+    dimensionless. The result has the numerator, then each denominator factor
+    after a ``/`` (``N/mm/s``; ``1/s`` when nothing is left above). A unit this
+    grammar cannot read (parentheses, decimals, ``*``/``=`` wildcards) is returned unchanged.
+    """
+    if not unit or unit == "*" or unit.startswith("="):
+        return unit
+    powers: dict[str, int] = {}
+    tokens = re.split(r"([*/])", unit.replace(" ", ""))
+    for k in range(0, len(tokens), 2):
+        part = tokens[k]
+        sign = -1 if k > 0 and tokens[k - 1] == "/" else 1
+        if part == "1":
+            continue
+        m = _UNIT_FACTOR.match(part)
+        if m is None:
+            return unit
+        powers[m.group(1)] = powers.get(m.group(1), 0) + sign * int(m.group(2) or 1)
+
+    def power(name: str, n: int) -> str:
+        return name if n == 1 else f"{name}^{n}"
+    top = "*".join(power(n, e) for n, e in powers.items() if e > 0)
+    bottom = "".join("/" + power(n, -e) for n, e in powers.items() if e < 0)
+    if not top and not bottom:
+        return ""
+    return (top or "1") + bottom
 
 
 def suggest(word: str, candidates: Sequence[str]) -> str:

@@ -7,8 +7,9 @@ subclass with a ``type_name`` defined in it is registered.
   (an entry point may name a module, a package -- all its public submodules --
   or a single Node class). flowtex's own entry point names ``flowtex.nodes``.
 * Plugin folders: every ``*.py`` file in ``./plugins`` (searched automatically),
-  in each folder of ``FLOWTEX_PLUGINS`` (``os.pathsep``-separated) and in each
-  ``--plugins DIR``.
+  in each folder of ``FLOWTEX_PLUGINS`` (``os.pathsep``-separated), in each
+  ``--plugins DIR``, and (added by the graph loader) in the graph file's own
+  ``plugins/`` folder.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from types import ModuleType
 
 from .errors import FlowtexError
 from .node_api import Node
+from .nodecheck import check_node_class
 
 ENTRY_POINT_GROUP = "flowtex.nodes"
 PLUGIN_ENV = "FLOWTEX_PLUGINS"
@@ -49,7 +51,9 @@ class Registry:
                 self.add(obj, origin)
 
     def add(self, cls: type[Node], origin: str) -> None:
+        """Register ``cls``; its kernel is checked against the node contract first (errors name its file and line)."""
         name = cls.type_name
+        check_node_class(cls)
         if name in self.types and self.types[name] is not cls:
             raise FlowtexError(
                 f"{origin}: node type {name!r} is already defined by {self.origins[name]}; rename one of them"

@@ -179,8 +179,11 @@ def test_nan_input_does_not_crash_and_stays_local(write_graph):
     edges: [x -> g.x]
     outputs: {y: g.y}
     """)
-    y = flowtex.load_graph(path).run({"x": np.array([1.0, np.nan, 3.0])})["y"]
+    g = flowtex.load_graph(path)
+    y = [g.step({"x": v})["y"] for v in (1.0, np.nan, 3.0)]  # step() does not check; kernels must not crash
     assert y[0] == 2.0 and np.isnan(y[1]) and y[2] == 6.0
+    with pytest.raises(flowtex.errors.DataError, match="non-finite"):  # run() refuses by default (issue 9)
+        g.run({"x": np.array([1.0, np.nan, 3.0])})
 
 
 def test_wrong_input_shape_is_a_clear_error(chain):

@@ -76,6 +76,31 @@ def sos_block(coef: np.ndarray, state: np.ndarray, x: np.ndarray, y: np.ndarray)
             state[base + 3] = y2
 
 
+@njit(cache=True)
+def sos_steady_state(coef: np.ndarray, state: np.ndarray, x0: np.ndarray) -> None:
+    """Set ``state`` (layout of :func:`sos_block`) to the steady state for the constant input ``x0`` per channel.
+
+    Each section then sees its input ``u`` and outputs ``g u`` forever, with
+    ``g = (b0 + b1 + b2) / (1 + a1 + a2)`` its DC gain: what scipy's
+    ``sosfilt_zi(sos) * x0`` gives in its own (transposed) state layout. A
+    constant input then passes without a start-up transient (a gravity step
+    through a high-pass gives 0 from the first sample, not -9.8 m/s^2).
+    Stable sections have no pole at z = 1, so ``1 + a1 + a2 != 0``.
+    """
+    channels = x0.shape[0]
+    sections = coef.shape[0] // SECTION_PARAMS
+    for c in range(channels):
+        u = x0[c]
+        for k in range(sections):
+            g = (coef[5 * k] + coef[5 * k + 1] + coef[5 * k + 2]) / (1.0 + coef[5 * k + 3] + coef[5 * k + 4])
+            base = (c * sections + k) * SECTION_STATE
+            state[base] = u
+            state[base + 1] = u
+            u = g * u
+            state[base + 2] = u
+            state[base + 3] = u
+
+
 def lowpass_alpha(cutoff_hz: float, rate_hz: float) -> float:
     """Smoothing factor of a first-order low-pass with its pole at exp(-2 pi fc / fs)."""
     return 1.0 - math.exp(-2.0 * math.pi * cutoff_hz / rate_hz)

@@ -1,4 +1,8 @@
-"""Friction kernels: HaTT's Coulomb/viscous rule and Dahl stick-slip (ALGORITHMS.md §5; seeds 000, 002 §3.3.1).
+"""Friction kernels: HaTT's Coulomb/viscous rule and Dahl stick-slip.
+
+Sources: Kuchenbecker & Culbertson 2014, "Haptic rendering of textures" (tutorial) (HaTT's rule);
+Culbertson & Kuchenbecker 2017, "Importance of matching physical friction, hardness, and texture
+in creating realistic haptic virtual surfaces" (Dahl model, section 3.3.1).
 
 Units: velocity mm/s, position mm, normal force N, friction force N. Forces
 are 3-vectors in the tangent plane; docs/friction.md derives the choices.
@@ -99,8 +103,8 @@ def dahl_block(p: np.ndarray, s: np.ndarray, si: np.ndarray, pos: np.ndarray, fn
        by the factor sqrt(F_n,i-1 / F_n,i) (to x_{i-1} itself after lift-off).
     2. z = P (x_i - w_{i-1}); if |z| > z_max: z <- z z_max / |z| and
        w_i = x_i - z (the adhesion point is dragged along), else w_i = w_{i-1}.
-       On a straight path this is exactly 002 eq. (1).
-    3. F = -mu F_n z / z_max (002 eq. (2), opposing the stretch).
+       On a straight path this is exactly Culbertson & Kuchenbecker 2017, eq. (1).
+    3. F = -mu F_n z / z_max (Culbertson & Kuchenbecker 2017, eq. (2), opposing the stretch).
 
     The first valid tick places w at the tool (F = 0).
     """

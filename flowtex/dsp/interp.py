@@ -1,6 +1,6 @@
 """Texture-model interpolation: (speed, force) -> one ARMA model, every tick, allocation-free.
 
-Per query (Culbertson et al. 2012 §4.2, HaTT's renderer):
+Per query (Culbertson et al. 2012, section 4.2, HaTT's renderer):
 
 1. clamp speed and force HaTT's way (:func:`~flowtex.dsp.triangulation.clamp_query`);
 2. locate the triangle and barycentric weights (:func:`~flowtex.dsp.triangulation.locate`);

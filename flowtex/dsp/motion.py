@@ -1,4 +1,9 @@
-"""Speed estimation and contact detection kernels (ALGORITHMS.md §3, §6; seeds 000, 001 §4.1, 002 §3.3.2).
+"""Speed estimation and contact detection kernels .
+
+Sources: Kuchenbecker & Culbertson 2014, "Haptic rendering of textures" (tutorial);
+Romano & Kuchenbecker 2012, "Creating realistic virtual textures from contact acceleration data" (section 4.1);
+Culbertson & Kuchenbecker 2017, "Importance of matching physical friction, hardness, and texture
+in creating realistic haptic virtual surfaces" (section 3.3.2).
 
 Units: position in mm, velocity and speed in mm/s, force in N, normal vectors
 dimensionless. Every kernel works row by row over a block (``n`` rows), keeps
@@ -12,18 +17,18 @@ per axis by one biquad (direct form I), then projected onto the tangent plane
 (v_t = v - (v.n) n); speed = |v_t|. The biquad is either
 
 * ``lowpass``: the first-order low-pass ``y += alpha (x - y)`` with its pole
-  at ``exp(-2 pi fc / fs)`` (the 20 Hz rendering filter of 000/001), or
+  at ``exp(-2 pi fc / fs)`` (the 20 Hz rendering filter of Kuchenbecker & Culbertson 2014 and Romano & Kuchenbecker 2012), or
 * ``hatt``: a second-order Butterworth (zeta = 1/sqrt 2) low-pass with its
   corner at 125 rad/s, discretised by the bilinear transform with the corner
   pre-warped (the same digital filter as ``scipy.signal.butter(2, 125/(2 pi),
   fs=fs)``). The seeds say only "2nd-order low-pass at 125 rad/s"; the
   Butterworth damping and the bilinear transform are flowtex's choice.
 
-Stationary-pen fix, streaming (001 §4.1): the position is high-passed at
+Stationary-pen fix, streaming (Romano & Kuchenbecker 2012, section 4.1): the position is high-passed at
 10 Hz (``x - LP10(x)``, first order) and then low-passed at 100 Hz (first
 order); both filters start at the first valid position, so there is no start
 transient. When the tangential part of that filtered displacement is shorter
-than ``threshold`` (0.06 mm in 001) the outputs are 0. For steady sliding at
+than ``threshold`` (0.06 mm in Romano & Kuchenbecker 2012) the outputs are 0. For steady sliding at
 speed v the filtered displacement is about v / (2 pi 10 Hz), so 0.06 mm
 gates speeds below about 3.8 mm/s; a threshold of 0 disables the gate. The
 velocity filter keeps running while gated, so leaving the gate is smooth.

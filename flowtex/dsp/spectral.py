@@ -10,12 +10,14 @@ import numpy as np
 
 
 def gfc(a: np.ndarray, b: np.ndarray) -> float:
-    """Goodness-of-Fit Criterion |sum A B| / (sqrt(sum A^2) sqrt(sum B^2)) of two spectra (ALGORITHMS.md section 4).
+    """Goodness-of-Fit Criterion |sum A B| / (sqrt(sum A^2) sqrt(sum B^2)) of two spectra.
+
+    Source: Culbertson et al. 2012, "Refined methods for creating realistic haptic virtual textures from tool-mediated contact acceleration data".
 
     ``a`` and ``b`` are sampled at the same frequencies; magnitudes are
-    taken (``abs``) first. 003 applies it to amplitude spectra (|DFT|), so
+    taken (``abs``) first. Culbertson et al. 2012 apply it to amplitude spectra (|DFT|), so
     pass ``sqrt(psd)`` when comparing power spectral densities. 1 means the
-    same shape up to a scale factor; 003's perceptual threshold was 0.90.
+    same shape up to a scale factor; their perceptual threshold was 0.90.
     Returns 0.0 if either spectrum is all zero.
     """
     a = np.abs(np.asarray(a, dtype=np.float64)).ravel()

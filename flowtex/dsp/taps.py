@@ -1,4 +1,7 @@
-"""Tap transient playback (ALGORITHMS.md §6; seed 002 §3.3.2).
+"""Tap transient playback.
+
+Source: Culbertson & Kuchenbecker 2017, "Importance of matching physical friction, hardness, and texture
+in creating realistic haptic virtual surfaces", section 3.3.2.
 
 A tap library holds K transients (accelerations, m/s^2) of L samples each,
 recorded at incoming speeds s_0 < ... < s_{K-1} (mm/s). For an incoming speed

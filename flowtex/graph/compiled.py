@@ -13,12 +13,16 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import FlowtexError
-from ..node_api import PortSpec
+from ..cache import cache_dir
+from ..dsp.nonfinite import NONFINITE_POLICIES, fill_nonfinite, find_nonfinite
+from ..errors import DataError, FlowtexError
+from ..node_api import PortSpec, suggest
+from ..nodecheck import check_kernel_compiles
 from ..registry import load_registry
 from .arena import OUT_WIDTH, TICK, Layout, plan_layout
 from .codegen import generate
 from .jit import load_generated
+from .notice import compile_notice
 from .resolve import ResolvedGraph, resolve_graph
 from .spec import GraphSpec, load_spec
 
@@ -51,14 +55,18 @@ class Graph:
                                [self.layout.graph_inputs[n] for n in self._step_in],
                                [self.layout.graph_outputs[n] for n in self._step_out])
         versions = ";".join(f"{rn.cls.type_name}@{rn.cls.version}" for rn in resolved.nodes.values())
-        self._module = load_generated(self.source, kernels, versions)
-        self._block = self._module.block
-        self._run = self._module.run
-        self._step = self._module.step
-        # Compile (or load from the disk cache) now, not on the first live tick.
-        self._block.compile("(float64[::1], int64[::1], int64)")
-        self._run.compile("(float64[::1], int64[::1], float64[::1], float64[::1])")
-        self._step.compile("(float64[::1], int64[::1]" + ", float64" * len(self._step_in) + ")")
+        types = sorted({rn.cls.type_name for rn in resolved.nodes.values()})
+        with compile_notice(f"graph {self.spec.name!r} ({len(resolved.nodes)} nodes: {', '.join(types)})", str(cache_dir())):
+            for cls in {rn.cls for rn in resolved.nodes.values() if not rn.cls.__module__.startswith("flowtex.")}:
+                check_kernel_compiles(cls)  # a plugin's typing error is reported as the plugin's, at its line
+            self._module = load_generated(self.source, kernels, versions)
+            self._block = self._module.block
+            self._run = self._module.run
+            self._step = self._module.step
+            # Compile (or load from the disk cache) now, not on the first live tick.
+            self._block.compile("(float64[::1], int64[::1], int64)")
+            self._run.compile("(float64[::1], int64[::1], float64[::1], float64[::1])")
+            self._step.compile("(float64[::1], int64[::1]" + ", float64" * len(self._step_in) + ")")
         self._f0 = self.layout.f.copy()
         self._i0 = self.layout.i.copy()
         self.f = self.layout.f
@@ -116,14 +124,22 @@ class Graph:
                 si = self.i[self.i[slots.si[0]]:self.i[slots.si[1]]]
                 rn.node.seed_state(s, si, np.random.SeedSequence([self.seed, zlib.crc32(name.encode())]))
 
-    def run(self, inputs: Mapping[str, Any], seed: int | None = None, progress: bool = False) -> dict[str, np.ndarray]:
-        """Reset (with ``seed``), then run the whole recording ``inputs``."""
-        self.reset(seed)
-        return self.process(inputs, progress=progress)
+    def run(self, inputs: Mapping[str, Any], seed: int | None = None, progress: bool = False,
+            nonfinite: str = "error") -> dict[str, np.ndarray]:
+        """Reset (with ``seed``), then run the whole recording ``inputs``.
 
-    def process(self, inputs: Mapping[str, Any], progress: bool = False) -> dict[str, np.ndarray]:
-        """Continue from the current state over ``inputs`` (chunked runs equal one pass)."""
+        ``nonfinite`` says what to do with NaN/inf input samples: ``error``
+        (refuse, naming the input, the count and the first index), ``hold``
+        (last finite value of the channel, 0 before any), ``zero``, or ``pass``
+        (unchanged, for nodes that handle NaN themselves).
+        """
+        self.reset(seed)
+        return self.process(inputs, progress=progress, nonfinite=nonfinite)
+
+    def process(self, inputs: Mapping[str, Any], progress: bool = False, nonfinite: str = "error") -> dict[str, np.ndarray]:
+        """Continue from the current state over ``inputs`` (chunked runs equal one pass); ``nonfinite`` as in :meth:`run`."""
         arrays, total = self._check_inputs(inputs)
+        arrays = apply_nonfinite_policy(arrays, nonfinite)
         if progress and total > PROGRESS_CHUNK:
             from tqdm import tqdm
 
@@ -179,7 +195,10 @@ class Graph:
         vector_in = [n for n in self.resolved.input_specs if n not in self._scalar_in]
         for name in vector_in:
             lines.append(f"    if {name!r} in values:")
-            lines.append(f"        IN_VIEWS[{name!r}][:] = np.ravel(values[{name!r}])")
+            lines.append("        try:")
+            lines.append(f"            IN_VIEWS[{name!r}][:] = np.ravel(values[{name!r}])")
+            lines.append("        except (ValueError, TypeError):")
+            lines.append(f"            bad_vector({name!r}, values[{name!r}])")
             lines.append("        hits += 1")
         lines.append("    if hits != len(values):")
         lines.append("        unknown_input(values)")
@@ -194,7 +213,7 @@ class Graph:
         lines.append("    return {" + ", ".join(items) + "}")
         entry = self._step_entry
         namespace = {"EMPTY": {}, "MISSING": object(), "f": self.f, "i": self.i, "np": np, "STEP": entry,
-                     "bad_scalar": self._bad_scalar,
+                     "bad_scalar": self._bad_scalar, "bad_vector": self._bad_vector,
                      "IN_VIEWS": self._in_views, "OUT_VIEWS": self._out_views, "KNOWN": frozenset(self._in_views),
                      "unknown_input": self._unknown_input}
         exec("\n".join(lines), namespace)  # generated from port names validated as identifiers
@@ -208,6 +227,15 @@ class Graph:
                 except (TypeError, ValueError):
                     raise FlowtexError(f"input {name!r} is a scalar; step() got {values[name]!r}") from None
         raise FlowtexError("step(): scalar inputs must be numbers")
+
+    def _bad_vector(self, name: str, value: Any) -> None:
+        shape = self.resolved.input_specs[name].shape
+        try:
+            got = f"shape {np.shape(value)}"
+        except (ValueError, TypeError):
+            got = repr(value)
+        raise FlowtexError(f"input {name!r} has shape {shape} ({self.resolved.input_specs[name].width} numbers); "
+                           f"step() got {got}")
 
     def _unknown_input(self, values: Mapping[str, Any]) -> None:
         for name in values:
@@ -269,8 +297,17 @@ class Graph:
         """Advance ``n`` ticks using whatever is in the input views (no Python mapping)."""
         self._block_entry(self.f, self.i, n)
 
+    def check_inputs(self, inputs: Mapping[str, Any]) -> None:
+        """Raise :class:`FlowtexError` unless ``inputs`` has every graph input, time first, in the right shape."""
+        self._check_inputs(inputs)
+
     def _check_inputs(self, inputs: Mapping[str, Any]) -> tuple[dict[str, np.ndarray], int]:
         """Graph inputs as float64 arrays of shape (n, width), with n checked equal."""
+        unknown = [n for n in inputs if n not in self.layout.in_columns]
+        if unknown:
+            hints = "".join(suggest(str(n), list(self.layout.in_columns)) for n in unknown)
+            raise FlowtexError(f"graph {self.name!r} has no input(s) {', '.join(map(repr, unknown))}{hints}; "
+                               f"its inputs are: {', '.join(self.layout.in_columns) or 'none'}")
         missing = [n for n in self.layout.in_columns if n not in inputs]
         if missing:
             raise FlowtexError(f"graph {self.name!r}: recording lacks input(s) {', '.join(missing)}")
@@ -300,16 +337,39 @@ class Graph:
         return self._run_chunk(zeros, n)
 
 
+def apply_nonfinite_policy(arrays: dict[str, np.ndarray], policy: str, source: str = "",
+                           fix: str = "or pass nonfinite='hold' or 'zero'") -> dict[str, np.ndarray]:
+    """``arrays`` with non-finite samples handled by ``policy`` (see :mod:`flowtex.dsp.nonfinite`).
+
+    ``error`` raises :class:`DataError` naming ``source`` (a file, if any), the signal,
+    the count and the first index; a recursive filter fed one NaN would output NaN for good.
+    """
+    if policy not in NONFINITE_POLICIES:
+        raise FlowtexError(f"unknown non-finite policy {policy!r}; use one of {', '.join(NONFINITE_POLICIES)}")
+    out = {}
+    for name, a in arrays.items():
+        found = find_nonfinite(a)
+        if found is None or policy == "pass":
+            out[name] = a
+        elif policy == "error":
+            prefix = f"{source}: " if source else ""
+            raise DataError(f"{prefix}input {name!r} has {found.describe()}; clean the recording {fix}")
+        else:
+            out[name] = fill_nonfinite(a, policy)
+    return out
+
+
 def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
                plugins: tuple[str | Path, ...] = (), block_rows: int = DEFAULT_BLOCK_ROWS) -> Graph:
     """Read, check and compile the graph file at ``path``.
 
     ``overrides`` maps ``"node.param"`` to a value (as ``--set`` does);
-    ``plugins`` adds plugin folders to ``./plugins`` and ``$FLOWTEX_PLUGINS``.
+    ``plugins`` adds plugin folders to ``./plugins``, ``$FLOWTEX_PLUGINS`` and
+    the graph file's own ``plugins/`` folder.
     Raises :class:`flowtex.errors.GraphError` listing every problem.
     """
     spec = load_spec(path, dict(overrides or {}))
-    resolved = resolve_graph(spec, load_registry(plugins))
+    resolved = resolve_graph(spec, load_registry(_with_graph_plugins(path, plugins)))
     return Graph(resolved, block_rows)
 
 
@@ -317,4 +377,10 @@ def check_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
                 plugins: tuple[str | Path, ...] = ()) -> ResolvedGraph:
     """Validate without compiling (what ``flowtex validate`` does)."""
     spec = load_spec(path, dict(overrides or {}))
-    return resolve_graph(spec, load_registry(plugins))
+    return resolve_graph(spec, load_registry(_with_graph_plugins(path, plugins)))
+
+
+def _with_graph_plugins(path: str | Path, plugins: tuple[str | Path, ...]) -> tuple[str | Path, ...]:
+    """``plugins`` plus the graph file's own ``plugins/`` folder, if it has one (found wherever flowtex runs from)."""
+    own = Path(path).parent / "plugins"
+    return (*plugins, own) if own.is_dir() else tuple(plugins)

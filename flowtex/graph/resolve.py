@@ -13,7 +13,7 @@ from typing import Any
 import networkx as nx
 
 from ..errors import DataError, Diagnostic, FlowtexError, GraphError, Location, ParamError
-from ..node_api import BuildContext, Node, NodeState, Port, PortSpec, suggest
+from ..node_api import BuildContext, Node, NodeState, Port, PortSpec, simplify_unit, suggest
 from ..registry import Registry
 from .spec import EdgeSpec, Endpoint, GraphSpec, NodeSpec
 
@@ -118,7 +118,9 @@ def _typed_nodes(ck: _Checker) -> dict[str, ResolvedNode]:
         cls = ck.registry.get(ns.type)
         if cls is None:
             hint = suggest(ns.type, ck.registry.names())
-            ck.error(ns.type_loc, f"node {name!r}: unknown node type {ns.type!r}{hint}; run 'flowtex nodes' to list them")
+            ck.error(ns.type_loc, f"node {name!r}: unknown node type {ns.type!r}{hint}; run 'flowtex nodes' to list them "
+                                  "(plugin nodes are found in ./plugins, the graph file's plugins/ folder, $FLOWTEX_PLUGINS "
+                                  "and --plugins DIR)")
             continue
         params = _check_params(ck, ns, cls)
         if params is not None:
@@ -236,7 +238,7 @@ def _port_check(port: Port, name: str, got: PortSpec, specs: dict[str, PortSpec]
     if unit.startswith("="):
         ref = specs.get(unit[1:])
         unit = ref.unit if ref is not None else "*"
-    if unit != "*" and unit != got.unit:
+    if unit != "*" and simplify_unit(unit) != simplify_unit(got.unit):
         fix = f"declare unit: {unit}" if got.unit == "" else "convert with a gain node or fix the declared unit"
         return (f"unit mismatch: '{got.unit or 'dimensionless'}' arrives at input {name!r}, which takes "
                 f"'{unit or 'dimensionless'}' ({fix})")
@@ -245,9 +247,45 @@ def _port_check(port: Port, name: str, got: PortSpec, specs: dict[str, PortSpec]
 
 def _resolve_ports(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[str, PortSpec],
                    edge_of: dict[tuple[str, str], EdgeSpec]) -> None:
+    """Resolve every port; a delay fed back from later in the order takes the shape and unit the loop needs.
+
+    A delay's input in a loop comes from a node resolved after it, so its spec is
+    first assumed (a dimensionless scalar), then corrected from what the loop
+    asks of it (the port its output feeds) or what actually arrives, until the
+    loop is consistent (a few passes; one per delay on the loop at most).
+    """
+    assumed: dict[str, PortSpec] = {}
+    for _ in range(2 + 2 * sum(1 for rn in nodes.values() if rn.cls.breaks_cycles)):
+        ck.diagnostics = []
+        hints = _resolve_pass(ck, nodes, inputs, edge_of, assumed)
+        corrected = {**assumed, **hints}
+        if not ck.diagnostics or corrected == assumed:
+            return
+        assumed = corrected
+
+
+def _expected(port: Port, specs: dict[str, PortSpec]) -> tuple[tuple[int, ...] | None, str]:
+    """Shape (None: any) and unit ("*": any) a port takes, given the inputs resolved before it."""
+    shape = port.shape
+    if isinstance(shape, str):
+        ref = specs.get(shape[1:])
+        shape = ref.shape if ref is not None else None
+    unit = port.unit
+    if unit.startswith("="):
+        ref = specs.get(unit[1:])
+        unit = ref.unit if ref is not None else "*"
+    return (tuple(shape) if shape is not None else None), unit
+
+
+def _resolve_pass(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[str, PortSpec],
+                  edge_of: dict[tuple[str, str], EdgeSpec], assumed: dict[str, PortSpec]) -> dict[str, PortSpec]:
+    """One resolution pass; returns corrected specs for fed-back delay inputs that the pass found wrong."""
     provisional: dict[str, PortSpec] = {}
+    hints: dict[str, PortSpec] = {}
     done: set[str] = set()
     failed: set[str] = set()  # nodes with an error: their consumers are not checked (no follow-on errors)
+    for rn in nodes.values():
+        rn.out_specs = {}
     for name, rn in nodes.items():
         done.add(name)
         specs: dict[str, PortSpec] = {}
@@ -272,10 +310,11 @@ def _resolve_ports(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[st
                 got = nodes[src.node].out_specs[src.port]
                 input_every[port_name] = nodes[src.node].spec.every
             else:  # feedback into a delay from a node later in the order
-                got = PortSpec()
+                got = assumed.get(name, PortSpec())
                 provisional[name] = got
             problem = _port_check(port, port_name, got, specs)
             if problem:
+                _hint_from_mismatch(rn, port, port_name, got, specs, provisional, hints)
                 ck.error(edge_of[(name, port_name)].loc, f"edge {edge_of[(name, port_name)].text!r}: {problem}")
                 bad = True
             specs[port_name] = got
@@ -296,14 +335,32 @@ def _resolve_ports(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[st
         except (DataError, FlowtexError) as exc:
             failed.add(name)
             ck.error(rn.spec.loc, f"node {name!r} ({rn.cls.type_name}): {exc}")
-    for name, assumed in provisional.items():
+    for name, took in provisional.items():
         rn = nodes[name]
         for port_name, src in rn.sources.items():
             if src is not None and src.node is not None and src.node not in failed and nodes[src.node].out_specs:
                 actual = nodes[src.node].out_specs[src.port]
-                if actual != assumed:
+                if actual != took:
+                    hints[name] = actual
                     ck.error(edge_of[(name, port_name)].loc,
-                             f"feedback into delay {name!r} carries {actual.describe()}; feedback loops must carry dimensionless scalars")
+                             f"feedback into delay {name!r} carries {actual.describe()}, but the loop needs "
+                             f"{took.describe()} at the delay's output; make both sides of the loop agree")
+    return hints
+
+
+def _hint_from_mismatch(rn: ResolvedNode, port: Port, port_name: str, got: PortSpec, specs: dict[str, PortSpec],
+                        provisional: dict[str, PortSpec], hints: dict[str, PortSpec]) -> None:
+    """A port check failed: if a fed-back delay's assumed spec is to blame, record what it should be."""
+    src = rn.sources.get(port_name)
+    want_shape, want_unit = _expected(port, specs)
+    if src is not None and src.node in provisional:  # the delay's output arrives here
+        hints[src.node] = PortSpec(want_shape if want_shape is not None else got.shape,
+                                   got.unit if want_unit == "*" else want_unit)
+        return
+    for ref in {port.shape[1:] if isinstance(port.shape, str) else None, port.unit[1:] if port.unit.startswith("=") else None}:
+        ref_src = rn.sources.get(ref) if ref else None
+        if ref_src is not None and ref_src.node in provisional:  # this port must match a delay's output
+            hints[ref_src.node] = got
 
 
 def _own_schedule(ck: _Checker, rn: ResolvedNode, input_every: dict[str, int]) -> bool:

@@ -260,7 +260,11 @@ def _apply_overrides(c: _Collector, spec: GraphSpec, overrides: dict[str, Any]) 
             c.error(where, "expected --set NODE.PARAM=VALUE")
             continue
         if node not in spec.nodes:
-            c.error(where, f"no node {node!r} in the graph{suggest(node, list(spec.nodes))}")
+            hint = suggest(node, list(spec.nodes))
+            having = [name for name, ns in spec.nodes.items() if param in ns.params]
+            if not hint and having:
+                hint = " (did you mean " + " or ".join(f"'{n}.{param}'" for n in having) + "?)"
+            c.error(where, f"no node {node!r} in the graph{hint}; nodes are: {', '.join(spec.nodes) or 'none'}")
             continue
         spec.nodes[node].params[param] = value
         spec.nodes[node].param_locs[param] = where

@@ -3,20 +3,26 @@
 One array per signal, time on the first axis. A recording may state its
 sample rate in Hz; a graph refuses a recording whose stated rate is not its own.
 
-* ``.npz``: one array per signal; an optional 0-d entry ``rate`` states the rate.
+* ``.npz``: one array per signal; an optional 0-d entry ``rate`` states the
+  rate, an optional 0-d string entry ``units`` the units (JSON ``{"name": "unit"}``).
 * ``.csv``: a header row of column names; a vector signal ``position`` of
   shape (3,) is written as columns ``position[0]``, ``position[1]``,
-  ``position[2]``; an optional first line ``# rate: 1000`` states the rate.
+  ``position[2]``; optional comment lines before it: ``# rate: 1000`` states
+  the rate, ``# units: {"position": "mm"}`` (JSON) the units.
 * ``.h5``: one dataset per signal at the file's root; an optional root
-  attribute ``rate``.
+  attribute ``rate``; an optional attribute ``unit`` on each dataset.
+
+Units are written by ``flowtex run`` (the graph's output units) and are
+informational: reading a file ignores them except to fill ``Recording.units``.
 """
 
 from __future__ import annotations
 
 import csv
+import json
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +40,8 @@ class Recording:
     arrays: dict[str, np.ndarray]
     rate: float | None = None
     path: Path | None = None
+    units: dict[str, str] = field(default_factory=dict)
+    """Unit of each signal, when the file states it ("" is dimensionless)."""
 
     @property
     def samples(self) -> int:
@@ -59,6 +67,19 @@ def load_recording(path: str | Path) -> Recording:
     return rec
 
 
+UNITS_KEY = "units"
+
+
+def _parse_units(text: str, path: Path) -> dict[str, str]:
+    try:
+        units = json.loads(text)
+    except ValueError:
+        raise DataError(f"{path}: 'units' must be JSON like {{\"y\": \"m/s^2\"}}, got {text!r}") from None
+    if not isinstance(units, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in units.items()):
+        raise DataError(f"{path}: 'units' must map signal names to unit strings, got {text!r}")
+    return units
+
+
 def _check_lengths(rec: Recording, path: Path) -> None:
     lengths = {name: a.shape[0] for name, a in rec.arrays.items()}
     if len(set(lengths.values())) > 1:
@@ -81,10 +102,13 @@ def _load_npz(path: Path) -> Recording:
         with np.load(path, allow_pickle=False) as data:
             arrays = {}
             rate = None
+            units: dict[str, str] = {}
             for name in data.files:
                 arr = data[name]
                 if name == "rate" and arr.ndim == 0:
                     rate = _stated_rate(arr, path)
+                elif name == UNITS_KEY and arr.ndim == 0 and arr.dtype.kind == "U":
+                    units = _parse_units(str(arr), path)
                 elif arr.ndim == 0:
                     raise DataError(f"{path}: entry {name!r} is a single number; signals need time on the first axis")
                 else:
@@ -93,26 +117,33 @@ def _load_npz(path: Path) -> Recording:
         raise
     except (OSError, ValueError) as exc:
         raise DataError(f"{path}: not a readable .npz recording ({exc})") from None
-    return Recording(arrays, rate)
+    return Recording(arrays, rate, units=units)
 
 
 def _load_csv(path: Path) -> Recording:
     rate = None
+    units: dict[str, str] = {}
+    comments = 0
     with path.open(newline="", encoding="utf-8") as fh:
-        first = fh.readline()
-        if first.startswith("#"):
-            m = re.match(r"#\s*rate\s*:\s*(\S+)", first)
-            if m:
-                rate = _stated_rate(m.group(1), path)
-        else:
-            fh.seek(0)
+        while True:
+            start = fh.tell()
+            line = fh.readline()
+            if not line.startswith("#"):
+                fh.seek(start)
+                break
+            comments += 1
+            m = re.match(r"#\s*(rate|units)\s*:\s*(.+?)\s*$", line)
+            if m and m.group(1) == "rate":
+                rate = _stated_rate(m.group(2), path)
+            elif m:
+                units = _parse_units(m.group(2), path)
         reader = csv.reader(fh)
         try:
             header = next(reader)
         except StopIteration:
             raise DataError(f"{path}: empty CSV; the first row must name the columns") from None
         rows = []
-        for lineno, row in enumerate(reader, start=3 if rate is not None else 2):
+        for lineno, row in enumerate(reader, start=comments + 2):
             if not row:
                 continue
             if len(row) != len(header):
@@ -141,7 +172,7 @@ def _load_csv(path: Path) -> Recording:
             if missing:
                 raise DataError(f"{path}:1: vector {name!r} lacks column(s) " + ", ".join(f"{name}[{i}]" for i in missing))
             arrays[name] = table[:, [parts[i] for i in range(width)]].copy()
-    return Recording(arrays, rate)
+    return Recording(arrays, rate, units=units)
 
 
 def _h5py():
@@ -158,41 +189,51 @@ def _load_h5(path: Path) -> Recording:
         with h5py.File(path, "r") as fh:
             rate = _stated_rate(fh.attrs["rate"], path) if "rate" in fh.attrs else None
             arrays = {}
+            units = {}
             for name, item in fh.items():
                 if isinstance(item, h5py.Dataset):
                     if item.ndim == 0:
                         raise DataError(f"{path}: dataset {name!r} is a single number; signals need time on the first axis")
                     arrays[name] = np.asarray(item[()], dtype=np.float64)
+                    if "unit" in item.attrs:
+                        unit = item.attrs["unit"]
+                        units[name] = unit.decode() if isinstance(unit, bytes) else str(unit)
     except DataError:
         raise
     except OSError as exc:
         raise DataError(f"{path}: not a readable HDF5 recording ({exc})") from None
-    return Recording(arrays, rate)
+    return Recording(arrays, rate, units=units)
 
 
-def save_recording(path: str | Path, arrays: Mapping[str, np.ndarray], rate: float | None = None) -> None:
-    """Write signals (time first) in the format named by the file's suffix."""
+def save_recording(path: str | Path, arrays: Mapping[str, np.ndarray], rate: float | None = None,
+                   units: Mapping[str, str] | None = None) -> None:
+    """Write signals (time first) in the format named by the file's suffix, with their ``units`` if given."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     suffix = path.suffix.lower()
     arrays = {name: np.asarray(a, dtype=np.float64) for name, a in arrays.items()}
+    units = {name: str(units[name]) for name in arrays if name in units} if units else {}
     if suffix == ".npz":
-        extra = {"rate": np.float64(rate)} if rate is not None else {}
+        extra: dict[str, np.ndarray] = {"rate": np.float64(rate)} if rate is not None else {}
+        if units and UNITS_KEY not in arrays:
+            extra[UNITS_KEY] = np.array(json.dumps(units))
         np.savez(path, **arrays, **extra)
     elif suffix == ".csv":
-        _save_csv(path, arrays, rate)
+        _save_csv(path, arrays, rate, units)
     elif suffix in (".h5", ".hdf5"):
         h5py = _h5py()
         with h5py.File(path, "w") as fh:
             for name, a in arrays.items():
-                fh.create_dataset(name, data=a)
+                ds = fh.create_dataset(name, data=a)
+                if name in units:
+                    ds.attrs["unit"] = units[name]
             if rate is not None:
                 fh.attrs["rate"] = float(rate)
     else:
         raise DataError(f"{path}: unknown output format {suffix!r}; use .npz, .csv or .h5")
 
 
-def _save_csv(path: Path, arrays: Mapping[str, np.ndarray], rate: float | None) -> None:
+def _save_csv(path: Path, arrays: Mapping[str, np.ndarray], rate: float | None, units: Mapping[str, str]) -> None:
     header: list[str] = []
     columns: list[np.ndarray] = []
     for name, a in arrays.items():
@@ -206,6 +247,8 @@ def _save_csv(path: Path, arrays: Mapping[str, np.ndarray], rate: float | None) 
     with path.open("w", newline="", encoding="utf-8") as fh:
         if rate is not None:
             fh.write(f"# rate: {rate:g}\n")
+        if units:
+            fh.write(f"# units: {json.dumps(dict(units))}\n")
         writer = csv.writer(fh)
         writer.writerow(header)
         for row in table:

@@ -3,7 +3,8 @@
 A :class:`TapLibrary` holds K transients (accelerations in m/s^2, all L
 samples long at ``sample_rate_hz``) recorded at K distinct incoming speeds
 (mm/s), sorted by speed. Playback rules are in :mod:`flowtex.dsp.taps` and
-ALGORITHMS.md §6; the file format is in docs/tap-library.md and
+Culbertson & Kuchenbecker 2017, "Importance of matching physical friction, hardness, and texture
+in creating realistic haptic virtual surfaces", section 3.3.2; the file format is in docs/tap-library.md and
 :mod:`flowtex.io.taplib`.
 """
 
@@ -54,7 +55,7 @@ class TapLibrary:
         return self.length / self.sample_rate_hz
 
     def transient(self, speed_mm_s: float) -> np.ndarray:
-        """The acceleration transient (m/s^2) played for an incoming speed, by the rules of ALGORITHMS §6."""
+        """The acceleration transient (m/s^2) played for an incoming speed, following Culbertson & Kuchenbecker 2017."""
         v = float(speed_mm_s)
         s = self.speeds
         if not v > 0.0:
@@ -74,7 +75,7 @@ def synthetic_tap_library(speeds: tuple[float, ...] = (20.0, 50.0, 100.0, 200.0)
     """Decaying sinusoids a_k(t) = gain v_k exp(-t / decay) sin(2 pi f_k t) (m/s^2), for tests and examples.
 
     Amplitude grows linearly with the incoming speed v_k (mm/s; ``gain`` in
-    (m/s^2)/(mm/s)) as momentum does (002); the frequency rises mildly with
+    (m/s^2)/(mm/s)) as momentum does (Culbertson & Kuchenbecker 2017); the frequency rises mildly with
     speed, f_k = freq_hz (1 + stiffening v_k / max v), so that interpolated
     transients differ from scaled ones. Hard surfaces: high ``freq_hz``,
     short ``decay_s``.
@@ -103,7 +104,7 @@ def resample_tap_library(lib: TapLibrary, sample_rate_hz: float) -> TapLibrary:
 
 
 def spectral_centroid(lib: TapLibrary, speeds: tuple[float, ...] = (50.0, 60.0, 70.0, 80.0, 90.0, 100.0)) -> float:
-    """Mean tap spectral centroid (Hz) over the transients played at ``speeds`` (002 eq. 4; hardness predictor).
+    """Mean tap spectral centroid (Hz) over the transients played at ``speeds`` (Culbertson & Kuchenbecker 2017, eq. 4; hardness predictor).
 
     SC = sum X(f)^2 f / sum X(f)^2 with X the DFT magnitude of one transient.
     Silent transients are skipped; returns 0 when all are silent.

@@ -24,7 +24,7 @@ class Constant(Node):
         "unit": Param("str", default="-", doc="unit of the output ('-' for dimensionless)"),
         "vector": Param("bool", default=False, doc="make a one-element list a 1-vector instead of a scalar"),
     }
-    outputs = {"y": Port((), "", "the value")}
+    outputs = {"y": Port((), "", "the value", shape_doc="scalar, or vector of the values", unit_doc="the 'unit' parameter")}
     kernel = _constant
 
     def resolve(self, inputs):
@@ -53,7 +53,7 @@ class Gain(Node):
         "unit": Param("str", default="=", doc="unit of y; '=' keeps the unit of x"),
     }
     inputs = {"x": Port(None, "*", "signal")}
-    outputs = {"y": Port("=x", "=x", "k * x")}
+    outputs = {"y": Port("=x", "=x", "k * x", unit_doc="the 'unit' parameter, or unit of x")}
     kernel = _gain
 
     def resolve(self, inputs):
@@ -110,7 +110,7 @@ class Multiply(Node):
 
     type_name = "multiply"
     inputs = {"a": Port(None, "*", "first factor"), "b": Port(None, "*", "second factor (same shape as a, or scalar)")}
-    outputs = {"y": Port("=a", "", "a * b (unit: product of the units)")}
+    outputs = {"y": Port("=a", "", "a * b", unit_doc="unit of a * unit of b")}
     kernel = _multiply
 
     def resolve(self, inputs):

@@ -12,15 +12,28 @@ from ..dsp.filters import (
     first_order_lowpass_block,
     lowpass_alpha,
     sos_block,
+    sos_steady_state,
     sos_to_params,
 )
 from ..errors import ParamError
-from ..node_api import Node, NodeState, Param, Port, PortSpec, check
+from ..node_api import Node, NodeState, Param, Port, PortSpec, check, simplify_unit
+
+INIT_PARAM = Param("choice", default="zero", choices=("zero", "steady"),
+                   doc="initial state: zero (rest), or steady (as if the first input sample had always been applied, "
+                       "like scipy's sosfilt_zi: no start-up transient)")
 
 
 @njit(cache=True)
 def _sos(p, s, si, x, y):
+    if si.shape[0] > 0 and si[0] == 0 and x.shape[0] > 0:  # init: steady, first tick since reset
+        sos_steady_state(p, s, x[0])
+        si[0] = 1
     sos_block(p, s, x, y)
+
+
+def _init_flag(init: str) -> np.ndarray:
+    """Integer state of a filter with an ``init`` parameter: one 'started' flag for steady, nothing for zero."""
+    return np.zeros(1 if init == "steady" else 0, np.int64)
 
 
 class _SosNode(Node):
@@ -34,7 +47,8 @@ class _SosNode(Node):
     def build(self, inputs, outputs):
         coef = sos_to_params(self.sos())
         sections = coef.size // 5
-        return NodeState(params=coef, state=np.zeros(inputs["x"].width * sections * SECTION_STATE))
+        return NodeState(params=coef, state=np.zeros(inputs["x"].width * sections * SECTION_STATE),
+                         istate=_init_flag(self.p["init"]))
 
 
 class Biquad(_SosNode):
@@ -44,6 +58,7 @@ class Biquad(_SosNode):
     params = {
         "b": Param("floats", doc="numerator b0, b1, b2", length=(3, 3)),
         "a": Param("floats", default=(1.0, 0.0, 0.0), doc="denominator a0, a1, a2 (a0 != 0)", length=(3, 3)),
+        "init": INIT_PARAM,
     }
 
     def sos(self) -> np.ndarray:
@@ -61,6 +76,7 @@ class Butterworth(_SosNode):
         "kind": Param("choice", default="lowpass", choices=("lowpass", "highpass", "bandpass", "bandstop"), doc="response type"),
         "order": Param("int", doc="filter order (band filters have twice as many poles)", min=1, max=32),
         "cutoff_hz": Param("floats", unit="Hz", length=(1, 2), doc="cutoff in Hz, or [low, high] for band filters"),
+        "init": INIT_PARAM,
     }
 
     def sos(self) -> np.ndarray:
@@ -72,6 +88,10 @@ class Butterworth(_SosNode):
 
 @njit(cache=True)
 def _lowpass(p, s, si, x, y):
+    if si.shape[0] > 0 and si[0] == 0 and x.shape[0] > 0:  # init: steady (DC gain 1: the state is the input)
+        for c in range(x.shape[1]):
+            s[c] = x[0, c]
+        si[0] = 1
     first_order_lowpass_block(p[0], s, x, y)
 
 
@@ -81,7 +101,9 @@ class FirstOrderLowpass(Node):
     type_name = "first_order_lowpass"
     params = {
         "cutoff_hz": Param("float", unit="Hz", min=0.0, min_exclusive=True, doc="-3 dB corner of the analog prototype"),
-        "initial": Param("float", default=0.0, doc="output before the first sample"),
+        "initial": Param("float", default=0.0, doc="output before the first sample (with init: zero)"),
+        "init": Param("choice", default="zero", choices=("zero", "steady"),
+                      doc="zero: start from 'initial'; steady: start from the first input sample (no start-up transient)"),
     }
     inputs = {"x": Port(None, "*", "signal")}
     outputs = {"y": Port("=x", "=x", "smoothed signal")}
@@ -92,7 +114,8 @@ class FirstOrderLowpass(Node):
         if self.p["cutoff_hz"] >= rate / 2:
             raise ParamError("cutoff_hz", f"cutoff {self.p['cutoff_hz']:g} Hz must be below Nyquist ({rate / 2:g} Hz)")
         alpha = lowpass_alpha(self.p["cutoff_hz"], rate)
-        return NodeState(params=np.array([alpha]), state=np.full(inputs["x"].width, self.p["initial"]))
+        return NodeState(params=np.array([alpha]), state=np.full(inputs["x"].width, self.p["initial"]),
+                         istate=_init_flag(self.p["init"]))
 
 
 @njit(cache=True)
@@ -101,7 +124,7 @@ def _difference(p, s, si, x, y):
 
 
 def _per_second(unit: str) -> str:
-    return f"{unit}/s" if unit else "1/s"
+    return simplify_unit(f"{unit}/s") if unit else "1/s"
 
 
 class Differentiator(Node):
@@ -109,7 +132,7 @@ class Differentiator(Node):
 
     type_name = "differentiator"
     inputs = {"x": Port(None, "*", "signal")}
-    outputs = {"y": Port("=x", "", "rate of change per second (unit of x per second)")}
+    outputs = {"y": Port("=x", "", "rate of change per second", unit_doc="unit of x per second")}
     kernel = _difference
 
     def resolve(self, inputs):

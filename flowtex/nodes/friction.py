@@ -1,4 +1,8 @@
-"""Friction nodes: coulomb_friction (HaTT's viscous/Coulomb rule) and dahl_friction (stick-slip, 002 §3.3.1).
+"""Friction nodes: coulomb_friction (HaTT's viscous/Coulomb rule) and dahl_friction (stick-slip).
+
+Sources: Kuchenbecker & Culbertson 2014, "Haptic rendering of textures" (tutorial);
+Culbertson & Kuchenbecker 2017, "Importance of matching physical friction, hardness, and texture
+in creating realistic haptic virtual surfaces" (Dahl model, section 3.3.1).
 
 Both output a tangential force 3-vector (N) opposing the motion; the math and
 its NaN policy live in flowtex.dsp.friction, the reasoning in docs/friction.md.
@@ -24,7 +28,7 @@ from ..errors import FlowtexError, ParamError
 from ..node_api import Node, NodeState, Param, Port, check
 
 DAHL_ZMAX_PER_MU_MM = 4.0
-"""002: z_max = 4 mm * mu_k."""
+"""Culbertson & Kuchenbecker 2017: z_max = 4 mm * mu_k."""
 
 
 def _mu(node: Node) -> float:
@@ -55,7 +59,7 @@ def _coulomb(p, s, si, velocity, normal_force, force):
 
 
 class CoulombFriction(Node):
-    """Kinetic friction F = -mu F_n 0.004 v below a threshold speed, -mu F_n v/|v| above (HaTT's rule, 000).
+    """Kinetic friction F = -mu F_n 0.004 v below a threshold speed, -mu F_n v/|v| above (HaTT's rule, Kuchenbecker & Culbertson 2014).
 
     mode ``continuous`` (default) puts the threshold at 1/0.004 = 250 mm/s
     where both branches meet; ``hatt`` uses HaTT's mu/0.004 mm/s, with its
@@ -83,7 +87,7 @@ def _dahl(p, s, si, position, normal_force, normal, force):
 
 
 class DahlFriction(Node):
-    """Dahl stick-slip friction (002 §3.3.1) in the tangent plane: spring of stretch z <= z_max to an adhesion point.
+    """Dahl stick-slip friction (Culbertson & Kuchenbecker 2017) in the tangent plane: spring of stretch z <= z_max to an adhesion point.
 
     F = -mu F_n z / z_max; the adhesion point is dragged along once the tool
     is z_max away. When F_n rises the spring is shortened so its stored
@@ -95,7 +99,7 @@ class DahlFriction(Node):
         "mu": Param("float", default=None, min=0.0, doc="kinetic friction coefficient mu_k (or give models)"),
         "models": Param("path", default=None, doc="model set file whose friction coefficient is used instead of mu"),
         "z_max": Param("float", default=None, unit="mm", min=0.0, min_exclusive=True,
-                       doc="largest spring stretch; default 4 mm * mu (002)"),
+                       doc="largest spring stretch; default 4 mm * mu (Culbertson & Kuchenbecker 2017)"),
         "normal": Param("floats", default=(0.0, 0.0, 1.0), length=(3, 3), doc="surface normal when the normal input is not connected"),
     }
     inputs = {

@@ -25,9 +25,9 @@ from ..errors import ParamError
 from ..node_api import Node, NodeState, Param, Port, check
 
 HATT_CORNER_RAD_S = 125.0
-"""HaTT's speed filter corner (ALGORITHMS §3)."""
+"""HaTT's speed filter corner (Penn Haptic Texture Toolkit renderer)."""
 DEFAULT_CUTOFF_HZ = 20.0
-"""Rendering speed filter of 000/001."""
+"""Rendering speed filter of Kuchenbecker & Culbertson 2014 and Romano & Kuchenbecker 2012."""
 
 _NORMAL_PARAM = Param("floats", default=(0.0, 0.0, 1.0), length=(3, 3),
                       doc="surface normal used when the normal input is not connected (normalised; need not be unit)")
@@ -46,9 +46,9 @@ def _speed(p, s, si, position, normal, speed, velocity):
 class SpeedEstimator(Node):
     """Tangential tool speed and velocity (mm/s) from position (mm): backward difference, low-pass, projection, stationary gate.
 
-    ``lowpass``: first-order low-pass at ``cutoff_hz`` (20 Hz as in HaTT/001).
+    ``lowpass``: first-order low-pass at ``cutoff_hz`` (20 Hz as in HaTT and Romano & Kuchenbecker 2012).
     ``hatt``: 2nd-order Butterworth at 125 rad/s (bilinear, pre-warped). The
-    stationary gate (001 §4.1) zeroes the outputs while the 10 Hz high-passed,
+    stationary gate (Romano & Kuchenbecker 2012, section 4.1) zeroes the outputs while the 10 Hz high-passed,
     100 Hz low-passed tangential displacement is shorter than ``stationary_mm``.
     NaN/inf positions are skipped (outputs hold); see flowtex.dsp.motion.
     """
@@ -59,7 +59,7 @@ class SpeedEstimator(Node):
         "cutoff_hz": Param("float", default=None, unit="Hz", min=0.0, min_exclusive=True,
                            doc="corner of the lowpass method (default 20 Hz); not used by hatt"),
         "stationary_mm": Param("float", default=0.06, unit="mm", min=0.0,
-                               doc="stationary threshold on the filtered displacement (001 §4.1); 0 disables it"),
+                               doc="stationary threshold on the filtered displacement (Romano & Kuchenbecker 2012); 0 disables it"),
         "normal": _NORMAL_PARAM,
     }
     inputs = {"position": Port((3,), "mm", "tool position"), "normal": _NORMAL_PORT}

@@ -27,7 +27,7 @@ class WhiteNoise(Node):
         "unit": Param("str", default="-", doc="unit of y ('-' for dimensionless)"),
     }
     inputs = {"variance": Port((), "*", "variance per tick; overrides the parameter when connected", optional=True)}
-    outputs = {"y": Port((), "", "noise sample")}
+    outputs = {"y": Port((), "", "noise sample", unit_doc="the 'unit' parameter")}
     kernel = _white_noise
 
     def resolve(self, inputs):

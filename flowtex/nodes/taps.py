@@ -1,4 +1,8 @@
-"""tap_player: speed-dependent tapping transients played as a force from each contact onset (002 §3.3.2)."""
+"""tap_player: speed-dependent tapping transients played as a force from each contact onset.
+
+Source: Culbertson & Kuchenbecker 2017, "Importance of matching physical friction, hardness, and texture
+in creating realistic haptic virtual surfaces", section 3.3.2.
+"""
 
 from __future__ import annotations
 
@@ -10,7 +14,7 @@ from ..io.taplib import read_tap_library
 from ..node_api import Node, NodeState, Param, Port
 
 HAND_MASS_KG = 0.05
-"""Effective mass of hand + handle (000, 002)."""
+"""Effective mass of hand + handle (Kuchenbecker & Culbertson 2014; Culbertson & Kuchenbecker 2017)."""
 
 
 @njit(cache=True)

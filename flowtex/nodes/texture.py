@@ -45,8 +45,8 @@ class TextureLookup(Node):
         "force": Port((), "N", "normal force"),
     }
     outputs = {
-        "ar": Port((1,), "", "A(z) = [1, a1, ..., ap] (shape p+1, set by the model file)"),
-        "ma": Port((1,), "", "C(z) = [1, c1, ..., cq] (shape q+1, set by the model file)"),
+        "ar": Port((1,), "", "A(z) = [1, a1, ..., ap]", shape_doc="vector of p+1 (AR order p of the model file)"),
+        "ma": Port((1,), "", "C(z) = [1, c1, ..., cq]", shape_doc="vector of q+1 (MA order q of the model file)"),
         "gain": Port((), "", "MA gain g"),
         "variance": Port((), "", "variance of the white excitation (HaTT's var)"),
     }

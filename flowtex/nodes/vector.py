@@ -34,7 +34,7 @@ class Cross(Node):
 
     type_name = "cross"
     inputs = {"a": Port((3,), "*", "first 3-vector"), "b": Port((3,), "*", "second 3-vector")}
-    outputs = {"y": Port((3,), "", "a x b (unit: product of the units)")}
+    outputs = {"y": Port((3,), "", "a x b", unit_doc="unit of a * unit of b")}
     kernel = _cross
 
     def resolve(self, inputs: dict[str, PortSpec]) -> dict[str, PortSpec]:
@@ -55,7 +55,7 @@ class Dot(Node):
 
     type_name = "dot"
     inputs = {"a": Port(None, "*", "first vector"), "b": Port(None, "*", "second vector (same shape as a)")}
-    outputs = {"y": Port((), "", "a . b (unit: product of the units)")}
+    outputs = {"y": Port((), "", "a . b", unit_doc="unit of a * unit of b")}
     kernel = _dot
 
     def resolve(self, inputs: dict[str, PortSpec]) -> dict[str, PortSpec]:

@@ -7,28 +7,76 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError, FlowtexError
-from ..graph.compiled import Graph
+from ..graph.compiled import Graph, apply_nonfinite_policy
 from ..io.recordings import load_recording, save_recording
+
+TIME_COLUMN = "time"
+"""A recording signal of this name (unless the graph has such an input) holds sample times in seconds."""
+RATE_TOLERANCE = 0.01
+"""Relative difference between the rate a ``time`` column implies and the graph's rate that is refused."""
+
+
+def _check_time_column(time: np.ndarray, graph: Graph, input_path: str | Path) -> None:
+    """Check the rate implied by a ``time`` column (seconds; median spacing) against the graph's rate."""
+    if time.ndim != 1 or time.shape[0] < 2:
+        return
+    dt = float(np.median(np.diff(time)))
+    if not np.isfinite(dt) or dt <= 0:
+        raise DataError(f"{input_path}: column 'time' does not increase (median step {dt:g}); "
+                        "flowtex reads one row per tick, so fix or drop the time column")
+    rate = 1.0 / dt
+    if abs(rate - graph.rate) > RATE_TOLERANCE * graph.rate:
+        raise DataError(f"{input_path}: column 'time' is spaced {dt:g} s ({rate:g} Hz) but graph {graph.name!r} runs at "
+                        f"{graph.rate:g} Hz; resample the recording, set the graph's rate: {rate:g}, "
+                        "or drop the time column if it is not in seconds")
+
+
+def _vector_hint(name: str, shape: tuple[int, ...], have: list[str], path: Path) -> str:
+    """A hint when a vector input seems to be stored as columns like ``acc_x, acc_y, acc_z``."""
+    if not shape:
+        return ""
+    width = int(np.prod(shape))
+    similar = [h for h in have if h.lower().startswith(name.lower()) and h != name]
+    if not similar and path.suffix.lower() != ".csv":
+        return ""
+    cols = ", ".join(f"{name}[{i}]" for i in range(width))
+    where = "CSV columns" if path.suffix.lower() == ".csv" else "an array of shape (n, " + ", ".join(map(str, shape)) + ")"
+    found = f" (not {', '.join(similar)})" if similar else ""
+    if path.suffix.lower() == ".csv":
+        return f"; input {name!r} has shape ({', '.join(map(str, shape))},): name its {where} {cols}{found}"
+    return f"; input {name!r} has shape ({', '.join(map(str, shape))},): store it as one entry {name!r}, {where}{found}"
 
 
 def run_recording(graph: Graph, input_path: str | Path, output_path: str | Path | None,
-                  seed: int | None = None, progress: bool = True) -> dict[str, np.ndarray]:
+                  seed: int | None = None, progress: bool = True, nonfinite: str = "error") -> dict[str, np.ndarray]:
     """Run ``graph`` over the recording at ``input_path``; write outputs if ``output_path``.
 
     A recording that states a sample rate different from the graph's rate is
-    refused (resample it first, or fix ``rate:`` in the graph).
+    refused (resample it first, or fix ``rate:`` in the graph). Non-finite
+    samples are handled by ``nonfinite`` (``error``, ``hold`` or ``zero``, as in
+    :meth:`Graph.run`); ``error`` names the file, the signal, the count and the first index.
     """
     rec = load_recording(input_path)
     if rec.rate is not None and abs(rec.rate - graph.rate) > 1e-9 * graph.rate:
         raise DataError(f"{input_path}: recorded at {rec.rate:g} Hz but graph {graph.name!r} runs at {graph.rate:g} Hz; "
                         "resample the recording or change the graph's rate")
+    if TIME_COLUMN in rec.arrays and TIME_COLUMN not in graph.inputs:
+        _check_time_column(rec.arrays[TIME_COLUMN], graph, input_path)
     missing = [n for n in graph.inputs if n not in rec.arrays]
     if missing:
         have = ", ".join(rec.arrays) or "nothing"
-        raise DataError(f"{input_path}: lacks graph input(s) {', '.join(missing)} (the file has: {have})")
+        hints = "".join(_vector_hint(n, graph.inputs[n].shape, list(rec.arrays), Path(input_path)) for n in missing)
+        raise DataError(f"{input_path}: lacks graph input(s) {', '.join(missing)} (the file has: {have}){hints}")
     if not graph.inputs:
         raise FlowtexError(f"graph {graph.name!r} has no inputs; a recording cannot drive it")
-    outputs = graph.run({n: rec.arrays[n] for n in graph.inputs}, seed=seed, progress=progress)
+    arrays = {n: rec.arrays[n] for n in graph.inputs}
+    try:
+        graph.check_inputs(arrays)
+    except FlowtexError as exc:
+        raise DataError(f"{input_path}: {exc}") from None
+    arrays = apply_nonfinite_policy(arrays, nonfinite, str(input_path),
+                                    fix="or pass --nonfinite hold (last finite value) or --nonfinite zero")
+    outputs = graph.run(arrays, seed=seed, progress=progress, nonfinite="error")
     if output_path is not None:
-        save_recording(output_path, outputs, rate=graph.rate)
+        save_recording(output_path, outputs, rate=graph.rate, units={n: spec.unit for n, spec in graph.outputs.items()})
     return outputs

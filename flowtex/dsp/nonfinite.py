@@ -1,0 +1,66 @@
+"""Non-finite samples (NaN, +-inf) in recorded signals: find them, or replace them.
+
+One NaN fed to a recursive filter poisons its state for good: every later
+output is NaN. Offline runs therefore check their inputs first and apply one
+of these policies (``flowtex run --nonfinite``, ``Graph.run(nonfinite=...)``):
+
+* ``error``: refuse the recording, naming the signal, how many samples and the
+  first index (the default);
+* ``hold``: replace each non-finite sample by the last finite one of the same
+  channel (0 before the first finite one);
+* ``zero``: replace each non-finite sample by 0;
+* ``pass``: feed them to the graph unchanged (for graphs whose nodes handle
+  them on purpose, e.g. ``clip``'s ``nan`` parameter or ``texture_lookup``).
+
+Arrays have time on the first axis; values keep their unit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+NONFINITE_POLICIES = ("error", "hold", "zero", "pass")
+
+
+@dataclass(frozen=True)
+class NonFinite:
+    """Non-finite samples of one signal: how many time steps hold one, the first index and its value."""
+
+    count: int
+    first_index: int
+    first_value: float
+
+    def describe(self) -> str:
+        return f"{self.count} non-finite sample(s), the first ({self.first_value!r}) at index {self.first_index}"
+
+
+def find_nonfinite(a: np.ndarray) -> NonFinite | None:
+    """Non-finite samples of ``a`` (time first), or None when every value is finite.
+
+    ``count`` counts time steps with at least one non-finite component.
+    """
+    bad = ~np.isfinite(a)
+    if not bad.any():
+        return None
+    rows = bad.reshape(a.shape[0], -1).any(axis=1)
+    first = int(np.argmax(rows))
+    value = float(a.reshape(a.shape[0], -1)[first][bad.reshape(a.shape[0], -1)[first]][0])
+    return NonFinite(int(rows.sum()), first, value)
+
+
+def fill_nonfinite(a: np.ndarray, policy: str) -> np.ndarray:
+    """A copy of ``a`` (time first) with non-finite samples replaced by ``policy`` (``hold`` or ``zero``)."""
+    if policy not in ("hold", "zero"):
+        raise ValueError(f"unknown non-finite policy {policy!r}; use hold or zero")
+    flat = np.array(a, dtype=np.float64).reshape(a.shape[0], -1)
+    bad = ~np.isfinite(flat)
+    if policy == "zero":
+        flat[bad] = 0.0
+        return flat.reshape(a.shape)
+    rows = np.arange(flat.shape[0])[:, None]
+    last_good = np.maximum.accumulate(np.where(bad, -1, rows), axis=0)  # index of the last finite sample, -1 if none
+    filled = np.take_along_axis(flat, np.maximum(last_good, 0), axis=0)
+    filled[last_good < 0] = 0.0
+    return filled.reshape(a.shape)
