@@ -171,7 +171,9 @@ def friction_session(mu: float = 0.4, duration_s: float = 20.0, rate: float = 10
     """Dragging at 150 mm/s with a varying normal force (0.3..3 N); friction from ``coulomb_friction`` (mu).
 
     Measured tangential force = |friction| + ``offset`` (N), with ``noise``
-    relative Gaussian noise on both forces; ``spikes`` stiction spikes (50 ms
+    relative Gaussian noise (and 0.01 N sensor noise on both forces: noise on
+    the normal force as large as 10 % would bias any slope low, errors in
+    variables); ``spikes`` stiction spikes (50 ms
     at 2.5 x the kinetic force, at motion restarts after ``lifts`` lift-offs
     and at random times); ``lifts`` lift-offs of 0.5 s (normal force ~ 0, the
     tangential force sensor noise only). ``friction_force`` is the (n, 3)
@@ -195,7 +197,7 @@ def friction_session(mu: float = 0.4, duration_s: float = 20.0, rate: float = 10
         ft[s:s + spike_len] *= 2.5
     in_contact = fn > 0
     ft = ft + offset * in_contact
-    fn_meas = fn * (1 + noise * rng.standard_normal(n)) + 0.01 * rng.standard_normal(n)
+    fn_meas = fn + 0.01 * rng.standard_normal(n)
     ft_meas = ft * (1 + noise * rng.standard_normal(n)) + 0.01 * rng.standard_normal(n)
     force = np.column_stack([ft_meas, np.zeros(n), fn_meas])
     arrays = {"normal_force": fn_meas, "tangential_force": ft_meas, "force": force, "normal": np.tile([0.0, 0.0, 1.0], (n, 1)),
