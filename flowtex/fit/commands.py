@@ -5,7 +5,11 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-FIT_COMMAND_MODULES: tuple[str, ...] = ()
+FIT_COMMAND_MODULES: tuple[str, ...] = (
+    "flowtex.fit.texture_cli",
+    "flowtex.fit.friction",
+    "flowtex.fit.taps",
+)
 """Modules that add a ``flowtex fit`` kind: each has ``register_fit(fit_subparsers)``."""
 
 
