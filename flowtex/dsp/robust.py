@@ -99,19 +99,29 @@ def irls_line(x: np.ndarray, y: np.ndarray, intercept: bool = False, kind: str =
     return RobustLine(slope, icpt, (slope - tq * float(se[0]), slope + tq * float(se[0])), ici, s, w, it)
 
 
-def clamp_outliers(x: np.ndarray, k: float = 8.0) -> tuple[np.ndarray, np.ndarray]:
-    """Clip samples further than ``k`` robust standard deviations from the median; returns (clipped copy, indices).
+def clamp_outliers(x: np.ndarray, k: float = 8.0, block: int = 250) -> tuple[np.ndarray, np.ndarray]:
+    """Clip samples further than ``k`` local robust standard deviations from the local median; returns (copy, indices).
 
-    A Gaussian sample exceeds 8 sigma with probability 1e-15, so clean
-    recordings are left untouched while isolated sensor spikes are cut back
-    to the +-k sigma band (their power no longer dominates the spectrum).
+    The scale is the MAD of each block of ``block`` samples (a vibration's
+    power changes with speed and force, so one global scale would clip the
+    loud stretches). A Gaussian sample exceeds 8 sigma with probability
+    1e-15, so clean recordings are left untouched while isolated sensor
+    spikes are cut back to the +-k sigma band of their block (their power no
+    longer dominates the spectrum).
     """
     x = np.asarray(x, float)
-    med = float(np.median(x))
-    s = robust_scale(x)
-    if s <= 0.0:
-        return x.copy(), np.zeros(0, np.int64)
-    bad = np.flatnonzero(np.abs(x - med) > k * s)
     out = x.copy()
-    out[bad] = med + np.sign(x[bad] - med) * k * s
-    return out, bad
+    bad_all = []
+    for a in range(0, x.shape[0], block):
+        seg = x[a:a + block]
+        if a + block < x.shape[0] < a + 2 * block:  # fold a short tail into the last block
+            seg = x[a:]
+        med = float(np.median(seg))
+        s = robust_scale(seg)
+        if s > 0.0:
+            bad = np.flatnonzero(np.abs(seg - med) > k * s)
+            out[a + bad] = med + np.sign(seg[bad] - med) * k * s
+            bad_all.append(a + bad)
+        if seg.shape[0] > block:
+            break
+    return out, (np.concatenate(bad_all) if bad_all else np.zeros(0, np.int64))
