@@ -222,6 +222,10 @@ def _full_sum(half: np.ndarray, nfft: int) -> float:
     return float((2.0 * np.sum(half) - half[0] - (half[-1] if nfft % 2 == 0 else 0.0)) / nfft)
 
 
+_TINY = 1e-300
+"""Floor of |C(e^jw)|^2 on the grid: a zero pulled to MAX_RADIUS can sit within rounding of a grid frequency."""
+
+
 def _spectra(a: np.ndarray, c: np.ndarray, nfft: int) -> tuple[np.ndarray, np.ndarray]:
     """A(e^jw), C(e^jw) on the rfft half grid (one stacked FFT)."""
     import scipy.fft
@@ -236,7 +240,7 @@ def _spectra(a: np.ndarray, c: np.ndarray, nfft: int) -> tuple[np.ndarray, np.nd
 def prediction_error_variance(S: np.ndarray, nfft: int, a: np.ndarray, c: np.ndarray) -> float:
     """(1/M) sum_k S_k |A_k / C_k|^2 over the full grid (S on the rfft half grid of length M // 2 + 1)."""
     A, C = _spectra(a, c, nfft)
-    return _full_sum(S * ((A.real ** 2 + A.imag ** 2) / (C.real ** 2 + C.imag ** 2)), nfft)
+    return _full_sum(S * ((A.real ** 2 + A.imag ** 2) / np.maximum(C.real ** 2 + C.imag ** 2, _TINY)), nfft)
 
 
 def whittle_refine(S: np.ndarray, nfft: int, a: np.ndarray, c: np.ndarray, iterations: int = 30,
@@ -264,15 +268,15 @@ def whittle_refine(S: np.ndarray, nfft: int, a: np.ndarray, c: np.ndarray, itera
     lam = 0.0
     for _ in range(iterations):
         A, C = _spectra(a, c, nfft)
-        C2 = C.real ** 2 + C.imag ** 2
+        C2 = np.maximum(C.real ** 2 + C.imag ** 2, _TINY)
         A2 = A.real ** 2 + A.imag ** 2
         Su = S / C2  # spectrum of u = x / C
         spec = np.empty((5, Su.shape[0]), dtype=np.complex128)
         spec[0] = Su  # a-a block (Toeplitz in the lag difference)
         spec[1] = Su * A2 / C2  # c-c block: spectrum of e / C
-        spec[2] = Su * A / C  # a-c block
+        spec[2] = Su * A * np.conj(C) / C2  # a-c block (A / C)
         spec[3] = Su * A  # a-gradient: cross-covariance of u and e
-        spec[4] = Su * A2 / np.conj(C)  # c-gradient
+        spec[4] = Su * A2 * C / C2  # c-gradient (A2 / conj(C))
         ru, rv, rx, ga, gc = scipy.fft.irfft(spec, nfft, axis=1)
         H = np.empty((p + q, p + q))
         g = np.empty(p + q)
@@ -293,6 +297,8 @@ def whittle_refine(S: np.ndarray, nfft: int, a: np.ndarray, c: np.ndarray, itera
         while lam < 1e8:  # Levenberg-Marquardt damping: shrink after a success, grow after a failure
             try:
                 step = -np.linalg.solve(H + lam * np.diag(d), g)
+                if not np.all(np.isfinite(step)):
+                    raise np.linalg.LinAlgError
             except np.linalg.LinAlgError:
                 lam = max(10.0 * lam, 1e-6)
                 continue
