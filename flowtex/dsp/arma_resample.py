@@ -63,7 +63,7 @@ def _map_roots(poly: np.ndarray, ratio: float) -> np.ndarray:
 
 
 def resample_arma(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, rate_from: float, rate_to: float,
-                  grid: int = GRID, iterations: int = 60) -> tuple[np.ndarray, np.ndarray, float, float]:
+                  grid: int = GRID, iterations: int = 40) -> tuple[np.ndarray, np.ndarray, float, float]:
     """(ar, ma, gain, variance) at ``rate_to`` Hz with the same physical PSD below min(rate_from, rate_to) / 2.
 
     Orders are kept; the gain is kept and the variance carries the power
@@ -82,12 +82,25 @@ def resample_arma(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, 
     f_lim = 0.5 * min(rate_from, rate_to)
     shape = _model_power_spectrum(ar, ma, 2.0 * math.pi * np.minimum(f, f_lim) / rate_from)
     T = np.where(f < f_lim, shape, STOPBAND_FLOOR * np.mean(shape[f < f_lim]))
-    a0 = _map_roots(ar, ratio)
-    c0 = _map_roots(ma, ratio)
-    a1, c1, _ = whittle_refine(T, grid, a0, c0, iterations=iterations, tol=1e-12)
+    a1, c1, crit = whittle_refine(T, grid, _map_roots(ar, ratio), _map_roots(ma, ratio), iterations=iterations, tol=1e-10)
+    if ratio < 1.0:
+        # upsampling: the criterion has local minima; also start from the Yule-Walker AR of the target with C = 1
+        import scipy.linalg
+
+        p = ar.shape[0] - 1
+        r = np.fft.irfft(T, grid)[:p + 1]
+        a_yw = np.r_[1.0, scipy.linalg.solve_toeplitz(r[:-1], -r[1:])] if p else ar
+        a2, c2, crit2 = whittle_refine(T, grid, a_yw, np.r_[1.0, np.zeros(ma.shape[0] - 1)], iterations=iterations, tol=1e-10)
+        if crit2 < crit:
+            a1, c1 = a2, c2
     # power of one unit of g^2 sigma2 below 0.9 f_lim, original (on the old rate's scale) and new
     band = f < 0.9 * f_lim
     old_power = np.sum(shape[band]) / rate_from
     new_power = np.sum(_model_power_spectrum(a1, c1, w[band])) / rate_to
     new_variance = float(variance) * old_power / new_power
     return a1, c1, float(gain), new_variance
+
+
+# Limitation (measured, see docs/fitting.md): downsampling keeps every model within ~0.01 dB; upsampling at the same
+# order must spend poles and zeros on the new stopband, and some models end 1-3 dB from their spectrum (2x) or worse
+# (4x and more), while band power (<= 0.1 %) and the power above the old Nyquist (<= 0.1 %) stay within the issue's 2 %.

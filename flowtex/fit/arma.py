@@ -99,7 +99,7 @@ def _check_signal(x: np.ndarray) -> np.ndarray:
     return x
 
 
-def _min_phase_for_lsf(poly: np.ndarray) -> np.ndarray:
+def min_phase_for_lsf(poly: np.ndarray) -> np.ndarray:
     """Pull near-unit roots in (doubling their distance to the circle) until the LSFs are strictly increasing."""
     if poly.shape[0] <= 1:
         return poly
@@ -116,8 +116,8 @@ def _min_phase_for_lsf(poly: np.ndarray) -> np.ndarray:
 
 
 def _finish(x: np.ndarray, a: np.ndarray, c: np.ndarray, sigma2: float) -> ArmaFit:
-    a = _min_phase_for_lsf(a)
-    c = _min_phase_for_lsf(c)
+    a = min_phase_for_lsf(a)
+    c = min_phase_for_lsf(c)
     n = x.shape[0]
     var_x = float(np.var(x))
     p, q = a.shape[0] - 1, c.shape[0] - 1
