@@ -65,6 +65,32 @@ def long_ar_order(n: int, max_p: int, max_q: int) -> int:
     return int(max(min(max(40, 3 * (max_p + max_q)), n // 10), max_p + max_q + 1))
 
 
+def lagged_gram(src: list[np.ndarray], lag: list[int], t0: int) -> np.ndarray:
+    """Gram matrix G[i, k] = sum_{t=t0}^{n-1} src_i[t - lag_i] src_k[t - lag_k] of lagged copies of a few series.
+
+    Columns of one series with consecutive lags are shifts of each other, so
+    only the rows of each series' first lag need dot products over the data;
+    every other entry follows from its upper-left neighbour by adding the
+    sample entering at t0 - 1 and removing the one leaving at n - 1
+    (O(n K + K^2) instead of the O(n K^2) of a matrix product, and no
+    multithreaded BLAS call, which stalls on a loaded machine).
+    """
+    k = len(src)
+    n = src[0].shape[0] if k else 0
+    G = np.empty((k, k))
+    cols = [src[i][t0 - lag[i]:n - lag[i]] for i in range(k)]
+    for i in range(k):
+        for j in range(i, k):
+            if i == 0 or j == 0 or src[i] is not src[i - 1] or src[j] is not src[j - 1] or lag[i] != lag[i - 1] + 1 \
+                    or lag[j] != lag[j - 1] + 1:
+                G[i, j] = cols[i] @ cols[j]
+            else:
+                si, sj, li, lj = src[i - 1], src[j - 1], lag[i - 1], lag[j - 1]
+                G[i, j] = G[i - 1, j - 1] + si[t0 - 1 - li] * sj[t0 - 1 - lj] - si[n - 1 - li] * sj[n - 1 - lj]
+            G[j, i] = G[i, j]
+    return G
+
+
 class HRDesign:
     """Hannan-Rissanen regression for every order (p, q) <= (P, Q), from one Gram matrix.
 
@@ -83,15 +109,14 @@ class HRDesign:
         t0 = L + max(max_p, max_q)
         if n - t0 < 2 * (max_p + max_q) + 10:
             raise ValueError(f"{n} samples are too few for ARMA order up to ({max_p}, {max_q})")
-        m = n - t0
-        cols = [-x[t0 - i:n - i] for i in range(1, max_p + 1)] + [e[t0 - j:n - j] for j in range(1, max_q + 1)]
-        Z = np.stack(cols, axis=1) if cols else np.zeros((m, 0))
         y = x[t0:]
         self.max_p = max_p
         self.max_q = max_q
-        self.n = m
-        self.gram = Z.T @ Z
-        self.zy = Z.T @ y
+        self.n = n - t0
+        src = [-x] * max_p + [e] * max_q
+        lag = list(range(1, max_p + 1)) + list(range(1, max_q + 1))
+        self.gram = lagged_gram(src, lag, t0)
+        self.zy = np.array([src[i][t0 - lag[i]:n - lag[i]] @ y for i in range(len(src))])
         self.yy = float(y @ y)
 
     def _index(self, p: int, q: int) -> np.ndarray:
@@ -126,6 +151,22 @@ def hr_order_screen(design: HRDesign, max_p: int, max_q: int) -> np.ndarray:
     return bic
 
 
+def roots_inside(poly: np.ndarray, radius: float = 1.0) -> bool:
+    """True if every root of the monic ``poly`` has magnitude < ``radius`` (Schur-Cohn step-down, O(p^2), no eigenvalues).
+
+    The roots of P(z) scaled as p_k radius^-k are the roots of P divided by
+    ``radius``; the step-down recursion of that polynomial has all
+    |reflection coefficients| < 1 exactly when they are inside the unit circle.
+    """
+    a = np.asarray(poly, dtype=np.float64) / (radius ** np.arange(poly.shape[0]))
+    for m in range(a.shape[0] - 1, 0, -1):
+        k = a[m]
+        if not abs(k) < 1.0:
+            return False
+        a = (a[:m] - k * a[m:0:-1]) / (1.0 - k * k)
+    return True
+
+
 def stabilize(poly: np.ndarray, max_radius: float = MAX_RADIUS) -> np.ndarray:
     """Monic polynomial with roots outside the unit circle reflected in and roots beyond ``max_radius`` pulled to it.
 
@@ -133,12 +174,10 @@ def stabilize(poly: np.ndarray, max_radius: float = MAX_RADIUS) -> np.ndarray:
     array values). Reflection keeps |P(e^jw)| up to a constant factor.
     """
     poly = np.asarray(poly, dtype=np.float64)
-    if poly.shape[0] <= 1:
+    if poly.shape[0] <= 1 or roots_inside(poly, max_radius):
         return poly
     roots = np.roots(poly)
     r = np.abs(roots)
-    if np.all(r <= max_radius):
-        return poly
     big = r > 1.0
     roots = np.where(big, 1.0 / np.conj(roots), roots)
     r = np.abs(roots)
@@ -183,11 +222,25 @@ def _full_sum(half: np.ndarray, nfft: int) -> float:
     return float((2.0 * np.sum(half) - half[0] - (half[-1] if nfft % 2 == 0 else 0.0)) / nfft)
 
 
+_TINY = 1e-300
+"""Floor of |C(e^jw)|^2 on the grid: a zero pulled to MAX_RADIUS can sit within rounding of a grid frequency."""
+
+
+def _spectra(a: np.ndarray, c: np.ndarray, nfft: int) -> tuple[np.ndarray, np.ndarray]:
+    """A(e^jw), C(e^jw) on the rfft half grid (one stacked FFT)."""
+    import scipy.fft
+
+    buf = np.zeros((2, max(a.shape[0], c.shape[0])))
+    buf[0, :a.shape[0]] = a
+    buf[1, :c.shape[0]] = c
+    F = scipy.fft.rfft(buf, nfft, axis=1)
+    return F[0], F[1]
+
+
 def prediction_error_variance(S: np.ndarray, nfft: int, a: np.ndarray, c: np.ndarray) -> float:
     """(1/M) sum_k S_k |A_k / C_k|^2 over the full grid (S on the rfft half grid of length M // 2 + 1)."""
-    A = np.fft.rfft(a, nfft)
-    C = np.fft.rfft(c, nfft)
-    return _full_sum(S * (np.abs(A) ** 2 / np.abs(C) ** 2), nfft)
+    A, C = _spectra(a, c, nfft)
+    return _full_sum(S * ((A.real ** 2 + A.imag ** 2) / np.maximum(C.real ** 2 + C.imag ** 2, _TINY)), nfft)
 
 
 def whittle_refine(S: np.ndarray, nfft: int, a: np.ndarray, c: np.ndarray, iterations: int = 30,
@@ -198,9 +251,12 @@ def whittle_refine(S: np.ndarray, nfft: int, a: np.ndarray, c: np.ndarray, itera
     :func:`periodogram_grid`). ``a``, ``c``: starting polynomials (made
     minimum phase first). Each step solves the Gauss-Newton normal equations
     of the residual r_k = sqrt(S_k) A_k / C_k; steps are Levenberg-Marquardt damped
-    (the damping grows until a step lowers the criterion), and iteration stops when the
-    relative decrease falls below ``tol``. Returns (A, C, sigma2).
+    (the damping grows until a step lowers the criterion), and iteration
+    stops when the relative decrease falls below ``tol`` (for data of n
+    samples, 0.01 / n is a change of 0.01 in the log-likelihood). Returns (A, C, sigma2).
     """
+    import scipy.fft
+
     p = a.shape[0] - 1
     q = c.shape[0] - 1
     a = stabilize(a)
@@ -211,17 +267,17 @@ def whittle_refine(S: np.ndarray, nfft: int, a: np.ndarray, c: np.ndarray, itera
     lags = np.arange(max(p, q) + 1)
     lam = 0.0
     for _ in range(iterations):
-        A = np.fft.rfft(a, nfft)
-        C = np.fft.rfft(c, nfft)
-        C2 = C.real ** 2 + C.imag ** 2
+        A, C = _spectra(a, c, nfft)
+        C2 = np.maximum(C.real ** 2 + C.imag ** 2, _TINY)
+        A2 = A.real ** 2 + A.imag ** 2
         Su = S / C2  # spectrum of u = x / C
-        ru = np.fft.irfft(Su, nfft)  # Toeplitz entries of the a-a block (per 1/M)
-        Sv = Su * (A.real ** 2 + A.imag ** 2) / C2  # spectrum of e / C
-        rv = np.fft.irfft(Sv, nfft)
-        X = Su * A / C  # cross term a-c
-        rx = np.fft.irfft(X, nfft)
-        ga = np.fft.irfft(Su * A, nfft)  # a-gradient (cross-covariance of u and e)
-        gc = np.fft.irfft(Su * (A.real ** 2 + A.imag ** 2) / np.conj(C), nfft)
+        spec = np.empty((5, Su.shape[0]), dtype=np.complex128)
+        spec[0] = Su  # a-a block (Toeplitz in the lag difference)
+        spec[1] = Su * A2 / C2  # c-c block: spectrum of e / C
+        spec[2] = Su * A * np.conj(C) / C2  # a-c block (A / C)
+        spec[3] = Su * A  # a-gradient: cross-covariance of u and e
+        spec[4] = Su * A2 * C / C2  # c-gradient (A2 / conj(C))
+        ru, rv, rx, ga, gc = scipy.fft.irfft(spec, nfft, axis=1)
         H = np.empty((p + q, p + q))
         g = np.empty(p + q)
         ii = lags[1:p + 1]
@@ -241,6 +297,8 @@ def whittle_refine(S: np.ndarray, nfft: int, a: np.ndarray, c: np.ndarray, itera
         while lam < 1e8:  # Levenberg-Marquardt damping: shrink after a success, grow after a failure
             try:
                 step = -np.linalg.solve(H + lam * np.diag(d), g)
+                if not np.all(np.isfinite(step)):
+                    raise np.linalg.LinAlgError
             except np.linalg.LinAlgError:
                 lam = max(10.0 * lam, 1e-6)
                 continue

@@ -29,8 +29,14 @@ from ..dsp.lsf import is_valid_lsf, poly_to_lsf
 from ..dsp.spectral import gfc_data_model, lsd_db, welch_psd
 from ..errors import DataError
 
-REFINE_CANDIDATES = 6
-"""Number of best orders by the screening BIC that get the full (Gauss-Newton) fit during order search."""
+REFINE_CANDIDATES = 4
+"""Number of best orders by the screening BIC that get a quick refinement before the neighbour walk."""
+SEARCH_ITERATIONS = 4
+"""Gauss-Newton iterations per order during the search (the winner then gets :data:`REFINE_ITERATIONS` more)."""
+REFINE_ITERATIONS = 20
+"""Gauss-Newton iterations at most (fewer when the log-likelihood stops changing by 0.01). Measured on HaTT-size models
+(19/17, 10 s, 10 seeds): median LSD against the truth 0.50 dB after 10 and 0.46 dB after 20, but single models
+stuck on a plateau (0.86 dB) after 10 reach 0.3 dB by 20."""
 
 
 @dataclass
@@ -93,7 +99,7 @@ def _check_signal(x: np.ndarray) -> np.ndarray:
     return x
 
 
-def _min_phase_for_lsf(poly: np.ndarray) -> np.ndarray:
+def min_phase_for_lsf(poly: np.ndarray) -> np.ndarray:
     """Pull near-unit roots in (doubling their distance to the circle) until the LSFs are strictly increasing."""
     if poly.shape[0] <= 1:
         return poly
@@ -110,8 +116,8 @@ def _min_phase_for_lsf(poly: np.ndarray) -> np.ndarray:
 
 
 def _finish(x: np.ndarray, a: np.ndarray, c: np.ndarray, sigma2: float) -> ArmaFit:
-    a = _min_phase_for_lsf(a)
-    c = _min_phase_for_lsf(c)
+    a = min_phase_for_lsf(a)
+    c = min_phase_for_lsf(c)
     n = x.shape[0]
     var_x = float(np.var(x))
     p, q = a.shape[0] - 1, c.shape[0] - 1
@@ -122,7 +128,19 @@ def _finish(x: np.ndarray, a: np.ndarray, c: np.ndarray, sigma2: float) -> ArmaF
                    bic=float(n * np.log(sigma2) + (p + q) * np.log(n)), gfc=gfc_data_model(x, a, c))
 
 
-def _prepare(x: np.ndarray, max_p: int, max_q: int) -> tuple[np.ndarray, HRDesign, np.ndarray, int]:
+@dataclass
+class _Prepared:
+    """One signal ready for fitting: mean removed, Hannan-Rissanen design, periodograms (full and search grids)."""
+
+    x: np.ndarray
+    design: HRDesign
+    spectrum: np.ndarray
+    nfft: int
+    search_spectrum: np.ndarray
+    search_nfft: int
+
+
+def _prepare(x: np.ndarray, max_p: int, max_q: int) -> _Prepared:
     x = _check_signal(x)
     xc = x - np.mean(x)
     if not np.any(xc):
@@ -131,14 +149,22 @@ def _prepare(x: np.ndarray, max_p: int, max_q: int) -> tuple[np.ndarray, HRDesig
         design = HRDesign(xc, max_p, max_q)
     except ValueError as exc:
         raise DataError(f"signal too short for the order: {exc}; record longer or lower the order") from None
-    nfft = 1 << int(np.ceil(np.log2(2 * xc.shape[0])))
-    return xc, design, periodogram_grid(xc, nfft), nfft
+    # Wrap-around of the tapered autocovariance only at lags > nfft - n, where it is ~0 (measured: 1.5 n and 2 n
+    # give the same fits). The order search uses a grid half as fine: ranking orders does not need the last digit.
+    nfft = 1 << int(np.ceil(np.log2(1.5 * xc.shape[0])))
+    S = periodogram_grid(xc, nfft)
+    return _Prepared(xc, design, S, nfft, S[::2].copy(), nfft // 2)
 
 
-def _fit_order(xc: np.ndarray, design: HRDesign, S: np.ndarray, nfft: int, p: int, q: int) -> ArmaFit:
-    a0, c0, _ = design.fit(p, q)
-    a, c, s2 = whittle_refine(S, nfft, a0, c0)
-    return _finish(xc, a, c, s2)
+def _refine(prep: _Prepared, a: np.ndarray, c: np.ndarray, search: bool) -> tuple[np.ndarray, np.ndarray, float]:
+    S, nfft = (prep.search_spectrum, prep.search_nfft) if search else (prep.spectrum, prep.nfft)
+    return whittle_refine(S, nfft, a, c, iterations=SEARCH_ITERATIONS if search else REFINE_ITERATIONS,
+                          tol=0.01 / prep.x.shape[0])
+
+
+def _fit_order(prep: _Prepared, p: int, q: int) -> ArmaFit:
+    a0, c0, _ = prep.design.fit(p, q)
+    return _finish(prep.x, *_refine(prep, a0, c0, search=False))
 
 
 def fit_arma(x: np.ndarray, order: tuple[int, int] | None = None, max_order: int = 20) -> ArmaFit:
@@ -155,8 +181,7 @@ def fit_arma(x: np.ndarray, order: tuple[int, int] | None = None, max_order: int
         p, q = (int(v) for v in order)
         if p < 0 or q < 0:
             raise DataError(f"ARMA order must be non-negative, got {order}")
-        xc, design, S, nfft = _prepare(x, p, q)
-        return _fit_order(xc, design, S, nfft, p, q)
+        return _fit_order(_prepare(x, p, q), p, q)
     return fit_arma_auto([x], max_order)[0]
 
 
@@ -167,16 +192,53 @@ def select_order(bic_grid: np.ndarray, count: int = REFINE_CANDIDATES) -> list[t
 
 
 def _search(pieces: Sequence[np.ndarray], max_order: int) -> tuple[tuple[int, int], list[ArmaFit]]:
+    """Order search: screen every order cheaply, refine the best few, then walk to lower-BIC neighbours.
+
+    The Hannan-Rissanen screening BIC tends to favour orders with an extra,
+    nearly cancelling pole-zero pair, so the true order is often not among
+    its best few, while the refined BIC does rank it first. Hence: quick
+    refinements (:data:`SEARCH_ITERATIONS` on a coarser grid) of the best
+    :data:`REFINE_CANDIDATES` screened orders and of the best screened order
+    inside each box p, q <= m for m = 2, 5, 8, ..., then a descent on that BIC over
+    the 8 neighbouring orders (smaller ones tried first, moving to the first
+    that is lower), then the full refinement of the winner only.
+    """
     prepared = [_prepare(x, max_order, max_order) for x in pieces]
-    screen = sum(hr_order_screen(d, max_order, max_order) for _, d, _, _ in prepared)
-    best = None
-    for p, q in select_order(screen):
-        fits = [_fit_order(xc, d, S, nfft, p, q) for xc, d, S, nfft in prepared]
-        total = sum(f.bic for f in fits)
-        if best is None or total < best[0]:
-            best = (total, (p, q), fits)
-    assert best is not None
-    return best[1], best[2]
+    screen = sum(hr_order_screen(prep.design, max_order, max_order) for prep in prepared)
+    done: dict[tuple[int, int], tuple[float, list]] = {}
+
+    def bic(order: tuple[int, int]) -> float:
+        if order not in done:
+            p, q = order
+            total = 0.0
+            starts = []
+            for prep in prepared:
+                a0, c0, _ = prep.design.fit(p, q)
+                a, c, s2 = _refine(prep, a0, c0, search=True)
+                n = prep.x.shape[0]
+                total += n * np.log(max(s2, 1e-300)) + (p + q) * np.log(n)
+                starts.append((a, c))
+            done[order] = (total, starts)
+        return done[order][0]
+
+    # the screening's best few, and its best inside each box p, q <= m (m = 2, 5, 8, ...): descents from large
+    # orders can stop in a local minimum of the BIC surface far from a low true order
+    candidates = select_order(screen) + [select_order(screen[:m + 1, :m + 1], 1)[0] for m in range(2, max_order, 3)]
+    for order in candidates:
+        bic(order)
+    best = min(done, key=bic)
+    moved = True
+    while moved:
+        moved = False
+        p, q = best
+        for dp, dq in ((-1, -1), (-1, 0), (0, -1), (-1, 1), (1, -1), (0, 1), (1, 0), (1, 1)):
+            cand = (p + dp, q + dq)
+            if 0 <= cand[0] <= max_order and 0 <= cand[1] <= max_order and bic(cand) < bic(best):
+                best = cand
+                moved = True
+                break
+    fits = [_finish(prep.x, *_refine(prep, a, c, search=False)) for prep, (a, c) in zip(prepared, done[best][1], strict=True)]
+    return best, fits
 
 
 def select_shared_order(pieces: Sequence[np.ndarray], max_order: int = 20) -> tuple[int, int]:
