@@ -53,8 +53,11 @@ def speed_from_position(position: np.ndarray, normal: np.ndarray | None, rate: f
     return speed[:, 0]
 
 
-def read_signals(path: Path, job: TextureJob, need_speed: bool = True) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, float]:
-    """(1-D acceleration, speed or None, force, rate) of one recording, checked (see flowtex.fit.inputs)."""
+def read_signals(path: Path, job: TextureJob, need_speed: bool = True) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, float]:
+    """(1-D acceleration, speed, force, rate) of one recording, checked (see flowtex.fit.inputs).
+
+    Grid cells (``need_speed=False``) need only the acceleration: speed and force come from the index.
+    """
     rec, rate = load(path, job.rate)
     acc = signal(rec, job.accel, "--accel", (1, 3))
     if acc.ndim == 2:
@@ -62,6 +65,8 @@ def read_signals(path: Path, job: TextureJob, need_speed: bool = True) -> tuple[
 
         acc = dft321(acc)
     check_not_constant(acc, f"{path}: signal {job.accel!r} (--accel)")
+    if not need_speed:
+        return acc, None, None, rate
     force = signal(rec, job.force, "--force")
     speed = None
     if job.speed is not None:
@@ -70,7 +75,7 @@ def read_signals(path: Path, job: TextureJob, need_speed: bool = True) -> tuple[
         pos = signal(rec, job.position, "--position", (3,))
         nrm = signal(rec, job.normal, "--normal", (3,)) if job.normal is not None else None
         speed = speed_from_position(pos, nrm, rate)
-    elif need_speed:
+    else:
         raise DataError(f"{path}: give the tool's speed with --speed S (mm/s) or --position P (mm, 3 axes)")
     return acc, speed, force, rate
 
@@ -78,7 +83,7 @@ def read_signals(path: Path, job: TextureJob, need_speed: bool = True) -> tuple[
 def fit_recording(path: Path, job: TextureJob) -> TextureFit:
     """Fit one free-exploration recording."""
     acc, speed, force, rate = read_signals(path, job)
-    assert speed is not None
+    assert speed is not None and force is not None
     material = job.material or path.stem
     return fit_texture(acc, speed, force, rate, job.options, material, str(path))
 
