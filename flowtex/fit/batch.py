@@ -12,6 +12,7 @@ serially in this process.
 from __future__ import annotations
 
 import glob
+import logging
 import os
 import sys
 from collections.abc import Sequence
@@ -75,7 +76,7 @@ def fit_many(paths: Sequence[Path], job, out_dir: Path, workers: int | None, sch
         cluster = None
         if scheduler is None:
             cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                                   dashboard_address=None)
+                                   dashboard_address=None, silence_logs=logging.ERROR)
         try:
             with Client(scheduler if scheduler is not None else cluster) as client:
                 futures = [client.submit(fit_one, str(p), job, str(out_dir), xml, report, pure=False) for p in paths]
