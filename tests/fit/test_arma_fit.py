@@ -127,6 +127,9 @@ def test_fixed_low_order_matches_truth():
     # K = 10 parameters from N = 10 000 samples give ~sqrt(2K/N) = 0.19 dB RMS on average, more at the notch
     # edges (zeros at r 0.7..0.9) that the 40 dB mask keeps: 1 dB catches a wrong model, not noise.
     assert _true_lsd(fit, a, c) < 1.0
+    # against the data's Welch PSD (1024-point Hann segments, 50 % overlap: ~19 independent averages, so each bin
+    # scatters by ~4.34 / sqrt(19) ~ 1 dB): about 1 dB, whatever the model
+    assert 0.3 < fit.lsd_db(x, FS) < 2.0
 
 
 def test_pure_ar_and_white_noise():

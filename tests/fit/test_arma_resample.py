@@ -17,6 +17,7 @@ from flowtex.dsp.arma import arma_output_variance, arma_psd
 from flowtex.dsp.arma_resample import resample_arma
 from flowtex.dsp.lsf import is_valid_lsf
 from flowtex.dsp.spectral import lsd_db
+from flowtex.io.hatt import write_hatt_xml
 from flowtex.io.modelset import load_model_set, save_model_set
 from flowtex.models.synthetic import hatt_like_model, synthetic_model_set
 
@@ -68,8 +69,9 @@ def test_same_rate_is_identity():
 
 
 def test_cli_resample_model_set(tmp_path, capsys):
-    ms = synthetic_model_set([60.0], [0.5, 1.5], ar_order=8, ma_order=6)  # 2 measured + 4 silent models
-    src = save_model_set(ms, tmp_path / "in.json")
+    # HaTT XML input (exact floats), 2 measured + 4 silent models
+    ms = load_model_set(write_hatt_xml(synthetic_model_set([60.0], [0.5, 1.5], ar_order=8, ma_order=6), tmp_path / "in.xml"))
+    src = ms.source
     out = tmp_path / "out.json"
     assert main(["models", "resample", str(src), "--rate", "500", "-o", str(out)]) == 0
     assert "worst LSD" in capsys.readouterr().out
