@@ -22,6 +22,7 @@ COMMAND_MODULES = (
     "flowtex.runtime.commands",
     "flowtex.fit.commands",
     "flowtex.cli_resample",
+    "flowtex.fit.models_command",
 )
 """Modules that add subcommands: each has ``register(subparsers)`` (one job per module, one line here)."""
 

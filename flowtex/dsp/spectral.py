@@ -43,3 +43,46 @@ def welch_psd(x: np.ndarray, rate_hz: float, nperseg: int = 1024) -> tuple[np.nd
     freqs, psd = scipy.signal.welch(x, fs=rate_hz, window="hann", nperseg=nperseg, detrend="constant",
                                     scaling="density", return_onesided=True)
     return freqs, psd
+
+
+def lsd_db(s_fit: np.ndarray, s_true: np.ndarray, freqs_hz: np.ndarray, min_freq_hz: float = 15.0,
+           range_db: float = 40.0) -> float:
+    """Log-spectral distance in dB: RMS of 10 log10(S_fit / S_true) (issue 11's definition).
+
+    Taken over the frequencies above ``min_freq_hz`` where ``s_true`` is
+    within ``range_db`` of its peak (there), so deep notches and the DC
+    region, where a 10 s record says little, do not dominate. Both PSDs are
+    sampled at ``freqs_hz`` in the same units. Returns inf if ``s_fit`` is
+    zero or non-finite anywhere in that band.
+    """
+    s_fit = np.asarray(s_fit, dtype=np.float64)
+    s_true = np.asarray(s_true, dtype=np.float64)
+    freqs_hz = np.asarray(freqs_hz, dtype=np.float64)
+    band = freqs_hz > min_freq_hz
+    if not np.any(band):
+        raise ValueError(f"no frequency above {min_freq_hz} Hz to compare")
+    peak = np.max(s_true[band])
+    mask = band & (s_true >= peak * 10.0 ** (-range_db / 10.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = 10.0 * np.log10(s_fit[mask] / s_true[mask])
+    if not np.all(np.isfinite(d)):
+        return float("inf")
+    return float(np.sqrt(np.mean(d * d)))
+
+
+def gfc_data_model(x: np.ndarray, ar: np.ndarray, ma: np.ndarray, smooth: int = 50) -> float:
+    """003's GFC between a signal and a model: smoothed |DFT| of the data against the model's |C/A|.
+
+    The data's N-point |DFT| is smoothed with a ``smooth``-point Bartlett-Hann
+    window (003 section 3.3) and compared, at the N // 2 + 1 non-negative DFT
+    frequencies, with |C(e^jw) / A(e^jw)| (the scale does not matter to GFC).
+    """
+    import scipy.signal
+
+    x = np.asarray(x, dtype=np.float64).ravel()
+    n = x.size
+    ad = np.abs(np.fft.rfft(x - np.mean(x))) / np.sqrt(n)
+    w = scipy.signal.windows.barthann(smooth)
+    ad = np.convolve(ad, w / np.sum(w), mode="same")
+    am = np.abs(np.fft.rfft(np.asarray(ma, dtype=np.float64), n)) / np.abs(np.fft.rfft(np.asarray(ar, dtype=np.float64), n))
+    return gfc(ad, am)

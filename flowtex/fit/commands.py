@@ -8,6 +8,9 @@ from typing import Any
 FIT_COMMAND_MODULES: tuple[str, ...] = (
     "flowtex.fit.pattern",
     "flowtex.fit.compliance",
+    "flowtex.fit.texture_cli",
+    "flowtex.fit.friction",
+    "flowtex.fit.taps",
 )
 """Modules that add a ``flowtex fit`` kind: each has ``register_fit(fit_subparsers)``."""
 

@@ -232,3 +232,27 @@ def hard_model_set(ar_order: int = 12, ma_order: int = 10) -> TextureModelSet:
                          ma_coeff=np.array([lsf_to_poly_reference(r) for r in ma_lsf]),
                          metadata={"generator": "flowtex.models.synthetic.hard_model_set"})
     return ms.validate()
+
+
+def hatt_like_model(seed: int, ar_order: int = 19, ma_order: int = 17, max_pole_radius: float = 0.985,
+                    notch_radius: float = 0.9999) -> tuple[np.ndarray, np.ndarray]:
+    """A random stable, minimum-phase ARMA pair (A, C) with the hard features of HaTT's models.
+
+    Poles: conjugate pairs at random angles in (0.1, 3.0) rad with radii up to
+    ``max_pole_radius`` (one pair exactly there), plus a real pole for odd p.
+    Zeros: one pair at ``notch_radius`` within 0.02 rad of z = -1 (HaTT's
+    MA zeros at |z| ~ 0.9999 near -1), the other pairs at radii 0.5..0.9,
+    plus a real zero for odd q. Ground truth for fitting tests and benchmarks.
+    """
+    rng = np.random.default_rng(seed)
+    npair = ar_order // 2
+    ang = np.sort(rng.uniform(0.1, 3.0, npair))
+    rad = rng.uniform(0.80, max_pole_radius, npair)
+    if npair:
+        rad[rng.integers(npair)] = max_pole_radius
+    a = poly_from_roots(rad, ang, [rng.uniform(-0.5, 0.5)] if ar_order % 2 else [])
+    mpair = ma_order // 2
+    mang = np.r_[np.pi - rng.uniform(0.005, 0.02), rng.uniform(0.3, 2.8, max(mpair - 1, 0))][:mpair]
+    mrad = np.r_[notch_radius, rng.uniform(0.5, 0.9, max(mpair - 1, 0))][:mpair]
+    c = poly_from_roots(mrad, mang, [rng.uniform(-0.5, 0.5)] if ma_order % 2 else [])
+    return a, c

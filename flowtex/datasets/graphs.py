@@ -1,0 +1,85 @@
+"""The flowtex graphs that render ground-truth recordings (texture, taps, friction).
+
+Each is an ordinary flowtex graph (YAML text, compiled like any graph file),
+so that a dataset's vibration, tap transients and friction forces come from
+exactly the nodes a fitted surface is later rendered with: ``texture_lookup``
++ ``arma_synth``, ``tap_player`` and ``coulomb_friction``. The model files
+are given as overrides (``lookup.models=...``); the rate is formatted in.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+TEXTURE_GRAPH = """
+flowtex: 1
+name: dataset-texture
+rate: {rate}
+seed: 1
+inputs:
+  speed: {{unit: mm/s}}
+  force: {{unit: N}}
+nodes:
+  lookup: {{type: texture_lookup, params: {{models: set.json}}}}
+  synth: {{type: arma_synth}}
+edges:
+  - speed -> lookup.speed
+  - force -> lookup.force
+  - lookup.ar -> synth.ar
+  - lookup.ma -> synth.ma
+  - lookup.gain -> synth.gain
+  - lookup.variance -> synth.variance
+outputs:
+  accel: synth.y
+"""
+"""Vibration (m/s^2) of a model set along a (speed, force) trajectory."""
+
+TAP_GRAPH = """
+flowtex: 1
+name: dataset-taps
+rate: {rate}
+seed: 1
+inputs:
+  in_contact: {{}}
+  incoming_speed: {{unit: mm/s}}
+nodes:
+  taps: {{type: tap_player, params: {{library: taps.json, mass: 1.0}}}}
+edges:
+  - in_contact -> taps.in_contact
+  - incoming_speed -> taps.incoming_speed
+outputs:
+  accel: taps.force
+"""
+"""Tap transients: with mass 1 kg the player's force in N is the acceleration in m/s^2."""
+
+FRICTION_GRAPH = """
+flowtex: 1
+name: dataset-friction
+rate: {rate}
+seed: 1
+inputs:
+  velocity: {{shape: [3], unit: mm/s}}
+  normal_force: {{unit: N}}
+nodes:
+  friction: {{type: coulomb_friction, params: {{mu: 0.5, mode: hatt}}}}
+edges:
+  - velocity -> friction.velocity
+  - normal_force -> friction.normal_force
+outputs:
+  friction_force: friction.force
+"""
+"""Kinetic friction (HaTT's rule: Coulomb above mu / 0.004 mm/s) on the true velocity."""
+
+
+def run_graph(template: str, rate: float, overrides: Mapping[str, Any], inputs: Mapping[str, Any], seed: int) -> dict:
+    """Compile ``template`` at ``rate`` Hz with ``overrides`` and run it over ``inputs``; returns its outputs."""
+    from ..graph.compiled import Graph
+    from ..graph.resolve import resolve_graph
+    from ..graph.spec import parse_spec
+    from ..registry import load_registry
+
+    spec = parse_spec(template.format(rate=float(rate)), Path("<flowtex.datasets>"), dict(overrides))
+    graph = Graph(resolve_graph(spec, load_registry(())))
+    return graph.run(inputs, seed=seed)

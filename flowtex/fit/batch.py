@@ -1,0 +1,97 @@
+"""Many surfaces: ``flowtex fit texture DIR|GLOB ... --out-dir OUT`` on a Dask cluster (dask.distributed).
+
+Each recording is one task (fit + write ``OUT/<stem>.json``); tasks share
+nothing, and the fit is deterministic, so results are identical to a serial
+run whatever the worker count. ``--workers N`` starts a local cluster of N
+single-threaded worker processes (default: one per core); ``--scheduler
+tcp://HOST:8786`` uses a running cluster instead (every worker needs flowtex
+installed and read access to the recordings and OUT). ``--workers 0`` fits
+serially in this process.
+"""
+
+from __future__ import annotations
+
+import glob
+import logging
+import os
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from ..errors import DataError, FlowtexError
+from ..io.recordings import SUFFIXES
+
+
+def expand_inputs(items: Sequence[str]) -> list[Path]:
+    """Recordings named by files, folders (their recordings, sorted) and glob patterns; duplicates removed."""
+    out: list[Path] = []
+    if not items:
+        raise DataError("give a recording (REC), a folder or a glob pattern to fit")
+    for item in items:
+        path = Path(item)
+        if path.is_dir():
+            found = sorted(p for p in path.iterdir() if p.suffix.lower() in SUFFIXES)
+        elif any(ch in item for ch in "*?["):
+            found = sorted(Path(p) for p in glob.glob(item) if Path(p).suffix.lower() in SUFFIXES)
+        else:
+            found = [path]
+        if not found:
+            raise DataError(f"{item}: no recordings ({', '.join(SUFFIXES)}) found")
+        out += [p for p in found if p not in out]
+    return out
+
+
+def fit_one(path: str, job, out_dir: str, xml: bool, report: bool) -> tuple[str, str]:
+    """Fit one recording and write its outputs; returns (recording, one-line summary or 'error: ...')."""
+    from .report import summary_line, write_report
+    from .texture_cli import fit_recording, write_outputs
+
+    p = Path(path)
+    out = Path(out_dir) / f"{p.stem}.json"
+    try:
+        fit = fit_recording(p, job)
+        write_outputs(fit, out, out.with_suffix(".xml") if xml else None, job.render_rate)
+        if report:
+            write_report(fit, Path(out_dir) / f"{p.stem}_report")
+        return path, summary_line(fit)
+    except FlowtexError as exc:
+        return path, f"error: {exc}"
+
+
+def fit_many(paths: Sequence[Path], job, out_dir: Path, workers: int | None, scheduler: str | None, xml: bool = False,
+             report: bool = False) -> int:
+    """Fit every recording (serially, on a local cluster or on ``scheduler``); returns the exit code (1 if any failed)."""
+    from tqdm import tqdm
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    show = sys.stderr.isatty()
+    results: dict[str, str] = {}
+    if scheduler is None and workers == 0:
+        for p in tqdm(paths, disable=not show, unit="surface"):
+            k, line = fit_one(str(p), job, str(out_dir), xml, report)
+            results[k] = line
+    else:
+        from dask.distributed import Client, LocalCluster, as_completed
+
+        cluster = None
+        if scheduler is None:
+            cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=logging.ERROR)
+        try:
+            with Client(scheduler if scheduler is not None else cluster) as client:
+                futures = [client.submit(fit_one, str(p), job, str(out_dir), xml, report, pure=False) for p in paths]
+                for fut in tqdm(as_completed(futures), total=len(futures), disable=not show, unit="surface"):
+                    k, line = fut.result()
+                    results[k] = line
+        except OSError as exc:
+            raise FlowtexError(f"cannot reach the Dask scheduler {scheduler}: {exc}") from None
+        finally:
+            if cluster is not None:
+                cluster.close()
+    failed = 0
+    for p in paths:
+        line = results[str(p)]
+        failed += line.startswith("error:")
+        print(f"{p}: {line}")
+    print(f"{len(paths) - failed} of {len(paths)} surfaces -> {out_dir}")
+    return 1 if failed else 0

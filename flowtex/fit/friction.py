@@ -1,0 +1,162 @@
+"""``flowtex fit friction``: the kinetic friction coefficient mu_k from normal and tangential forces (002 §3.3.1).
+
+mu_k is the slope of a line through the origin of tangential vs normal force
+(002), fitted robustly (IRLS, Tukey bisquare after a Huber start;
+flowtex.dsp.robust) so that stiction spikes get weight 0, on the samples in
+contact only (normal force >= ``--min-force``). Not the median of the
+ratios T/N: with a force offset b the ratio is mu + b/N, which the many
+samples at small N bias, while the line's slope weighs each sample by N.
+
+A tangential sensor with a bias b biases a line through the origin too (by
+b sum N / sum N^2). ``--offset auto`` (default) therefore fits T = mu N + b
+first and keeps it when b's 95 % interval excludes 0; otherwise it refits
+002's line through the origin (one parameter less, a tighter interval).
+``--offset yes`` / ``no`` force either form.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..dsp.robust import irls_line
+from ..errors import DataError
+from .inputs import atomic_output, check_not_constant, load, signal
+
+DEFAULT_MIN_FORCE_N = 0.1
+"""Samples below this normal force are out of contact (the contact node's on threshold)."""
+
+
+@dataclass(frozen=True)
+class FrictionFit:
+    """mu (dimensionless) with its 95 % interval, the offset (N) if fitted, and what was used."""
+
+    mu: float
+    mu_ci: tuple[float, float]
+    offset: float
+    offset_ci: tuple[float, float]
+    samples: int
+    in_contact: int
+    rejected: int
+    residual_scale_n: float
+    method: str
+
+
+def fit_friction(normal: np.ndarray, tangential: np.ndarray, min_force: float = DEFAULT_MIN_FORCE_N, offset: str = "auto",
+                 where: str = "recording") -> FrictionFit:
+    """Robust mu from normal and tangential force (N); see the module docstring."""
+    normal = np.asarray(normal, float)
+    tangential = np.asarray(tangential, float)
+    keep = normal >= min_force
+    count = int(keep.sum())
+    if count == 0:
+        raise DataError(f"{where}: no sample has a normal force >= {min_force:g} N (no contact anywhere); "
+                        "check the signals' names and units (N), or lower --min-force")
+    if count < 10:
+        raise DataError(f"{where}: only {count} samples in contact (normal force >= {min_force:g} N); record longer")
+    n, t = normal[keep], tangential[keep]
+    if offset not in ("auto", "yes", "no"):
+        raise ValueError(f"offset must be auto, yes or no, got {offset!r}")
+    if float(np.ptp(n)) == 0.0 and offset == "yes":
+        raise DataError(f"{where}: the normal force is constant while in contact; --offset yes needs a range of forces")
+    line = None
+    if offset != "no" and float(np.ptp(n)) > 0.0:
+        line = irls_line(n, t, intercept=True, kind="bisquare")
+        lo, hi = line.intercept_ci
+        if offset == "auto" and lo <= 0.0 <= hi:
+            line = None
+    with_offset = line is not None
+    if line is None:
+        line = irls_line(n, t, intercept=False, kind="bisquare")
+    rejected = int(np.sum(line.weights == 0.0))
+    return FrictionFit(line.slope, line.slope_ci, line.intercept, line.intercept_ci, int(normal.size), count, rejected,
+                       line.scale, "IRLS bisquare, line " + ("with offset" if with_offset else "through the origin"))
+
+
+def _forces(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray, Any]:
+    rec, _rate = load(args.recording, args.rate)
+    if args.force is not None:
+        if args.normal is None:
+            raise DataError(f"{args.recording}: --force needs --normal V (the surface normal signal, or x,y,z)")
+        f3 = signal(rec, args.force, "--force", (3,))
+        if args.normal in rec.arrays:
+            nv = signal(rec, args.normal, "--normal", (3,))
+        else:
+            try:
+                nv = np.broadcast_to(np.array([float(v) for v in args.normal.split(",")]), (f3.shape[0], 3))
+            except ValueError:
+                raise DataError(f"{args.recording}: no signal {args.normal!r} (--normal); give a signal name or a vector x,y,z") from None
+        length = np.linalg.norm(nv, axis=1)
+        if np.any(length < 1e-9):
+            raise DataError(f"{args.recording}: signal {args.normal!r} (--normal) has zero-length normals; fix the normal")
+        unit = nv / length[:, None]
+        fn_signed = np.sum(f3 * unit, axis=1)
+        normal = np.abs(fn_signed)
+        tangential = np.linalg.norm(f3 - fn_signed[:, None] * unit, axis=1)
+    else:
+        if args.normal_force is None or args.friction_force is None:
+            raise DataError(f"{args.recording}: give --normal-force N --friction-force T, or --force F3 --normal V")
+        normal = signal(rec, args.normal_force, "--normal-force")
+        ft = signal(rec, args.friction_force, "--friction-force", (1, 3))
+        tangential = np.abs(ft) if ft.ndim == 1 else np.linalg.norm(ft, axis=1)
+        check_not_constant(tangential, f"{args.recording}: signal {args.friction_force!r} (--friction-force)")
+    check_not_constant(normal, f"{args.recording}: the normal force")
+    return normal, tangential, rec
+
+
+def store_mu(surface: str | Path, mu: float) -> None:
+    """Write ``mu`` into a model set file (native JSON or HaTT XML, kept in its own format), atomically."""
+    from ..io.hatt import write_hatt_xml
+    from ..io.modelset import load_model_set, save_model_set
+
+    ms = load_model_set(surface)
+    ms.mu = float(mu)
+    with atomic_output(surface) as tmp:
+        if ms.metadata.get("format") == "hatt-xml":
+            write_hatt_xml(ms, tmp, texture=int(ms.metadata.get("texture") or 0))
+        else:
+            save_model_set(ms, tmp)
+
+
+def run(args: argparse.Namespace) -> int:
+    normal, tangential, _rec = _forces(args)
+    fit = fit_friction(normal, tangential, args.min_force, args.offset, str(args.recording))
+    if not (math.isfinite(fit.mu) and fit.mu >= 0):
+        raise DataError(f"{args.recording}: the fitted mu is {fit.mu:g}; the tangential force does not grow with the normal "
+                        "force (wrong signals or sign?)")
+    doc = {"format": "flowtex-friction", "version": 1, "recording": str(args.recording), **asdict(fit)}
+    print(f"friction: {fit.method}")
+    print(f"{'mu':>8} {'95% CI':>19} {'offset N':>9} {'in contact':>10} {'rejected':>8} {'scale N':>8}")
+    print(f"{fit.mu:8.4f} [{fit.mu_ci[0]:8.4f}, {fit.mu_ci[1]:8.4f}] {fit.offset:9.4f} {fit.in_contact:10d} {fit.rejected:8d} "
+          f"{fit.residual_scale_n:8.4f}")
+    with atomic_output(args.output) as tmp:
+        tmp.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+    if args.into:
+        store_mu(args.into, fit.mu)
+        print(f"mu = {fit.mu:.4f} stored in {args.into}")
+    print(f"-> {args.output}")
+    return 0
+
+
+def register_fit(kinds: Any) -> None:
+    """Add ``flowtex fit friction``."""
+    p = kinds.add_parser("friction", help="kinetic friction coefficient mu from normal and tangential forces",
+                         description="Robust line through the origin of tangential vs normal force (samples in contact only).")
+    p.add_argument("recording", type=Path, help="recording (.npz, .csv, .h5)")
+    p.add_argument("--normal-force", metavar="N", help="normal force signal (N)")
+    p.add_argument("--friction-force", metavar="T", help="tangential (friction) force signal (N): 1-D magnitude or (n, 3)")
+    p.add_argument("--force", metavar="F3", help="3-axis force signal (N), split into normal and tangential by --normal")
+    p.add_argument("--normal", metavar="V", help="surface normal: a (n, 3) signal or a vector x,y,z")
+    p.add_argument("--rate", type=float, help="sample rate (Hz) when the file states none")
+    p.add_argument("--min-force", type=float, default=DEFAULT_MIN_FORCE_N, help="in contact from this normal force (N)")
+    p.add_argument("--offset", choices=("auto", "yes", "no"), default="auto",
+                   help="fit T = mu N + b (yes), a line through 0 (no), or b only when significant (auto, default)")
+    p.add_argument("-o", "--output", required=True, type=Path, help="output JSON (mu, mu_ci, ...)")
+    p.add_argument("--into", metavar="SURFACE", help="also store mu in this model set (native JSON or HaTT XML)")
+    p.set_defaults(func=run)

@@ -1,0 +1,94 @@
+"""Reading the signals a fit needs from a recording, with one-line errors naming the file, the signal and the fix.
+
+Shared by every ``flowtex fit`` kind: the rate rule (a rate stated in the
+file wins; ``--rate`` supplies a missing one; a conflicting ``--rate`` is an
+error), signal presence and shape, NaN/inf (how many, where), constant
+signals; and :func:`atomic_output`, which writes an output file completely
+or not at all.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataError
+from ..io.recordings import Recording, load_recording
+
+
+def load(path: str | Path, rate: float | None) -> tuple[Recording, float]:
+    """Load a recording and decide its rate (Hz): the file's, else ``rate``; a conflict or no rate is an error."""
+    rec = load_recording(path)
+    if rec.rate is not None:
+        if rate is not None and abs(rate - rec.rate) > 1e-9 * rec.rate:
+            raise DataError(f"{path}: the file states a rate of {rec.rate:g} Hz but --rate is {rate:g}; drop --rate "
+                            "(the file's rate wins) or fix the file")
+        return rec, float(rec.rate)
+    if rate is None:
+        raise DataError(f"{path}: the recording states no sample rate; give it with --rate HZ")
+    if not (np.isfinite(rate) and rate > 0):
+        raise DataError(f"{path}: --rate must be a positive number of Hz, got {rate!r}")
+    return rec, float(rate)
+
+
+def signal(rec: Recording, name: str, option: str, width: tuple[int, ...] = (1,), finite: bool = True) -> np.ndarray:
+    """The signal ``name`` (given by ``option``) as (n,) or (n, w) with w in ``width`` (1 means a 1-D signal).
+
+    Raises DataError when it is missing, has another shape, or (``finite``)
+    holds NaN/inf samples.
+    """
+    where = rec.path
+    if name not in rec.arrays:
+        have = ", ".join(sorted(rec.arrays)) or "nothing"
+        raise DataError(f"{where}: no signal {name!r} ({option}); the file has: {have}")
+    a = rec.arrays[name]
+    cols = 1 if a.ndim == 1 else (a.shape[1] if a.ndim == 2 else -1)
+    if a.ndim == 2 and a.shape[1] == 1 and 1 in width:
+        a = a[:, 0]
+        cols = 1
+    if cols not in width:
+        want = " or ".join("1-D (n,)" if w == 1 else f"(n, {w})" for w in width)
+        raise DataError(f"{where}: signal {name!r} ({option}) has shape {a.shape}; expected {want}")
+    if finite:
+        check_finite(a, f"{where}: signal {name!r} ({option})")
+    return a
+
+
+def check_finite(a: np.ndarray, label: str) -> None:
+    """Raise DataError saying how many samples of ``a`` are NaN/inf and where the first ones are."""
+    bad = ~np.isfinite(a)
+    if bad.ndim > 1:
+        bad = bad.any(axis=1)
+    if bad.any():
+        idx = np.flatnonzero(bad)
+        first = ", ".join(str(int(i)) for i in idx[:3]) + (", ..." if idx.size > 3 else "")
+        raise DataError(f"{label}: {idx.size} NaN/inf sample(s) (at sample {first}); interpolate or cut them out first")
+
+
+def check_not_constant(a: np.ndarray, label: str) -> None:
+    """Raise DataError when ``a`` does not vary (nothing to fit)."""
+    if a.size == 0 or float(np.ptp(a)) == 0.0:
+        raise DataError(f"{label} is constant; check that the right signal is named and that the sensor was recording")
+
+
+@contextlib.contextmanager
+def atomic_output(path: str | Path) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; on success it is renamed to ``path``, on error removed.
+
+    So a failed fit never leaves a partial (or stale half-written) output file.
+    """
+    path = Path(path).expanduser()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)

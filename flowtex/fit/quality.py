@@ -1,0 +1,50 @@
+"""Fit quality against data or truth: model sets evaluated at (speed, force) points, LSD between models.
+
+Every spectral figure uses the one-sided PSD in physical units,
+S(f) = 2 g^2 sigma^2 |C/A(e^{j 2 pi f / fs})|^2 / fs (flowtex.dsp.arma.arma_psd),
+and the LSD of flowtex.dsp.spectral.lsd_db (above 15 Hz, 40 dB range).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..dsp.arma import arma_psd
+from ..dsp.interp import initial_state, pack_texture_table, texture_lookup_block
+from ..dsp.spectral import lsd_db
+from ..models.texture import TextureModelSet
+
+
+def models_at(ms: TextureModelSet, speeds: np.ndarray, forces: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, float, float]]:
+    """(ar, ma, gain, variance) that ``texture_lookup`` renders at each (speed mm/s, force N): the same kernel."""
+    speeds = np.asarray(speeds, float).reshape(-1, 1)
+    forces = np.asarray(forces, float).reshape(-1, 1)
+    tab = pack_texture_table(ms.speeds, ms.forces, ms.triangles, ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain, ms.max_speed, ms.max_force)
+    n = speeds.shape[0]
+    ar = np.empty((n, ms.ar_order + 1))
+    ma = np.empty((n, ms.ma_order + 1))
+    gain = np.empty((n, 1))
+    var = np.empty((n, 1))
+    out = []
+    for k in range(n):  # a fresh state per point: no smoothing or holding across queries
+        s, si = initial_state(ms.ar_order, ms.ma_order)
+        texture_lookup_block(tab, s, si, speeds[k:k + 1], forces[k:k + 1], ar[k:k + 1], ma[k:k + 1], gain[k:k + 1], var[k:k + 1])
+        out.append((ar[k].copy(), ma[k].copy(), float(gain[k, 0]), float(var[k, 0])))
+    return out
+
+
+def set_lsd_db(fitted: TextureModelSet, truth: TextureModelSet, speeds: np.ndarray, forces: np.ndarray,
+               nfreq: int = 512) -> np.ndarray:
+    """LSD (dB) between two model sets at each (speed, force) point, both interpolated as texture_lookup does."""
+    rate = truth.sample_rate
+    freqs = np.linspace(0.0, rate / 2, nfreq + 1)[1:-1]
+    out = []
+    for (a1, c1, g1, v1), (a2, c2, g2, v2) in zip(models_at(fitted, speeds, forces), models_at(truth, speeds, forces), strict=True):
+        out.append(lsd_db(arma_psd(a1, c1, g1, v1, freqs, rate), arma_psd(a2, c2, g2, v2, freqs, fitted.sample_rate), freqs))
+    return np.array(out)
+
+
+def model_lsd_db(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, truth: tuple, rate: float, nfreq: int = 512) -> float:
+    """LSD (dB) of one model (ar, ma, gain, variance) against ``truth`` = (ar, ma, gain, variance) at ``rate`` Hz."""
+    freqs = np.linspace(0.0, rate / 2, nfreq + 1)[1:-1]
+    return lsd_db(arma_psd(ar, ma, gain, variance, freqs, rate), arma_psd(*truth, freqs, rate), freqs)

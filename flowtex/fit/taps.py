@@ -1,0 +1,181 @@
+"""``flowtex fit taps``: a tap library (tap_player's format) from a recording of taps (002 §3.3.2).
+
+1. Contact onsets from the normal force with hysteresis: contact starts when
+   the force reaches ``on`` (0.1 N, the contact node's threshold) after having
+   been below ``off`` (0.05 N); the onset is then moved back to where the
+   force left its out-of-contact floor (median + 4 robust sd of the samples
+   below ``off``), so the cut starts with the impact, not a few ms into it.
+2. Each tap's acceleration (1-D, or 3 axes reduced by DFT321; zero-phase
+   10 Hz high-pass as for textures) is cut for ``length`` (100 ms, 002) from
+   its onset.
+3. Its incoming speed (mm/s) is the approach speed -(v . n) averaged over the
+   ``approach_s`` (10 ms) before the onset, v the backward difference of the
+   position (as the contact node computes it); or, with ``--speed``, the
+   mean of that signal over the same window.
+4. Taps whose recording ends within 100 ms of the onset, or with no incoming
+   speed, are dropped (and said so); taps at equal speeds are averaged.
+
+The spectral centroid SC = sum X^2 f / sum X^2 (002 eq. 4) is printed per
+tap and averaged over the library played at 50, 60, ..., 100 mm/s
+(flowtex.models.taps.spectral_centroid), 002's hardness predictor.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..dsp.robust import robust_scale
+from ..errors import DataError
+from ..io.taplib import write_tap_library
+from ..models.taps import TapLibrary, spectral_centroid
+from .inputs import atomic_output, check_not_constant, load, signal
+
+
+@dataclass(frozen=True)
+class Tap:
+    """One detected tap: onset sample, incoming speed (mm/s), its transient (m/s^2) and spectral centroid (Hz)."""
+
+    onset: int
+    speed: float
+    transient: np.ndarray
+    centroid_hz: float
+
+
+def contact_onsets(force: np.ndarray, on: float = 0.1, off: float = 0.05) -> np.ndarray:
+    """Sample indices of contact onsets (hysteresis ``on``/``off`` in N, moved back to the force's floor)."""
+    force = np.asarray(force, float)
+    below = force < off
+    floor = float(np.median(force[below])) + 4.0 * robust_scale(force[below]) if np.any(below) else off
+    floor = min(floor, off)
+    onsets = []
+    inside = False
+    for t in np.flatnonzero((force >= on) | below):
+        if not inside and force[t] >= on:
+            inside = True
+            k = t
+            while k > 0 and force[k - 1] > floor:
+                k -= 1
+            onsets.append(k)
+        elif inside and below[t]:
+            inside = False
+    return np.array(onsets, dtype=np.int64)
+
+
+def approach_speed(position: np.ndarray, normal: np.ndarray, onset: int, rate: float, window: int) -> float:
+    """Mean approach speed -(v . n) (mm/s) over ``window`` samples before ``onset``."""
+    a = max(1, onset - window)
+    if onset - a < 1:
+        return float("nan")
+    v = np.diff(position[a - 1:onset], axis=0) * rate
+    n = normal[a:onset]
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    return float(np.mean(-np.sum(v * n, axis=1)))
+
+
+def centroid(x: np.ndarray, rate: float) -> float:
+    """Spectral centroid (Hz) of one transient, 002 eq. 4."""
+    power = np.abs(np.fft.rfft(x)) ** 2
+    total = float(power.sum())
+    return float((power * np.fft.rfftfreq(x.size, 1.0 / rate)).sum() / total) if total > 0 else 0.0
+
+
+def fit_taps(accel: np.ndarray, force: np.ndarray, rate: float, position: np.ndarray | None = None, normal: np.ndarray | None = None,
+             speed: np.ndarray | None = None, length_s: float = 0.1, approach_s: float = 0.01, on: float = 0.1, off: float = 0.05,
+             where: str = "recording") -> tuple[list[Tap], list[str]]:
+    """Detected taps (sorted by onset) and notes on dropped ones; see the module docstring."""
+    length = int(round(length_s * rate))
+    window = max(1, int(round(approach_s * rate)))
+    onsets = contact_onsets(force, on, off)
+    if onsets.size == 0:
+        raise DataError(f"{where}: no contact anywhere (the force never reaches {on:g} N after being below {off:g} N); "
+                        "check --force names the normal force in N")
+    n = accel.shape[0]
+    if position is not None and normal is None:
+        normal = np.tile([0.0, 0.0, 1.0], (n, 1))
+    taps, notes = [], []
+    for t in onsets:
+        if t + length > n:
+            notes.append(f"tap at {t / rate:.3f} s dropped: the recording ends within {length_s * 1000:g} ms")
+            continue
+        if speed is not None:
+            v = float(np.mean(speed[max(0, t - window):max(1, t)]))
+        else:
+            assert position is not None and normal is not None
+            v = approach_speed(position, normal, int(t), rate, window)
+        if not (np.isfinite(v) and v > 0):
+            notes.append(f"tap at {t / rate:.3f} s dropped: no incoming speed ({v:.3g} mm/s)")
+            continue
+        tr = accel[t:t + length].copy()
+        taps.append(Tap(int(t), v, tr, centroid(tr, rate)))
+    if not taps:
+        raise DataError(f"{where}: {onsets.size} contact onset(s) but no usable tap ({'; '.join(notes)})")
+    return taps, notes
+
+
+def library_from_taps(taps: list[Tap], rate: float, name: str) -> TapLibrary:
+    """A TapLibrary sorted by speed; taps at equal speeds are averaged."""
+    speeds = np.array([t.speed for t in taps])
+    uniq = np.unique(speeds)
+    tr = np.array([np.mean([t.transient for t in taps if t.speed == v], axis=0) for v in uniq])
+    return TapLibrary(uniq, tr, rate, name)
+
+
+def run(args: argparse.Namespace) -> int:
+    from scipy.signal import sosfiltfilt
+
+    from ..dsp.filter_design import butterworth_sos
+
+    rec, rate = load(args.recording, args.rate)
+    acc = signal(rec, args.accel, "--accel", (1, 3))
+    if acc.ndim == 2:
+        from ..dsp.dft321 import dft321
+
+        acc = dft321(acc)
+    check_not_constant(acc, f"{args.recording}: signal {args.accel!r} (--accel)")
+    force = signal(rec, args.force, "--force")
+    position = normal = speed = None
+    if args.position is not None:
+        position = signal(rec, args.position, "--position", (3,))
+        normal = signal(rec, args.normal, "--normal", (3,)) if args.normal else None
+    elif args.speed is not None:
+        speed = signal(rec, args.speed, "--speed")
+    else:
+        raise DataError(f"{args.recording}: give --position P (mm, 3 axes) or --speed S (approach speed, mm/s) to label taps")
+    if args.highpass > 0:
+        acc = sosfiltfilt(butterworth_sos("highpass", 4, [args.highpass], rate), acc)
+    taps, notes = fit_taps(acc, force, rate, position, normal, speed, args.length, where=str(args.recording))
+    lib = library_from_taps(taps, rate, args.name or Path(args.recording).stem)
+    print(f"{'tap':>4} {'time s':>8} {'speed mm/s':>10} {'peak m/s^2':>10} {'centroid Hz':>11}")
+    for k, t in enumerate(taps):
+        print(f"{k:4d} {t.onset / rate:8.3f} {t.speed:10.1f} {float(np.max(np.abs(t.transient))):10.3f} {t.centroid_hz:11.1f}")
+    for note in notes:
+        print(note)
+    sc = spectral_centroid(lib)
+    print(f"{len(taps)} taps; spectral centroid over 50-100 mm/s (002 eq. 4): {sc:.1f} Hz")
+    with atomic_output(args.output) as tmp:
+        write_tap_library(tmp, lib, notes=f"fitted by flowtex fit taps from {args.recording}")
+    print(f"-> {args.output}")
+    return 0
+
+
+def register_fit(kinds: Any) -> None:
+    """Add ``flowtex fit taps``."""
+    p = kinds.add_parser("taps", help="tap library (100 ms transients by incoming speed) from a recording of taps",
+                         description="Detect contact onsets, cut 100 ms after each, label by incoming speed (002).")
+    p.add_argument("recording", type=Path)
+    p.add_argument("--accel", required=True, metavar="A", help="acceleration (m/s^2): 1-D or 3 axes (DFT321)")
+    p.add_argument("--force", required=True, metavar="F", help="normal force (N)")
+    p.add_argument("--position", metavar="P", help="tool position (mm, 3 axes): incoming speed from it")
+    p.add_argument("--normal", metavar="N", help="surface normal signal for --position (default +z)")
+    p.add_argument("--speed", metavar="S", help="approach speed signal (mm/s), instead of --position")
+    p.add_argument("--rate", type=float, help="sample rate (Hz) when the file states none")
+    p.add_argument("--length", type=float, default=0.1, help="seconds cut after each onset (002: 0.1)")
+    p.add_argument("--highpass", type=float, default=10.0, metavar="HZ", help="zero-phase high-pass of the acceleration (0: none)")
+    p.add_argument("--name", help="library name (default: the file's stem)")
+    p.add_argument("-o", "--output", required=True, type=Path, help="tap library JSON (docs/tap-library.md)")
+    p.set_defaults(func=run)

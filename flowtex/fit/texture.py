@@ -1,0 +1,232 @@
+"""Texture model sets from recordings (000/002/003): preprocess, segment, fit one shared order, assemble the set.
+
+Pipeline of :func:`fit_texture` (units: acceleration m/s^2, speed mm/s, force N):
+
+1. zero-phase 10 Hz Butterworth high-pass (4th order, ``sosfiltfilt``) to remove
+   gravity and hand motion (001, 003), then isolated spikes beyond 8 robust
+   standard deviations are clipped (flowtex.dsp.robust.clamp_outliers);
+2. segmentation into stationary pieces (flowtex.dsp.segment: ruptures PELT,
+   BIC penalty) - skipped for grid recordings, which are one piece each;
+3. pieces are trimmed by ``trim_s`` at both ends (the transitions between
+   plateaus), and dropped when shorter than ``min_piece_s``, out of contact
+   (median force < ``min_force``) or not moving (median speed < ``min_speed``);
+   each kept piece is labelled with its median speed and force (000);
+4. every piece is fitted at ONE order shared by the material (003):
+   ``order=None`` chooses it (flowtex.fit.arma.select_shared_order, the least
+   summed BIC) over the ``order_pieces`` longest pieces - the order is a
+   property of the material, and a minute of exploration has some 40 pieces
+   whose full search would cost 6 refined fits each - else ``(p, q)``;
+5. the set (:func:`assemble_set`): the measured models, silent corner models
+   (variance 0) at speed 0 and force 0 copying their nearest measured model
+   (HaTT, 001), a Delaunay triangulation over (speed, force) and the set's
+   maxima (largest measured speed and force).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..dsp.filter_design import butterworth_sos
+from ..dsp.lsf import poly_to_lsf
+from ..dsp.robust import clamp_outliers
+from ..dsp.segment import segment
+from ..errors import DataError
+from ..io.modelset import delaunay_triangles
+from ..models.texture import TextureModelSet
+from .arma import ArmaFit, fit_arma, select_shared_order
+
+CORNERS = 8
+"""Silent corner models per axis (HaTT's cork surface has 8 at speed 0 and 8 at force 0, plus the origin)."""
+
+
+@dataclass
+class TextureOptions:
+    """Settings of :func:`fit_texture` (see the module docstring)."""
+
+    order: tuple[int, int] | None = None
+    max_order: int = 20
+    highpass_hz: float = 10.0
+    outlier_sigma: float = 8.0
+    frame_s: float = 0.05
+    min_piece_s: float = 0.5
+    trim_s: float = 0.1
+    min_force: float = 0.1
+    min_speed: float = 5.0
+    penalty_scale: float = 1.0
+    order_pieces: int = 8
+
+
+@dataclass
+class Piece:
+    """One stationary piece: samples ``start:stop``, its median speed (mm/s) and force (N), its model and quality."""
+
+    start: int
+    stop: int
+    speed: float
+    force: float
+    fit: ArmaFit | None = None
+    lsd_db: float = float("nan")
+
+    @property
+    def samples(self) -> int:
+        return self.stop - self.start
+
+
+@dataclass
+class TextureFit:
+    """The fitted set and how it was made (pieces with their data, dropped pieces, clipped samples)."""
+
+    model_set: TextureModelSet
+    pieces: list[Piece]
+    signal: np.ndarray
+    rate: float
+    dropped: dict[str, int] = field(default_factory=dict)
+    clipped: int = 0
+
+
+def preprocess(accel: np.ndarray, rate: float, highpass_hz: float = 10.0, outlier_sigma: float = 8.0) -> tuple[np.ndarray, int]:
+    """Zero-phase high-pass (sosfiltfilt, 4th-order Butterworth) and outlier clipping; returns (signal, clipped count)."""
+    x = np.asarray(accel, float)
+    if highpass_hz > 0:
+        from scipy.signal import sosfiltfilt
+
+        x = sosfiltfilt(butterworth_sos("highpass", 4, [highpass_hz], rate), x)
+    if outlier_sigma > 0:
+        x, bad = clamp_outliers(x, outlier_sigma)
+        return x, int(bad.size)
+    return x, 0
+
+
+def find_pieces(x: np.ndarray, speed: np.ndarray, force: np.ndarray, rate: float, opt: TextureOptions,
+                where: str) -> tuple[list[Piece], dict[str, int]]:
+    """Segment, trim, drop and label pieces; raises DataError when none is usable."""
+    ranges = segment(x, speed, force, rate, opt.frame_s, opt.min_piece_s, opt.penalty_scale)
+    trim = int(round(opt.trim_s * rate))
+    min_len = int(round(opt.min_piece_s * rate))
+    dropped = {"short": 0, "no contact": 0, "not moving": 0}
+    pieces = []
+    any_contact = False
+    for a, b in ranges:
+        a2, b2 = a + trim, b - trim
+        if b2 - a2 < min_len:
+            dropped["short"] += 1
+            continue
+        f = float(np.median(force[a2:b2]))
+        s = float(np.median(speed[a2:b2]))
+        if f < opt.min_force:
+            dropped["no contact"] += 1
+            continue
+        any_contact = True
+        if s < opt.min_speed:
+            dropped["not moving"] += 1
+            continue
+        pieces.append(Piece(a2, b2, s, f))
+    if not pieces:
+        if not np.any(force >= opt.min_force):
+            raise DataError(f"{where}: no contact anywhere (the force never reaches {opt.min_force:g} N); "
+                            "check --force names the normal force in N")
+        why = "none is moving" if any_contact else "none is in contact long enough"
+        if x.shape[0] < min_len + 2 * trim:
+            raise DataError(f"{where}: recording too short ({x.shape[0] / rate:.2f} s): a piece needs {opt.min_piece_s:g} s "
+                            f"of steady contact plus {opt.trim_s:g} s at each end; record longer")
+        raise DataError(f"{where}: no stationary piece of at least {opt.min_piece_s:g} s to fit ({why}; dropped {dropped}); "
+                        "record longer plateaus of steady speed and force")
+    return pieces, dropped
+
+
+def fit_pieces(x: np.ndarray, pieces: Sequence[Piece], rate: float, opt: TextureOptions, where: str) -> None:
+    """Fit every piece at one shared order (chosen over all pieces unless ``opt.order``), in place."""
+    data = [x[pc.start:pc.stop] for pc in pieces]
+    p, q = opt.order if opt.order is not None else (opt.max_order, opt.max_order)
+    need = max(10 * (p + q + 1), 100)
+    longest = max(d.shape[0] for d in data)
+    if longest < need:
+        raise DataError(f"{where}: the longest usable piece has {longest} samples ({longest / rate:.2f} s), too short for order "
+                        f"up to ({p}, {q}) (needs {need}); record longer plateaus or lower --order/--max-order")
+    try:
+        order = opt.order
+        if order is None:
+            longest_first = sorted(range(len(data)), key=lambda k: -data[k].shape[0])[:max(1, opt.order_pieces)]
+            order = select_shared_order([data[k] for k in longest_first], opt.max_order)
+        fits = [fit_arma(d, order) for d in data]
+    except DataError as exc:
+        raise DataError(f"{where}: {exc}") from None
+    for pc, d, f in zip(pieces, data, fits, strict=True):
+        pc.fit = f
+        pc.lsd_db = f.lsd_db(d, rate, min(256, d.shape[0]))
+
+
+def assemble_set(pieces: Sequence[Piece], rate: float, material: str, metadata: dict | None = None) -> TextureModelSet:
+    """Measured models + silent corners + Delaunay triangulation + maxima (see the module docstring)."""
+    pts, ar, ma, var, gain = [], [], [], [], []
+    max_speed = max(pc.speed for pc in pieces)
+    max_force = max(pc.force for pc in pieces)
+    scale = np.array([max_speed, max_force])
+    for pc in sorted(pieces, key=lambda pc: -pc.samples):       # a duplicate point keeps the longest piece
+        pt = np.array([pc.speed, pc.force])
+        if pts and np.min(np.sum(((np.array(pts) - pt) / scale) ** 2, axis=1)) < 1e-12:
+            continue
+        assert pc.fit is not None
+        pts.append(pt)
+        ar.append(poly_to_lsf(pc.fit.ar))
+        ma.append(poly_to_lsf(pc.fit.ma))
+        var.append(pc.fit.variance)
+        gain.append(pc.fit.gain)
+    measured = np.array(pts)
+    if len(measured) < 2:
+        raise DataError(f"{material}: only one distinct (speed, force) point was measured; a model set needs a spread of "
+                        "speeds or forces (explore the surface at several speeds and forces)")
+    corners = [(0.0, f) for f in np.linspace(max_force / CORNERS, max_force, CORNERS)]
+    corners += [(s, 0.0) for s in np.linspace(max_speed / CORNERS, max_speed, CORNERS)] + [(0.0, 0.0)]
+    for c in corners:
+        src = int(np.argmin(np.sum(((measured - np.array(c)) / scale) ** 2, axis=1)))
+        pts.append(np.array(c))
+        ar.append(ar[src])
+        ma.append(ma[src])
+        var.append(0.0)
+        gain.append(gain[src])
+    points = np.array(pts)
+    p = len(ar[0])
+    q = len(ma[0])
+    ms = TextureModelSet(material=material, sample_rate=float(rate), speeds=points[:, 0].copy(), forces=points[:, 1].copy(),
+                         triangles=delaunay_triangles(points, material), ar_lsf=np.array(ar).reshape(len(pts), p),
+                         ma_lsf=np.array(ma).reshape(len(pts), q), variance=np.array(var), gain=np.array(gain),
+                         max_speed=float(max_speed), max_force=float(max_force), metadata=dict(metadata or {}))
+    return ms.validate()
+
+
+def fit_texture(accel: np.ndarray, speed: np.ndarray, force: np.ndarray, rate: float, opt: TextureOptions | None = None,
+                material: str = "surface", where: str = "recording") -> TextureFit:
+    """Free exploration (1-D acceleration m/s^2, speed mm/s, force N at ``rate`` Hz) -> a texture model set."""
+    opt = opt or TextureOptions()
+    x, clipped = preprocess(accel, rate, opt.highpass_hz, opt.outlier_sigma)
+    pieces, dropped = find_pieces(x, np.asarray(speed, float), np.asarray(force, float), rate, opt, where)
+    fit_pieces(x, pieces, rate, opt, where)
+    order = pieces[0].fit.order if pieces[0].fit is not None else (0, 0)
+    meta = {"fitted_by": "flowtex fit texture", "order": list(order), "pieces": len(pieces), "highpass_hz": opt.highpass_hz}
+    ms = assemble_set(pieces, rate, material, meta)
+    return TextureFit(ms, pieces, x, rate, dropped, clipped)
+
+
+def fit_grid(cells: Sequence[tuple[np.ndarray, float, float]], rate: float, opt: TextureOptions | None = None,
+             material: str = "surface", where: str = "grid") -> TextureFit:
+    """Romano 2012's grid: one stationary recording per (speed mm/s, force N) cell -> one model each, one shared order."""
+    opt = opt or TextureOptions()
+    xs, pieces = [], []
+    offset = 0
+    clipped = 0
+    for accel, s, f in cells:
+        x, c = preprocess(accel, rate, opt.highpass_hz, opt.outlier_sigma)
+        trim = min(int(round(opt.trim_s * rate)), x.shape[0] // 4)
+        xs.append(x)
+        pieces.append(Piece(offset + trim, offset + x.shape[0] - trim, float(s), float(f)))
+        offset += x.shape[0]
+        clipped += c
+    x = np.concatenate(xs)
+    fit_pieces(x, pieces, rate, opt, where)
+    order = pieces[0].fit.order if pieces[0].fit is not None else (0, 0)
+    ms = assemble_set(pieces, rate, material, {"fitted_by": "flowtex fit texture --grid", "order": list(order)})
+    return TextureFit(ms, pieces, x, rate, {}, clipped)

@@ -1,0 +1,118 @@
+"""flowtex fit texture against ground truth (flowtex.datasets), end to end through the CLI, and its bad-input errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from flowtex.cli import main
+from flowtex.datasets import free_exploration
+from flowtex.dsp.arma import arma_output_variance
+from flowtex.dsp.arma_estimate import burg_ar
+from flowtex.fit.quality import model_lsd_db, models_at, set_lsd_db
+from flowtex.fit.texture import TextureOptions, fit_texture, preprocess
+from flowtex.io.hatt import read_hatt_xml
+from flowtex.io.modelset import load_model_set
+from flowtex.io.recordings import save_recording
+
+RATE = 1000.0
+
+
+@pytest.fixture(scope="module")
+def exploration():
+    # 24 s of plateaus (1-2 s each, 3 % wobble) on the 6/4 default surface, 1 % sensor noise, 4 spikes.
+    return free_exploration(24.0, RATE, seed=5, outliers=4)
+
+
+def test_free_exploration_matches_oracle(exploration):
+    """Median LSD of the fitted set at the plateau points within 0.5 dB of an oracle told the true plateaus.
+
+    The issue states 60 s; 24 s holds ~16 plateaus, enough for a median. The
+    tolerance (0.5 dB) is the issue's: both the fit and the oracle lose
+    accuracy the same way on shorter pieces (LSD ~ 1/sqrt(samples)), so the
+    difference between them is what segmentation and set assembly cost. The
+    oracle fits a Burg AR(20) to each true plateau of the same preprocessed signal.
+    """
+    a = exploration.arrays
+    fit = fit_texture(a["accel"], a["speed"], a["normal_force"], RATE, TextureOptions(order=(6, 4)))
+    truth = exploration.truth["surface"]
+    plateaus = exploration.truth["plateaus"]
+    sp = np.array([p.speed for p in plateaus])
+    fo = np.array([p.force for p in plateaus])
+    ours = set_lsd_db(fit.model_set, truth, sp, fo)
+    x, _ = preprocess(a["accel"], RATE)
+    oracle = []
+    for p, true_model in zip(plateaus, models_at(truth, sp, fo), strict=True):
+        seg = x[p.start:p.stop]
+        ar, _ = burg_ar(seg, 20)
+        ar = np.asarray(ar)
+        var = np.var(seg) / arma_output_variance(ar, np.array([1.0]), 1.0, 1.0)
+        oracle.append(model_lsd_db(ar, np.array([1.0]), 1.0, var, true_model, RATE))
+    assert np.median(ours) <= np.median(oracle) + 0.5, (np.median(ours), np.median(oracle))
+    assert fit.clipped == 4  # each 20-RMS spike clipped, nothing else (8 robust sd: a Gaussian never gets there)
+    # silent corners and maxima, as HaTT
+    ms = fit.model_set
+    silent = ms.variance == 0
+    assert np.all((ms.speeds[silent] == 0) | (ms.forces[silent] == 0))
+    assert ms.max_speed == pytest.approx(max(pc.speed for pc in fit.pieces))
+    assert ms.max_force == pytest.approx(max(pc.force for pc in fit.pieces))
+
+
+def test_cli_end_to_end_renders(tmp_path, capsys):
+    """3-axis accel (DFT321) + speed from position + auto order -> JSON + XML that read back and render in hatt_texture."""
+    rec = free_exploration(8.0, RATE, seed=2, axes=3, plateau_s=(1.5, 2.0))
+    path = rec.save(tmp_path / "rec.npz")
+    out = tmp_path / "surface.json"
+    xml = tmp_path / "surface.xml"
+    code = main(["fit", "texture", str(path), "--accel", "accel", "--position", "position", "--normal", "normal",
+                 "--force", "normal_force", "--max-order", "3", "-o", str(out), "--xml", str(xml), "--report", str(tmp_path / "rep")])
+    printed = capsys.readouterr().out
+    assert code == 0, printed
+    assert "GFC" in printed and "LSD" in printed and "power err" in printed
+    ms = load_model_set(out)
+    back = read_hatt_xml(xml)
+    # written with repr: the reader gets the same numbers (its printed precision is exact)
+    np.testing.assert_array_equal(back.ar_lsf, ms.ar_lsf)
+    np.testing.assert_array_equal(back.variance, ms.variance)
+    np.testing.assert_array_equal(back.triangles, ms.triangles)
+    assert (tmp_path / "rep" / "report.md").exists() and (tmp_path / "rep" / "plane.png").exists()
+    from flowtex.fit.friction import store_mu
+    from flowtex.graph.compiled import load_graph
+    from tests.conftest import REPO
+
+    store_mu(out, 0.3)  # what `flowtex fit friction --into` does; coulomb_friction reads it from the set
+    assert load_model_set(out).mu == 0.3
+    graph = load_graph(REPO / "graphs" / "hatt_texture.yaml", {"lookup.models": str(out), "friction.models": str(out)})
+    n = 3000
+    res = graph.run({"position": rec.arrays["position"][:n], "normal_force": rec.arrays["normal_force"][:n],
+                     "normal": rec.arrays["normal"][:n]})
+    vib = res["vibration"]
+    assert np.all(np.isfinite(vib)) and np.std(vib[500:]) > 0.1 * np.std(rec.truth["clean"][500:n])
+
+
+def _bad(tmp_path, capsys, arrays, rate=RATE, extra=()):
+    path = tmp_path / "bad.npz"
+    save_recording(path, arrays, rate)
+    out = tmp_path / "bad_surface.json"
+    code = main(["fit", "texture", str(path), "--speed", "speed", "--max-order", "4", "-o", str(out), *extra])
+    err = capsys.readouterr().err.strip()
+    assert code == 1 and not out.exists()
+    assert len(err.splitlines()) == 1, err
+    return err
+
+
+def test_bad_inputs(tmp_path, capsys):
+    rng = np.random.default_rng(0)
+    n = 4000
+    good = {"accel": rng.standard_normal(n), "speed": np.full(n, 100.0), "normal_force": np.full(n, 1.0)}
+    assert "no signal 'accel'" in _bad(tmp_path, capsys, {k: v for k, v in good.items() if k != "accel"})
+    assert "shape (4000, 2)" in _bad(tmp_path, capsys, {**good, "accel": np.zeros((n, 2))})
+    nan = good["accel"].copy()
+    nan[[10, 20]] = np.nan
+    assert "2 NaN/inf sample(s) (at sample 10, 20)" in _bad(tmp_path, capsys, {**good, "accel": nan})
+    assert "no contact anywhere" in _bad(tmp_path, capsys, {**good, "normal_force": np.zeros(n)})
+    assert "is constant" in _bad(tmp_path, capsys, {**good, "accel": np.ones(n)})
+    assert "states no sample rate" in _bad(tmp_path, capsys, good, rate=None)
+    assert "--rate is 500" in _bad(tmp_path, capsys, good, extra=("--rate", "500"))
+    assert "recording too short" in _bad(tmp_path, capsys, {k: v[:300] for k, v in good.items()})
+    assert "too short for order" in _bad(tmp_path, capsys, {k: v[:800] for k, v in good.items()}, extra=("--order", "40,38"))
