@@ -21,6 +21,7 @@ REPLAY_SUFFIXES = (".blf", ".log", ".asc")
 COMMAND_MODULES = (
     "flowtex.runtime.commands",
     "flowtex.fit.commands",
+    "flowtex.scene.commands",
 )
 """Modules that add subcommands: each has ``register(subparsers)`` (one job per module, one line here)."""
 
