@@ -22,6 +22,7 @@ COMMAND_MODULES = (
     "flowtex.runtime.commands",
     "flowtex.fit.commands",
     "flowtex.scene.commands",
+    "flowtex.bench.commands",
 )
 """Modules that add subcommands: each has ``register(subparsers)`` (one job per module, one line here)."""
 
