@@ -23,6 +23,7 @@ COMMAND_MODULES = (
     "flowtex.fit.commands",
     "flowtex.scene.commands",
     "flowtex.bench.commands",
+    "flowtex.plotting",
 )
 """Modules that add subcommands: each has ``register(subparsers)`` (one job per module, one line here)."""
 
