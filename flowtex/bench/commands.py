@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +27,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--seed", type=int, help="noise seed (default: the graph's)")
     p.add_argument("-o", "--output", help="write the table as CSV")
     p.add_argument("--plot", help="draw the Pareto plot to this PNG (needs matplotlib: pip install 'flowtex[plot]')")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, help="run the configurations on a local Dask cluster of N worker processes")
+    where.add_argument("--scheduler", help="run the configurations on an existing Dask cluster (scheduler address, e.g. tcp://host:8786)")
     p.add_argument("--plugins", action="append", default=[], metavar="DIR")
     p.set_defaults(func=cmd_bench)
 
@@ -42,8 +47,9 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if args.plot:
         _need_matplotlib()
     rec = load_recording(args.input)
-    configs, outputs = sweep(args.graph, {k: v for k, v in rec.arrays.items()}, knobs,
-                             reference, args.outputs, args.metric, max(1, args.repeats), args.seed, tuple(args.plugins))
+    with _dask_client(args) as client:
+        configs, outputs = sweep(args.graph, dict(rec.arrays), knobs, reference, args.outputs, args.metric, max(1, args.repeats),
+                                 args.seed, tuple(args.plugins), client=client)
     if not configs:
         raise DataError("no configuration to run")
     from .sweep import build
@@ -59,6 +65,23 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if args.plot:
         pareto_plot(configs, outputs[0], metrics[outputs[0]], Path(args.plot))
     return 0
+
+
+@contextlib.contextmanager
+def _dask_client(args: argparse.Namespace) -> Iterator[Any]:
+    """A Dask client for --workers / --scheduler, else None (configurations run in this process)."""
+    if not (args.workers or args.scheduler):
+        yield None
+        return
+    from dask.distributed import Client, LocalCluster
+
+    if args.scheduler:
+        with Client(args.scheduler) as client:
+            yield client
+        return
+    with LocalCluster(n_workers=max(1, args.workers), threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        yield client
 
 
 def _need_matplotlib() -> None:

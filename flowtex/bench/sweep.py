@@ -74,11 +74,13 @@ def default_metric(unit: str) -> str:
 
 def sweep(graph_path: str | Path, inputs: dict[str, np.ndarray], knobs: dict[str, list[Any]], reference: dict[str, Any] | None = None,
           outputs: list[str] | None = None, metric: str | None = None, repeats: int = 5, seed: int | None = None,
-          plugins: tuple[str | Path, ...] = ()) -> tuple[list[Config], list[str]]:
+          plugins: tuple[str | Path, ...] = (), client: Any = None) -> tuple[list[Config], list[str]]:
     """Run every combination of ``knobs``; returns the configurations (with ns/tick, errors, Pareto flag) and the outputs compared.
 
     The reference is ``reference`` (default: the first value of every knob).
     The Pareto front is over (ns/tick, error of the first compared output).
+    With a Dask ``client`` each configuration is compiled, run and timed on a
+    worker (timings labelled "dask workers": not comparable to local ones).
     """
     names = list(knobs)
     combos = [dict(zip(names, vals, strict=True)) for vals in itertools.product(*(knobs[n] for n in names))]
@@ -91,25 +93,52 @@ def sweep(graph_path: str | Path, inputs: dict[str, np.ndarray], knobs: dict[str
     if missing:
         raise FlowtexError(f"--outputs: the graph has no output {', '.join(missing)}; it has {', '.join(ref_graph.outputs)}")
     ref_out = ref_graph.run(inputs, seed=seed)
-    graphs = [build(graph_path, c, plugins) for c in combos]
     configs = [Config(c) for c in combos]
-    ticks = next(iter(inputs.values())).shape[0]
-    times: list[list[float]] = [[] for _ in graphs]
-    for g, cfg in zip(graphs, configs, strict=True):
-        out = g.run(inputs, seed=seed)
+    if client is not None:
+        futures = client.map(run_config, [str(Path(graph_path).resolve())] * len(combos), combos, [inputs] * len(combos), [outputs] * len(combos),
+                             [seed] * len(combos), [repeats] * len(combos), [plugins] * len(combos), pure=False)
+        results = client.gather(futures)
+        timed_on = "dask workers"
+    else:
+        results = _run_local(graph_path, combos, inputs, outputs, seed, repeats, plugins)
+        timed_on = "local"
+    for cfg, (out, ns) in zip(configs, results, strict=True):
+        cfg.ns_per_tick = ns
+        cfg.timed_on = timed_on
         for name in outputs:
             m = metric or default_metric(ref_graph.outputs[name].unit)
             cfg.errors[name] = signal_error(m, ref_out[name], out[name], ref_graph.rate)
+    mark_pareto(configs, outputs[0])
+    return configs, outputs
+
+
+def _time_runs(graphs: list, inputs: dict[str, np.ndarray], seed: int | None, repeats: int) -> list[float]:
+    """Median ns/tick of each graph, the graphs run round-robin ``repeats`` times (side by side)."""
+    ticks = next(iter(inputs.values())).shape[0]
+    times: list[list[float]] = [[] for _ in graphs]
     for _ in range(repeats):
         for k, g in enumerate(graphs):
             g.reset(seed)
             t0 = time.perf_counter_ns()
             g.process(inputs)
             times[k].append((time.perf_counter_ns() - t0) / ticks)
-    for cfg, t in zip(configs, times, strict=True):
-        cfg.ns_per_tick = float(np.median(t))
-    mark_pareto(configs, outputs[0])
-    return configs, outputs
+    return [float(np.median(t)) for t in times]
+
+
+def _run_local(graph_path, combos, inputs, outputs, seed, repeats, plugins) -> list[tuple[dict[str, np.ndarray], float]]:
+    graphs = [build(graph_path, c, plugins) for c in combos]
+    outs = []
+    for g in graphs:
+        result = g.run(inputs, seed=seed)
+        outs.append({name: result[name] for name in outputs})
+    return list(zip(outs, _time_runs(graphs, inputs, seed, repeats), strict=True))
+
+
+def run_config(graph_path, values, inputs, outputs, seed, repeats, plugins) -> tuple[dict[str, np.ndarray], float]:
+    """One configuration, compiled, run and timed where this is called (a Dask worker): (outputs, median ns/tick)."""
+    g = build(graph_path, values, plugins)
+    result = g.run(inputs, seed=seed)
+    return {name: result[name] for name in outputs}, _time_runs([g], inputs, seed, repeats)[0]
 
 
 def mark_pareto(configs: list[Config], output: str) -> None:
