@@ -160,3 +160,15 @@ def test_missing_model_file_is_reported_at_its_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "s.yaml:4:15:" in err and "nothere.json" in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_scene_live_without_a_device_says_how_to_add_one(study, capsys):
+    _, scene, _ = study
+    assert main(["scene", "live", str(scene), "--duration", "0.1"]) == 1
+    assert "device: {dbc: FILE, map: FILE}" in capsys.readouterr().err
+
+
+def test_scene_run_unknown_surface(study, tmp_path, capsys):
+    _, scene, _ = study
+    assert main(["scene", "run", str(scene), "--input", str(tmp_path / "none.npz"), "--surface", "Whitebord"]) == 1
+    assert "Whiteboard" in capsys.readouterr().err  # the suggestion
