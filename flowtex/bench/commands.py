@@ -110,7 +110,7 @@ def pareto_plot(configs: list, output: str, metric: str, path: Path) -> None:
         ax.annotate(", ".join(f"{k}={v}" for k, v in c.values.items()), (c.ns_per_tick, c.errors[output]), fontsize=7,
                     xytext=(4, 4), textcoords="offset points")
     ax.set_xlabel(f"ns/tick ({configs[0].timed_on})")
-    ax.set_ylabel(f"{output} error ({metric})")
+    ax.set_ylabel(f"{output} error ({ {'lsd': 'LSD, dB', 'gfc': '1 - GFC'}.get(metric, metric.upper())})")
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()
