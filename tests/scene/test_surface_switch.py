@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -31,6 +33,7 @@ def test_crossfade_is_a_convex_ramp_and_nan_holds():
 def switching(tmp_path_factory):
     folder = tmp_path_factory.mktemp("switch")
     scene = write_study_scene(folder, ("Whiteboard", "EPDM_Foam"))
+    scene.write_text(re.sub(r", taps: \w+\.json", "", scene.read_text()))  # texture and friction only: a smaller graph to compile
     rec = dict(np.load(REPO / "graphs/data/exploration.npz"))
     sl = slice(5500, 7500)  # a stroke in contact (1.5 N, ~180 mm/s around tick 6000)
     inputs = {k: rec[k][sl] for k in ("position", "normal_force", "normal")}
