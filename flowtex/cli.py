@@ -23,6 +23,9 @@ COMMAND_MODULES = (
     "flowtex.fit.commands",
     "flowtex.cli_resample",
     "flowtex.fit.models_command",
+    "flowtex.scene.commands",
+    "flowtex.bench.commands",
+    "flowtex.plotting",
 )
 """Modules that add subcommands: each has ``register(subparsers)`` (one job per module, one line here)."""
 

@@ -81,7 +81,9 @@ class GraphSpec:
     description: str = ""
 
 
-class _Collector:
+class Collector:
+    """Gathers :class:`Diagnostic` lines (file:line:col) while checking a YAML document; raise them all at the end."""
+
     def __init__(self, path: str):
         self.path = path
         self.diagnostics: list[Diagnostic] = []
@@ -110,7 +112,7 @@ def load_spec(path: str | Path, overrides: dict[str, Any] | None = None) -> Grap
 
 
 def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -> GraphSpec:
-    c = _Collector(str(path))
+    c = Collector(str(path))
     data = load_yaml(text, str(path))
     if not isinstance(data, LocDict):
         message = "a graph file must be a mapping with keys flowtex, name, rate, nodes, edges, outputs"
@@ -142,7 +144,7 @@ def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -
     return spec
 
 
-def _rate(c: _Collector, data: LocDict) -> float:
+def _rate(c: Collector, data: LocDict) -> float:
     rate = data.get("rate", 1000.0)
     if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not math.isfinite(rate) or rate <= 0:
         c.error(data.value_pos.get("rate"), f"rate must be a positive number of Hz, got {rate!r}")
@@ -150,7 +152,7 @@ def _rate(c: _Collector, data: LocDict) -> float:
     return float(rate)
 
 
-def _seed(c: _Collector, data: LocDict) -> int:
+def _seed(c: Collector, data: LocDict) -> int:
     seed = data.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         c.error(data.value_pos.get("seed"), f"seed must be a non-negative integer, got {seed!r}")
@@ -158,14 +160,14 @@ def _seed(c: _Collector, data: LocDict) -> int:
     return seed
 
 
-def _check_name(c: _Collector, name: Any, pos: tuple[int, int], what: str) -> bool:
+def _check_name(c: Collector, name: Any, pos: tuple[int, int], what: str) -> bool:
     if not isinstance(name, str) or not NAME_RE.match(name):
         c.error(pos, f"{what} name {name!r} is not valid: use letters, digits and '_', not starting with a digit")
         return False
     return True
 
 
-def _inputs(c: _Collector, data: LocDict) -> dict[str, InputSpec]:
+def _inputs(c: Collector, data: LocDict) -> dict[str, InputSpec]:
     raw = data.get("inputs")
     if raw is None:
         return {}
@@ -205,7 +207,7 @@ def _inputs(c: _Collector, data: LocDict) -> dict[str, InputSpec]:
     return out
 
 
-def _nodes(c: _Collector, data: LocDict, inputs: dict[str, InputSpec]) -> dict[str, NodeSpec]:
+def _nodes(c: Collector, data: LocDict, inputs: dict[str, InputSpec]) -> dict[str, NodeSpec]:
     raw = data.get("nodes")
     if raw is None:
         return {}
@@ -252,7 +254,7 @@ def _nodes(c: _Collector, data: LocDict, inputs: dict[str, InputSpec]) -> dict[s
     return out
 
 
-def _apply_overrides(c: _Collector, spec: GraphSpec, overrides: dict[str, Any]) -> None:
+def _apply_overrides(c: Collector, spec: GraphSpec, overrides: dict[str, Any]) -> None:
     for key, value in overrides.items():
         where = Location(f"--set {key}")
         node, _, param = key.partition(".")
@@ -282,7 +284,7 @@ def parse_override(text: str) -> tuple[str, Any]:
     return key.strip(), parsed
 
 
-def _endpoint(c: _Collector, text: str, pos: tuple[int, int], side: str) -> Endpoint | None:
+def _endpoint(c: Collector, text: str, pos: tuple[int, int], side: str) -> Endpoint | None:
     node, dot, port = text.partition(".")
     if not dot:
         if side == "consumer":
@@ -295,7 +297,7 @@ def _endpoint(c: _Collector, text: str, pos: tuple[int, int], side: str) -> Endp
     return Endpoint(node, port)
 
 
-def _edges(c: _Collector, data: LocDict) -> list[EdgeSpec]:
+def _edges(c: Collector, data: LocDict) -> list[EdgeSpec]:
     raw = data.get("edges")
     if raw is None:
         return []
@@ -318,7 +320,7 @@ def _edges(c: _Collector, data: LocDict) -> list[EdgeSpec]:
     return out
 
 
-def _outputs(c: _Collector, data: LocDict) -> dict[str, OutputSpec]:
+def _outputs(c: Collector, data: LocDict) -> dict[str, OutputSpec]:
     raw = data.get("outputs")
     if raw is None:
         return {}

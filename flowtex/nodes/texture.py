@@ -39,6 +39,9 @@ class TextureLookup(Node):
         "low_force_value": Param("float", default=0.0001, unit="N", min=0.0, doc="force used below low_force (HaTT: 0.0001)"),
         "force_margin": Param("float", default=0.01, unit="N", min=0.0,
                               doc="forces above the set's maxForce become maxForce - force_margin (HaTT: 0.01)"),
+        "order": Param("floats", default=None, length=(2, 2),
+                       doc="[p, q]: render lower orders (Levinson step-down of each model, output power kept; "
+                           "flowtex.dsp.order); default: the set's own"),
     }
     inputs = {
         "speed": Port((), "mm/s", "tangential speed of the tool"),
@@ -59,6 +62,8 @@ class TextureLookup(Node):
             self.model_set: TextureModelSet = load_model_set(path)
         except DataError as exc:
             raise ParamError("models", str(exc)) from None
+        if p_order := params.get("order"):
+            self.model_set = self._truncated(p_order)
         ms = self.model_set
         if ms.sample_rate != context.rate:
             raise ParamError("models", f"{path}: the models are for {ms.sample_rate:g} Hz (<SampleRate>) but the graph runs at "
@@ -72,6 +77,24 @@ class TextureLookup(Node):
             raise ParamError("speed_margin", f"speed_margin ({p['speed_margin']:g}) must be below the set's max speed {ms.max_speed:g} mm/s")
         if p["force_margin"] >= ms.max_force:
             raise ParamError("force_margin", f"force_margin ({p['force_margin']:g}) must be below the set's max force {ms.max_force:g} N")
+
+    def _truncated(self, order) -> TextureModelSet:
+        import dataclasses
+
+        from ..dsp.order import truncate_models
+
+        ms = self.model_set
+        p, q = (int(x) for x in order)
+        if [p, q] != list(order) or not (1 <= p <= ms.ar_order and 1 <= q <= ms.ma_order):
+            raise ParamError("order", f"order must be two integers [p, q] with 1 <= p <= {ms.ar_order} and 1 <= q <= {ms.ma_order} "
+                                      f"(the set's orders), got {list(order)}")
+        if (p, q) == (ms.ar_order, ms.ma_order):
+            return ms
+        try:
+            ar, ma, var = truncate_models(ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain, p, q)
+        except ValueError as exc:
+            raise ParamError("order", f"{self.p['models']}: cannot reduce the order: {exc}") from None
+        return dataclasses.replace(ms, ar_lsf=ar, ma_lsf=ma, variance=var, ar_coeff=None, ma_coeff=None)
 
     def resolve(self, inputs):
         ms = self.model_set

@@ -1,0 +1,1 @@
+"""Speed against error: knob sweeps over a graph (``flowtex bench``, docs/bench.md)."""

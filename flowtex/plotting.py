@@ -1,0 +1,124 @@
+"""``flowtex plot OUT.npz``: a quick look at a run's outputs (time series, spectrograms of vibrations, force-speed trace).
+
+Units come from the file's unit metadata when it has some (a ``units`` entry
+holding a JSON object {signal: unit}, or ``<signal>__unit`` entries), else
+they are guessed from the signal's name. Needs matplotlib (the ``plot``
+extra); without it the command says how to install it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+GUESSES = (("vibration", "m/s^2"), ("accel", "m/s^2"), ("force", "N"), ("velocity", "mm/s"), ("speed", "mm/s"),
+           ("position", "mm"), ("in_contact", ""))
+
+
+def signal_units(arrays: dict[str, np.ndarray]) -> dict[str, str]:
+    """Unit of every signal: from the file's metadata when present, else guessed by name ('' if unknown)."""
+    meta: dict[str, str] = {}
+    if "units" in arrays:
+        try:
+            meta = dict(json.loads(str(np.asarray(arrays["units"]).item())))
+        except (ValueError, TypeError):
+            meta = {}
+    out = {}
+    for name in arrays:
+        if name in ("units", "rate") or name.endswith("__unit"):
+            continue
+        if f"{name}__unit" in arrays:
+            out[name] = str(np.asarray(arrays[f"{name}__unit"]).item())
+        elif name in meta:
+            out[name] = str(meta[name])
+        else:
+            out[name] = next((u for key, u in GUESSES if key in name.lower()), "")
+    return out
+
+
+def register(subparsers: Any) -> None:
+    p = subparsers.add_parser("plot", help="plot a run's outputs: time series, vibration spectrograms, force-speed trace")
+    p.add_argument("file", help="output file of a run (.npz, .csv, .h5)")
+    p.add_argument("--signals", nargs="+", help="signals to show (default: all)")
+    p.add_argument("-o", "--output", help="PNG to write (default: FILE with .png)")
+    p.set_defaults(func=cmd_plot)
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    from .errors import FlowtexError
+    from .io.recordings import load_recording
+
+    try:
+        import matplotlib
+    except ImportError:
+        raise FlowtexError("flowtex plot needs matplotlib: pip install 'flowtex[plot]'") from None
+    matplotlib.use("Agg")
+    rec = load_recording(args.file)
+    arrays = dict(rec.arrays)
+    units = signal_units(arrays)
+    names = args.signals or list(units)
+    unknown = [n for n in names if n not in units]
+    if unknown:
+        raise FlowtexError(f"{args.file}: no signal {', '.join(unknown)}; it has {', '.join(units)}")
+    out = Path(args.output) if args.output else Path(args.file).with_suffix(".png")
+    plot_signals({n: np.asarray(arrays[n], dtype=np.float64) for n in names}, {n: units[n] for n in names}, rec.rate or 1000.0, out,
+                 title=Path(args.file).name)
+    print(f"{args.file}: {len(names)} signals -> {out}", file=sys.stderr)
+    return 0
+
+
+def _magnitude(x: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(x.reshape(x.shape[0], -1), axis=1) if x.ndim > 1 and x.shape[1] > 1 else x.ravel()
+
+
+def plot_signals(signals: dict[str, np.ndarray], units: dict[str, str], rate: float, path: Path, title: str = "") -> None:
+    """Write the figure: one time-series row per signal, a spectrogram row per vibration, a force-speed panel when possible."""
+    import matplotlib.pyplot as plt
+
+    vib = [n for n in signals if units[n] == "m/s^2"]
+    speed = next((n for n in signals if units[n] == "mm/s"), None)
+    force = "force" if units.get("force") == "N" else next((n for n in signals if units[n] == "N"), None)
+    rows = len(signals) + len(vib) + (1 if speed and force else 0)
+    fig, axes = plt.subplots(rows, 1, figsize=(10, 2.0 * rows + 0.6), squeeze=False)
+    axes = axes[:, 0]
+    k = 0
+    for name, x in signals.items():
+        t = np.arange(x.shape[0]) / rate
+        ax = axes[k]
+        x2 = x.reshape(x.shape[0], -1)
+        for c in range(x2.shape[1]):
+            ax.plot(t, x2[:, c], lw=0.6, label="xyz"[c] if x2.shape[1] == 3 else None)
+        if x2.shape[1] == 3:
+            ax.legend(loc="upper right", fontsize=7, ncol=3)
+        ax.set_ylabel(f"{name}\n[{units[name] or '-'}]", fontsize=8)
+        ax.set_xlabel("time (s)", fontsize=8)
+        ax.grid(alpha=0.3)
+        k += 1
+    for name in vib:
+        ax = axes[k]
+        from scipy.signal import spectrogram
+
+        f, tt, S = spectrogram(_magnitude(signals[name]), fs=rate, nperseg=min(256, signals[name].shape[0]), noverlap=None)
+        db = 10.0 * np.log10(np.maximum(S, 1e-30))
+        top = float(db.max()) if S.max() > 0 else 0.0
+        mesh = ax.pcolormesh(tt, f, db, shading="auto", cmap="magma", vmin=top - 60.0, vmax=top)  # 60 dB range; silence is black
+        fig.colorbar(mesh, ax=ax, pad=0.01, label="dB")
+        ax.set_ylabel(f"{name}\nfrequency (Hz)", fontsize=8)
+        ax.set_xlabel("time (s)", fontsize=8)
+        k += 1
+    if speed and force:
+        ax = axes[k]
+        ax.plot(_magnitude(signals[speed]), _magnitude(signals[force]), ".", ms=1.5, alpha=0.5)
+        ax.set_xlabel(f"|{speed}| (mm/s)", fontsize=8)
+        ax.set_ylabel(f"|{force}| (N)", fontsize=8)
+        ax.grid(alpha=0.3)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)

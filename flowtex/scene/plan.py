@@ -1,0 +1,156 @@
+"""Which components each surface of a scene needs: salience figure, threshold, keep or drop, and why.
+
+Thresholds and their sources (Culbertson & Kuchenbecker, seed 002, §5-6;
+ALGORITHMS.md §7; docs/scenes.md):
+
+* texture: mean vibration power over the trajectory's 9 x 9 speed/force grid,
+  kept at >= 1 (m/s^2)^2. Removing texture made no significant difference for
+  Cork, Silk 1, Tarp and Whiteboard (HaTT powers 0.25-0.44 for Whiteboard and
+  Silk 1) and hurt for MDF (1.19) and every rougher surface.
+* friction: kinetic friction coefficient mu_k, kept at >= 0.5. The five
+  surfaces rated *better* without rendered friction have mu_k <= 0.41
+  (Whiteboard 0.17, MDF 0.19, ABS 0.21, Silk 1 0.28, Tarp 0.41); the only
+  surface that needed it is EPDM Foam (1.39).
+* taps: mean tap spectral centroid at 50-100 mm/s, kept at >= 60 Hz. Carpet 3
+  (47.8 Hz, the lowest of the 15) was the only surface felt too hard with
+  taps; surfaces that needed taps (ABS, Brick 1, MDF, Paper Plate 2,
+  Whiteboard) are hard ones.
+* pattern: no study measured it; a pattern given in the scene is kept (unless
+  dropped) when the ``patterned_texture`` node type is available.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from ..errors import DataError, Diagnostic, FlowtexError, GraphError
+from .file import Scene, SurfaceSpec
+
+DEFAULT_THRESHOLDS = {"texture": 1.0, "friction": 0.5, "taps": 60.0}
+"""Defaults: texture (m/s^2)^2, friction mu_k (dimensionless), taps Hz (sources in the module docstring)."""
+
+UNITS = {"texture": "(m/s^2)^2", "friction": "mu_k", "taps": "Hz", "pattern": ""}
+FIGURES = {"texture": "mean vibration power", "friction": "friction coefficient", "taps": "tap spectral centroid",
+           "pattern": "pattern given"}
+PATTERN_NODE = "patterned_texture"
+
+
+@dataclass
+class Decision:
+    """One surface component: keep it or not, the salience figure, the threshold, and why (the JSON record)."""
+
+    keep: bool
+    salience: float
+    threshold: float
+    reason: str
+
+
+@dataclass
+class SurfaceData:
+    """What the planner loaded for one surface (reused by the graph writer)."""
+
+    spec: SurfaceSpec
+    mu: float | None
+    decisions: dict[str, Decision]
+
+
+def _fail(spec: SurfaceSpec, key: str, message: str) -> FlowtexError:
+    return GraphError([Diagnostic(spec.locs.get(key, spec.loc), message)])
+
+
+def scene_ranges(scene: Scene) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Speed (mm/s) and force (N) ranges of the scene's trajectory (from the recording when it names one)."""
+    if scene.recording is None:
+        assert scene.speed_range is not None and scene.force_range is not None
+        return scene.speed_range, scene.force_range
+    from ..dsp.salience import trajectory_ranges
+    from ..io.recordings import load_recording
+
+    rec = load_recording(scene.recording)
+    missing = [k for k in ("position", "normal_force") if k not in rec.arrays]
+    if missing:
+        raise DataError(f"{scene.recording}: the trajectory recording lacks {', '.join(missing)} (needs position in mm and normal_force in N)")
+    try:
+        return trajectory_ranges(rec.arrays["position"], rec.arrays["normal_force"], rec.rate or scene.rate, rec.arrays.get("normal"))
+    except ValueError as exc:
+        raise DataError(f"{scene.recording}: {exc}") from None
+
+
+def _decide(component: str, salience: float, threshold: float, spec: SurfaceSpec) -> Decision:
+    above = salience >= threshold
+    unit = UNITS[component]
+    figure = f"{FIGURES[component]} {salience:.3g} {unit}".rstrip()
+    if component in spec.keep:
+        why = "" if above else f" ({figure} is below the threshold {threshold:g})"
+        return Decision(True, salience, threshold, f"kept: forced by keep: in the scene{why}")
+    if component in spec.drop:
+        why = f" ({figure} is above the threshold {threshold:g})" if above else ""
+        return Decision(False, salience, threshold, f"dropped: forced by drop: in the scene{why}")
+    if above:
+        return Decision(True, salience, threshold, f"kept: {figure} >= threshold {threshold:g}")
+    return Decision(False, salience, threshold, f"dropped: {figure} < threshold {threshold:g}")
+
+
+def plan_scene(scene: Scene, node_types: set[str] | frozenset[str] = frozenset()) -> dict[str, SurfaceData]:
+    """Load every surface's models and decide each component; ``node_types`` are the registered node type names."""
+    from ..dsp.salience import mean_texture_power
+    from ..io.modelset import load_model_set
+    from ..io.taplib import read_tap_library
+    from ..models.taps import spectral_centroid
+
+    th = {**DEFAULT_THRESHOLDS, **scene.thresholds}
+    speed_range, force_range = scene_ranges(scene)
+    out: dict[str, SurfaceData] = {}
+    for key, spec in scene.surfaces.items():
+        try:
+            ms = load_model_set(spec.models)
+        except FlowtexError as exc:
+            raise _fail(spec, "models", f"surface {key!r}: {exc}") from None
+        decisions: dict[str, Decision] = {}
+        power = mean_texture_power(ms, speed_range, force_range)
+        decisions["texture"] = _decide("texture", power, th["texture"], spec)
+        mu = spec.mu if spec.mu is not None else ms.mu
+        if mu is not None and math.isfinite(mu) and mu >= 0:
+            decisions["friction"] = _decide("friction", float(mu), th["friction"], spec)
+        else:
+            mu = None
+            if "friction" in spec.keep:
+                raise _fail(spec, "keep", f"surface {key!r}: keep: friction, but the model set has no friction coefficient; give mu")
+        if spec.taps is not None:
+            try:
+                lib = read_tap_library(spec.taps)
+            except FlowtexError as exc:
+                raise _fail(spec, "taps", f"surface {key!r}: {exc}") from None
+            decisions["taps"] = _decide("taps", spectral_centroid(lib), th["taps"], spec)
+        elif "taps" in spec.keep:
+            raise _fail(spec, "keep", f"surface {key!r}: keep: taps, but the surface has no tap library; add taps: FILE")
+        if spec.pattern is not None:
+            if PATTERN_NODE not in node_types:
+                if "pattern" in spec.keep:
+                    raise _fail(spec, "pattern", f"surface {key!r}: keep: pattern, but this flowtex has no {PATTERN_NODE} node type")
+                decisions["pattern"] = Decision(False, 1.0, 0.5, f"dropped: node type {PATTERN_NODE} is not available in this flowtex")
+            elif "pattern" in spec.drop:
+                decisions["pattern"] = Decision(False, 1.0, 0.5, "dropped: forced by drop: in the scene")
+            else:
+                decisions["pattern"] = Decision(True, 1.0, 0.5, "kept: the scene gives a pattern (no study measured its salience)")
+        elif "pattern" in spec.keep:
+            raise _fail(spec, "keep", f"surface {key!r}: keep: pattern, but the surface has no pattern")
+        out[key] = SurfaceData(spec, mu, decisions)
+    return out
+
+
+def plan_json(plan: dict[str, SurfaceData]) -> dict[str, dict[str, dict[str, Any]]]:
+    """``{surface: {component: {"keep", "salience", "threshold", "reason"}}}`` (the ``--json`` document)."""
+    return {key: {comp: asdict(d) for comp, d in data.decisions.items()} for key, data in plan.items()}
+
+
+def explain(plan: dict[str, SurfaceData]) -> str:
+    """Human-readable table: one line per surface and component."""
+    width = max([7] + [len(k) for k in plan])
+    lines = [f"{'surface':<{width}}  {'component':<9} {'salience':>10} {'threshold':>10}  decision"]
+    for key, data in plan.items():
+        for comp, d in data.decisions.items():
+            lines.append(f"{key:<{width}}  {comp:<9} {d.salience:>10.3g} {d.threshold:>10.3g}  {'KEEP' if d.keep else 'drop'}  {d.reason}")
+    return "\n".join(lines)

@@ -1,0 +1,26 @@
+"""flowtex plot: units from metadata or names, a PNG written for a small output file."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from flowtex.cli import main
+from flowtex.plotting import signal_units
+
+
+def test_units_from_metadata_beat_guesses():
+    arrays = {"vibration": np.zeros(3), "friction_force": np.zeros((3, 3)), "odd": np.zeros(3), "rate": np.array(1000.0),
+              "units": np.array(json.dumps({"odd": "m/s^2"})), "vibration__unit": np.array("g")}
+    assert signal_units(arrays) == {"vibration": "g", "friction_force": "N", "odd": "m/s^2"}
+
+
+def test_plot_writes_a_png(tmp_path):
+    rng = np.random.default_rng(0)
+    n = 2000
+    np.savez(tmp_path / "out.npz", vibration=rng.normal(size=n) * (np.arange(n) > 500), velocity=rng.normal(size=(n, 3)),
+             force=rng.normal(size=(n, 3)), rate=np.array(1000.0))
+    assert main(["plot", str(tmp_path / "out.npz"), "-o", str(tmp_path / "p.png")]) == 0
+    assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert main(["plot", str(tmp_path / "out.npz"), "--signals", "nothing"]) == 1
