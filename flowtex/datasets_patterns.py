@@ -6,7 +6,7 @@
   is the sum of all ring-downs plus white noise whose standard deviation is
   ``noise`` times the clean signal's RMS.
 * :func:`stroking_recording` -- strokes of varying normal force separated by
-  lift-offs. How acceleration is tied to force, and why: 004 §5.2 (after Lang &
+  lift-offs. How acceleration is tied to force, and why: Guruswamy thesis sec. 5.2 (after Lang &
   Andrews) observes the RMS vibration growing linearly with the applied force, with
   a slope that grows with stiffness (a soft material absorbs the vibration; for
   m u'' + b u' + k u = f the response to the texture's excitation grows with k).
@@ -23,7 +23,7 @@ import numpy as np
 
 
 def resonance(freq_hz: float, decay_s: float, rate_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """(b, a) of a decaying sinusoid exp(-t / decay_s) sin(2 pi f t) sampled at ``rate_hz`` (004 eq. 4)."""
+    """(b, a) of a decaying sinusoid exp(-t / decay_s) sin(2 pi f t) sampled at ``rate_hz`` (Guruswamy thesis eq. 4)."""
     r = np.exp(-1.0 / (decay_s * rate_hz))
     w = 2 * np.pi * freq_hz / rate_hz
     return np.array([0.0, r * np.sin(w)]), np.array([1.0, -2 * r * np.cos(w), r * r])

@@ -22,7 +22,7 @@ Why not 003's method (match the autocorrelation at the lags common to both
 rates, then correct the noise variance): the ACF at the common lags carries
 all of the original's power, including what lies above the new Nyquist when
 downsampling, which the new model then folds into its band (+30 % measured).
-Why not the zero-order-hold rule (000: the same coefficients driven by
+Why not the zero-order-hold rule (Kuchenbecker & Culbertson 2014: the same coefficients driven by
 var2 = var1 fs2 / fs1): a held signal has sinc-shaped images, and 27.6 % of
 its power lands above the old Nyquist. Sampling the PSD below min Nyquist
 keeps the band exact and puts nothing outside it by construction.

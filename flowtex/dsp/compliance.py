@@ -1,4 +1,4 @@
-"""WHaT compliance estimation (004 §5.2, Lang & Andrews): k_c from how RMS vibration grows with normal force.
+"""WHaT compliance estimation (Guruswamy thesis sec. 5.2, Lang & Andrews): k_c from how RMS vibration grows with normal force.
 
 One streaming kernel serves both the offline fit (``flowtex fit compliance``) and the
 ``compliance_estimator`` node, so the two agree exactly at the end of a recording:
@@ -19,7 +19,7 @@ One streaming kernel serves both the offline fit (``flowtex fit compliance``) an
 4. weighted least squares of bin mean a_rms on bin mean force, w_j = 1/sigma_j
    (sigma_j: the bin's sample standard deviation of a_rms); ``k_c = k_g * slope``.
 
-``k_g`` (N per m/s^2, i.e. kg) is 004 eq. 6's normalisation. ``sigma`` is the fit's
+``k_g`` (N per m/s^2, i.e. kg) is Guruswamy thesis eq. 6's normalisation. ``sigma`` is the fit's
 weighted residual standard deviation (m/s^2). The estimate is *not valid*
 (an answer, not an error) when: fewer than MIN_BINS (6) bins hold ``min_per_bin`` ticks
 (``REASON_TOO_FEW``); every bin's mean RMS vibration is below ``smooth_floor``
@@ -36,7 +36,7 @@ import numpy as np
 from numba import njit
 
 N_BINS = 24
-"""Bins along force (004 §5.2.2)."""
+"""Bins along force (Guruswamy thesis sec. 5.2.2)."""
 MIN_BINS = 6
 """A fit needs this many filled bins (a quarter of the force range): fewer give wild early slopes when streaming."""
 # parameter vector layout
@@ -58,7 +58,7 @@ REASONS = {
 }
 
 KC_ER_RANGE_MPA = (0.063, 14.7)
-"""Reduced Young's moduli over which 004 fitted the k_c <-> E_r relation (Table 2, Foam B .. Cork)."""
+"""Reduced Young's moduli over which Guruswamy thesis fitted the k_c <-> E_r relation (Table 2, Foam B .. Cork)."""
 
 
 def kc_from_er(er_mpa: float | np.ndarray, extrapolate: bool = False) -> float | np.ndarray:
@@ -66,7 +66,7 @@ def kc_from_er(er_mpa: float | np.ndarray, extrapolate: bool = False) -> float |
     er = np.asarray(er_mpa, dtype=np.float64)
     lo, hi = KC_ER_RANGE_MPA
     if not extrapolate and (np.any(er < lo) or np.any(er > hi)):
-        raise ValueError(f"E_r must be within {lo:g}..{hi:g} MPa, the range 004 fitted (pass extrapolate=True to go beyond)")
+        raise ValueError(f"E_r must be within {lo:g}..{hi:g} MPa, the range Guruswamy thesis fitted (pass extrapolate=True to go beyond)")
     out = 0.0217 + 0.0883 * np.exp(0.149 * er)
     return float(out) if out.ndim == 0 else out
 

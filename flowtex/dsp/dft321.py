@@ -1,4 +1,4 @@
-"""DFT321: reduce a 3-axis signal to one axis with the same spectral power (001 section 3.3.2).
+"""DFT321: reduce a 3-axis signal to one axis with the same spectral power (Romano & Kuchenbecker 2012 section 3.3.2).
 
 At every frequency f of the DFT of the three axes A_x, A_y, A_z the reduced
 signal has

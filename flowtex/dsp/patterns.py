@@ -1,4 +1,4 @@
-"""Patterned textures (004 ch. 4): band edges, segmentation by rising peaks, and the ring-down rendering kernel.
+"""Patterned textures (Guruswamy thesis ch. 4): band edges, segmentation by rising peaks, and the ring-down rendering kernel.
 
 Rendering (``pattern_block``): features sit at positions x_k (mm) along the pattern's
 axis u. Each tick the tool position is projected, x = u . (position - origin); every
@@ -77,7 +77,7 @@ def segment_starts(x: np.ndarray, min_peak_fraction: float = 0.25, guard: int = 
         h = ax[pk]
         if h > floor and (prev_peak < 0 or h > prev_height):
             j = pk
-            while j > 0 and ax[j - 1] < ax[j]:  # back to the local minimum just before the peak (004 §4.3.3)
+            while j > 0 and ax[j - 1] < ax[j]:  # back to the local minimum just before the peak (Guruswamy thesis sec. 4.3.3)
                 j -= 1
             starts.append(max(j - guard, prev_start + 1))
             prev_start = starts[-1]

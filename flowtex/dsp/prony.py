@@ -1,4 +1,4 @@
-"""IIR filters from impulse responses: least-squares Prony, guarded Steiglitz-McBride, order selection (004 ch. 4).
+"""IIR filters from impulse responses: least-squares Prony, guarded Steiglitz-McBride, order selection (Guruswamy thesis ch. 4).
 
 A filter is ``H(z) = (b0 + b1 z^-1 + ... + bq z^-q) / (1 + a1 z^-1 + ... + ap z^-p)``;
 ``b`` has q + 1 and ``a`` p + 1 coefficients with ``a[0] == 1``. The units of ``b``
@@ -16,7 +16,7 @@ are those of the impulse response (``a`` is dimensionless).
   none beats the (stabilised) Prony start, that start is returned.
 * :func:`fit_iir` -- either method over a set of orders, keeping the least fit error.
 
-Fit error is the SAD of 004 Table 1: the mean absolute difference between the
+Fit error is the SAD of Guruswamy thesis Table 1: the mean absolute difference between the
 target and the filter's impulse response, in the target's units.
 scipy is imported inside functions (graph loading should not pay for it).
 """
@@ -49,7 +49,7 @@ def impulse_response(b: np.ndarray, a: np.ndarray, n: int) -> np.ndarray:
 
 
 def sad(h: np.ndarray, b: np.ndarray, a: np.ndarray) -> float:
-    """Mean absolute difference between ``h`` and the impulse response of b / a (004 Table 1's SAD, units of h)."""
+    """Mean absolute difference between ``h`` and the impulse response of b / a (Guruswamy thesis Table 1's SAD, units of h)."""
     h = np.asarray(h, dtype=np.float64)
     return float(np.mean(np.abs(h - impulse_response(b, a, h.size)))) if h.size else 0.0
 

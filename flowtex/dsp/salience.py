@@ -1,4 +1,4 @@
-"""Physical figures that say how much a surface component matters (002 §5-6, ALGORITHMS.md §7).
+"""Physical figures that say how much a surface component matters (Culbertson & Kuchenbecker 2017 sec. 5-6,).
 
 * texture: mean vibration power, (m/s^2)^2, of the interpolated texture model
   over a grid of (speed, force) points -- the model the ``texture_lookup`` node

@@ -1,4 +1,6 @@
-"""Change-point segmentation of free exploration into stationary pieces (000 / 002: piecewise models).
+"""Change-point segmentation of free exploration into stationary pieces (piecewise models).
+
+Piecewise models from free exploration: Kuchenbecker & Culbertson 2014; Culbertson & Kuchenbecker 2017.
 
 HaTT segments with Auto-PARM (Davis et al. 2006), a genetic search for the
 piecewise-AR model of least MDL. flowtex segments with ``ruptures`` (PELT,

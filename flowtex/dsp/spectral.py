@@ -74,7 +74,7 @@ def gfc_data_model(x: np.ndarray, ar: np.ndarray, ma: np.ndarray, smooth: int = 
     """003's GFC between a signal and a model: smoothed |DFT| of the data against the model's |C/A|.
 
     The data's N-point |DFT| is smoothed with a ``smooth``-point Bartlett-Hann
-    window (003 section 3.3) and compared, at the N // 2 + 1 non-negative DFT
+    window (Culbertson et al. 2012 section 3.3) and compared, at the N // 2 + 1 non-negative DFT
     frequencies, with |C(e^jw) / A(e^jw)| (the scale does not matter to GFC).
     """
     import scipy.signal

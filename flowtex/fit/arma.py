@@ -242,7 +242,7 @@ def _search(pieces: Sequence[np.ndarray], max_order: int) -> tuple[tuple[int, in
 
 
 def select_shared_order(pieces: Sequence[np.ndarray], max_order: int = 20) -> tuple[int, int]:
-    """One order (p, q) for several signals (003: the same order for every model of a material).
+    """One order (p, q) for several signals (Culbertson et al. 2012: the same order for every model of a material).
 
     Minimises the sum of the pieces' BICs (the BIC of the joint model with
     one (p, q) shared and separate coefficients per piece).

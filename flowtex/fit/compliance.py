@@ -1,4 +1,4 @@
-"""``flowtex fit compliance``: WHaT compliance k_c from stroking a surface (004 §5.2); the math is flowtex.dsp.compliance."""
+"""``flowtex fit compliance``: WHaT compliance k_c from stroking a surface (Guruswamy thesis sec. 5.2); the math is flowtex.dsp.compliance."""
 
 from __future__ import annotations
 
@@ -65,7 +65,7 @@ def _result(out: np.ndarray, rate: float, n: int, force_range: tuple[float, floa
 
 def register_fit(kinds: Any) -> None:
     """Add ``flowtex fit compliance``."""
-    p = kinds.add_parser("compliance", help="WHaT compliance k_c from stroking (force vs RMS vibration, 004 §5.2)",
+    p = kinds.add_parser("compliance", help="WHaT compliance k_c from stroking (force vs RMS vibration, Guruswamy thesis sec. 5.2)",
                          description="Estimate the compliance coefficient k_c (0 soft .. 1 stiff) of the stroked surface in REC. "
                                      "An estimate that is not valid (smooth surface, poor fit) is still written, with a reason.")
     p.add_argument("recording", metavar="REC", help="recording (.npz/.csv/.h5)")
@@ -74,7 +74,7 @@ def register_fit(kinds: Any) -> None:
     p.add_argument("--contact", metavar="C", help="signal name of a 0/1 contact state (default: force above --force-threshold)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.json", help="result file (JSON)")
     p.add_argument("--rate", type=float, help="sample rate in Hz if the recording does not state one")
-    p.add_argument("--kg", type=float, default=1.0, help="k_g normalisation in N per m/s^2 (004 eq. 6; default 1)")
+    p.add_argument("--kg", type=float, default=1.0, help="k_g normalisation in N per m/s^2 (Guruswamy thesis eq. 6; default 1)")
     p.add_argument("--force-range", type=float, nargs=2, metavar=("LO", "HI"),
                    help="force range of the 24 bins in N (default: the range of the contact samples' low-passed force)")
     p.add_argument("--force-threshold", type=float, default=0.1, help="contact when the low-passed force exceeds this (N, default 0.1)")

@@ -1,7 +1,7 @@
-"""``flowtex fit friction``: the kinetic friction coefficient mu_k from normal and tangential forces (002 §3.3.1).
+"""``flowtex fit friction``: the kinetic friction coefficient mu_k from normal and tangential forces (Culbertson & Kuchenbecker 2017 sec. 3.3.1).
 
 mu_k is the slope of a line through the origin of tangential vs normal force
-(002), fitted robustly (IRLS, Tukey bisquare after a Huber start;
+(Culbertson & Kuchenbecker 2017), fitted robustly (IRLS, Tukey bisquare after a Huber start;
 flowtex.dsp.robust) so that stiction spikes get weight 0, on the samples in
 contact only (normal force >= ``--min-force``). Not the median of the
 ratios T/N: with a force offset b the ratio is mu + b/N, which the many

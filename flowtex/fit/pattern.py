@@ -1,4 +1,4 @@
-"""``flowtex fit pattern``: a patterned texture (features + IIR filters) from a recording (004 ch. 4).
+"""``flowtex fit pattern``: a patterned texture (features + IIR filters) from a recording (Guruswamy thesis ch. 4).
 
 Steps: (1) the acceleration's Welch PSD is smoothed (dB, 9-bin centred moving
 average) and the band edges are the minima either side of its global maximum;
@@ -72,7 +72,7 @@ def fit_pattern(accel: np.ndarray, position: np.ndarray, rate_hz: float, orders:
         amp = float(np.max(np.abs(target)))
         if end - start < 6 or amp == 0.0:
             continue
-        # a feature's ring-down must die out "a short time after" it (004 §4.3.3): here to 1 % within 3 segment lengths,
+        # a feature's ring-down must die out "a short time after" it (Guruswamy thesis sec. 4.3.3): here to 1 % within 3 segment lengths,
         # otherwise slow poles that the short segment cannot pin down would ring on under the next features
         fit = fit_iir(target / amp, orders, radius=0.01 ** (1.0 / (3.0 * (end - start))))
         ring = min(a.size - start, ring_length(fit.b, fit.a, RING_DECAY))
@@ -105,7 +105,7 @@ def _mean_spacing(p: np.ndarray) -> float | None:
 
 def register_fit(kinds: Any) -> None:
     """Add ``flowtex fit pattern``."""
-    p = kinds.add_parser("pattern", help="patterned texture: features + Prony/IIR ring-downs (004 ch. 4)",
+    p = kinds.add_parser("pattern", help="patterned texture: features + Prony/IIR ring-downs (Guruswamy thesis ch. 4)",
                          description="Fit a patterned texture to REC: one IIR filter per surface feature, at its position along the path.")
     p.add_argument("recording", metavar="REC", help="recording (.npz/.csv/.h5)")
     p.add_argument("--accel", required=True, metavar="A", help="signal name of the acceleration (m/s^2, 1 to 3 axes)")

@@ -1,4 +1,4 @@
-"""``flowtex fit taps``: a tap library (tap_player's format) from a recording of taps (002 §3.3.2).
+"""``flowtex fit taps``: a tap library (tap_player's format) from a recording of taps (Culbertson & Kuchenbecker 2017 sec. 3.3.2).
 
 1. Contact onsets from the normal force with hysteresis: contact starts when
    the force reaches ``on`` (0.1 N, the contact node's threshold) after having
@@ -6,7 +6,7 @@
    force left its out-of-contact floor (median + 4 robust sd of the samples
    below ``off``), so the cut starts with the impact, not a few ms into it.
 2. Each tap's acceleration (1-D, or 3 axes reduced by DFT321; zero-phase
-   10 Hz high-pass as for textures) is cut for ``length`` (100 ms, 002) from
+   10 Hz high-pass as for textures) is cut for ``length`` (100 ms, Culbertson & Kuchenbecker 2017) from
    its onset.
 3. Its incoming speed (mm/s) is the approach speed -(v . n) averaged over the
    ``approach_s`` (10 ms) before the onset, v the backward difference of the
@@ -15,7 +15,7 @@
 4. Taps whose recording ends within 100 ms of the onset, or with no incoming
    speed, are dropped (and said so); taps at equal speeds are averaged.
 
-The spectral centroid SC = sum X^2 f / sum X^2 (002 eq. 4) is printed per
+The spectral centroid SC = sum X^2 f / sum X^2 (Culbertson & Kuchenbecker 2017 eq. 4) is printed per
 tap and averaged over the library played at 50, 60, ..., 100 mm/s
 (flowtex.models.taps.spectral_centroid), 002's hardness predictor.
 """
@@ -78,7 +78,7 @@ def approach_speed(position: np.ndarray, normal: np.ndarray, onset: int, rate: f
 
 
 def centroid(x: np.ndarray, rate: float) -> float:
-    """Spectral centroid (Hz) of one transient, 002 eq. 4."""
+    """Spectral centroid (Hz) of one transient, Culbertson & Kuchenbecker 2017 eq. 4."""
     power = np.abs(np.fft.rfft(x)) ** 2
     total = float(power.sum())
     return float((power * np.fft.rfftfreq(x.size, 1.0 / rate)).sum() / total) if total > 0 else 0.0
@@ -156,7 +156,7 @@ def run(args: argparse.Namespace) -> int:
     for note in notes:
         print(note)
     sc = spectral_centroid(lib)
-    print(f"{len(taps)} taps; spectral centroid over 50-100 mm/s (002 eq. 4): {sc:.1f} Hz")
+    print(f"{len(taps)} taps; spectral centroid over 50-100 mm/s (Culbertson & Kuchenbecker 2017 eq. 4): {sc:.1f} Hz")
     with atomic_output(args.output) as tmp:
         write_tap_library(tmp, lib, notes=f"fitted by flowtex fit taps from {args.recording}")
     print(f"-> {args.output}")
@@ -166,7 +166,7 @@ def run(args: argparse.Namespace) -> int:
 def register_fit(kinds: Any) -> None:
     """Add ``flowtex fit taps``."""
     p = kinds.add_parser("taps", help="tap library (100 ms transients by incoming speed) from a recording of taps",
-                         description="Detect contact onsets, cut 100 ms after each, label by incoming speed (002).")
+                         description="Detect contact onsets, cut 100 ms after each, label by incoming speed (Culbertson & Kuchenbecker 2017).")
     p.add_argument("recording", type=Path)
     p.add_argument("--accel", required=True, metavar="A", help="acceleration (m/s^2): 1-D or 3 axes (DFT321)")
     p.add_argument("--force", required=True, metavar="F", help="normal force (N)")
@@ -174,7 +174,7 @@ def register_fit(kinds: Any) -> None:
     p.add_argument("--normal", metavar="N", help="surface normal signal for --position (default +z)")
     p.add_argument("--speed", metavar="S", help="approach speed signal (mm/s), instead of --position")
     p.add_argument("--rate", type=float, help="sample rate (Hz) when the file states none")
-    p.add_argument("--length", type=float, default=0.1, help="seconds cut after each onset (002: 0.1)")
+    p.add_argument("--length", type=float, default=0.1, help="seconds cut after each onset (Culbertson & Kuchenbecker 2017: 0.1)")
     p.add_argument("--highpass", type=float, default=10.0, metavar="HZ", help="zero-phase high-pass of the acceleration (0: none)")
     p.add_argument("--name", help="library name (default: the file's stem)")
     p.add_argument("-o", "--output", required=True, type=Path, help="tap library JSON (docs/tap-library.md)")

@@ -1,24 +1,26 @@
-"""Texture model sets from recordings (000/002/003): preprocess, segment, fit one shared order, assemble the set.
+"""Texture model sets from recordings: preprocess, segment, fit one shared order, assemble the set.
+
+After Kuchenbecker & Culbertson 2014, Culbertson & Kuchenbecker 2017 and Culbertson et al. 2012.
 
 Pipeline of :func:`fit_texture` (units: acceleration m/s^2, speed mm/s, force N):
 
 1. zero-phase 10 Hz Butterworth high-pass (4th order, ``sosfiltfilt``) to remove
-   gravity and hand motion (001, 003), then isolated spikes beyond 8 robust
+   gravity and hand motion (Romano & Kuchenbecker 2012, Culbertson et al. 2012), then isolated spikes beyond 8 robust
    standard deviations are clipped (flowtex.dsp.robust.clamp_outliers);
 2. segmentation into stationary pieces (flowtex.dsp.segment: ruptures PELT,
    BIC penalty) - skipped for grid recordings, which are one piece each;
 3. pieces are trimmed by ``trim_s`` at both ends (the transitions between
    plateaus), and dropped when shorter than ``min_piece_s``, out of contact
    (median force < ``min_force``) or not moving (median speed < ``min_speed``);
-   each kept piece is labelled with its median speed and force (000);
-4. every piece is fitted at ONE order shared by the material (003):
+   each kept piece is labelled with its median speed and force (Kuchenbecker & Culbertson 2014);
+4. every piece is fitted at ONE order shared by the material (Culbertson et al. 2012):
    ``order=None`` chooses it (flowtex.fit.arma.select_shared_order, the least
    summed BIC) over the ``order_pieces`` longest pieces - the order is a
    property of the material, and a minute of exploration has some 40 pieces
    whose full search would cost 6 refined fits each - else ``(p, q)``;
 5. the set (:func:`assemble_set`): the measured models, silent corner models
    (variance 0) at speed 0 and force 0 copying their nearest measured model
-   (HaTT, 001), a Delaunay triangulation over (speed, force) and the set's
+   (HaTT, Romano & Kuchenbecker 2012), a Delaunay triangulation over (speed, force) and the set's
    maxima (largest measured speed and force).
 """
 

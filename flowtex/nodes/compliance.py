@@ -1,4 +1,4 @@
-"""compliance_estimator: streaming WHaT compliance k_c from normal force and vibration (004 §5.2)."""
+"""compliance_estimator: streaming WHaT compliance k_c from normal force and vibration (Guruswamy thesis sec. 5.2)."""
 
 from __future__ import annotations
 

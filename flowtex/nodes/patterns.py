@@ -1,4 +1,4 @@
-"""patterned_texture: a sum of IIR ring-downs excited as the tool crosses recorded surface features (004 ch. 4)."""
+"""patterned_texture: a sum of IIR ring-downs excited as the tool crosses recorded surface features (Guruswamy thesis ch. 4)."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ def _pattern(p, s, si, position, in_contact, y):
 class PatternedTexture(Node):
     """Patterned texture vibration (m/s^2): crossing feature k, either way, excites filter k with amplitude A_k; ring-downs add.
 
-    Amplitude does not depend on speed (004 §6.1 saw none): speed only sets how
+    Amplitude does not depend on speed (Guruswamy thesis sec. 6.1 saw none): speed only sets how
     often features are crossed. A ring-down lasts until its slowest pole has
     decayed to 1e-6; at most ``max_active`` play at once (the oldest is replaced).
     docs/patterns.md.

@@ -1,7 +1,7 @@
 """Which components each surface of a scene needs: salience figure, threshold, keep or drop, and why.
 
-Thresholds and their sources (Culbertson & Kuchenbecker, seed 002, §5-6;
-ALGORITHMS.md §7; docs/scenes.md):
+Thresholds and their sources (Culbertson & Kuchenbecker, Culbertson & Kuchenbecker 2017, sec. 5-6;
+; docs/scenes.md):
 
 * texture: mean vibration power over the trajectory's 9 x 9 speed/force grid,
   kept at >= 1 (m/s^2)^2. Removing texture made no significant difference for
