@@ -148,6 +148,20 @@ def compliance_step(p, s, force, accel, in_contact) -> bool:
     return True
 
 
+@njit(cache=True, inline="always")
+def _bin_point(s, j, min_n):
+    """Bin j's WLS point: (weight 1/sigma_j, mean force N, mean RMS vibration m/s^2); weight 0 for a bin left out."""
+    o = S_BINS + BIN_FIELDS * j
+    n = s[o]
+    if n < min_n:
+        return 0.0, 0.0, 0.0
+    mean_a = s[o + 2] / n
+    var = (s[o + 3] - n * mean_a * mean_a) / (n - 1.0)
+    if var <= 0.0:
+        return 0.0, 0.0, 0.0
+    return 1.0 / math.sqrt(var), s[o + 1] / n, mean_a
+
+
 @njit(cache=True)
 def compliance_fit(p, s, out) -> None:
     """WLS fit over the bins: out = (k_c, sigma m/s^2, valid 0/1, reason code, bins used); k_c, sigma NaN if no fit."""
@@ -156,17 +170,11 @@ def compliance_fit(p, s, out) -> None:
     used = 0
     max_mean = 0.0
     for j in range(N_BINS):
-        o = S_BINS + BIN_FIELDS * j
-        n = s[o]
-        if n < min_n:
+        w, mean_f, mean_a = _bin_point(s, j, min_n)
+        if w == 0.0:
             continue
-        mean_a = s[o + 2] / n
-        var = (s[o + 3] - n * mean_a * mean_a) / (n - 1.0)
-        if var <= 0.0:
-            continue
-        w = 1.0 / math.sqrt(var)
         sw += w
-        swf += w * s[o + 1] / n
+        swf += w * mean_f
         swa += w * mean_a
         used += 1
         if mean_a > max_mean:
@@ -182,16 +190,10 @@ def compliance_fit(p, s, out) -> None:
     abar = swa / sw
     sff = sfa = saa = 0.0
     for j in range(N_BINS):
-        o = S_BINS + BIN_FIELDS * j
-        n = s[o]
-        if n < min_n:
+        w, mean_f, mean_a = _bin_point(s, j, min_n)
+        if w == 0.0:
             continue
-        mean_a = s[o + 2] / n
-        var = (s[o + 3] - n * mean_a * mean_a) / (n - 1.0)
-        if var <= 0.0:
-            continue
-        w = 1.0 / math.sqrt(var)
-        df = s[o + 1] / n - fbar
+        df = mean_f - fbar
         da = mean_a - abar
         sff += w * df * df
         sfa += w * df * da
