@@ -15,7 +15,7 @@ def register(subparsers: Any) -> None:
     p = subparsers.add_parser("bench", help="sweep knobs: ns/tick against output error, Pareto front",
                               description="Run every combination of knob values on the same input and seed; report ns/tick "
                                           "(median of side-by-side runs) and each output's error against the reference.")
-    p.add_argument("graph", help="graph YAML file")
+    p.add_argument("graph", help="graph YAML file, or a scene file (then plan=planned,all and plan.COMPONENT=auto,keep,drop are knobs)")
     p.add_argument("--input", "-i", required=True, help="recording (.npz, .csv, .h5) holding the graph's inputs")
     p.add_argument("--knob", action="append", default=[], metavar="NODE.PARAM=V1,V2,...",
                    help="values to sweep (repeatable); NODE.every=1,2,4 sets a node's rate divider")

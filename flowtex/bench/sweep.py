@@ -1,7 +1,9 @@
 """Knob sweeps: every combination of knob values on the same input and seed; ns/tick and error against a reference.
 
-A knob is ``node.param=v1,v2,...`` (any node parameter, values read as YAML)
-or ``node.every=1,2,4`` (the node's rate divider). Timing: every
+A knob is ``node.param=v1,v2,...`` (any node parameter, values read as YAML),
+``node.every=1,2,4`` (the node's rate divider), or, for a scene file, a
+planner knob (``plan=planned,all``, ``plan.COMPONENT=auto,keep,drop``:
+flowtex.bench.scenes). Timing: every
 configuration is compiled first, then all are run round-robin ``repeats``
 times in this process (side by side, so machine load hits all alike) and the
 median ns/tick is reported.
@@ -10,6 +12,7 @@ median ns/tick is reported.
 from __future__ import annotations
 
 import itertools
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,6 +22,7 @@ import numpy as np
 
 from ..dsp.errors import pareto_front, signal_error
 from ..errors import FlowtexError
+from .scenes import PLAN_KNOB, check_plan_knob, is_plan_knob, is_scene_file, write_planned_graph
 
 VIBRATION_UNITS = ("m/s^2",)
 
@@ -38,17 +42,34 @@ def parse_knob(text: str) -> tuple[str, list[Any]]:
 
     key, sep, values = text.partition("=")
     node, dot, param = key.strip().partition(".")
-    if not sep or not dot or not node or not param or not values.strip():
+    if not sep or not values.strip() or not (key.strip() == PLAN_KNOB or (dot and node and param)):
         raise FlowtexError(f"--knob {text}: expected NODE.PARAM=V1,V2,... (e.g. synth.every=1,2,4)")
     if values.strip().startswith("["):  # a list-valued param: semicolon-separated lists, e.g. lookup.order=[6,4];[4,2]
         parts = values.split(";")
     else:
         parts = values.split(",")
-    return key.strip(), [yaml.safe_load(v) for v in parts]
+    parsed = [yaml.safe_load(v) for v in parts]
+    if is_plan_knob(key.strip()):
+        check_plan_knob(key.strip(), parsed)
+    return key.strip(), parsed
 
 
 def build(graph_path: str | Path, values: dict[str, Any], plugins: tuple[str | Path, ...] = ()):
-    """Compile the graph with ``values`` applied (``node.every`` sets the rate divider, others are params)."""
+    """Compile the graph with ``values`` applied (``node.every`` sets the rate divider, others are params).
+
+    A scene file is planned first, with the ``plan`` knobs applied (flowtex.bench.scenes).
+    """
+    plan = {k: v for k, v in values.items() if is_plan_knob(k)}
+    if is_scene_file(graph_path):
+        with tempfile.TemporaryDirectory(prefix="flowtex-bench-") as tmp:
+            graph_file = write_planned_graph(graph_path, plan, Path(tmp) / "scene_graph.yaml", plugins)
+            return _build_graph(graph_file, {k: v for k, v in values.items() if k not in plan}, plugins)
+    if plan:
+        raise FlowtexError(f"--knob {next(iter(plan))}: plan knobs need a scene file, and {graph_path} is a graph")
+    return _build_graph(graph_path, values, plugins)
+
+
+def _build_graph(graph_path: str | Path, values: dict[str, Any], plugins: tuple[str | Path, ...]):
     from ..graph.compiled import Graph
     from ..graph.resolve import resolve_graph
     from ..graph.spec import load_spec
@@ -107,7 +128,9 @@ def sweep(graph_path: str | Path, inputs: dict[str, np.ndarray], knobs: dict[str
         cfg.timed_on = timed_on
         for name in outputs:
             m = metric or default_metric(ref_graph.outputs[name].unit)
-            cfg.errors[name] = signal_error(m, ref_out[name], out[name], ref_graph.rate)
+            # a planned scene without a component has no output for it: it renders zeros there
+            got = out[name] if name in out else np.zeros_like(ref_out[name])
+            cfg.errors[name] = signal_error(m, ref_out[name], got, ref_graph.rate)
     mark_pareto(configs, outputs[0])
     return configs, outputs
 
@@ -130,7 +153,7 @@ def _run_local(graph_path, combos, inputs, outputs, seed, repeats, plugins) -> l
     outs = []
     for g in graphs:
         result = g.run(inputs, seed=seed)
-        outs.append({name: result[name] for name in outputs})
+        outs.append({name: result[name] for name in outputs if name in result})
     return list(zip(outs, _time_runs(graphs, inputs, seed, repeats), strict=True))
 
 
@@ -138,7 +161,7 @@ def run_config(graph_path, values, inputs, outputs, seed, repeats, plugins) -> t
     """One configuration, compiled, run and timed where this is called (a Dask worker): (outputs, median ns/tick)."""
     g = build(graph_path, values, plugins)
     result = g.run(inputs, seed=seed)
-    return {name: result[name] for name in outputs}, _time_runs([g], inputs, seed, repeats)[0]
+    return {name: result[name] for name in outputs if name in result}, _time_runs([g], inputs, seed, repeats)[0]
 
 
 def mark_pareto(configs: list[Config], output: str) -> None:

@@ -393,7 +393,9 @@ def test_exception_inside_the_graph_sends_safe_values_last(setup):
            "--map", str(setup / "m.yaml"), "--simulate", str(setup / "rec.npz"), "--duration", "0.5", "--quiet"]
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert p.returncode == 1
-    assert p.stderr == f"flowtex live: error: tick {first}: ValueError: sensor overload (safe values sent)\n"
+    # one line for the error; the only other line allowed is the compile notice (when this process misses the disk cache)
+    lines = [ln for ln in p.stderr.splitlines() if not ln.startswith("flowtex: compiling graph")]
+    assert lines == [f"flowtex live: error: tick {first}: ValueError: sensor overload (safe values sent)"]
 
 
 def test_map_peak_limit_is_mirrored_below_the_clamp(setup):
