@@ -1,4 +1,4 @@
-"""Every example graph in graphs/ runs, and its outputs are pinned by a golden file.
+"""Every example graph (and scene) in graphs/ runs, and its outputs are pinned by a golden file.
 
 Regenerate after an intended change with ``pytest tests/test_examples.py --update-golden``
 and review the new files before committing them.
@@ -28,12 +28,17 @@ EXAMPLES: dict[str, tuple[str, dict]] = {
     "pattern_compliance.yaml": ("data/pattern_demo.npz", {}),
 }
 
+# scene file (docs/scenes.md) -> recording its planned graph runs on; the golden pins the planned graph's outputs
+SCENES: dict[str, str] = {
+    "scene_two_surfaces.yaml": "data/scene_strokes.npz",
+}
+
 
 def test_every_example_graph_has_a_golden_test():
     graphs = sorted(p.name for p in GRAPHS.glob("*.yaml"))
     assert graphs, "graphs/ holds no example"
-    missing = [g for g in graphs if g not in EXAMPLES]
-    assert not missing, f"example graphs without a golden test: {missing}; add them to EXAMPLES"
+    missing = [g for g in graphs if g not in EXAMPLES and g not in SCENES]
+    assert not missing, f"example graphs without a golden test: {missing}; add them to EXAMPLES (graphs) or SCENES (scene files)"
 
 
 @pytest.mark.parametrize("name", sorted(EXAMPLES))
@@ -49,6 +54,19 @@ def test_example_validates_from_the_command_line(name, monkeypatch, capsys):
     monkeypatch.chdir(REPO)  # ./plugins is found from the repository root, as in the README
     assert main(["validate", f"graphs/{name}"]) == 0
     assert "ok" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("name", sorted(SCENES))
+def test_scene_example_plans_and_matches_golden(golden, name, tmp_path, monkeypatch, capsys):
+    # planned from the command line as the scene's header says, then validated and run like every example graph
+    monkeypatch.chdir(REPO)
+    planned = tmp_path / (Path(name).stem + "_planned.yaml")
+    assert main(["scene", "plan", f"graphs/{name}", "-o", str(planned)]) == 0
+    assert main(["validate", str(planned)]) == 0
+    assert "ok" in capsys.readouterr().out
+    outputs = golden.check(planned, GRAPHS / SCENES[name], GOLDEN / (Path(name).stem + ".npz"))
+    for value in outputs.values():
+        assert np.all(np.isfinite(value))
 
 
 def test_golden_mismatch_is_reported(tmp_path):

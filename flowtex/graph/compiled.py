@@ -155,6 +155,8 @@ class Graph:
     def _run_chunk(self, arrays: dict[str, np.ndarray], total: int) -> dict[str, np.ndarray]:
         if len(arrays) == 1:  # one input: its own memory is already the layout run() reads
             X = np.ascontiguousarray(next(iter(arrays.values()))).reshape(-1)
+            if not X.flags.aligned:  # run() addresses X in 8-byte steps from the arena: an unaligned array would be read shifted
+                X = X.copy()  # (e.g. an array Dask deserialized on a worker from a frame at an odd offset)
         else:
             X = np.concatenate([np.ascontiguousarray(arrays[name]).reshape(-1) for name in self.layout.in_columns]) \
                 if arrays else np.empty(0)

@@ -15,14 +15,17 @@ def _switch(p, s, si, index, a, b, y):
 
 
 class SurfaceSwitch(Node):
-    """y = b while round(index) == b_index, else a; a change crossfades linearly over ``fade`` seconds.
+    """y = b while round(index) == b_index, a while it is smaller; a change crossfades linearly over ``fade`` seconds.
 
     A chain of these picks one of N surfaces' outputs (``flowtex scene plan``
     writes one per surface after the first). Every surface's nodes keep running
     while inactive, so a newly chosen surface has current state (no stale
     friction spring, no filter start-up burst), and the crossfade is a convex
-    mix: the output never exceeds the larger of its two inputs. NaN index
-    keeps the current choice. Starts on ``a``.
+    mix: the output never exceeds the larger of its two inputs. An index above
+    b_index (a later switch of the chain has that surface) holds the current
+    mix, so a change between any two surfaces of a chain crossfades exactly
+    those two (flowtex/dsp/switch.py). NaN or negative index keeps the current
+    choice. Starts on ``a``.
     """
 
     type_name = "surface_switch"

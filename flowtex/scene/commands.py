@@ -50,6 +50,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--stats", help="write end-of-run statistics as JSON")
     p.add_argument("--simulate", metavar="RECORDING", help="simulated device playing RECORDING in this process")
     p.add_argument("--quiet", action="store_true", help="no status line")
+    p.add_argument("--show", action="append", default=[], metavar="SIGNAL",
+                   help="append a graph output or input (NAME or NAME[i]) to the status line (repeatable)")
     p.add_argument("--seed", type=int)
     p.add_argument("--plugins", action="append", default=[], metavar="DIR")
     p.set_defaults(func=cmd_live)

@@ -19,7 +19,9 @@ from ..yamlsource import LocDict, LocList, load_yaml
 
 TOP_KEYS = ("flowtex", "name", "rate", "surfaces", "trajectory", "select", "device", "thresholds", "description")
 SURFACE_KEYS = ("models", "mu", "taps", "pattern", "compliance", "stiffness", "keep", "drop", "doc")
-COMPONENTS = ("texture", "friction", "taps", "pattern")
+COMPONENTS = ("texture", "friction", "taps", "pattern", "stiffness")
+"""Components a surface may keep or drop; ``stiffness`` is the base-surface spring (``stiffness`` x ``compliance``)."""
+THRESHOLD_KEYS = ("texture", "friction", "taps")
 TRAJECTORY_KEYS = ("speed", "force", "recording")
 SELECT_KEYS = ("input", "fade", "fixed")
 DEVICE_KEYS = ("dbc", "map")
@@ -35,8 +37,10 @@ class SurfaceSpec:
     mu: float | None = None
     taps: Path | None = None
     pattern: Any = None
-    compliance: Any = None
+    compliance: float | Path | None = None
+    """WHaT compliance k_c (0 soft .. 1 stiff), or the flowtex-compliance JSON file holding it (docs/compliance.md)."""
     stiffness: float | None = None
+    """Base-surface spring constant, N/mm (scaled by k_c when ``compliance`` is given)."""
     keep: tuple[str, ...] = ()
     drop: tuple[str, ...] = ()
     locs: dict[str, Location] = field(default_factory=dict)
@@ -138,10 +142,10 @@ def parse_scene(text: str, path: Path) -> Scene:
     scene = Scene(path=path, name=name, rate=rate, surfaces={}, description=str(data.get("description", "")))
     scene.surfaces = _surfaces(c, data, base)
     _trajectory(c, data, base, scene)
-    th = _mapping(c, data, "thresholds", COMPONENTS[:3], "{texture: 1.0, friction: 0.5, taps: 60}")
+    th = _mapping(c, data, "thresholds", THRESHOLD_KEYS, "{texture: 1.0, friction: 0.5, taps: 60}")
     if th is not None:
         for k in th:
-            if k in COMPONENTS[:3]:
+            if k in THRESHOLD_KEYS:
                 v = _number(c, th[k], th.value_pos[k], f"thresholds.{k}")
                 if v is not None:
                     scene.thresholds[k] = v
@@ -248,7 +252,8 @@ def _surfaces(c: Collector, data: LocDict, base: Path) -> dict[str, SurfaceSpec]
         if "stiffness" in s:
             spec.stiffness = _number(c, s["stiffness"], s.value_pos["stiffness"], f"surface {key!r}: stiffness (N/mm)", positive=True)
         spec.pattern = s.get("pattern")
-        spec.compliance = s.get("compliance")
+        if "compliance" in s:
+            spec.compliance = _compliance(c, s["compliance"], s.value_pos["compliance"], key, base)
         spec.keep = _components(c, s, "keep", key)
         spec.drop = _components(c, s, "drop", key)
         both = set(spec.keep) & set(spec.drop)
@@ -256,3 +261,14 @@ def _surfaces(c: Collector, data: LocDict, base: Path) -> dict[str, SurfaceSpec]
             c.error(s.key_pos["drop"], f"surface {key!r}: {', '.join(sorted(both))} is both kept and dropped; remove it from one list")
         out[key] = spec
     return out
+
+
+def _compliance(c: Collector, value: Any, pos: Any, surface: str, base: Path) -> float | Path | None:
+    """``compliance:`` is k_c (a number in [0, 1]) or the JSON file 'flowtex fit compliance' wrote."""
+    if isinstance(value, str):
+        return base / value
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or not 0.0 <= value <= 1.0:
+        c.error(pos, f"surface {surface!r}: compliance must be k_c between 0 (soft) and 1 (stiff), or the JSON file "
+                     f"'flowtex fit compliance' writes; got {value!r}")
+        return None
+    return float(value)

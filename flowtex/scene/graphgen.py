@@ -4,14 +4,15 @@ Structure (as graphs/surface_render.yaml, one branch per surface):
 
 * shared: ``speed`` (speed_estimator, HaTT's method) and ``contact``;
 * per surface ``K`` and kept component: ``K_lookup`` -> ``K_synth`` (texture),
-  ``K_pattern`` (pattern), ``K_friction`` (dahl_friction), ``K_taps`` (tap_player);
+  ``K_pattern`` (pattern), ``K_friction`` (dahl_friction), ``K_taps`` (tap_player),
+  ``K_spring`` (stiffness: a gain in N/mm on the clipped ``penetration`` input, mm);
 * per signal (vibration, friction force, tap force) a chain of
   ``surface_switch`` nodes choosing surface ``index`` from the graph input
   named by ``select.input`` (default ``surface``); a surface without the
   component feeds a zero constant. All surfaces' nodes run every tick, so the
   chosen one's state is always current (no stale friction, no start-up burst);
 * outputs ``force`` (sum), ``texture_force``, ``friction_force``, ``tap_force``,
-  ``vibration`` and ``in_contact`` -- those whose component any surface keeps.
+  ``spring_force``, ``vibration`` and ``in_contact`` -- those whose component any surface keeps.
 """
 
 from __future__ import annotations
@@ -164,6 +165,29 @@ def scene_graph(scene: Scene, plan: dict[str, SurfaceData], base: Path | None, p
         b.edge(tap, "tap_vector.b")
         outputs["tap_force"] = tap
         forces.append("tap_vector.y")
+    # --- base surface: Hooke spring on the penetration depth, along the unit normal
+    if any(kept(k, "stiffness") for k in keys):
+        b.node("depth", "clip", low=0.0, high=1000.0)  # mm: not in contact (< 0) pushes nothing; NaN counts as 0
+        b.edge("penetration", "depth.x")
+        sources = []
+        for k in keys:
+            if kept(k, "stiffness"):
+                b.node(f"{k}_spring", "gain", k=float(plan[k].stiffness), unit="N")  # N/mm x mm
+                b.edge("depth.y", f"{k}_spring.x")
+                sources.append(f"{k}_spring.y")
+            else:
+                if "zero_spring" not in b.nodes:
+                    b.node("zero_spring", "constant", value=[0.0], unit="N")
+                sources.append("zero_spring.y")
+        spring = b.select("spring", sources, index, scene.fade_s)
+        if "unit_normal" not in b.nodes:
+            b.node("unit_normal", "normalize")
+            b.edge("normal", "unit_normal.x")
+        b.node("spring_vector", "multiply")
+        b.edge("unit_normal.y", "spring_vector.a")
+        b.edge(spring, "spring_vector.b")
+        outputs["spring_force"] = spring
+        forces.append("spring_vector.y")
     if not forces:
         raise FlowtexError(f"{scene.path}: the plan keeps no component on any surface; nothing to render (force one with keep:)")
     total = forces[0]
@@ -174,6 +198,8 @@ def scene_graph(scene: Scene, plan: dict[str, SurfaceData], base: Path | None, p
         total = f"{name}.y"
     outputs = {"force": total, **outputs, "in_contact": "contact.in_contact"}
     inputs: dict[str, Any] = {"position": {"shape": [3], "unit": "mm"}, "normal_force": {"unit": "N"}, "normal": {"shape": [3]}}
+    if "depth" in b.nodes:
+        inputs["penetration"] = {"unit": "mm"}
     if index is not None:
         inputs[index] = {}
     return {"flowtex": 1, "name": scene.name, "rate": scene.rate, "seed": 1,

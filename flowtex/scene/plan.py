@@ -17,6 +17,13 @@ Thresholds and their sources (Culbertson & Kuchenbecker, Culbertson & Kuchenbeck
   Whiteboard) are hard ones.
 * pattern: no study measured it; a pattern given in the scene is kept (unless
   dropped) when the ``patterned_texture`` node type is available.
+* stiffness: the base surface, a Hooke spring on the penetration depth
+  (Culbertson & Kuchenbecker 2017 sec. 3.2 rendered every surface so, at
+  0.25 N/mm). Kept whenever the scene gives ``stiffness`` (N/mm), scaled by the
+  WHaT compliance k_c when ``compliance`` is given (docs/compliance.md:
+  F = k_max k_c penetration); the figure is the rendered stiffness in N/mm.
+  ``compliance`` without ``stiffness`` has nothing to scale: recorded as not
+  kept, with that reason.
 """
 
 from __future__ import annotations
@@ -31,9 +38,9 @@ from .file import Scene, SurfaceSpec
 DEFAULT_THRESHOLDS = {"texture": 1.0, "friction": 0.5, "taps": 60.0}
 """Defaults: texture (m/s^2)^2, friction mu_k (dimensionless), taps Hz (sources in the module docstring)."""
 
-UNITS = {"texture": "(m/s^2)^2", "friction": "mu_k", "taps": "Hz", "pattern": ""}
+UNITS = {"texture": "(m/s^2)^2", "friction": "mu_k", "taps": "Hz", "pattern": "", "stiffness": "N/mm"}
 FIGURES = {"texture": "mean vibration power", "friction": "friction coefficient", "taps": "tap spectral centroid",
-           "pattern": "pattern given"}
+           "pattern": "pattern given", "stiffness": "base stiffness"}
 PATTERN_NODE = "patterned_texture"
 
 
@@ -54,6 +61,8 @@ class SurfaceData:
     spec: SurfaceSpec
     mu: float | None
     decisions: dict[str, Decision]
+    stiffness: float | None = None
+    """Rendered base-surface stiffness, N/mm (``stiffness`` x k_c), or None."""
 
 
 def _fail(spec: SurfaceSpec, key: str, message: str) -> FlowtexError:
@@ -137,8 +146,55 @@ def plan_scene(scene: Scene, node_types: set[str] | frozenset[str] = frozenset()
                 decisions["pattern"] = Decision(True, 1.0, 0.5, "kept: the scene gives a pattern (no study measured its salience)")
         elif "pattern" in spec.keep:
             raise _fail(spec, "keep", f"surface {key!r}: keep: pattern, but the surface has no pattern")
-        out[key] = SurfaceData(spec, mu, decisions)
+        stiffness = _stiffness(spec, decisions)
+        out[key] = SurfaceData(spec, mu, decisions, stiffness)
     return out
+
+
+def _compliance_kc(spec: SurfaceSpec) -> tuple[float | None, str]:
+    """k_c of the surface (None when the estimate is not valid) and where it comes from, for the reason."""
+    from pathlib import Path
+
+    if not isinstance(spec.compliance, Path):
+        return spec.compliance, f"compliance k_c {spec.compliance:.3g}"
+    from ..fit.compliance import FORMAT_NAME
+    from ..io.jsondoc import read_json_document
+
+    try:
+        doc = read_json_document(spec.compliance, "compliance estimate", FORMAT_NAME, (1,))
+    except FlowtexError as exc:
+        raise _fail(spec, "compliance", f"surface {spec.key!r}: {exc}") from None
+    kc = doc.get("k_c")
+    if not doc.get("valid") or isinstance(kc, bool) or not isinstance(kc, (int, float)) or not 0.0 <= kc <= 1.0:
+        return None, f"the compliance estimate in {spec.compliance.name} is not valid ({doc.get('reason', 'no reason given')})"
+    return float(kc), f"compliance k_c {kc:.3g} from {spec.compliance.name}"
+
+
+def _stiffness(spec: SurfaceSpec, decisions: dict[str, Decision]) -> float | None:
+    """Decide the base-surface spring; returns the rendered stiffness (N/mm) when kept."""
+    kc, source = (None, "") if spec.compliance is None else _compliance_kc(spec)
+    if spec.stiffness is None:
+        if "stiffness" in spec.keep:
+            raise _fail(spec, "keep", f"surface {spec.key!r}: keep: stiffness, but the surface gives no stiffness; add stiffness: N/mm")
+        if spec.compliance is not None:
+            decisions["stiffness"] = Decision(False, 0.0, 0.0, f"not rendered: {source} scales a base stiffness, but the surface gives "
+                                                               "no stiffness (N/mm); add stiffness: K_MAX")
+        return None
+    k = spec.stiffness
+    why = "Hooke spring on the penetration input"
+    if kc is not None:
+        why = f"{spec.stiffness:.3g} N/mm x {source}; " + why
+        k = spec.stiffness * kc
+    elif spec.compliance is not None:
+        why = f"{source}: stiffness {spec.stiffness:.3g} N/mm not scaled; " + why
+    if k <= 0.0:
+        decisions["stiffness"] = Decision(False, k, 0.0, f"dropped: base stiffness 0 N/mm ({why}) renders nothing")
+        return None
+    if "stiffness" in spec.drop:
+        decisions["stiffness"] = Decision(False, k, 0.0, f"dropped: forced by drop: in the scene (base stiffness {k:.3g} N/mm)")
+        return None
+    decisions["stiffness"] = Decision(True, k, 0.0, f"kept: base stiffness {k:.3g} N/mm ({why}); no study measured its salience")
+    return k
 
 
 def plan_json(plan: dict[str, SurfaceData]) -> dict[str, dict[str, dict[str, Any]]]:

@@ -29,6 +29,31 @@ def test_crossfade_is_a_convex_ramp_and_nan_holds():
     np.testing.assert_allclose(y[:, 0], (1 - w) * 2.0 + w * -4.0, rtol=0, atol=1e-15)
 
 
+def test_a_chain_of_switches_crossfades_exactly_the_two_surfaces_involved():
+    # 4 surfaces chosen by a chain of 3 switches, as 'scene plan' writes it. Every change (up, down, adjacent or not)
+    # must mix only the old and the new surface: y = (1 - lam) s_old + lam s_new, lam = 1/4, 2/4, 3/4, 1
+    # (powers of two: exact in floating point). Surface values 1, 10, 100, 1000 make any third surface visible.
+    fade = 4
+    sequence = [0, 2, 1, 3, 0, 3, 2, 0, 1]
+    seg = 8
+    index = np.repeat(np.array(sequence, dtype=float), seg)[:, None]
+    index[seg * 3 + 6] = np.nan  # NaN and a negative index keep the current surface
+    index[seg * 5 + 6] = -1.0
+    n = index.shape[0]
+    sources = [np.full((n, 1), 10.0 ** i) for i in range(4)]
+    y = sources[0]
+    for i in range(1, 4):
+        out = np.empty((n, 1))
+        crossfade_block(switch_params(i, float(fade)), np.zeros(2), index, y, sources[i], out)
+        y = out
+    expected = np.empty(n)
+    for m, k in enumerate(sequence):
+        old = sequence[m - 1] if m else 0
+        lam = np.minimum(1.0, np.arange(1, seg + 1) / fade) if k != old else np.ones(seg)
+        expected[m * seg:(m + 1) * seg] = (1 - lam) * 10.0 ** old + lam * 10.0 ** k
+    np.testing.assert_array_equal(y[:, 0], expected)
+
+
 @pytest.fixture(scope="module")
 def switching(tmp_path_factory):
     folder = tmp_path_factory.mktemp("switch")
