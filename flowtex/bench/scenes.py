@@ -7,7 +7,7 @@ planner can be swept like any node parameter:
   surface has a model for (all thresholds 0, no forced drops) — the cost the
   planner saves and the error it buys;
 * ``plan.COMPONENT=auto,keep,drop`` (COMPONENT: texture, friction, taps,
-  pattern): force one component on or off for every surface that has it;
+  pattern, stiffness): force one component on or off for every surface that has it;
   ``auto`` leaves it to the planner.
 
 Node knobs (``NODE.PARAM``, ``NODE.every``) then apply to the planned graph
@@ -24,7 +24,9 @@ from ..errors import FlowtexError
 PLAN_KNOB = "plan"
 PLAN_MODES = ("planned", "all")
 COMPONENT_MODES = ("auto", "keep", "drop")
-COMPONENTS = ("texture", "friction", "taps", "pattern")
+COMPONENTS = ("texture", "friction", "taps", "pattern", "stiffness")
+GIVEN_COMPONENTS = ("pattern", "stiffness")
+"""Kept whenever the scene gives them, unless dropped (no salience threshold)."""
 THRESHOLD_COMPONENTS = ("texture", "friction", "taps")
 
 
@@ -71,10 +73,10 @@ def apply_plan_settings(scene: Any, settings: dict[str, str]) -> None:
         for spec in scene.surfaces.values():
             spec.keep = tuple(c for c in spec.keep if c != component)
             spec.drop = tuple(c for c in spec.drop if c != component)
-            if component == "pattern":
+            if component in GIVEN_COMPONENTS:
                 if mode == "drop":
-                    spec.drop += ("pattern",)
-                continue  # a given pattern is kept unless dropped
+                    spec.drop += (component,)
+                continue  # kept whenever given, unless dropped
             if mode == "drop":
                 spec.drop += (component,)
         if component in THRESHOLD_COMPONENTS and mode == "keep":
