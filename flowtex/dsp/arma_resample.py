@@ -34,10 +34,30 @@ import math
 
 import numpy as np
 
-from .arma_estimate import stabilize, whittle_refine
+from .arma_estimate import MAX_RADIUS, stabilize, whittle_refine
+from .arma_logfit import fit_log_spectrum, real_poly
+from .lsf import is_valid_lsf, roots_to_lsf
 
 STOPBAND_FLOOR = 1e-4
-"""Target level above the old Nyquist when upsampling, relative to the target's peak (-70 dB)."""
+"""Downsampling: target level above the new Nyquist, relative to the band's mean (-40 dB)."""
+
+DIRECT_MAX_RATIO = 2.5
+"""Largest upsampling ratio fitted at the original order; beyond it the model is fitted at rate_to / M and stretched."""
+
+STOPBAND_CEILING = 0.005
+"""Upsampling: ceiling above the old Nyquist, relative to the band's mean power and divided by (ratio - 1)."""
+
+IMAGE_ATTENUATION_DB = 70.0
+"""Stopband attenuation of the anti-imaging lowpass of stretched models."""
+
+BAND_EDGE = 0.92
+"""Band fitted two-sided: up to this fraction of the old Nyquist (the requirement's 0.9, plus a margin)."""
+
+LSD_RANGE_DB = 40.0
+"""Frequencies more than this below the band's peak only get a one-sided ceiling (as in lsd_db's band)."""
+
+BAND_POINTS, EDGE_POINTS, STOP_POINTS = 2000, 40, 1000
+"""Frequencies of the upsampling fit: in the band, from BAND_EDGE to the old Nyquist, and above it."""
 
 GRID = 16384
 """FFT grid of the spectral fit (w resolution 2 pi / GRID: ~3.8e-4 rad, finer than HaTT's sharpest resonances)."""
@@ -62,45 +82,168 @@ def _map_roots(poly: np.ndarray, ratio: float) -> np.ndarray:
     return stabilize(new / new[0])
 
 
-def resample_arma(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, rate_from: float, rate_to: float,
-                  grid: int = GRID, iterations: int = 40) -> tuple[np.ndarray, np.ndarray, float, float]:
-    """(ar, ma, gain, variance) at ``rate_to`` Hz with the same physical PSD below min(rate_from, rate_to) / 2.
+def upsampled_order(p: int, q: int, rate_from: float, rate_to: float, keep_order: bool = False) -> tuple[int, int]:
+    """(P, Q) of the models :func:`resample_arma` returns: (p, q) unless upsampling by more than :data:`DIRECT_MAX_RATIO`.
 
-    Orders are kept; the gain is kept and the variance carries the power
-    (a silent model, variance 0, stays silent with its shape resampled).
-    Rates in Hz. See the module docstring for the method and why.
+    Then (M p + n, M q + n) with M = :func:`_stretch` and n the anti-imaging
+    lowpass order (:func:`_anti_imaging`); the same for every model of a set,
+    so LSFs stay interpolable. ``keep_order`` forces (p, q).
+    """
+    m = _stretch(rate_from, rate_to)
+    if keep_order or m == 1:
+        return p, q
+    n = _anti_imaging(rate_from, rate_to, m)[0].shape[0]
+    return m * p + n, m * q + n
+
+
+def _stretch(rate_from: float, rate_to: float) -> int:
+    """Integer M by which an upsampled model is stretched (z -> z^M): 1 up to DIRECT_MAX_RATIO, then ceil(ratio / it)."""
+    ratio = rate_to / rate_from
+    return 1 if ratio <= DIRECT_MAX_RATIO else math.ceil(ratio / DIRECT_MAX_RATIO)
+
+
+def _anti_imaging(rate_from: float, rate_to: float, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """(poles, zeros) at ``rate_to`` of the elliptic lowpass that removes the images of a model stretched by z -> z^m.
+
+    Passband up to the old Nyquist, stopband from the first image of it
+    (rate_to / m - rate_from / 2); 0.1 dB ripple (the band fit compensates it)
+    and :data:`IMAGE_ATTENUATION_DB`; the order (even) is the least that meets both.
+    Zeros, on the unit circle by design, are pulled in to radius 0.9999 (valid LSFs).
+    """
+    import scipy.signal
+
+    wp = rate_from / rate_to  # old Nyquist over new Nyquist
+    ws = 2.0 / m - wp
+    n, _ = scipy.signal.ellipord(wp, ws, 0.1, IMAGE_ATTENUATION_DB)
+    n = int(n) + int(n) % 2
+    z, poles, _ = scipy.signal.ellip(n, 0.1, IMAGE_ATTENUATION_DB, wp, output="zpk")
+    return poles, z * np.minimum(1.0, 0.9999 / np.abs(z))
+
+
+def _root_power_spectrum(poles: np.ndarray, zeros: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """|C/A(e^jw)|^2 from the roots (products of distances: no cancellation among large coefficients)."""
+    e = np.exp(1j * w)[:, None]
+    num = np.prod(np.abs(1.0 - zeros[None, :] / e) ** 2, axis=1) if zeros.shape[0] else np.ones(w.shape[0])
+    den = np.prod(np.abs(1.0 - poles[None, :] / e) ** 2, axis=1) if poles.shape[0] else np.ones(w.shape[0])
+    return num / den
+
+
+def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre: tuple[np.ndarray, np.ndarray] | None,
+              rate_pre: float) -> tuple[np.ndarray, np.ndarray]:
+    """(poles, zeros) at ``rate`` Hz, same orders, whose spectrum times |pre|^2 is the original's below its Nyquist.
+
+    ``pre``: (poles, zeros) of a filter at ``rate_pre`` Hz (the anti-imaging lowpass) or None.
+
+    Residuals (flowtex.dsp.arma_logfit): 10 log10(model / original) on
+    BAND_POINTS frequencies up to BAND_EDGE x the old Nyquist where the original
+    is within 40 dB of its peak (lsd_db's band); one-sided ceilings elsewhere:
+    the peak - 40 dB in the band's valleys, the band's peak from BAND_EDGE to the
+    old Nyquist, and STOPBAND_CEILING x the band's mean power / (ratio - 1)
+    above it (then the power above the old Nyquist is <= ~STOPBAND_CEILING of the band's).
+    Start: the original's roots mapped by z -> z^(rate_from / rate).
+    """
+    f_lim = 0.5 * rate_from
+    f_in = np.linspace(0.0, BAND_EDGE * f_lim, BAND_POINTS + 1)[1:]
+    t_db = 10.0 * np.log10(_model_power_spectrum(ar, ma, 2.0 * math.pi * f_in / rate_from))
+    peak = float(np.max(t_db))
+    inside = t_db >= peak - LSD_RANGE_DB
+    f_tr = np.linspace(BAND_EDGE * f_lim, f_lim, EDGE_POINTS)
+    f_st = np.linspace(f_lim, 0.5 * rate, STOP_POINTS)
+    ratio = rate / rate_from
+    ceiling = 10.0 * math.log10(STOPBAND_CEILING / max(ratio - 1.0, 1e-3) * float(np.mean(10.0 ** (t_db / 10.0))))
+    f = np.r_[f_in, f_tr, f_st]
+    level = np.r_[np.where(inside, t_db, peak - LSD_RANGE_DB), np.full(f_tr.shape[0], peak), np.full(f_st.shape[0], ceiling)]
+    if pre is not None:
+        level = level - 10.0 * np.log10(_root_power_spectrum(pre[0], pre[1], 2.0 * math.pi * f / rate_pre))
+    one_sided = np.r_[~inside, np.ones(f_tr.shape[0] + f_st.shape[0], dtype=bool)]
+    a0 = _map_roots(ar, rate_from / rate)
+    c0 = _map_roots(ma, rate_from / rate)
+    poles, zeros, _, _ = fit_log_spectrum(2.0 * math.pi * f / rate, level, np.ones(f.shape[0]), one_sided, a0, c0, MAX_RADIUS)
+    return poles, zeros
+
+
+def _stretched_roots(roots: np.ndarray, m: int) -> np.ndarray:
+    """Roots of P(z^m) from those of P(z): the m m-th roots of each."""
+    k = np.arange(m)
+    return (np.abs(roots)[:, None] ** (1.0 / m) * np.exp(1j * (np.angle(roots)[:, None] + 2.0 * math.pi * k[None, :]) / m)).ravel()
+
+
+def _upsample(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate_to: float, keep_order: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(poles, zeros) at ``rate_to`` > ``rate_from``: a band fit at rate_to / M, stretched by z -> z^M and cascaded with the anti-imaging lowpass."""
+    m = 1 if keep_order else _stretch(rate_from, rate_to)
+    if m == 1:
+        return _fit_band(ar, ma, rate_from, rate_to, None, rate_to)
+    lp_poles, lp_zeros = _anti_imaging(rate_from, rate_to, m)
+    poles, zeros = _fit_band(ar, ma, rate_from, rate_to / m, (lp_poles, lp_zeros), rate_to)
+    return np.r_[_stretched_roots(poles, m), lp_poles], np.r_[_stretched_roots(zeros, m), lp_zeros]
+
+
+def _check_rates(rate_from: float, rate_to: float) -> None:
+    if not (rate_from > 0.0 and rate_to > 0.0 and math.isfinite(rate_from) and math.isfinite(rate_to)):
+        raise ValueError(f"sample rates must be positive and finite, got {rate_from} and {rate_to}")
+
+
+def _band_variance(spectrum_new: np.ndarray, ar: np.ndarray, ma: np.ndarray, variance: float, rate_from: float, rate_to: float,
+                   w: np.ndarray) -> float:
+    """Variance making the new model's power below 0.9 x the lower Nyquist the original's (both on the new grid ``w``)."""
+    f = w * rate_to / (2.0 * math.pi)
+    old_power = np.sum(_model_power_spectrum(ar, ma, 2.0 * math.pi * f / rate_from)) / rate_from
+    return float(variance) * old_power / (np.sum(spectrum_new) / rate_to)
+
+
+def resample_arma_lsf(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, rate_from: float, rate_to: float,
+                      keep_order: bool = False, grid: int = GRID, iterations: int = 40
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, float, float]:
+    """:func:`resample_arma` plus the new model's LSFs: (ar, ma, ar_lsf, ma_lsf, gain, variance).
+
+    When upsampling the LSFs come from the fitted roots (:func:`flowtex.dsp.lsf.roots_to_lsf`), exactly; they
+    are None when downsampling (or if they do not come out valid): take them from the polynomials then.
     """
     ar = np.asarray(ar, dtype=np.float64)
     ma = np.asarray(ma, dtype=np.float64)
-    if not (rate_from > 0.0 and rate_to > 0.0 and math.isfinite(rate_from) and math.isfinite(rate_to)):
-        raise ValueError(f"sample rates must be positive and finite, got {rate_from} and {rate_to}")
+    _check_rates(rate_from, rate_to)
+    if rate_to <= rate_from:
+        a1, c1, g, v = resample_arma(ar, ma, gain, variance, rate_from, rate_to, grid=grid, iterations=iterations)
+        return a1, c1, None, None, g, v
+    poles, zeros = _upsample(ar, ma, rate_from, rate_to, keep_order)
+    w = 2.0 * math.pi * np.arange(grid // 2 + 1) / grid
+    w = w[w * rate_to / (2.0 * math.pi) < 0.45 * rate_from]
+    new_variance = _band_variance(_root_power_spectrum(poles, zeros, w), ar, ma, variance, rate_from, rate_to, w)
+    lsf_a = lsf_c = None
+    try:
+        lsf_a, lsf_c = roots_to_lsf(poles), roots_to_lsf(zeros)
+    except ValueError:
+        lsf_a = lsf_c = None
+    if lsf_a is not None and not (is_valid_lsf(lsf_a) and is_valid_lsf(lsf_c)):
+        lsf_a = lsf_c = None
+    return real_poly(poles), real_poly(zeros), lsf_a, lsf_c, float(gain), new_variance
+
+
+def resample_arma(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, rate_from: float, rate_to: float,
+                  keep_order: bool = False, grid: int = GRID, iterations: int = 40) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """(ar, ma, gain, variance) at ``rate_to`` Hz with the same physical PSD below min(rate_from, rate_to) / 2.
+
+    Downsampling keeps the orders; upsampling returns the orders of
+    :func:`upsampled_order` (``keep_order``: the original's, at a cost in
+    accuracy beyond DIRECT_MAX_RATIO). The gain is kept and the variance
+    carries the power (a silent model, variance 0, stays silent with its
+    shape resampled). Rates in Hz. See the module docstring for the method and why.
+    """
+    ar = np.asarray(ar, dtype=np.float64)
+    ma = np.asarray(ma, dtype=np.float64)
+    _check_rates(rate_from, rate_to)
     if rate_from == rate_to:
         return ar.copy(), ma.copy(), float(gain), float(variance)
+    if rate_to > rate_from:
+        a1, c1, _, _, g, v = resample_arma_lsf(ar, ma, gain, variance, rate_from, rate_to, keep_order, grid, iterations)
+        return a1, c1, g, v
+    # downsampling: prediction-error fit of the band's PSD on the new grid, same order
     ratio = rate_from / rate_to
     w = 2.0 * math.pi * np.arange(grid // 2 + 1) / grid  # new rate's grid, rad/sample
     f = w * rate_to / (2.0 * math.pi)
-    f_lim = 0.5 * min(rate_from, rate_to)
+    f_lim = 0.5 * rate_to
     shape = _model_power_spectrum(ar, ma, 2.0 * math.pi * np.minimum(f, f_lim) / rate_from)
     T = np.where(f < f_lim, shape, STOPBAND_FLOOR * np.mean(shape[f < f_lim]))
-    a1, c1, crit = whittle_refine(T, grid, _map_roots(ar, ratio), _map_roots(ma, ratio), iterations=iterations, tol=1e-10)
-    if ratio < 1.0:
-        # upsampling: the criterion has local minima; also start from the Yule-Walker AR of the target with C = 1
-        import scipy.linalg
-
-        p = ar.shape[0] - 1
-        r = np.fft.irfft(T, grid)[:p + 1]
-        a_yw = np.r_[1.0, scipy.linalg.solve_toeplitz(r[:-1], -r[1:])] if p else ar
-        a2, c2, crit2 = whittle_refine(T, grid, a_yw, np.r_[1.0, np.zeros(ma.shape[0] - 1)], iterations=iterations, tol=1e-10)
-        if crit2 < crit:
-            a1, c1 = a2, c2
-    # power of one unit of g^2 sigma2 below 0.9 f_lim, original (on the old rate's scale) and new
-    band = f < 0.9 * f_lim
-    old_power = np.sum(shape[band]) / rate_from
-    new_power = np.sum(_model_power_spectrum(a1, c1, w[band])) / rate_to
-    new_variance = float(variance) * old_power / new_power
-    return a1, c1, float(gain), new_variance
-
-
-# Limitation (measured, see docs/fitting.md): downsampling keeps every model within ~0.01 dB; upsampling at the same
-# order must spend poles and zeros on the new stopband, and some models end 1-3 dB from their spectrum (2x) or worse
-# (4x and more), while band power (<= 0.1 %) and the power above the old Nyquist (<= 0.1 %) stay within the issue's 2 %.
+    a1, c1, _ = whittle_refine(T, grid, _map_roots(ar, ratio), _map_roots(ma, ratio), iterations=iterations, tol=1e-10)
+    wb = w[f < 0.9 * f_lim]
+    return a1, c1, float(gain), _band_variance(_model_power_spectrum(a1, c1, wb), ar, ma, variance, rate_from, rate_to, wb)
