@@ -156,13 +156,16 @@ def log_spectrum_db(w: np.ndarray, x: np.ndarray, lay: _Layout, jac: bool = Fals
 
 
 def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, one_sided: np.ndarray,
-                     a0: np.ndarray, c0: np.ndarray, max_radius: float, iterations: int = 100, tol: float = 1e-6
+                     a0: np.ndarray, c0: np.ndarray, pole_radius: float, zero_radius: float, iterations: int = 100,
+                     tol: float = 1e-6
                      ) -> tuple[np.ndarray, np.ndarray, float, float]:
     """Least-squares fit of the model's dB spectrum (see the module docstring), started from (``a0``, ``c0``).
 
     ``w``: frequencies in rad/sample; ``level_db``: target (or ceiling, where
-    ``one_sided``) in dB; ``weight``: residual weights. Root radii stay in
-    [0, ``max_radius``] (poles and zeros: stable, minimum phase) and pair
+    ``one_sided``) in dB; ``weight``: residual weights. Pole radii stay in
+    [0, ``pole_radius``], zero radii in [0, ``zero_radius``] (both < 1: stable,
+    minimum phase; a pole much sharper than the grid resolves would be a
+    spike between its frequencies, invisible to the fit), and pair
     angles in [0, pi]. The numbers of conjugate pairs and real roots are those
     of the start. Levenberg-Marquardt (Marquardt's diagonal scaling) with steps
     projected onto those bounds; it stops when a step lowers the cost by less
@@ -176,24 +179,23 @@ def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, on
     lay = _Layout(zrad.shape[0], zreal.shape[0], prad.shape[0], preal.shape[0])
     lo = np.full(lay.size, -np.inf)
     hi = np.full(lay.size, np.inf)
-    for p0, r0, end in ((lay.zp, lay.zr, lay.pp), (lay.pp, lay.pr, lay.size)):
-        lo[p0:r0:2], hi[p0:r0:2] = math.log1p(-max_radius), 0.0
+    for p0, r0, end, rmax in ((lay.zp, lay.zr, lay.pp, zero_radius), (lay.pp, lay.pr, lay.size, pole_radius)):
+        lo[p0:r0:2], hi[p0:r0:2] = math.log1p(-rmax), 0.0
         lo[p0 + 1:r0:2], hi[p0 + 1:r0:2] = 0.0, math.pi
-        lo[r0:end], hi[r0:end] = -max_radius, max_radius
-    x = np.clip(lay.pack(0.0, np.minimum(zrad, max_radius), zang, zreal, np.minimum(prad, max_radius), pang, preal), lo, hi)
+        lo[r0:end], hi[r0:end] = -rmax, rmax
+    x = np.clip(lay.pack(0.0, np.minimum(zrad, zero_radius), zang, zreal, np.minimum(prad, pole_radius), pang, preal), lo, hi)
     two = ~one_sided
     w2 = weight * weight
 
-    def residual(x):
-        s, J = log_spectrum_db(w, x, lay, jac=J_needed[0])
+    def residual(x, jac):
+        """(weighted residuals, rows that count, Jacobian or None)."""
+        s, J = log_spectrum_db(w, x, lay, jac=jac)
         d = s - level_db
         return weight * np.where(one_sided, np.maximum(d, 0.0), d), (two | (d > 0.0)), J
 
-    J_needed = [False]
     s0, _ = log_spectrum_db(w, x, lay)
     x[0] = float(np.sum((w2 * (level_db - s0))[two]) / max(np.sum(w2[two]), 1e-300))  # best offset for the start
-    J_needed[0] = True
-    r, active, J = residual(x)
+    r, active, J = residual(x, True)
     cost = float(r @ r)
     lam = 1e-3
     floor = 1e-6 * float(np.sum(w2[two]))  # RMS weighted residual of 1e-3 dB: nothing left worth a step
@@ -211,8 +213,7 @@ def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, on
                 lam *= 10.0
                 continue
             x_new = np.clip(x + step, lo, hi)
-            J_needed[0] = False
-            r_new, _, _ = residual(x_new)
+            r_new, _, _ = residual(x_new, False)
             cost_new = float(r_new @ r_new)
             if cost_new < cost:
                 improved = True
@@ -223,8 +224,7 @@ def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, on
             break
         rel = (cost - cost_new) / max(cost, 1e-300)
         x = x_new
-        J_needed[0] = True
-        r, active, J = residual(x)
+        r, active, J = residual(x, True)
         cost = float(r @ r)
         if rel < tol or cost < floor:
             break

@@ -3,20 +3,51 @@
 A model (A, C, g, sigma2) at rate fs1 has the one-sided PSD in physical units
 S(f) = 2 g^2 sigma2 |C/A(e^{j 2 pi f / fs1})|^2 / fs1 for 0 <= f <= fs1 / 2.
 The model at rate fs2 keeps S below f_lim = min(fs1, fs2) / 2 and has (ideally)
-nothing above it:
+nothing above it. Both directions start from the original poles and zeros
+mapped by z -> z^(fs1 / fs2) (impulse invariance: same resonance frequencies
+and bandwidths in Hz), and end by setting the excitation variance so that the
+new model's power below 0.9 f_lim equals the original's.
 
-* the target spectrum on the new grid w = 2 pi f / fs2 is
-  T(w) = (fs2 / fs1) g^2 sigma2 |C/A(e^{j 2 pi f / fs1})|^2 for f < f_lim (then
-  S_new(f) = 2 T / fs2 = S(f)), and T = :data:`STOPBAND_FLOOR` times its peak
-  above (upsampling only: nothing above the old Nyquist, where the original
-  rate says nothing);
-* an ARMA of the same order is fitted to T by the same prediction-error
-  (Whittle) Gauss-Newton as :func:`flowtex.fit.fit_arma`
-  (:func:`flowtex.dsp.arma_estimate.whittle_refine`), started from the
-  original poles and zeros mapped by z -> z^(fs1 / fs2) (impulse invariance:
-  same resonance frequencies and bandwidths in Hz);
-* the excitation variance is set so that the new model's power below
-  0.9 f_lim equals the original's.
+**Downsampling** (same order): the target on the new grid w = 2 pi f / fs2 is
+T(w) = |C/A(e^{j 2 pi f / fs1})|^2 below the new Nyquist (nothing of what lies
+above it is folded in) and an ARMA is fitted to it by the prediction-error
+(Whittle) Gauss-Newton of :func:`flowtex.fit.fit_arma`
+(:func:`flowtex.dsp.arma_estimate.whittle_refine`). Measured: LSD <= 0.01 dB.
+
+**Upsampling**: the band below the old Nyquist must be kept and the new band
+above it left (nearly) empty. Fitting that with the Whittle criterion at the
+same order left HaTT-like models 0.4-3 dB (2x) and 1-4 dB (4x) from their
+spectrum: the criterion barely penalises a model that lies above the target in
+its valleys, and it has to spend poles and zeros on the stopband. Instead the
+model's log spectrum is fitted directly (:mod:`flowtex.dsp.arma_logfit`):
+residuals 10 log10(model / original) where the original is within 40 dB of
+its peak up to :data:`BAND_EDGE` x the old Nyquist (the LSD itself), and
+one-sided ceilings elsewhere (the valleys, the edge, and
+:data:`STOPBAND_CEILING` above the old Nyquist), by Levenberg-Marquardt with
+the roots as parameters (stable and minimum phase by box bounds).
+
+A second limit is numerical: the poles of a model upsampled by R crowd into
+the arc |angle| < pi / R near z = 1, and their direct-form coefficients (which
+the model set's LSFs become in texture_lookup, and which arma_synth turns into
+a lattice) grow to ~1e5 while |A| in the band falls to ~1e-10: float64
+coefficients of HaTT's 19 poles (up to r = 0.985) mapped to 4x miss the
+spectrum by 2-24 dB from rounding alone. So up to :data:`DIRECT_MAX_RATIO`
+(2x) the fit keeps the order (p, q); beyond it the model is fitted at fs2 / M
+(M = ceil(R / DIRECT_MAX_RATIO)), stretched by z -> z^M (each root becomes M
+roots spread around the circle: the coefficients are the fitted model's, at
+most 2x compressed) and cascaded with an elliptic lowpass that removes the
+M - 1 images (its passband ripple is compensated inside the fit): orders
+(M p + n, M q + n), n the lowpass order (2.5x: 44/40 from 19/17, 3x: 44/40,
+4x: 42/38). The LSFs are computed from the roots
+(:func:`flowtex.dsp.lsf.roots_to_lsf`), not from the coefficients.
+
+Measured on 30 HaTT-like 19/17 models (benchmarks/bench_model_resample.py),
+as rendered (rebuilt from the stored LSFs): LSD max / median 0.09 / 0.001 dB
+at 2x (19/17), 0.002 / 0.001 at 2.5x (44/40), 0.80 / 0.001 at 4x (42/38: one
+model of 30 above 0.5 dB, its coefficients again at the float64 limit); band
+power within 1.6 %, power above the old Nyquist <= 0.07 %. Beyond 4x (M >= 3,
+orders >= 63) the float64 coefficients fail for many models: the LSD is
+reported and the command warns.
 
 Why not 003's method (match the autocorrelation at the lags common to both
 rates, then correct the noise variance): the ACF at the common lags carries
@@ -41,8 +72,10 @@ from .lsf import is_valid_lsf, roots_to_lsf
 STOPBAND_FLOOR = 1e-4
 """Downsampling: target level above the new Nyquist, relative to the band's mean (-40 dB)."""
 
-DIRECT_MAX_RATIO = 2.5
-"""Largest upsampling ratio fitted at the original order; beyond it the model is fitted at rate_to / M and stretched."""
+DIRECT_MAX_RATIO = 2.0
+"""Largest upsampling ratio fitted at the original order; beyond it the model is fitted at rate_to / M, M = ceil(ratio / it),
+and stretched by z -> z^M (measured on 30 HaTT-like 19/17 models: direct fits at 2.5x, and at 4x stretching by 3 or 4
+instead of 2, left more models whose float64 coefficients miss their spectrum; see docs/fitting.md)."""
 
 STOPBAND_CEILING = 0.005
 """Upsampling: ceiling above the old Nyquist, relative to the band's mean power and divided by (ratio - 1)."""
@@ -57,7 +90,10 @@ LSD_RANGE_DB = 40.0
 """Frequencies more than this below the band's peak only get a one-sided ceiling (as in lsd_db's band)."""
 
 BAND_POINTS, EDGE_POINTS, STOP_POINTS = 2000, 40, 1000
-"""Frequencies of the upsampling fit: in the band, from BAND_EDGE to the old Nyquist, and above it."""
+"""Frequencies of the upsampling fit: in the band (at least; more for sharper poles), from BAND_EDGE to the old Nyquist, and above it."""
+
+MAX_BAND_POINTS = 20000
+"""Cap on the band's frequencies (poles within ~1e-4 of the circle): the fit's cost is linear in them."""
 
 GRID = 16384
 """FFT grid of the spectral fit (w resolution 2 pi / GRID: ~3.8e-4 rad, finer than HaTT's sharpest resonances)."""
@@ -99,7 +135,7 @@ def upsampled_order(p: int, q: int, rate_from: float, rate_to: float, keep_order
 def _stretch(rate_from: float, rate_to: float) -> int:
     """Integer M by which an upsampled model is stretched (z -> z^M): 1 up to DIRECT_MAX_RATIO, then ceil(ratio / it)."""
     ratio = rate_to / rate_from
-    return 1 if ratio <= DIRECT_MAX_RATIO else math.ceil(ratio / DIRECT_MAX_RATIO)
+    return 1 if ratio <= DIRECT_MAX_RATIO * (1.0 + 1e-12) else math.ceil(ratio / DIRECT_MAX_RATIO - 1e-12)
 
 
 def _anti_imaging(rate_from: float, rate_to: float, m: int) -> tuple[np.ndarray, np.ndarray]:
@@ -113,7 +149,9 @@ def _anti_imaging(rate_from: float, rate_to: float, m: int) -> tuple[np.ndarray,
     import scipy.signal
 
     wp = rate_from / rate_to  # old Nyquist over new Nyquist
-    ws = 2.0 / m - wp
+    ws = 2.0 / m - wp  # first image of the old Nyquist
+    if ws < 1.2 * wp:  # stretched by (nearly) the whole ratio: images start at the old Nyquist; pass only the fitted band
+        wp, ws = BAND_EDGE * wp, 2.0 / m - BAND_EDGE * wp
     n, _ = scipy.signal.ellipord(wp, ws, 0.1, IMAGE_ATTENUATION_DB)
     n = int(n) + int(n) % 2
     z, poles, _ = scipy.signal.ellip(n, 0.1, IMAGE_ATTENUATION_DB, wp, output="zpk")
@@ -143,7 +181,15 @@ def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre
     Start: the original's roots mapped by z -> z^(rate_from / rate).
     """
     f_lim = 0.5 * rate_from
-    f_in = np.linspace(0.0, BAND_EDGE * f_lim, BAND_POINTS + 1)[1:]
+    a0 = _map_roots(ar, rate_from / rate)
+    c0 = _map_roots(ma, rate_from / rate)
+    # poles at most twice as sharp as the sharpest mapped original pole ((1 - r) halved), and at least 3 fitted
+    # frequencies per half-power bandwidth (2 (1 - r) rad) of such a pole (and at least BAND_POINTS)
+    r_max = float(np.max(np.abs(np.roots(ar)))) ** (rate_from / rate) if ar.shape[0] > 1 else 0.0
+    pole_radius = min(MAX_RADIUS, 1.0 - 0.5 * (1.0 - r_max))
+    n_band = int(min(MAX_BAND_POINTS, max(BAND_POINTS, math.ceil(3.0 * math.pi * BAND_EDGE * rate_from / rate
+                                                                  / (2.0 * (1.0 - pole_radius))))))
+    f_in = np.linspace(0.0, BAND_EDGE * f_lim, n_band + 1)[1:]
     t_db = 10.0 * np.log10(_model_power_spectrum(ar, ma, 2.0 * math.pi * f_in / rate_from))
     peak = float(np.max(t_db))
     inside = t_db >= peak - LSD_RANGE_DB
@@ -153,12 +199,12 @@ def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre
     ceiling = 10.0 * math.log10(STOPBAND_CEILING / max(ratio - 1.0, 1e-3) * float(np.mean(10.0 ** (t_db / 10.0))))
     f = np.r_[f_in, f_tr, f_st]
     level = np.r_[np.where(inside, t_db, peak - LSD_RANGE_DB), np.full(f_tr.shape[0], peak), np.full(f_st.shape[0], ceiling)]
-    if pre is not None:
-        level = level - 10.0 * np.log10(_root_power_spectrum(pre[0], pre[1], 2.0 * math.pi * f / rate_pre))
+    if pre is not None:  # compensate the lowpass in the band and at its edge; the stopband ceiling stays the model's own
+        n_pre = f_in.shape[0] + f_tr.shape[0]
+        level[:n_pre] -= 10.0 * np.log10(_root_power_spectrum(pre[0], pre[1], 2.0 * math.pi * f[:n_pre] / rate_pre))
     one_sided = np.r_[~inside, np.ones(f_tr.shape[0] + f_st.shape[0], dtype=bool)]
-    a0 = _map_roots(ar, rate_from / rate)
-    c0 = _map_roots(ma, rate_from / rate)
-    poles, zeros, _, _ = fit_log_spectrum(2.0 * math.pi * f / rate, level, np.ones(f.shape[0]), one_sided, a0, c0, MAX_RADIUS)
+    poles, zeros, _, _ = fit_log_spectrum(2.0 * math.pi * f / rate, level, np.ones(f.shape[0]), one_sided, a0, c0,
+                                          pole_radius, MAX_RADIUS)
     return poles, zeros
 
 

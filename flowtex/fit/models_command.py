@@ -20,7 +20,7 @@ def register(subparsers: Any) -> None:
     r.add_argument("--rate", type=float, required=True, metavar="HZ", help="target sample rate in Hz")
     r.add_argument("-o", "--output", required=True, metavar="OUT", help="native model-set JSON to write")
     r.add_argument("--keep-order", action="store_true",
-                   help="keep the models' (p, q) when upsampling by more than 2.5x (cheaper to render, less exact)")
+                   help="keep the models' (p, q) when upsampling by more than 2x (cheaper to render, less exact)")
     r.set_defaults(func=cmd_resample)
 
 
@@ -51,6 +51,6 @@ def cmd_resample(args: Any) -> int:
           f"(up to 0.9 x the lower Nyquist)")
     if info["worst_lsd_db"] > 0.5:
         print("warning: some models do not keep their spectrum within 0.5 dB"
-              + (" (--keep-order: upsampling by more than 2.5x needs the higher order; see docs/fitting.md)" if args.keep_order else
+              + (" (--keep-order: upsampling by more than 2x needs the higher order; see docs/fitting.md)" if args.keep_order else
                  " (see docs/fitting.md)"))
     return 0

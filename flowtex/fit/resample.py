@@ -35,7 +35,7 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
                        keep_order: bool = False) -> TextureModelSet:
     """A copy of ``ms`` whose models run at ``rate_hz`` (Hz) with the same physical PSDs below min Nyquist.
 
-    Upsampling by more than 2.5x raises every model's order alike
+    Upsampling by more than 2x raises every model's order alike
     (:func:`flowtex.dsp.arma_resample.upsampled_order`) unless ``keep_order``.
     ``metadata["resample"]`` records the source rate, the orders, the method
     and the worst LSD (dB) and band-power error of the models as rendered,
