@@ -80,8 +80,9 @@ instead of 2, left more models whose float64 coefficients miss their spectrum; s
 STOPBAND_CEILING = 0.005
 """Upsampling: ceiling above the old Nyquist, relative to the band's mean power and divided by (ratio - 1)."""
 
-IMAGE_ATTENUATION_DB = 70.0
-"""Stopband attenuation of the anti-imaging lowpass of stretched models."""
+IMAGE_ATTENUATION_DB = 40.0
+"""Least stopband attenuation of the anti-imaging lowpass of stretched models (the band's images then carry
+<= ~0.01 % of its power; measured above the old Nyquist: <= 0.03 %)."""
 
 BAND_EDGE = 0.92
 """Band fitted two-sided: up to this fraction of the old Nyquist (the requirement's 0.9, plus a margin)."""
@@ -121,15 +122,15 @@ def _map_roots(poly: np.ndarray, ratio: float) -> np.ndarray:
 def upsampled_order(p: int, q: int, rate_from: float, rate_to: float, keep_order: bool = False) -> tuple[int, int]:
     """(P, Q) of the models :func:`resample_arma` returns: (p, q) unless upsampling by more than :data:`DIRECT_MAX_RATIO`.
 
-    Then (M p + n, M q + n) with M = :func:`_stretch` and n the anti-imaging
-    lowpass order (:func:`_anti_imaging`); the same for every model of a set,
+    Then (M p, M q + n) with M = :func:`_stretch` and n the order of the
+    anti-imaging FIR lowpass (:func:`_anti_imaging`); the same for every model of a set,
     so LSFs stay interpolable. ``keep_order`` forces (p, q).
     """
     m = _stretch(rate_from, rate_to)
     if keep_order or m == 1:
         return p, q
-    n = _anti_imaging(rate_from, rate_to, m)[0].shape[0]
-    return m * p + n, m * q + n
+    poles, zeros = _anti_imaging(rate_from, rate_to, m)
+    return m * p + poles.shape[0], m * q + zeros.shape[0]
 
 
 def _stretch(rate_from: float, rate_to: float) -> int:
@@ -139,12 +140,17 @@ def _stretch(rate_from: float, rate_to: float) -> int:
 
 
 def _anti_imaging(rate_from: float, rate_to: float, m: int) -> tuple[np.ndarray, np.ndarray]:
-    """(poles, zeros) at ``rate_to`` of the elliptic lowpass that removes the images of a model stretched by z -> z^m.
+    """(poles, zeros) at ``rate_to`` of the lowpass that removes the images of a model stretched by z -> z^m.
 
-    Passband up to the old Nyquist, stopband from the first image of it
-    (rate_to / m - rate_from / 2); 0.1 dB ripple (the band fit compensates it)
-    and :data:`IMAGE_ATTENUATION_DB`; the order (even) is the least that meets both.
-    Zeros, on the unit circle by design, are pulled in to radius 0.9999 (valid LSFs).
+    An all-zero (FIR) equiripple lowpass (scipy.signal.remez, stopband weighted
+    30x), made minimum phase by reflecting its zeros into the unit circle (same
+    magnitude) and pulling them to radius <= 0.9999 (valid LSFs): passband up to
+    the old Nyquist, stopband from its first image (rate_to / m - rate_from / 2),
+    the fewest taps (odd, >= 9) that reach :data:`IMAGE_ATTENUATION_DB`. Its
+    passband ripple is compensated inside the fit. Why no poles: an elliptic
+    lowpass puts high-Q poles at the band edge, among the model's own crowded
+    poles, and its coefficients then miss the spectrum (measured: 0.80 dB for
+    one of 30 HaTT-like models at 4x, 0.08 dB with this FIR).
     """
     import scipy.signal
 
@@ -152,10 +158,15 @@ def _anti_imaging(rate_from: float, rate_to: float, m: int) -> tuple[np.ndarray,
     ws = 2.0 / m - wp  # first image of the old Nyquist
     if ws < 1.2 * wp:  # stretched by (nearly) the whole ratio: images start at the old Nyquist; pass only the fitted band
         wp, ws = BAND_EDGE * wp, 2.0 / m - BAND_EDGE * wp
-    n, _ = scipy.signal.ellipord(wp, ws, 0.1, IMAGE_ATTENUATION_DB)
-    n = int(n) + int(n) % 2
-    z, poles, _ = scipy.signal.ellip(n, 0.1, IMAGE_ATTENUATION_DB, wp, output="zpk")
-    return poles, z * np.minimum(1.0, 0.9999 / np.abs(z))
+    f = np.linspace(0.0, 1.0, 4097)
+    for taps in range(9, 202, 2):
+        h = scipy.signal.remez(taps, [0.0, 0.5 * wp, 0.5 * ws, 0.5], [1.0, 0.0], weight=[1.0, 30.0])
+        mag = np.abs(np.polynomial.polynomial.polyval(np.exp(-1j * math.pi * f), h))
+        if 20.0 * math.log10(np.max(mag[f <= wp]) / np.max(mag[f >= ws])) >= IMAGE_ATTENUATION_DB:
+            break
+    z = np.roots(h)
+    z = np.where(np.abs(z) > 1.0, 1.0 / np.conj(z), z)
+    return np.zeros(0, dtype=np.complex128), z * np.minimum(1.0, 0.9999 / np.abs(z))
 
 
 def _root_power_spectrum(poles: np.ndarray, zeros: np.ndarray, w: np.ndarray) -> np.ndarray:

@@ -63,10 +63,10 @@ def _lattice(a, c):
 
 
 # HaTT-like 19/17 models (poles to r = 0.985, MA zeros at 0.9999 near z = -1); seeds 0..11 here, 0..29 in
-# benchmarks/bench_model_resample.py (docs/fitting.md: one of those 30 misses 0.5 dB at 4 kHz). 2 kHz keeps the
-# order; 2.5 and 4 kHz are fitted at half the rate, stretched z -> z^2 (orders doubled) and cascaded with the
-# elliptic lowpass that ellipord sizes: (0.4, 0.6, 0.1 dB, 70 dB) -> order 6, (0.25, 0.75, ...) -> order 4.
-@pytest.mark.parametrize("fs2,orders", [(2000.0, (19, 17)), (2500.0, (2 * 19 + 6, 2 * 17 + 6)), (4000.0, (2 * 19 + 4, 2 * 17 + 4))])
+# benchmarks/bench_model_resample.py. 2 kHz keeps the order; 2.5 and 4 kHz are fitted at half the rate, stretched
+# z -> z^2 (orders doubled) and cascaded with a 9-tap (8 zeros) FIR lowpass: remez's fewest taps reaching 40 dB
+# between the old Nyquist and its first image (9 for both: 40.4 and 62.9 dB, see _anti_imaging).
+@pytest.mark.parametrize("fs2,orders", [(2000.0, (19, 17)), (2500.0, (2 * 19, 2 * 17 + 8)), (4000.0, (2 * 19, 2 * 17 + 8))])
 def test_upsampling_keeps_each_models_spectrum_as_rendered(fs2, orders):
     fs1 = 1000.0
     assert upsampled_order(19, 17, fs1, fs2) == orders
@@ -159,9 +159,9 @@ def test_cli_upsample_4x_changes_the_order_unless_kept(tmp_path, capsys, keep):
     out = tmp_path / "out.json"
     assert main(["models", "resample", str(src), "--rate", "4000", "-o", str(out)] + (["--keep-order"] if keep else [])) == 0
     printed = capsys.readouterr().out
-    # 4x: fitted at 2 kHz, stretched z -> z^2, times the order-4 elliptic lowpass (ellipord(0.25, 0.75, 0.1, 70))
-    p, q = (8, 6) if keep else (2 * 8 + 4, 2 * 6 + 4)
-    assert ("orders 8/6," in printed) if keep else ("orders 8/6 -> 20/16" in printed)
+    # 4x: fitted at 2 kHz, stretched z -> z^2, times the 9-tap FIR lowpass (8 zeros)
+    p, q = (8, 6) if keep else (2 * 8, 2 * 6 + 8)
+    assert ("orders 8/6," in printed) if keep else ("orders 8/6 -> 16/20" in printed)
     res = load_model_set(out)
     assert (res.ar_order, res.ma_order) == (p, q) and res.metadata["resample"]["to_order"] == [p, q]
     assert np.all(res.variance[ms.variance == 0.0] == 0.0)
