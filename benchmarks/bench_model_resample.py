@@ -152,7 +152,7 @@ def main() -> None:
     if args.cork:
         cork([2000.0, 4000.0])
     if args.render:
-        render([(19, 17), (42, 38)])
+        render([(19, 17), (38, 42)])
 
 
 if __name__ == "__main__":

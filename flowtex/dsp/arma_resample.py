@@ -35,19 +35,19 @@ spectrum by 2-24 dB from rounding alone. So up to :data:`DIRECT_MAX_RATIO`
 (2x) the fit keeps the order (p, q); beyond it the model is fitted at fs2 / M
 (M = ceil(R / DIRECT_MAX_RATIO)), stretched by z -> z^M (each root becomes M
 roots spread around the circle: the coefficients are the fitted model's, at
-most 2x compressed) and cascaded with an elliptic lowpass that removes the
-M - 1 images (its passband ripple is compensated inside the fit): orders
-(M p + n, M q + n), n the lowpass order (2.5x: 44/40 from 19/17, 3x: 44/40,
-4x: 42/38). The LSFs are computed from the roots
-(:func:`flowtex.dsp.lsf.roots_to_lsf`), not from the coefficients.
+most 2x compressed) and cascaded with an all-zero (FIR) lowpass that removes
+the M - 1 images (its passband ripple is compensated inside the fit; no poles,
+which at the band edge would crowd in with the model's own): orders
+(M p, M q + n), n the FIR's order (2.5x to 4x: 38/42 from 19/17). The LSFs
+are computed from the roots (:func:`flowtex.dsp.lsf.roots_to_lsf`), not from
+the coefficients.
 
 Measured on 30 HaTT-like 19/17 models (benchmarks/bench_model_resample.py),
 as rendered (rebuilt from the stored LSFs): LSD max / median 0.09 / 0.001 dB
-at 2x (19/17), 0.002 / 0.001 at 2.5x (44/40), 0.80 / 0.001 at 4x (42/38: one
-model of 30 above 0.5 dB, its coefficients again at the float64 limit); band
-power within 1.6 %, power above the old Nyquist <= 0.07 %. Beyond 4x (M >= 3,
-orders >= 63) the float64 coefficients fail for many models: the LSD is
-reported and the command warns.
+at 2x (19/17), 0.009 / 0.001 at 2.5x and 0.08 / 0.001 at 4x (38/42); band
+power within 1.6 % (0.23 % beyond 2x), power above the old Nyquist <= 0.06 %.
+At 6x (57/59) one model of 10 missed (1.6 dB) and 8x (76/78) fails: the
+float64 coefficients again; the LSD is reported and the command warns.
 
 Why not 003's method (match the autocorrelation at the lags common to both
 rates, then correct the noise variance): the ACF at the common lags carries
@@ -74,8 +74,8 @@ STOPBAND_FLOOR = 1e-4
 
 DIRECT_MAX_RATIO = 2.0
 """Largest upsampling ratio fitted at the original order; beyond it the model is fitted at rate_to / M, M = ceil(ratio / it),
-and stretched by z -> z^M (measured on 30 HaTT-like 19/17 models: direct fits at 2.5x, and at 4x stretching by 3 or 4
-instead of 2, left more models whose float64 coefficients miss their spectrum; see docs/fitting.md)."""
+and stretched by z -> z^M (measured on 30 HaTT-like 19/17 models: a direct fit at 2.5x left one model 0.75 dB and 14 %
+of band power off, its float64 coefficients missing its spectrum; see docs/fitting.md)."""
 
 STOPBAND_CEILING = 0.005
 """Upsampling: ceiling above the old Nyquist, relative to the band's mean power and divided by (ratio - 1)."""

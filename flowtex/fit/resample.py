@@ -89,7 +89,7 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
     else:
         method = "log-spectral fit of the PSD below the old Nyquist, stopband ceiling above"
         if (p, q) != (p0, q0):
-            method += "; fitted at 1/M of the rate, stretched z -> z^M and cascaded with an elliptic anti-imaging lowpass"
+            method += "; fitted at 1/M of the rate, stretched z -> z^M and cascaded with an FIR anti-imaging lowpass"
     metadata["resample"] = {"from_hz": rate_from, "to_hz": float(rate_hz), "method": method,
                             "from_order": [p0, q0], "to_order": [p, q],
                             "worst_lsd_db": worst_lsd, "worst_band_power_error": worst_band}
