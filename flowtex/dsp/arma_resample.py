@@ -6,7 +6,8 @@ The model at rate fs2 keeps S below f_lim = min(fs1, fs2) / 2 and has (ideally)
 nothing above it. Both directions start from the original poles and zeros
 mapped by z -> z^(fs1 / fs2) (impulse invariance: same resonance frequencies
 and bandwidths in Hz), and end by setting the excitation variance so that the
-new model's power below 0.9 f_lim equals the original's.
+new model's power below 0.9 f_lim equals the original's (upsampling: on the model
+rebuilt from its LSFs, as rendered).
 
 **Downsampling** (same order): the target on the new grid w = 2 pi f / fs2 is
 T(w) = |C/A(e^{j 2 pi f / fs1})|^2 below the new Nyquist (nothing of what lies
@@ -43,11 +44,12 @@ are computed from the roots (:func:`flowtex.dsp.lsf.roots_to_lsf`), not from
 the coefficients.
 
 Measured on 30 HaTT-like 19/17 models (benchmarks/bench_model_resample.py),
-as rendered (rebuilt from the stored LSFs): LSD max / median 0.09 / 0.001 dB
-at 2x (19/17), 0.009 / 0.001 at 2.5x and 0.08 / 0.001 at 4x (38/42); band
-power within 1.6 % (0.23 % beyond 2x), power above the old Nyquist <= 0.06 %.
-At 6x (57/59) one model of 10 missed (1.6 dB) and 8x (76/78) fails: the
-float64 coefficients again; the LSD is reported and the command warns.
+as rendered (rebuilt from the stored LSFs, on which the variance is matched):
+LSD max / median 0.11 / 0.001 dB at 2x (19/17), 0.009 / 0.001 at 2.5x and
+0.08 / 0.001 at 4x (38/42); band power within 0.3 %, power above the old
+Nyquist <= 0.06 %. At 6x (57/59) one model of 10 missed (2.4 dB) and 8x
+(76/78) fails: the float64 coefficients again; the LSD is reported and the
+command warns.
 
 Why not 003's method (match the autocorrelation at the lags common to both
 rates, then correct the noise variance): the ACF at the common lags carries
@@ -67,7 +69,7 @@ import numpy as np
 
 from .arma_estimate import MAX_RADIUS, stabilize, whittle_refine
 from .arma_logfit import fit_log_spectrum, real_poly
-from .lsf import is_valid_lsf, roots_to_lsf
+from .lsf import is_valid_lsf, lsf_to_poly_new, roots_to_lsf
 
 STOPBAND_FLOOR = 1e-4
 """Downsampling: target level above the new Nyquist, relative to the band's mean (-40 dB)."""
@@ -263,9 +265,6 @@ def resample_arma_lsf(ar: np.ndarray, ma: np.ndarray, gain: float, variance: flo
         a1, c1, g, v = resample_arma(ar, ma, gain, variance, rate_from, rate_to, grid=grid, iterations=iterations)
         return a1, c1, None, None, g, v
     poles, zeros = _upsample(ar, ma, rate_from, rate_to, keep_order)
-    w = 2.0 * math.pi * np.arange(grid // 2 + 1) / grid
-    w = w[w * rate_to / (2.0 * math.pi) < 0.45 * rate_from]
-    new_variance = _band_variance(_root_power_spectrum(poles, zeros, w), ar, ma, variance, rate_from, rate_to, w)
     lsf_a = lsf_c = None
     try:
         lsf_a, lsf_c = roots_to_lsf(poles), roots_to_lsf(zeros)
@@ -273,7 +272,14 @@ def resample_arma_lsf(ar: np.ndarray, ma: np.ndarray, gain: float, variance: flo
         lsf_a = lsf_c = None
     if lsf_a is not None and not (is_valid_lsf(lsf_a) and is_valid_lsf(lsf_c)):
         lsf_a = lsf_c = None
-    return real_poly(poles), real_poly(zeros), lsf_a, lsf_c, float(gain), new_variance
+    a1, c1 = real_poly(poles), real_poly(zeros)
+    # the band power is matched on the model as it will be rendered: rebuilt from its LSFs by lsf_to_poly (for the
+    # worst-conditioned models the float64 coefficients are where the remaining error lies, ~1 % of band power)
+    a_r, c_r = (lsf_to_poly_new(lsf_a), lsf_to_poly_new(lsf_c)) if lsf_a is not None else (a1, c1)
+    w = 2.0 * math.pi * np.arange(grid // 2 + 1) / grid
+    w = w[w * rate_to / (2.0 * math.pi) < 0.45 * rate_from]
+    new_variance = _band_variance(_model_power_spectrum(a_r, c_r, w), ar, ma, variance, rate_from, rate_to, w)
+    return a1, c1, lsf_a, lsf_c, float(gain), new_variance
 
 
 def resample_arma(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, rate_from: float, rate_to: float,
