@@ -84,7 +84,7 @@ STOPBAND_CEILING = 0.005
 
 IMAGE_ATTENUATION_DB = 40.0
 """Least stopband attenuation of the anti-imaging lowpass of stretched models (the band's images then carry
-<= ~0.01 % of its power; measured above the old Nyquist: <= 0.03 %)."""
+<= ~0.01 % of its power; measured above the old Nyquist, all of it: <= 0.06 %)."""
 
 BAND_EDGE = 0.92
 """Band fitted two-sided: up to this fraction of the old Nyquist (the requirement's 0.9, plus a margin)."""
