@@ -19,6 +19,8 @@ def register(subparsers: Any) -> None:
     r.add_argument("input", metavar="IN", help="model set: HaTT .xml or native flowtex .json")
     r.add_argument("--rate", type=float, required=True, metavar="HZ", help="target sample rate in Hz")
     r.add_argument("-o", "--output", required=True, metavar="OUT", help="native model-set JSON to write")
+    r.add_argument("--keep-order", action="store_true",
+                   help="keep the models' (p, q) when upsampling by more than 2x (cheaper to render, less exact)")
     r.set_defaults(func=cmd_resample)
 
 
@@ -29,7 +31,7 @@ def cmd_resample(args: Any) -> int:
     ms = load_model_set(args.input)
     progress, close = tqdm_progress(ms.num_models, "resample")
     try:
-        out = resample_model_set(ms, args.rate, progress)
+        out = resample_model_set(ms, args.rate, progress, keep_order=args.keep_order)
     finally:
         close()
     target = Path(args.output).expanduser()
@@ -42,10 +44,13 @@ def cmd_resample(args: Any) -> int:
         if os.path.exists(tmp):
             os.unlink(tmp)
     info = out.metadata["resample"]
-    print(f"{args.input}: {ms.num_models} models {info['from_hz']:g} Hz -> {info['to_hz']:g} Hz written to {target}; "
+    (p0, q0), (p, q) = info["from_order"], info["to_order"]
+    orders = f"orders {p0}/{q0}" + (f" -> {p}/{q}" if (p, q) != (p0, q0) else "")
+    print(f"{args.input}: {ms.num_models} models {info['from_hz']:g} Hz -> {info['to_hz']:g} Hz, {orders}, written to {target}; "
           f"worst LSD {info['worst_lsd_db']:.2f} dB, worst band-power error {100 * info['worst_band_power_error']:.2f} % "
           f"(up to 0.9 x the lower Nyquist)")
     if info["worst_lsd_db"] > 0.5:
-        print("warning: some models do not keep their spectrum within 0.5 dB at this order (upsampling by a large "
-              "factor needs more poles and zeros than the source models have; see docs/fitting.md)")
+        print("warning: some models do not keep their spectrum within 0.5 dB"
+              + (" (--keep-order: upsampling by more than 2x needs the higher order; see docs/fitting.md)" if args.keep_order else
+                 " (see docs/fitting.md)"))
     return 0

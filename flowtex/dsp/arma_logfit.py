@@ -1,0 +1,232 @@
+"""Fit an ARMA model's log spectrum to a target, with its poles and zeros as the parameters.
+
+The model's power spectrum in dB, 10 log10(K |C/A(e^jw)|^2), is a sum of one
+term per root: for a conjugate pair r e^{+-j theta},
+10 log10((1 - 2 r cos(w - theta) + r^2)(1 - 2 r cos(w + theta) + r^2)),
+for a real root x, 10 log10(1 - 2 x cos w + x^2); zeros add, poles subtract,
+and 10 log10 K is a free offset. The residuals are
+
+* ``model_db - level_db`` at "fit" frequencies (their root mean square is the
+  log-spectral distance, the quantity the caller must keep small), and
+* ``max(0, model_db - level_db)`` at "ceiling" frequencies (one-sided: only
+  where the model rises above a ceiling, e.g. a stopband),
+
+each times its weight, minimised by scipy's trust-region reflective
+Levenberg-Marquardt with the analytic Jacobian.
+
+Why roots and not coefficients: every residual depends on a root through one
+factor (the Jacobian has one cheap column pair per root and is well scaled),
+stability and minimum phase are box bounds (radius <= ``max_radius``) instead of
+a constraint that direct-form coefficients of clustered roots near z = 1 meet
+only to many digits, and the criterion is the log-spectral distance itself,
+not the prediction-error variance (which barely penalises a model lying
+above a target's valleys). Radii are parameterised by u = ln(1 - r), which
+spreads the sharp resonances near the unit circle over a usable range.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+DB = 10.0 / math.log(10.0)
+"""dB per neper of power: 10 log10(x) = DB ln(x)."""
+
+IMAG_TOL = 1e-9
+"""Roots with |imag| below this are treated as real."""
+
+
+def split_roots(poly: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(radii, angles in (0, pi]) of the upper-half conjugate pairs and the real roots of a real polynomial [1, c1..cn]."""
+    if poly.shape[0] <= 1:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    roots = np.roots(poly)
+    real = np.abs(roots.imag) <= IMAG_TOL * np.maximum(1.0, np.abs(roots))
+    upper = roots[~real & (roots.imag > 0)]
+    return np.abs(upper), np.angle(upper), np.sort(roots[real].real)
+
+
+def real_poly(roots: np.ndarray) -> np.ndarray:
+    """Monic real polynomial [1, c1, ...] in z^-1 with the given roots (conjugate pairs complete).
+
+    Built from second-order sections multiplied lowest angle, highest angle,
+    second lowest, ... (then the real roots): sections that all sit near z = 1
+    would first build binomial-sized coefficients that later cancel.
+    """
+    roots = np.asarray(roots, dtype=np.complex128).ravel()
+    real = np.abs(roots.imag) <= IMAG_TOL * np.maximum(1.0, np.abs(roots))
+    upper = roots[~real & (roots.imag > 0)]
+    upper = upper[np.argsort(np.angle(upper))]
+    order = [i for pair in zip(range(upper.shape[0]), range(upper.shape[0] - 1, -1, -1), strict=True) for i in pair]
+    seen: set[int] = set()
+    out = np.array([1.0])
+    for i in order:
+        if i not in seen:
+            seen.add(i)
+            out = np.convolve(out, [1.0, -2.0 * upper[i].real, abs(upper[i]) ** 2])
+    for x in np.sort(roots[real].real):
+        out = np.convolve(out, [1.0, -x])
+    return out
+
+
+def _full_roots(radii: np.ndarray, angles: np.ndarray, real: np.ndarray) -> np.ndarray:
+    z = radii * np.exp(1j * angles)
+    return np.concatenate([z, np.conj(z), real.astype(np.complex128)])
+
+
+class _Layout:
+    """Where each root's parameters sit in the parameter vector: [dB offset, zero pairs (u, theta), zero reals, pole pairs, pole reals]."""
+
+    def __init__(self, nzp: int, nzr: int, npp: int, npr: int):
+        self.nzp, self.nzr, self.npp, self.npr = nzp, nzr, npp, npr
+        self.zp = 1
+        self.zr = self.zp + 2 * nzp
+        self.pp = self.zr + nzr
+        self.pr = self.pp + 2 * npp
+        self.size = self.pr + npr
+
+    def pack(self, offset_db, zrad, zang, zreal, prad, pang, preal) -> np.ndarray:
+        x = np.empty(self.size)
+        x[0] = offset_db
+        x[self.zp:self.zr:2] = np.log1p(-zrad)
+        x[self.zp + 1:self.zr:2] = zang
+        x[self.zr:self.pp] = zreal
+        x[self.pp:self.pr:2] = np.log1p(-prad)
+        x[self.pp + 1:self.pr:2] = pang
+        x[self.pr:] = preal
+        return x
+
+    def unpack(self, x: np.ndarray):
+        zrad = -np.expm1(x[self.zp:self.zr:2])
+        prad = -np.expm1(x[self.pp:self.pr:2])
+        return (x[0], zrad, x[self.zp + 1:self.zr:2], x[self.zr:self.pp], prad, x[self.pp + 1:self.pr:2], x[self.pr:])
+
+
+def _pair_terms(cw: np.ndarray, sw: np.ndarray, u: np.ndarray, theta: np.ndarray, jac: bool):
+    """dB of each pair's |factor|^2 at w (len(w) x pairs) and, if ``jac``, its derivatives in u and theta (cw, sw: cos w, sin w)."""
+    r = -np.expm1(u)
+    ct = np.cos(theta)
+    st = np.sin(theta)
+    a = cw[:, None] * ct
+    b = sw[:, None] * st
+    cm = a + b  # cos(w - theta)
+    cp = a - b  # cos(w + theta)
+    dm = 1.0 - 2.0 * r * cm + r * r
+    dp = 1.0 - 2.0 * r * cp + r * r
+    val = DB * np.log(dm * dp)
+    if not jac:
+        return val, None, None
+    dr = DB * ((2.0 * r - 2.0 * cm) / dm + (2.0 * r - 2.0 * cp) / dp)
+    du = dr * (r - 1.0)  # dr/du = -(1 - r)
+    c = sw[:, None] * ct
+    d = cw[:, None] * st
+    dth = DB * 2.0 * r * ((c + d) / dp - (c - d) / dm)  # sin(w + theta) / dp - sin(w - theta) / dm
+    return val, du, dth
+
+
+def _real_terms(cw: np.ndarray, x: np.ndarray, jac: bool):
+    c = cw[:, None]
+    d = 1.0 - 2.0 * x[None, :] * c + x[None, :] ** 2
+    val = DB * np.log(d)
+    return val, (DB * (2.0 * x[None, :] - 2.0 * c) / d if jac else None)
+
+
+def log_spectrum_db(w: np.ndarray, x: np.ndarray, lay: _Layout, jac: bool = False):
+    """Model dB at w and (if ``jac``) its Jacobian in the parameters (len(w) x lay.size)."""
+    cw = np.cos(w)
+    sw = np.sin(w)
+    s = np.full(w.shape[0], x[0])
+    J = np.zeros((w.shape[0], lay.size)) if jac else None
+    if jac:
+        J[:, 0] = 1.0
+    for sign, p0, r0, npair, end in ((1.0, lay.zp, lay.zr, lay.nzp, lay.pp), (-1.0, lay.pp, lay.pr, lay.npp, lay.size)):
+        if npair:
+            val, du, dth = _pair_terms(cw, sw, x[p0:r0:2], x[p0 + 1:r0:2], jac)
+            s += sign * val.sum(axis=1)
+            if jac:
+                J[:, p0:r0:2] = sign * du
+                J[:, p0 + 1:r0:2] = sign * dth
+        if end > r0:
+            val, dx = _real_terms(cw, x[r0:end], jac)
+            s += sign * val.sum(axis=1)
+            if jac:
+                J[:, r0:end] = sign * dx
+    return s, J
+
+
+def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, one_sided: np.ndarray,
+                     a0: np.ndarray, c0: np.ndarray, pole_radius: float, zero_radius: float, iterations: int = 100,
+                     tol: float = 1e-6
+                     ) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """Least-squares fit of the model's dB spectrum (see the module docstring), started from (``a0``, ``c0``).
+
+    ``w``: frequencies in rad/sample; ``level_db``: target (or ceiling, where
+    ``one_sided``) in dB; ``weight``: residual weights. Pole radii stay in
+    [0, ``pole_radius``], zero radii in [0, ``zero_radius``] (both < 1: stable,
+    minimum phase; a pole much sharper than the grid resolves would be a
+    spike between its frequencies, invisible to the fit), and pair
+    angles in [0, pi]. The numbers of conjugate pairs and real roots are those
+    of the start. Levenberg-Marquardt (Marquardt's diagonal scaling) with steps
+    projected onto those bounds; it stops when a step lowers the cost by less
+    than ``tol`` relative, when the RMS fit residual is below 1e-3 dB, or after
+    ``iterations`` steps. Returns (poles, zeros, dB offset 10 log10 K, cost =
+    sum of squared weighted residuals); poles and zeros are complete root sets
+    (conjugates included), :func:`real_poly` makes the polynomials.
+    """
+    zrad, zang, zreal = split_roots(c0)
+    prad, pang, preal = split_roots(a0)
+    lay = _Layout(zrad.shape[0], zreal.shape[0], prad.shape[0], preal.shape[0])
+    lo = np.full(lay.size, -np.inf)
+    hi = np.full(lay.size, np.inf)
+    for p0, r0, end, rmax in ((lay.zp, lay.zr, lay.pp, zero_radius), (lay.pp, lay.pr, lay.size, pole_radius)):
+        lo[p0:r0:2], hi[p0:r0:2] = math.log1p(-rmax), 0.0
+        lo[p0 + 1:r0:2], hi[p0 + 1:r0:2] = 0.0, math.pi
+        lo[r0:end], hi[r0:end] = -rmax, rmax
+    x = np.clip(lay.pack(0.0, np.minimum(zrad, zero_radius), zang, zreal, np.minimum(prad, pole_radius), pang, preal), lo, hi)
+    two = ~one_sided
+    w2 = weight * weight
+
+    def residual(x, jac):
+        """(weighted residuals, rows that count, Jacobian or None)."""
+        s, J = log_spectrum_db(w, x, lay, jac=jac)
+        d = s - level_db
+        return weight * np.where(one_sided, np.maximum(d, 0.0), d), (two | (d > 0.0)), J
+
+    s0, _ = log_spectrum_db(w, x, lay)
+    x[0] = float(np.sum((w2 * (level_db - s0))[two]) / max(np.sum(w2[two]), 1e-300))  # best offset for the start
+    r, active, J = residual(x, True)
+    cost = float(r @ r)
+    lam = 1e-3
+    floor = 1e-6 * float(np.sum(w2[two]))  # RMS weighted residual of 1e-3 dB: nothing left worth a step
+    for _ in range(iterations):
+        Ja = (weight * active)[:, None] * J
+        # einsum, not a BLAS product: small products on a loaded machine stall in multithreaded BLAS
+        H = np.einsum("ij,ik->jk", Ja, Ja)
+        g = np.einsum("ij,i->j", Ja, r)
+        d = np.maximum(np.diag(H), 1e-12 * max(np.max(np.diag(H)), 1e-300))
+        improved = False
+        while lam < 1e10:
+            try:
+                step = -np.linalg.solve(H + lam * np.diag(d), g)
+            except np.linalg.LinAlgError:
+                lam *= 10.0
+                continue
+            x_new = np.clip(x + step, lo, hi)
+            r_new, _, _ = residual(x_new, False)
+            cost_new = float(r_new @ r_new)
+            if cost_new < cost:
+                improved = True
+                lam = max(lam / 3.0, 1e-9)
+                break
+            lam *= 10.0
+        if not improved:
+            break
+        rel = (cost - cost_new) / max(cost, 1e-300)
+        x = x_new
+        r, active, J = residual(x, True)
+        cost = float(r @ r)
+        if rel < tol or cost < floor:
+            break
+    off, zr_, za_, zx_, pr_, pa_, px_ = lay.unpack(x)
+    return _full_roots(pr_, pa_, px_), _full_roots(zr_, za_, zx_), float(off), cost
