@@ -19,6 +19,7 @@ from flowtex.cli import main
 from flowtex.dsp.errors import signal_error
 from flowtex.errors import FlowtexError
 from flowtex.graph.compiled import load_graph
+from flowtex.scene.build import plan_to_graph
 from flowtex.scene.study import write_study_scene
 
 REPO = Path(__file__).resolve().parents[2]
@@ -50,7 +51,7 @@ def test_plan_all_against_independently_planned_graph(scene_and_input, capsys):
     all_on = folder / "all_on.yaml"
     all_on.write_text(scene.read_text().replace("surfaces:", "thresholds: {texture: 0, friction: 0, taps: 0}\nsurfaces:"))
     for src, out in ((scene, "planned.yaml"), (all_on, "all.yaml")):
-        assert main(["scene", "plan", str(src), "-o", str(folder / out)]) == 0
+        plan_to_graph(src, folder / out, relative=False)  # absolute paths, as the bench writes: the compiled code is shared
     planned = load_graph(folder / "planned.yaml").run(inputs)["force"]
     every = load_graph(folder / "all.yaml").run(inputs)["force"]
     expected = signal_error("rms", planned, every, 1000.0)
@@ -67,7 +68,7 @@ def test_component_knob_drops_friction_everywhere(scene_and_input):
     rows = list(csv.reader(open(table)))
     assert [r[0] for r in rows[1:]] == ["auto", "drop"]
     # dropped friction renders nothing: its error is the RMS of the planned friction force itself
-    assert main(["scene", "plan", str(scene), "-o", str(folder / "friction_planned.yaml")]) == 0
+    plan_to_graph(scene, folder / "friction_planned.yaml", relative=False)
     planned = load_graph(folder / "friction_planned.yaml").run(inputs)["friction_force"]
     rms = float(np.sqrt(np.mean(planned ** 2)))
     assert rms > 0.05  # EPDM's friction is there to drop (N)
