@@ -3,7 +3,9 @@
 Six of 002's study surfaces (synthetic stand-ins, flowtex.scene.study),
 speed 50-250 mm/s, force 0.5-2.5 N; the graphs run side by side in this
 process on graphs/data/exploration.npz with the active surface cycling every
-2 s. Prints the median ns/tick of each, their ratio, and the components kept.
+2 s. Prints the median ns/tick of each, their ratio, the components kept, and the
+error the planned graph has against all components on (force RMS, vibration LSD).
+The same comparison from the command line: ``flowtex bench SCENE --knob plan=planned,all``.
 
     PYTHONPATH=. python3 benchmarks/bench_scene.py [--repeats 7]
 """
@@ -17,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from flowtex.dsp.errors import signal_error
 from flowtex.graph.compiled import load_graph
 from flowtex.scene.build import plan_to_graph
 from flowtex.scene.study import write_study_scene
@@ -54,6 +57,13 @@ def main() -> None:
         total = sum(len(s.decisions) for s in plans[name].values())
         print(f"{name:8s} {med[name]:8.0f} ns/tick  ({len(graphs[name].resolved.nodes)} nodes, {kept}/{total} components)")
     print(f"planned / all on: {med['planned'] / med['all on']:.2f}  (saves {med['all on'] - med['planned']:.0f} ns/tick)")
+    # the error the planner buys, against all components on (same input and seed)
+    outs = {name: g.run(inputs) for name, g in graphs.items()}
+    for name, metric in (("force", "rms"), ("vibration", "lsd")):
+        if name in outs["planned"] and name in outs["all on"]:
+            err = signal_error(metric, outs["all on"][name], outs["planned"][name], 1000.0)
+            unit = "dB" if metric == "lsd" else graphs["planned"].outputs[name].unit
+            print(f"planned vs all on: {name} {metric} {err:.4g} {unit}")
 
 
 if __name__ == "__main__":
