@@ -121,18 +121,41 @@ def _map_roots(poly: np.ndarray, ratio: float) -> np.ndarray:
     return stabilize(new / new[0])
 
 
-def upsampled_order(p: int, q: int, rate_from: float, rate_to: float, keep_order: bool = False) -> tuple[int, int]:
-    """(P, Q) of the models :func:`resample_arma` returns: (p, q) unless upsampling by more than :data:`DIRECT_MAX_RATIO`.
+def upsampled_order(p: int, q: int, rate_from: float, rate_to: float, keep_order: bool = False, extra: int = 0) -> tuple[int, int]:
+    """(P, Q) of the models :func:`resample_arma` returns: (p + extra, q + extra) unless upsampling by more than :data:`DIRECT_MAX_RATIO`.
 
-    Then (M p, M q + n) with M = :func:`_stretch` and n the order of the
+    Then (M (p + extra), M (q + extra) + n) with M = :func:`_stretch` and n the order of the
     anti-imaging FIR lowpass (:func:`_anti_imaging`); the same for every model of a set,
-    so LSFs stay interpolable. ``keep_order`` forces (p, q).
+    so LSFs stay interpolable. ``keep_order`` forces (p, q). ``extra`` (even): see :func:`_extra_roots`.
     """
+    if keep_order:
+        return p, q
+    p, q = p + extra, q + extra
     m = _stretch(rate_from, rate_to)
-    if keep_order or m == 1:
+    if m == 1:
         return p, q
     poles, zeros = _anti_imaging(rate_from, rate_to, m)
     return m * p + poles.shape[0], m * q + zeros.shape[0]
+
+
+def _extra_roots(a0: np.ndarray, c0: np.ndarray, extra: int, band_edge: float) -> tuple[np.ndarray, np.ndarray]:
+    """Start polynomials with ``extra`` (even) more poles and zeros, for models too small to fall off above the old Nyquist.
+
+    A low-order model whose spectrum is still high at the old Nyquist (an AR(1)
+    or AR(2), say) has no roots to spend on the new stopband: upsampled at its own
+    order it misses its band by 2-3 dB or leaves > 2 % of its power above the old
+    Nyquist. The added zeros start as pairs at radius 0.9 spread over the
+    stopband (angles between ``band_edge`` (rad/sample, the old Nyquist) and pi),
+    the added poles as pairs at radius 0.2 (nearly neutral); the fit moves them.
+    """
+    if extra % 2 or extra < 0:
+        raise ValueError(f"extra order must be even and >= 0, got {extra}")
+    pairs = extra // 2
+    for k in range(pairs):
+        ang = band_edge + (math.pi - band_edge) * (k + 1) / (pairs + 1)
+        c0 = np.convolve(c0, [1.0, -1.8 * math.cos(ang), 0.81])
+        a0 = np.convolve(a0, [1.0, 0.0, 0.04])
+    return a0, c0
 
 
 def _stretch(rate_from: float, rate_to: float) -> int:
@@ -180,7 +203,7 @@ def _root_power_spectrum(poles: np.ndarray, zeros: np.ndarray, w: np.ndarray) ->
 
 
 def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre: tuple[np.ndarray, np.ndarray] | None,
-              rate_pre: float) -> tuple[np.ndarray, np.ndarray]:
+              rate_pre: float, extra: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """(poles, zeros) at ``rate`` Hz, same orders, whose spectrum times |pre|^2 is the original's below its Nyquist.
 
     ``pre``: (poles, zeros) of a filter at ``rate_pre`` Hz (the anti-imaging lowpass) or None.
@@ -194,8 +217,7 @@ def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre
     Start: the original's roots mapped by z -> z^(rate_from / rate).
     """
     f_lim = 0.5 * rate_from
-    a0 = _map_roots(ar, rate_from / rate)
-    c0 = _map_roots(ma, rate_from / rate)
+    a0, c0 = _extra_roots(_map_roots(ar, rate_from / rate), _map_roots(ma, rate_from / rate), extra, math.pi * rate_from / rate)
     # poles at most twice as sharp as the sharpest mapped original pole ((1 - r) halved), and at least 3 fitted
     # frequencies per half-power bandwidth (2 (1 - r) rad) of such a pole (and at least BAND_POINTS)
     r_max = float(np.max(np.abs(np.roots(ar)))) ** (rate_from / rate) if ar.shape[0] > 1 else 0.0
@@ -227,13 +249,14 @@ def _stretched_roots(roots: np.ndarray, m: int) -> np.ndarray:
     return (np.abs(roots)[:, None] ** (1.0 / m) * np.exp(1j * (np.angle(roots)[:, None] + 2.0 * math.pi * k[None, :]) / m)).ravel()
 
 
-def _upsample(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate_to: float, keep_order: bool) -> tuple[np.ndarray, np.ndarray]:
+def _upsample(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate_to: float, keep_order: bool,
+              extra: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """(poles, zeros) at ``rate_to`` > ``rate_from``: a band fit at rate_to / M, stretched by z -> z^M and cascaded with the anti-imaging lowpass."""
     m = 1 if keep_order else _stretch(rate_from, rate_to)
     if m == 1:
-        return _fit_band(ar, ma, rate_from, rate_to, None, rate_to)
+        return _fit_band(ar, ma, rate_from, rate_to, None, rate_to, 0 if keep_order else extra)
     lp_poles, lp_zeros = _anti_imaging(rate_from, rate_to, m)
-    poles, zeros = _fit_band(ar, ma, rate_from, rate_to / m, (lp_poles, lp_zeros), rate_to)
+    poles, zeros = _fit_band(ar, ma, rate_from, rate_to / m, (lp_poles, lp_zeros), rate_to, extra)
     return np.r_[_stretched_roots(poles, m), lp_poles], np.r_[_stretched_roots(zeros, m), lp_zeros]
 
 
@@ -251,7 +274,7 @@ def _band_variance(spectrum_new: np.ndarray, ar: np.ndarray, ma: np.ndarray, var
 
 
 def resample_arma_lsf(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, rate_from: float, rate_to: float,
-                      keep_order: bool = False, grid: int = GRID, iterations: int = 40
+                      keep_order: bool = False, grid: int = GRID, iterations: int = 40, extra: int = 0
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, float, float]:
     """:func:`resample_arma` plus the new model's LSFs: (ar, ma, ar_lsf, ma_lsf, gain, variance).
 
@@ -264,7 +287,7 @@ def resample_arma_lsf(ar: np.ndarray, ma: np.ndarray, gain: float, variance: flo
     if rate_to <= rate_from:
         a1, c1, g, v = resample_arma(ar, ma, gain, variance, rate_from, rate_to, grid=grid, iterations=iterations)
         return a1, c1, None, None, g, v
-    poles, zeros = _upsample(ar, ma, rate_from, rate_to, keep_order)
+    poles, zeros = _upsample(ar, ma, rate_from, rate_to, keep_order, extra)
     lsf_a = lsf_c = None
     try:
         lsf_a, lsf_c = roots_to_lsf(poles), roots_to_lsf(zeros)
@@ -283,12 +306,13 @@ def resample_arma_lsf(ar: np.ndarray, ma: np.ndarray, gain: float, variance: flo
 
 
 def resample_arma(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, rate_from: float, rate_to: float,
-                  keep_order: bool = False, grid: int = GRID, iterations: int = 40) -> tuple[np.ndarray, np.ndarray, float, float]:
+                  keep_order: bool = False, grid: int = GRID, iterations: int = 40, extra: int = 0) -> tuple[np.ndarray, np.ndarray, float, float]:
     """(ar, ma, gain, variance) at ``rate_to`` Hz with the same physical PSD below min(rate_from, rate_to) / 2.
 
     Downsampling keeps the orders; upsampling returns the orders of
     :func:`upsampled_order` (``keep_order``: the original's, at a cost in
-    accuracy beyond DIRECT_MAX_RATIO). The gain is kept and the variance
+    accuracy beyond DIRECT_MAX_RATIO; ``extra``, even: that many more poles
+    and zeros, for models too small to fall off above the old Nyquist). The gain is kept and the variance
     carries the power (a silent model, variance 0, stays silent with its
     shape resampled). Rates in Hz. See the module docstring for the method and why.
     """
@@ -298,7 +322,7 @@ def resample_arma(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, 
     if rate_from == rate_to:
         return ar.copy(), ma.copy(), float(gain), float(variance)
     if rate_to > rate_from:
-        a1, c1, _, _, g, v = resample_arma_lsf(ar, ma, gain, variance, rate_from, rate_to, keep_order, grid, iterations)
+        a1, c1, _, _, g, v = resample_arma_lsf(ar, ma, gain, variance, rate_from, rate_to, keep_order, grid, iterations, extra)
         return a1, c1, g, v
     # downsampling: prediction-error fit of the band's PSD on the new grid, same order
     ratio = rate_from / rate_to

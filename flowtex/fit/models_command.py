@@ -21,6 +21,9 @@ def register(subparsers: Any) -> None:
     r.add_argument("-o", "--output", required=True, metavar="OUT", help="native model-set JSON to write")
     r.add_argument("--keep-order", action="store_true",
                    help="keep the models' (p, q) when upsampling by more than 2x (cheaper to render, less exact)")
+    r.add_argument("--extra-order", type=int, metavar="N",
+                   help="when upsampling, give every model N (even) more poles and zeros (default: the fewest of 0, 2, 4, 6 "
+                        "with which every model keeps its spectrum)")
     r.set_defaults(func=cmd_resample)
 
 
@@ -31,7 +34,7 @@ def cmd_resample(args: Any) -> int:
     ms = load_model_set(args.input)
     progress, close = tqdm_progress(ms.num_models, "resample")
     try:
-        out = resample_model_set(ms, args.rate, progress, keep_order=args.keep_order)
+        out = resample_model_set(ms, args.rate, progress, keep_order=args.keep_order, extra_order=args.extra_order)
     finally:
         close()
     target = Path(args.output).expanduser()
@@ -46,11 +49,14 @@ def cmd_resample(args: Any) -> int:
     info = out.metadata["resample"]
     (p0, q0), (p, q) = info["from_order"], info["to_order"]
     orders = f"orders {p0}/{q0}" + (f" -> {p}/{q}" if (p, q) != (p0, q0) else "")
+    if info["extra_order"]:
+        orders += f" ({info['extra_order']} more poles and zeros)"
     print(f"{args.input}: {ms.num_models} models {info['from_hz']:g} Hz -> {info['to_hz']:g} Hz, {orders}, written to {target}; "
           f"worst LSD {info['worst_lsd_db']:.2f} dB, worst band-power error {100 * info['worst_band_power_error']:.2f} % "
-          f"(up to 0.9 x the lower Nyquist)")
-    if info["worst_lsd_db"] > 0.5:
-        print("warning: some models do not keep their spectrum within 0.5 dB"
+          f"(up to 0.9 x the lower Nyquist)"
+          + (f", worst power above the old Nyquist {100 * info['worst_power_above_old_nyquist']:.2f} %" if info["to_hz"] > info["from_hz"] else ""))
+    if info["worst_lsd_db"] > 0.5 or info.get("worst_power_above_old_nyquist", 0.0) > 0.02:
+        print("warning: some models do not keep their spectrum (LSD <= 0.5 dB, <= 2 % of the power above the old Nyquist)"
               + (" (--keep-order: upsampling by more than 2x needs the higher order; see docs/fitting.md)" if args.keep_order else
                  " (see docs/fitting.md)"))
     return 0

@@ -31,31 +31,49 @@ def resample_quality(ar1, ma1, g1, v1, rate1, ar2, ma2, g2, v2, rate2) -> tuple[
     return lsd_db(s2, s1, f, min_freq_hz=0.0), band
 
 
-def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[int, int], None] | None = None,
-                       keep_order: bool = False) -> TextureModelSet:
-    """A copy of ``ms`` whose models run at ``rate_hz`` (Hz) with the same physical PSDs below min Nyquist.
+def power_above(ar: np.ndarray, ma: np.ndarray, rate: float, f_hz: float) -> float:
+    """Fraction of a model's power above ``f_hz`` (Hz) at ``rate`` Hz (dense trapezoid of its PSD; gain and variance cancel)."""
+    f = np.linspace(0.0, 0.5 * rate, 40001)
+    s = arma_psd(ar, ma, 1.0, 1.0, f, rate)
+    return float(np.trapezoid(s[f >= f_hz], f[f >= f_hz]) / np.trapezoid(s, f))
 
-    Upsampling by more than 2x raises every model's order alike
-    (:func:`flowtex.dsp.arma_resample.upsampled_order`) unless ``keep_order``.
-    ``metadata["resample"]`` records the source rate, the orders, the method
-    and the worst LSD (dB) and band-power error of the models as rendered,
-    i.e. rebuilt from the stored LSFs (see :func:`resample_quality`).
-    ``progress(done, total)`` is called after each model.
-    """
-    if not (isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0):
-        raise FlowtexError(f"--rate must be a positive number of Hz, got {rate_hz!r}")
+
+MAX_LSD_DB = 0.5
+"""A resampled model keeps its spectrum when its LSD (up to 0.9 x the lower Nyquist) is at most this (issue 11)."""
+
+MAX_POWER_ABOVE = 0.02
+"""An upsampled model may put at most this fraction of its power above the old Nyquist (issue 11)."""
+
+EXTRA_ORDERS = (0, 2, 4, 6)
+"""Order increases tried, in turn, when upsampling leaves some model off (the first that keeps every model wins)."""
+
+
+@dataclasses.dataclass
+class _Resampled:
+    ar_lsf: np.ndarray
+    ma_lsf: np.ndarray
+    ar_coeff: np.ndarray
+    ma_coeff: np.ndarray
+    variance: np.ndarray
+    gain: np.ndarray
+    worst_lsd: float
+    worst_band: float
+    worst_above: float
+
+    def violation(self) -> float:
+        """Worst LSD and power above the old Nyquist relative to their limits (<= 1: every model keeps its spectrum)."""
+        return max(self.worst_lsd / MAX_LSD_DB, self.worst_above / MAX_POWER_ABOVE)
+
+
+def _resample_models(ms: TextureModelSet, rate_to: float, keep_order: bool, extra: int,
+                     progress: Callable[[int, int], None] | None) -> _Resampled:
+    """Every model of ``ms`` at ``rate_to`` Hz, ``extra`` more poles and zeros; quality measured as rendered (from the LSFs)."""
     rate_from = float(ms.sample_rate)
     m_count = ms.num_models
-    p0, q0 = ms.ar_order, ms.ma_order
-    p, q = upsampled_order(p0, q0, rate_from, float(rate_hz), keep_order)
-    ar_lsf = np.empty((m_count, p))
-    ma_lsf = np.empty((m_count, q))
-    ar_coeff = np.empty((m_count, p + 1))
-    ma_coeff = np.empty((m_count, q + 1))
-    variance = np.empty(m_count)
-    gain = np.empty(m_count)
-    worst_lsd = 0.0
-    worst_band = 0.0
+    p, q = upsampled_order(ms.ar_order, ms.ma_order, rate_from, rate_to, keep_order, extra) if rate_to > rate_from \
+        else (ms.ar_order, ms.ma_order)
+    out = _Resampled(np.empty((m_count, p)), np.empty((m_count, q)), np.empty((m_count, p + 1)), np.empty((m_count, q + 1)),
+                     np.empty(m_count), np.empty(m_count), 0.0, 0.0, 0.0)
     for m in range(m_count):
         a = lsf_to_poly_new(ms.ar_lsf[m])
         c = lsf_to_poly_new(ms.ma_lsf[m])
@@ -63,38 +81,82 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
         # a silent model (variance 0) is resampled at unit variance and stays silent: its shape still matters once
         # texture_lookup interpolates it with its neighbours
         v_fit = v1 if v1 > 0.0 else 1.0
-        a2, c2, lsf_a, lsf_c, g2, v2 = resample_arma_lsf(a, c, float(ms.gain[m]), v_fit, rate_from, float(rate_hz),
-                                                         keep_order=keep_order)
+        a2, c2, lsf_a, lsf_c, g2, v2 = resample_arma_lsf(a, c, float(ms.gain[m]), v_fit, rate_from, rate_to,
+                                                         keep_order=keep_order, extra=extra)
         if lsf_a is None:  # downsampling: LSFs from the (well-conditioned) polynomials
             a2 = min_phase_for_lsf(a2)
             c2 = min_phase_for_lsf(c2)
-            lsf_a = poly_to_lsf(a2) if p else ar_lsf[m]
-            lsf_c = poly_to_lsf(c2) if q else ma_lsf[m]
-        ar_lsf[m] = lsf_a
-        ma_lsf[m] = lsf_c
-        ar_coeff[m] = a2
-        ma_coeff[m] = c2
-        gain[m] = g2
-        variance[m] = v2 if v1 > 0.0 else 0.0
+            lsf_a = poly_to_lsf(a2) if p else out.ar_lsf[m]
+            lsf_c = poly_to_lsf(c2) if q else out.ma_lsf[m]
+        out.ar_lsf[m] = lsf_a
+        out.ma_lsf[m] = lsf_c
+        out.ar_coeff[m] = a2
+        out.ma_coeff[m] = c2
+        out.gain[m] = g2
+        out.variance[m] = v2 if v1 > 0.0 else 0.0
         # quality of the model as texture_lookup renders it: rebuilt from the stored LSFs
-        lsd, band = resample_quality(a, c, float(ms.gain[m]), v_fit, rate_from, lsf_to_poly_new(ar_lsf[m]),
-                                     lsf_to_poly_new(ma_lsf[m]), g2, v2, float(rate_hz))
-        worst_lsd = max(worst_lsd, lsd)
-        worst_band = max(worst_band, abs(band))
+        a_r, c_r = lsf_to_poly_new(out.ar_lsf[m]), lsf_to_poly_new(out.ma_lsf[m])
+        lsd, band = resample_quality(a, c, float(ms.gain[m]), v_fit, rate_from, a_r, c_r, g2, v2, rate_to)
+        out.worst_lsd = max(out.worst_lsd, lsd)
+        out.worst_band = max(out.worst_band, abs(band))
+        if rate_to > rate_from:
+            out.worst_above = max(out.worst_above, power_above(a_r, c_r, rate_to, 0.5 * rate_from))
         if progress is not None:
             progress(m + 1, m_count)
+    return out
+
+
+def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[int, int], None] | None = None,
+                       keep_order: bool = False, extra_order: int | None = None) -> TextureModelSet:
+    """A copy of ``ms`` whose models run at ``rate_hz`` (Hz) with the same physical PSDs below min Nyquist.
+
+    Upsampling by more than 2x raises every model's order alike
+    (:func:`flowtex.dsp.arma_resample.upsampled_order`) unless ``keep_order``.
+    When upsampling, ``extra_order`` (even) adds that many poles and zeros to
+    every model; None tries :data:`EXTRA_ORDERS` in turn and keeps the first
+    with which every model keeps its spectrum (LSD <= 0.5 dB, <= 2 % of its
+    power above the old Nyquist) — sets of HaTT's size need none, an AR(2) set
+    needs 2 — or the one closest to those limits if none does.
+    ``metadata["resample"]`` records the source rate, the orders, the method
+    and the worst LSD (dB), band-power error and power above the old Nyquist
+    of the models as rendered, i.e. rebuilt from the stored LSFs (see :func:`resample_quality`).
+    ``progress(done, total)`` is called after each model (of each attempt).
+    """
+    if not (isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0):
+        raise FlowtexError(f"--rate must be a positive number of Hz, got {rate_hz!r}")
+    if extra_order is not None and (extra_order < 0 or extra_order % 2):
+        raise FlowtexError(f"--extra-order must be an even number >= 0, got {extra_order}")
+    rate_from = float(ms.sample_rate)
+    rate_to = float(rate_hz)
+    upsampling = rate_to > rate_from
+    tries = (0,) if not upsampling or keep_order else EXTRA_ORDERS if extra_order is None else (extra_order,)
+    best: _Resampled | None = None
+    best_extra = 0
+    for extra in tries:
+        res = _resample_models(ms, rate_to, keep_order, extra, progress)
+        if best is None or res.violation() < best.violation():
+            best, best_extra = res, extra
+        if res.violation() <= 1.0:
+            best, best_extra = res, extra
+            break
+    assert best is not None
+    p0, q0 = ms.ar_order, ms.ma_order
+    p, q = best.ar_lsf.shape[1], best.ma_lsf.shape[1]
     metadata = dict(ms.metadata)
-    if rate_hz < rate_from:
+    if not upsampling:
         method = "prediction-error fit of the PSD below the new Nyquist, same order"
     else:
         method = "log-spectral fit of the PSD below the old Nyquist, stopband ceiling above"
-        if (p, q) != (p0, q0):
+        if best_extra:
+            method += f"; {best_extra} more poles and zeros"
+        if (p, q) != (p0 + best_extra, q0 + best_extra) and not keep_order:
             method += "; fitted at 1/M of the rate, stretched z -> z^M and cascaded with an FIR anti-imaging lowpass"
-    metadata["resample"] = {"from_hz": rate_from, "to_hz": float(rate_hz), "method": method,
-                            "from_order": [p0, q0], "to_order": [p, q],
-                            "worst_lsd_db": worst_lsd, "worst_band_power_error": worst_band}
-    out = dataclasses.replace(ms, sample_rate=float(rate_hz), ar_lsf=ar_lsf, ma_lsf=ma_lsf, variance=variance, gain=gain,
-                              ar_coeff=ar_coeff, ma_coeff=ma_coeff, source=None, metadata=metadata,
+    metadata["resample"] = {"from_hz": rate_from, "to_hz": rate_to, "method": method,
+                            "from_order": [p0, q0], "to_order": [p, q], "extra_order": best_extra,
+                            "worst_lsd_db": best.worst_lsd, "worst_band_power_error": best.worst_band,
+                            "worst_power_above_old_nyquist": best.worst_above}
+    out = dataclasses.replace(ms, sample_rate=rate_to, ar_lsf=best.ar_lsf, ma_lsf=best.ma_lsf, variance=best.variance,
+                              gain=best.gain, ar_coeff=best.ar_coeff, ma_coeff=best.ma_coeff, source=None, metadata=metadata,
                               speeds=np.array(ms.speeds, dtype=np.float64), forces=np.array(ms.forces, dtype=np.float64),
                               triangles=np.array(ms.triangles, dtype=np.int64))
     return out.validate()

@@ -182,3 +182,52 @@ def test_cli_resample_errors(tmp_path, capsys):
     assert main(["models", "resample", str(src), "--rate", "-5", "-o", str(out)]) == 1
     assert "--rate must be a positive" in capsys.readouterr().err
     assert not out.exists()
+
+
+def _set_quality(src, res, fs1, fs2):
+    """(worst LSD dB up to 0.9 x the old Nyquist, worst fraction of power above it) of a resampled set, as rendered.
+
+    Independent of the resampler's own bookkeeping: every model rebuilt from the stored LSFs, PSDs by arma_psd.
+    """
+    f = np.linspace(0.0, 0.45 * fs1, 4001)
+    fa = np.linspace(0.0, fs2 / 2, 100001)
+    worst_lsd = worst_above = 0.0
+    for m in range(src.num_models):
+        a1, c1 = lsf_to_poly_new(src.ar_lsf[m]), lsf_to_poly_new(src.ma_lsf[m])
+        a2, c2 = lsf_to_poly_new(res.ar_lsf[m]), lsf_to_poly_new(res.ma_lsf[m])
+        if src.variance[m] > 0:  # silent models (variance 0) have a shape but no spectrum in physical units
+            s1 = arma_psd(a1, c1, src.gain[m], src.variance[m], f, fs1)
+            s2 = arma_psd(a2, c2, res.gain[m], res.variance[m], f, fs2)
+            worst_lsd = max(worst_lsd, lsd_db(s2, s1, f, min_freq_hz=0.0))
+        s = arma_psd(a2, c2, 1.0, 1.0, fa, fs2)
+        worst_above = max(worst_above, float(np.trapezoid(s[fa > fs1 / 2], fa[fa > fs1 / 2]) / np.trapezoid(s, fa)))
+    return worst_lsd, worst_above
+
+
+def test_low_order_set_gets_the_order_it_needs_when_upsampled():
+    # an AR(2)-only set (no zeros to spend on the new stopband; its spectrum is still high at the old Nyquist):
+    # at its own order it misses the issue's limits; the automatic rule raises every model's order alike until it meets them
+    from flowtex.fit.resample import resample_model_set
+
+    src = synthetic_model_set([60.0, 150.0], [0.5, 1.5], ar_order=2, ma_order=0)
+    at_own = resample_model_set(src, 2000.0, extra_order=0)
+    lsd0, above0 = _set_quality(src, at_own, 1000.0, 2000.0)
+    assert lsd0 > 0.5 or above0 > 0.02  # the case does need more order
+    auto = resample_model_set(src, 2000.0)
+    info = auto.metadata["resample"]
+    assert info["extra_order"] > 0 and auto.ar_order == 2 + info["extra_order"] and auto.ma_order == info["extra_order"]
+    lsd, above = _set_quality(src, auto, 1000.0, 2000.0)
+    assert lsd <= 0.5 and above <= 0.02  # the issue's limits, measured independently of the resampler
+    assert info["worst_lsd_db"] == pytest.approx(lsd, abs=0.05)  # its own report agrees (different frequency grids)
+    for m in range(auto.num_models):
+        assert is_valid_lsf(auto.ar_lsf[m]) and is_valid_lsf(auto.ma_lsf[m])
+
+
+def test_hatt_sized_set_needs_no_extra_order():
+    from flowtex.fit.resample import resample_model_set
+
+    src = synthetic_model_set([60.0], [0.5, 1.5], ar_order=8, ma_order=6)
+    out = resample_model_set(src, 2000.0)
+    assert out.metadata["resample"]["extra_order"] == 0 and (out.ar_order, out.ma_order) == (8, 6)
+    with pytest.raises(Exception, match="even number"):
+        resample_model_set(src, 2000.0, extra_order=3)
