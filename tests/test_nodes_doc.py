@@ -69,7 +69,7 @@ def test_resolved_units_are_simplified(write_graph):
 
 
 # ALGORITHMS.md and the seed numbers 000-004 are not in the repository: "(000, 002)", "001 §4.1", "000/001", "002:".
-CITATION = re.compile(r"ALGORITHMS|§|\bseeds? 00[0-4]|(?<![\w.,])00[0-4](?=[ )/;:,])")
+CITATION = re.compile(r"ALGORITHMS|§|\bseeds? 00[0-4]|(?<![\w.,])00[0-4](?=[ )/;:,'’])")
 
 
 def test_docs_cite_papers_not_internal_files():

@@ -51,7 +51,7 @@ Nyquist <= 0.06 %. At 6x (57/59) one model of 10 missed (2.4 dB) and 8x
 (76/78) fails: the float64 coefficients again; the LSD is reported and the
 command warns.
 
-Why not 003's method (match the autocorrelation at the lags common to both
+Why not Culbertson et al. 2012's method (match the autocorrelation at the lags common to both
 rates, then correct the noise variance): the ACF at the common lags carries
 all of the original's power, including what lies above the new Nyquist when
 downsampling, which the new model then folds into its band (+30 % measured).

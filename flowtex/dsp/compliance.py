@@ -62,7 +62,7 @@ KC_ER_RANGE_MPA = (0.063, 14.7)
 
 
 def kc_from_er(er_mpa: float | np.ndarray, extrapolate: bool = False) -> float | np.ndarray:
-    """004's empirical k_c = 0.0217 + 0.0883 exp(0.149 E_r[MPa]); valid for E_r in KC_ER_RANGE_MPA."""
+    """Guruswamy's empirical k_c = 0.0217 + 0.0883 exp(0.149 E_r[MPa]); valid for E_r in KC_ER_RANGE_MPA."""
     er = np.asarray(er_mpa, dtype=np.float64)
     lo, hi = KC_ER_RANGE_MPA
     if not extrapolate and (np.any(er < lo) or np.any(er > hi)):
@@ -76,7 +76,7 @@ def er_from_kc(kc: float | np.ndarray, extrapolate: bool = False) -> float | np.
     kc = np.asarray(kc, dtype=np.float64)
     lo, hi = (kc_from_er(v) for v in KC_ER_RANGE_MPA)
     if not extrapolate and (np.any(kc < lo) or np.any(kc > hi)):
-        raise ValueError(f"k_c must be within {lo:.4f}..{hi:.4f}, the range of 004's fit (pass extrapolate=True to go beyond)")
+        raise ValueError(f"k_c must be within {lo:.4f}..{hi:.4f}, the range of Guruswamy's fit (pass extrapolate=True to go beyond)")
     with np.errstate(invalid="ignore", divide="ignore"):
         out = np.log((kc - 0.0217) / 0.0883) / 0.149
     return float(out) if out.ndim == 0 else out

@@ -4,7 +4,7 @@ Rendering (``pattern_block``): features sit at positions x_k (mm) along the patt
 axis u. Each tick the tool position is projected, x = u . (position - origin); every
 feature crossed since the previous tick (in either direction) starts a ring-down:
 filter k excited by an impulse of amplitude A_k. The output is the **sum** of all
-active ring-downs; a new feature never truncates an older one (004's time aliasing).
+active ring-downs; a new feature never truncates an older one (Guruswamy's time aliasing).
 At most ``max_active`` ring-downs play at once; when all slots are busy the oldest is
 replaced. A ring-down ends after ``length_k`` ticks, when its impulse response has fallen
 for good below RING_DECAY (1e-6) of its peak (dsp.prony.ring_length).
@@ -52,7 +52,7 @@ def band_edges(freqs: np.ndarray, psd: np.ndarray, smooth_hz: float = 100.0) -> 
 
 
 def segment_starts(x: np.ndarray, min_peak_fraction: float = 0.25, guard: int = 2) -> np.ndarray:
-    """Start ticks of segments of the (band-passed) signal ``x`` by 004's rising-peak rule.
+    """Start ticks of segments of the (band-passed) signal ``x`` by Guruswamy's rising-peak rule.
 
     Peaks are the local maxima of |x|. A segment starts at a peak larger than the
     peak before it, provided it exceeds ``min_peak_fraction`` times the 95th

@@ -71,7 +71,7 @@ def lsd_db(s_fit: np.ndarray, s_true: np.ndarray, freqs_hz: np.ndarray, min_freq
 
 
 def gfc_data_model(x: np.ndarray, ar: np.ndarray, ma: np.ndarray, smooth: int = 50) -> float:
-    """003's GFC between a signal and a model: smoothed |DFT| of the data against the model's |C/A|.
+    """Culbertson et al. 2012's GFC between a signal and a model: smoothed |DFT| of the data against the model's |C/A|.
 
     The data's N-point |DFT| is smoothed with a ``smooth``-point Bartlett-Hann
     window (Culbertson et al. 2012 section 3.3) and compared, at the N // 2 + 1 non-negative DFT

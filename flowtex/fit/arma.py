@@ -6,14 +6,14 @@ ML estimate for monic minimum-phase models). Units: ``x`` in m/s^2 (any unit
 works; the model's variance has the square of it).
 
 Order choice (``order=None``): BIC = n ln sigma2 + (p + q) ln n of the refined
-(maximum-likelihood) prediction-error variance. Why not 003's GFC + 1/BIC:
+(maximum-likelihood) prediction-error variance. Why not Culbertson et al. 2012's GFC + 1/BIC:
 1/BIC depends on the units of sigma2 (its sign even flips when sigma2
 crosses 1), and GFC is nearly flat across orders (a flat spectrum scores
 0.60 against a true ARMA(10,6)), so the sum is dominated by whichever is
 larger in the data's units. BIC alone is a consistent order estimator. The
 search screens every (p, q) with the cheap Hannan-Rissanen regression
 (one Gram matrix for all orders) and refines only the best few candidates.
-GFC (003's definition) and the LSD are reported beside it.
+GFC (Culbertson et al. 2012's definition) and the LSD are reported beside it.
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ class ArmaFit:
     bic: float
     """n ln sigma2 + (p + q) ln n of this fit."""
     gfc: float
-    """003's Goodness-of-Fit Criterion: smoothed data |DFT| against the model's |C/A| (1 = same shape)."""
+    """Culbertson et al. 2012's Goodness-of-Fit Criterion: smoothed data |DFT| against the model's |C/A| (1 = same shape)."""
 
     @property
     def output_variance(self) -> float:

@@ -10,7 +10,7 @@ samples at small N bias, while the line's slope weighs each sample by N.
 A tangential sensor with a bias b biases a line through the origin too (by
 b sum N / sum N^2). ``--offset auto`` (default) therefore fits T = mu N + b
 first and keeps it when b's 95 % interval excludes 0; otherwise it refits
-002's line through the origin (one parameter less, a tighter interval).
+Culbertson & Kuchenbecker 2017's line through the origin (one parameter less, a tighter interval).
 ``--offset yes`` / ``no`` force either form.
 """
 

@@ -1,6 +1,6 @@
 """Fit reports: the table every texture fit prints, and ``--report DIR`` (markdown + PNG plots).
 
-Per model: speed (mm/s), force (N), samples, order (p, q), GFC (003's
+Per model: speed (mm/s), force (N), samples, order (p, q), GFC (Culbertson et al. 2012's
 definition, 1 = same spectral shape), LSD in dB (model PSD against the
 piece's Welch PSD, 256-point segments: > 15 Hz, 40 dB range) and the power
 error (model output power / data variance - 1). The LSD against the data

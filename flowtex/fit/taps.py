@@ -17,7 +17,7 @@
 
 The spectral centroid SC = sum X^2 f / sum X^2 (Culbertson & Kuchenbecker 2017 eq. 4) is printed per
 tap and averaged over the library played at 50, 60, ..., 100 mm/s
-(flowtex.models.taps.spectral_centroid), 002's hardness predictor.
+(flowtex.models.taps.spectral_centroid), Culbertson & Kuchenbecker 2017's hardness predictor.
 """
 
 from __future__ import annotations

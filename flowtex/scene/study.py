@@ -1,4 +1,4 @@
-"""Synthetic stand-ins for the 15 surfaces of 002's study, for tests, benchmarks and the docs example.
+"""Synthetic stand-ins for the 15 surfaces of Culbertson & Kuchenbecker 2017's study, for tests, benchmarks and the docs example.
 
 flowtex ships no HaTT file. These sets are built with
 :func:`flowtex.models.synthetic.synthetic_model_set` (small orders, 3 x 3
@@ -10,7 +10,7 @@ Values from Culbertson & Kuchenbecker 2017 / issue 13: powers of Whiteboard (0.2
 (1.19), Carpet 3 and ABS Plastic (~38), Brick 1 (200) (m/s^2)^2; mu of
 Whiteboard (0.17), MDF (0.19), ABS (0.21), Silk 1 (0.28), Tarp (0.41), EPDM
 Foam (1.39); Carpet 3's tap centroid 47.8 Hz. Every other number is
-ILLUSTRATIVE (chosen on the side of the threshold that 002's component-removal
+ILLUSTRATIVE (chosen on the side of the threshold that Culbertson & Kuchenbecker 2017's component-removal
 results imply), not a measurement.
 """
 

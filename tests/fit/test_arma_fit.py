@@ -66,7 +66,7 @@ def test_hatt_size_true_order(hatt_cases):
         assert fit.order == (19, 17) and fit.ar.shape == (20,) and fit.ma.shape == (18,)
         _check_model_valid(fit)
         lsds.append(_true_lsd(fit, a, c))
-        # GFC >= 0.995 between the fitted and the true amplitude spectra; against the data (003's smoothed DFT) the
+        # GFC >= 0.995 between the fitted and the true amplitude spectra; against the data (Culbertson et al. 2012's smoothed DFT) the
         # truth itself scores only ~0.995..0.997 here (DFT noise), so the fit must come within 0.005 of the truth
         assert gfc(np.sqrt(fit.psd(FREQS, FS)), np.sqrt(arma_psd(a, c, 1.0, 1.0, FREQS, FS))) >= 0.995
         assert fit.gfc >= gfc_data_model(x, a, c) - 0.005

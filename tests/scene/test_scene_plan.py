@@ -1,4 +1,4 @@
-"""Scene planning: salience figures, decisions on 002's study surfaces, JSON, forcing, thresholds, file errors."""
+"""Scene planning: salience figures, decisions on the study surfaces of Culbertson & Kuchenbecker 2017, JSON, forcing, thresholds, file errors."""
 
 from __future__ import annotations
 
