@@ -1,4 +1,4 @@
-"""Many surfaces on Dask: a LocalCluster of 2 processes gives the same files as a serial run."""
+"""Many surfaces on Dask: a local cluster (--workers) and an existing scheduler (--scheduler) give the same files as a serial run."""
 
 from __future__ import annotations
 
@@ -18,6 +18,22 @@ def test_dask_matches_serial(tmp_path, capsys):
     for seed in (1, 2):
         serial = (tmp_path / "serial" / f"surface{seed}.json").read_text()
         assert serial == (tmp_path / "dask" / f"surface{seed}.json").read_text()  # same machine: same bits
+
+
+def test_existing_scheduler_matches_serial(tmp_path, capsys):
+    # --scheduler: a real dask.distributed cluster started here (one worker process); its scheduler runs in this
+    # process, so the test sees that the fits ran on it, and the files must equal a serial run's (same machine)
+    from distributed import LocalCluster
+
+    free_exploration(4.0, 1000.0, seed=3, plateau_s=(1.5, 2.0)).save(tmp_path / "in" / "surface3.npz")
+    common = [str(tmp_path / "in"), "--speed", "speed", "--order", "4,2"]
+    assert main(["fit", "texture", *common, "--out-dir", str(tmp_path / "serial"), "--workers", "0"]) == 0
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        assert main(["fit", "texture", *common, "--out-dir", str(tmp_path / "remote"), "--scheduler", cluster.scheduler_address]) == 0
+        prefix = cluster.scheduler.task_prefixes.get("fit_one")
+        assert prefix is not None and prefix.state_counts["memory"] + prefix.state_counts["released"] + prefix.state_counts["forgotten"] >= 1
+    assert "1 of 1 surfaces" in capsys.readouterr().out
+    assert (tmp_path / "serial" / "surface3.json").read_text() == (tmp_path / "remote" / "surface3.json").read_text()
 
 
 def test_grid_index(tmp_path, capsys):
