@@ -88,6 +88,11 @@ def _build_graph(graph_path: str | Path, values: dict[str, Any], plugins: tuple[
     return Graph(resolve_graph(spec, load_registry(plugins)))
 
 
+def graph_inputs(graph: Any, inputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The recording's signals that ``graph`` reads (a recording may carry more, e.g. for another configuration of a scene)."""
+    return {name: inputs[name] for name in graph.inputs if name in inputs}
+
+
 def default_metric(unit: str) -> str:
     """LSD for vibrations (m/s^2), RMS for everything else (forces, positions)."""
     return "lsd" if unit in VIBRATION_UNITS else "rms"
@@ -113,7 +118,7 @@ def sweep(graph_path: str | Path, inputs: dict[str, np.ndarray], knobs: dict[str
     missing = [o for o in outputs if o not in ref_graph.outputs]
     if missing:
         raise FlowtexError(f"--outputs: the graph has no output {', '.join(missing)}; it has {', '.join(ref_graph.outputs)}")
-    ref_out = ref_graph.run(inputs, seed=seed)
+    ref_out = ref_graph.run(graph_inputs(ref_graph, inputs), seed=seed)
     configs = [Config(c) for c in combos]
     if client is not None:
         futures = client.map(run_config, [str(Path(graph_path).resolve())] * len(combos), combos, [inputs] * len(combos), [outputs] * len(combos),
@@ -142,8 +147,9 @@ def _time_runs(graphs: list, inputs: dict[str, np.ndarray], seed: int | None, re
     for _ in range(repeats):
         for k, g in enumerate(graphs):
             g.reset(seed)
+            own = graph_inputs(g, inputs)
             t0 = time.perf_counter_ns()
-            g.process(inputs)
+            g.process(own)
             times[k].append((time.perf_counter_ns() - t0) / ticks)
     return [float(np.median(t)) for t in times]
 
@@ -152,7 +158,7 @@ def _run_local(graph_path, combos, inputs, outputs, seed, repeats, plugins) -> l
     graphs = [build(graph_path, c, plugins) for c in combos]
     outs = []
     for g in graphs:
-        result = g.run(inputs, seed=seed)
+        result = g.run(graph_inputs(g, inputs), seed=seed)
         outs.append({name: result[name] for name in outputs if name in result})
     return list(zip(outs, _time_runs(graphs, inputs, seed, repeats), strict=True))
 
@@ -160,7 +166,7 @@ def _run_local(graph_path, combos, inputs, outputs, seed, repeats, plugins) -> l
 def run_config(graph_path, values, inputs, outputs, seed, repeats, plugins) -> tuple[dict[str, np.ndarray], float]:
     """One configuration, compiled, run and timed where this is called (a Dask worker): (outputs, median ns/tick)."""
     g = build(graph_path, values, plugins)
-    result = g.run(inputs, seed=seed)
+    result = g.run(graph_inputs(g, inputs), seed=seed)
     return {name: result[name] for name in outputs if name in result}, _time_runs([g], inputs, seed, repeats)[0]
 
 

@@ -46,7 +46,7 @@ def test_sweep_every_knob_end_to_end(tmp_path, capsys):
     graph.write_text("flowtex: 1\nname: tiny\nrate: 1000\ninputs:\n  x: {unit: N}\nnodes:\n  g: {type: gain, params: {k: 2.0}}\n"
                      "edges:\n  - x -> g.x\noutputs:\n  y: g.y\n")
     x = np.sin(0.05 * np.arange(1000))
-    np.savez(tmp_path / "in.npz", x=x)
+    np.savez(tmp_path / "in.npz", x=x, extra=np.zeros(1000))  # a signal the graph does not read is left out, as in 'flowtex run'
     assert main(["bench", str(graph), "--input", str(tmp_path / "in.npz"), "--knob", "g.every=1,2", "--repeats", "2",
                  "-o", str(tmp_path / "t.csv")]) == 0
     rows = list(csv.reader(open(tmp_path / "t.csv")))
