@@ -12,6 +12,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from flowtex.dsp.lsf import DEFAULT_MIN_GAP, is_valid_lsf, lsf_to_poly, lsf_to_poly_new, poly_to_lsf, repair_lsf, roots_to_lsf
 
@@ -330,3 +332,25 @@ def test_lsf_round_trip_of_roots_crowded_near_z_1_and_minus_1() -> None:
     assert back.shape == (39,)
     got = np.abs(np.polyval(back[::-1], np.exp(1j * w))) ** 2  # A(z) = sum a_k z^-k at z = e^jw
     assert np.max(np.abs(10 * np.log10(got / exact))) < 0.05  # measured 0.007 dB (float64 rounding of the product)
+
+
+def _roots_from(pairs: list[tuple[float, float]], reals: list[float]) -> np.ndarray:
+    z = [r * np.exp(1j * t) for r, t in pairs]
+    return np.array(z + [np.conj(v) for v in z] + [complex(x) for x in reals], dtype=np.complex128)
+
+
+@settings(max_examples=60, deadline=None)
+@given(pairs=st.lists(st.tuples(st.floats(0.0, 0.97), st.floats(0.05, np.pi - 0.05)), max_size=5),
+       reals=st.lists(st.floats(-0.97, 0.97), max_size=2))
+def test_roots_to_lsf_property_agrees_with_poly_to_lsf(pairs, reals) -> None:
+    # any stable real polynomial of order <= 12 with roots within 0.97: the LSFs from the roots are valid (p values,
+    # strictly increasing in (0, pi)) and equal poly_to_lsf's from the coefficients. Tolerance 1e-7 rad: poly_to_lsf's
+    # root finding on a well-conditioned polynomial (radius <= 0.97) is good to ~1e-10; nearly coincident LSFs
+    # (roots near the circle at close angles) can lose more digits, hence the margin.
+    roots = _roots_from(pairs, reals)
+    if roots.shape[0] == 0:
+        return
+    lsf = roots_to_lsf(roots)
+    assert lsf.shape == (roots.shape[0],) and is_valid_lsf(lsf)
+    a = np.real(np.poly(roots))
+    np.testing.assert_allclose(lsf, poly_to_lsf(a), rtol=0, atol=1e-7)
