@@ -51,6 +51,26 @@ class _Builder:
     def edge(self, src: str, dst: str) -> None:
         self.edges.append(f"{src} -> {dst}")
 
+    def zero(self, name: str, value: list[float], unit: str) -> str:
+        """Output of a shared zero constant (created once): what a surface without a component feeds its switch."""
+        if name not in self.nodes:
+            self.node(name, "constant", value=value, unit=unit)
+        return f"{name}.y"
+
+    def unit_normal(self) -> str:
+        """Output of the shared ``unit_normal`` node (the ``normal`` input normalised; created once)."""
+        if "unit_normal" not in self.nodes:
+            self.node("unit_normal", "normalize")
+            self.edge("normal", "unit_normal.x")
+        return "unit_normal.y"
+
+    def along_normal(self, name: str, scalar: str) -> str:
+        """Output of a node ``name`` giving the force ``scalar`` (N) as a 3-vector along the unit normal."""
+        self.node(name, "multiply")
+        self.edge(self.unit_normal(), f"{name}.a")
+        self.edge(scalar, f"{name}.b")
+        return f"{name}.y"
+
     def select(self, signal: str, sources: list[str], index: str | None, fade: float) -> str:
         """Chain surface_switch nodes over ``sources`` (one per surface, file order); returns the chosen signal."""
         out = sources[0]
@@ -108,9 +128,7 @@ def scene_graph(scene: Scene, plan: dict[str, SurfaceData], base: Path | None, p
                 b.edge(parts[1], f"{k}_vibration.b")
                 parts = [f"{k}_vibration.y"]
             if not parts:
-                if "zero_vibration" not in b.nodes:
-                    b.node("zero_vibration", "constant", value=[0.0], unit="m/s^2")
-                parts = ["zero_vibration.y"]
+                parts = [b.zero("zero_vibration", [0.0], "m/s^2")]
             sources.append(parts[0])
         vib = b.select("vibration", sources, index, scene.fade_s)
         b.node("mute", "multiply")
@@ -138,9 +156,7 @@ def scene_graph(scene: Scene, plan: dict[str, SurfaceData], base: Path | None, p
                 b.edge("normal", f"{k}_friction.normal")
                 sources.append(f"{k}_friction.force")
             else:
-                if "zero_friction" not in b.nodes:
-                    b.node("zero_friction", "constant", value=[0.0, 0.0, 0.0], unit="N")
-                sources.append("zero_friction.y")
+                sources.append(b.zero("zero_friction", [0.0, 0.0, 0.0], "N"))
         outputs["friction_force"] = b.select("friction", sources, index, scene.fade_s)
         forces.append(outputs["friction_force"])
     # --- taps
@@ -153,18 +169,10 @@ def scene_graph(scene: Scene, plan: dict[str, SurfaceData], base: Path | None, p
                 b.edge("contact.incoming_speed", f"{k}_taps.incoming_speed")
                 sources.append(f"{k}_taps.force")
             else:
-                if "zero_tap" not in b.nodes:
-                    b.node("zero_tap", "constant", value=[0.0], unit="N")
-                sources.append("zero_tap.y")
+                sources.append(b.zero("zero_tap", [0.0], "N"))
         tap = b.select("tap", sources, index, 0.0)  # a tap is a short transient: switch it on the tick
-        if "unit_normal" not in b.nodes:
-            b.node("unit_normal", "normalize")
-            b.edge("normal", "unit_normal.x")
-        b.node("tap_vector", "multiply")
-        b.edge("unit_normal.y", "tap_vector.a")
-        b.edge(tap, "tap_vector.b")
         outputs["tap_force"] = tap
-        forces.append("tap_vector.y")
+        forces.append(b.along_normal("tap_vector", tap))
     # --- base surface: Hooke spring on the penetration depth, along the unit normal
     if any(kept(k, "stiffness") for k in keys):
         b.node("depth", "clip", low=0.0, high=1000.0)  # mm: not in contact (< 0) pushes nothing; NaN counts as 0
@@ -176,18 +184,10 @@ def scene_graph(scene: Scene, plan: dict[str, SurfaceData], base: Path | None, p
                 b.edge("depth.y", f"{k}_spring.x")
                 sources.append(f"{k}_spring.y")
             else:
-                if "zero_spring" not in b.nodes:
-                    b.node("zero_spring", "constant", value=[0.0], unit="N")
-                sources.append("zero_spring.y")
+                sources.append(b.zero("zero_spring", [0.0], "N"))
         spring = b.select("spring", sources, index, scene.fade_s)
-        if "unit_normal" not in b.nodes:
-            b.node("unit_normal", "normalize")
-            b.edge("normal", "unit_normal.x")
-        b.node("spring_vector", "multiply")
-        b.edge("unit_normal.y", "spring_vector.a")
-        b.edge(spring, "spring_vector.b")
         outputs["spring_force"] = spring
-        forces.append("spring_vector.y")
+        forces.append(b.along_normal("spring_vector", spring))
     if not forces:
         raise FlowtexError(f"{scene.path}: the plan keeps no component on any surface; nothing to render (force one with keep:)")
     total = forces[0]
