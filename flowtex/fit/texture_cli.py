@@ -129,12 +129,15 @@ def write_outputs(fit: TextureFit, output: Path, xml: Path | None, render_rate: 
 
 
 def _resample(ms: Any, rate: float) -> Any:
-    try:
-        from .resample import resample_model_set  # written by the model-resampling work (issue 11, item 3)
-    except ImportError:
-        raise DataError("--render-rate needs model resampling (flowtex.fit.resample), which this flowtex lacks; "
-                        "fit at the recording's rate and resample later") from None
-    return resample_model_set(ms, rate)
+    """The set at ``rate`` Hz (flowtex models resample's method), with a one-line account of what it cost."""
+    from .resample import resample_model_set
+
+    out = resample_model_set(ms, rate)
+    info = out.metadata["resample"]
+    print(f"resampled {info['from_hz']:g} Hz -> {info['to_hz']:g} Hz: orders {ms.ar_order}/{ms.ma_order} -> "
+          f"{out.ar_order}/{out.ma_order}, worst LSD {info['worst_lsd_db']:.2f} dB, "
+          f"worst band-power error {100 * info['worst_band_power_error']:.2f} %")
+    return out
 
 
 def parse_order(text: str) -> tuple[int, int] | None:
