@@ -65,6 +65,13 @@ def cmd_run(args: argparse.Namespace) -> int:
         report = replay_session(graph, args.input, args.dbc, args.map, args.output, seed=args.seed)
         print(report)
         return 0
+    if args.output and Path(args.output).suffix.lower() == ".wav":
+        from .runtime.offline import render_recording_audio
+
+        samples, rate = render_recording_audio(graph, args.input, args.output, args.map, seed=args.seed,
+                                               progress=sys.stderr.isatty(), nonfinite=args.nonfinite)
+        print(f"{graph.name}: {samples.shape[0]} frames x {samples.shape[1]} channel(s) at {rate:g} Hz -> {args.output}")
+        return 0
     from .runtime.offline import run_recording
 
     outputs = run_recording(graph, args.input, args.output, seed=args.seed, progress=sys.stderr.isatty(),
@@ -120,10 +127,11 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("run", help="run a graph offline over a recording (or replay a CAN session)")
     p.add_argument("graph")
     p.add_argument("--input", "-i", required=True, help="recording: .npz, .csv, .h5; or a CAN session .blf/.log")
-    p.add_argument("--output", "-o", help="output file: .npz, .csv, .h5 (or .blf/.log when replaying)")
+    p.add_argument("--output", "-o", help="output file: .npz, .csv, .h5, .wav (audio-rate, as --map's audio section plays it) "
+                                          "(or .blf/.log when replaying)")
     p.add_argument("--seed", type=int, default=None, help="noise seed (default: the graph's seed)")
     p.add_argument("--dbc", help="DBC file (replay of a CAN session)")
-    p.add_argument("--map", help="signal map file (replay of a CAN session)")
+    p.add_argument("--map", help="signal map file (replay of a CAN session; its audio section for --output OUT.wav)")
     p.add_argument("--nonfinite", choices=("error", "hold", "zero", "pass"), default="error",
                    help="NaN/inf in the recording: error (default; names signal, count, first index), "
                         "hold (last finite value), zero, or pass (unchanged)")

@@ -34,12 +34,12 @@ def cmd_resample(args: argparse.Namespace) -> int:
     import numpy as np
 
     from .dsp.resample import rational_ratio, resample_signal
-    from .io.recordings import SUFFIXES, load_recording, save_recording
+    from .io.recordings import AUDIO_SUFFIXES, SUFFIXES, load_recording, save_recording
 
     src = Path(args.input)
     out = Path(args.output)
-    if out.suffix.lower() not in SUFFIXES:
-        raise DataError(f"{out}: unknown output format {out.suffix!r}; use .npz, .csv or .h5")
+    if out.suffix.lower() not in SUFFIXES + AUDIO_SUFFIXES:
+        raise DataError(f"{out}: unknown output format {out.suffix!r}; use .npz, .csv, .h5 or .wav")
     rec = load_recording(src)
     rate_in = rec.rate
     if rate_in is None:

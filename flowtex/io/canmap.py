@@ -35,9 +35,10 @@ from cantools.database.can import Database
 
 from ..errors import DataError, Diagnostic, GraphError, Location
 from ..yamlsource import LocDict, LocList, load_yaml
+from .audiomap import AudioMap, parse_audio
 from .dbc import find_signal, suggest
 
-TOP_KEYS = ("flowtex_map", "description", "overrun_limit_ms", "inputs", "outputs")
+TOP_KEYS = ("flowtex_map", "description", "overrun_limit_ms", "inputs", "outputs", "audio")
 INPUT_KEYS = ("signal", "signals", "scale", "offset", "timeout_ms", "doc")
 OUTPUT_KEYS = ("signal", "signals", "scale", "offset", "clamp", "safe", "peak", "doc")
 PEAK_KEYS = ("limit", "max_ms")
@@ -79,6 +80,8 @@ class CanMap:
     inputs: dict[str, InputBinding]
     outputs: dict[str, OutputBinding]
     overrun_limit_ms: float = DEFAULT_OVERRUN_MS
+    audio: AudioMap | None = None
+    """The ``audio`` section (:mod:`flowtex.io.audiomap`), if the map has one."""
 
     def sensor_messages(self) -> list[str]:
         """Messages read by the runtime, in order of first use."""
@@ -164,9 +167,10 @@ def load_map(path: str | Path, db: Database, dbc_path: str | Path = "DBC",
         if both:
             p.add((b.loc.line, b.loc.column), f"output {b.name!r} writes message {both[0]!r}, which inputs also read; "
                   "a message is either sensor or actuator")
+    audio = parse_audio(data["audio"], data.value_pos["audio"], p.add, graph_outputs) if "audio" in data else None
     if p.items:
         raise GraphError(p.items)
-    return CanMap(path, inputs, outputs, float(overrun))
+    return CanMap(path, inputs, outputs, float(overrun), audio)
 
 
 def _per_component(p: _Problems, entry: LocDict, key: str, width: int, default: float, what: str) -> np.ndarray | None:

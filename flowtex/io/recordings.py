@@ -30,6 +30,8 @@ import numpy as np
 from ..errors import DataError
 
 SUFFIXES = (".npz", ".csv", ".h5", ".hdf5")
+AUDIO_SUFFIXES = (".wav",)
+"""Also read and written by load_recording/save_recording (channels ch0, ch1, ...; flowtex.io.wav), but not searched for by the fitters."""
 _COLUMN = re.compile(r"^(?P<name>[^\[\]]+)(?:\[(?P<index>\d+)\])?$")
 
 
@@ -60,8 +62,13 @@ def load_recording(path: str | Path) -> Recording:
         rec = _load_csv(path)
     elif suffix in (".h5", ".hdf5"):
         rec = _load_h5(path)
+    elif suffix == ".wav":
+        from .wav import read_wav
+
+        rate, arrays = read_wav(path)
+        rec = Recording(arrays, rate)
     else:
-        raise DataError(f"{path}: unknown recording format {suffix!r}; use .npz, .csv or .h5")
+        raise DataError(f"{path}: unknown recording format {suffix!r}; use .npz, .csv, .h5 or .wav")
     _check_lengths(rec, path)
     rec.path = path
     return rec
@@ -229,8 +236,12 @@ def save_recording(path: str | Path, arrays: Mapping[str, np.ndarray], rate: flo
                     ds.attrs["unit"] = units[name]
             if rate is not None:
                 fh.attrs["rate"] = float(rate)
+    elif suffix == ".wav":
+        from .wav import write_signals_wav
+
+        write_signals_wav(path, arrays, rate)
     else:
-        raise DataError(f"{path}: unknown output format {suffix!r}; use .npz, .csv or .h5")
+        raise DataError(f"{path}: unknown output format {suffix!r}; use .npz, .csv, .h5 or .wav")
 
 
 def _save_csv(path: Path, arrays: Mapping[str, np.ndarray], rate: float | None, units: Mapping[str, str]) -> None:

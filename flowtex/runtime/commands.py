@@ -28,13 +28,15 @@ def register(subparsers: Any) -> None:
                               description="Run GRAPH live: CAN sensor frames -> graph inputs, graph outputs -> guarded actuator frames.",
                               epilog="Exit codes: 0 clean stop (duration, Ctrl-C, SIGTERM); 1 error (safe values sent); "
                                      "3 no sensor frame arrived during the whole session (outputs stayed safe).")
-    p.add_argument("graph", help="graph YAML file")
+    p.add_argument("graph", nargs="?", help="graph YAML file")
     p.add_argument("--bus", help="INTERFACE[:CHANNEL], e.g. virtual, socketcan:can0, slcan:/dev/ttyACM0, pcan, kvaser, "
                                  "socketcand:can0@127.0.0.1:29536")
     p.add_argument("--bitrate", type=int, help="bus bitrate in bit/s (interfaces that need one)")
-    p.add_argument("--dbc", required=True, help="DBC file describing the device's messages")
-    p.add_argument("--map", required=True, help="map YAML binding DBC signals to graph inputs/outputs (docs/live.md)")
+    p.add_argument("--dbc", help="DBC file describing the device's messages (required)")
+    p.add_argument("--map", help="map YAML binding DBC signals to graph inputs/outputs, and audio channels (docs/live.md; required)")
     p.add_argument("--record", help="log every frame read and written to SESSION.blf or SESSION.log")
+    p.add_argument("--record-audio", metavar="OUT.wav", help="write the samples handed to the sound card as a float32 WAV")
+    p.add_argument("--list-audio", action="store_true", help="list the audio devices PortAudio sees, and exit")
     p.add_argument("--duration", type=float, help="seconds to run (default: until Ctrl-C / SIGTERM)")
     p.add_argument("--rt", action="store_true", help="ask for SCHED_FIFO real-time scheduling and pin the loop to a CPU")
     p.add_argument("--rt-priority", type=int, default=80, help="SCHED_FIFO priority with --rt (default 80)")
@@ -82,13 +84,24 @@ def cmd_live(args: argparse.Namespace) -> int:
     from ..graph.spec import parse_override
     from .live import run_live
 
+    if args.list_audio:
+        from .audio import list_audio_devices
+
+        try:
+            print(list_audio_devices())
+        except FlowtexError as exc:
+            return _error("live", str(exc))
+        return 0
+    missing = [f for f, v in (("GRAPH", args.graph), ("--dbc", args.dbc), ("--map", args.map)) if not v]
+    if missing:
+        return _error("live", f"missing {', '.join(missing)} (usage: flowtex live GRAPH --dbc DEVICE.dbc --map MAP.yaml ...)")
     try:
         overrides = dict(parse_override(t) for t in args.set)
         graph = load_graph(args.graph, overrides, tuple(Path(d) for d in args.plugins))
         report = run_live(graph, args.dbc, args.map, args.bus, simulate=args.simulate, duration_s=args.duration,
                           record=args.record, rt=args.rt, rt_priority=args.rt_priority, rt_cpu=args.cpu,
                           stats_path=args.stats, seed=args.seed, status=None if args.quiet else sys.stderr,
-                          bitrate=args.bitrate, show=args.show)
+                          bitrate=args.bitrate, show=args.show, record_audio=args.record_audio)
     except FlowtexError as exc:
         return _error("live", str(exc))
     except KeyboardInterrupt:

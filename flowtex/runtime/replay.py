@@ -155,10 +155,13 @@ def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, m
     frames = list(read_session(session_path))
     ticks, exit_block = _split_ticks(frames, io.tx_ids, session_path)
     suffix = Path(output_path).suffix.lower() if output_path is not None else ""
-    if output_path is not None and suffix not in (".npz", ".blf", ".log", ".asc"):
-        raise DataError(f"{output_path}: replay output must end in .npz (graph outputs) or .blf/.log/.asc (actuator frames)")
+    if output_path is not None and suffix not in (".npz", ".blf", ".log", ".asc", ".wav"):
+        raise DataError(f"{output_path}: replay output must end in .npz (graph outputs), .blf/.log/.asc (actuator frames) "
+                        "or .wav (what the map's audio section plays)")
+    if suffix == ".wav" and io.map.audio is None:
+        raise DataError(f"{output_path}: {map_path} has no 'audio' section, so the session played no audio")
     writer = SessionWriter(output_path) if suffix in (".blf", ".log", ".asc") else None
-    outputs = {name: np.zeros((len(ticks), *spec.shape)) for name, spec in graph.outputs.items()} if suffix == ".npz" else None
+    outputs = {name: np.zeros((len(ticks), *spec.shape)) for name, spec in graph.outputs.items()} if suffix in (".npz", ".wav") else None
     io.encode_safe()
     safe = [bytes(m.data) for m in io.tx]
     """The actuator payloads of the safe values: what live sends while the watchdog holds the outputs."""
@@ -193,8 +196,20 @@ def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, m
     finally:
         if writer is not None:
             writer.close()
-    if outputs is not None:
+    if outputs is not None and suffix == ".wav":
+        _write_audio(graph, io.map.audio, outputs, output_path)
+    elif outputs is not None:
         np.savez(output_path, rate=np.float64(graph.rate), **outputs)
     if output_path is not None:
         report.output_path = Path(output_path)
     return report
+
+
+def _write_audio(graph: Any, amap: Any, outputs: dict[str, np.ndarray], path: str | Path) -> None:
+    """The audio the session's ticks play, after the live lead of silence: sample for sample the live ``--record-audio``
+    wherever live did not play safe silence (docs/live.md)."""
+    from ..io.wav import write_wav
+    from .audio_render import lead_frames, render_outputs, samples_per_tick
+
+    lead = lead_frames(amap, samples_per_tick(amap, float(graph.rate)))
+    write_wav(path, render_outputs(outputs, amap, float(graph.rate), lead=lead), amap.rate)

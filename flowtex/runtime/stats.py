@@ -219,8 +219,8 @@ class TickStats:
             ]
         )
 
-    def write_json(self, path: str | os.PathLike, rt: bool) -> None:
-        """Write :meth:`summary` as JSON (UTF-8, indented) to ``path``."""
+    def write_json(self, path: str | os.PathLike, rt: bool, extra: dict | None = None) -> None:
+        """Write :meth:`summary` (plus the entries of ``extra``, e.g. ``"audio"``) as JSON (UTF-8, indented) to ``path``."""
         with open(path, "w", encoding="utf-8") as f:
-            json.dump(self.summary(rt), f, indent=2, allow_nan=False)
+            json.dump({**self.summary(rt), **(extra or {})}, f, indent=2, allow_nan=False)
             f.write("\n")

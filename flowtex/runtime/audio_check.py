@@ -1,0 +1,79 @@
+"""Prove what a live session played: its ``--record-audio`` against the replay of its ``--record`` log.
+
+The replay WAV (``flowtex run GRAPH --input SESSION.blf ... --output REPLAY.wav``)
+holds the live lead of silence, then every tick's samples back to back. Live
+played tick ``k`` at ``lead + k * up`` plus the silence of every resync before
+it (``--stats``: ``audio.resyncs``, pairs of tick and inserted frames). Every
+live frame that played a tick must equal the replay's; every other live frame
+is safe silence: inside each run of differing frames, the magnitude only falls
+(the 2 ms fade) and is exactly zero after the fade.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class AudioComparison:
+    """Outcome of :func:`compare_audio` (frame counts)."""
+
+    compared: int
+    equal: int
+    silence: int
+    """Differing frames that are safe silence (fade or zeros)."""
+    unexplained: int
+    """Differing frames that are not: a real difference."""
+    first_unexplained: int | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.unexplained == 0
+
+
+def placed_replay(replay: np.ndarray, n_live: int, lead: int, up: int, resyncs: Sequence[Sequence[int]]) -> np.ndarray:
+    """The replay's tick samples at the stream positions live gave them (NaN where live played no tick)."""
+    replay = replay.reshape(replay.shape[0], -1)
+    n_ticks = (replay.shape[0] - lead) // up
+    shift = np.zeros(n_ticks, dtype=np.int64)
+    for k, gap in resyncs:
+        shift[int(k):] += int(gap)
+    placed = np.full((n_live, replay.shape[1]), np.nan)
+    for k in range(n_ticks):
+        p = lead + k * up + shift[k]
+        if p + up <= n_live:
+            placed[p:p + up] = replay[lead + k * up:lead + (k + 1) * up]
+    return placed
+
+
+def compare_audio(live: np.ndarray, replay: np.ndarray, lead: int, up: int, resyncs: Sequence[Sequence[int]],
+                  fade: int) -> AudioComparison:
+    """Compare a live recording with the replay (see the module docstring); ``fade`` in frames."""
+    live = live.reshape(live.shape[0], -1).astype(np.float64)
+    placed = placed_replay(replay, live.shape[0], lead, up, resyncs)
+    known = ~np.isnan(placed).any(axis=1)
+    same = known & (placed == live).all(axis=1)
+    differ = ~same
+    silence = unexplained = 0
+    first = None
+    i, n = 0, live.shape[0]
+    while i < n:
+        if not differ[i]:
+            i += 1
+            continue
+        j = i
+        while j < n and differ[j]:
+            j += 1
+        mag = np.abs(live[i:j]).max(axis=1)
+        ok = np.all(np.diff(mag[:fade + 1]) <= 0) and np.all(mag[fade:] == 0)
+        if ok:
+            silence += j - i
+        else:
+            unexplained += j - i
+            first = i if first is None else first
+        i = j
+    return AudioComparison(compared=int(known.sum()), equal=int(same.sum()), silence=silence, unexplained=unexplained,
+                           first_unexplained=first)
