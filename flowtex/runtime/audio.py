@@ -88,6 +88,8 @@ class AudioOutput:
         self.callbacks = 0
         self.last_callback_ns = 0
         self.error: str | None = None
+        self.lost = False
+        """The device vanished: PortAudio's stop and terminate calls may then block forever (JACK host API)."""
         self.first_callback = threading.Event()
         self._started_ns = 0
         # compile/load the kernels now, not in the callback or on the first live tick
@@ -172,6 +174,7 @@ class AudioOutput:
         now = time.perf_counter_ns()
         stall = max(STALL_S, 8 * self.amap.block / self.amap.rate) * 1e9
         if stream is not None and (now - self.last_callback_ns > stall or not stream.active):
+            self.lost = True
             raise AudioDeviceError(f"audio device {self.device_name} stopped: no callback for "
                                    f"{(now - self.last_callback_ns) / 1e9:.2f} s (device unplugged or sound server gone)")
         if self.record_path is not None and self.ring.istate[RECORDED] - self.ring.drained > self.ring.record.shape[0] // 4:
@@ -190,7 +193,7 @@ class AudioOutput:
         problem = None
         ring = self.ring
         ring.istate[STOPPING] = 1
-        if self.stream is not None and self.error is None:
+        if self.stream is not None and self.error is None and not self.lost:
             end = time.monotonic() + timeout_s
             target = ring.fade + self.amap.block
             while ring.istate[FADED] < target and time.monotonic() < end and self.stream.active:
@@ -206,9 +209,18 @@ class AudioOutput:
         return problem
 
     def close(self) -> None:
-        """Stop and close the stream (idempotent)."""
+        """Stop and close the stream (idempotent). After the device vanished the stream is left alone: PortAudio's
+        JACK host API blocks forever in Pa_StopStream, Pa_AbortStream and Pa_Terminate once the server is gone,
+        so sounddevice's exit handler (which calls them) is unregistered too."""
         stream, self.stream = self.stream, None
-        if stream is not None:
+        if stream is not None and self.lost:
+            import atexit
+
+            self._abandoned = stream  # keep it referenced; the process ends without PortAudio's cleanup
+            handler = getattr(_sd(), "_exit_handler", None)
+            if handler is not None:
+                atexit.unregister(handler)
+        elif stream is not None:
             try:
                 stream.stop()
                 stream.close()
