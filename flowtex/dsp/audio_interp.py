@@ -16,7 +16,7 @@ group delay near the band edge (docs/live.md, "Audio output").
 :mod:`flowtex.dsp.resample_stream` (state carried between calls, so cutting a
 run into blocks changes no sample), then clips each channel to ``[lo, hi]``
 (graph units), divides by the channel's scale (graph units per full-scale
-sample) and stores float32 samples; NaN becomes 0.
+sample) and stores float32 samples. A NaN output enters the filter as 0.
 """
 
 from __future__ import annotations
@@ -91,14 +91,11 @@ def render_ticks(p, s, si, x, inv_scale, lo, hi, scratch, out):
     up = scratch.shape[0]
     w = x.shape[1]
     for k in range(x.shape[0]):
+        for q in range(w):
+            v = x[k, q]
+            scratch[0, q] = v if v == v else 0.0  # a NaN output enters the filter as 0 (it would poison its history)
         if up > 1:
-            for r in range(up):
-                for q in range(w):
-                    scratch[r, q] = x[k, q]
             resample_block(p, s, si, scratch, scratch)
-        else:
-            for q in range(w):
-                scratch[0, q] = x[k, q]
         for r in range(up):
             for q in range(w):
                 v = scratch[r, q]

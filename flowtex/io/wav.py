@@ -33,8 +33,10 @@ def read_wav(path: str | Path) -> tuple[float, dict[str, np.ndarray]]:
     path = Path(path)
     try:
         rate, data = wavfile.read(path)
-    except (ValueError, EOFError) as exc:
-        raise DataError(f"{path}: not a WAV file scipy can read ({exc}); write PCM or float WAV") from None
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except Exception as exc:  # scipy reports a broken header with ValueError, EOFError or even UnboundLocalError
+        raise DataError(f"{path}: not a WAV file scipy can read ({type(exc).__name__}: {exc}); write PCM or float WAV") from None
     if data.dtype.kind == "f":
         x = data.astype(np.float64)
     elif data.dtype == np.uint8:
