@@ -12,8 +12,8 @@ where texture power lives is ~2 ms instead of the linear-phase filter's
 (len - 1) / 2 samples (18 ms at 8 kHz, 60 dB), at the cost of a non-constant
 group delay near the band edge (docs/live.md, "Audio output").
 
-:func:`render_ticks` runs the polyphase kernel of
-:mod:`flowtex.dsp.resample_stream` (state carried between calls, so cutting a
+:func:`render_ticks` runs the polyphase up-sampling of
+:mod:`flowtex.dsp.resample_stream` one tick at a time (state carried between calls, so cutting a
 run into blocks changes no sample), then clips each channel to ``[lo, hi]``
 (graph units), divides by the channel's scale (graph units per full-scale
 sample) and stores float32 samples. A NaN output enters the filter as 0.
@@ -25,7 +25,7 @@ import numpy as np
 from numba import njit
 
 from .filter_design import resampling_fir
-from .resample_stream import resample_block, stream_params, stream_state_sizes
+from .resample_stream import stream_params, stream_state_sizes
 
 DEFAULT_ATTEN_DB = 60.0
 """Stopband attenuation of the interpolation filter, dB (images of the tick-rate spectrum)."""
@@ -67,7 +67,7 @@ class Interpolator:
         self.width = int(width)
         self.h = interpolation_filter(self.up, atten_db, passband)
         self.params = stream_params(self.h, self.up, 1) if self.up > 1 else np.array([1.0, 1.0, 1.0, 1.0, 1.0])
-        n_float, n_int = stream_state_sizes(self.h, self.up, 1, self.width)
+        n_float, n_int = stream_state_sizes(self.h, self.up, 1, self.width) if self.up > 1 else (3 * self.width, 2)
         self.state = np.zeros(n_float)
         self.istate = np.zeros(n_int, dtype=np.int64)
         self.inv_scale = 1.0 / np.asarray(scale, dtype=np.float64).reshape(self.width)
@@ -87,22 +87,40 @@ class Interpolator:
 
 @njit(cache=True, nogil=True)
 def render_ticks(p, s, si, x, inv_scale, lo, hi, scratch, out):
-    """Interpolate ``x`` (n, w) by ``up = scratch.shape[0]``, clip, scale, into ``out`` (n * up, w) float32."""
+    """Interpolate ``x`` (n, w) by ``up = scratch.shape[0]``, clip, scale, into ``out`` (n * up, w) float32.
+
+    The up-sampling path of :func:`flowtex.dsp.resample_stream.resample_block` (same parameter and state
+    layout, same products summed in the same order, so the same samples), written for one tick in, ``up``
+    samples out: calling ``resample_block`` once per tick cost ~20x more per sample (measured in
+    benchmarks/bench_audio.py's setting)."""
     up = scratch.shape[0]
     w = x.shape[1]
+    hist = int(p[3]) if up > 1 else 1
+    coef = p[4:]
+    span = 2 * hist
+    pos = si[1]
     for k in range(x.shape[0]):
+        pos = pos + 1 if pos + 1 < hist else 0
         for q in range(w):
             v = x[k, q]
-            scratch[0, q] = v if v == v else 0.0  # a NaN output enters the filter as 0 (it would poison its history)
-        if up > 1:
-            resample_block(p, s, si, scratch, scratch)
+            v = v if v == v else 0.0  # a NaN output enters the filter as 0 (it would poison its history)
+            s[q * span + pos] = v
+            s[q * span + pos + hist] = v
         for r in range(up):
+            g = r * hist
             for q in range(w):
-                v = scratch[r, q]
-                if not v == v:
-                    v = 0.0
-                elif v < lo[q]:
-                    v = lo[q]
-                elif v > hi[q]:
-                    v = hi[q]
-                out[k * up + r, q] = np.float32(v * inv_scale[q])
+                base = q * span + pos + 1
+                if up > 1:
+                    acc = 0.0
+                    for j in range(hist):
+                        acc += coef[g + j] * s[base + j]
+                else:
+                    acc = s[base + hist - 1]
+                if not acc == acc:
+                    acc = 0.0
+                elif acc < lo[q]:
+                    acc = lo[q]
+                elif acc > hi[q]:
+                    acc = hi[q]
+                out[k * up + r, q] = np.float32(acc * inv_scale[q])
+    si[1] = pos
