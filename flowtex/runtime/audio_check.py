@@ -5,8 +5,8 @@ holds the live lead of silence, then every tick's samples back to back. Live
 played tick ``k`` at ``lead + k * up`` plus the silence of every resync before
 it (``--stats``: ``audio.resyncs``, pairs of tick and inserted frames). Every
 live frame that played a tick must equal the replay's; every other live frame
-is safe silence: inside each run of differing frames, the magnitude only falls
-(the 2 ms fade) and is exactly zero after the fade.
+is safe silence: each run of differing frames is exactly the callback's fade from
+the frame before it (``last * (1 - (f + 1) / fade)`` in float32, then zeros).
 """
 
 from __future__ import annotations
@@ -49,6 +49,13 @@ def placed_replay(replay: np.ndarray, n_live: int, lead: int, up: int, resyncs: 
     return placed
 
 
+def fade_from(last: np.ndarray, n: int, fade: int) -> np.ndarray:
+    """The ``n`` frames of safe silence the callback plays after ``last`` (as float32 values, in float64)."""
+    f = np.arange(1, n + 1, dtype=np.float64)
+    g = np.where(f < fade, 1.0 - f / fade, 0.0)
+    return (np.asarray(last, dtype=np.float64)[None, :] * g[:, None]).astype(np.float32).astype(np.float64)
+
+
 def compare_audio(live: np.ndarray, replay: np.ndarray, lead: int, up: int, resyncs: Sequence[Sequence[int]],
                   fade: int) -> AudioComparison:
     """Compare a live recording with the replay (see the module docstring); ``fade`` in frames."""
@@ -67,9 +74,7 @@ def compare_audio(live: np.ndarray, replay: np.ndarray, lead: int, up: int, resy
         j = i
         while j < n and differ[j]:
             j += 1
-        mag = np.abs(live[i:j]).max(axis=1)
-        ok = np.all(np.diff(mag[:fade + 1]) <= 0) and np.all(mag[fade:] == 0)
-        if ok:
+        if np.array_equal(live[i:j], fade_from(live[i - 1] if i else np.zeros(live.shape[1]), j - i, fade)):
             silence += j - i
         else:
             unexplained += j - i
