@@ -3,21 +3,17 @@
 Shared by every ``flowtex fit`` kind: the rate rule (a rate stated in the
 file wins; ``--rate`` supplies a missing one; a conflicting ``--rate`` is an
 error), signal presence and shape, NaN/inf (how many, where), constant
-signals; and :func:`atomic_output`, which writes an output file completely
-or not at all.
+signals. Outputs go through the one writer, :mod:`flowtex.io.atomic`.
 """
 
 from __future__ import annotations
 
-import contextlib
-import os
-import tempfile
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import DataError
+from ..io.atomic import atomic_output  # noqa: F401 -- the one writer, re-exported for the fit modules
 from ..io.recordings import Recording, load_recording
 
 
@@ -74,21 +70,3 @@ def check_not_constant(a: np.ndarray, label: str) -> None:
     """Raise DataError when ``a`` does not vary (nothing to fit)."""
     if a.size == 0 or float(np.ptp(a)) == 0.0:
         raise DataError(f"{label} is constant; check that the right signal is named and that the sensor was recording")
-
-
-@contextlib.contextmanager
-def atomic_output(path: str | Path) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; on success it is renamed to ``path``, on error removed.
-
-    So a failed fit never leaves a partial (or stale half-written) output file.
-    """
-    path = Path(path).expanduser()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
