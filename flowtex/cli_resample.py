@@ -1,7 +1,8 @@
 """``flowtex resample IN --rate HZ -o OUT``: bring every signal of a recording to another rate (any rational ratio).
 
 Zero delay (signals stay aligned in time), length n * r2 / r1 rounded, Kaiser
-polyphase filter (flowtex.dsp.resample). The output states its new rate.
+polyphase filter (flowtex.dsp.resample), edges that keep linear trends (a
+position ramp stays a ramp, docs/signal-nodes.md). The output states its new rate.
 """
 
 from __future__ import annotations
