@@ -15,6 +15,7 @@ from pathlib import Path
 import can
 
 from ..errors import DataError
+from .atomic import atomic_output
 
 WRITE_SUFFIXES = (".blf", ".log", ".asc")
 READ_SUFFIXES = (".blf", ".log", ".asc")
@@ -34,6 +35,9 @@ def check_log_path(path: str | Path, for_writing: bool) -> Path:
 class SessionWriter:
     """Append frames to a CAN log; marks direction (``is_rx``) in every format.
 
+    The frames go to a temporary file in the log's folder, renamed over ``path`` by :meth:`close`
+    (:func:`~flowtex.io.atomic.atomic_output`): an existing log is replaced only by a complete one.
+
     BLF files are written with zlib level 1 to keep the periodic compression
     of a 128 KiB container short (it runs inside the live loop's slack time).
     """
@@ -41,12 +45,15 @@ class SessionWriter:
     def __init__(self, path: str | Path):
         self.path = check_log_path(path, for_writing=True)
         suffix = self.path.suffix.lower()
+        self._commit = atomic_output(self.path)
+        tmp = self._commit.__enter__()  # a temporary file beside the log, renamed over it by close()
         try:
             if suffix == ".blf":
-                self._writer = can.BLFWriter(self.path, compression_level=1)
+                self._writer = can.BLFWriter(tmp, compression_level=1)
             else:
-                self._writer = can.Logger(self.path)
+                self._writer = can.Logger(tmp)
         except OSError as exc:
+            self._commit.__exit__(type(exc), exc, exc.__traceback__)
             raise DataError(f"{self.path}: cannot write CAN log: {exc.strerror or exc}") from None
         self._blf = suffix == ".blf"
         self.frames = 0
@@ -69,10 +76,11 @@ class SessionWriter:
             self.write(m, False)
 
     def close(self) -> None:
-        """Flush and close the file (idempotent)."""
+        """Flush and close the log, then rename it into place (idempotent; the old file stays until then)."""
         if self._writer is not None:
-            self._writer.stop()
-            self._writer = None
+            writer, self._writer = self._writer, None
+            writer.stop()
+            self._commit.__exit__(None, None, None)
 
 
 def read_session(path: str | Path) -> Iterator[can.Message]:

@@ -44,6 +44,7 @@ from .buses import BusError, open_bus, receiver, sender
 from .canio import CanIO, load_io, tick_out
 from .clock import DeadlineClock
 from .fused import fuse_tick
+from .preflight import preflight_live
 from .realtime import RealtimeStatus, enter_realtime, freeze_gc, leave_realtime
 from .safety import all_updated_after, first_stale
 from .simdevice import in_process_device
@@ -113,6 +114,7 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
             raise FlowtexError(f"--duration must be a positive number of seconds, got {duration_s!r}")
         n_ticks = min(n_ticks or 1 << 62, int(round(duration_s * float(graph.rate))))
     shown = resolve_shown(graph, show)
+    record, stats_path = preflight_live(graph, dbc_path, map_path, simulate=simulate, record=record, stats_path=stats_path)
     io = load_io(graph, dbc_path, map_path)
     device = dev_bus = None
     if simulate is not None:

@@ -42,10 +42,11 @@ are reported in microseconds as floats.
 
 from __future__ import annotations
 
-import json
 import os
 
 import numpy as np
+
+from ..io.atomic import write_json_atomic
 
 LATE_LIMIT_NS = 1_000_000
 """Lateness above this (1 ms, strictly greater) counts in ``late_over_1ms``."""
@@ -220,7 +221,5 @@ class TickStats:
         )
 
     def write_json(self, path: str | os.PathLike, rt: bool) -> None:
-        """Write :meth:`summary` as JSON (UTF-8, indented) to ``path``."""
-        with open(path, "w", encoding="utf-8") as f:
-            json.dump(self.summary(rt), f, indent=2, allow_nan=False)
-            f.write("\n")
+        """Write :meth:`summary` as JSON (UTF-8, indented) to ``path`` (atomically: :func:`~flowtex.io.atomic.write_json_atomic`)."""
+        write_json_atomic(path, self.summary(rt))

@@ -10,7 +10,7 @@ import textwrap
 
 import cantools
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from test_live import DBC, MAP, setup  # noqa: F401  (fixture; rootdir-relative import as pytest does)
 
@@ -110,6 +110,7 @@ def test_check_value_agrees_with_the_analytic_range(fields, value):
     lo, hi = sorted((rmin * scale + offset, rmax * scale + offset))
     if rng is not None:
         lo, hi = max(lo, rng[0]), min(hi, rng[0] + rng[1])
+    assume(lo <= hi)  # a DBC range the bit field cannot reach at all is another test's matter
     q = abs(scale)
     assert sendable_range(sig) == pytest.approx((lo, hi))
     got = check_value(msg, sig, value)
