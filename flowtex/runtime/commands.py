@@ -93,6 +93,8 @@ def cmd_live(args: argparse.Namespace) -> int:
         return _error("live", str(exc))
     except KeyboardInterrupt:
         return _error("live", "interrupted before the loop started")
+    for line in report.warnings:
+        print(f"flowtex live: warning: {line}", file=sys.stderr)
     if report.error:
         return _error("live", report.error + " (safe values sent)")
     if report.no_sensor_frames:

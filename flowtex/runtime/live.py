@@ -49,7 +49,7 @@ from .realtime import RealtimeStatus, enter_realtime, freeze_gc, leave_realtime
 from .safety import all_updated_after, first_stale
 from .simdevice import in_process_device
 from .stats import TickStats
-from .status import Shown, StatusDisplay, resolve_shown
+from .status import Shown, StatusDisplay, clamp_warnings, resolve_shown
 from .tick import rx_decoder, tick_compute, warmer
 
 __all__ = ["BusError", "CanIO", "LiveReport", "load_io", "run_live"]
@@ -79,6 +79,8 @@ class LiveReport:
     """One line naming the silent sensor messages (frame ids) and the bus, or None when every sensor message arrived."""
     no_sensor_frames: bool = False
     """Not one sensor frame arrived (outputs were safe throughout): ``flowtex live`` then exits with code 3."""
+    warnings: list[str] = field(default_factory=list)
+    """One line per output clamped or peak-limited on more than 1 % of the ticks (:func:`~flowtex.runtime.status.clamp_warnings`)."""
 
     @property
     def ok(self) -> bool:
@@ -222,6 +224,7 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
         error = f"{error}; {safe_error}" if error else safe_error
     stats.watchdog_events = watchdog.events
     stats.timeouts = watchdog.stale_events
+    stats.guard = io.guard_counts()
     rt_granted = rt_status is not None and bool(rt_status.granted)
     if display is not None:
         display.finish(rt_granted)
@@ -232,7 +235,8 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                       guard_events=guard_events, exit_reason="error" if error else (stop[0] or "duration"), error=error,
                       summary=stats.summary(rt_granted), rt_message=rt_message, send_offset_ns=send_offset[:min(k, capacity)],
                       device=device, silent_messages=silent, silence=silence,
-                      no_sensor_frames=bool(k) and len(silent) == len(io.map.sensor_messages()) > 0)
+                      no_sensor_frames=bool(k) and len(silent) == len(io.map.sensor_messages()) > 0,
+                      warnings=clamp_warnings(io, k))
 
 
 def _silent_sensors(io: CanIO, last: np.ndarray, ticks: int, frames_in: int, where: str) -> tuple[list[str], str | None]:
