@@ -36,6 +36,7 @@ import can
 import numpy as np
 
 from ..errors import DataError
+from ..io.atomic import atomic_output
 from ..io.canlog import SessionWriter, read_session_checked
 from .canio import load_io
 
@@ -227,7 +228,8 @@ def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, m
         if writer is not None:
             writer.close()
     if outputs is not None:
-        np.savez(output_path, rate=np.float64(graph.rate), **outputs)
+        with atomic_output(output_path) as tmp:
+            np.savez(tmp, rate=np.float64(graph.rate), **outputs)
     if output_path is not None:
         report.output_path = Path(output_path)
     return report

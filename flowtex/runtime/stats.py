@@ -224,7 +224,7 @@ class TickStats:
                 f"frames in {s['frames_in']}  out {s['frames_out']}  timeouts {s['timeouts']}  watchdog events {s['watchdog_events']}",
             ]
             + [f"guard     {key.replace('_', '-')} " + ", ".join(f"{k} {v}" for k, v in self.guard[key].items())
-               for key in ("clamped", "peak_limited", "nonfinite") if self.guard and self.guard.get(key)]
+               for key in ("clamped", "peak_limited", "nonfinite") if self.guard and any(self.guard.get(key, {}).values())]
         )
 
     def write_json(self, path: str | os.PathLike, rt: bool) -> None:

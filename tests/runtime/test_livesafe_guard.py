@@ -68,6 +68,7 @@ def test_clamps_per_output_in_status_stats_and_a_warning_above_one_percent(setup
     text = status.getvalue()
     assert f"| clamped vibration {expected['vibration']}, force {expected['force']}" in text  # the last status line
     assert f"guard     clamped vibration {expected['vibration']}, force {expected['force']}" in text  # the summary
+    assert "peak-limited" not in text and "guard     nonfinite" not in text  # kinds that did not occur are not listed
     busiest = int(over_f.sum(axis=0).max())
     assert r.warnings == [
         f"output 'vibration' was clamped on {expected['vibration']} of {TICKS} ticks ({100 * expected['vibration'] / TICKS:.1f} %, "
