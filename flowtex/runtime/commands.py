@@ -88,7 +88,7 @@ def cmd_live(args: argparse.Namespace) -> int:
         report = run_live(graph, args.dbc, args.map, args.bus, simulate=args.simulate, duration_s=args.duration,
                           record=args.record, rt=args.rt, rt_priority=args.rt_priority, rt_cpu=args.cpu,
                           stats_path=args.stats, seed=args.seed, status=None if args.quiet else sys.stderr,
-                          bitrate=args.bitrate, show=args.show)
+                          bitrate=args.bitrate, show=args.show, inputs=[p for p in (getattr(args, "scene", None),) if p])
     except FlowtexError as exc:
         return _error("live", str(exc))
     except KeyboardInterrupt:

@@ -92,7 +92,8 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
              rt: bool = False, rt_priority: int = 80, rt_cpu: int | None = None, stats_path: str | Path | None = None,
              seed: int | None = None, status: TextIO | None = sys.stderr, bitrate: int | None = None,
              drop: Mapping[str, tuple[int, int | None]] | None = None, install_signals: bool = True,
-             max_ticks: int | None = None, warm: bool = True, show: Sequence[str] = ()) -> LiveReport:
+             max_ticks: int | None = None, warm: bool = True, show: Sequence[str] = (),
+             inputs: Sequence[str | Path] = ()) -> LiveReport:
     """Run ``graph`` live against a CAN bus until ``duration_s`` (None: until Ctrl-C/SIGTERM).
 
     ``simulate``: a recording path (or :class:`~flowtex.io.recordings.Recording`);
@@ -103,7 +104,9 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
     length for tests). The session runs on ``graph.with_block_rows(1)`` (same code,
     parameters and seed, one-row port buffers), so ``graph`` itself is not stepped.
     ``show``: graph outputs or inputs (``NAME`` or ``NAME[i]``) whose current values follow the status line.
-    ``warm``: cache warming before each deadline (see :func:`~flowtex.runtime.tick.warmer`). Raises :class:`FlowtexError`
+    ``warm``: cache warming before each deadline (see :func:`~flowtex.runtime.tick.warmer`). ``inputs``: other files the
+    session was built from (e.g. a scene file), which ``record`` and ``stats_path`` must not be; both are checked before
+    the session (:func:`~flowtex.runtime.preflight.preflight_live`). Raises :class:`FlowtexError`
     for bad files or a bus that cannot be opened; failures during the loop end the session with safe values and are
     returned in ``LiveReport.error``.
     """
@@ -116,7 +119,8 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
             raise FlowtexError(f"--duration must be a positive number of seconds, got {duration_s!r}")
         n_ticks = min(n_ticks or 1 << 62, int(round(duration_s * float(graph.rate))))
     shown = resolve_shown(graph, show)
-    record, stats_path = preflight_live(graph, dbc_path, map_path, simulate=simulate, record=record, stats_path=stats_path)
+    record, stats_path = preflight_live(graph, dbc_path, map_path, simulate=simulate, record=record, stats_path=stats_path,
+                                        inputs=inputs)
     io = load_io(graph, dbc_path, map_path)
     device = dev_bus = None
     if simulate is not None:

@@ -9,6 +9,7 @@ file given for both.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -24,14 +25,17 @@ def session_inputs(graph: Any, dbc_path: str | Path, map_path: str | Path, simul
 
 
 def preflight_live(graph: Any, dbc_path: str | Path, map_path: str | Path, *, simulate: Any = None,
-                   record: str | Path | None = None, stats_path: str | Path | None = None) -> tuple[Path | None, Path | None]:
+                   record: str | Path | None = None, stats_path: str | Path | None = None,
+                   inputs: Sequence[str | Path] = ()) -> tuple[Path | None, Path | None]:
     """Check ``record`` and ``stats_path`` before the session; return them expanded (None stays None).
+
+    ``inputs``: files the session was built from besides graph, DBC, map and recording (e.g. a scene file).
 
     Raises :class:`~flowtex.io.atomic.OutputError` (one line naming ``--record`` or ``--stats``) for an output that
     is an input of the session, a folder, in a folder that cannot be created or written, or the same file for both;
     :class:`~flowtex.errors.DataError` for a log name whose suffix python-can cannot write.
     """
-    inputs = session_inputs(graph, dbc_path, map_path, simulate)
+    inputs = [*session_inputs(graph, dbc_path, map_path, simulate), *(Path(p) for p in inputs)]
     if record is not None:
         check_log_path(record, for_writing=False)  # the suffix; the folder is check_output's
     rec = check_output(record, inputs=inputs, option="--record")

@@ -91,3 +91,12 @@ def test_simulate_device_refuses_nan_before_opening_the_bus(setup, capsys):  # n
     err = capsys.readouterr().err
     assert "signal 'position' has 20 non-finite sample(s), the first (inf) at index 0" in err
     assert "nosuchbus" not in err  # refused before the (unknown) bus was tried
+
+
+def test_files_the_session_was_built_from_are_inputs_too(setup):  # noqa: F811
+    """``flowtex scene live SCENE --stats SCENE`` passes the scene file as one of the session's inputs."""
+    scene = setup / "scene.yaml"
+    scene.write_text("flowtex_scene: 1\n")
+    with pytest.raises(OutputError, match=r"--stats .*scene\.yaml: that is an input of this command"):
+        _live(setup, stats_path=scene, inputs=[scene])
+    assert scene.read_text() == "flowtex_scene: 1\n"
