@@ -15,7 +15,7 @@ The format is documented in docs/live.md. In short::
         signal: VoiceCoilCmd.Current
         scale: 1.0               # DBC physical value = graph value * scale + offset
         clamp: [-1.5, 1.5]       # required, in graph units
-        safe: 0.0                # optional (default 0), in graph units, inside clamp
+        safe: 0.0                # optional (default 0), in graph units, inside clamp; the DBC must carry it
         peak: {limit: 2.0, max_ms: 20}   # optional: |value| up to limit for max_ms
 
 :func:`load_map` checks the file against the DBC and (when given) the graph's
