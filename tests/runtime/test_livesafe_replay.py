@@ -8,8 +8,11 @@ import can
 import numpy as np
 import pytest
 from can.io.blf import FILE_HEADER_STRUCT
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_live import DBC, GRAPH, MAP
 
+from flowtex.errors import FlowtexError
 from flowtex.graph.compiled import load_graph
 from flowtex.io.canlog import read_session_checked
 from flowtex.runtime.live import run_live
@@ -95,3 +98,22 @@ def test_a_text_log_cut_in_the_middle_of_a_line(session):
     assert rep.truncated == "its last line is cut off" and not rep.exit_block
     assert rep.ticks == _complete_blocks(list(can.LogReader(whole_lines)))
     assert f"found {rep.ticks} ticks; the log does not say how many the session had" in str(rep)
+
+
+@settings(max_examples=25, deadline=None)
+@given(cut=st.floats(0.0, 1.0), flips=st.lists(st.tuples(st.floats(0.0, 1.0), st.integers(1, 255)), max_size=3))
+def test_any_cut_or_corrupted_blf_replays_or_fails_in_one_line(session, cut, flips):
+    """Fuzz (hypothesis): a BLF cut anywhere, with a few bytes changed, replays what it holds (saying it is cut) or
+    ends in one line naming the file; never another exception."""
+    data = bytearray((session / "s.blf").read_bytes())
+    for where, x in flips:
+        data[int(where * (len(data) - 1))] ^= x
+    path = session / "fuzz.blf"
+    path.write_bytes(bytes(data[:int(cut * len(data))]))
+    try:
+        rep = _replay(session, path)
+    except FlowtexError as exc:
+        assert "\n" not in str(exc) and str(path) in str(exc)
+        return
+    if cut < 0.99 and not flips:
+        assert rep.truncated is not None and "(all of them)" not in str(rep)
