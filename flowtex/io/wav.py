@@ -54,8 +54,11 @@ def write_wav(path: str | Path, samples: np.ndarray, rate: float) -> None:
     path = Path(path)
     if rate != int(rate) or rate <= 0:
         raise DataError(f"{path}: a WAV file needs a whole positive number of Hz, got {rate:g}; resample to e.g. 8000 first")
+    from .atomic import atomic_output
+
     path.parent.mkdir(parents=True, exist_ok=True)
-    wavfile.write(path, int(rate), np.ascontiguousarray(samples, dtype=np.float32))
+    with atomic_output(path) as tmp:  # a failure or Ctrl-C leaves no partial file
+        wavfile.write(tmp, int(rate), np.ascontiguousarray(samples, dtype=np.float32))
 
 
 def write_signals_wav(path: str | Path, arrays: Mapping[str, np.ndarray], rate: float | None) -> None:

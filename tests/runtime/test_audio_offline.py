@@ -15,7 +15,6 @@ from flowtex.dsp.audio_interp import Interpolator
 from flowtex.errors import FlowtexError
 from flowtex.graph.compiled import load_graph
 from flowtex.io.recordings import load_recording
-from flowtex.runtime.commands import main as runtime_main
 from flowtex.runtime.live import run_live
 from flowtex.runtime.replay import replay_session
 
@@ -97,9 +96,9 @@ def test_audio_rate_must_be_a_multiple_of_the_graph_rate(tmp_path, capsys):
 
 
 def test_list_audio_and_missing_arguments(capsys):
-    assert runtime_main(["live", "--list-audio"]) == 0
+    assert main(["live", "--list-audio"]) == 0
     assert capsys.readouterr().out.strip()  # devices, or one line saying there are none and why
-    assert runtime_main(["live", "g.yaml"]) == 1
+    assert main(["live", "g.yaml"]) == 1
     assert "missing --dbc, --map" in capsys.readouterr().err
 
 
