@@ -175,8 +175,9 @@ class AudioOutput:
         stall = max(STALL_S, 8 * self.amap.block / self.amap.rate) * 1e9
         if stream is not None and (now - self.last_callback_ns > stall or not stream.active):
             self.lost = True
-            raise AudioDeviceError(f"audio device {self.device_name} stopped: no callback for "
-                                   f"{(now - self.last_callback_ns) / 1e9:.2f} s (device unplugged or sound server gone)")
+            why = (f"no callback for {(now - self.last_callback_ns) / 1e9:.2f} s" if stream.active
+                   else "PortAudio stopped the stream")
+            raise AudioDeviceError(f"audio device {self.device_name} stopped: {why} (device unplugged or sound server gone)")
         if self.record_path is not None and self.ring.istate[RECORDED] - self.ring.drained > self.ring.record.shape[0] // 4:
             self.recorded.append(self.ring.drain())
 
