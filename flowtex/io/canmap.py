@@ -17,6 +17,7 @@ The format is documented in docs/live.md. In short::
         clamp: [-1.5, 1.5]       # required, in graph units
         safe: 0.0                # optional (default 0), in graph units, inside clamp; the DBC must carry it
         peak: {limit: 2.0, max_ms: 20}   # optional: |value| up to limit for max_ms
+    audio: {rate: 8000, block: 64, channels: [{output: vibration, scale: 1.5, clip: 1.0}]}   # optional: flowtex.io.audiomap
 
 :func:`load_map` checks the file against the DBC and (when given) the graph's
 input/output shapes and raises :class:`~flowtex.errors.GraphError` whose lines
