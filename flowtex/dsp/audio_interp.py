@@ -34,17 +34,23 @@ DEFAULT_PASSBAND = 0.8
 """Passband edge as a fraction of half the tick rate (400 Hz at 1 kHz)."""
 
 
-def interpolation_filter(up: int, atten_db: float = DEFAULT_ATTEN_DB, passband: float = DEFAULT_PASSBAND) -> np.ndarray:
-    """Minimum-phase low-pass FIR at the audio rate for interpolation by the integer ``up`` (DC gain 1)."""
+def interpolation_filter(up: int, atten_db: float = DEFAULT_ATTEN_DB, passband: float = DEFAULT_PASSBAND,
+                         down: int = 1) -> np.ndarray:
+    """Minimum-phase low-pass FIR at ``up`` times the tick rate for interpolation by ``up / down`` (DC gain 1)."""
     from scipy import signal
 
-    if int(up) != up or up < 1:
-        raise ValueError(f"the interpolation factor must be a positive integer, got {up}")
+    if int(up) != up or up < 1 or int(down) != down or down < 1:
+        raise ValueError(f"the interpolation ratio must be positive integers up/down, got {up}/{down}")
     if up == 1:
         return np.ones(1)
-    h = resampling_fir(int(up), 1, atten_db, passband)
+    h = resampling_fir(int(up), int(down), atten_db, passband)
     hm = signal.minimum_phase(h, method="homomorphic", half=False)
     return hm / hm.sum()
+
+
+def frames_before(k: int, up: int, down: int = 1) -> int:
+    """Audio frames of the ticks before tick ``k`` at the ratio up/down: ceil(k * up / down) (frame n plays at tick n * down // up)."""
+    return -(-int(k) * int(up) // int(down))
 
 
 def low_frequency_delay(h: np.ndarray, rate_hz: float, freq_hz: float = 50.0) -> float:
@@ -56,49 +62,66 @@ def low_frequency_delay(h: np.ndarray, rate_hz: float, freq_hz: float = 50.0) ->
 
 
 class Interpolator:
-    """State of one interpolation run: ``up`` audio samples per tick for ``width`` channels.
+    """State of one interpolation run: ``up / down`` audio samples per tick (a whole number when ``down`` is 1;
+    e.g. 441/10 from 1 kHz to 44.1 kHz) for ``width`` channels.
 
     ``lo``, ``hi``: clip per channel in graph units; ``scale``: graph units per full-scale sample.
+    Audio frame ``n`` is the up-sampled (rate ``up`` x tick rate) sample ``n * down``: tick ``n * down // up``, phase
+    ``n * down % up``.
     """
 
     def __init__(self, up: int, width: int, scale: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-                 atten_db: float = DEFAULT_ATTEN_DB, passband: float = DEFAULT_PASSBAND) -> None:
+                 atten_db: float = DEFAULT_ATTEN_DB, passband: float = DEFAULT_PASSBAND, down: int = 1) -> None:
         self.up = int(up)
+        self.down = int(down)
         self.width = int(width)
-        self.h = interpolation_filter(self.up, atten_db, passband)
+        self.h = interpolation_filter(self.up, atten_db, passband, self.down)
         self.params = stream_params(self.h, self.up, 1) if self.up > 1 else np.array([1.0, 1.0, 1.0, 1.0, 1.0])
-        n_float, n_int = stream_state_sizes(self.h, self.up, 1, self.width) if self.up > 1 else (3 * self.width, 2)
+        n_float = stream_state_sizes(self.h, self.up, 1, self.width)[0] if self.up > 1 else 3 * self.width
         self.state = np.zeros(n_float)
-        self.istate = np.zeros(n_int, dtype=np.int64)
+        self.istate = np.zeros(3, dtype=np.int64)
+        """next tick, ring slot of the newest tick value, next audio frame"""
         self.inv_scale = 1.0 / np.asarray(scale, dtype=np.float64).reshape(self.width)
         self.lo = np.asarray(lo, dtype=np.float64).reshape(self.width)
         self.hi = np.asarray(hi, dtype=np.float64).reshape(self.width)
-        self.scratch = np.zeros((self.up, self.width))
+
+    @property
+    def max_frames(self) -> int:
+        """The most frames one tick gives."""
+        return -(-self.up // self.down)
+
+    def frames(self, n: int) -> int:
+        """Frames the next ``n`` ticks give."""
+        k = int(self.istate[0])
+        return frames_before(k + n, self.up, self.down) - frames_before(k, self.up, self.down)
 
     def reset(self) -> None:
         """Back to silence (the state of a new run)."""
         self.state[:] = 0.0
         self.istate[:] = 0
 
-    def render(self, x: np.ndarray, out: np.ndarray) -> None:
-        """``x`` (n, width) tick values in graph units -> ``out`` (n * up, width) float32 samples."""
-        render_ticks(self.params, self.state, self.istate, x, self.inv_scale, self.lo, self.hi, self.scratch, out)
+    def render(self, x: np.ndarray, out: np.ndarray) -> int:
+        """``x`` (n, width) tick values in graph units -> the first :meth:`frames` (n) rows of ``out`` (float32); returns that count."""
+        return render_ticks(self.params, self.state, self.istate, x, self.inv_scale, self.lo, self.hi, self.down, out)
 
 
 @njit(cache=True, nogil=True)
-def render_ticks(p, s, si, x, inv_scale, lo, hi, scratch, out):
-    """Interpolate ``x`` (n, w) by ``up = scratch.shape[0]``, clip, scale, into ``out`` (n * up, w) float32.
+def render_ticks(p, s, si, x, inv_scale, lo, hi, down, out):
+    """Interpolate ``x`` (n, w) by ``up / down`` (``up = p[1]``), clip, scale, into ``out`` float32; returns the frames written.
 
     The up-sampling path of :func:`flowtex.dsp.resample_stream.resample_block` (same parameter and state
-    layout, same products summed in the same order, so the same samples), written for one tick in, ``up``
-    samples out: calling ``resample_block`` once per tick cost ~20x more per sample (measured in
-    benchmarks/bench_audio.py's setting)."""
-    up = scratch.shape[0]
+    layout, same products summed in the same order, so for ``down == 1`` the same samples), written for one tick
+    in and its frames out, with every ``down``-th up-sampled sample kept: calling ``resample_block`` once per tick
+    cost ~20x more per sample (benchmarks/bench_audio.py's setting)."""
+    up = int(p[1]) if p.shape[0] > 5 else 1
     w = x.shape[1]
     hist = int(p[3]) if up > 1 else 1
     coef = p[4:]
     span = 2 * hist
+    kt = si[0]
     pos = si[1]
+    nout = si[2]
+    m = 0
     for k in range(x.shape[0]):
         pos = pos + 1 if pos + 1 < hist else 0
         for q in range(w):
@@ -106,8 +129,8 @@ def render_ticks(p, s, si, x, inv_scale, lo, hi, scratch, out):
             v = v if v == v else 0.0  # a NaN output enters the filter as 0 (it would poison its history)
             s[q * span + pos] = v
             s[q * span + pos + hist] = v
-        for r in range(up):
-            g = r * hist
+        while (nout * down) // up == kt:
+            g = ((nout * down) % up) * hist
             for q in range(w):
                 base = q * span + pos + 1
                 if up > 1:
@@ -122,5 +145,11 @@ def render_ticks(p, s, si, x, inv_scale, lo, hi, scratch, out):
                     acc = lo[q]
                 elif acc > hi[q]:
                     acc = hi[q]
-                out[k * up + r, q] = np.float32(acc * inv_scale[q])
+                out[m, q] = np.float32(acc * inv_scale[q])
+            m += 1
+            nout += 1
+        kt += 1
+    si[0] = kt
     si[1] = pos
+    si[2] = nout
+    return m

@@ -68,15 +68,15 @@ class AudioOutput:
 
     def __init__(self, graph: Any, amap: AudioMap, record: str | Path | None = None, where: str = "map") -> None:
         self.amap = amap
-        self.up = samples_per_tick(amap, float(graph.rate), where)
-        self.lead = lead_frames(amap, self.up)
-        self.interp = interpolator(amap, self.up)
+        self.ratio = samples_per_tick(amap, float(graph.rate), where)
+        self.lead = lead_frames(amap, self.ratio)
+        self.interp = interpolator(amap, self.ratio)
         self.views = [graph.output_view(c.output).reshape(-1) for c in amap.channels]
         self.x = np.zeros((1, len(amap.channels)))
-        self.ring = AudioRing(self.up, len(amap.channels), self.lead, amap.rate)
+        self.ring = AudioRing(self.ratio[0], len(amap.channels), self.lead, amap.rate, down=self.ratio[1])
         self.ahead = self.lead - amap.block
         """Frames between the callback's position and a tick's first frame at the tick's deadline (tick 0 included)."""
-        self.block_buf = np.zeros((self.up, len(amap.channels)), dtype=np.float32)
+        self.block_buf = np.zeros((self.interp.max_frames, len(amap.channels)), dtype=np.float32)
         self.cb_end = 0
         self.cb_ns = 0
         self._pace_err = 0.0
@@ -150,9 +150,9 @@ class AudioOutput:
         x = self.x
         for c, v in enumerate(self.views):
             x[0, c] = v[0]
-        self.interp.render(x, self.block_buf)
+        n = self.interp.render(x, self.block_buf)
         self.ring.resync(k, self.ahead)
-        self.ring.put(k, self.block_buf, arrival_ns, silent)
+        self.ring.put(k, self.block_buf[:n], arrival_ns, silent)
 
     def pace(self, k: int, next_deadline_ns: int) -> int:
         """How far (ns) to move the next tick's deadline so that the ticks follow the sound card's clock.
@@ -235,6 +235,7 @@ class AudioOutput:
                 if lat.size else {"p50": None, "p99": None, "max": None})
         return {"rate": float(self.amap.rate), "frames": int(self.ring.istate[RECORDED]), "underruns": self.underruns,
                 "latency_ms": dist, "played_frames": int(self.ring.istate[PLAYED]), "lead_frames": int(self.lead),
-                "samples_per_tick": int(self.up), "latency_samples": int(self.ring.istate[LATENCIES]),
+                "samples_per_tick": self.ratio[0] / self.ratio[1], "ratio": list(self.ratio),
+                "latency_samples": int(self.ring.istate[LATENCIES]),
                 "late_frames": int(self.ring.istate[MISSING]), "fade_frames": int(self.ring.fade),
                 "resyncs": [list(r) for r in self.ring.resyncs]}

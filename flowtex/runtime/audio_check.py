@@ -2,7 +2,7 @@
 
 The replay WAV (``flowtex run GRAPH --input SESSION.blf ... --output REPLAY.wav``)
 holds the live lead of silence, then every tick's samples back to back. Live
-played tick ``k`` at ``lead + k * up`` plus the silence of every resync before
+played tick ``k`` at ``lead + frames_before(k)`` (``k * up`` for a whole ratio) plus the silence of every resync before
 it (``--stats``: ``audio.resyncs``, pairs of tick and inserted frames). Every
 live frame that played a tick must equal the replay's; every other live frame
 is safe silence: each run of differing frames is exactly the callback's fade from
@@ -15,6 +15,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+
+from ..dsp.audio_interp import frames_before
 
 
 @dataclass
@@ -34,18 +36,22 @@ class AudioComparison:
         return self.unexplained == 0
 
 
-def placed_replay(replay: np.ndarray, n_live: int, lead: int, up: int, resyncs: Sequence[Sequence[int]]) -> np.ndarray:
+def placed_replay(replay: np.ndarray, n_live: int, lead: int, up: int, resyncs: Sequence[Sequence[int]],
+                  down: int = 1) -> np.ndarray:
     """The replay's tick samples at the stream positions live gave them (NaN where live played no tick)."""
     replay = replay.reshape(replay.shape[0], -1)
-    n_ticks = (replay.shape[0] - lead) // up
-    shift = np.zeros(n_ticks, dtype=np.int64)
+    n_ticks = 0
+    while lead + frames_before(n_ticks + 1, up, down) <= replay.shape[0]:
+        n_ticks += 1
+    shift = np.zeros(n_ticks + 1, dtype=np.int64)
     for k, gap in resyncs:
-        shift[int(k):] += int(gap)
+        shift[min(int(k), n_ticks):] += int(gap)
     placed = np.full((n_live, replay.shape[1]), np.nan)
     for k in range(n_ticks):
-        p = lead + k * up + shift[k]
-        if p + up <= n_live:
-            placed[p:p + up] = replay[lead + k * up:lead + (k + 1) * up]
+        a, b = frames_before(k, up, down), frames_before(k + 1, up, down)
+        p = lead + a + shift[k]
+        if p + b - a <= n_live:
+            placed[p:p + b - a] = replay[lead + a:lead + b]
     return placed
 
 
@@ -57,10 +63,11 @@ def fade_from(last: np.ndarray, n: int, fade: int) -> np.ndarray:
 
 
 def compare_audio(live: np.ndarray, replay: np.ndarray, lead: int, up: int, resyncs: Sequence[Sequence[int]],
-                  fade: int) -> AudioComparison:
-    """Compare a live recording with the replay (see the module docstring); ``fade`` in frames."""
+                  fade: int, down: int = 1) -> AudioComparison:
+    """Compare a live recording with the replay (see the module docstring); ``fade`` in frames; ``up / down``
+    frames per tick (``--stats``: ``audio.ratio``)."""
     live = live.reshape(live.shape[0], -1).astype(np.float64)
-    placed = placed_replay(replay, live.shape[0], lead, up, resyncs)
+    placed = placed_replay(replay, live.shape[0], lead, up, resyncs, down)
     known = ~np.isnan(placed).any(axis=1)
     same = known & (placed == live).all(axis=1)
     differ = ~same

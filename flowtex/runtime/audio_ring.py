@@ -1,8 +1,9 @@
 """The hand-over between the tick loop and the audio callback: a ring of rendered samples, filled per tick, read per callback.
 
 Frames are addressed by their stream position ``q`` (frames handed to PortAudio
-since the stream started). Tick ``k`` writes its ``up`` samples at positions
-``base + k * up`` on (:meth:`AudioRing.put`), stamping each frame with its
+since the stream started). Tick ``k`` writes its samples (``up / down`` per tick on average, see
+:func:`flowtex.dsp.audio_interp.frames_before`) at positions ``base + frames_before(k)`` on
+(:meth:`AudioRing.put`), stamping each frame with its
 position (or ``-(q + 2)``: computed, but to be played as silence because the
 watchdog holds the outputs safe). ``base`` starts at ``lead`` frames (the silence
 at stream start) and only moves forward when the tick loop fell behind the
@@ -22,6 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from ..dsp.audio_interp import frames_before
 
 # istate slots
 MISSING = 0
@@ -91,7 +94,7 @@ def fill(out, ring, stamps, lead, last, istate, fade, arrival, latency, dac_ns, 
 
 @njit(cache=True, nogil=True)
 def put(ring, stamps, arrival, q, block, silent, arrival_ns):
-    """Write ``block`` (up, channels) at positions ``q ..``, then stamp them (``-(p + 2)`` when ``silent``)."""
+    """Write ``block`` (frames, channels) at positions ``q ..``, then stamp them (``-(p + 2)`` when ``silent``)."""
     cap = ring.shape[0]
     for r in range(block.shape[0]):
         slot = (q + r) % cap
@@ -106,12 +109,12 @@ def put(ring, stamps, arrival, q, block, silent, arrival_ns):
 class AudioRing:
     """Buffers shared by the tick loop (writer) and the callback (reader), sized for ``seconds`` of audio.
 
-    ``up`` audio frames per tick, ``width`` channels, ``lead`` frames of silence before tick 0 plays.
+    ``up / down`` audio frames per tick, ``width`` channels, ``lead`` frames of silence before tick 0 plays.
     """
 
     def __init__(self, up: int, width: int, lead: int, rate: float, fade_s: float = 0.002, seconds: float = 1.0,
-                 record_s: float = 8.0, latency_capacity: int = 1 << 20) -> None:
-        self.up, self.width, self.lead, self.rate = int(up), int(width), int(lead), int(rate)
+                 record_s: float = 8.0, latency_capacity: int = 1 << 20, down: int = 1) -> None:
+        self.up, self.down, self.width, self.lead, self.rate = int(up), int(down), int(width), int(lead), int(rate)
         cap = int(seconds * rate)
         self.stamps = np.full(cap, -1, dtype=np.int64)
         self.ring = np.zeros((cap, width), dtype=np.float32)
@@ -129,10 +132,10 @@ class AudioRing:
 
     def position(self, k: int) -> int:
         """Stream position of tick ``k``'s first frame."""
-        return self.base + k * self.up
+        return self.base + frames_before(k, self.up, self.down)
 
     def put(self, k: int, block: np.ndarray, arrival_ns: int, silent: bool) -> None:
-        """Tick ``k``'s samples ``block`` (up, channels): let the callback play them (or play silence if ``silent``).
+        """Tick ``k``'s samples ``block`` (frames, channels): let the callback play them (or play silence if ``silent``).
 
         ``arrival_ns``: when the newest sensor frame the tick used arrived (0: no new frame, no latency sample).
         """

@@ -249,5 +249,5 @@ def _write_audio(graph: Any, amap: Any, outputs: dict[str, np.ndarray], path: st
     from ..io.wav import write_wav
     from .audio_render import lead_frames, render_outputs, samples_per_tick
 
-    lead = lead_frames(amap, samples_per_tick(amap, float(graph.rate)))
+    lead = lead_frames(amap, samples_per_tick(amap, float(graph.rate)))  # the live stream's lead
     write_wav(path, render_outputs(outputs, amap, float(graph.rate), lead=lead), amap.rate)

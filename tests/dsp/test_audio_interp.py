@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from flowtex.dsp.audio_interp import Interpolator, interpolation_filter, low_frequency_delay
+from flowtex.dsp.audio_interp import Interpolator, frames_before, interpolation_filter, low_frequency_delay
 
 
 def _texture_like(n: int, rate: float = 1000.0, seed: int = 3) -> np.ndarray:
@@ -35,6 +35,19 @@ def test_render_equals_scipy_upfirdn_clipped_and_scaled(up):
     # float64 sums in another order, then one float32 rounding: a few float32 ulps of full scale
     np.testing.assert_allclose(out[:, 0], ref, rtol=0, atol=4 * np.finfo(np.float32).eps)
     assert out.max() <= np.float32(hi / scale) and out.min() >= np.float32(lo / scale)
+
+
+def test_44_1_khz_from_1_khz_is_scipy_upfirdn_by_441_over_10():
+    """A rational ratio: every 10th sample of the 441x up-sampled signal; ticks give 44 or 45 frames."""
+    x = _texture_like(200).reshape(-1, 1)
+    it = Interpolator(441, 1, [1.0], [-10.0], [10.0], down=10)
+    n = it.frames(200)
+    assert n == frames_before(200, 441, 10) == 8820
+    out = np.zeros((n, 1), dtype=np.float32)
+    assert it.render(x[:77], out) == frames_before(77, 441, 10)  # in two pieces: the state carries the phase
+    it.render(x[77:], out[frames_before(77, 441, 10):])
+    ref = signal.upfirdn(441 * it.h, x[:, 0], 441, 10)[:n]
+    np.testing.assert_allclose(out[:, 0], ref, rtol=0, atol=4 * np.finfo(np.float32).eps)
 
 
 def test_blocks_of_any_size_give_the_same_samples():

@@ -226,8 +226,8 @@ def test_captured_equals_record_audio_and_replay_at_period_64(setup):
     done = subprocess.run([sys.executable, "-m", "flowtex", "run", str(setup / "g.yaml"), "--input", str(r["blf"]), "--dbc", str(DBC),
                            "--map", str(setup / "m64.yaml"), "--output", str(replay)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
-    cmp = compare_audio(rec, wavfile.read(replay)[1], audio["lead_frames"], audio["samples_per_tick"], audio["resyncs"],
-                        audio["fade_frames"])
+    up, down = audio["ratio"]
+    cmp = compare_audio(rec, wavfile.read(replay)[1], audio["lead_frames"], up, audio["resyncs"], audio["fade_frames"], down)
     assert cmp.ok, cmp
     assert cmp.equal > 0.5 * cmp.compared  # most of the session played the graph's samples, not safe silence
 
