@@ -4,7 +4,7 @@
 
     audio:
       device: null             # optional: PortAudio device name (substring) or index; absent = default output
-      rate: 8000               # Hz, an integer multiple of the graph's rate
+      rate: 8000               # Hz, p/q times the graph's rate (p, q <= 1000: 8000, 44100, 48000 for a 1 kHz graph)
       block: 64                # frames per PortAudio callback
       channels:                # one entry per audio channel, in channel order
         - output: vibration    # a scalar graph output
