@@ -79,8 +79,8 @@ class Interpolator:
         self.params = stream_params(self.h, self.up, 1) if self.up > 1 else np.array([1.0, 1.0, 1.0, 1.0, 1.0])
         n_float = stream_state_sizes(self.h, self.up, 1, self.width)[0] if self.up > 1 else 3 * self.width
         self.state = np.zeros(n_float)
-        self.istate = np.zeros(3, dtype=np.int64)
-        """next tick, ring slot of the newest tick value, next audio frame"""
+        self.istate = np.zeros(4, dtype=np.int64)
+        """next tick, ring slot of the newest tick value, next audio frame, that frame's phase (up-sampled samples into its tick)"""
         self.inv_scale = 1.0 / np.asarray(scale, dtype=np.float64).reshape(self.width)
         self.lo = np.asarray(lo, dtype=np.float64).reshape(self.width)
         self.hi = np.asarray(hi, dtype=np.float64).reshape(self.width)
@@ -105,6 +105,26 @@ class Interpolator:
         return render_ticks(self.params, self.state, self.istate, x, self.inv_scale, self.lo, self.hi, self.down, out)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _frame(coef, s, g, pos, span, hist, up, lo, hi, inv_scale, out, m):
+    """Audio frame ``m`` (every channel) from polyphase branch ``g / hist``: dot product, NaN -> 0, clip, scale, float32."""
+    for q in range(out.shape[1]):
+        base = q * span + pos + 1
+        if up > 1:
+            acc = 0.0
+            for j in range(hist):
+                acc += coef[g + j] * s[base + j]
+        else:
+            acc = s[base + hist - 1]
+        if not acc == acc:
+            acc = 0.0
+        elif acc < lo[q]:
+            acc = lo[q]
+        elif acc > hi[q]:
+            acc = hi[q]
+        out[m, q] = np.float32(acc * inv_scale[q])
+
+
 @njit(cache=True, nogil=True)
 def render_ticks(p, s, si, x, inv_scale, lo, hi, down, out):
     """Interpolate ``x`` (n, w) by ``up / down`` (``up = p[1]``), clip, scale, into ``out`` float32; returns the frames written.
@@ -121,6 +141,7 @@ def render_ticks(p, s, si, x, inv_scale, lo, hi, down, out):
     kt = si[0]
     pos = si[1]
     nout = si[2]
+    ph = si[3]  # nout * down - kt * up, kept by additions: the next frame is in this tick while 0 <= ph < up
     m = 0
     for k in range(x.shape[0]):
         pos = pos + 1 if pos + 1 < hist else 0
@@ -129,27 +150,22 @@ def render_ticks(p, s, si, x, inv_scale, lo, hi, down, out):
             v = v if v == v else 0.0  # a NaN output enters the filter as 0 (it would poison its history)
             s[q * span + pos] = v
             s[q * span + pos + hist] = v
-        while (nout * down) // up == kt:
-            g = ((nout * down) % up) * hist
-            for q in range(w):
-                base = q * span + pos + 1
-                if up > 1:
-                    acc = 0.0
-                    for j in range(hist):
-                        acc += coef[g + j] * s[base + j]
-                else:
-                    acc = s[base + hist - 1]
-                if not acc == acc:
-                    acc = 0.0
-                elif acc < lo[q]:
-                    acc = lo[q]
-                elif acc > hi[q]:
-                    acc = hi[q]
-                out[m, q] = np.float32(acc * inv_scale[q])
-            m += 1
-            nout += 1
+        if down == 1:  # a whole ratio: a counted loop (faster than the phase test below), the same frames
+            for r in range(up):
+                _frame(coef, s, r * hist, pos, span, hist, up, lo, hi, inv_scale, out, m)
+                m += 1
+            nout += up
+            ph += up * down
+        else:
+            while ph < up:
+                _frame(coef, s, ph * hist, pos, span, hist, up, lo, hi, inv_scale, out, m)
+                m += 1
+                nout += 1
+                ph += down
         kt += 1
+        ph -= up
     si[0] = kt
     si[1] = pos
     si[2] = nout
+    si[3] = ph
     return m
