@@ -250,7 +250,10 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
         finally:
             safe_error = _send_safe(io, bus, writer)
             if audio is not None:
-                audio_error = audio.stop()
+                try:  # fade, stop, write --record-audio; a failure here must not skip what follows
+                    audio_error = audio.stop()
+                except Exception as exc:
+                    audio_error = f"audio output: {type(exc).__name__}: {one_line(exc)}"
                 safe_error = "; ".join(e for e in (safe_error, audio_error) if e) or None
             if device is not None:
                 device.collect(k)
