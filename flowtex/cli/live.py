@@ -40,19 +40,25 @@ def register(sub: Any) -> None:
 
 def cmd_live(args: argparse.Namespace) -> int:
     """0 after a clean stop (duration, Ctrl-C, SIGTERM), 1 on errors, 3 when no sensor frame arrived."""
+    check_live_outputs(args, args.graph, args.dbc, args.map)
     return run_live_session(load_graph_from_args(args), args)
+
+
+def check_live_outputs(args: argparse.Namespace, source: str, dbc: str | None, map_: str | None) -> None:
+    """``--stats`` and ``--record``: not an input, folder there and writable, before the session (and the compile)."""
+    from ..io.atomic import check_output
+
+    inputs = [source, dbc, map_, args.simulate]
+    check_output(args.stats, inputs=inputs, option="--stats")
+    check_output(args.record, inputs=inputs + [args.stats], option="--record")
 
 
 def run_live_session(graph: Any, args: argparse.Namespace, dbc: str | None = None, map_: str | None = None) -> int:
     """Run ``graph`` live with the live options in ``args`` (``dbc``/``map_`` replace ``args.dbc``/``args.map``)."""
-    from ..io.atomic import check_output
     from ..runtime.live import run_live
 
     dbc = dbc or args.dbc
     map_ = map_ or args.map
-    inputs = [args.graph, dbc, map_, args.simulate]
-    check_output(args.stats, inputs=inputs, option="--stats")
-    check_output(args.record, inputs=inputs + [args.stats], option="--record")
     report = run_live(graph, dbc, map_, args.bus, simulate=args.simulate, duration_s=args.duration,
                       record=args.record, rt=args.rt, rt_priority=args.rt_priority, rt_cpu=args.cpu,
                       stats_path=args.stats, seed=args.seed, status=None if args.quiet else sys.stderr,

@@ -88,17 +88,16 @@ def cmd_scene_run(args: argparse.Namespace) -> int:
 def cmd_scene_live(args: argparse.Namespace) -> int:
     from ..scene.build import plan_to_graph
     from ..scene.file import load_scene
-    from .live import run_live_session
+    from .live import check_live_outputs, run_live_session
 
     scene = load_scene(args.scene)
     dbc = args.dbc or (str(scene.dbc) if scene.dbc else None)
     map_ = args.map or (str(scene.map) if scene.map else None)
     if not (dbc and map_):
         raise FlowtexError(f"{args.scene}: live use needs a device: add device: {{dbc: FILE, map: FILE}} to the scene or give --dbc and --map")
+    check_live_outputs(args, args.scene, dbc, map_)
     with tempfile.TemporaryDirectory(prefix="flowtex-scene-") as tmp:
         graph_path = Path(tmp) / "scene.yaml"
         plan_to_graph(args.scene, graph_path, tuple(args.plugins), fixed=args.surface, relative=False,
                       auto_plugins=not args.no_plugins)
-        graph = load_graph_from_args(args, graph_path)
-        args.graph = args.scene
-        return run_live_session(graph, args, dbc, map_)
+        return run_live_session(load_graph_from_args(args, graph_path), args, dbc, map_)
