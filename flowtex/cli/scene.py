@@ -13,7 +13,7 @@ from ..errors import FlowtexError
 from .graph import load_graph_from_args
 from .options import add_graph_options, add_live_options, add_plugin_options, add_seed_option
 from .output import say
-from .run import run_summary
+from .run import RECORDING_SUFFIXES, run_summary
 
 
 def register(sub: Any) -> None:
@@ -72,7 +72,7 @@ def cmd_scene_run(args: argparse.Namespace) -> int:
     from ..scene.build import plan_to_graph
     from ..scene.plan import explain
 
-    check_output(args.output, inputs=[args.scene, args.input], option="-o")
+    check_output(args.output, inputs=[args.scene, args.input], option="-o", suffixes=RECORDING_SUFFIXES)
     with tempfile.TemporaryDirectory(prefix="flowtex-scene-") as tmp:
         graph_path = Path(tmp) / "scene.yaml"
         plan = plan_to_graph(args.scene, graph_path, tuple(args.plugins), fixed=args.surface, relative=False,

@@ -172,3 +172,11 @@ def test_nothing_below_the_cli_imports_it_or_argparse():
                 if name == "argparse" or name.startswith("flowtex.cli") or name.lstrip(".") == "cli" or ".cli." in name:
                     offenders.append(f"{Path(path).relative_to(REPO)}: {name}")
     assert offenders == []
+
+
+def test_bench_on_an_empty_recording_is_one_line(tmp_path, capsys):
+    (tmp_path / "g.yaml").write_text(GRAPH)
+    np.savez(tmp_path / "zero.npz", x=np.zeros(0), rate=np.float64(1000.0))
+    err = _err(capsys, ["bench", tmp_path / "g.yaml", "-i", tmp_path / "zero.npz", "--knob", "k.k=1,2"])
+    # the reader may refuse it first (an empty recording); either way one line naming the file
+    assert len(err) == 1 and err[0].startswith(f"{tmp_path / 'zero.npz'}: ") and "internal error" not in err[0], err

@@ -181,3 +181,11 @@ def test_into_keeps_the_model_sets_mode_and_new_files_follow_the_umask(files, ca
     assert stat.S_IMODE((tmp_path / "mu.json").stat().st_mode) == 0o640  # 0666 & ~0027
     assert stat.S_IMODE((tmp_path / "r.csv").stat().st_mode) == 0o640
     assert not [p for p in tmp_path.iterdir() if ".part" in p.name]  # no temporary file left behind
+
+
+def test_an_unknown_output_format_is_refused_before_the_work(files, capsys, tmp_path):
+    for argv in (["run", files["graph"], "--input", files["rec"], "-o", tmp_path / "o.xyz"],
+                 ["resample", files["rec"], "--rate", "500", "-o", tmp_path / "o.xyz"],
+                 ["scene", "run", SCENE, "-i", files["rec"], "-o", tmp_path / "o.xyz"]):
+        code, err = _run(capsys, argv)
+        assert code == 1 and err == [f"-o {tmp_path / 'o.xyz'}: unknown output format '.xyz'; use .npz, .csv, .h5, .hdf5"], err
