@@ -14,21 +14,8 @@ from flowtex.cli import build_parser, main
 from flowtex.io.modelset import save_model_set
 from flowtex.io.recordings import load_recording, save_recording
 from flowtex.models.synthetic import synthetic_model_set
+from tests.cli.gain_graph import GAIN_GRAPH as GRAPH
 from tests.conftest import REPO
-
-GRAPH = """\
-flowtex: 1
-name: g
-rate: 1000
-inputs:
-  x: {unit: N}
-nodes:
-  k: {type: gain, params: {k: 2}}
-edges:
-  - x -> k.x
-outputs:
-  y: k.y
-"""
 
 
 @pytest.fixture

@@ -13,21 +13,9 @@ from flowtex.cli import main
 from flowtex.io.modelset import save_model_set
 from flowtex.io.recordings import save_recording
 from flowtex.models.synthetic import synthetic_model_set
+from tests.cli.gain_graph import GAIN_GRAPH as GRAPH
 from tests.conftest import REPO
 
-GRAPH = """\
-flowtex: 1
-name: g
-rate: 1000
-inputs:
-  x: {unit: N}
-nodes:
-  k: {type: gain, params: {k: 2}}
-edges:
-  - x -> k.x
-outputs:
-  y: k.y
-"""
 SCENE = REPO / "graphs" / "scene_two_surfaces.yaml"
 DBC = REPO / "graphs" / "devices" / "example.dbc"
 MAP = REPO / "graphs" / "devices" / "example_map.yaml"

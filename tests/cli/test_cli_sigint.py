@@ -11,20 +11,7 @@ import time
 import numpy as np
 
 from flowtex.io.recordings import WRITE_HOOK_ENV, load_recording, save_recording
-
-GRAPH = """\
-flowtex: 1
-name: g
-rate: 1000
-inputs:
-  x: {unit: N}
-nodes:
-  k: {type: gain, params: {k: 2}}
-edges:
-  - x -> k.x
-outputs:
-  y: k.y
-"""
+from tests.cli.gain_graph import GAIN_GRAPH as GRAPH
 
 
 def test_sigint_during_the_write_keeps_the_old_output(tmp_path):
