@@ -54,6 +54,8 @@ def file_kind(path: str | Path) -> str:
         return RECORDING
     if suffix == ".dbc":
         return DBC
+    if suffix in (".yaml", ".yml") and not path.exists():
+        return GRAPH  # the graph loader says what is missing, as validate always did
     text = _read_text(path).lstrip("\ufeff \t\r\n")
     if suffix == ".xml" or text.startswith("<"):
         return MODEL_SET
