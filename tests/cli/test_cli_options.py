@@ -39,8 +39,10 @@ def test_numeric_options_are_refused_with_their_valid_range(rec, tmp_path, capsy
     out = tmp_path / "o.json"
     texture = ["fit", "texture", rec, "--speed", "speed", "-o", out]
     cases = [
-        (["resample", rec, "--rate", "1e12", "-o", tmp_path / "r.npz"],
-         "--rate 1e+12: valid range for this 1000 Hz recording is 15.625 to 64000 Hz"),
+        (["resample", rec, "--rate", "1e12", "-o", tmp_path / "r.npz"], "argument --rate: 1e12 is out of range: valid (0, 1e+06] Hz"),
+        (["resample", rec, "--rate", "1e5", "-o", tmp_path / "r.npz"],
+         "--rate 100000: valid range for this 1000 Hz recording is 15.625 to 64000 Hz"),
+        (texture + ["--from-rate", "1e12"], "argument --from-rate: 1e12 is out of range: valid (0, 1e+06] Hz"),
         (texture + ["--highpass", "600"], "--highpass 600: valid range is 0 (none) to below 500 Hz"),
         (texture + ["--highpass", "-5"], "argument --highpass: -5 is out of range: valid [0, inf) Hz"),
         (texture + ["--render-rate", "1e9"], "--render-rate 1e+09: valid range for this 1000 Hz recording is 62.5 to 16000 Hz"),
