@@ -27,11 +27,14 @@ from ..models.synthetic import lsf_to_poly_reference, synthetic_model_set
 from ..models.texture import TextureModelSet
 from .trajectories import _smooth_noise
 
+EDGE_PERIODS = 4.0
+"""Drift noise is filtered on this many periods of its corner frequency beyond each end, then cut (no edge transients)."""
+
 SPEED_SHARE = 2.0 / 3.0
 """Share of the surface's power range due to speed (the rest is due to force)."""
 
 
-def loud_surface(speeds: tuple[float, ...] = (15.0, 40.0, 90.0, 180.0, 320.0), forces: tuple[float, ...] = (0.3, 0.9, 1.8, 3.5),
+def loud_surface(speeds: tuple[float, ...] = (15.0, 40.0, 90.0, 180.0, 320.0), forces: tuple[float, ...] = (0.3, 0.9, 1.8, 3.5, 5.0),
                  ar_order: int = 6, ma_order: int = 4, range_db: float = 15.0, peak_rms: float = 8.0,
                  sample_rate: float = 1000.0) -> TextureModelSet:
     """A known surface: ARMA models on the ``speeds`` x ``forces`` grid whose power spans ``range_db`` dB (module docstring).
@@ -55,12 +58,27 @@ def loud_surface(speeds: tuple[float, ...] = (15.0, 40.0, 90.0, 180.0, 320.0), f
     return ms.validate()
 
 
+def drift_noise(n: int, rate: float, rng: np.random.Generator, corner_hz: float) -> np.ndarray:
+    """Unit-RMS slow noise: white noise through a zero-phase 2nd-order Butterworth low-pass at ``corner_hz``.
+
+    Filtered over :data:`EDGE_PERIODS` periods more at each end, which are then
+    dropped, so that the ends drift like the middle (``sosfiltfilt``'s edge
+    handling would otherwise swing them far out).
+    """
+    from scipy.signal import butter, sosfiltfilt
+
+    pad = int(round(EDGE_PERIODS * rate / corner_hz))
+    x = sosfiltfilt(butter(2, corner_hz, fs=rate, output="sos"), rng.standard_normal(n + 2 * pad))[pad:pad + n]
+    return (x - np.mean(x)) / (np.std(x) or 1.0)
+
+
 def human_trajectory(n: int, rate: float, rng: np.random.Generator, speed_range: tuple[float, float] = (30.0, 240.0),
                      force_range: tuple[float, float] = (0.5, 2.8), drift_hz: float = 0.25) -> tuple[np.ndarray, np.ndarray]:
     """Speed (mm/s) and normal force (N) of a hand exploring a surface: slow log-normal drifts, never stationary.
 
     log speed and log force each follow slow noise (zero-phase low-pass at
-    ``drift_hz``) plus a faster 3 % wobble (2 Hz); about 90 % of the time lies
+    ``drift_hz``, :func:`drift_noise`, clipped at 3 standard deviations) plus a
+    faster 3 % wobble (2 Hz); about 90 % of the time lies
     inside ``speed_range`` / ``force_range`` (their 5th and 95th percentiles
     for a long recording), the rest below and above: slower and faster, lighter
     and heavier than most of the recording. Force stays above 0.1 N (contact
@@ -70,7 +88,7 @@ def human_trajectory(n: int, rate: float, rng: np.random.Generator, speed_range:
 
     def drift(lo: float, hi: float) -> np.ndarray:
         mid, half = 0.5 * (np.log(lo) + np.log(hi)), 0.5 * (np.log(hi) - np.log(lo))
-        slow = _smooth_noise(n, rate, rng, drift_hz)
+        slow = np.clip(drift_noise(n, rate, rng, drift_hz), -3.0, 3.0)
         return np.exp(mid + half / z90 * slow + 0.03 * _smooth_noise(n, rate, rng, 2.0))
 
     speed = drift(*speed_range)
