@@ -21,7 +21,7 @@ vertex by its nearest measured model (``src``), and ``trend`` then scales the
 variance by (speed / s_eff)^ks (force / f_eff)^kf, where (s_eff, f_eff) is the
 weighted point of the models actually blended and each ratio is capped at
 ``trend_cap``; inside the measured models' triangles s_eff is the query and the
-factor is 1.
+factor is 1 (to rounding).
 
 NaN in speed or force holds the last model (HaTT turns one NaN into NaN
 output forever); before any valid query the held model is silence:

@@ -22,3 +22,4 @@ def register(subparsers: Any) -> None:
     kinds = p.add_subparsers(dest="fit_kind", required=True, metavar="KIND")
     for module_name in FIT_COMMAND_MODULES:
         importlib.import_module(module_name).register_fit(kinds)
+    importlib.import_module("flowtex.fit.compare_cli").register(subparsers)   # flowtex compare: judges what fit made

@@ -76,9 +76,15 @@ class Comparison:
     seconds: float
     seeds: int
     windows: list[dict[str, float]]
+    freqs: np.ndarray | None = field(default=None, repr=False)
+    """Welch frequencies (Hz) of the two PSDs below (not in the JSON)."""
+    recorded_psd: np.ndarray | None = field(default=None, repr=False)
+    """Recorded Welch PSD ((m/s^2)^2/Hz), high-passed, start skipped."""
+    rendered_psd: np.ndarray | None = field(default=None, repr=False)
+    """Mean of the renders' Welch PSDs."""
 
     def to_json(self) -> dict[str, Any]:
-        """A JSON-ready dict (keys as the fields; NaN becomes None)."""
+        """A JSON-ready dict of the figures (keys as the fields, without the PSD arrays; NaN becomes None)."""
         def clean(v: Any) -> Any:
             if isinstance(v, float) and not np.isfinite(v):
                 return None
@@ -87,7 +93,10 @@ class Comparison:
             if isinstance(v, dict):
                 return {k: clean(x) for k, x in v.items()}
             return v
-        return clean(asdict(self))
+        d = asdict(self)
+        for key in ("freqs", "recorded_psd", "rendered_psd"):
+            d.pop(key)
+        return clean(d)
 
 
 def render_along(ms: TextureModelSet, speed: np.ndarray, force: np.ndarray, seeds: list[int] | range,
@@ -164,16 +173,16 @@ def compare_signals(recorded: np.ndarray, renders: list[np.ndarray], rate: float
                       power_ratio_db=float(10 * np.log10(max(p_ren, 1e-300) / p_rec)),
                       power_ratio_spread_db=float(np.std(ratios)) if len(ratios) > 1 else float("nan"),
                       rms_correlation=corr, recorded_rms=float(np.sqrt(p_rec)), rendered_rms=float(np.sqrt(p_ren)),
-                      seconds=n / rate, seeds=len(renders), windows=windows)
+                      seconds=n / rate, seeds=len(renders), windows=windows, freqs=freqs, recorded_psd=s_rec, rendered_psd=s_ren)
 
 
 def _windows(x: np.ndarray, ys: list[np.ndarray], rate: float, opt: CompareOptions) -> list[dict[str, float]]:
-    """Per-window figures over consecutive ``window_s`` windows (a last partial window shorter than half is dropped)."""
+    """Per-window figures over consecutive whole ``window_s`` windows (a last partial window is left out)."""
     size = max(NPERSEG, int(round(opt.window_s * rate)))
     out = []
     for a in range(0, x.shape[0], size):
         b = min(a + size, x.shape[0])
-        if b - a < size // 2 or b - a < NPERSEG:
+        if b - a < size:
             break
         freqs, s_rec = welch_psd(x[a:b], rate, NPERSEG)
         s_ren = np.mean([welch_psd(y[a:b], rate, NPERSEG)[1] for y in ys], axis=0)

@@ -21,18 +21,18 @@ from ..errors import DataError
 from ..io.recordings import Recording, load_recording
 
 
-def load(path: str | Path, rate: float | None) -> tuple[Recording, float]:
-    """Load a recording and decide its rate (Hz): the file's, else ``rate``; a conflict or no rate is an error."""
+def load(path: str | Path, rate: float | None, option: str = "--rate") -> tuple[Recording, float]:
+    """Load a recording and decide its rate (Hz): the file's, else ``rate`` (given by ``option``); a conflict or no rate is an error."""
     rec = load_recording(path)
     if rec.rate is not None:
         if rate is not None and abs(rate - rec.rate) > 1e-9 * rec.rate:
-            raise DataError(f"{path}: the file states a rate of {rec.rate:g} Hz but --rate is {rate:g}; drop --rate "
+            raise DataError(f"{path}: the file states a rate of {rec.rate:g} Hz but {option} is {rate:g}; drop {option} "
                             "(the file's rate wins) or fix the file")
         return rec, float(rec.rate)
     if rate is None:
-        raise DataError(f"{path}: the recording states no sample rate; give it with --rate HZ")
+        raise DataError(f"{path}: the recording states no sample rate; give it with {option} HZ")
     if not (np.isfinite(rate) and rate > 0):
-        raise DataError(f"{path}: --rate must be a positive number of Hz, got {rate!r}")
+        raise DataError(f"{path}: {option} must be a positive number of Hz, got {rate!r}")
     return rec, float(rate)
 
 

@@ -36,6 +36,8 @@ class TextureJob:
     options: TextureOptions | None = None
     render_rate: float | None = None
     material: str | None = None
+    rate_option: str = "--rate"
+    """The option that gives ``rate`` (named in errors)."""
 
 
 def speed_from_position(position: np.ndarray, normal: np.ndarray | None, rate: float) -> np.ndarray:
@@ -58,7 +60,7 @@ def read_signals(path: Path, job: TextureJob, need_speed: bool = True) -> tuple[
 
     Grid cells (``need_speed=False``) need only the acceleration: speed and force come from the index.
     """
-    rec, rate = load(path, job.rate)
+    rec, rate = load(path, job.rate, job.rate_option)
     acc = signal(rec, job.accel, "--accel", (1, 3))
     if acc.ndim == 2:
         from ..dsp.dft321 import dft321
@@ -140,6 +142,22 @@ def _resample(ms: Any, rate: float) -> Any:
     return out
 
 
+def _fit_holdout(path: Path, job: TextureJob, fraction: float) -> TextureFit:
+    """Fit on all but the last ``fraction`` of ``path`` and print the fit table and the comparison on the held-out part."""
+    from .compare import summary_lines
+    from .evaluate import fit_holdout
+    from .report import print_table
+
+    acc, speed, force, rate = read_signals(path, job)
+    assert speed is not None and force is not None
+    fit, cmp = fit_holdout(acc, speed, force, rate, fraction, job.options, job.material or path.stem, str(path))
+    print_table(fit)
+    print(f"held out: the last {fraction:g} of the recording ({fraction * acc.shape[0] / rate:.1f} s), not used by the fit")
+    for line in summary_lines(cmp):
+        print(line)
+    return fit
+
+
 def parse_order(text: str) -> tuple[int, int] | None:
     if text == "auto":
         return None
@@ -162,6 +180,9 @@ def run(args: argparse.Namespace) -> int:
     from .report import print_table, write_report
 
     job = job_from_args(args)
+    if args.holdout is not None and (args.grid is not None or args.out_dir is not None):
+        raise DataError("--holdout compares one free-exploration recording with its own held-out end; "
+                        "give one REC with -o (not --grid or --out-dir)")
     if args.xml == Path("-") and args.output is not None:
         args.xml = args.output.with_suffix(".xml")
     if args.grid is not None:
@@ -185,8 +206,11 @@ def run(args: argparse.Namespace) -> int:
         raise DataError(f"{len(paths)} recordings given; fit several with --out-dir OUT (one surface file each), or give one with -o")
     if args.output is None:
         raise DataError("give -o SURFACE.json (or --out-dir OUT for many recordings)")
-    fit = fit_recording(paths[0], job)
-    print_table(fit)
+    if args.holdout is not None:
+        fit = _fit_holdout(paths[0], job, args.holdout)
+    else:
+        fit = fit_recording(paths[0], job)
+        print_table(fit)
     write_outputs(fit, args.output, args.xml, job.render_rate)
     if args.report:
         write_report(fit, Path(args.report))
@@ -215,6 +239,9 @@ def register_fit(kinds: Any) -> None:
     p.add_argument("--xml", type=Path, help="also write HaTT XML (with --out-dir: one .xml beside each .json)", nargs="?",
                    const=Path("-"))
     p.add_argument("--report", metavar="DIR", help="write a markdown report with plots here")
+    p.add_argument("--holdout", type=float, metavar="FRACTION",
+                   help="fit on all but the last FRACTION of the recording and compare the fit with that part "
+                        "(as flowtex compare does)")
     p.add_argument("--grid", metavar="INDEX.csv", help="Romano-2012 grid: CSV of file, speed, force (one stationary recording each)")
     p.add_argument("--out-dir", metavar="OUT", help="fit every recording given into OUT/<name>.json")
     p.add_argument("--workers", type=int, help="Dask workers on this machine for --out-dir (default: one per core)")

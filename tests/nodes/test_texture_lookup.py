@@ -283,3 +283,9 @@ def test_vertex_matches_stored_coefficients_to_file_precision(tmp_path):
         assert np.allclose(out["ar"], ms.ar_coeff[m], rtol=0, atol=1e-7)
         assert np.allclose(out["ma"], ms.ma_coeff[m], rtol=0, atol=1e-7)
         assert out["gain"] == float(f"{ms.gain[m]:.10g}")
+
+
+def test_outside_is_validated(tmp_path):
+    save_model_set(hard_model_set(), tmp_path / "hard set.json")
+    with pytest.raises(GraphError, match="trend"):
+        load_graph(graph_file(tmp_path, "hard set.json", outside="louder"))
