@@ -20,8 +20,9 @@ fitted force; mode 1 (``hold``) and mode 2 (``trend``) replace every silent
 vertex by its nearest measured model (``src``), and ``trend`` then scales the
 variance by (speed / s_eff)^ks (force / f_eff)^kf, where (s_eff, f_eff) is the
 weighted point of the models actually blended and each ratio is capped at
-``trend_cap``; inside the measured models' triangles s_eff is the query and the
-factor is 1 (to rounding).
+``trend_cap``; only beyond the measured models (a clamped query, or a silent
+vertex replaced): inside the measured models' triangles the three rules agree
+exactly.
 
 NaN in speed or force holds the last model (HaTT turns one NaN into NaN
 output forever); before any valid query the held model is silence:
@@ -203,10 +204,13 @@ def lookup_model(tab: np.ndarray, s: np.ndarray, si: np.ndarray, speed: float, f
     v = si[SI_V:SI_V + 3]
     si[SI_HINT] = locate(tri_tab, x, y, si[SI_HINT], w, v)
     o_out = int(tab[T_OFF_OUT])
+    beyond = x != speed or y != force  # clamped, or (below) blending a silent model: outside the measured models
     if mode != 0:
         o_src = o_out + 3
         for k in range(3):
-            v[k] = int(tab[o_src + v[k]])
+            m = int(tab[o_src + v[k]])
+            beyond |= m != v[k]
+            v[k] = m
     width = p + q + 2
     o_ma = S_AR + p + 1
     scratch = s[o_ma + q + 1:o_ma + q + 1 + max(p, q)]
@@ -223,7 +227,7 @@ def lookup_model(tab: np.ndarray, s: np.ndarray, si: np.ndarray, speed: float, f
     s[S_VAR] = w[0] * models[v[0] * width + b] + w[1] * models[v[1] * width + b] + w[2] * models[v[2] * width + b]
     b += 1
     s[S_GAIN] = w[0] * models[v[0] * width + b] + w[1] * models[v[1] * width + b] + w[2] * models[v[2] * width + b]
-    if mode == 2:
+    if mode == 2 and beyond:
         s[S_VAR] *= _trend_factor(tab, o_out, v, w, speed, force)
     s[S_X] = kx
     s[S_Y] = ky

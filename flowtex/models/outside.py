@@ -23,7 +23,7 @@ and force 0) the lookup's rule decides the loudness (``texture_lookup``'s
   variance falls linearly from the slowest measured model to 0 at speed 0;
   above the fastest speed (heaviest force) the edge models are held.
 
-Inside the triangles of measured models the three rules agree (``trend`` to rounding).
+Inside the triangles of measured models the three rules agree exactly.
 """
 
 from __future__ import annotations
