@@ -15,7 +15,7 @@ import numpy as np
 from ..errors import DataError
 from .compare import CompareOptions, Comparison, compare_surface
 from .texture import TextureFit, TextureOptions, fit_texture
-from .texture_cli import TextureJob, read_signals
+from .texture_job import TextureJob, read_signals
 
 MIN_HOLDOUT_S = 2.0
 """Shortest held-out part (s): the comparison skips 0.5 s and correlates 1-s windows."""

@@ -1,0 +1,149 @@
+"""A texture fit job: recordings of free exploration (or a Romano-2012 grid) -> a texture model set, written.
+
+What ``flowtex fit texture`` (flowtex/cli/fit_texture.py) runs for one recording, a grid index or
+(flowtex.fit.batch) many recordings. The pipeline is flowtex.fit.texture; docs/fitting.md describes every option.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import DataError
+from .inputs import atomic_output, check_highpass, check_not_constant, load, signal
+from .texture import TextureFit, TextureOptions, fit_grid, fit_texture
+
+
+@dataclass
+class TextureJob:
+    """Everything one texture fit needs besides the recording: signal names and options (picklable for Dask)."""
+
+    accel: str = "accel"
+    speed: str | None = None
+    force: str = "normal_force"
+    position: str | None = None
+    normal: str | None = None
+    rate: float | None = None
+    options: TextureOptions | None = None
+    render_rate: float | None = None
+    material: str | None = None
+
+
+def speed_from_position(position: np.ndarray, normal: np.ndarray | None, rate: float) -> np.ndarray:
+    """Tangential speed (mm/s) from position (mm) with the speed_estimator's math (hatt method, 0.06 mm gate)."""
+    from ..dsp.motion import SPEED_ISTATE, SPEED_STATE, SS_NORMAL, butter2_biquad, initial_normal_state, speed_block, speed_params
+
+    n = position.shape[0]
+    nrm = np.ascontiguousarray(normal if normal is not None else np.tile([0.0, 0.0, 1.0], (n, 1)), dtype=np.float64)
+    p = speed_params(butter2_biquad(125.0, rate), rate, 0.06)
+    s = initial_normal_state(SPEED_STATE, SS_NORMAL, (0.0, 0.0, 1.0))
+    si = np.zeros(SPEED_ISTATE, np.int64)
+    speed = np.empty((n, 1))
+    vel = np.empty((n, 3))
+    speed_block(p, s, si, np.ascontiguousarray(position, dtype=np.float64), nrm, speed, vel)
+    return speed[:, 0]
+
+
+def read_signals(path: Path, job: TextureJob, need_speed: bool = True) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, float]:
+    """(1-D acceleration, speed, force, rate) of one recording, checked (see flowtex.fit.inputs).
+
+    Grid cells (``need_speed=False``) need only the acceleration: speed and force come from the index.
+    """
+    rec, rate = load(path, job.rate)
+    if job.options is not None:
+        check_highpass(job.options.highpass_hz, rate)
+    acc = signal(rec, job.accel, "--accel", (1, 3))
+    if acc.ndim == 2:
+        from ..dsp.dft321 import dft321
+
+        acc = dft321(acc)
+    check_not_constant(acc, f"{path}: signal {job.accel!r} (--accel)")
+    if not need_speed:
+        return acc, None, None, rate
+    force = signal(rec, job.force, "--force")
+    speed = None
+    if job.speed is not None:
+        speed = signal(rec, job.speed, "--speed")
+    elif job.position is not None:
+        pos = signal(rec, job.position, "--position", (3,))
+        nrm = signal(rec, job.normal, "--normal", (3,)) if job.normal is not None else None
+        speed = speed_from_position(pos, nrm, rate)
+    else:
+        raise DataError(f"{path}: give the tool's speed with --speed S (mm/s) or --position P (mm, 3 axes)")
+    return acc, speed, force, rate
+
+
+def fit_recording(path: Path, job: TextureJob) -> TextureFit:
+    """Fit one free-exploration recording."""
+    acc, speed, force, rate = read_signals(path, job)
+    assert speed is not None and force is not None
+    material = job.material or path.stem
+    return fit_texture(acc, speed, force, rate, job.options, material, str(path))
+
+
+def fit_grid_index(index: Path, job: TextureJob) -> TextureFit:
+    """Fit a grid: ``index`` is a CSV with columns file, speed (mm/s), force (N); files relative to it."""
+    try:
+        with index.open(newline="", encoding="utf-8") as fh:
+            rows = list(csv.DictReader(fh))
+    except OSError as exc:
+        raise DataError(f"{index}: cannot read the grid index ({exc.strerror or exc})") from None
+    if not rows or not {"file", "speed", "force"} <= set(rows[0]):
+        raise DataError(f"{index}: a grid index needs a header row with columns file, speed, force and one row per recording")
+    cells = []
+    rate = None
+    for k, row in enumerate(rows, start=2):
+        try:
+            s, f = float(row["speed"]), float(row["force"])
+        except (TypeError, ValueError):
+            raise DataError(f"{index}:{k}: speed and force must be numbers (mm/s, N)") from None
+        acc, _speed, _force, r = read_signals(index.parent / row["file"], job, need_speed=False)
+        if rate is not None and r != rate:
+            raise DataError(f"{index}:{k}: {row['file']} is at {r:g} Hz but the others are at {rate:g} Hz")
+        rate = r
+        cells.append((acc, s, f))
+    assert rate is not None
+    return fit_grid(cells, rate, job.options, job.material or index.stem, str(index))
+
+
+def write_outputs(fit: TextureFit, output: Path, xml: Path | None, render_rate: float | None) -> None:
+    """Write the native set (and HaTT XML) atomically, after resampling to ``render_rate`` if given."""
+    from ..io.hatt import write_hatt_xml
+    from ..io.modelset import save_model_set
+
+    ms = fit.model_set
+    if render_rate is not None and render_rate != ms.sample_rate:
+        ms = _resample(ms, render_rate)
+    with atomic_output(output) as tmp:
+        save_model_set(ms, tmp)
+        if xml is not None:
+            with atomic_output(xml) as tmp_xml:
+                write_hatt_xml(ms, tmp_xml)
+
+
+def _resample(ms: Any, rate: float) -> Any:
+    """The set at ``rate`` Hz (flowtex models resample's method), with a one-line account of what it cost."""
+    from .resample import resample_model_set
+
+    out = resample_model_set(ms, rate, option="--render-rate")
+    info = out.metadata["resample"]
+    print(f"resampled {info['from_hz']:g} Hz -> {info['to_hz']:g} Hz: orders {ms.ar_order}/{ms.ma_order} -> "
+          f"{out.ar_order}/{out.ma_order}, worst LSD {info['worst_lsd_db']:.2f} dB, "
+          f"worst band-power error {100 * info['worst_band_power_error']:.2f} %")
+    return out
+
+
+def parse_order(text: str) -> tuple[int, int] | None:
+    if text == "auto":
+        return None
+    try:
+        p, q = (int(v) for v in text.split(","))
+    except ValueError:
+        raise DataError(f"--order must be auto or P,Q (e.g. 10,8), got {text!r}") from None
+    if p < 1 or q < 0:
+        raise DataError(f"--order {text}: the AR order must be >= 1 and the MA order >= 0")
+    return p, q
