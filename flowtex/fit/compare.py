@@ -20,7 +20,8 @@ recording and on the renders alike:
 * ``rms_correlation``: the Pearson correlation between the recorded and the
   rendered RMS of consecutive ``window_s`` (1 s) windows (the rendered RMS is
   the root of the seeds' mean power): does the render get louder where the
-  recording does?
+  recording does? NaN (null in the JSON) with fewer than 3 windows or a
+  constant RMS;
 * the same figures per window (``windows``).
 
 Welch PSDs use 256-sample Hann segments (0.26 s at 1 kHz; a 1-s window then has
