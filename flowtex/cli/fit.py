@@ -11,6 +11,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from ..errors import DataError
 from . import fit_texture
 from .options import Renamed, add_from_rate, int_at_least, number_in_range
 from .output import note, say
@@ -37,7 +38,8 @@ def _friction(kinds: Any) -> None:
     from ..fit.friction import DEFAULT_MIN_FORCE_N
 
     p = kinds.add_parser("friction", help="kinetic friction coefficient mu from normal and tangential forces",
-                         description="Robust line through the origin of tangential vs normal force (samples in contact only).")
+                         description="Robust line through the origin of tangential vs normal force (samples in contact only), "
+                                     "with the share of the tangential force the normal force explains (r2).")
     p.add_argument("recording", type=Path, help="recording (.npz, .csv, .h5)")
     p.add_argument("--force", dest="normal_force", metavar="N", help="normal force signal (N)")
     p.add_argument("--normal-force", dest="normal_force", action=Renamed, new="--force", meaning="the normal force in N",
@@ -47,8 +49,8 @@ def _friction(kinds: Any) -> None:
     p.add_argument("--normal", metavar="V", help="surface normal: a (n, 3) signal or a vector x,y,z")
     add_from_rate(p, old_rate=True)
     p.add_argument("--min-force", type=nonneg("N"), default=DEFAULT_MIN_FORCE_N, help="in contact from this normal force (N, >= 0)")
-    p.add_argument("--offset", choices=("auto", "yes", "no"), default="auto",
-                   help="fit T = mu N + b (yes), a line through 0 (no), or b only when significant (auto, default)")
+    p.add_argument("--offset", choices=("yes", "no"), default="no",
+                   help="no (default): HaTT's line through the origin, T = mu N; yes: T = mu N + b (cannot be stored with --into)")
     p.add_argument("-o", "--output", required=True, type=Path, help="output JSON (mu, mu_ci, ...)")
     p.add_argument("--into", metavar="SURFACE", help="also store mu in this model set (native JSON or HaTT XML), keeping its mode")
     p.set_defaults(func=cmd_fit_friction)
@@ -63,12 +65,16 @@ def cmd_fit_friction(args: argparse.Namespace) -> int:
     if force3 is None and args.normal_force is not None and args.normal is not None and args.friction_force is None:
         note("notice: --force with --normal is the old spelling of --force3 (a 3-axis force); read as --force3")
         force3, args.normal_force = args.normal_force, None
+    with_offset = args.offset == "yes"
+    if with_offset and args.into:
+        raise DataError(f"--into {args.into}: a model set stores mu only, so the offset of --offset yes would be dropped and "
+                        "the rendered friction would be wrong; fit without --offset (HaTT's line through the origin) to store mu")
     check_output(args.output, inputs=[args.recording, args.into], option="-o")
     if args.into is not None:
         load_model_set(args.into)  # refuse a missing or broken model set before any work
         check_output(args.into, inputs=[args.recording], option="--into", create_folders=False)
     fit, doc = fit_friction_recording(args.recording, args.from_rate, args.normal_force, args.friction_force, force3,
-                                      args.normal, args.min_force, args.offset)
+                                      args.normal, args.min_force, with_offset)
     for line in friction_table(fit):
         say(line)
     if args.into:
@@ -80,6 +86,8 @@ def cmd_fit_friction(args: argparse.Namespace) -> int:
 
 
 def _taps(kinds: Any) -> None:
+    from ..fit.taps import DEFAULT_QUIET_S
+
     p = kinds.add_parser("taps", help="tap library (100 ms transients by incoming speed) from a recording of taps",
                          description="Detect contact onsets, cut 100 ms after each, label by incoming speed (Culbertson & Kuchenbecker 2017).")
     p.add_argument("recording", type=Path)
@@ -92,6 +100,8 @@ def _taps(kinds: Any) -> None:
     p.add_argument("--length", type=lambda t: number_in_range(t, 0.0, math.inf, low_open=True, unit="s"), default=0.1,
                    help="seconds cut after each onset (> 0; Culbertson & Kuchenbecker 2017: 0.1)")
     highpass_option(p)
+    p.add_argument("--quiet", type=nonneg("s"), default=DEFAULT_QUIET_S, metavar="S",
+                   help="seconds without contact (force < 0.05 N) before an onset counts as a tap (>= 0)")
     p.add_argument("--name", help="library name (default: the file's stem)")
     p.add_argument("-o", "--output", required=True, type=Path, help="tap library JSON (docs/tap-library.md)")
     p.set_defaults(func=cmd_fit_taps)
@@ -103,7 +113,7 @@ def cmd_fit_taps(args: argparse.Namespace) -> int:
 
     check_output(args.output, inputs=[args.recording], option="-o")
     lib, taps, notes, rate = fit_tap_recording(args.recording, args.accel, args.force, args.from_rate, args.position, args.normal,
-                                               args.speed, args.length, args.highpass, args.name)
+                                               args.speed, args.length, args.highpass, args.name, args.quiet)
     for line in tap_table(taps, notes, lib, rate):
         say(line)
     write_taps(args.output, lib, args.recording)

@@ -62,7 +62,10 @@ def run_live_session(graph: Any, args: argparse.Namespace, dbc: str | None = Non
     report = run_live(graph, dbc, map_, args.bus, simulate=args.simulate, duration_s=args.duration,
                       record=args.record, rt=args.rt, rt_priority=args.rt_priority, rt_cpu=args.cpu,
                       stats_path=args.stats, seed=args.seed, status=None if args.quiet else sys.stderr,
-                      bitrate=args.bitrate, show=args.show)
+                      bitrate=args.bitrate, show=args.show,
+                      inputs=[p for p in (getattr(args, "graph", None), getattr(args, "scene", None)) if p])
+    for line in report.warnings:
+        note(f"flowtex live: warning: {line}")
     if report.error:
         raise FlowtexError(report.error + " (safe values sent)")
     if report.no_sensor_frames:

@@ -1,10 +1,14 @@
 """``flowtex fit taps``: a tap library (tap_player's format) from a recording of taps (Culbertson & Kuchenbecker 2017 sec. 3.3.2).
 
 1. Contact onsets from the normal force with hysteresis: contact starts when
-   the force reaches ``on`` (0.1 N, the contact node's threshold) after having
-   been below ``off`` (0.05 N); the onset is then moved back to where the
+   the force reaches ``on`` (0.1 N, the contact node's threshold) after a
+   stretch of at least ``quiet_s`` (50 ms, ``--quiet``) without contact (force
+   below ``off``, 0.05 N); the onset is then moved back to where the
    force left its out-of-contact floor (median + 4 robust sd of the samples
    below ``off``), so the cut starts with the impact, not a few ms into it.
+   A recording that starts in contact therefore has no tap at its start (the
+   tool was not seen arriving), and a bounce that leaves the surface for less
+   than ``quiet_s`` is part of its tap, not a new one.
 2. Each tap's acceleration (1-D, or 3 axes reduced by DFT321; zero-phase
    10 Hz high-pass as for textures) is cut for ``length`` (100 ms, Culbertson & Kuchenbecker 2017) from
    its onset.
@@ -44,23 +48,36 @@ class Tap:
     centroid_hz: float
 
 
-def contact_onsets(force: np.ndarray, on: float = 0.1, off: float = 0.05) -> np.ndarray:
-    """Sample indices of contact onsets (hysteresis ``on``/``off`` in N, moved back to the force's floor)."""
+DEFAULT_QUIET_S = 0.05
+"""Seconds without contact (force below ``off``) before an onset counts as a tap."""
+
+
+def contact_onsets(force: np.ndarray, on: float = 0.1, off: float = 0.05, quiet: int = 50) -> np.ndarray:
+    """Sample indices of contact onsets (hysteresis ``on``/``off`` in N, moved back to the force's floor).
+
+    An onset counts only after at least ``quiet`` consecutive samples below
+    ``off`` (so never at the start of a recording that starts in contact).
+    """
     force = np.asarray(force, float)
     below = force < off
     floor = float(np.median(force[below])) + 4.0 * robust_scale(force[below]) if np.any(below) else off
     floor = min(floor, off)
     onsets = []
-    inside = False
-    for t in np.flatnonzero((force >= on) | below):
-        if not inside and force[t] >= on:
-            inside = True
+    armed = False  # a stretch of `quiet` samples without contact has been seen since the last onset
+    run = 0
+    quiet = max(1, int(quiet))
+    for t in range(force.shape[0]):
+        if below[t]:
+            run += 1
+            armed = armed or run >= quiet
+            continue
+        run = 0
+        if armed and force[t] >= on:
+            armed = False
             k = t
             while k > 0 and force[k - 1] > floor:
                 k -= 1
             onsets.append(k)
-        elif inside and below[t]:
-            inside = False
     return np.array(onsets, dtype=np.int64)
 
 
@@ -84,14 +101,14 @@ def centroid(x: np.ndarray, rate: float) -> float:
 
 def fit_taps(accel: np.ndarray, force: np.ndarray, rate: float, position: np.ndarray | None = None, normal: np.ndarray | None = None,
              speed: np.ndarray | None = None, length_s: float = 0.1, approach_s: float = 0.01, on: float = 0.1, off: float = 0.05,
-             where: str = "recording") -> tuple[list[Tap], list[str]]:
+             where: str = "recording", quiet_s: float = DEFAULT_QUIET_S) -> tuple[list[Tap], list[str]]:
     """Detected taps (sorted by onset) and notes on dropped ones; see the module docstring."""
     length = int(round(length_s * rate))
     window = max(1, int(round(approach_s * rate)))
-    onsets = contact_onsets(force, on, off)
+    onsets = contact_onsets(force, on, off, int(round(quiet_s * rate)))
     if onsets.size == 0:
-        raise DataError(f"{where}: no contact anywhere (the force never reaches {on:g} N after being below {off:g} N); "
-                        "check --force names the normal force in N")
+        raise DataError(f"{where}: no tap: the force never reaches {on:g} N after {1000 * quiet_s:g} ms below {off:g} N "
+                        "(a recording that starts in contact has no tap at its start); check --force names the normal force in N")
     n = accel.shape[0]
     if position is not None and normal is None:
         normal = np.tile([0.0, 0.0, 1.0], (n, 1))
@@ -126,10 +143,11 @@ def library_from_taps(taps: list[Tap], rate: float, name: str) -> TapLibrary:
 def fit_tap_recording(recording: str | Path, accel: str, force: str, from_rate: float | None = None,
                       position: str | None = None, normal: str | None = None, speed: str | None = None,
                       length_s: float = 0.1, highpass_hz: float = 10.0,
-                      name: str | None = None) -> tuple[TapLibrary, list[Tap], list[str], float]:
+                      name: str | None = None, quiet_s: float = DEFAULT_QUIET_S) -> tuple[TapLibrary, list[Tap], list[str], float]:
     """(library, taps, notes on dropped taps, rate in Hz) from one recording of taps; signals are named as the options.
 
-    ``length_s`` (s) is cut after each onset; ``highpass_hz`` (0: none) is a zero-phase high-pass of the acceleration.
+    ``length_s`` (s) is cut after each onset; ``highpass_hz`` (0: none) is a zero-phase high-pass of the acceleration;
+    an onset counts only after ``quiet_s`` seconds without contact.
     """
     from scipy.signal import sosfiltfilt
 
@@ -156,7 +174,7 @@ def fit_tap_recording(recording: str | Path, accel: str, force: str, from_rate: 
         raise DataError(f"{recording}: give --position P (mm, 3 axes) or --speed S (approach speed, mm/s) to label taps")
     if highpass_hz > 0:
         acc = sosfiltfilt(butterworth_sos("highpass", 4, [highpass_hz], rate), acc)
-    taps, notes = fit_taps(acc, f, rate, pos, nrm, spd, length_s, where=str(recording))
+    taps, notes = fit_taps(acc, f, rate, pos, nrm, spd, length_s, where=str(recording), quiet_s=quiet_s)
     return library_from_taps(taps, rate, name or Path(recording).stem), taps, notes, rate
 
 
