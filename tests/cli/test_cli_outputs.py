@@ -48,6 +48,7 @@ INPUT_CASES = {
     "resample": lambda f: (["resample", f["rec"], "--rate", "500", "-o", f["rec"]], f["rec"], "-o"),
     "models resample": lambda f: (["models", "resample", f["models"], "--rate", "500", "-o", f["models"]], f["models"], "-o"),
     "plot": lambda f: (["plot", f["rec"], "-o", f["rec"]], f["rec"], "-o"),
+    "compare --json": lambda f: (["compare", f["models"], f["rec"], "--speed", "speed", "--json", f["models"]], f["models"], "--json"),
 }
 
 
@@ -103,6 +104,7 @@ def _read_only_cases(files, capsys, tmp_path):
         ["resample", f["rec"], "--rate", "500", "-o", ro / "r.npz"],
         ["models", "resample", f["models"], "--rate", "500", "-o", ro / "m.json"],
         ["plot", f["rec"], "-o", ro / "p.png"],
+        ["compare", f["models"], f["rec"], "--speed", "speed", "--json", ro / "c.json"],
     ]
     for argv in cases:
         code, err = _run(capsys, argv)
