@@ -38,7 +38,18 @@ MAX_INT_PARAM = 2**31 - 1
 EXCERPT_CHARS = 60
 """Longest quote of a user value in an error message."""
 
-_repr = reprlib.Repr()
+class _Repr(reprlib.Repr):
+    """reprlib's bounded repr, applied to dict and list subclasses too (the YAML loader's LocDict, LocList)."""
+
+    def repr1(self, x: Any, level: int) -> str:
+        if isinstance(x, dict) and type(x) is not dict:
+            return self.repr_dict(x, level)
+        if isinstance(x, list) and type(x) is not list:
+            return self.repr_list(x, level)
+        return super().repr1(x, level)
+
+
+_repr = _Repr()
 _repr.maxlevel = 3
 _repr.maxlist = _repr.maxtuple = _repr.maxdict = _repr.maxset = 6
 _repr.maxstring = _repr.maxother = _repr.maxlong = EXCERPT_CHARS
@@ -46,10 +57,6 @@ _repr.maxstring = _repr.maxother = _repr.maxlong = EXCERPT_CHARS
 
 def excerpt(value: Any, limit: int = EXCERPT_CHARS) -> str:
     """A repr of ``value`` of at most ``limit`` characters, built without expanding large or shared structures."""
-    if isinstance(value, dict):
-        value = dict(value)  # LocDict and friends: quote as a plain mapping
-    elif isinstance(value, list):
-        value = list(value)
     try:
         text = _repr.repr(value)
     except Exception:  # a user value whose repr fails is still quoted by its type

@@ -26,12 +26,12 @@ def read_json_document(path: Path, kind: str, format_name: str, versions: tuple[
     def finite_float(token: str) -> float:
         value = float(token)
         if value in (float("inf"), float("-inf")):
-            raise ValueError(f"the number {excerpt(token, 30)} is too large (beyond 1.8e308)")
+            raise ValueError(f"the number {token[:30]} is too large (beyond 1.8e308)")
         return value
 
     def bounded_int(token: str) -> int:
         if len(token.lstrip("-")) > 18:
-            raise ValueError(f"the integer {excerpt(token, 30)} is too large (flowtex files use integers below 1e18)")
+            raise ValueError(f"the integer {token[:30]} is too large (flowtex files use integers below 1e18)")
         return int(token)
 
     check_file_size(path, f"the {kind} file")
