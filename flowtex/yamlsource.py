@@ -14,12 +14,13 @@ a recursive alias (``&a [*a]``) too. Messages quote values with :func:`flowtex.l
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import yaml
 
 from .errors import Diagnostic, GraphError, Location
-from .limits import MAX_DEPTH, MAX_YAML_NODES, excerpt
+from .limits import MAX_DEPTH, MAX_TEXT_BYTES, MAX_YAML_NODES, excerpt
 
 Pos = tuple[int, int]
 
@@ -158,6 +159,26 @@ class _Loader(yaml.SafeLoader):
 
 _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _Loader.construct_loc_mapping)
 _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_SEQUENCE_TAG, _Loader.construct_loc_sequence)
+
+
+def read_source(path: Path, kind: str) -> str:
+    """The text of the YAML file ``path`` (a ``kind`` such as "graph file"); one-line :class:`GraphError` if it cannot be.
+
+    Refuses a missing file, a folder, a file larger than :data:`flowtex.limits.MAX_TEXT_BYTES` and text that is not UTF-8.
+    """
+    where = Location(str(path))
+    try:
+        size = path.stat().st_size
+        if size > MAX_TEXT_BYTES:
+            raise GraphError([Diagnostic(where, f"{kind} is {size / 2**20:.1f} MiB; flowtex reads {kind}s up to "
+                                                f"{MAX_TEXT_BYTES / 2**20:g} MiB (is this the right file?)")])
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise GraphError([Diagnostic(where, f"{kind} not found")]) from None
+    except UnicodeDecodeError as exc:
+        raise GraphError([Diagnostic(where, f"{kind} is not UTF-8 text (byte {exc.start}); save it as UTF-8")]) from None
+    except OSError as exc:
+        raise GraphError([Diagnostic(where, f"cannot read {kind}: {exc.strerror or exc}")]) from None
 
 
 def load_yaml(text: str, path: str) -> Any:

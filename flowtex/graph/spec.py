@@ -15,9 +15,9 @@ from typing import Any
 import yaml
 
 from ..errors import Diagnostic, GraphError, Location
-from ..limits import MAX_EVERY, check_file_size, excerpt
+from ..limits import MAX_EVERY, excerpt
 from ..node_api import suggest
-from ..yamlsource import LocDict, LocList, load_yaml
+from ..yamlsource import LocDict, LocList, load_yaml, read_source
 
 FORMAT_VERSION = 1
 TOP_KEYS = ("flowtex", "name", "rate", "seed", "inputs", "nodes", "edges", "outputs", "description")
@@ -102,15 +102,7 @@ class Collector:
 def load_spec(path: str | Path, overrides: dict[str, Any] | None = None) -> GraphSpec:
     """Read and shape-check a graph file. Raises :class:`GraphError`."""
     path = Path(path)
-    display = str(path)
-    check_file_size(path, "graph file")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise GraphError([Diagnostic(Location(display), "graph file not found")]) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise GraphError([Diagnostic(Location(display), f"cannot read graph file: {exc}")]) from None
-    return parse_spec(text, path, overrides)
+    return parse_spec(read_source(path, "graph file"), path, overrides)
 
 
 def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -> GraphSpec:

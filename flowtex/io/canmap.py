@@ -34,7 +34,7 @@ import numpy as np
 from cantools.database.can import Database
 
 from ..errors import DataError, Diagnostic, GraphError, Location
-from ..yamlsource import LocDict, LocList, load_yaml
+from ..yamlsource import LocDict, LocList, load_yaml, read_source
 from .dbc import find_signal, suggest
 
 TOP_KEYS = ("flowtex_map", "description", "overrun_limit_ms", "inputs", "outputs")
@@ -111,13 +111,7 @@ def load_map(path: str | Path, db: Database, dbc_path: str | Path = "DBC",
     Every graph input must be bound; graph outputs may stay unbound (not sent).
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise DataError(f"{path}: map file not found") from None
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read map file: {exc.strerror or exc}") from None
-    data = load_yaml(text, str(path))
+    data = load_yaml(read_source(path, "map file"), str(path))
     p = _Problems(str(path))
     if not isinstance(data, LocDict):
         raise GraphError([Diagnostic(Location(str(path), 1, 1), "a map file is a mapping with keys 'inputs' and 'outputs'")])

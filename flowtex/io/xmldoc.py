@@ -12,7 +12,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from ..errors import DataError
-from ..limits import MAX_DEPTH, check_file_size, too_deep
+from ..limits import MAX_DEPTH, check_file_size, excerpt, too_deep
 
 _CHUNK = 1 << 16
 
@@ -45,6 +45,8 @@ def parse_xml(path: Path, kind: str) -> ET.Element:
         parser.close()
     except ET.ParseError as exc:
         raise DataError(f"{path}: not well-formed XML ({exc})") from None
+    except (LookupError, ValueError) as exc:  # an unknown encoding= in the declaration, or a parser that gave up
+        raise DataError(f"{path}: not readable XML ({excerpt(str(exc), 120)})") from None
     if root is None:
         raise DataError(f"{path}: the {kind} holds no XML element")
     return root

@@ -15,7 +15,7 @@ from typing import Any
 from ..errors import Diagnostic, GraphError, Location
 from ..graph.spec import FORMAT_VERSION, NAME_RE, Collector
 from ..node_api import suggest
-from ..yamlsource import LocDict, LocList, load_yaml
+from ..yamlsource import LocDict, LocList, load_yaml, read_source
 
 TOP_KEYS = ("flowtex", "name", "rate", "surfaces", "trajectory", "select", "device", "thresholds", "description")
 SURFACE_KEYS = ("models", "mu", "taps", "pattern", "compliance", "stiffness", "keep", "drop", "doc")
@@ -74,13 +74,7 @@ class Scene:
 def load_scene(path: str | Path) -> Scene:
     """Read and check a scene file. Raises :class:`GraphError` listing every problem."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise GraphError([Diagnostic(Location(str(path)), "scene file not found")]) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise GraphError([Diagnostic(Location(str(path)), f"cannot read scene file: {exc}")]) from None
-    return parse_scene(text, path)
+    return parse_scene(read_source(path, "scene file"), path)
 
 
 def _number(c: Collector, value: Any, pos: Any, what: str, positive: bool = False) -> float | None:
