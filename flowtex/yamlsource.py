@@ -181,11 +181,21 @@ def read_source(path: Path, kind: str) -> str:
         raise GraphError([Diagnostic(where, f"cannot read {kind}: {exc.strerror or exc}")]) from None
 
 
-def load_yaml(text: str, path: str) -> Any:
+def parse_value(text: str, where: str) -> Any:
+    """A value given on the command line (``--set``, ``--knob``): YAML if it parses, else the text itself.
+
+    The limits and tag refusals of :func:`load_yaml` still apply (raised as
+    :class:`GraphError` naming ``where``); only a syntax error falls back to the text.
+    """
+    return load_yaml(text, where, text_if_invalid=True) if text.strip() else ""
+
+
+def load_yaml(text: str, path: str, text_if_invalid: bool = False) -> Any:
     """Parse ``text`` (from file ``path``) into LocDict/LocList/scalars.
 
-    Raises :class:`GraphError` for syntax errors, duplicate keys and
-    unsafe or unknown tags.
+    Raises :class:`GraphError` for syntax errors (unless ``text_if_invalid``:
+    then ``text`` itself is returned), duplicate keys, unsafe or unknown tags,
+    and documents past the limits.
     """
     try:
         loader = _Loader(text, path)
@@ -205,6 +215,8 @@ def load_yaml(text: str, path: str) -> Any:
         msg = f"YAML tag {excerpt(tag)} is not allowed: graph files may only hold plain data (maps, lists, strings, numbers)"
         raise GraphError([Diagnostic(_loc(path, mark), msg)]) from None
     except yaml.MarkedYAMLError as exc:
+        if text_if_invalid:
+            return text
         mark = exc.problem_mark or exc.context_mark
         problem = exc.problem or "invalid YAML"
         context = f" ({exc.context})" if exc.context else ""

@@ -12,12 +12,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from ..errors import Diagnostic, GraphError, Location
 from ..limits import MAX_EVERY, excerpt
 from ..node_api import suggest
-from ..yamlsource import LocDict, LocList, load_yaml, read_source
+from ..yamlsource import LocDict, LocList, load_yaml, parse_value, read_source
 
 FORMAT_VERSION = 1
 TOP_KEYS = ("flowtex", "name", "rate", "seed", "inputs", "nodes", "edges", "outputs", "description")
@@ -272,11 +270,7 @@ def parse_override(text: str) -> tuple[str, Any]:
     key, sep, value = text.partition("=")
     if not sep or not key.strip():
         raise GraphError([Diagnostic(Location(f"--set {text}"), "expected --set NODE.PARAM=VALUE")])
-    try:
-        parsed = yaml.safe_load(value) if value.strip() else ""
-    except yaml.YAMLError:
-        parsed = value
-    return key.strip(), parsed
+    return key.strip(), parse_value(value, f"--set {key.strip()}")
 
 
 def _endpoint(c: Collector, text: str, pos: tuple[int, int], side: str) -> Endpoint | None:
