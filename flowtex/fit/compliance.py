@@ -30,6 +30,9 @@ def estimate_compliance(force: np.ndarray, accel: np.ndarray, rate_hz: float, co
     accel = np.ascontiguousarray(np.asarray(accel, dtype=np.float64).reshape(force.size, -1))
     if accel.shape[1] > 3:
         raise ValueError(f"acceleration has {accel.shape[1]} axes; give 1 to 3")
+    if accel.size and not np.any(accel != accel[:1]):
+        raise ValueError(f"the acceleration (--accel) is {accel[0, 0]:g} m/s^2 throughout: no vibration was recorded; "
+                         "check the accelerometer signal")
     contact = np.ones(force.size) if contact is None else np.ascontiguousarray(contact, dtype=np.float64).ravel()
     out = np.zeros(5)
     if force_range is None:

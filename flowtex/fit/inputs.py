@@ -84,8 +84,6 @@ def check_plausible(a: np.ndarray, label: str, option: str) -> None:
     if peak > most:
         raise DataError(f"{label}: peak {quantity} {peak:.3g} {unit} is beyond any sensor's range (at most {most:g} {unit}); "
                         f"is the signal in {unit}? Rescale it")
-    if quantity == "acceleration" and peak == 0.0:
-        raise DataError(f"{label}: acceleration is 0 throughout: no vibration was recorded; check the accelerometer signal")
     if 0.0 < peak < least:
         raise DataError(f"{label}: peak {quantity} {peak:.3g} {unit} is below any sensor's resolution (at least {least:g} {unit}); "
                         f"is the signal in {unit}? Rescale it")

@@ -321,7 +321,7 @@ def test_fit_compliance_zero_accel_and_force_1e30(tmp_path, capsys):
     out = tmp_path / "c.json"
     argv = ["fit", "compliance", str(path), "--force", "force", "--accel", "accel", "-o", str(out)]
     save_recording(path, {"force": rec["force"], "accel": rec["accel"] * 0.0}, rec["rate"])
-    cli_one_line(capsys, argv, "acceleration is 0 throughout: no vibration was recorded")
+    cli_one_line(capsys, argv, "the acceleration (--accel) is 0 m/s^2 throughout: no vibration was recorded")
     save_recording(path, {"force": rec["force"] * 1e30, "accel": rec["accel"]}, rec["rate"])
     cli_one_line(capsys, argv, "peak force 3.03e+30 N is beyond any sensor's range (at most 10000 N)")
     assert not out.exists()
