@@ -11,13 +11,11 @@ A tangential sensor with a bias b biases a line through the origin too (by
 b sum N / sum N^2). ``--offset auto`` (default) therefore fits T = mu N + b
 first and keeps it when b's 95 % interval excludes 0; otherwise it refits
 Culbertson & Kuchenbecker 2017's line through the origin (one parameter less, a tighter interval).
-``--offset yes`` / ``no`` force either form.
+``--offset yes`` / ``no`` force either form. The command line is flowtex/cli/fit.py.
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -79,35 +77,64 @@ def fit_friction(normal: np.ndarray, tangential: np.ndarray, min_force: float = 
                        line.scale, "IRLS bisquare, line " + ("with offset" if with_offset else "through the origin"))
 
 
-def _forces(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray, Any]:
-    rec, _rate = load(args.recording, args.rate)
-    if args.force is not None:
-        if args.normal is None:
-            raise DataError(f"{args.recording}: --force needs --normal V (the surface normal signal, or x,y,z)")
-        f3 = signal(rec, args.force, "--force", (3,))
-        if args.normal in rec.arrays:
-            nv = signal(rec, args.normal, "--normal", (3,))
+def friction_forces(rec: Any, normal_force: str | None = None, friction_force: str | None = None,
+                    force3: str | None = None, normal: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(normal force (n,) N, tangential force magnitude (n,) N) from a recording.
+
+    Either ``normal_force`` (1-D, N) and ``friction_force`` (1-D magnitude or (n, 3), N), or ``force3`` (n, 3) N split
+    into normal and tangential parts by ``normal`` (a (n, 3) signal name or a vector ``"x,y,z"``).
+    """
+    where = rec.path
+    if force3 is not None:
+        if normal is None:
+            raise DataError(f"{where}: --force3 needs --normal V (the surface normal signal, or x,y,z)")
+        f3 = signal(rec, force3, "--force3", (3,))
+        if normal in rec.arrays:
+            nv = signal(rec, normal, "--normal", (3,))
         else:
             try:
-                nv = np.broadcast_to(np.array([float(v) for v in args.normal.split(",")]), (f3.shape[0], 3))
+                nv = np.broadcast_to(np.array([float(v) for v in normal.split(",")]), (f3.shape[0], 3))
             except ValueError:
-                raise DataError(f"{args.recording}: no signal {args.normal!r} (--normal); give a signal name or a vector x,y,z") from None
+                raise DataError(f"{where}: no signal {normal!r} (--normal); give a signal name or a vector x,y,z") from None
         length = np.linalg.norm(nv, axis=1)
         if np.any(length < 1e-9):
-            raise DataError(f"{args.recording}: signal {args.normal!r} (--normal) has zero-length normals; fix the normal")
+            raise DataError(f"{where}: signal {normal!r} (--normal) has zero-length normals; fix the normal")
         unit = nv / length[:, None]
         fn_signed = np.sum(f3 * unit, axis=1)
-        normal = np.abs(fn_signed)
+        n_force = np.abs(fn_signed)
         tangential = np.linalg.norm(f3 - fn_signed[:, None] * unit, axis=1)
     else:
-        if args.normal_force is None or args.friction_force is None:
-            raise DataError(f"{args.recording}: give --normal-force N --friction-force T, or --force F3 --normal V")
-        normal = signal(rec, args.normal_force, "--normal-force")
-        ft = signal(rec, args.friction_force, "--friction-force", (1, 3))
+        if normal_force is None or friction_force is None:
+            raise DataError(f"{where}: give --force N (normal force) --friction-force T, or --force3 F3 --normal V")
+        n_force = signal(rec, normal_force, "--force")
+        ft = signal(rec, friction_force, "--friction-force", (1, 3))
         tangential = np.abs(ft) if ft.ndim == 1 else np.linalg.norm(ft, axis=1)
-        check_not_constant(tangential, f"{args.recording}: signal {args.friction_force!r} (--friction-force)")
-    check_not_constant(normal, f"{args.recording}: the normal force")
-    return normal, tangential, rec
+        check_not_constant(tangential, f"{where}: signal {friction_force!r} (--friction-force)")
+    check_not_constant(n_force, f"{where}: the normal force")
+    return n_force, tangential
+
+
+def fit_friction_recording(recording: str | Path, from_rate: float | None = None, normal_force: str | None = None,
+                           friction_force: str | None = None, force3: str | None = None, normal: str | None = None,
+                           min_force: float = DEFAULT_MIN_FORCE_N, offset: str = "auto") -> tuple[FrictionFit, dict]:
+    """Fit mu to one recording (see :func:`friction_forces` for the signals); returns the fit and its JSON document."""
+    if not (math.isfinite(min_force) and min_force >= 0.0):
+        raise DataError(f"--min-force {min_force:g}: valid range is 0 N or more")
+    rec, _rate = load(recording, from_rate)
+    n_force, tangential = friction_forces(rec, normal_force, friction_force, force3, normal)
+    fit = fit_friction(n_force, tangential, min_force, offset, str(recording))
+    if not (math.isfinite(fit.mu) and fit.mu >= 0):
+        raise DataError(f"{recording}: the fitted mu is {fit.mu:g}; the tangential force does not grow with the normal "
+                        "force (wrong signals or sign?)")
+    return fit, {"format": "flowtex-friction", "version": 1, "recording": str(recording), **asdict(fit)}
+
+
+def friction_table(fit: FrictionFit) -> list[str]:
+    """The lines ``flowtex fit friction`` prints."""
+    return [f"friction: {fit.method}",
+            f"{'mu':>8} {'95% CI':>19} {'offset N':>9} {'in contact':>10} {'rejected':>8} {'scale N':>8}",
+            f"{fit.mu:8.4f} [{fit.mu_ci[0]:8.4f}, {fit.mu_ci[1]:8.4f}] {fit.offset:9.4f} {fit.in_contact:10d} {fit.rejected:8d} "
+            f"{fit.residual_scale_n:8.4f}"]
 
 
 def store_mu(surface: str | Path, mu: float) -> None:
@@ -117,46 +144,8 @@ def store_mu(surface: str | Path, mu: float) -> None:
 
     ms = load_model_set(surface)
     ms.mu = float(mu)
-    with atomic_output(surface) as tmp:
+    with atomic_output(surface, keep_mode=True) as tmp:
         if ms.metadata.get("format") == "hatt-xml":
             write_hatt_xml(ms, tmp, texture=int(ms.metadata.get("texture") or 0))
         else:
             save_model_set(ms, tmp)
-
-
-def run(args: argparse.Namespace) -> int:
-    normal, tangential, _rec = _forces(args)
-    fit = fit_friction(normal, tangential, args.min_force, args.offset, str(args.recording))
-    if not (math.isfinite(fit.mu) and fit.mu >= 0):
-        raise DataError(f"{args.recording}: the fitted mu is {fit.mu:g}; the tangential force does not grow with the normal "
-                        "force (wrong signals or sign?)")
-    doc = {"format": "flowtex-friction", "version": 1, "recording": str(args.recording), **asdict(fit)}
-    print(f"friction: {fit.method}")
-    print(f"{'mu':>8} {'95% CI':>19} {'offset N':>9} {'in contact':>10} {'rejected':>8} {'scale N':>8}")
-    print(f"{fit.mu:8.4f} [{fit.mu_ci[0]:8.4f}, {fit.mu_ci[1]:8.4f}] {fit.offset:9.4f} {fit.in_contact:10d} {fit.rejected:8d} "
-          f"{fit.residual_scale_n:8.4f}")
-    with atomic_output(args.output) as tmp:
-        tmp.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
-    if args.into:
-        store_mu(args.into, fit.mu)
-        print(f"mu = {fit.mu:.4f} stored in {args.into}")
-    print(f"-> {args.output}")
-    return 0
-
-
-def register_fit(kinds: Any) -> None:
-    """Add ``flowtex fit friction``."""
-    p = kinds.add_parser("friction", help="kinetic friction coefficient mu from normal and tangential forces",
-                         description="Robust line through the origin of tangential vs normal force (samples in contact only).")
-    p.add_argument("recording", type=Path, help="recording (.npz, .csv, .h5)")
-    p.add_argument("--normal-force", metavar="N", help="normal force signal (N)")
-    p.add_argument("--friction-force", metavar="T", help="tangential (friction) force signal (N): 1-D magnitude or (n, 3)")
-    p.add_argument("--force", metavar="F3", help="3-axis force signal (N), split into normal and tangential by --normal")
-    p.add_argument("--normal", metavar="V", help="surface normal: a (n, 3) signal or a vector x,y,z")
-    p.add_argument("--rate", type=float, help="sample rate (Hz) when the file states none")
-    p.add_argument("--min-force", type=float, default=DEFAULT_MIN_FORCE_N, help="in contact from this normal force (N)")
-    p.add_argument("--offset", choices=("auto", "yes", "no"), default="auto",
-                   help="fit T = mu N + b (yes), a line through 0 (no), or b only when significant (auto, default)")
-    p.add_argument("-o", "--output", required=True, type=Path, help="output JSON (mu, mu_ci, ...)")
-    p.add_argument("--into", metavar="SURFACE", help="also store mu in this model set (native JSON or HaTT XML)")
-    p.set_defaults(func=run)

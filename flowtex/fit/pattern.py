@@ -14,7 +14,7 @@ along the principal axis of the recorded motion.
 
 from __future__ import annotations
 
-import argparse
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -23,7 +23,7 @@ from ..dsp.patterns import RING_DECAY, band_edges, segment_starts
 from ..dsp.prony import fit_iir, impulse_response, ring_length
 from ..dsp.spectral import welch_psd
 from ..errors import DataError
-from ..io.patternfile import Pattern, write_pattern
+from ..io.patternfile import Pattern
 from ..io.recordings import load_recording
 from .recording_signals import recording_rate, signal
 
@@ -103,36 +103,27 @@ def _mean_spacing(p: np.ndarray) -> float | None:
     return float(np.mean(keep)) if keep.size else float(med)
 
 
-def register_fit(kinds: Any) -> None:
-    """Add ``flowtex fit pattern``."""
-    p = kinds.add_parser("pattern", help="patterned texture: features + Prony/IIR ring-downs (Guruswamy thesis ch. 4)",
-                         description="Fit a patterned texture to REC: one IIR filter per surface feature, at its position along the path.")
-    p.add_argument("recording", metavar="REC", help="recording (.npz/.csv/.h5)")
-    p.add_argument("--accel", required=True, metavar="A", help="signal name of the acceleration (m/s^2, 1 to 3 axes)")
-    p.add_argument("--position", required=True, metavar="P", help="signal name of the tool position (mm, 3 components)")
-    p.add_argument("--speed", metavar="S", help="signal name of the speed (mm/s); only reported (features are placed by position)")
-    p.add_argument("-o", "--output", required=True, metavar="PATTERN.json", help="pattern file to write (docs/pattern-format.md)")
-    p.add_argument("--rate", type=float, help="sample rate in Hz if the recording does not state one")
-    p.add_argument("--max-order", type=int, default=8, help="highest filter order N = M tried (default 8; from 2)")
-    p.set_defaults(func=cmd_fit_pattern)
-
-
-def cmd_fit_pattern(args: argparse.Namespace) -> int:
-    rec = load_recording(args.recording)
-    rate = recording_rate(rec, args.rate)
-    accel = signal(rec, args.accel, "--accel", (1, 2, 3))
-    position = signal(rec, args.position, "--position", (3,))
-    if args.max_order < 2:
-        raise DataError(f"--max-order must be at least 2, got {args.max_order}")
+def fit_pattern_recording(recording: str | Path, accel: str, position: str, from_rate: float | None = None,
+                          speed: str | None = None, max_order: int = 8) -> Pattern:
+    """Fit a :class:`Pattern` to one recording (signals named as the options; filter orders 2..``max_order``)."""
+    rec = load_recording(recording)
+    rate = recording_rate(rec, from_rate)
+    acc = signal(rec, accel, "--accel", (1, 2, 3))
+    pos = signal(rec, position, "--position", (3,))
+    if max_order < 2:
+        raise DataError(f"--max-order must be at least 2, got {max_order}")
     try:
-        pat = fit_pattern(accel, position, rate, orders=range(2, args.max_order + 1))
+        pat = fit_pattern(acc, pos, rate, orders=range(2, max_order + 1))
     except DataError as exc:
-        raise DataError(f"{args.recording}: {exc}") from None
-    pat.metadata["recording"] = str(args.recording)
-    if args.speed:
-        pat.metadata["mean_speed_mm_s"] = float(np.mean(np.abs(signal(rec, args.speed, "--speed", (1,)))))
-    write_pattern(args.output, pat)
+        raise DataError(f"{recording}: {exc}") from None
+    pat.metadata["recording"] = str(recording)
+    if speed:
+        pat.metadata["mean_speed_mm_s"] = float(np.mean(np.abs(signal(rec, speed, "--speed", (1,)))))
+    return pat
+
+
+def pattern_summary(pat: Pattern) -> str:
+    """One line: features, band, mean order, SAD and spacing."""
     m = pat.metadata
-    print(f"{args.output}: {m['segments']} features, band {m['band_hz'][0]:.0f}-{m['band_hz'][1]:.0f} Hz, "
-          f"mean order {m['mean_order']:.1f}, mean SAD {m['mean_sad']:.4g} m/s^2, spacing {m['mean_spacing_mm']:.4g} mm")
-    return 0
+    return (f"{m['segments']} features, band {m['band_hz'][0]:.0f}-{m['band_hz'][1]:.0f} Hz, "
+            f"mean order {m['mean_order']:.1f}, mean SAD {m['mean_sad']:.4g} m/s^2, spacing {m['mean_spacing_mm']:.4g} mm")

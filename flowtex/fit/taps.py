@@ -22,10 +22,8 @@ tap and averaged over the library played at 50, 60, ..., 100 mm/s
 
 from __future__ import annotations
 
-import argparse
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -33,7 +31,7 @@ from ..dsp.robust import robust_scale
 from ..errors import DataError
 from ..io.taplib import write_tap_library
 from ..models.taps import TapLibrary, spectral_centroid
-from .inputs import atomic_output, check_not_constant, load, signal
+from .inputs import atomic_output, check_highpass, check_not_constant, load, signal
 
 
 @dataclass(frozen=True)
@@ -125,57 +123,55 @@ def library_from_taps(taps: list[Tap], rate: float, name: str) -> TapLibrary:
     return TapLibrary(uniq, tr, rate, name)
 
 
-def run(args: argparse.Namespace) -> int:
+def fit_tap_recording(recording: str | Path, accel: str, force: str, from_rate: float | None = None,
+                      position: str | None = None, normal: str | None = None, speed: str | None = None,
+                      length_s: float = 0.1, highpass_hz: float = 10.0,
+                      name: str | None = None) -> tuple[TapLibrary, list[Tap], list[str], float]:
+    """(library, taps, notes on dropped taps, rate in Hz) from one recording of taps; signals are named as the options.
+
+    ``length_s`` (s) is cut after each onset; ``highpass_hz`` (0: none) is a zero-phase high-pass of the acceleration.
+    """
     from scipy.signal import sosfiltfilt
 
     from ..dsp.filter_design import butterworth_sos
 
-    rec, rate = load(args.recording, args.rate)
-    acc = signal(rec, args.accel, "--accel", (1, 3))
+    rec, rate = load(recording, from_rate)
+    if not (np.isfinite(length_s) and 0.0 < length_s):
+        raise DataError(f"--length {length_s:g}: valid range is more than 0 s (Culbertson & Kuchenbecker 2017: 0.1 s)")
+    check_highpass(highpass_hz, rate)
+    acc = signal(rec, accel, "--accel", (1, 3))
     if acc.ndim == 2:
         from ..dsp.dft321 import dft321
 
         acc = dft321(acc)
-    check_not_constant(acc, f"{args.recording}: signal {args.accel!r} (--accel)")
-    force = signal(rec, args.force, "--force")
-    position = normal = speed = None
-    if args.position is not None:
-        position = signal(rec, args.position, "--position", (3,))
-        normal = signal(rec, args.normal, "--normal", (3,)) if args.normal else None
-    elif args.speed is not None:
-        speed = signal(rec, args.speed, "--speed")
+    check_not_constant(acc, f"{recording}: signal {accel!r} (--accel)")
+    f = signal(rec, force, "--force")
+    pos = nrm = spd = None
+    if position is not None:
+        pos = signal(rec, position, "--position", (3,))
+        nrm = signal(rec, normal, "--normal", (3,)) if normal else None
+    elif speed is not None:
+        spd = signal(rec, speed, "--speed")
     else:
-        raise DataError(f"{args.recording}: give --position P (mm, 3 axes) or --speed S (approach speed, mm/s) to label taps")
-    if args.highpass > 0:
-        acc = sosfiltfilt(butterworth_sos("highpass", 4, [args.highpass], rate), acc)
-    taps, notes = fit_taps(acc, force, rate, position, normal, speed, args.length, where=str(args.recording))
-    lib = library_from_taps(taps, rate, args.name or Path(args.recording).stem)
-    print(f"{'tap':>4} {'time s':>8} {'speed mm/s':>10} {'peak m/s^2':>10} {'centroid Hz':>11}")
+        raise DataError(f"{recording}: give --position P (mm, 3 axes) or --speed S (approach speed, mm/s) to label taps")
+    if highpass_hz > 0:
+        acc = sosfiltfilt(butterworth_sos("highpass", 4, [highpass_hz], rate), acc)
+    taps, notes = fit_taps(acc, f, rate, pos, nrm, spd, length_s, where=str(recording))
+    return library_from_taps(taps, rate, name or Path(recording).stem), taps, notes, rate
+
+
+def write_taps(path: str | Path, lib: TapLibrary, recording: str | Path) -> None:
+    """Write the tap library atomically (docs/tap-library.md)."""
+    with atomic_output(path) as tmp:
+        write_tap_library(tmp, lib, notes=f"fitted by flowtex fit taps from {recording}")
+
+
+def tap_table(taps: list[Tap], notes: list[str], lib: TapLibrary, rate: float) -> list[str]:
+    """The lines ``flowtex fit taps`` prints: one per tap, the notes, the library's spectral centroid."""
+    lines = [f"{'tap':>4} {'time s':>8} {'speed mm/s':>10} {'peak m/s^2':>10} {'centroid Hz':>11}"]
     for k, t in enumerate(taps):
-        print(f"{k:4d} {t.onset / rate:8.3f} {t.speed:10.1f} {float(np.max(np.abs(t.transient))):10.3f} {t.centroid_hz:11.1f}")
-    for note in notes:
-        print(note)
+        lines.append(f"{k:4d} {t.onset / rate:8.3f} {t.speed:10.1f} {float(np.max(np.abs(t.transient))):10.3f} {t.centroid_hz:11.1f}")
+    lines += notes
     sc = spectral_centroid(lib)
-    print(f"{len(taps)} taps; spectral centroid over 50-100 mm/s (Culbertson & Kuchenbecker 2017 eq. 4): {sc:.1f} Hz")
-    with atomic_output(args.output) as tmp:
-        write_tap_library(tmp, lib, notes=f"fitted by flowtex fit taps from {args.recording}")
-    print(f"-> {args.output}")
-    return 0
-
-
-def register_fit(kinds: Any) -> None:
-    """Add ``flowtex fit taps``."""
-    p = kinds.add_parser("taps", help="tap library (100 ms transients by incoming speed) from a recording of taps",
-                         description="Detect contact onsets, cut 100 ms after each, label by incoming speed (Culbertson & Kuchenbecker 2017).")
-    p.add_argument("recording", type=Path)
-    p.add_argument("--accel", required=True, metavar="A", help="acceleration (m/s^2): 1-D or 3 axes (DFT321)")
-    p.add_argument("--force", required=True, metavar="F", help="normal force (N)")
-    p.add_argument("--position", metavar="P", help="tool position (mm, 3 axes): incoming speed from it")
-    p.add_argument("--normal", metavar="N", help="surface normal signal for --position (default +z)")
-    p.add_argument("--speed", metavar="S", help="approach speed signal (mm/s), instead of --position")
-    p.add_argument("--rate", type=float, help="sample rate (Hz) when the file states none")
-    p.add_argument("--length", type=float, default=0.1, help="seconds cut after each onset (Culbertson & Kuchenbecker 2017: 0.1)")
-    p.add_argument("--highpass", type=float, default=10.0, metavar="HZ", help="zero-phase high-pass of the acceleration (0: none)")
-    p.add_argument("--name", help="library name (default: the file's stem)")
-    p.add_argument("-o", "--output", required=True, type=Path, help="tap library JSON (docs/tap-library.md)")
-    p.set_defaults(func=run)
+    lines.append(f"{len(taps)} taps; spectral centroid over 50-100 mm/s (Culbertson & Kuchenbecker 2017 eq. 4): {sc:.1f} Hz")
+    return lines
