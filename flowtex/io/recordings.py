@@ -78,10 +78,10 @@ UNITS_KEY = "units"
 def _parse_units(text: str, path: Path) -> dict[str, str]:
     try:
         units = json.loads(text)
-    except ValueError:
-        raise DataError(f"{path}: 'units' must be JSON like {{\"y\": \"m/s^2\"}}, got {text!r}") from None
+    except (ValueError, RecursionError):
+        raise DataError(f"{path}: 'units' must be JSON like {{\"y\": \"m/s^2\"}}, got {excerpt(text)}") from None
     if not isinstance(units, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in units.items()):
-        raise DataError(f"{path}: 'units' must map signal names to unit strings, got {text!r}")
+        raise DataError(f"{path}: 'units' must map signal names to unit strings, got {excerpt(text)}")
     return units
 
 

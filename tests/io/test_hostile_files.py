@@ -117,6 +117,7 @@ def test_npz_object_arrays_are_refused_without_unpickling(tmp_path):
     ({"time": np.array([0.0, 0.001, 0.001, 0.002])}, "'time' does not increase at sample 2"),
     ({"time": np.r_[np.arange(10) * 0.001, 0.02 + np.arange(10) * 0.001]}, "jumps from 0.009 to 0.02 at sample 10"),
     ({"rate": np.float64(1000.0)}, "holds no signals"),
+    ({"acc": np.ones(5), "units": np.array("[" * 100_000 + "]" * 100_000)}, "'units' must be JSON like"),
 ])
 def test_recording_rules_npz(tmp_path, arrays, match):
     path = tmp_path / "r.npz"
