@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError
-from ..limits import check_values, excerpt
+from ..limits import MAX_RECORDING_VALUES, check_values, excerpt
 from .npzread import read_npz_arrays
 from .recording_rules import check_signals, numeric_signal
 
@@ -113,8 +113,8 @@ def _load_npz(path: Path) -> Recording:
 
 MAX_CSV_LINE = 1 << 20
 """Longest CSV line read (characters); a longer one is not a recording row."""
-_CSV_CHUNK = 65536
-"""Rows parsed into Python floats before they are packed into a numpy block (bounds Python-object memory)."""
+_CSV_CHUNK = 1 << 20
+"""Values parsed into Python floats before they are packed into a numpy block (bounds Python-object memory)."""
 
 
 def _bounded_lines(fh, path: Path):
@@ -172,9 +172,10 @@ def _parse_csv(lines, path: Path) -> Recording:
             rows.append([float(v) for v in row])
         except ValueError:
             raise DataError(f"{path}:{lineno}: non-numeric value in {excerpt(row)}") from None
-        count += 1
-        if len(rows) == _CSV_CHUNK:
-            check_values(path, count * width, "the CSV table")
+        count += width
+        if count > MAX_RECORDING_VALUES:
+            check_values(path, count, "the CSV table (so far)")
+        if len(rows) * width >= _CSV_CHUNK:
             blocks.append(np.array(rows, dtype=np.float64))
             rows = []
     blocks.append(np.array(rows, dtype=np.float64).reshape(len(rows), width))

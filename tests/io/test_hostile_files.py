@@ -330,3 +330,19 @@ def test_fit_compliance_zero_accel_and_force_1e30(tmp_path, capsys):
 
     with pytest.raises(FlowtexError, match="peak force 3.03e[+]30 N is beyond"):  # the library refuses it too
         estimate_compliance(rec["force"] * 1e30, rec["accel"], rec["rate"], k_g=0.5)
+
+
+def test_csv_and_h5_stop_at_the_value_limit(tmp_path, monkeypatch):
+    import flowtex.io.recordings as recordings
+    import flowtex.limits as limits
+
+    monkeypatch.setattr(limits, "MAX_RECORDING_VALUES", 1000)  # the limit, scaled down so the test file stays small
+    monkeypatch.setattr(recordings, "MAX_RECORDING_VALUES", 1000)
+    path = tmp_path / "long.csv"
+    path.write_text("a,b\n" + "1,2\n" * 600)
+    refused(lambda: load_recording(path), "the CSV table (so far) holds 1,002 numbers; flowtex reads recordings of up to 1,000")
+    h5py = pytest.importorskip("h5py")
+    path = tmp_path / "long.h5"
+    with h5py.File(path, "w") as fh:
+        fh.create_dataset("a", data=np.zeros((400, 3)))
+    refused(lambda: load_recording(path), "dataset 'a' (shape (400, 3)) holds 1,200 numbers")
