@@ -146,11 +146,14 @@ class Param:
     def _coerce_number(self, value: Any) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ValueError(f"expected a number, got {excerpt(value)}")
-        value = float(value)
-        if not math.isfinite(value):
-            raise ValueError(f"expected a finite number, got {excerpt(value)}")
-        self._check_bounds(value)
-        return value
+        try:
+            number = float(value)
+        except OverflowError:  # an integer beyond 1.8e308
+            number = math.inf
+        if not math.isfinite(number):
+            raise ValueError(f"expected a finite number, got {excerpt(value, 24)}")
+        self._check_bounds(number)
+        return number
 
     def _check_bounds(self, value: float) -> None:
         if self.kind == "int" and self.max is None and value > MAX_INT_PARAM:
