@@ -27,6 +27,8 @@ MAX_DEPTH = 100
 """Nesting of maps and lists in YAML and JSON, and of elements in XML (real flowtex files nest fewer than 10)."""
 MAX_YAML_NODES = 1_000_000
 """Values in a YAML document with every alias (``*name``) expanded: an alias bomb is refused, not built."""
+MAX_YAML_INT = 10**300
+"""YAML integers at or beyond this magnitude are refused while loading (every flowtex number fits a float64)."""
 MAX_SIGNAL_WIDTH = 16
 """A recording signal may have more components per sample than samples only up to this width (else it looks transposed)."""
 TIME_GAP_TOLERANCE = 1.5

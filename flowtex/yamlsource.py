@@ -20,7 +20,7 @@ from typing import Any
 import yaml
 
 from .errors import Diagnostic, GraphError, Location
-from .limits import MAX_DEPTH, MAX_TEXT_BYTES, MAX_YAML_NODES, excerpt
+from .limits import MAX_DEPTH, MAX_TEXT_BYTES, MAX_YAML_INT, MAX_YAML_NODES, excerpt
 
 Pos = tuple[int, int]
 
@@ -157,6 +157,18 @@ class _Loader(yaml.SafeLoader):
         return result
 
 
+    def construct_bounded_int(self, node: yaml.ScalarNode) -> int:
+        """An integer, refused beyond 1e300 (past any float; numeric checks compare ints with floats)."""
+        try:
+            value = self.construct_yaml_int(node)
+        except ValueError:  # more digits than Python converts
+            value = None
+        if value is None or abs(value) >= MAX_YAML_INT:
+            digits = node.value if len(node.value) <= 24 else node.value[:20] + "..."
+            raise _TooLarge(f"the integer {digits} ({len(node.value)} digits) is too large (at most 1e300)", node.start_mark)
+        return value
+
+_Loader.add_constructor("tag:yaml.org,2002:int", _Loader.construct_bounded_int)
 _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _Loader.construct_loc_mapping)
 _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_SEQUENCE_TAG, _Loader.construct_loc_sequence)
 
