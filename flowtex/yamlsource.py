@@ -20,7 +20,7 @@ from typing import Any
 import yaml
 
 from .errors import Diagnostic, GraphError, Location
-from .limits import MAX_DEPTH, MAX_TEXT_BYTES, MAX_YAML_INT, MAX_YAML_NODES, excerpt
+from .limits import MAX_DEPTH, MAX_YAML_BYTES, MAX_YAML_INT, MAX_YAML_NODES, excerpt
 
 Pos = tuple[int, int]
 
@@ -85,8 +85,8 @@ def check_expansion(root: yaml.Node, max_nodes: int = MAX_YAML_NODES, max_depth:
             size = 1 + sum(k[0] for k in kids)
             depth = 1 + max((k[1] for k in kids), default=0)
             if size > max_nodes:
-                raise _TooLarge(f"aliases (*name) expand this document to more than {max_nodes:,} values; "
-                                "write the values out or use fewer nested aliases", node.start_mark)
+                raise _TooLarge(f"this document holds more than {max_nodes:,} values, counting each alias (*name) "
+                                "in full; use fewer nested aliases, or keep large data in a data file", node.start_mark)
             if depth > max_depth:
                 raise _TooLarge(f"aliases (*name) nest this document more than {max_depth} levels deep; "
                                 "flowtex files nest a few levels", node.start_mark)
@@ -176,14 +176,14 @@ _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_SEQUENCE_TAG, _Loader
 def read_source(path: Path, kind: str) -> str:
     """The text of the YAML file ``path`` (a ``kind`` such as "graph file"); one-line :class:`GraphError` if it cannot be.
 
-    Refuses a missing file, a folder, a file larger than :data:`flowtex.limits.MAX_TEXT_BYTES` and text that is not UTF-8.
+    Refuses a missing file, a folder, a file larger than :data:`flowtex.limits.MAX_YAML_BYTES` and text that is not UTF-8.
     """
     where = Location(str(path))
     try:
         size = path.stat().st_size
-        if size > MAX_TEXT_BYTES:
+        if size > MAX_YAML_BYTES:
             raise GraphError([Diagnostic(where, f"{kind} is {size / 2**20:.1f} MiB; flowtex reads {kind}s up to "
-                                                f"{MAX_TEXT_BYTES / 2**20:g} MiB (is this the right file?)")])
+                                                f"{MAX_YAML_BYTES / 2**20:g} MiB (is this the right file?)")])
         return path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise GraphError([Diagnostic(where, f"{kind} not found")]) from None

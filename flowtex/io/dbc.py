@@ -16,7 +16,7 @@ import cantools
 from cantools.database.can import Database, Message, Signal
 
 from ..errors import DataError
-from ..limits import check_file_size
+from ..limits import MAX_DBC_BYTES, check_file_size
 
 
 def load_dbc(path: str | Path) -> Database:
@@ -28,7 +28,7 @@ def load_dbc(path: str | Path) -> Database:
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: DBC file not found")
-    check_file_size(path, "DBC file")
+    check_file_size(path, "DBC file", MAX_DBC_BYTES)
     try:
         text = path.read_text(encoding="utf-8", errors="replace")
     except OSError as exc:

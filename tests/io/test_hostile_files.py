@@ -198,7 +198,7 @@ def test_alias_bomb_in_a_node_parameter(tmp_path, capsys):
     lines += [f"l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * 10)}]" for i in range(1, 10)]  # 10**10 values if expanded
     text = GRAPH.replace("flowtex: 1\n", "flowtex: 1\n" + "\n".join(lines) + "\n").replace("{k: 2}", "{k: *l9}")
     path = _graph(tmp_path, text)
-    err = cli_one_line(capsys, ["validate", str(path)], "aliases (*name) expand this document to more than 1,000,000 values")
+    err = cli_one_line(capsys, ["validate", str(path)], "this document holds more than 1,000,000 values, counting each alias (*name) in full")
     assert err.startswith(f"{path}:")
 
 
@@ -349,3 +349,16 @@ def test_csv_and_h5_stop_at_the_value_limit(tmp_path, monkeypatch):
     with h5py.File(path, "w") as fh:
         fh.create_dataset("a", data=np.zeros((400, 3)))
     refused(lambda: load_recording(path), "dataset 'a' (shape (400, 3)) holds 1,200 numbers")
+
+
+def test_oversized_text_files_are_refused_before_reading(tmp_path, capsys):
+    from flowtex.io.dbc import load_dbc
+
+    graph = tmp_path / "huge.yaml"
+    with graph.open("wb") as fh:  # sparse: 2 MiB of nothing, refused by its size before a byte is parsed
+        fh.truncate(2 * MB)
+    cli_one_line(capsys, ["validate", str(graph)], "graph file is 2.0 MiB; flowtex reads graph files up to 1 MiB")
+    dbc = tmp_path / "huge.dbc"
+    with dbc.open("wb") as fh:
+        fh.truncate(5 * MB)
+    refused(lambda: load_dbc(dbc), "DBC file is 5.0 MiB; flowtex reads such files up to 4 MiB")
