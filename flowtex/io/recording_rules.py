@@ -42,7 +42,7 @@ def numeric_signal(arr: np.ndarray, path: Path | str, name: str) -> np.ndarray:
 def check_signals(arrays: dict[str, np.ndarray], path: Path | str) -> None:
     """Apply the module's rules to float64 signals read from ``path``."""
     if not arrays:
-        raise DataError(f"{path}: the recording holds no signals")
+        raise DataError(f"{path}: the recording holds no signals; store one array per signal, time first")
     for name, a in arrays.items():
         n = a.shape[0]
         width = int(np.prod(a.shape[1:], dtype=np.int64))
