@@ -72,6 +72,14 @@ def excerpt(value: Any, limit: int = EXCERPT_CHARS) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
+def short_number(value: float) -> str:
+    """A number for a message: ``%g`` when a float can hold it, else a short excerpt of the integer."""
+    try:
+        return f"{float(value):g}"
+    except OverflowError:
+        return excerpt(value, 24)
+
+
 def check_file_size(path: Path, kind: str, limit: int = MAX_TEXT_BYTES) -> None:
     """Refuse the file at ``path`` when it is larger than ``limit`` bytes (a missing file passes: its reader says so)."""
     try:

@@ -36,7 +36,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .errors import ParamError
-from .limits import MAX_INT_PARAM, excerpt
+from .limits import MAX_INT_PARAM, excerpt, short_number
 
 
 class _Required:
@@ -157,23 +157,15 @@ class Param:
 
     def _check_bounds(self, value: float) -> None:
         if self.kind == "int" and self.max is None and value > MAX_INT_PARAM:
-            raise ValueError(f"must be <= {MAX_INT_PARAM} (the largest integer parameter), got {_number(value)}")
+            raise ValueError(f"must be <= {MAX_INT_PARAM} (the largest integer parameter), got {short_number(value)}")
         if self.min is not None:
             if value < self.min or (self.min_exclusive and value == self.min):
                 op = ">" if self.min_exclusive else ">="
-                raise ValueError(f"must be {op} {self.min:g}, got {_number(value)}")
+                raise ValueError(f"must be {op} {self.min:g}, got {short_number(value)}")
         if self.max is not None:
             if value > self.max or (self.max_exclusive and value == self.max):
                 op = "<" if self.max_exclusive else "<="
-                raise ValueError(f"must be {op} {self.max:g}, got {_number(value)}")
-
-
-def _number(value: float) -> str:
-    """A number for a message: ``%g`` when a float can hold it, else a short excerpt of the integer."""
-    try:
-        return f"{float(value):g}"
-    except OverflowError:
-        return excerpt(value, 24)
+                raise ValueError(f"must be {op} {self.max:g}, got {short_number(value)}")
 
 
 @dataclass(frozen=True)
