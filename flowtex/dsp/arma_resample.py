@@ -90,7 +90,12 @@ BAND_EDGE = 0.92
 """Band fitted two-sided: up to this fraction of the old Nyquist (the requirement's 0.9, plus a margin)."""
 
 LSD_RANGE_DB = 40.0
-"""Frequencies more than this below the band's peak only get a one-sided ceiling (as in lsd_db's band)."""
+"""The LSD's range (lsd_db's band: frequencies within this of the peak below 0.9 x the old Nyquist)."""
+
+RANGE_MARGIN_DB = 6.0
+"""Fitted two-sided: frequencies within LSD_RANGE_DB + this of the peak *below 0.9 x the old Nyquist* (the LSD's
+band; a peak above it, up to BAND_EDGE, does not set the range: measured, a 46 dB resonance at 0.908 x the old
+Nyquist left the lower band one-sided and 5-10 dB off there); the margin covers a peak sampled off its top."""
 
 BAND_POINTS, EDGE_POINTS, STOP_POINTS = 2000, 40, 1000
 """Frequencies of the upsampling fit: in the band (at least; more for sharper poles), from BAND_EDGE to the old Nyquist, and above it."""
@@ -210,7 +215,7 @@ def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre
 
     Residuals (flowtex.dsp.arma_logfit): 10 log10(model / original) on
     BAND_POINTS frequencies up to BAND_EDGE x the old Nyquist where the original
-    is within 40 dB of its peak (lsd_db's band); one-sided ceilings elsewhere:
+    is within 40 + RANGE_MARGIN_DB dB of its peak below 0.9 x the old Nyquist (lsd_db's band); one-sided ceilings elsewhere:
     the peak - 40 dB in the band's valleys, the band's peak from BAND_EDGE to the
     old Nyquist, and STOPBAND_CEILING x the band's mean power / (ratio - 1)
     above it (then the power above the old Nyquist is <= ~STOPBAND_CEILING of the band's).
@@ -226,14 +231,16 @@ def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre
                                                                   / (2.0 * (1.0 - pole_radius))))))
     f_in = np.linspace(0.0, BAND_EDGE * f_lim, n_band + 1)[1:]
     t_db = 10.0 * np.log10(_model_power_spectrum(ar, ma, 2.0 * math.pi * f_in / rate_from))
-    peak = float(np.max(t_db))
-    inside = t_db >= peak - LSD_RANGE_DB
+    peak = float(np.max(t_db[f_in <= 0.9 * f_lim]))
+    inside = t_db >= peak - LSD_RANGE_DB - RANGE_MARGIN_DB
     f_tr = np.linspace(BAND_EDGE * f_lim, f_lim, EDGE_POINTS)
     f_st = np.linspace(f_lim, 0.5 * rate, STOP_POINTS)
     ratio = rate / rate_from
     ceiling = 10.0 * math.log10(STOPBAND_CEILING / max(ratio - 1.0, 1e-3) * float(np.mean(10.0 ** (t_db / 10.0))))
     f = np.r_[f_in, f_tr, f_st]
-    level = np.r_[np.where(inside, t_db, peak - LSD_RANGE_DB), np.full(f_tr.shape[0], peak), np.full(f_st.shape[0], ceiling)]
+    top = max(peak, float(np.max(t_db)))
+    level = np.r_[np.where(inside, t_db, peak - LSD_RANGE_DB - RANGE_MARGIN_DB), np.full(f_tr.shape[0], top),
+                  np.full(f_st.shape[0], ceiling)]
     if pre is not None:  # compensate the lowpass in the band and at its edge; the stopband ceiling stays the model's own
         n_pre = f_in.shape[0] + f_tr.shape[0]
         pre_db = 10.0 * np.log10(_root_power_spectrum(pre[0], pre[1], 2.0 * math.pi * f[:n_pre] / rate_pre))

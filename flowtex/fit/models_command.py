@@ -22,14 +22,17 @@ def register(subparsers: Any) -> None:
     r.add_argument("--keep-order", action="store_true",
                    help="keep the models' (p, q) when upsampling by more than 2x (cheaper to render, less exact)")
     r.add_argument("--extra-order", type=int, metavar="N",
-                   help="when upsampling, give every model N (even) more poles and zeros (default: the fewest of 0, 2, 4, 6 "
-                        "with which every model keeps its spectrum)")
+                   help="when upsampling, give every model N (even, 0-12) more poles and zeros (default: the fewest of "
+                        "0, 2, 4, 6, 8 with which every model keeps its spectrum)")
+    r.add_argument("--allow-misses", action="store_true",
+                   help="write the set even if some model misses LSD <= 0.5 dB / band power within 2 %% (named in a warning); "
+                        "without it such a set is not written and the command fails")
     r.set_defaults(func=cmd_resample)
 
 
 def cmd_resample(args: Any) -> int:
     from ..io.modelset import load_model_set, save_model_set
-    from .resample import resample_model_set, tqdm_progress
+    from .resample import check_misses, resample_model_set, tqdm_progress
 
     ms = load_model_set(args.input)
     progress, close = tqdm_progress(ms.num_models, "resample")
@@ -37,6 +40,7 @@ def cmd_resample(args: Any) -> int:
         out = resample_model_set(ms, args.rate, progress, keep_order=args.keep_order, extra_order=args.extra_order)
     finally:
         close()
+    warning = check_misses(out, args.allow_misses, str(args.input))
     target = Path(args.output).expanduser()
     fd, tmp = tempfile.mkstemp(prefix=target.name + ".", suffix=".tmp", dir=target.parent if str(target.parent) else ".")
     os.close(fd)
@@ -55,8 +59,7 @@ def cmd_resample(args: Any) -> int:
           f"worst LSD {info['worst_lsd_db']:.2f} dB, worst band-power error {100 * info['worst_band_power_error']:.2f} % "
           f"(up to 0.9 x the lower Nyquist)"
           + (f", worst power above the old Nyquist {100 * info['worst_power_above_old_nyquist']:.2f} %" if info["to_hz"] > info["from_hz"] else ""))
-    if info["worst_lsd_db"] > 0.5 or info.get("worst_power_above_old_nyquist", 0.0) > 0.02:
-        print("warning: some models do not keep their spectrum (LSD <= 0.5 dB, <= 2 % of the power above the old Nyquist)"
-              + (" (--keep-order: upsampling by more than 2x needs the higher order; see docs/fitting.md)" if args.keep_order else
-                 " (see docs/fitting.md)"))
+    if warning:
+        print(warning + (" (--keep-order: upsampling by more than 2x needs the higher order; see docs/fitting.md)"
+                         if args.keep_order else " (see docs/fitting.md)"))
     return 0

@@ -36,6 +36,7 @@ class TextureJob:
     options: TextureOptions | None = None
     render_rate: float | None = None
     material: str | None = None
+    allow_misses: bool = False
 
 
 def speed_from_position(position: np.ndarray, normal: np.ndarray | None, rate: float) -> np.ndarray:
@@ -113,14 +114,17 @@ def fit_grid_index(index: Path, job: TextureJob) -> TextureFit:
     return fit_grid(cells, rate, job.options, job.material or index.stem, str(index))
 
 
-def write_outputs(fit: TextureFit, output: Path, xml: Path | None, render_rate: float | None) -> None:
-    """Write the native set (and HaTT XML) atomically, after resampling to ``render_rate`` if given."""
+def write_outputs(fit: TextureFit, output: Path, xml: Path | None, render_rate: float | None, allow_misses: bool = False) -> None:
+    """Write the native set (and HaTT XML) atomically, after resampling to ``render_rate`` if given.
+
+    A resampled set with models that miss their spectrum is refused (FlowtexError naming them) unless ``allow_misses``.
+    """
     from ..io.hatt import write_hatt_xml
     from ..io.modelset import save_model_set
 
     ms = fit.model_set
     if render_rate is not None and render_rate != ms.sample_rate:
-        ms = _resample(ms, render_rate)
+        ms = _resample(ms, render_rate, allow_misses, str(output))
     with atomic_output(output) as tmp:
         save_model_set(ms, tmp)
         if xml is not None:
@@ -128,15 +132,22 @@ def write_outputs(fit: TextureFit, output: Path, xml: Path | None, render_rate: 
                 write_hatt_xml(ms, tmp_xml)
 
 
-def _resample(ms: Any, rate: float) -> Any:
+def _resample(ms: Any, rate: float, allow_misses: bool, where: str) -> Any:
     """The set at ``rate`` Hz (flowtex models resample's method), with a one-line account of what it cost."""
-    from .resample import resample_model_set
+    from .resample import check_misses, resample_model_set, tqdm_progress
 
-    out = resample_model_set(ms, rate)
+    progress, close = tqdm_progress(ms.num_models, "resample")
+    try:
+        out = resample_model_set(ms, rate, progress)
+    finally:
+        close()
+    warning = check_misses(out, allow_misses, where)
     info = out.metadata["resample"]
     print(f"resampled {info['from_hz']:g} Hz -> {info['to_hz']:g} Hz: orders {ms.ar_order}/{ms.ma_order} -> "
           f"{out.ar_order}/{out.ma_order}, worst LSD {info['worst_lsd_db']:.2f} dB, "
           f"worst band-power error {100 * info['worst_band_power_error']:.2f} %")
+    if warning:
+        print(warning)
     return out
 
 
@@ -155,7 +166,8 @@ def parse_order(text: str) -> tuple[int, int] | None:
 def job_from_args(args: argparse.Namespace) -> TextureJob:
     opt = TextureOptions(order=parse_order(args.order), max_order=args.max_order, highpass_hz=args.highpass)
     return TextureJob(accel=args.accel, speed=args.speed, force=args.force, position=args.position, normal=args.normal,
-                      rate=args.rate, options=opt, render_rate=args.render_rate, material=args.material)
+                      rate=args.rate, options=opt, render_rate=args.render_rate, material=args.material,
+                      allow_misses=args.allow_misses)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -171,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
             raise DataError("--grid needs -o SURFACE.json")
         fit = fit_grid_index(Path(args.grid), job)
         print_table(fit)
-        write_outputs(fit, args.output, args.xml, job.render_rate)
+        write_outputs(fit, args.output, args.xml, job.render_rate, job.allow_misses)
         if args.report:
             write_report(fit, Path(args.report))
         print(f"-> {args.output}")
@@ -187,7 +199,7 @@ def run(args: argparse.Namespace) -> int:
         raise DataError("give -o SURFACE.json (or --out-dir OUT for many recordings)")
     fit = fit_recording(paths[0], job)
     print_table(fit)
-    write_outputs(fit, args.output, args.xml, job.render_rate)
+    write_outputs(fit, args.output, args.xml, job.render_rate, job.allow_misses)
     if args.report:
         write_report(fit, Path(args.report))
     print(f"-> {args.output}" + (f", {args.xml}" if args.xml else ""), file=sys.stdout)
@@ -210,6 +222,8 @@ def register_fit(kinds: Any) -> None:
     p.add_argument("--max-order", type=int, default=20, help="largest p and q searched by --order auto")
     p.add_argument("--highpass", type=float, default=10.0, metavar="HZ", help="zero-phase high-pass of the acceleration (0: none)")
     p.add_argument("--render-rate", type=float, metavar="HZ", help="resample the models to this rate before writing")
+    p.add_argument("--allow-misses", action="store_true",
+                   help="with --render-rate: write the set even if some resampled model misses its spectrum (else refused)")
     p.add_argument("--material", help="surface name (default: the file's stem)")
     p.add_argument("-o", "--output", type=Path, help="output model set (native JSON)")
     p.add_argument("--xml", type=Path, help="also write HaTT XML (with --out-dir: one .xml beside each .json)", nargs="?",
