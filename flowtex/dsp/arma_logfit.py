@@ -169,8 +169,8 @@ def log_spectrum_db(w: np.ndarray, x: np.ndarray, lay: _Layout, jac: bool = Fals
 
 def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, one_sided: np.ndarray,
                      a0: np.ndarray, c0: np.ndarray, pole_radius: float, zero_radius: float, iterations: int = STEPS,
-                     tol: float = REL_TOL, evaluations: int = EVALUATIONS, good_db: float = GOOD_DB
-                     ) -> tuple[np.ndarray, np.ndarray, float, float]:
+                     tol: float = REL_TOL, evaluations: int = EVALUATIONS, good_db: float = GOOD_DB,
+                     offset_db: float | None = None) -> tuple[np.ndarray, np.ndarray, float, float]:
     """Least-squares fit of the model's dB spectrum (see the module docstring), started from (``a0``, ``c0``).
 
     ``w``: frequencies in rad/sample; ``level_db``: target (or ceiling, where
@@ -187,7 +187,8 @@ def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, on
     that), when no damping up to 1e10 finds a lower cost, after ``iterations``
     accepted steps, or after ``evaluations`` residual evaluations in all (each
     costs len(w) x roots; rejected trial steps count). Returns (poles, zeros, dB offset 10 log10 K, cost =
-    sum of squared weighted residuals); poles and zeros are complete root sets
+    sum of squared weighted residuals); ``offset_db`` fixes 10 log10 K instead (the level of the monic model
+    then follows the target's: see flowtex.dsp.arma_resample.STOP_DEPTH_DB). Poles and zeros are complete root sets
     (conjugates included), :func:`real_poly` makes the polynomials.
     """
     zrad, zang, zreal = split_roots(c0)
@@ -210,7 +211,10 @@ def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, on
         return weight * np.where(one_sided, np.maximum(d, 0.0), d), (two | (d > 0.0)), J
 
     s0, _ = log_spectrum_db(w, x, lay)
-    x[0] = float(np.sum((w2 * (level_db - s0))[two]) / max(np.sum(w2[two]), 1e-300))  # best offset for the start
+    if offset_db is None:
+        x[0] = float(np.sum((w2 * (level_db - s0))[two]) / max(np.sum(w2[two]), 1e-300))  # best offset for the start
+    else:
+        x[0] = lo[0] = hi[0] = offset_db
     r, active, J = residual(x, True)
     cost = float(r @ r)
     lam = 1e-3

@@ -103,6 +103,17 @@ BAND_POINTS, EDGE_POINTS, STOP_POINTS = 2000, 40, 1000
 MAX_BAND_POINTS = 20000
 """Cap on the band's frequencies (poles within ~1e-4 of the circle): the fit's cost is linear in them."""
 
+STOP_DEPTH_DB = 30.0
+"""Upsampling: every fitted monic model lies STOP_DEPTH_DB (ratio - 1) / ratio dB above the original in the band.
+
+Why: a monic minimum-phase |C/A|^2 has log-mean 0 over the whole circle (Jensen), so how deep the new stopband
+lies sets the band's level, and with it the variance that restores the band's power: v2 / v1 = (fs2 / fs1)
+x exp(mean of ln|C2/A2|^2 over the stopband). With a free level (the fit's dB offset a free parameter and a
+one-sided stopband) that factor varied by 5 dB between neighbouring models of a cork-like set; texture_lookup
+interpolates variances linearly, so between vertices the 2 kHz render was up to 1.1 dB off the 1 kHz one (the
+shapes within 0.1 dB). With the offset fixed, v2 / v1 is one constant for the set, (fs2 / fs1) 10^(-offset / 10)
+(for an original with log-mean 0 in the band, the stopband's log-mean then lies STOP_DEPTH_DB below the band's)."""
+
 GRID = 16384
 """FFT grid of the spectral fit (w resolution 2 pi / GRID: ~3.8e-4 rad, finer than HaTT's sharpest resonances)."""
 
@@ -249,9 +260,11 @@ def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre
         # sits that much higher relative to the band (measured before this line: low-order sets at 4x left 9-11 %
         # of their power above the old Nyquist)
         level[n_pre:] -= float(np.mean(pre_db[:f_in.shape[0]]))
-    one_sided = np.r_[~inside, np.ones(f_tr.shape[0] + f_st.shape[0], dtype=bool)]
+    one_sided = np.r_[~inside, np.ones(f_tr.shape[0], dtype=bool), np.ones(f_st.shape[0], dtype=bool)]
+    # the monic model's level fixed (see STOP_DEPTH_DB): the same level convention, so the same v2 / v1, for every model
+    offset = -STOP_DEPTH_DB * (ratio - 1.0) / ratio - (float(np.mean(pre_db[:f_in.shape[0]])) if pre is not None else 0.0)
     poles, zeros, _, _ = fit_log_spectrum(2.0 * math.pi * f / rate, level, np.ones(f.shape[0]), one_sided, a0, c0,
-                                          pole_radius, MAX_RADIUS)
+                                          pole_radius, MAX_RADIUS, offset_db=offset)
     return poles, zeros
 
 
