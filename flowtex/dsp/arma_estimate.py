@@ -23,20 +23,18 @@ Why these steps:
    entries are Toeplitz in the lag, so one iteration costs a few real FFTs
    of length M plus a (p+q)^2 solve, independent of the data length.
 
-Stability and minimum phase: every trial polynomial has its roots outside
-the unit circle reflected inside (z -> 1/conj(z), which changes |A(e^jw)|
-only by a constant factor) and roots closer than :data:`MAX_RADIUS` to the
-circle pulled in to it. Nothing is moved further than that.
+Stability and minimum phase: every trial polynomial is stabilised by
+:func:`flowtex.dsp.poly.stabilize` (the radius policy: roots outside the unit
+circle reflected inside, z -> 1/conj(z), which changes |A(e^jw)| only by a
+constant factor, and roots beyond :data:`flowtex.dsp.poly.MAX_RADIUS` pulled
+in to it). Nothing is moved further than that.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-MAX_RADIUS = 1.0 - 1e-5
-"""Largest root radius kept (AR poles and MA zeros). HaTT's MA zeros sit at |z| ~ 0.9999, 10x further in; at 1 - 1e-5
-the line spectral frequencies of an isolated root pair near z = -1 are still ~1e-5 rad apart, which
-:func:`flowtex.dsp.lsf.poly_to_lsf` resolves (the caller checks and pulls further in only if it does not)."""
+from .poly import MAX_RADIUS, roots_inside, stabilize  # noqa: F401  (re-exported: the one radius policy)
 
 
 def burg_ar(x: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray]:
@@ -149,41 +147,6 @@ def hr_order_screen(design: HRDesign, max_p: int, max_q: int) -> np.ndarray:
             s2 = design.fit(p, q)[2]
             bic[p, q] = design.n * np.log(s2) + (p + q) * ln_n
     return bic
-
-
-def roots_inside(poly: np.ndarray, radius: float = 1.0) -> bool:
-    """True if every root of the monic ``poly`` has magnitude < ``radius`` (Schur-Cohn step-down, O(p^2), no eigenvalues).
-
-    The roots of P(z) scaled as p_k radius^-k are the roots of P divided by
-    ``radius``; the step-down recursion of that polynomial has all
-    |reflection coefficients| < 1 exactly when they are inside the unit circle.
-    """
-    a = np.asarray(poly, dtype=np.float64) / (radius ** np.arange(poly.shape[0]))
-    for m in range(a.shape[0] - 1, 0, -1):
-        k = a[m]
-        if not abs(k) < 1.0:
-            return False
-        a = (a[:m] - k * a[m:0:-1]) / (1.0 - k * k)
-    return True
-
-
-def stabilize(poly: np.ndarray, max_radius: float = MAX_RADIUS) -> np.ndarray:
-    """Monic polynomial with roots outside the unit circle reflected in and roots beyond ``max_radius`` pulled to it.
-
-    A polynomial already inside ``max_radius`` is returned unchanged (same
-    array values). Reflection keeps |P(e^jw)| up to a constant factor.
-    """
-    poly = np.asarray(poly, dtype=np.float64)
-    if poly.shape[0] <= 1 or roots_inside(poly, max_radius):
-        return poly
-    roots = np.roots(poly)
-    r = np.abs(roots)
-    big = r > 1.0
-    roots = np.where(big, 1.0 / np.conj(roots), roots)
-    r = np.abs(roots)
-    roots = np.where(r > max_radius, roots * (max_radius / np.maximum(r, 1e-300)), roots)
-    out = np.real(np.poly(roots))
-    return out / out[0]
 
 
 TAPER = 0.2

@@ -168,8 +168,8 @@ def log_spectrum_db(w: np.ndarray, x: np.ndarray, lay: _Layout, jac: bool = Fals
 
 
 def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, one_sided: np.ndarray,
-                     a0: np.ndarray, c0: np.ndarray, pole_radius: float, zero_radius: float, iterations: int = STEPS,
-                     tol: float = REL_TOL, evaluations: int = EVALUATIONS, good_db: float = GOOD_DB,
+                     a0: np.ndarray, c0: np.ndarray, pole_radius: float, zero_radius: float, iterations: int | None = None,
+                     tol: float | None = None, evaluations: int | None = None, good_db: float | None = None,
                      offset_db: float | None = None) -> tuple[np.ndarray, np.ndarray, float, float]:
     """Least-squares fit of the model's dB spectrum (see the module docstring), started from (``a0``, ``c0``).
 
@@ -186,11 +186,16 @@ def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, on
     frequencies is below ``good_db`` dB (with no ceiling crossed by more than
     that), when no damping up to 1e10 finds a lower cost, after ``iterations``
     accepted steps, or after ``evaluations`` residual evaluations in all (each
-    costs len(w) x roots; rejected trial steps count). Returns (poles, zeros, dB offset 10 log10 K, cost =
+    costs len(w) x roots; rejected trial steps count). None: :data:`STEPS`, :data:`REL_TOL`,
+    :data:`EVALUATIONS`, :data:`GOOD_DB` (read at the call). Returns (poles, zeros, dB offset 10 log10 K, cost =
     sum of squared weighted residuals); ``offset_db`` fixes 10 log10 K instead (the level of the monic model
     then follows the target's: see flowtex.dsp.arma_resample.STOP_DEPTH_DB). Poles and zeros are complete root sets
     (conjugates included), :func:`real_poly` makes the polynomials.
     """
+    iterations = STEPS if iterations is None else iterations
+    tol = REL_TOL if tol is None else tol
+    evaluations = EVALUATIONS if evaluations is None else evaluations
+    good_db = GOOD_DB if good_db is None else good_db
     zrad, zang, zreal = split_roots(c0)
     prad, pang, preal = split_roots(a0)
     lay = _Layout(zrad.shape[0], zreal.shape[0], prad.shape[0], preal.shape[0])

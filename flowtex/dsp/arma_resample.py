@@ -67,9 +67,12 @@ import math
 
 import numpy as np
 
-from .arma_estimate import MAX_RADIUS, stabilize, whittle_refine
+from .arma_estimate import whittle_refine
 from .arma_logfit import fit_log_spectrum, real_poly
 from .lsf import is_valid_lsf, lsf_to_poly_new, roots_to_lsf
+from .poly import MAX_RADIUS, stabilize
+from .poly import power_spectrum as _model_power_spectrum
+from .poly import root_power_spectrum as _root_power_spectrum
 
 STOPBAND_FLOOR = 1e-4
 """Downsampling: target level above the new Nyquist, relative to the band's mean (-40 dB)."""
@@ -116,11 +119,6 @@ shapes within 0.1 dB). With the offset fixed, v2 / v1 is one constant for the se
 
 GRID = 16384
 """FFT grid of the spectral fit (w resolution 2 pi / GRID: ~3.8e-4 rad, finer than HaTT's sharpest resonances)."""
-
-
-def _model_power_spectrum(ar: np.ndarray, ma: np.ndarray, w: np.ndarray) -> np.ndarray:
-    z = np.exp(-1j * w)
-    return np.abs(np.polynomial.polynomial.polyval(z, ma)) ** 2 / np.abs(np.polynomial.polynomial.polyval(z, ar)) ** 2
 
 
 def _map_roots(poly: np.ndarray, ratio: float) -> np.ndarray:
@@ -202,20 +200,12 @@ def _anti_imaging(rate_from: float, rate_to: float, m: int) -> tuple[np.ndarray,
     f = np.linspace(0.0, 1.0, 4097)
     for taps in range(9, 202, 2):
         h = scipy.signal.remez(taps, [0.0, 0.5 * wp, 0.5 * ws, 0.5], [1.0, 0.0], weight=[1.0, 30.0])
-        mag = np.abs(np.polynomial.polynomial.polyval(np.exp(-1j * math.pi * f), h))
+        mag = np.sqrt(_model_power_spectrum(np.array([1.0]), h, math.pi * f))
         if 20.0 * math.log10(np.max(mag[f <= wp]) / np.max(mag[f >= ws])) >= IMAGE_ATTENUATION_DB:
             break
     z = np.roots(h)
     z = np.where(np.abs(z) > 1.0, 1.0 / np.conj(z), z)
     return np.zeros(0, dtype=np.complex128), z * np.minimum(1.0, 0.9999 / np.abs(z))
-
-
-def _root_power_spectrum(poles: np.ndarray, zeros: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """|C/A(e^jw)|^2 from the roots (products of distances: no cancellation among large coefficients)."""
-    e = np.exp(1j * w)[:, None]
-    num = np.prod(np.abs(1.0 - zeros[None, :] / e) ** 2, axis=1) if zeros.shape[0] else np.ones(w.shape[0])
-    den = np.prod(np.abs(1.0 - poles[None, :] / e) ** 2, axis=1) if poles.shape[0] else np.ones(w.shape[0])
-    return num / den
 
 
 def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre: tuple[np.ndarray, np.ndarray] | None,
