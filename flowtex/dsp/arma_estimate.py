@@ -23,6 +23,17 @@ Why these steps:
    entries are Toeplitz in the lag, so one iteration costs a few real FFTs
    of length M plus a (p+q)^2 solve, independent of the data length.
 
+Sources: Burg, J. P. (1975), *Maximum entropy spectral analysis*, PhD
+thesis, Stanford University (the lattice AR fit of :func:`burg_ar`);
+Hannan, E. J. and Rissanen, J. (1982), "Recursive estimation of mixed
+autoregressive-moving average order", Biometrika 69(1), 81-94 (the
+regression on estimated innovations, :class:`HRDesign`); Whittle, P. (1953),
+"Estimation and information in stationary time series", Arkiv for Matematik
+2, 423-434 (the frequency-domain likelihood, :func:`whittle_refine`);
+Levinson, N. (1947), "The Wiener RMS error criterion in filter design and
+prediction", J. Math. Phys. 25, 261-278 (the recursion whose step-down,
+:func:`flowtex.dsp.poly.step_down`, tests stability).
+
 Stability and minimum phase: every trial polynomial is stabilised by
 :func:`flowtex.dsp.poly.stabilize` (the radius policy: roots outside the unit
 circle reflected inside, z -> 1/conj(z), which changes |A(e^jw)| only by a
@@ -38,7 +49,7 @@ from .poly import MAX_RADIUS, roots_inside, stabilize  # noqa: F401  (re-exporte
 
 
 def burg_ar(x: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray]:
-    """Burg AR fit: ([1, a1..aL] of A(z), forward prediction residuals of length N - L).
+    """Burg AR fit (Burg 1975): ([1, a1..aL] of A(z), forward prediction residuals of length N - L).
 
     Always minimum phase (|reflection coefficients| < 1). O(N L) numpy.
     """
@@ -90,7 +101,7 @@ def lagged_gram(src: list[np.ndarray], lag: list[int], t0: int) -> np.ndarray:
 
 
 class HRDesign:
-    """Hannan-Rissanen regression for every order (p, q) <= (P, Q), from one Gram matrix.
+    """Hannan-Rissanen (1982) regression for every order (p, q) <= (P, Q), from one Gram matrix.
 
     Regressors at time t: -x_{t-1..t-P} and e_{t-1..t-Q} (e: long-AR
     residuals); the response is x_t; t runs over the same samples for every
@@ -208,7 +219,7 @@ def prediction_error_variance(S: np.ndarray, nfft: int, a: np.ndarray, c: np.nda
 
 def whittle_refine(S: np.ndarray, nfft: int, a: np.ndarray, c: np.ndarray, iterations: int = 30,
                    tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray, float]:
-    """Gauss-Newton minimisation of the prediction-error variance over monic minimum-phase (A, C).
+    """Gauss-Newton minimisation of the prediction-error variance over monic minimum-phase (A, C) (Whittle 1953).
 
     ``S``: real spectrum on the rfft half grid (nfft // 2 + 1 values, e.g.
     :func:`periodogram_grid`). ``a``, ``c``: starting polynomials (made

@@ -99,5 +99,7 @@ def gfc_data_model(x: np.ndarray, ar: np.ndarray, ma: np.ndarray, smooth: int = 
     ad = np.abs(np.fft.rfft(x - np.mean(x))) / np.sqrt(n)
     w = scipy.signal.windows.barthann(smooth)
     ad = np.convolve(ad, w / np.sum(w), mode="same")
-    am = np.abs(np.fft.rfft(np.asarray(ma, dtype=np.float64), n)) / np.abs(np.fft.rfft(np.asarray(ar, dtype=np.float64), n))
+    from .poly import power_spectrum
+
+    am = np.sqrt(power_spectrum(ar, ma, 2.0 * np.pi * np.arange(n // 2 + 1) / n))
     return gfc(ad, am)
