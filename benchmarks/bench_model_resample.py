@@ -135,7 +135,9 @@ def corpus(names, rates, baseline: bool) -> None:
     """Seconds per model fit (median, worst) of resample_model_set on each corpus set, new stopping rule vs the old one."""
     import flowtex.dsp.arma_logfit as logfit
     from flowtex.fit.resample import resample_model_set
+    from flowtex.models.synthetic import synthetic_model_set
 
+    resample_model_set(synthetic_model_set([60.0], [0.5], ar_order=4, ma_order=2), 2000.0)  # warm-up: numba compiles, imports
     rules = [("new", {})] + ([("old", {"EVALUATIONS": 10**9, "REL_TOL": 1e-6, "GOOD_DB": 1e-3})] if baseline else [])
     print(f"{'set':<12} {'to Hz':>6} {'rule':<4} {'models':>6} {'fits':>5} {'extra':>5} {'LSD max':>8} {'misses':>6} "
           f"{'s/model med':>11} {'worst':>6} {'total s':>8} {'ratio':>6}")
