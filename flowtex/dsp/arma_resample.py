@@ -75,6 +75,13 @@ from .poly import MAX_RADIUS, stabilize
 from .poly import power_spectrum as _model_power_spectrum
 from .poly import root_power_spectrum as _root_power_spectrum
 
+START_RADIUS = 0.999
+"""Mapped roots (the fit's start) are pulled to at most this radius; the fit then moves them up to the radius policy's
+bound (flowtex.dsp.poly.MAX_RADIUS, and at most twice as sharp as the sharpest original pole)."""
+
+FIR_ZERO_RADIUS = 0.9999
+"""The anti-imaging FIR's zeros (designed on the unit circle) are pulled to this radius: valid, resolvable LSFs."""
+
 STOPBAND_FLOOR = 1e-4
 """Downsampling: target level above the new Nyquist, relative to the band's mean (-40 dB)."""
 
@@ -132,7 +139,7 @@ def _map_roots(poly: np.ndarray, ratio: float) -> np.ndarray:
     ang = np.angle(roots) * ratio
     out = np.abs(ang) > 0.98 * math.pi
     ang = np.where(out, np.sign(ang) * 0.98 * math.pi, ang)
-    r = np.where(out, 0.5, np.minimum(r, 0.999))
+    r = np.where(out, 0.5, np.minimum(r, START_RADIUS))
     new = np.real(np.poly(r * np.exp(1j * ang)))
     return stabilize(new / new[0])
 
@@ -185,7 +192,7 @@ def _anti_imaging(rate_from: float, rate_to: float, m: int) -> tuple[np.ndarray,
 
     An all-zero (FIR) equiripple lowpass (scipy.signal.remez, stopband weighted
     30x), made minimum phase by reflecting its zeros into the unit circle (same
-    magnitude) and pulling them to radius <= 0.9999 (valid LSFs): passband up to
+    magnitude) and pulling them to radius <= FIR_ZERO_RADIUS (valid LSFs): passband up to
     the old Nyquist, stopband from its first image (rate_to / m - rate_from / 2),
     the fewest taps (odd, >= 9) that reach :data:`IMAGE_ATTENUATION_DB`. Its
     passband ripple is compensated inside the fit. Why no poles: an elliptic
@@ -207,7 +214,7 @@ def _anti_imaging(rate_from: float, rate_to: float, m: int) -> tuple[np.ndarray,
             break
     z = np.roots(h)
     z = np.where(np.abs(z) > 1.0, 1.0 / np.conj(z), z)
-    return np.zeros(0, dtype=np.complex128), z * np.minimum(1.0, 0.9999 / np.abs(z))
+    return np.zeros(0, dtype=np.complex128), z * np.minimum(1.0, FIR_ZERO_RADIUS / np.abs(z))
 
 
 def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre: tuple[np.ndarray, np.ndarray] | None,
