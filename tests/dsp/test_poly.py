@@ -7,8 +7,7 @@ import pytest
 import scipy.linalg
 import scipy.signal
 
-from flowtex.dsp.poly import (MAX_RADIUS, impulse_response, is_stable, power_spectrum, root_power_spectrum, roots_inside,
-                              stabilize, step_down)
+from flowtex.dsp.poly import MAX_RADIUS, impulse_response, is_stable, power_spectrum, root_power_spectrum, roots_inside, stabilize, step_down
 
 
 def _poly(roots):
