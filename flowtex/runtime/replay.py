@@ -25,6 +25,7 @@ else as ``unexplained`` (a real mismatch).
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,6 +34,7 @@ import can
 import numpy as np
 
 from ..errors import DataError
+from ..io.atomic import atomic_output
 from ..io.canlog import SessionWriter, read_session
 from .canio import load_io
 
@@ -157,44 +159,47 @@ def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, m
     suffix = Path(output_path).suffix.lower() if output_path is not None else ""
     if output_path is not None and suffix not in (".npz", ".blf", ".log", ".asc"):
         raise DataError(f"{output_path}: replay output must end in .npz (graph outputs) or .blf/.log/.asc (actuator frames)")
-    writer = SessionWriter(output_path) if suffix in (".blf", ".log", ".asc") else None
-    outputs = {name: np.zeros((len(ticks), *spec.shape)) for name, spec in graph.outputs.items()} if suffix == ".npz" else None
-    io.encode_safe()
-    safe = [bytes(m.data) for m in io.tx]
-    """The actuator payloads of the safe values: what live sends while the watchdog holds the outputs."""
-    graph.reset(seed)
-    watchdog = io.new_watchdog(1 << 62, emit_log=False)
-    report = ReplayReport(ticks=len(ticks), frames_in=sum(1 for m in frames if m.is_rx and not m.is_error_frame),
-                          frames_out=sum(1 for m in frames if not m.is_rx and not m.is_error_frame), exit_block=exit_block,
-                          session_path=session_path)
-    try:
-        for k, (rx, live_block) in enumerate(ticks):
-            for msg in rx:
-                io.decode(msg, k, watchdog)
-            graph.step_block(1)
-            stale = watchdog.check(k, 0)
-            io.guard_outputs(False)
-            io.encode()
-            if any(bytes(a.data) != bytes(b.data) for a, b in zip(io.tx, live_block, strict=True)):
-                report.mismatched_ticks.append(k)
-                if stale:
-                    report.watchdog_ticks.append(k)
-                elif [bytes(b.data) for b in live_block] == safe:
-                    report.overrun_ticks.append(k)
-                else:
-                    report.unexplained_ticks.append(k)
-            if outputs is not None:
-                for name, arr in outputs.items():
-                    arr[k] = graph.output_view(name).reshape(arr.shape[1:])
+    with contextlib.ExitStack() as stack:  # outputs go through the one writer: atomic, the old file kept on failure
+        target = stack.enter_context(atomic_output(output_path)) if output_path is not None else None
+        writer = SessionWriter(target) if suffix in (".blf", ".log", ".asc") else None
+        outputs = {name: np.zeros((len(ticks), *spec.shape)) for name, spec in graph.outputs.items()} if suffix == ".npz" else None
+        io.encode_safe()
+        safe = [bytes(m.data) for m in io.tx]
+        """The actuator payloads of the safe values: what live sends while the watchdog holds the outputs."""
+        graph.reset(seed)
+        watchdog = io.new_watchdog(1 << 62, emit_log=False)
+        report = ReplayReport(ticks=len(ticks), frames_in=sum(1 for m in frames if m.is_rx and not m.is_error_frame),
+                              frames_out=sum(1 for m in frames if not m.is_rx and not m.is_error_frame), exit_block=exit_block,
+                              session_path=session_path)
+        try:
+            for k, (rx, live_block) in enumerate(ticks):
+                for msg in rx:
+                    io.decode(msg, k, watchdog)
+                graph.step_block(1)
+                stale = watchdog.check(k, 0)
+                io.guard_outputs(False)
+                io.encode()
+                if any(bytes(a.data) != bytes(b.data) for a, b in zip(io.tx, live_block, strict=True)):
+                    report.mismatched_ticks.append(k)
+                    if stale:
+                        report.watchdog_ticks.append(k)
+                    elif [bytes(b.data) for b in live_block] == safe:
+                        report.overrun_ticks.append(k)
+                    else:
+                        report.unexplained_ticks.append(k)
+                if outputs is not None:
+                    for name, arr in outputs.items():
+                        arr[k] = graph.output_view(name).reshape(arr.shape[1:])
+                if writer is not None:
+                    for m, live in zip(io.tx, live_block, strict=True):
+                        m.timestamp = live.timestamp
+                        writer.write(m, False)
+        finally:
             if writer is not None:
-                for m, live in zip(io.tx, live_block, strict=True):
-                    m.timestamp = live.timestamp
-                    writer.write(m, False)
-    finally:
-        if writer is not None:
-            writer.close()
-    if outputs is not None:
-        np.savez(output_path, rate=np.float64(graph.rate), **outputs)
+                writer.close()
+        if outputs is not None:
+            with open(target, "wb") as fh:
+                np.savez(fh, rate=np.float64(graph.rate), **outputs)
     if output_path is not None:
         report.output_path = Path(output_path)
     return report

@@ -220,7 +220,7 @@ class TickStats:
         )
 
     def write_json(self, path: str | os.PathLike, rt: bool) -> None:
-        """Write :meth:`summary` as JSON (UTF-8, indented) to ``path``."""
-        with open(path, "w", encoding="utf-8") as f:
-            json.dump(self.summary(rt), f, indent=2, allow_nan=False)
-            f.write("\n")
+        """Write :meth:`summary` as JSON (UTF-8, indented) to ``path`` through the one writer (atomic)."""
+        from ..io.atomic import write_text_atomic
+
+        write_text_atomic(path, json.dumps(self.summary(rt), indent=2, allow_nan=False) + "\n")
