@@ -259,6 +259,12 @@ def test_sample_rate_mismatch_refused(tmp_path, suffix, field):
     assert g.rate == 1000.0
 
 
+def test_set_rate_parses_as_a_graph_level_override():
+    from flowtex.graph.spec import parse_override
+
+    assert parse_override("rate=2000") == ("rate", 2000)
+
+
 @pytest.mark.parametrize("bad", [0, -5, "fast", True])
 def test_set_rate_must_be_positive(tmp_path, bad):
     path = write_hatt_xml(hard_model_set(), tmp_path / "m.xml")
