@@ -274,7 +274,7 @@ def _band_grid(ar: np.ndarray, rate_from: float, f_edge: float) -> tuple[np.ndar
     half-bandwidths of a pole twice as sharp (the sharpest the fit may make it). Each weight is
     sqrt(local spacing / uniform spacing), so the sum of squared residuals is the uniform grid's (the LSD's
     average over frequency) while a 0.16 Hz wide resonance is still resolved. Before: a uniform grid fine
-    enough for the sharpest pole, up to 20 000 frequencies for poles at r >= 0.9995 (7x the cost per model).
+    enough for the sharpest pole, up to 20000 frequencies for poles at r >= 0.9995 (7x the cost per model).
     """
     du = f_edge / BAND_POINTS
     parts = [np.linspace(0.0, f_edge, BAND_POINTS + 1)[1:]]
