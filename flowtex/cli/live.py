@@ -45,18 +45,17 @@ def cmd_live(args: argparse.Namespace) -> int:
 
 def run_live_session(graph: Any, args: argparse.Namespace, dbc: str | None = None, map_: str | None = None) -> int:
     """Run ``graph`` live with the live options in ``args`` (``dbc``/``map_`` replace ``args.dbc``/``args.map``)."""
-    from ..io.atomic import check_output
     from ..runtime.live import run_live
 
     dbc = dbc or args.dbc
     map_ = map_ or args.map
-    inputs = [args.graph, dbc, map_, args.simulate]
-    check_output(args.stats, inputs=inputs, option="--stats")
-    check_output(args.record, inputs=inputs + [args.stats], option="--record")
     report = run_live(graph, dbc, map_, args.bus, simulate=args.simulate, duration_s=args.duration,
                       record=args.record, rt=args.rt, rt_priority=args.rt_priority, rt_cpu=args.cpu,
                       stats_path=args.stats, seed=args.seed, status=None if args.quiet else sys.stderr,
-                      bitrate=args.bitrate, show=args.show)
+                      bitrate=args.bitrate, show=args.show,
+                      inputs=[p for p in (args.graph, getattr(args, "scene", None)) if p])
+    for line in report.warnings:
+        note(f"flowtex live: warning: {line}")
     if report.error:
         raise FlowtexError(report.error + " (safe values sent)")
     if report.no_sensor_frames:

@@ -10,16 +10,18 @@ from __future__ import annotations
 import numpy as np
 
 from ..dsp.arma import arma_psd
-from ..dsp.interp import initial_state, pack_texture_table, texture_lookup_block
+from ..dsp.interp import initial_state, texture_lookup_block
 from ..dsp.spectral import lsd_db
+from ..models.outside import OUTSIDE_CHOICES, texture_table
 from ..models.texture import TextureModelSet
 
 
-def models_at(ms: TextureModelSet, speeds: np.ndarray, forces: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, float, float]]:
-    """(ar, ma, gain, variance) that ``texture_lookup`` renders at each (speed mm/s, force N): the same kernel."""
+def models_at(ms: TextureModelSet, speeds: np.ndarray, forces: np.ndarray,
+              outside: str = OUTSIDE_CHOICES[0]) -> list[tuple[np.ndarray, np.ndarray, float, float]]:
+    """(ar, ma, gain, variance) that ``texture_lookup`` (its ``outside`` rule) renders at each (speed mm/s, force N): the same kernel."""
     speeds = np.asarray(speeds, float).reshape(-1, 1)
     forces = np.asarray(forces, float).reshape(-1, 1)
-    tab = pack_texture_table(ms.speeds, ms.forces, ms.triangles, ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain, ms.max_speed, ms.max_force)
+    tab = texture_table(ms, outside)
     n = speeds.shape[0]
     ar = np.empty((n, ms.ar_order + 1))
     ma = np.empty((n, ms.ma_order + 1))

@@ -23,7 +23,8 @@ from flowtex.io.modelset import save_model_set
 from flowtex.models.synthetic import cork_like_model_set, hard_model_set, lsf_to_poly_reference
 
 
-def graph_file(folder: Path, models: str, rate: float = 1000, extra: str = "") -> Path:
+def graph_file(folder: Path, models: str, rate: float = 1000, extra: str = "", outside: str = "fade") -> Path:
+    """A graph speed, force -> texture_lookup -> its four outputs; ``outside: fade`` by default (HaTT's rule, the reference's)."""
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / "lookup.yaml"
     path.write_text(textwrap.dedent(f"""\
@@ -36,7 +37,7 @@ def graph_file(folder: Path, models: str, rate: float = 1000, extra: str = "") -
         nodes:
           lookup:
             type: texture_lookup
-            params: {{models: {models!r}{extra}}}
+            params: {{models: {models!r}, outside: {outside}{extra}}}
         edges:
           - speed -> lookup.speed
           - force -> lookup.force
@@ -303,3 +304,9 @@ def test_vertex_matches_stored_coefficients_to_file_precision(tmp_path):
         assert np.allclose(out["ar"], ms.ar_coeff[m], rtol=0, atol=1e-7)
         assert np.allclose(out["ma"], ms.ma_coeff[m], rtol=0, atol=1e-7)
         assert out["gain"] == float(f"{ms.gain[m]:.10g}")
+
+
+def test_outside_is_validated(tmp_path):
+    save_model_set(hard_model_set(), tmp_path / "hard set.json")
+    with pytest.raises(GraphError, match="trend"):
+        load_graph(graph_file(tmp_path, "hard set.json", outside="louder"))

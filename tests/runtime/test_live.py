@@ -145,15 +145,18 @@ def test_signal_leaves_safe_values_last(setup, sig):
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
         deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and (not rec.exists() or rec.stat().st_size < 20000):
+        # the log grows in a temporary file beside it (renamed over s*.log at the end: atomic)
+        while time.monotonic() < deadline and sum(p.stat().st_size for p in setup.glob(f".{rec.name}.*.part.log")) < 20000:
             time.sleep(0.1)
             assert proc.poll() is None, proc.stderr.read().decode()
+        assert not rec.exists()
         proc.send_signal(sig)
         out, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
             proc.kill()
     assert proc.returncode == 0, err.decode()
+    assert not list(setup.glob(".*.part.log"))
     tx = _tx(rec)
     assert len(tx) > 100
     db = cantools.database.load_file(DBC)
