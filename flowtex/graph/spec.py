@@ -248,11 +248,18 @@ def _nodes(c: Collector, data: LocDict, inputs: dict[str, InputSpec]) -> dict[st
 
 
 def _apply_overrides(c: Collector, spec: GraphSpec, overrides: dict[str, Any]) -> None:
+    """Apply ``--set`` values: ``rate`` (the graph's base rate, Hz) or ``NODE.PARAM``."""
     for key, value in overrides.items():
         where = Location(f"--set {key}")
+        if key == "rate":
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+                c.error(where, f"rate must be a positive number of Hz, got {value!r}")
+            else:
+                spec.rate = float(value)
+            continue
         node, _, param = key.partition(".")
         if not param:
-            c.error(where, "expected --set NODE.PARAM=VALUE")
+            c.error(where, "expected --set NODE.PARAM=VALUE or --set rate=HZ")
             continue
         if node not in spec.nodes:
             hint = suggest(node, list(spec.nodes))
@@ -266,10 +273,10 @@ def _apply_overrides(c: Collector, spec: GraphSpec, overrides: dict[str, Any]) -
 
 
 def parse_override(text: str) -> tuple[str, Any]:
-    """``"lookup.models=x.xml"`` -> ``("lookup.models", "x.xml")`` (value read as YAML)."""
+    """``"lookup.models=x.xml"`` -> ``("lookup.models", "x.xml")`` (value read as YAML); ``"rate=2000"`` -> ``("rate", 2000)``."""
     key, sep, value = text.partition("=")
     if not sep or not key.strip():
-        raise GraphError([Diagnostic(Location(f"--set {text}"), "expected --set NODE.PARAM=VALUE")])
+        raise GraphError([Diagnostic(Location(f"--set {text}"), "expected --set NODE.PARAM=VALUE or --set rate=HZ")])
     return key.strip(), parse_value(value, f"--set {key.strip()}")
 
 
