@@ -32,7 +32,10 @@ JSON_FORMATS = {"flowtex-texture-models": MODEL_SET, "flowtex-pattern": PATTERN,
 
 
 def _read_text(path: Path) -> str:
+    from .limits import check_file_size
+
     try:
+        check_file_size(path, "flowtex file")
         return path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise DataError(f"{path}: file not found") from None
@@ -67,7 +70,9 @@ def file_kind(path: str | Path) -> str:
                             f"'format' key: {', '.join(JSON_FORMATS)}") from None
         fmt = doc.get("format") if isinstance(doc, dict) else None
         if fmt not in JSON_FORMATS:
-            shown = repr(fmt)[:40]
+            from .limits import excerpt
+
+            shown = excerpt(fmt)
             raise DataError(f"{path}: key 'format' is {shown}, not a flowtex file format ({', '.join(JSON_FORMATS)})")
         return JSON_FORMATS[fmt]
     from .yamlsource import load_yaml

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..dsp.errors import pareto_front, signal_error
 from ..errors import FlowtexError
+from ..yamlsource import parse_value
 from .scenes import PLAN_KNOB, check_plan_knob, is_plan_knob, is_scene_file, write_planned_graph
 
 VIBRATION_UNITS = ("m/s^2",)
@@ -38,7 +39,6 @@ class Config:
 
 def parse_knob(text: str) -> tuple[str, list[Any]]:
     """``"lookup.every=1,2"`` -> ``("lookup.every", [1, 2])`` (values parsed as YAML scalars)."""
-    import yaml
 
     key, sep, values = text.partition("=")
     node, dot, param = key.strip().partition(".")
@@ -48,7 +48,7 @@ def parse_knob(text: str) -> tuple[str, list[Any]]:
         parts = values.split(";")
     else:
         parts = values.split(",")
-    parsed = [yaml.safe_load(v) for v in parts]
+    parsed = [parse_value(v, f"--knob {key.strip()}") for v in parts]
     if is_plan_knob(key.strip()):
         check_plan_knob(key.strip(), parsed)
     return key.strip(), parsed
