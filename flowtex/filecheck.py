@@ -57,8 +57,10 @@ def file_kind(path: str | Path) -> str:
         return RECORDING
     if suffix == ".dbc":
         return DBC
-    if suffix in (".yaml", ".yml") and not path.exists():
-        return GRAPH  # the graph loader says what is missing, as validate always did
+    from .limits import MAX_YAML_BYTES, check_file_size
+
+    if suffix in (".yaml", ".yml") and (not path.exists() or path.stat().st_size > MAX_YAML_BYTES):
+        return GRAPH  # the graph loader says what is missing or too large, as validate always did
     text = _read_text(path).lstrip("\ufeff \t\r\n")
     if suffix == ".xml" or text.startswith("<"):
         return MODEL_SET
@@ -77,6 +79,7 @@ def file_kind(path: str | Path) -> str:
         return JSON_FORMATS[fmt]
     from .yamlsource import load_yaml
 
+    check_file_size(path, "YAML file", MAX_YAML_BYTES)  # the YAML parser is slow: bounded before it starts
     data = load_yaml(text, str(path))
     if isinstance(data, dict) and "flowtex_map" in data:
         return DEVICE_MAP
