@@ -38,6 +38,14 @@ def _add_graph_options(p: argparse.ArgumentParser) -> None:
                    help="override a node parameter (repeatable), e.g. --set lookup.models=Models_Cork.xml")
 
 
+def _add_compile_option(p: argparse.ArgumentParser, default: str) -> None:
+    p.add_argument("--compile", choices=("fused", "dispatch", "auto"), default=default,
+                   help="fused: one compiled tick per graph structure (fastest ticks; seconds to compile a new structure); "
+                        "dispatch: cached per-node kernels (a structural edit compiles nothing new); "
+                        f"auto: fused if cached, else dispatch and fused compiled in the background (default: {default}; "
+                        "docs/engine.md)")
+
+
 def _overrides(items: Sequence[str]) -> dict:
     from .graph.spec import parse_override
 
@@ -56,7 +64,7 @@ def cmd_validate(args: argparse.Namespace) -> int:
 def cmd_run(args: argparse.Namespace) -> int:
     from .graph.compiled import load_graph
 
-    graph = load_graph(args.graph, _overrides(args.overrides), tuple(args.plugins))
+    graph = load_graph(args.graph, _overrides(args.overrides), tuple(args.plugins), tier=args.compile)
     if Path(args.input).suffix.lower() in REPLAY_SUFFIXES:
         if not (args.dbc and args.map):
             raise FlowtexError(f"{args.input}: replaying a CAN session needs --dbc DEVICE.dbc and --map MAP.yaml")
@@ -79,7 +87,7 @@ def cmd_graph(args: argparse.Namespace) -> int:
     from .graph.compiled import load_graph
     from .graph.describe import describe_graph, graph_dot
 
-    graph = load_graph(args.graph, _overrides(args.overrides), tuple(args.plugins))
+    graph = load_graph(args.graph, _overrides(args.overrides), tuple(args.plugins), tier=args.compile)
     if args.dot:
         print(graph_dot(graph))
     elif args.show_code:
@@ -127,6 +135,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--nonfinite", choices=("error", "hold", "zero", "pass"), default="error",
                    help="NaN/inf in the recording: error (default; names signal, count, first index), "
                         "hold (last finite value), zero, or pass (unchanged)")
+    _add_compile_option(p, "auto")
     _add_graph_options(p)
     p.set_defaults(func=cmd_run)
 
@@ -134,7 +143,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("graph")
     group = p.add_mutually_exclusive_group()
     group.add_argument("--dot", action="store_true", help="print Graphviz source")
-    group.add_argument("--show-code", action="store_true", help="print the generated tick source")
+    group.add_argument("--show-code", action="store_true",
+                       help="print what runs: the fused tier's generated tick source, or the dispatch tier's node order and driver")
+    _add_compile_option(p, "fused")
     _add_graph_options(p)
     p.set_defaults(func=cmd_graph)
 
