@@ -79,7 +79,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                             nonfinite=args.nonfinite)
     n = next(iter(outputs.values())).shape[0] if outputs else 0
     target = f" -> {args.output}" if args.output else ""
-    print(f"{graph.name}: {n} ticks at {graph.rate:g} Hz, outputs {', '.join(outputs)}{target}")
+    print(f"{graph.name}: {n} ticks at {graph.rate:g} Hz, outputs {', '.join(outputs)}{target} ({graph.tier} tier)")
     return 0
 
 
