@@ -31,6 +31,9 @@ def register(subparsers: Any) -> None:
     where.add_argument("--workers", type=int, help="run the configurations on a local Dask cluster of N worker processes")
     where.add_argument("--scheduler", help="run the configurations on an existing Dask cluster (scheduler address, e.g. tcp://host:8786)")
     p.add_argument("--plugins", action="append", default=[], metavar="DIR")
+    p.add_argument("--compile", choices=("dispatch", "fused"), default="dispatch",
+                   help="dispatch (default): shape knobs (every, plan) compile nothing new once the node types are cached; "
+                        "fused: compile each configuration's own tick (seconds each; fastest ticks). docs/engine.md")
     p.set_defaults(func=cmd_bench)
 
 
@@ -49,12 +52,12 @@ def cmd_bench(args: argparse.Namespace) -> int:
     rec = load_recording(args.input)
     with _dask_client(args) as client:
         configs, outputs = sweep(args.graph, dict(rec.arrays), knobs, reference, args.outputs, args.metric, max(1, args.repeats),
-                                 args.seed, tuple(args.plugins), client=client)
+                                 args.seed, tuple(args.plugins), client=client, tier=args.compile)
     if not configs:
         raise DataError("no configuration to run")
     from .sweep import build
 
-    units = build(args.graph, configs[0].values, tuple(args.plugins)).outputs
+    units = build(args.graph, configs[0].values, tuple(args.plugins), args.compile).outputs
     metrics = {o: args.metric or default_metric(units[o].unit) for o in outputs}
     rows = table(configs, outputs, metrics)
     print(format_table(rows))

@@ -24,13 +24,15 @@ same numbers bit for bit; each kernel call costs one indirect call (~2-5 ns).
 from __future__ import annotations
 
 import inspect
+from collections.abc import Callable
 
 import numpy as np
 from numba import njit
 
 from .arena import DISPATCH, TICK, Layout, NodeSlots, PortSlot
 from .kernels import call_pointer, copy_row
-from .resolve import ResolvedGraph
+from .prewarm import start_helper
+from .resolve import ResolvedGraph, ResolvedNode
 from .wrappers import load_wrapper, wrapper_path
 
 STRIDE = 9
@@ -89,6 +91,18 @@ def block(f, i, n):  # pragma: no cover - compiled
     i[TICK] = t0 + n
 
 
+def wrappers_of(rn: ResolvedNode, cyclic: bool) -> list[tuple[Callable, int, int]]:
+    """(kernel, inputs, outputs) of each wrapper node ``rn`` needs: its kernel, and for a delay in a loop emit and absorb.
+
+    Emit writes the outputs (it gets its own descriptor); absorb reads the inputs (the full descriptor, inputs first).
+    """
+    n_in, n_out = len(rn.cls.inputs), len(rn.cls.outputs)
+    used = [(rn.cls.get_kernel(), n_in, n_out)]
+    if cyclic and rn.cls.breaks_cycles:
+        used += [(rn.cls.get_kernel("emit_kernel"), 0, n_out), (rn.cls.get_kernel("absorb_kernel"), n_in, 0)]
+    return used
+
+
 def dispatch_table(rg: ResolvedGraph, layout: Layout) -> tuple[np.ndarray, list[str]]:
     """The int arena with the dispatch table appended (and ``DISPATCH`` set), and one line per node naming its wrappers.
 
@@ -108,15 +122,14 @@ def dispatch_table(rg: ResolvedGraph, layout: Layout) -> tuple[np.ndarray, list[
             extra.extend([s.offset_index, s.width_index])
         return pos
 
+    used = {name: wrappers_of(rn, rg.cyclic) for name, rn in rg.nodes.items()}
+    helper = start_helper([u for us in used.values() for u in us])  # a cold cache: compile on two cores
     for name, rn in rg.nodes.items():
         ns = layout.nodes[name]
         split = rg.cyclic and rn.cls.breaks_cycles
         ins = [ns.inputs[p] for p in rn.cls.inputs]
         outs = [ns.outputs[p] for p in rn.cls.outputs]
-        used = [(rn.cls.get_kernel(), len(ins), len(outs))]
-        if split:  # emit writes the outputs (its own descriptor); absorb reads the inputs (the full one, inputs first)
-            used += [(rn.cls.get_kernel("emit_kernel"), 0, len(outs)), (rn.cls.get_kernel("absorb_kernel"), len(ins), 0)]
-        fns = [load_wrapper(*u).address for u in used] + [0, 0]
+        fns = [load_wrapper(*u).address for u in used[name]] + [0, 0]
         desc = descriptor(ns, ins + outs)
         emit_desc = descriptor(ns, outs) if split else 0
         holds = start_extra + len(extra)
@@ -124,7 +137,9 @@ def dispatch_table(rg: ResolvedGraph, layout: Layout) -> tuple[np.ndarray, list[
             out = ns.outputs[port]
             extra.extend([hold.offset_index, out.offset_index, out.width_index])
         entries += [fns[0], fns[1], fns[2], desc, ns.every, holds, len(ns.holds), int(split), emit_desc]
-        lines.append(f"{name} ({rn.cls.type_name}): " + ", ".join(wrapper_path(*u).name for u in used))
+        lines.append(f"{name} ({rn.cls.type_name}): " + ", ".join(wrapper_path(*u).name for u in used[name]))
+    if helper is not None:
+        helper.wait()  # it finishes the driver, or an entry this process is waiting for anyway
     table = np.array([count, int(rg.cyclic)] + entries + extra, dtype=np.int64)
     ints = np.concatenate([layout.i, table])
     ints[DISPATCH] = base

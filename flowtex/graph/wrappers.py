@@ -111,6 +111,11 @@ def load_wrapper(kernel: Callable, n_in: int, n_out: int) -> CFunc:
 
 
 def wrapper_path(kernel: Callable, n_in: int, n_out: int) -> Path:
-    """Where the wrapper's source is cached (``--show-code`` names it)."""
+    """Where the wrapper's source is cached (``--show-code`` names it); ``.seal`` beside it once compiled."""
     source = wrapper_source(kernel_fingerprint(kernel).split(":")[0], n_in, n_out)
     return kernel_folder() / f"w_{wrapper_digest(source, kernel)}.py"
+
+
+def is_cached(kernel: Callable, n_in: int, n_out: int) -> bool:
+    """True when the wrapper was compiled and sealed before (in this cache)."""
+    return wrapper_path(kernel, n_in, n_out).with_suffix(".seal").exists()

@@ -84,7 +84,7 @@ def cmd_live(args: argparse.Namespace) -> int:
 
     try:
         overrides = dict(parse_override(t) for t in args.set)
-        graph = load_graph(args.graph, overrides, tuple(Path(d) for d in args.plugins))
+        graph = load_graph(args.graph, overrides, tuple(Path(d) for d in args.plugins), tier="fused")  # live: fused ticks
         report = run_live(graph, args.dbc, args.map, args.bus, simulate=args.simulate, duration_s=args.duration,
                           record=args.record, rt=args.rt, rt_priority=args.rt_priority, rt_cpu=args.cpu,
                           stats_path=args.stats, seed=args.seed, status=None if args.quiet else sys.stderr,

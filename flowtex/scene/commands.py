@@ -33,6 +33,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--seed", type=int, default=None, help="noise seed (default: the graph's)")
     p.add_argument("--explain", action="store_true", help="print the plan first")
     p.add_argument("--plugins", action="append", default=[], metavar="DIR", help="extra plugin folder (repeatable)")
+    p.add_argument("--compile", choices=("fused", "dispatch", "auto"), default="auto",
+                   help="compile tier (default auto: fused if cached, else dispatch; docs/engine.md)")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("live", help="plan and run live against the scene's device in one step")
@@ -83,11 +85,11 @@ def cmd_run(args: argparse.Namespace) -> int:
         plan = plan_to_graph(args.scene, graph_path, tuple(args.plugins), fixed=args.surface, relative=False)
         if args.explain:
             print(explain(plan))
-        graph = load_graph(graph_path, plugins=tuple(args.plugins))
+        graph = load_graph(graph_path, plugins=tuple(args.plugins), tier=args.compile)
         outputs = run_recording(graph, args.input, args.output, seed=args.seed, progress=sys.stderr.isatty())
     n = next(iter(outputs.values())).shape[0] if outputs else 0
     target = f" -> {args.output}" if args.output else ""
-    print(f"{graph.name}: {n} ticks at {graph.rate:g} Hz, outputs {', '.join(outputs)}{target}")
+    print(f"{graph.name}: {n} ticks at {graph.rate:g} Hz, outputs {', '.join(outputs)}{target} ({graph.tier} tier)")
     return 0
 
 
