@@ -43,10 +43,11 @@ def compile_in_background(path: str | Path, overrides: Mapping[str, Any], plugin
     if not enabled():
         return None
     try:
-        request = json.dumps({"path": str(Path(path).resolve()), "overrides": dict(overrides),
+        text = Path(path).read_text(encoding="utf-8")  # now: the file may be gone (or edited again) when the compile starts
+        request = json.dumps({"path": str(Path(path).resolve()), "text": text, "overrides": dict(overrides),
                               "plugins": [str(Path(p).resolve()) for p in plugins], "block_rows": block_rows})
-    except TypeError:
-        return None  # an override that is not JSON (a Python object): nothing to hand over
+    except (TypeError, OSError, UnicodeDecodeError):
+        return None  # an override that is not JSON (a Python object), or an unreadable file: nothing to hand over
     return subprocess.Popen([sys.executable, "-m", MODULE, request], stdin=subprocess.DEVNULL,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
                             env={**os.environ, "FLOWTEX_COMPILE": "fused", BACKGROUND_ENV: "0"})
@@ -75,9 +76,14 @@ def main(request: str) -> int:
     folder = cache_dir()
     folder.mkdir(parents=True, exist_ok=True)
     take_over(folder / "background.pid")
-    from .compiled import load_graph
+    from ..registry import load_registry
+    from .compiled import Graph, _with_graph_plugins
+    from .resolve import resolve_graph
+    from .spec import parse_spec
 
-    load_graph(args["path"], args["overrides"], tuple(args["plugins"]), args["block_rows"], tier="fused")
+    path = Path(args["path"])  # the text as it was; relative paths in it resolve against its folder, as in the run
+    spec = parse_spec(args["text"], path, args["overrides"])
+    Graph(resolve_graph(spec, load_registry(_with_graph_plugins(path, tuple(args["plugins"])))), args["block_rows"], "fused")
     return 0
 
 
