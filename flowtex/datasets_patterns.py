@@ -55,15 +55,48 @@ def render_features(x_mm: np.ndarray, features_mm: np.ndarray, amplitudes: np.nd
     return y
 
 
+def pole_decay_s(radius: float, rate_hz: float) -> float:
+    """Decay time (s) of a pole of the given radius at ``rate_hz``: r = exp(-1 / (decay_s rate_hz))."""
+    return -1.0 / (rate_hz * float(np.log(radius)))
+
+
+def parallel(filters: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """(b, a) of filters in parallel (their impulse responses summed): b = sum_i b_i prod_{j != i} a_j, a = prod_j a_j."""
+    a = np.array([1.0])
+    for _, ai in filters:
+        a = np.convolve(a, ai)
+    terms = []
+    for i, (bi, _) in enumerate(filters):
+        term = np.asarray(bi, float)
+        for j, (_, aj) in enumerate(filters):
+            if j != i:
+                term = np.convolve(term, aj)
+        terms.append(term)
+    b = np.zeros(max(t.size for t in terms))
+    for term in terms:  # coefficients of z^0, z^-1, ...: aligned at index 0
+        b[:term.size] += term
+    return b, a
+
+
 def patterned_recording(seconds: float = 4.0, speed_mm_s: float = 60.0, spacing_mm: float = 2.0, rate_hz: float = 1000.0,
-                        freq_hz: float = 180.0, decay_s: float = 0.006, noise: float = 0.05, seed: int = 0) -> dict:
-    """A recording over a regular grating; returns arrays ``accel`` (m/s^2), ``position`` (mm, (n, 3)), ``speed`` and the truth."""
+                        freq_hz: float = 180.0, decay_s: float = 0.006, noise: float = 0.05, seed: int = 0,
+                        amplitude: float = 10.0, spread: float = 0.5,
+                        extra: tuple[tuple[float, float], ...] = ()) -> dict:
+    """A recording over a regular grating; returns arrays ``accel`` (m/s^2), ``position`` (mm, (n, 3)), ``speed`` and the truth.
+
+    Feature amplitudes are ``amplitude`` x U(1 - ``spread``, 1 + ``spread``)
+    (m/s^2 per unit impulse); each feature is a resonance at ``freq_hz``
+    decaying in ``decay_s``, plus one more in parallel per (freq_hz, decay_s)
+    pair in ``extra`` (features with two resonances).
+    """
     rng = np.random.default_rng(seed)
     n = int(round(seconds * rate_hz))
     x = 1.0 + speed_mm_s * np.arange(n) / rate_hz
     features = np.arange(spacing_mm, x[-1] + spacing_mm, spacing_mm)
-    amplitudes = rng.uniform(5.0, 15.0, features.size)  # m/s^2 per unit impulse
+    amplitudes = amplitude * rng.uniform(1.0 - spread, 1.0 + spread, features.size)
     filt = resonance(freq_hz, decay_s, rate_hz)
+    if extra:
+        filt = parallel([filt] + [resonance(f, d, rate_hz) for f, d in extra])
     clean = render_features(x, features, amplitudes, [filt] * features.size)
     accel = clean + noise * np.sqrt(np.mean(clean ** 2)) * rng.standard_normal(n)
     position = np.column_stack([x, np.full(n, 5.0), np.zeros(n)])

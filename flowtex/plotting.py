@@ -8,11 +8,8 @@ extra); without it the command says how to install it.
 
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -41,15 +38,8 @@ def signal_units(arrays: dict[str, np.ndarray]) -> dict[str, str]:
     return out
 
 
-def register(subparsers: Any) -> None:
-    p = subparsers.add_parser("plot", help="plot a run's outputs: time series, vibration spectrograms, force-speed trace")
-    p.add_argument("file", help="output file of a run (.npz, .csv, .h5)")
-    p.add_argument("--signals", nargs="+", help="signals to show (default: all)")
-    p.add_argument("-o", "--output", help="PNG to write (default: FILE with .png)")
-    p.set_defaults(func=cmd_plot)
-
-
-def cmd_plot(args: argparse.Namespace) -> int:
+def plot_recording(file: str | Path, signals: list[str] | None, output: str | Path) -> int:
+    """Draw ``signals`` (default: all) of the recording ``file`` into the PNG ``output`` (atomically); returns how many."""
     from .errors import FlowtexError
     from .io.recordings import load_recording
 
@@ -58,18 +48,16 @@ def cmd_plot(args: argparse.Namespace) -> int:
     except ImportError:
         raise FlowtexError("flowtex plot needs matplotlib: pip install 'flowtex[plot]'") from None
     matplotlib.use("Agg")
-    rec = load_recording(args.file)
+    rec = load_recording(file)
     arrays = dict(rec.arrays)
     units = signal_units(arrays)
-    names = args.signals or list(units)
+    names = signals or list(units)
     unknown = [n for n in names if n not in units]
     if unknown:
-        raise FlowtexError(f"{args.file}: no signal {', '.join(unknown)}; it has {', '.join(units)}")
-    out = Path(args.output) if args.output else Path(args.file).with_suffix(".png")
-    plot_signals({n: np.asarray(arrays[n], dtype=np.float64) for n in names}, {n: units[n] for n in names}, rec.rate or 1000.0, out,
-                 title=Path(args.file).name)
-    print(f"{args.file}: {len(names)} signals -> {out}", file=sys.stderr)
-    return 0
+        raise FlowtexError(f"{file}: no signal {', '.join(unknown)}; it has {', '.join(units)}")
+    plot_signals({n: np.asarray(arrays[n], dtype=np.float64) for n in names}, {n: units[n] for n in names}, rec.rate or 1000.0,
+                 Path(output), title=Path(file).name)
+    return len(names)
 
 
 def _magnitude(x: np.ndarray) -> np.ndarray:
@@ -120,5 +108,8 @@ def plot_signals(signals: dict[str, np.ndarray], units: dict[str, str], rate: fl
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    from .io.atomic import atomic_output
+
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp, dpi=100, format="png")
     plt.close(fig)

@@ -44,6 +44,8 @@ class Registry:
     def __init__(self) -> None:
         self.types: dict[str, type[Node]] = {}
         self.origins: dict[str, str] = {}
+        self.plugin_files: list[Path] = []
+        """Plugin files (Python code) imported into this registry, in load order."""
 
     def add_module(self, module: ModuleType, origin: str) -> None:
         for obj in vars(module).values():
@@ -71,11 +73,11 @@ class Registry:
         return sorted(self.types)
 
 
-def plugin_dirs(extra: Iterable[str | Path] = ()) -> list[Path]:
-    """Plugin folders in search order: ``./plugins``, ``$FLOWTEX_PLUGINS``, then ``extra``."""
+def plugin_dirs(extra: Iterable[str | Path] = (), auto: bool = True) -> list[Path]:
+    """Plugin folders in search order: ``./plugins`` (unless ``auto`` is False), ``$FLOWTEX_PLUGINS``, then ``extra``."""
     dirs: list[Path] = []
     local = Path.cwd() / "plugins"
-    if local.is_dir():
+    if auto and local.is_dir():
         dirs.append(local)
     for item in os.environ.get(PLUGIN_ENV, "").split(os.pathsep):
         if item:
@@ -137,9 +139,9 @@ def _with_submodules(module: ModuleType) -> list[ModuleType]:
 _CACHE: dict[tuple[Path, ...], Registry] = {}
 
 
-def load_registry(plugins: Iterable[str | Path] = ()) -> Registry:
-    """Registry with built-ins, installed entry points and plugin folders."""
-    dirs = tuple(plugin_dirs(plugins))
+def load_registry(plugins: Iterable[str | Path] = (), auto: bool = True) -> Registry:
+    """Registry with built-ins, installed entry points and plugin folders (``auto=False``: not ``./plugins``)."""
+    dirs = tuple(plugin_dirs(plugins, auto))
     if dirs in _CACHE:
         return _CACHE[dirs]
     reg = Registry()
@@ -165,5 +167,6 @@ def load_registry(plugins: Iterable[str | Path] = ()) -> Registry:
             raise FlowtexError(f"{folder}: plugin folder does not exist")
         for path in sorted(folder.glob("*.py")):
             reg.add_module(load_plugin_file(path), str(path))
+            reg.plugin_files.append(path)
     _CACHE[dirs] = reg
     return reg

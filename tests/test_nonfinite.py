@@ -86,7 +86,7 @@ def test_cli_run_refuses_nan_recording_and_names_it(write_graph, tmp_path, capsy
     src = tmp_path / "rec.npz"
     save_recording(src, _recording(), rate=1000)
     out = tmp_path / "out.npz"
-    assert main(["run", str(graph), "-i", str(src), "-o", str(out)]) == 1
+    assert main(["run", str(graph), "-i", str(src), "-o", str(out), "--no-plugins"]) == 1
     err = capsys.readouterr().err.strip()
     assert err == (f"{src}: input 'acc' has 1 non-finite sample(s), the first (nan) at index 100; clean the recording "
                    "or pass --nonfinite hold (last finite value) or --nonfinite zero")

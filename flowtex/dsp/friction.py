@@ -70,7 +70,7 @@ def coulomb_block(p: np.ndarray, vel: np.ndarray, fn: np.ndarray, out: np.ndarra
             out[t, 1] = 0.0
             out[t, 2] = 0.0
             continue
-        if speed < vth:
+        if speed < vth or speed == 0.0:  # at rest: no direction (and mu = 0 in hatt mode gives vth = 0)
             k = -mu * f * VISCOUS_PER_MM_S
         else:
             k = -mu * f / speed

@@ -51,38 +51,58 @@ def band_edges(freqs: np.ndarray, psd: np.ndarray, smooth_hz: float = 100.0) -> 
     return float(freqs[lo]), float(freqs[hi])
 
 
-def segment_starts(x: np.ndarray, min_peak_fraction: float = 0.25, guard: int = 2) -> np.ndarray:
+def segment_starts(x: np.ndarray, min_peak_fraction: float = 0.25, guard: int = 2, min_gap: int = 1) -> np.ndarray:
     """Start ticks of segments of the (band-passed) signal ``x`` by Guruswamy's rising-peak rule.
 
-    Peaks are the local maxima of |x|. A segment starts at a peak larger than the
-    peak before it, provided it exceeds ``min_peak_fraction`` times the 95th
-    percentile of all peaks (smaller rises are noise in a ring-down's tail). The
-    segment begins at the local minimum of |x| just before that peak, moved
-    ``guard`` ticks earlier: the band-pass blurs onsets, and an early start costs the
-    IIR fit only a small leading numerator coefficient, a late one loses the onset.
+    Peaks are the local maxima of |x|. A feature starts with a run of rising
+    peaks (each larger than the peak before it) that exceed ``min_peak_fraction``
+    times the 95th percentile of all peaks (smaller rises are noise in a
+    ring-down's tail). One run is one feature: a zero-phase band-pass spreads an
+    onset over several half-cycles that all rise, and each used to start a
+    segment of its own. A run whose first peak comes less than ``min_gap`` ticks
+    after the previous feature's highest peak continues that feature (the
+    band-pass cannot resolve features closer than its own response; two
+    resonances beating inside one feature make such runs). The segment begins at
+    the local minimum of |x| before the run's first peak, moved ``guard`` ticks
+    earlier: the band-pass blurs onsets, and an early start only costs the full-band
+    onset search (fit.pattern) a few ticks, a late one loses the onset.
     """
+    starts, _tops = feature_onsets(x, min_peak_fraction, guard, min_gap)
+    return starts
+
+
+def feature_onsets(x: np.ndarray, min_peak_fraction: float = 0.25, guard: int = 2,
+                   min_gap: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """(segment starts, each feature's highest peak tick) by the rule of :func:`segment_starts`."""
     ax = np.abs(np.asarray(x, dtype=np.float64))
+    empty = np.zeros(0, np.int64)
     if ax.size < 3:
-        return np.zeros(0, np.int64)
+        return empty, empty
     inner = ax[1:-1]
     peaks = np.nonzero((inner > ax[:-2]) & (inner >= ax[2:]))[0] + 1
     if peaks.size == 0:
-        return np.zeros(0, np.int64)
+        return empty, empty
     floor = min_peak_fraction * np.percentile(ax[peaks], 95)
     starts: list[int] = []
-    prev_start = -1
-    prev_peak = -1
+    tops: list[int] = []
     prev_height = 0.0
+    rising = False
     for pk in peaks:
         h = ax[pk]
-        if h > floor and (prev_peak < 0 or h > prev_height):
-            j = pk
-            while j > 0 and ax[j - 1] < ax[j]:  # back to the local minimum just before the peak (Guruswamy thesis sec. 4.3.3)
-                j -= 1
-            starts.append(max(j - guard, prev_start + 1))
-            prev_start = starts[-1]
-        prev_peak, prev_height = pk, h
-    return np.unique(np.asarray(starts, np.int64))
+        if h > floor and h > prev_height:
+            if not rising and (not tops or pk - tops[-1] >= min_gap):
+                j = pk
+                while j > 0 and ax[j - 1] < ax[j]:  # back to the local minimum just before the peak (Guruswamy thesis sec. 4.3.3)
+                    j -= 1
+                starts.append(max(j - guard, starts[-1] + 1 if starts else 0))
+                tops.append(int(pk))
+            elif h > ax[tops[-1]]:
+                tops[-1] = int(pk)
+            rising = True
+        else:
+            rising = False
+        prev_height = h
+    return np.asarray(starts, np.int64), np.asarray(tops, np.int64)
 
 
 def pattern_params(axis: np.ndarray, origin: np.ndarray, positions: np.ndarray, amplitudes: np.ndarray,

@@ -183,9 +183,29 @@ class IIRFit:
     sad: float
 
 
+def bic(h: np.ndarray, b: np.ndarray, a: np.ndarray) -> float:
+    """Bayesian information criterion of b / a as a model of ``h``: n ln(RSS / n) + (p + q + 1) ln n (Schwarz 1978).
+
+    RSS is the sum of squared differences between ``h`` and the impulse
+    response; p + q + 1 counts the free coefficients (a[0] = 1 is fixed). Lower
+    is better: an extra coefficient must cut the RSS by a factor n^(1/n) to pay
+    for itself, so the simplest order that explains the waveform wins.
+    """
+    h = np.asarray(h, dtype=np.float64)
+    n = h.size
+    rss = float(np.sum((h - impulse_response(b, a, n)) ** 2))
+    scale = float(np.sum(h * h)) or 1.0
+    return n * np.log(max(rss, 1e-30 * scale) / n) + (len(b) + len(a) - 1) * np.log(n)
+
+
 def fit_iir(h: np.ndarray, orders: Iterable[int | tuple[int, int]] = range(2, 9), method: str = "smb",
-            tie_tolerance: float = 0.02, solver: Solver = lstsq_numpy, radius: float = STABLE_RADIUS) -> IIRFit:
+            tie_tolerance: float = 0.02, solver: Solver = lstsq_numpy, radius: float = STABLE_RADIUS,
+            criterion: str = "sad") -> IIRFit:
     """Best stable IIR filter for the impulse response ``h`` over ``orders`` (N = M = order, or (p, q) pairs).
+
+    ``criterion="bic"`` picks the order with the least :func:`bic` instead of
+    the least SAD (``tie_tolerance`` is then unused): the simplest order that
+    explains the waveform.
 
     ``method`` is ``"smb"`` (guarded Steiglitz-McBride) or ``"prony"`` (Prony, then
     stabilised with the numerator refitted if unstable). The order with the least
@@ -198,6 +218,7 @@ def fit_iir(h: np.ndarray, orders: Iterable[int | tuple[int, int]] = range(2, 9)
     h = np.asarray(h, dtype=np.float64).ravel()
     rounding = 1e-12 * float(np.mean(np.abs(h))) if h.size else 0.0  # SADs this close are equal (exact fits)
     best: IIRFit | None = None
+    best_score = np.inf
     for order in orders:
         p, q = (order, order) if isinstance(order, (int, np.integer)) else order
         if h.size < p + q + 2:
@@ -212,7 +233,13 @@ def fit_iir(h: np.ndarray, orders: Iterable[int | tuple[int, int]] = range(2, 9)
         else:
             raise ValueError(f"unknown method {method!r}; use 'smb' or 'prony'")
         fit = IIRFit(np.asarray(b, float), np.asarray(a, float), p, q, sad(h, b, a))
-        if best is None or fit.sad < best.sad * (1.0 - tie_tolerance) - rounding:
+        if criterion == "bic":
+            score = bic(h, fit.b, fit.a)
+            if best is None or score < best_score:
+                best, best_score = fit, score
+        elif criterion != "sad":
+            raise ValueError(f"unknown criterion {criterion!r}; use 'sad' or 'bic'")
+        elif best is None or fit.sad < best.sad * (1.0 - tie_tolerance) - rounding:
             best = fit
     if best is None:
         raise ValueError(f"the impulse response has {h.size} samples, too few for any of the requested orders")

@@ -51,9 +51,14 @@ def resample_signal(x: np.ndarray, rate_in: float, rate_out: float, atten_db: fl
     Returns float64 of length round(n * rate_out / rate_in) along axis 0, same
     unit, zero delay. Frequencies up to ``passband`` times the lower Nyquist
     frequency pass within 20*log10(1 + 10**(-atten_db/20)) dB; aliases and
-    images are ``atten_db`` dB down. The signal is extended past both ends by
-    its mean (scipy ``padtype='mean'``), so a constant offset such as gravity
-    does not ring at the edges. Raises ValueError on non-finite samples.
+    images are ``atten_db`` dB down. Edges (:func:`edge_trend`): the straight
+    line through the first and last samples is taken out, the rest is
+    resampled with an odd extension about each end sample (scipy
+    ``padtype='antireflect'``), and the line is added back at the output
+    times exactly. A constant (gravity) or a linear trend (a position ramp)
+    therefore comes out exact to round-off at both ends and in between, and
+    the speed derived from a resampled ramp is exact too. Raises ValueError
+    on non-finite samples.
     """
     x = np.asarray(x, dtype=np.float64)
     if x.ndim == 0:
@@ -71,5 +76,27 @@ def resample_signal(x: np.ndarray, rate_in: float, rate_out: float, atten_db: fl
     from scipy import signal
 
     h = resampling_fir(up, down, atten_db, passband)
-    y = signal.resample_poly(x, up, down, axis=0, window=h, padtype="mean")
-    return np.ascontiguousarray(y[:n_out])
+    start, slope = edge_trend(x)
+    ramp = slope * np.arange(n).reshape((n,) + (1,) * (x.ndim - 1))
+    if n > 1:
+        y = signal.resample_poly(x - start - ramp, up, down, axis=0, window=h, padtype="antireflect")[:n_out]
+    else:  # one sample: the line is the constant (and scipy's antireflect extension of one sample divides by zero)
+        y = np.zeros((n_out,) + x.shape[1:])
+    out_times = (np.arange(n_out) * (down / up)).reshape((n_out,) + (1,) * (x.ndim - 1))  # in input samples
+    return np.ascontiguousarray(y + start + slope * out_times)
+
+
+def edge_trend(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(first sample, slope per input sample) of the line through the first and last samples of ``x`` (along axis 0).
+
+    Taking this line out before filtering leaves a signal that is 0 at both
+    ends, so its odd extension is continuous in value and slope and a linear
+    trend never meets an edge. The per-phase DC gain of a polyphase filter is
+    1 only to within its stopband (1e-4 at 80 dB), which on a 4 m ramp is
+    0.4 mm alternating from sample to sample (hundreds of mm/s of derived
+    speed at 2 kHz); the line, added back analytically, carries no such error.
+    """
+    n = x.shape[0]
+    start = x[0]
+    slope = (x[-1] - x[0]) / (n - 1) if n > 1 else np.zeros_like(start)
+    return start, slope

@@ -44,7 +44,7 @@ def expand_inputs(items: Sequence[str]) -> list[Path]:
 def fit_one(path: str, job, out_dir: str, xml: bool, report: bool) -> tuple[str, str]:
     """Fit one recording and write its outputs; returns (recording, one-line summary or 'error: ...')."""
     from .report import summary_line, write_report
-    from .texture_cli import fit_recording, write_outputs
+    from .texture_job import fit_recording, write_outputs
 
     p = Path(path)
     out = Path(out_dir) / f"{p.stem}.json"

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 from typing import Any
 
@@ -11,7 +10,7 @@ import numpy as np
 from ..dsp import compliance as cm
 from ..errors import DataError
 from ..io.recordings import load_recording
-from .recording_signals import recording_rate, signal, write_json_atomic
+from .recording_signals import recording_rate, signal
 
 FORMAT_NAME = "flowtex-compliance"
 FORMAT_VERSION = 1
@@ -63,40 +62,25 @@ def _result(out: np.ndarray, rate: float, n: int, force_range: tuple[float, floa
     }
 
 
-def register_fit(kinds: Any) -> None:
-    """Add ``flowtex fit compliance``."""
-    p = kinds.add_parser("compliance", help="WHaT compliance k_c from stroking (force vs RMS vibration, Guruswamy thesis sec. 5.2)",
-                         description="Estimate the compliance coefficient k_c (0 soft .. 1 stiff) of the stroked surface in REC. "
-                                     "An estimate that is not valid (smooth surface, poor fit) is still written, with a reason.")
-    p.add_argument("recording", metavar="REC", help="recording (.npz/.csv/.h5)")
-    p.add_argument("--force", required=True, metavar="F", help="signal name of the normal force (N)")
-    p.add_argument("--accel", required=True, metavar="A", help="signal name of the acceleration (m/s^2, 1 or 3 axes)")
-    p.add_argument("--contact", metavar="C", help="signal name of a 0/1 contact state (default: force above --force-threshold)")
-    p.add_argument("-o", "--output", required=True, metavar="OUT.json", help="result file (JSON)")
-    p.add_argument("--rate", type=float, help="sample rate in Hz if the recording does not state one")
-    p.add_argument("--kg", type=float, default=1.0, help="k_g normalisation in N per m/s^2 (Guruswamy thesis eq. 6; default 1)")
-    p.add_argument("--force-range", type=float, nargs=2, metavar=("LO", "HI"),
-                   help="force range of the 24 bins in N (default: the range of the contact samples' low-passed force)")
-    p.add_argument("--force-threshold", type=float, default=0.1, help="contact when the low-passed force exceeds this (N, default 0.1)")
-    p.add_argument("--smooth-floor", type=float, default=0.1, help="RMS vibration floor of a smooth surface (m/s^2, default 0.1)")
-    p.add_argument("--r2-min", type=float, default=0.8, help="least weighted R^2 of a valid line fit (default 0.8)")
-    p.set_defaults(func=cmd_fit_compliance)
-
-
-def cmd_fit_compliance(args: argparse.Namespace) -> int:
-    rec = load_recording(args.recording)
-    rate = recording_rate(rec, args.rate)
-    force = signal(rec, args.force, "--force", (1,))
-    accel = signal(rec, args.accel, "--accel", (1, 2, 3))
-    contact = signal(rec, args.contact, "--contact", (1,)) if args.contact else None
+def compliance_recording(recording: str | Path, force: str, accel: str, from_rate: float | None = None,
+                         contact: str | None = None, force_range: tuple[float, float] | None = None,
+                         **options: Any) -> dict[str, Any]:
+    """:func:`estimate_compliance` of one recording (signals named as the options); the result names the recording."""
+    rec = load_recording(recording)
+    rate = recording_rate(rec, from_rate)
+    f = signal(rec, force, "--force", (1,))
+    a = signal(rec, accel, "--accel", (1, 2, 3))
+    c = signal(rec, contact, "--contact", (1,)) if contact else None
     try:
-        result = estimate_compliance(force, accel, rate, contact, tuple(args.force_range) if args.force_range else None,
-                                     k_g=args.kg, force_threshold=args.force_threshold, smooth_floor=args.smooth_floor, r2_min=args.r2_min)
+        result = estimate_compliance(f, a, rate, c, force_range, **options)
     except ValueError as exc:
-        raise DataError(f"{args.recording}: {exc}") from None
-    result["recording"] = str(Path(args.recording))
-    write_json_atomic(args.output, result)
+        raise DataError(f"{recording}: {exc}") from None
+    result["recording"] = str(Path(recording))
+    return result
+
+
+def compliance_summary(result: dict[str, Any]) -> str:
+    """One line: k_c, sigma, valid and the reason."""
     kc = "n/a" if result["k_c"] is None else f"{result['k_c']:.4f}"
-    print(f"{args.output}: k_c {kc}  sigma {result['sigma'] if result['sigma'] is None else round(result['sigma'], 4)}  "
-          f"valid {str(result['valid']).lower()} ({result['reason']})")
-    return 0
+    sigma = result["sigma"] if result["sigma"] is None else round(result["sigma"], 4)
+    return f"k_c {kc}  sigma {sigma}  valid {str(result['valid']).lower()} ({result['reason']})"

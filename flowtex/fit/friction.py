@@ -7,17 +7,24 @@ contact only (normal force >= ``--min-force``). Not the median of the
 ratios T/N: with a force offset b the ratio is mu + b/N, which the many
 samples at small N bias, while the line's slope weighs each sample by N.
 
-A tangential sensor with a bias b biases a line through the origin too (by
-b sum N / sum N^2). ``--offset auto`` (default) therefore fits T = mu N + b
-first and keeps it when b's 95 % interval excludes 0; otherwise it refits
-Culbertson & Kuchenbecker 2017's line through the origin (one parameter less, a tighter interval).
-``--offset yes`` / ``no`` force either form.
+The default is HaTT's Coulomb fit through the origin (``--offset no``): the
+renderer's friction nodes take mu only, and on real recordings the
+tangential force often barely varies with the normal force, where a free
+offset soaks up the whole force and leaves a mu 24-60x too small (issue 18).
+``--offset yes`` fits T = mu N + b instead (a biased tangential sensor biases
+a line through the origin by b sum N / sum N^2); such a fit cannot be stored
+with ``--into``, which refuses it rather than drop b.
+
+Every fit reports r2, the share of the tangential force's variance that the
+normal force explains (the IRLS-weighted squared correlation of T and N, so
+rejected stiction spikes do not count). Below ``LOW_R2`` the fit carries a
+warning: mu is then the force ratio of a line through the origin, not a
+measured dependence on the normal force. The command line is
+flowtex/cli/fit.py.
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -33,9 +40,13 @@ DEFAULT_MIN_FORCE_N = 0.1
 """Samples below this normal force are out of contact (the contact node's on threshold)."""
 
 
+LOW_R2 = 0.25
+"""Below this r2 (|correlation| < 0.5) the normal force explains little of the tangential force: the fit warns."""
+
+
 @dataclass(frozen=True)
 class FrictionFit:
-    """mu (dimensionless) with its 95 % interval, the offset (N) if fitted, and what was used."""
+    """mu (dimensionless) with its 95 % interval, the offset (N) if fitted, r2, a warning (or None), and what was used."""
 
     mu: float
     mu_ci: tuple[float, float]
@@ -46,11 +57,33 @@ class FrictionFit:
     rejected: int
     residual_scale_n: float
     method: str
+    r2: float
+    warning: str | None
 
 
-def fit_friction(normal: np.ndarray, tangential: np.ndarray, min_force: float = DEFAULT_MIN_FORCE_N, offset: str = "auto",
+def explained_share(x: np.ndarray, y: np.ndarray, weights: np.ndarray) -> float:
+    """Weighted squared correlation of ``x`` and ``y`` (0..1): the share of y's variance a line in x explains.
+
+    0 when either is constant over the samples with weight > 0.
+    """
+    w = np.asarray(weights, float)
+    total = float(w.sum())
+    if total <= 0.0:
+        return 0.0
+    dx = x - float(w @ x) / total
+    dy = y - float(w @ y) / total
+    sxx, syy, sxy = float(w @ (dx * dx)), float(w @ (dy * dy)), float(w @ (dx * dy))
+    if sxx <= 0.0 or syy <= 0.0:
+        return 0.0
+    return min(1.0, sxy * sxy / (sxx * syy))
+
+
+def fit_friction(normal: np.ndarray, tangential: np.ndarray, min_force: float = DEFAULT_MIN_FORCE_N, offset: bool = False,
                  where: str = "recording") -> FrictionFit:
-    """Robust mu from normal and tangential force (N); see the module docstring."""
+    """Robust mu from normal and tangential force (N): a line through the origin, or with an offset b when ``offset``.
+
+    See the module docstring for the choice and for r2 and the warning.
+    """
     normal = np.asarray(normal, float)
     tangential = np.asarray(tangential, float)
     keep = normal >= min_force
@@ -61,53 +94,87 @@ def fit_friction(normal: np.ndarray, tangential: np.ndarray, min_force: float = 
     if count < 10:
         raise DataError(f"{where}: only {count} samples in contact (normal force >= {min_force:g} N); record longer")
     n, t = normal[keep], tangential[keep]
-    if offset not in ("auto", "yes", "no"):
-        raise ValueError(f"offset must be auto, yes or no, got {offset!r}")
-    if float(np.ptp(n)) == 0.0 and offset == "yes":
+    if offset and float(np.ptp(n)) == 0.0:
         raise DataError(f"{where}: the normal force is constant while in contact; --offset yes needs a range of forces")
-    line = None
-    if offset != "no" and float(np.ptp(n)) > 0.0:
-        line = irls_line(n, t, intercept=True, kind="bisquare")
-        lo, hi = line.intercept_ci
-        if offset == "auto" and lo <= 0.0 <= hi:
-            line = None
-    with_offset = line is not None
-    if line is None:
-        line = irls_line(n, t, intercept=False, kind="bisquare")
+    line = irls_line(n, t, intercept=bool(offset), kind="bisquare")
     rejected = int(np.sum(line.weights == 0.0))
+    r2 = explained_share(n, t, line.weights)
+    warning = None
+    if r2 < LOW_R2:
+        ratio = float(line.weights @ t) / max(float(line.weights @ n), 1e-300)
+        warning = (f"the normal force explains only {100 * r2:.1f} % of the tangential force's variance (r2 = {r2:.3f}, "
+                   f"below {LOW_R2:g}): the friction force barely depends on the normal force here (force ratio "
+                   f"{ratio:.3f}); " + ("mu is the slope of HaTT's line through the origin, i.e. about that ratio; "
+                                        "the alternative, --offset yes (T = mu N + b), describes it as a constant force b "
+                                        "but cannot be stored with --into" if not offset else
+                                        "the offset b carries the force and mu is small; the alternative, "
+                                        "HaTT's line through the origin (--offset no), gives mu near the force ratio "
+                                        "and can be stored with --into"))
     return FrictionFit(line.slope, line.slope_ci, line.intercept, line.intercept_ci, int(normal.size), count, rejected,
-                       line.scale, "IRLS bisquare, line " + ("with offset" if with_offset else "through the origin"))
+                       line.scale, "IRLS bisquare, line " + ("with offset" if offset else "through the origin"), r2, warning)
 
 
-def _forces(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray, Any]:
-    rec, _rate = load(args.recording, args.rate)
-    if args.force is not None:
-        if args.normal is None:
-            raise DataError(f"{args.recording}: --force needs --normal V (the surface normal signal, or x,y,z)")
-        f3 = signal(rec, args.force, "--force", (3,))
-        if args.normal in rec.arrays:
-            nv = signal(rec, args.normal, "--normal", (3,))
+def friction_forces(rec: Any, normal_force: str | None = None, friction_force: str | None = None,
+                    force3: str | None = None, normal: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(normal force (n,) N, tangential force magnitude (n,) N) from a recording.
+
+    Either ``normal_force`` (1-D, N) and ``friction_force`` (1-D magnitude or (n, 3), N), or ``force3`` (n, 3) N split
+    into normal and tangential parts by ``normal`` (a (n, 3) signal name or a vector ``"x,y,z"``).
+    """
+    where = rec.path
+    if force3 is not None:
+        if normal is None:
+            raise DataError(f"{where}: --force3 needs --normal V (the surface normal signal, or x,y,z)")
+        f3 = signal(rec, force3, "--force3", (3,))
+        if normal in rec.arrays:
+            nv = signal(rec, normal, "--normal", (3,))
         else:
             try:
-                nv = np.broadcast_to(np.array([float(v) for v in args.normal.split(",")]), (f3.shape[0], 3))
+                nv = np.broadcast_to(np.array([float(v) for v in normal.split(",")]), (f3.shape[0], 3))
             except ValueError:
-                raise DataError(f"{args.recording}: no signal {args.normal!r} (--normal); give a signal name or a vector x,y,z") from None
+                raise DataError(f"{where}: no signal {normal!r} (--normal); give a signal name or a vector x,y,z") from None
         length = np.linalg.norm(nv, axis=1)
         if np.any(length < 1e-9):
-            raise DataError(f"{args.recording}: signal {args.normal!r} (--normal) has zero-length normals; fix the normal")
+            raise DataError(f"{where}: signal {normal!r} (--normal) has zero-length normals; fix the normal")
         unit = nv / length[:, None]
         fn_signed = np.sum(f3 * unit, axis=1)
-        normal = np.abs(fn_signed)
+        n_force = np.abs(fn_signed)
         tangential = np.linalg.norm(f3 - fn_signed[:, None] * unit, axis=1)
     else:
-        if args.normal_force is None or args.friction_force is None:
-            raise DataError(f"{args.recording}: give --normal-force N --friction-force T, or --force F3 --normal V")
-        normal = signal(rec, args.normal_force, "--normal-force")
-        ft = signal(rec, args.friction_force, "--friction-force", (1, 3))
+        if normal_force is None or friction_force is None:
+            raise DataError(f"{where}: give --force N (normal force) --friction-force T, or --force3 F3 --normal V")
+        n_force = signal(rec, normal_force, "--force")
+        ft = signal(rec, friction_force, "--friction-force", (1, 3))
         tangential = np.abs(ft) if ft.ndim == 1 else np.linalg.norm(ft, axis=1)
-        check_not_constant(tangential, f"{args.recording}: signal {args.friction_force!r} (--friction-force)")
-    check_not_constant(normal, f"{args.recording}: the normal force")
-    return normal, tangential, rec
+        check_not_constant(tangential, f"{where}: signal {friction_force!r} (--friction-force)")
+    check_not_constant(n_force, f"{where}: the normal force")
+    return n_force, tangential
+
+
+def fit_friction_recording(recording: str | Path, from_rate: float | None = None, normal_force: str | None = None,
+                           friction_force: str | None = None, force3: str | None = None, normal: str | None = None,
+                           min_force: float = DEFAULT_MIN_FORCE_N, offset: bool = False) -> tuple[FrictionFit, dict]:
+    """Fit mu to one recording (see :func:`friction_forces` for the signals); returns the fit and its JSON document."""
+    if not (math.isfinite(min_force) and min_force >= 0.0):
+        raise DataError(f"--min-force {min_force:g}: valid range is 0 N or more")
+    rec, _rate = load(recording, from_rate)
+    n_force, tangential = friction_forces(rec, normal_force, friction_force, force3, normal)
+    fit = fit_friction(n_force, tangential, min_force, offset, str(recording))
+    if not offset and not (math.isfinite(fit.mu) and fit.mu >= 0):
+        raise DataError(f"{recording}: the fitted mu is {fit.mu:g}; the tangential force does not grow with the normal "
+                        "force (wrong signals or sign?)")
+    return fit, {"format": "flowtex-friction", "version": 1, "recording": str(recording), **asdict(fit)}
+
+
+def friction_table(fit: FrictionFit) -> list[str]:
+    """The lines ``flowtex fit friction`` prints (the warning last, when there is one)."""
+    lines = [f"friction: {fit.method}",
+             f"{'mu':>8} {'95% CI':>19} {'offset N':>9} {'r2':>6} {'in contact':>10} {'rejected':>8} {'scale N':>8}",
+             f"{fit.mu:8.4f} [{fit.mu_ci[0]:8.4f}, {fit.mu_ci[1]:8.4f}] {fit.offset:9.4f} {fit.r2:6.3f} {fit.in_contact:10d} "
+             f"{fit.rejected:8d} {fit.residual_scale_n:8.4f}"]
+    if fit.warning:
+        lines.append(f"warning: {fit.warning}")
+    return lines
 
 
 def store_mu(surface: str | Path, mu: float) -> None:
@@ -117,46 +184,8 @@ def store_mu(surface: str | Path, mu: float) -> None:
 
     ms = load_model_set(surface)
     ms.mu = float(mu)
-    with atomic_output(surface) as tmp:
+    with atomic_output(surface, keep_mode=True) as tmp:
         if ms.metadata.get("format") == "hatt-xml":
             write_hatt_xml(ms, tmp, texture=int(ms.metadata.get("texture") or 0))
         else:
             save_model_set(ms, tmp)
-
-
-def run(args: argparse.Namespace) -> int:
-    normal, tangential, _rec = _forces(args)
-    fit = fit_friction(normal, tangential, args.min_force, args.offset, str(args.recording))
-    if not (math.isfinite(fit.mu) and fit.mu >= 0):
-        raise DataError(f"{args.recording}: the fitted mu is {fit.mu:g}; the tangential force does not grow with the normal "
-                        "force (wrong signals or sign?)")
-    doc = {"format": "flowtex-friction", "version": 1, "recording": str(args.recording), **asdict(fit)}
-    print(f"friction: {fit.method}")
-    print(f"{'mu':>8} {'95% CI':>19} {'offset N':>9} {'in contact':>10} {'rejected':>8} {'scale N':>8}")
-    print(f"{fit.mu:8.4f} [{fit.mu_ci[0]:8.4f}, {fit.mu_ci[1]:8.4f}] {fit.offset:9.4f} {fit.in_contact:10d} {fit.rejected:8d} "
-          f"{fit.residual_scale_n:8.4f}")
-    with atomic_output(args.output) as tmp:
-        tmp.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
-    if args.into:
-        store_mu(args.into, fit.mu)
-        print(f"mu = {fit.mu:.4f} stored in {args.into}")
-    print(f"-> {args.output}")
-    return 0
-
-
-def register_fit(kinds: Any) -> None:
-    """Add ``flowtex fit friction``."""
-    p = kinds.add_parser("friction", help="kinetic friction coefficient mu from normal and tangential forces",
-                         description="Robust line through the origin of tangential vs normal force (samples in contact only).")
-    p.add_argument("recording", type=Path, help="recording (.npz, .csv, .h5)")
-    p.add_argument("--normal-force", metavar="N", help="normal force signal (N)")
-    p.add_argument("--friction-force", metavar="T", help="tangential (friction) force signal (N): 1-D magnitude or (n, 3)")
-    p.add_argument("--force", metavar="F3", help="3-axis force signal (N), split into normal and tangential by --normal")
-    p.add_argument("--normal", metavar="V", help="surface normal: a (n, 3) signal or a vector x,y,z")
-    p.add_argument("--rate", type=float, help="sample rate (Hz) when the file states none")
-    p.add_argument("--min-force", type=float, default=DEFAULT_MIN_FORCE_N, help="in contact from this normal force (N)")
-    p.add_argument("--offset", choices=("auto", "yes", "no"), default="auto",
-                   help="fit T = mu N + b (yes), a line through 0 (no), or b only when significant (auto, default)")
-    p.add_argument("-o", "--output", required=True, type=Path, help="output JSON (mu, mu_ci, ...)")
-    p.add_argument("--into", metavar="SURFACE", help="also store mu in this model set (native JSON or HaTT XML)")
-    p.set_defaults(func=run)

@@ -1,23 +1,19 @@
 """Reading the signals a fit needs from a recording, with one-line errors naming the file, the signal and the fix.
 
 Shared by every ``flowtex fit`` kind: the rate rule (a rate stated in the
-file wins; ``--rate`` supplies a missing one; a conflicting ``--rate`` is an
+file wins; ``--from-rate`` supplies a missing one; a conflicting ``--from-rate`` is an
 error), signal presence and shape, NaN/inf (how many, where), constant
-signals; and :func:`atomic_output`, which writes an output file completely
-or not at all.
+signals. Outputs go through the one writer, :mod:`flowtex.io.atomic`.
 """
 
 from __future__ import annotations
 
-import contextlib
-import os
-import tempfile
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import DataError
+from ..io.atomic import atomic_output  # noqa: F401 -- the one writer, re-exported for the fit modules
 from ..io.recordings import Recording, load_recording
 
 
@@ -26,13 +22,13 @@ def load(path: str | Path, rate: float | None) -> tuple[Recording, float]:
     rec = load_recording(path)
     if rec.rate is not None:
         if rate is not None and abs(rate - rec.rate) > 1e-9 * rec.rate:
-            raise DataError(f"{path}: the file states a rate of {rec.rate:g} Hz but --rate is {rate:g}; drop --rate "
+            raise DataError(f"{path}: the file states a rate of {rec.rate:g} Hz but --from-rate is {rate:g}; drop --from-rate "
                             "(the file's rate wins) or fix the file")
         return rec, float(rec.rate)
     if rate is None:
-        raise DataError(f"{path}: the recording states no sample rate; give it with --rate HZ")
+        raise DataError(f"{path}: the recording states no sample rate; give it with --from-rate HZ")
     if not (np.isfinite(rate) and rate > 0):
-        raise DataError(f"{path}: --rate must be a positive number of Hz, got {rate!r}")
+        raise DataError(f"{path}: --from-rate must be a positive number of Hz, got {rate!r}")
     return rec, float(rate)
 
 
@@ -70,25 +66,14 @@ def check_finite(a: np.ndarray, label: str) -> None:
         raise DataError(f"{label}: {idx.size} NaN/inf sample(s) (at sample {first}); interpolate or cut them out first")
 
 
+def check_highpass(highpass_hz: float, rate_hz: float) -> None:
+    """Raise DataError unless 0 <= ``highpass_hz`` < the Nyquist frequency of ``rate_hz`` (0: no high-pass)."""
+    if not (np.isfinite(highpass_hz) and 0.0 <= highpass_hz < 0.5 * rate_hz):
+        raise DataError(f"--highpass {highpass_hz:g}: valid range is 0 (none) to below {0.5 * rate_hz:g} Hz "
+                        f"(half the recording's rate of {rate_hz:g} Hz)")
+
+
 def check_not_constant(a: np.ndarray, label: str) -> None:
     """Raise DataError when ``a`` does not vary (nothing to fit)."""
     if a.size == 0 or float(np.ptp(a)) == 0.0:
         raise DataError(f"{label} is constant; check that the right signal is named and that the sensor was recording")
-
-
-@contextlib.contextmanager
-def atomic_output(path: str | Path) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; on success it is renamed to ``path``, on error removed.
-
-    So a failed fit never leaves a partial (or stale half-written) output file.
-    """
-    path = Path(path).expanduser()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)

@@ -1,34 +1,37 @@
 """``flowtex fit pattern``: a patterned texture (features + IIR filters) from a recording (Guruswamy thesis ch. 4).
 
-Steps: (1) the acceleration's Welch PSD is smoothed (dB, 9-bin centred moving
-average) and the band edges are the minima either side of its global maximum;
-(2) a 5th-order Butterworth band-pass over that band, run forwards and backwards
-(zero phase, so segment starts stay aligned with the raw signal), serves only
-segmentation: a segment starts where a peak of |a| is larger than the peak before
-it (dsp.patterns.segment_starts); (3) each segment of the *full-band* acceleration,
-minus the ring-downs of earlier features still sounding, is normalised by its peak
-A_k and fitted as an impulse response (dsp.prony.fit_iir, guarded Steiglitz-McBride,
-orders 2..8, least SAD); (4) feature k sits where the tool was at its segment's start,
-along the principal axis of the recorded motion.
+Steps: (1) the acceleration's Welch PSD is smoothed (dB, over 100 Hz) and the band edges
+are the minima either side of its global maximum; (2) a 5th-order Butterworth band-pass
+over that band, run forwards and backwards, serves only to find the features: one per run
+of rising peaks of |band-passed| (dsp.patterns.feature_onsets); (3) each onset is placed on
+the full-band waveform, at the largest prediction error of a Burg AR model of the whole
+recording inside the feature's band-passed window; (4) each segment of the *full-band*
+acceleration from its onset to the next, minus the ring-downs of earlier features still
+sounding, is normalised by its peak A_k and fitted as an impulse response
+(dsp.prony.fit_iir, guarded Steiglitz-McBride, orders 2..8, least BIC: the simplest order
+that explains the waveform); (5) feature k sits where the tool was at its onset, along the
+principal axis of the recorded motion. A tool that does not move is refused.
 """
 
 from __future__ import annotations
 
-import argparse
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..dsp.patterns import RING_DECAY, band_edges, segment_starts
+from ..dsp.patterns import RING_DECAY, band_edges, feature_onsets
 from ..dsp.prony import fit_iir, impulse_response, ring_length
 from ..dsp.spectral import welch_psd
 from ..errors import DataError
-from ..io.patternfile import Pattern, write_pattern
+from ..io.patternfile import Pattern
 from ..io.recordings import load_recording
 from .recording_signals import recording_rate, signal
 
 MIN_SAMPLES = 256
 """Shortest recording a pattern is fitted to: one Welch segment."""
+MIN_TRAVEL_MM = 1e-3
+"""Least travel (mm) along the principal axis: a tool that does not move crosses no feature."""
 
 
 def principal_axis(position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -38,6 +41,12 @@ def principal_axis(position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if np.dot(position[-1] - position[0], axis) < 0:
         axis = -axis
     return axis, position[0].copy()
+
+
+ONSET_AR_ORDER = 8
+"""Order of the Burg AR model whose prediction error marks the features' onsets (up to 4 resonances)."""
+ONSET_GUARD = 1
+"""Ticks the onset is moved before the largest prediction error (an impulse response's first sample may be 0)."""
 
 
 def fit_pattern(accel: np.ndarray, position: np.ndarray, rate_hz: float, orders: range = range(2, 9),
@@ -53,44 +62,90 @@ def fit_pattern(accel: np.ndarray, position: np.ndarray, rate_hz: float, orders:
         raise DataError(f"the recording has {a.size} samples; a pattern fit needs at least {MIN_SAMPLES} (the band-pass alone needs 34)")
     if np.max(np.abs(a)) == 0.0:
         raise DataError("the acceleration is constant: there is no texture to fit")
+    axis, origin = principal_axis(position)
+    x = (position - origin) @ axis
+    extent = float(np.ptp(x))
+    if not extent > MIN_TRAVEL_MM:
+        raise DataError(f"the position moves {extent:.3g} mm along the surface: a pattern needs the tool to travel "
+                        f"(at least {MIN_TRAVEL_MM:g} mm) over its features; check --position names the tool position in mm")
     freqs, psd = welch_psd(a, rate_hz, nperseg=min(256, a.size))
     lo, hi = band_edges(freqs, psd)
     nyq = rate_hz / 2
     lo, hi = max(lo, 1e-3 * nyq), min(hi, 0.999 * nyq)
     sos = scipy.signal.butter(5, [lo, hi], btype="bandpass", fs=rate_hz, output="sos")
     bp = scipy.signal.sosfiltfilt(sos, a)
-    starts = segment_starts(bp, min_peak_fraction)
+    starts, tops = feature_onsets(bp, min_peak_fraction, min_gap=int(rate_hz / (2.0 * (hi - lo))))
     if starts.size == 0:
         raise DataError("no features found: the band-passed acceleration has no rising peaks")
-    axis, origin = principal_axis(position)
-    x = (position - origin) @ axis
-    rendered = np.zeros(a.size)
-    bs, as_, amps, pos, sads, ords = [], [], [], [], [], []
-    ends = np.append(starts[1:], a.size)
-    for start, end in zip(starts, ends, strict=True):
-        target = a[start:end] - rendered[start:end]
-        amp = float(np.max(np.abs(target)))
-        if end - start < 6 or amp == 0.0:
-            continue
-        # a feature's ring-down must die out "a short time after" it (Guruswamy thesis sec. 4.3.3): here to 1 % within 3 segment lengths,
-        # otherwise slow poles that the short segment cannot pin down would ring on under the next features
-        fit = fit_iir(target / amp, orders, radius=0.01 ** (1.0 / (3.0 * (end - start))))
-        ring = min(a.size - start, ring_length(fit.b, fit.a, RING_DECAY))
-        rendered[start:start + ring] += amp * impulse_response(fit.b, fit.a, ring)
-        bs.append(fit.b)
-        as_.append(fit.a)
-        amps.append(amp)
-        pos.append(float(0.5 * (x[start - 1] + x[start])) if start > 0 else float(x[start]))  # crossed on tick `start`
-        sads.append(fit.sad * amp)
-        ords.append(fit.p)
+    onsets = _full_band_onsets(a, starts, tops)
+    feats = _fit_features(a, onsets, np.append(onsets[1:], a.size), orders)
+    pos = [float(0.5 * (x[t - 1] + x[t])) if t > 0 else float(x[t]) for t, *_ in feats]  # crossed on tick t
     order = np.argsort(pos, kind="stable")
     p_sorted = np.asarray(pos)[order]
     meta: dict[str, Any] = {
-        "band_hz": [lo, hi], "segments": len(pos), "mean_order": float(np.mean(ords)),
-        "mean_sad": float(np.mean(sads)), "median_spacing_mm": float(np.median(np.diff(p_sorted))) if len(pos) > 1 else None,
-        "mean_spacing_mm": _mean_spacing(p_sorted),
+        "band_hz": [lo, hi], "segments": len(pos), "mean_order": float(np.mean([f[3].p for f in feats])),
+        "mean_sad": float(np.mean([f[3].sad * f[2] for f in feats])),
+        "median_spacing_mm": float(np.median(np.diff(p_sorted))) if len(pos) > 1 else None,
+        "mean_spacing_mm": _mean_spacing(p_sorted), "order_criterion": "BIC",
     }
-    return Pattern(rate_hz, axis, origin, p_sorted, np.asarray(amps)[order], [bs[i] for i in order], [as_[i] for i in order], meta)
+    return Pattern(rate_hz, axis, origin, p_sorted, np.asarray([feats[i][2] for i in order]),
+                   [feats[i][3].b for i in order], [feats[i][3].a for i in order], meta)
+
+
+def _full_band_onsets(a: np.ndarray, starts: np.ndarray, tops: np.ndarray) -> np.ndarray:
+    """Each feature's onset tick on the full-band waveform, between its band-passed start and highest peak.
+
+    A Burg AR model of order ``ONSET_AR_ORDER`` fitted to the whole recording
+    predicts the ring-downs in progress; each feature's excitation is what it
+    cannot predict. The onset is the tick of the largest |prediction error| in
+    the feature's band-passed window, moved ``ONSET_GUARD`` ticks earlier (a
+    zero-phase band-pass puts its starts up to half its response early, and
+    its peaks late, so the full band decides).
+    """
+    import scipy.signal
+
+    from ..dsp.arma_estimate import burg_ar
+
+    poly, _residual = burg_ar(a, min(ONSET_AR_ORDER, a.size // 4))
+    err = np.abs(scipy.signal.lfilter(poly, [1.0], a))
+    onsets = np.empty(starts.size, np.int64)
+    prev = -1
+    for k, (s, top) in enumerate(zip(starts, tops, strict=True)):
+        onsets[k] = prev = max(int(s + np.argmax(err[s:top + 1])) - ONSET_GUARD, prev + 1)
+    return onsets
+
+
+def _fit_features(a: np.ndarray, starts: np.ndarray, ends: np.ndarray, orders: range) -> list:
+    """[(start, end, amplitude A_k, IIRFit)] of every feature, fitted in order on the full-band segments."""
+    rendered = np.zeros(a.size)
+    out = []
+    for start, end in zip(starts, ends, strict=True):
+        if end - start < 6:
+            continue
+        fit = _add_feature(a, rendered, int(start), int(end), orders)
+        if fit is not None:
+            out.append((int(start), int(end), *fit))
+    if not out:
+        raise DataError("no features found: every segment is shorter than 6 ticks or silent")
+    return out
+
+
+def _add_feature(a: np.ndarray, rendered: np.ndarray, start: int, end: int, orders: range) -> tuple[float, Any] | None:
+    """Fit a[start:end] minus the ring-downs in ``rendered`` as A_k times an impulse response; add its ring-down to ``rendered``.
+
+    The order is the one with the least BIC (dsp.prony.bic) on the full-band
+    segment. A feature's ring-down must die out "a short time after" it
+    (Guruswamy thesis sec. 4.3.3): here to 1 % within 3 segment lengths, otherwise
+    slow poles that the short segment cannot pin down would ring on under the next features.
+    """
+    target = a[start:end] - rendered[start:end]
+    amp = float(np.max(np.abs(target)))
+    if amp == 0.0:
+        return None
+    fit = fit_iir(target / amp, orders, radius=0.01 ** (1.0 / (3.0 * (end - start))), criterion="bic")
+    ring = min(a.size - start, ring_length(fit.b, fit.a, RING_DECAY))
+    rendered[start:start + ring] += amp * impulse_response(fit.b, fit.a, ring)
+    return amp, fit
 
 
 def _mean_spacing(p: np.ndarray) -> float | None:
@@ -103,36 +158,27 @@ def _mean_spacing(p: np.ndarray) -> float | None:
     return float(np.mean(keep)) if keep.size else float(med)
 
 
-def register_fit(kinds: Any) -> None:
-    """Add ``flowtex fit pattern``."""
-    p = kinds.add_parser("pattern", help="patterned texture: features + Prony/IIR ring-downs (Guruswamy thesis ch. 4)",
-                         description="Fit a patterned texture to REC: one IIR filter per surface feature, at its position along the path.")
-    p.add_argument("recording", metavar="REC", help="recording (.npz/.csv/.h5)")
-    p.add_argument("--accel", required=True, metavar="A", help="signal name of the acceleration (m/s^2, 1 to 3 axes)")
-    p.add_argument("--position", required=True, metavar="P", help="signal name of the tool position (mm, 3 components)")
-    p.add_argument("--speed", metavar="S", help="signal name of the speed (mm/s); only reported (features are placed by position)")
-    p.add_argument("-o", "--output", required=True, metavar="PATTERN.json", help="pattern file to write (docs/pattern-format.md)")
-    p.add_argument("--rate", type=float, help="sample rate in Hz if the recording does not state one")
-    p.add_argument("--max-order", type=int, default=8, help="highest filter order N = M tried (default 8; from 2)")
-    p.set_defaults(func=cmd_fit_pattern)
-
-
-def cmd_fit_pattern(args: argparse.Namespace) -> int:
-    rec = load_recording(args.recording)
-    rate = recording_rate(rec, args.rate)
-    accel = signal(rec, args.accel, "--accel", (1, 2, 3))
-    position = signal(rec, args.position, "--position", (3,))
-    if args.max_order < 2:
-        raise DataError(f"--max-order must be at least 2, got {args.max_order}")
+def fit_pattern_recording(recording: str | Path, accel: str, position: str, from_rate: float | None = None,
+                          speed: str | None = None, max_order: int = 8) -> Pattern:
+    """Fit a :class:`Pattern` to one recording (signals named as the options; filter orders 2..``max_order``)."""
+    rec = load_recording(recording)
+    rate = recording_rate(rec, from_rate)
+    acc = signal(rec, accel, "--accel", (1, 2, 3))
+    pos = signal(rec, position, "--position", (3,))
+    if max_order < 2:
+        raise DataError(f"--max-order must be at least 2, got {max_order}")
     try:
-        pat = fit_pattern(accel, position, rate, orders=range(2, args.max_order + 1))
+        pat = fit_pattern(acc, pos, rate, orders=range(2, max_order + 1))
     except DataError as exc:
-        raise DataError(f"{args.recording}: {exc}") from None
-    pat.metadata["recording"] = str(args.recording)
-    if args.speed:
-        pat.metadata["mean_speed_mm_s"] = float(np.mean(np.abs(signal(rec, args.speed, "--speed", (1,)))))
-    write_pattern(args.output, pat)
+        raise DataError(f"{recording}: {exc}") from None
+    pat.metadata["recording"] = str(recording)
+    if speed:
+        pat.metadata["mean_speed_mm_s"] = float(np.mean(np.abs(signal(rec, speed, "--speed", (1,)))))
+    return pat
+
+
+def pattern_summary(pat: Pattern) -> str:
+    """One line: features, band, mean order, SAD and spacing."""
     m = pat.metadata
-    print(f"{args.output}: {m['segments']} features, band {m['band_hz'][0]:.0f}-{m['band_hz'][1]:.0f} Hz, "
-          f"mean order {m['mean_order']:.1f}, mean SAD {m['mean_sad']:.4g} m/s^2, spacing {m['mean_spacing_mm']:.4g} mm")
-    return 0
+    return (f"{m['segments']} features, band {m['band_hz'][0]:.0f}-{m['band_hz'][1]:.0f} Hz, "
+            f"mean order {m['mean_order']:.1f}, mean SAD {m['mean_sad']:.4g} m/s^2, spacing {m['mean_spacing_mm']:.4g} mm")

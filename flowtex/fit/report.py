@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..dsp.spectral import welch_psd
+from ..io.atomic import atomic_output, write_text_atomic
 from .texture import TextureFit
 
 PLOT_HINT = "plots need matplotlib: pip install 'flowtex[plot]'"
@@ -67,9 +68,7 @@ def write_report(fit: TextureFit, folder: Path) -> Path:
         _plot_plane(fit, folder / "plane.png", plt)
         md += ["## Each model's spectrum over its data's", "", "![spectra](spectra.png)", "",
                "## Models in the (speed, force) plane", "", "![plane](plane.png)", ""]
-    path = folder / "report.md"
-    path.write_text("\n".join(md) + "\n", encoding="utf-8")
-    return path
+    return write_text_atomic(folder / "report.md", "\n".join(md) + "\n")
 
 
 def _plot_spectra(fit: TextureFit, path: Path, plt) -> None:
@@ -90,7 +89,8 @@ def _plot_spectra(fit: TextureFit, path: Path, plt) -> None:
     fig.supxlabel("Hz")
     fig.supylabel("(m/s^2)^2/Hz")
     fig.tight_layout()
-    fig.savefig(path, dpi=80)
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp, dpi=80, format="png")
     plt.close(fig)
 
 
@@ -108,5 +108,6 @@ def _plot_plane(fit: TextureFit, path: Path, plt) -> None:
     ax.set_ylabel("force (N)")
     ax.legend(fontsize=7, loc="upper left")
     fig.tight_layout()
-    fig.savefig(path, dpi=80)
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp, dpi=80, format="png")
     plt.close(fig)

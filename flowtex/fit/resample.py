@@ -44,6 +44,12 @@ MAX_LSD_DB = 0.5
 MAX_POWER_ABOVE = 0.02
 """An upsampled model may put at most this fraction of its power above the old Nyquist (issue 11)."""
 
+MAX_RATE_RATIO = 16.0
+"""Largest change of a model set's rate (up or down): upsampling by M multiplies every model's order by about M / 2."""
+
+MAX_EXTRA_ORDER = 20
+"""Largest ``extra_order``: more poles and zeros than this only slow the fit down."""
+
 EXTRA_ORDERS = (0, 2, 4, 6)
 """Order increases tried, in turn, when upsampling leaves some model off (the first that keeps every model wins)."""
 
@@ -107,7 +113,7 @@ def _resample_models(ms: TextureModelSet, rate_to: float, keep_order: bool, extr
 
 
 def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[int, int], None] | None = None,
-                       keep_order: bool = False, extra_order: int | None = None) -> TextureModelSet:
+                       keep_order: bool = False, extra_order: int | None = None, option: str = "--rate") -> TextureModelSet:
     """A copy of ``ms`` whose models run at ``rate_hz`` (Hz) with the same physical PSDs below min Nyquist.
 
     Upsampling by more than 2x raises every model's order alike
@@ -120,13 +126,17 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
     ``metadata["resample"]`` records the source rate, the orders, the method
     and the worst LSD (dB), band-power error and power above the old Nyquist
     of the models as rendered, i.e. rebuilt from the stored LSFs (see :func:`resample_quality`).
-    ``progress(done, total)`` is called after each model (of each attempt).
+    ``progress(done, total)`` is called after each model (of each attempt). ``option`` names the rate in errors.
+    The rate may change by at most :data:`MAX_RATE_RATIO` either way.
     """
     if not (isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0):
-        raise FlowtexError(f"--rate must be a positive number of Hz, got {rate_hz!r}")
-    if extra_order is not None and (extra_order < 0 or extra_order % 2):
-        raise FlowtexError(f"--extra-order must be an even number >= 0, got {extra_order}")
+        raise FlowtexError(f"{option} must be a positive number of Hz, got {rate_hz!r}")
+    if extra_order is not None and (extra_order < 0 or extra_order % 2 or extra_order > MAX_EXTRA_ORDER):
+        raise FlowtexError(f"--extra-order must be an even number from 0 to {MAX_EXTRA_ORDER}, got {extra_order}")
     rate_from = float(ms.sample_rate)
+    if not rate_from / MAX_RATE_RATIO <= rate_hz <= rate_from * MAX_RATE_RATIO:
+        raise FlowtexError(f"{option} {rate_hz:g}: valid range for this {rate_from:g} Hz model set is {rate_from / MAX_RATE_RATIO:g} "
+                           f"to {rate_from * MAX_RATE_RATIO:g} Hz (at most {MAX_RATE_RATIO:g}x up or down)")
     rate_to = float(rate_hz)
     upsampling = rate_to > rate_from
     tries = (0,) if not upsampling or keep_order else EXTRA_ORDERS if extra_order is None else (extra_order,)
@@ -160,6 +170,26 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
                               speeds=np.array(ms.speeds, dtype=np.float64), forces=np.array(ms.forces, dtype=np.float64),
                               triangles=np.array(ms.triangles, dtype=np.int64))
     return out.validate()
+
+
+def resample_summary(source: str, ms: TextureModelSet, out: TextureModelSet, target: str, keep_order: bool) -> tuple[str, str | None]:
+    """(one-line summary, warning or None) of ``out`` = ``ms`` resampled, as ``flowtex models resample`` prints them."""
+    info = out.metadata["resample"]
+    (p0, q0), (p, q) = info["from_order"], info["to_order"]
+    orders = f"orders {p0}/{q0}" + (f" -> {p}/{q}" if (p, q) != (p0, q0) else "")
+    if info["extra_order"]:
+        orders += f" ({info['extra_order']} more poles and zeros)"
+    line = (f"{source}: {ms.num_models} models {info['from_hz']:g} Hz -> {info['to_hz']:g} Hz, {orders}, written to {target}; "
+            f"worst LSD {info['worst_lsd_db']:.2f} dB, worst band-power error {100 * info['worst_band_power_error']:.2f} % "
+            f"(up to 0.9 x the lower Nyquist)"
+            + (f", worst power above the old Nyquist {100 * info['worst_power_above_old_nyquist']:.2f} %"
+               if info["to_hz"] > info["from_hz"] else ""))
+    warning = None
+    if info["worst_lsd_db"] > MAX_LSD_DB or info.get("worst_power_above_old_nyquist", 0.0) > MAX_POWER_ABOVE:
+        warning = ("warning: some models do not keep their spectrum (LSD <= 0.5 dB, <= 2 % of the power above the old Nyquist)"
+                   + (" (--keep-order: upsampling by more than 2x needs the higher order; see docs/fitting.md)" if keep_order else
+                      " (see docs/fitting.md)"))
+    return line, warning
 
 
 def tqdm_progress(total: int, desc: str) -> tuple[Callable[[int, int], None] | None, Callable[[], None]]:

@@ -1,10 +1,14 @@
 """``flowtex fit taps``: a tap library (tap_player's format) from a recording of taps (Culbertson & Kuchenbecker 2017 sec. 3.3.2).
 
 1. Contact onsets from the normal force with hysteresis: contact starts when
-   the force reaches ``on`` (0.1 N, the contact node's threshold) after having
-   been below ``off`` (0.05 N); the onset is then moved back to where the
+   the force reaches ``on`` (0.1 N, the contact node's threshold) after a
+   stretch of at least ``quiet_s`` (50 ms, ``--quiet``) without contact (force
+   below ``off``, 0.05 N); the onset is then moved back to where the
    force left its out-of-contact floor (median + 4 robust sd of the samples
    below ``off``), so the cut starts with the impact, not a few ms into it.
+   A recording that starts in contact therefore has no tap at its start (the
+   tool was not seen arriving), and a bounce that leaves the surface for less
+   than ``quiet_s`` is part of its tap, not a new one.
 2. Each tap's acceleration (1-D, or 3 axes reduced by DFT321; zero-phase
    10 Hz high-pass as for textures) is cut for ``length`` (100 ms, Culbertson & Kuchenbecker 2017) from
    its onset.
@@ -22,10 +26,8 @@ tap and averaged over the library played at 50, 60, ..., 100 mm/s
 
 from __future__ import annotations
 
-import argparse
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -33,7 +35,7 @@ from ..dsp.robust import robust_scale
 from ..errors import DataError
 from ..io.taplib import write_tap_library
 from ..models.taps import TapLibrary, spectral_centroid
-from .inputs import atomic_output, check_not_constant, load, signal
+from .inputs import atomic_output, check_highpass, check_not_constant, load, signal
 
 
 @dataclass(frozen=True)
@@ -46,23 +48,36 @@ class Tap:
     centroid_hz: float
 
 
-def contact_onsets(force: np.ndarray, on: float = 0.1, off: float = 0.05) -> np.ndarray:
-    """Sample indices of contact onsets (hysteresis ``on``/``off`` in N, moved back to the force's floor)."""
+DEFAULT_QUIET_S = 0.05
+"""Seconds without contact (force below ``off``) before an onset counts as a tap."""
+
+
+def contact_onsets(force: np.ndarray, on: float = 0.1, off: float = 0.05, quiet: int = 50) -> np.ndarray:
+    """Sample indices of contact onsets (hysteresis ``on``/``off`` in N, moved back to the force's floor).
+
+    An onset counts only after at least ``quiet`` consecutive samples below
+    ``off`` (so never at the start of a recording that starts in contact).
+    """
     force = np.asarray(force, float)
     below = force < off
     floor = float(np.median(force[below])) + 4.0 * robust_scale(force[below]) if np.any(below) else off
     floor = min(floor, off)
     onsets = []
-    inside = False
-    for t in np.flatnonzero((force >= on) | below):
-        if not inside and force[t] >= on:
-            inside = True
+    armed = False  # a stretch of `quiet` samples without contact has been seen since the last onset
+    run = 0
+    quiet = max(1, int(quiet))
+    for t in range(force.shape[0]):
+        if below[t]:
+            run += 1
+            armed = armed or run >= quiet
+            continue
+        run = 0
+        if armed and force[t] >= on:
+            armed = False
             k = t
             while k > 0 and force[k - 1] > floor:
                 k -= 1
             onsets.append(k)
-        elif inside and below[t]:
-            inside = False
     return np.array(onsets, dtype=np.int64)
 
 
@@ -86,14 +101,14 @@ def centroid(x: np.ndarray, rate: float) -> float:
 
 def fit_taps(accel: np.ndarray, force: np.ndarray, rate: float, position: np.ndarray | None = None, normal: np.ndarray | None = None,
              speed: np.ndarray | None = None, length_s: float = 0.1, approach_s: float = 0.01, on: float = 0.1, off: float = 0.05,
-             where: str = "recording") -> tuple[list[Tap], list[str]]:
+             where: str = "recording", quiet_s: float = DEFAULT_QUIET_S) -> tuple[list[Tap], list[str]]:
     """Detected taps (sorted by onset) and notes on dropped ones; see the module docstring."""
     length = int(round(length_s * rate))
     window = max(1, int(round(approach_s * rate)))
-    onsets = contact_onsets(force, on, off)
+    onsets = contact_onsets(force, on, off, int(round(quiet_s * rate)))
     if onsets.size == 0:
-        raise DataError(f"{where}: no contact anywhere (the force never reaches {on:g} N after being below {off:g} N); "
-                        "check --force names the normal force in N")
+        raise DataError(f"{where}: no tap: the force never reaches {on:g} N after {1000 * quiet_s:g} ms below {off:g} N "
+                        "(a recording that starts in contact has no tap at its start); check --force names the normal force in N")
     n = accel.shape[0]
     if position is not None and normal is None:
         normal = np.tile([0.0, 0.0, 1.0], (n, 1))
@@ -125,57 +140,56 @@ def library_from_taps(taps: list[Tap], rate: float, name: str) -> TapLibrary:
     return TapLibrary(uniq, tr, rate, name)
 
 
-def run(args: argparse.Namespace) -> int:
+def fit_tap_recording(recording: str | Path, accel: str, force: str, from_rate: float | None = None,
+                      position: str | None = None, normal: str | None = None, speed: str | None = None,
+                      length_s: float = 0.1, highpass_hz: float = 10.0,
+                      name: str | None = None, quiet_s: float = DEFAULT_QUIET_S) -> tuple[TapLibrary, list[Tap], list[str], float]:
+    """(library, taps, notes on dropped taps, rate in Hz) from one recording of taps; signals are named as the options.
+
+    ``length_s`` (s) is cut after each onset; ``highpass_hz`` (0: none) is a zero-phase high-pass of the acceleration;
+    an onset counts only after ``quiet_s`` seconds without contact.
+    """
     from scipy.signal import sosfiltfilt
 
     from ..dsp.filter_design import butterworth_sos
 
-    rec, rate = load(args.recording, args.rate)
-    acc = signal(rec, args.accel, "--accel", (1, 3))
+    rec, rate = load(recording, from_rate)
+    if not (np.isfinite(length_s) and 0.0 < length_s):
+        raise DataError(f"--length {length_s:g}: valid range is more than 0 s (Culbertson & Kuchenbecker 2017: 0.1 s)")
+    check_highpass(highpass_hz, rate)
+    acc = signal(rec, accel, "--accel", (1, 3))
     if acc.ndim == 2:
         from ..dsp.dft321 import dft321
 
         acc = dft321(acc)
-    check_not_constant(acc, f"{args.recording}: signal {args.accel!r} (--accel)")
-    force = signal(rec, args.force, "--force")
-    position = normal = speed = None
-    if args.position is not None:
-        position = signal(rec, args.position, "--position", (3,))
-        normal = signal(rec, args.normal, "--normal", (3,)) if args.normal else None
-    elif args.speed is not None:
-        speed = signal(rec, args.speed, "--speed")
+    check_not_constant(acc, f"{recording}: signal {accel!r} (--accel)")
+    f = signal(rec, force, "--force")
+    pos = nrm = spd = None
+    if position is not None:
+        pos = signal(rec, position, "--position", (3,))
+        nrm = signal(rec, normal, "--normal", (3,)) if normal else None
+    elif speed is not None:
+        spd = signal(rec, speed, "--speed")
     else:
-        raise DataError(f"{args.recording}: give --position P (mm, 3 axes) or --speed S (approach speed, mm/s) to label taps")
-    if args.highpass > 0:
-        acc = sosfiltfilt(butterworth_sos("highpass", 4, [args.highpass], rate), acc)
-    taps, notes = fit_taps(acc, force, rate, position, normal, speed, args.length, where=str(args.recording))
-    lib = library_from_taps(taps, rate, args.name or Path(args.recording).stem)
-    print(f"{'tap':>4} {'time s':>8} {'speed mm/s':>10} {'peak m/s^2':>10} {'centroid Hz':>11}")
+        raise DataError(f"{recording}: give --position P (mm, 3 axes) or --speed S (approach speed, mm/s) to label taps")
+    if highpass_hz > 0:
+        acc = sosfiltfilt(butterworth_sos("highpass", 4, [highpass_hz], rate), acc)
+    taps, notes = fit_taps(acc, f, rate, pos, nrm, spd, length_s, where=str(recording), quiet_s=quiet_s)
+    return library_from_taps(taps, rate, name or Path(recording).stem), taps, notes, rate
+
+
+def write_taps(path: str | Path, lib: TapLibrary, recording: str | Path) -> None:
+    """Write the tap library atomically (docs/tap-library.md)."""
+    with atomic_output(path) as tmp:
+        write_tap_library(tmp, lib, notes=f"fitted by flowtex fit taps from {recording}")
+
+
+def tap_table(taps: list[Tap], notes: list[str], lib: TapLibrary, rate: float) -> list[str]:
+    """The lines ``flowtex fit taps`` prints: one per tap, the notes, the library's spectral centroid."""
+    lines = [f"{'tap':>4} {'time s':>8} {'speed mm/s':>10} {'peak m/s^2':>10} {'centroid Hz':>11}"]
     for k, t in enumerate(taps):
-        print(f"{k:4d} {t.onset / rate:8.3f} {t.speed:10.1f} {float(np.max(np.abs(t.transient))):10.3f} {t.centroid_hz:11.1f}")
-    for note in notes:
-        print(note)
+        lines.append(f"{k:4d} {t.onset / rate:8.3f} {t.speed:10.1f} {float(np.max(np.abs(t.transient))):10.3f} {t.centroid_hz:11.1f}")
+    lines += notes
     sc = spectral_centroid(lib)
-    print(f"{len(taps)} taps; spectral centroid over 50-100 mm/s (Culbertson & Kuchenbecker 2017 eq. 4): {sc:.1f} Hz")
-    with atomic_output(args.output) as tmp:
-        write_tap_library(tmp, lib, notes=f"fitted by flowtex fit taps from {args.recording}")
-    print(f"-> {args.output}")
-    return 0
-
-
-def register_fit(kinds: Any) -> None:
-    """Add ``flowtex fit taps``."""
-    p = kinds.add_parser("taps", help="tap library (100 ms transients by incoming speed) from a recording of taps",
-                         description="Detect contact onsets, cut 100 ms after each, label by incoming speed (Culbertson & Kuchenbecker 2017).")
-    p.add_argument("recording", type=Path)
-    p.add_argument("--accel", required=True, metavar="A", help="acceleration (m/s^2): 1-D or 3 axes (DFT321)")
-    p.add_argument("--force", required=True, metavar="F", help="normal force (N)")
-    p.add_argument("--position", metavar="P", help="tool position (mm, 3 axes): incoming speed from it")
-    p.add_argument("--normal", metavar="N", help="surface normal signal for --position (default +z)")
-    p.add_argument("--speed", metavar="S", help="approach speed signal (mm/s), instead of --position")
-    p.add_argument("--rate", type=float, help="sample rate (Hz) when the file states none")
-    p.add_argument("--length", type=float, default=0.1, help="seconds cut after each onset (Culbertson & Kuchenbecker 2017: 0.1)")
-    p.add_argument("--highpass", type=float, default=10.0, metavar="HZ", help="zero-phase high-pass of the acceleration (0: none)")
-    p.add_argument("--name", help="library name (default: the file's stem)")
-    p.add_argument("-o", "--output", required=True, type=Path, help="tap library JSON (docs/tap-library.md)")
-    p.set_defaults(func=run)
+    lines.append(f"{len(taps)} taps; spectral centroid over 50-100 mm/s (Culbertson & Kuchenbecker 2017 eq. 4): {sc:.1f} Hz")
+    return lines

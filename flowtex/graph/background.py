@@ -38,14 +38,15 @@ def enabled() -> bool:
 
 
 def compile_in_background(path: str | Path, overrides: Mapping[str, Any], plugins: tuple[str | Path, ...],
-                          block_rows: int) -> subprocess.Popen | None:
+                          block_rows: int, auto_plugins: bool = True) -> subprocess.Popen | None:
     """Start the background compile of the fused tier of the graph file ``path`` (None when turned off)."""
     if not enabled():
         return None
     try:
         text = Path(path).read_text(encoding="utf-8")  # now: the file may be gone (or edited again) when the compile starts
         request = json.dumps({"path": str(Path(path).resolve()), "text": text, "overrides": dict(overrides),
-                              "plugins": [str(Path(p).resolve()) for p in plugins], "block_rows": block_rows})
+                              "plugins": [str(Path(p).resolve()) for p in plugins], "block_rows": block_rows,
+                              "auto_plugins": auto_plugins})
     except (TypeError, OSError, UnicodeDecodeError):
         return None  # an override that is not JSON (a Python object), or an unreadable file: nothing to hand over
     return subprocess.Popen([sys.executable, "-m", MODULE, request], stdin=subprocess.DEVNULL,
@@ -76,14 +77,14 @@ def main(request: str) -> int:
     folder = cache_dir()
     folder.mkdir(parents=True, exist_ok=True)
     take_over(folder / "background.pid")
-    from ..registry import load_registry
-    from .compiled import Graph, _with_graph_plugins
+    from .compiled import Graph, graph_registry
     from .resolve import resolve_graph
     from .spec import parse_spec
 
     path = Path(args["path"])  # the text as it was; relative paths in it resolve against its folder, as in the run
     spec = parse_spec(args["text"], path, args["overrides"])
-    Graph(resolve_graph(spec, load_registry(_with_graph_plugins(path, tuple(args["plugins"])))), args["block_rows"], "fused")
+    registry = graph_registry(path, tuple(args["plugins"]), args["auto_plugins"])
+    Graph(resolve_graph(spec, registry), args["block_rows"], "fused")
     return 0
 
 

@@ -18,7 +18,7 @@ from ..dsp.nonfinite import NONFINITE_POLICIES, fill_nonfinite, find_nonfinite
 from ..errors import DataError, FlowtexError
 from ..node_api import PortSpec, suggest
 from ..nodecheck import check_kernel_compiles
-from ..registry import load_registry
+from ..registry import Registry, load_registry
 from .arena import OUT_WIDTH, TICK, Layout, plan_layout
 from .notice import compile_notice
 from .resolve import ResolvedGraph, resolve_graph
@@ -357,7 +357,7 @@ def apply_nonfinite_policy(arrays: dict[str, np.ndarray], policy: str, source: s
 
 
 def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
-               plugins: tuple[str | Path, ...] = (), block_rows: int = DEFAULT_BLOCK_ROWS,
+               plugins: tuple[str | Path, ...] = (), block_rows: int = DEFAULT_BLOCK_ROWS, auto_plugins: bool = True,
                tier: str | None = None) -> Graph:
     """Read, check and compile the graph file at ``path``.
 
@@ -367,27 +367,30 @@ def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
 
     ``overrides`` maps ``"node.param"`` to a value (as ``--set`` does);
     ``plugins`` adds plugin folders to ``./plugins``, ``$FLOWTEX_PLUGINS`` and
-    the graph file's own ``plugins/`` folder.
+    the graph file's own ``plugins/`` folder (``auto_plugins=False``: neither
+    ``./plugins`` nor the graph's folder, as ``--no-plugins``).
     Raises :class:`flowtex.errors.GraphError` listing every problem.
     """
     spec = load_spec(path, dict(overrides or {}))
-    resolved = resolve_graph(spec, load_registry(_with_graph_plugins(path, plugins)))
+    resolved = resolve_graph(spec, graph_registry(path, plugins, auto_plugins))
     graph = Graph(resolved, block_rows, tier)
     if graph.requested_tier == "auto" and graph.tier == "dispatch":
         from .background import compile_in_background
 
-        compile_in_background(path, dict(overrides or {}), plugins, block_rows)
+        compile_in_background(path, dict(overrides or {}), plugins, block_rows, auto_plugins)
     return graph
 
 
 def check_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
-                plugins: tuple[str | Path, ...] = ()) -> ResolvedGraph:
+                plugins: tuple[str | Path, ...] = (), auto_plugins: bool = True) -> ResolvedGraph:
     """Validate without compiling (what ``flowtex validate`` does)."""
     spec = load_spec(path, dict(overrides or {}))
-    return resolve_graph(spec, load_registry(_with_graph_plugins(path, plugins)))
+    return resolve_graph(spec, graph_registry(path, plugins, auto_plugins))
 
 
-def _with_graph_plugins(path: str | Path, plugins: tuple[str | Path, ...]) -> tuple[str | Path, ...]:
-    """``plugins`` plus the graph file's own ``plugins/`` folder, if it has one (found wherever flowtex runs from)."""
+def graph_registry(path: str | Path, plugins: tuple[str | Path, ...] = (), auto_plugins: bool = True) -> Registry:
+    """The node registry a graph file is resolved with: ``plugins`` plus, with ``auto_plugins``, ./plugins and the
+    graph file's own ``plugins/`` folder (found wherever flowtex runs from). ``.plugin_files`` lists the code it ran."""
     own = Path(path).parent / "plugins"
-    return (*plugins, own) if own.is_dir() else tuple(plugins)
+    folders = (*plugins, own) if auto_plugins and own.is_dir() else tuple(plugins)
+    return load_registry(folders, auto=auto_plugins)

@@ -1,27 +1,129 @@
-"""Write a JSON document atomically: a temporary file renamed into place, so a failure never leaves a partial file."""
+"""The one writer: every file flowtex writes goes through :func:`atomic_output`.
+
+Rules (the same in every verb; documented in docs/cli.md, "Output files"):
+
+- **Atomic.** The data go to a temporary file in the target folder, which is flushed, fsynced and renamed over the
+  target. A failure, an exception or Ctrl-C leaves the old file intact and no partial file behind.
+- **Permissions** come from the umask, like any other program (``0666 & ~umask``); ``keep_mode=True`` (``--into``
+  updates of an existing file) keeps the mode the file had.
+- **Inputs are never overwritten.** :func:`check_output` refuses, before any work starts, an output that is the same
+  file as any input of the command (``os.path.samefile``, so links and ``./x`` spellings are caught too).
+- **Missing folders** are created (like ``mkdir -p``) by :func:`check_output`, before any work starts, when the
+  nearest existing ancestor is a writable folder; otherwise the command stops at once naming the folder.
+"""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import tempfile
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
+from ..errors import FlowtexError
 
-def write_json_atomic(path: str | Path, doc: dict[str, Any]) -> Path:
-    """Write ``doc`` as indented JSON through a temporary file renamed into place (no partial file on failure)."""
-    path = Path(path).expanduser()
-    text = json.dumps(doc, indent=1, allow_nan=False) + "\n"
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent if str(path.parent) else ".")
+
+class OutputError(FlowtexError):
+    """An output path that cannot be written (same file as an input, folder not writable, ...)."""
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _same_file(a: Path, b: Path) -> bool:
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the file the permissions open() would
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def check_output(path: str | Path | None, *, inputs: Iterable[str | Path | None] = (), option: str = "-o",
+                 create_folders: bool = True) -> Path | None:
+    """Check an output path before any work starts; return it (expanded), or None when ``path`` is None.
+
+    Refuses (one line naming ``option`` and the file) an output that is the same file as one of ``inputs``, an
+    existing folder given as a file, and a folder that does not exist and cannot be created or is not writable.
+    Missing folders are created here, before the work, so no verb fails after its work is done.
+    """
+    if path is None:
+        return None
+    out = Path(path).expanduser()
+    for item in inputs:
+        if item is not None and _same_file(out, Path(item).expanduser()):
+            raise OutputError(f"{option} {path}: that is an input of this command ({item}); "
+                              "flowtex never overwrites an input: choose another output file")
+    if out.is_dir():
+        raise OutputError(f"{option} {path}: is a folder; give a file name inside it")
+    folder = out.parent if str(out.parent) else Path(".")
+    if not folder.exists():
+        if not create_folders:
+            raise OutputError(f"{option} {path}: folder {folder} does not exist; create it first")
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(f"{option} {path}: cannot create folder {folder} ({exc.strerror}); "
+                              "create it or choose another output") from None
+    if not folder.is_dir():
+        raise OutputError(f"{option} {path}: {folder} is not a folder")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise OutputError(f"{option} {path}: folder {folder} is not writable; choose another output folder")
+    if out.exists() and not os.access(out, os.W_OK) and not os.access(folder, os.W_OK):
+        raise OutputError(f"{option} {path}: file is read-only")
+    return out
+
+
+@contextlib.contextmanager
+def atomic_output(path: str | Path, *, keep_mode: bool = False) -> Iterator[Path]:
+    """Yield a temporary path beside ``path`` (same suffix); on success it is fsynced and renamed to ``path``.
+
+    On any exception, ``KeyboardInterrupt`` included, the temporary file is removed and ``path`` is untouched.
+    The temporary name keeps ``path``'s suffix so writers that append one (``numpy.savez``) write where expected.
+    """
+    path = Path(path).expanduser()
+    folder = path.parent if str(path.parent) else Path(".")
+    mode = None
+    if keep_mode and path.exists():
+        mode = path.stat().st_mode & 0o7777
+    try:
+        fd, tmp_name = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".part" + path.suffix)
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot write in {folder} ({exc.strerror}); choose another output folder") from None
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        yield tmp
+        os.chmod(tmp, mode if mode is not None else 0o666 & ~_umask())
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
         os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+        with contextlib.suppress(OSError):
+            dir_fd = os.open(folder, os.O_RDONLY)
+            try:
+                os.fsync(dir_fd)
+            finally:
+                os.close(dir_fd)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def write_bytes_atomic(path: str | Path, data: bytes, *, keep_mode: bool = False) -> Path:
+    """Write ``data`` to ``path`` through :func:`atomic_output`."""
+    with atomic_output(path, keep_mode=keep_mode) as tmp:
+        tmp.write_bytes(data)
+    return Path(path).expanduser()
+
+
+def write_text_atomic(path: str | Path, text: str, *, keep_mode: bool = False) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` through :func:`atomic_output`."""
+    return write_bytes_atomic(path, text.encode("utf-8"), keep_mode=keep_mode)
+
+
+def write_json_atomic(path: str | Path, doc: dict[str, Any], *, keep_mode: bool = False) -> Path:
+    """Write ``doc`` as indented JSON (no NaN/inf) to ``path`` through :func:`atomic_output`."""
+    text = json.dumps(doc, indent=1, allow_nan=False) + "\n"
+    return write_text_atomic(path, text, keep_mode=keep_mode)

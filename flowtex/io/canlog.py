@@ -8,13 +8,17 @@ keep the direction, so :func:`read_session` gives it back unchanged.
 
 from __future__ import annotations
 
+import io
 import time
 from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import can
+from can.io.blf import FILE_HEADER_SIZE, FILE_HEADER_STRUCT
 
 from ..errors import DataError
+from .atomic import atomic_output
 
 WRITE_SUFFIXES = (".blf", ".log", ".asc")
 READ_SUFFIXES = (".blf", ".log", ".asc")
@@ -34,6 +38,9 @@ def check_log_path(path: str | Path, for_writing: bool) -> Path:
 class SessionWriter:
     """Append frames to a CAN log; marks direction (``is_rx``) in every format.
 
+    The frames go to a temporary file in the log's folder, renamed over ``path`` by :meth:`close`
+    (:func:`~flowtex.io.atomic.atomic_output`): an existing log is replaced only by a complete one.
+
     BLF files are written with zlib level 1 to keep the periodic compression
     of a 128 KiB container short (it runs inside the live loop's slack time).
     """
@@ -41,12 +48,15 @@ class SessionWriter:
     def __init__(self, path: str | Path):
         self.path = check_log_path(path, for_writing=True)
         suffix = self.path.suffix.lower()
+        self._commit = atomic_output(self.path)
+        tmp = self._commit.__enter__()  # a temporary file beside the log, renamed over it by close()
         try:
             if suffix == ".blf":
-                self._writer = can.BLFWriter(self.path, compression_level=1)
+                self._writer = can.BLFWriter(tmp, compression_level=1)
             else:
-                self._writer = can.Logger(self.path)
+                self._writer = can.Logger(tmp)
         except OSError as exc:
+            self._commit.__exit__(type(exc), exc, exc.__traceback__)
             raise DataError(f"{self.path}: cannot write CAN log: {exc.strerror or exc}") from None
         self._blf = suffix == ".blf"
         self.frames = 0
@@ -69,10 +79,11 @@ class SessionWriter:
             self.write(m, False)
 
     def close(self) -> None:
-        """Flush and close the file (idempotent)."""
+        """Flush and close the log, then rename it into place (idempotent; the old file stays until then)."""
         if self._writer is not None:
-            self._writer.stop()
-            self._writer = None
+            writer, self._writer = self._writer, None
+            writer.stop()
+            self._commit.__exit__(None, None, None)
 
 
 def read_session(path: str | Path) -> Iterator[can.Message]:
@@ -94,3 +105,57 @@ def read_session(path: str | Path) -> Iterator[can.Message]:
         stop = getattr(reader, "stop", None)
         if stop is not None:
             stop()
+
+
+@dataclass(frozen=True)
+class LogCompleteness:
+    """What a session log's own framing says about whether it holds the whole session."""
+
+    found_frames: int
+    expected_frames: int | None = None
+    """Frames the BLF header counts (None: a text log, or a BLF whose header was never written)."""
+    problem: str | None = None
+    """None when the log is complete as far as its format can tell; else why it is not (one phrase)."""
+
+
+def read_session_checked(path: str | Path) -> tuple[list[can.Message], LogCompleteness]:
+    """Every frame of a session log (:func:`read_session`) and whether the file was cut short.
+
+    python-can reads a truncated BLF silently up to the cut (zlib returns what it can), so the file's
+    header is compared with what was read: the header's file size and frame count (written when the
+    log is closed) against the file's size and the frames found. A header never written (size
+    144 bytes, no frames, a longer file) means the writer was killed. A text log (.log, .asc) is cut
+    when its last line has no newline.
+    """
+    path = Path(path)
+    if path.suffix.lower() != ".blf":
+        return _read_text_log(path)
+    frames = list(read_session(path))
+    found, size = len(frames), path.stat().st_size
+    with open(path, "rb") as fh:
+        header = FILE_HEADER_STRUCT.unpack(fh.read(FILE_HEADER_STRUCT.size))
+    stated_size, count = int(header[10]), int(header[12])
+    if stated_size == FILE_HEADER_SIZE and count == 0 and size > FILE_HEADER_SIZE:
+        return frames, LogCompleteness(found, None, "its header was never written (was the recording session killed?)")
+    if size < stated_size or found < count:
+        return frames, LogCompleteness(found, count, f"{size} of the {stated_size} bytes and {found} of the {count} frames its "
+                                                     "header states are in the file")
+    return frames, LogCompleteness(found, count)
+
+
+def _read_text_log(path: Path) -> tuple[list[can.Message], LogCompleteness]:
+    """A .log/.asc session; when its last line has no newline (cut off), the frames of the lines before it."""
+    check_log_path(path, for_writing=False)
+    if not path.is_file():
+        raise DataError(f"{path}: CAN log not found")
+    data = path.read_bytes()
+    if not data or data.endswith(b"\n"):
+        frames = list(read_session(path))
+        return frames, LogCompleteness(len(frames))
+    whole = data[:data.rfind(b"\n") + 1].decode("utf-8", errors="replace")
+    reader_cls = can.ASCReader if path.suffix.lower() == ".asc" else can.CanutilsLogReader
+    try:
+        frames = list(reader_cls(io.StringIO(whole)))
+    except Exception as exc:
+        raise DataError(f"{path}: malformed CAN log: {exc}") from None
+    return frames, LogCompleteness(len(frames), None, "its last line is cut off")

@@ -15,7 +15,7 @@ The format is documented in docs/live.md. In short::
         signal: VoiceCoilCmd.Current
         scale: 1.0               # DBC physical value = graph value * scale + offset
         clamp: [-1.5, 1.5]       # required, in graph units
-        safe: 0.0                # optional (default 0), in graph units, inside clamp
+        safe: 0.0                # optional (default 0), in graph units, inside clamp; the DBC must carry it
         peak: {limit: 2.0, max_ms: 20}   # optional: |value| up to limit for max_ms
 
 :func:`load_map` checks the file against the DBC and (when given) the graph's
@@ -36,6 +36,7 @@ from cantools.database.can import Database
 from ..errors import DataError, Diagnostic, GraphError, Location
 from ..yamlsource import LocDict, LocList, load_yaml
 from .dbc import find_signal, suggest
+from .dbcrange import check_value, sendable_range
 
 TOP_KEYS = ("flowtex_map", "description", "overrun_limit_ms", "inputs", "outputs")
 INPUT_KEYS = ("signal", "signals", "scale", "offset", "timeout_ms", "doc")
@@ -164,9 +165,22 @@ def load_map(path: str | Path, db: Database, dbc_path: str | Path = "DBC",
         if both:
             p.add((b.loc.line, b.loc.column), f"output {b.name!r} writes message {both[0]!r}, which inputs also read; "
                   "a message is either sensor or actuator")
+    _one_message_per_id(p, db, [*inputs.values(), *outputs.values()])
     if p.items:
         raise GraphError(p.items)
     return CanMap(path, inputs, outputs, float(overrun))
+
+
+def _one_message_per_id(p: _Problems, db: Database, bindings: list[Binding]) -> None:
+    """Two bound messages with one ID number are refused: the runtime, the simulated device and cantools look
+    received frames up by ID number, so a standard and an extended frame with one number would be confused."""
+    owner: dict[int, str] = {}
+    for b in bindings:
+        for m in dict.fromkeys(m for m, _ in b.signals):
+            fid = int(db.get_message_by_name(m).frame_id)
+            if owner.setdefault(fid, m) != m:
+                p.add((b.loc.line, b.loc.column), f"{b.name!r} binds message {m!r}, whose CAN ID {fid:#x} is also that of message "
+                      f"{owner[fid]!r} bound in this map; give the two messages different IDs in the DBC")
 
 
 def _per_component(p: _Problems, entry: LocDict, key: str, width: int, default: float, what: str) -> np.ndarray | None:
@@ -239,10 +253,37 @@ def _binding(p: _Problems, db: Database, dbc_path: str | Path, section: str, nam
             p.add(entry.value_pos["timeout_ms"], f"{what}: timeout_ms must be a positive number of milliseconds, got {t!r}")
             return None
         return InputBinding(name, width, signals, scale, offset, loc, timeout_ms=float(t))
-    return _output(p, entry, name, width, signals, scale, offset, loc, what)
+    safe = _per_component(p, entry, "safe", width, 0.0, what)
+    if safe is None or not _safe_sendable(p, db, entry, signals, safe, scale, offset, what):
+        return None
+    return _output(p, entry, name, width, signals, scale, offset, safe, loc, what)
 
 
-def _output(p: _Problems, entry: LocDict, name: str, width: int, signals, scale, offset, loc: Location, what: str) -> OutputBinding | None:
+def _safe_sendable(p: _Problems, db: Database, entry: LocDict, signals: list[tuple[str, str]], safe: np.ndarray,
+                   scale: np.ndarray, offset: np.ndarray, what: str) -> bool:
+    """Every safe value must arrive as itself within one LSB under the DBC (checked before the clamps): else the
+    encoder's DBC clamp or saturation would send another value on every safe frame and at exit."""
+    for j, (m, s) in enumerate(signals):
+        msg = db.get_message_by_name(m)
+        sig = msg.get_signal_by_name(s)
+        physical = float(safe[j] * scale[j] + offset[j])
+        got = check_value(msg, sig, physical)
+        if got is None:
+            continue
+        lo, hi = sendable_range(sig)
+        unit = f" {sig.unit}" if sig.unit else ""
+        via = "" if (scale[j], offset[j]) == (1.0, 0.0) else f" (DBC value {physical:g}{unit} after the map's scale and offset)"
+        glo, ghi = sorted(((lo - offset[j]) / scale[j], (hi - offset[j]) / scale[j]))
+        graph = "" if not via else f", i.e. [{glo:g}, {ghi:g}] in graph units"
+        p.add(entry.value_pos.get("safe", entry.value_pos.get("signal", entry.value_pos.get("signals"))),
+              f"{what}: safe value {safe[j]:g}{via} cannot be sent in {m}.{s}: it would arrive as {got:g}{unit}; "
+              f"the DBC range of {m}.{s} is [{lo:g}, {hi:g}]{unit}{graph}; choose a safe value inside it or fix the DBC")
+        return False
+    return True
+
+
+def _output(p: _Problems, entry: LocDict, name: str, width: int, signals, scale, offset, safe: np.ndarray, loc: Location,
+            what: str) -> OutputBinding | None:
     clamp = entry.get("clamp")
     cpos = entry.value_pos.get("clamp")
     if clamp is None:
@@ -259,9 +300,6 @@ def _output(p: _Problems, entry: LocDict, name: str, width: int, signals, scale,
         return None
     if np.any(lo > hi):
         p.add(cpos, f"{what}: clamp LOW must not exceed HIGH, got {clamp!r}")
-        return None
-    safe = _per_component(p, entry, "safe", width, 0.0, what)
-    if safe is None:
         return None
     if np.any(safe < lo) or np.any(safe > hi):
         p.add(entry.value_pos.get("safe", cpos), f"{what}: safe value {safe.tolist()} lies outside clamp {clamp!r}; "

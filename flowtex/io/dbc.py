@@ -36,7 +36,20 @@ def load_dbc(path: str | Path) -> Database:
         raise DataError(f"{path}: not a valid DBC file: {one_line(exc)}") from None
     if not db.messages:
         raise DataError(f"{path}: the DBC file defines no messages (BO_ lines)")
+    check_unique_ids(db, path)
     return db
+
+
+def check_unique_ids(db: Database, path: str | Path = "DBC") -> None:
+    """Refuse two messages with one CAN ID (same ID and frame format): a frame with that ID would be read as either."""
+    seen: dict[tuple[int, bool], str] = {}
+    for m in db.messages:
+        key = (int(m.frame_id), bool(m.is_extended_frame))
+        if key in seen:
+            kind = "extended" if key[1] else "standard"
+            raise DataError(f"{path}: messages {seen[key]!r} and {m.name!r} both use {kind} CAN ID {key[0]:#x}; "
+                            "give each message its own ID in its BO_ line")
+        seen[key] = m.name
 
 
 def one_line(exc: BaseException) -> str:

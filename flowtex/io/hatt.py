@@ -9,6 +9,12 @@ The format is documented in ``/work/shared/formats/hatt-models.md`` and
 ``<model>`` elements (``modNum``, ``ARcoeff``, ``ARlsf``, ``MAcoeff``,
 ``MAlsf``, ``var``, ``gain``, ``speedMod``, ``forceMod``).
 
+``<mu>`` is the one optional scalar: every published HaTT file has it, but a
+set fitted without friction data has no coefficient, so :func:`write_hatt_xml`
+then leaves the element out and :func:`read_hatt_xml` reads a missing (or
+empty) ``<mu>`` as ``mu = None`` -- never as 0, which would render a
+frictionless surface instead of asking for a coefficient.
+
 Reading is one ``xml.etree`` parse and one pass over the elements (all 100
 published files load in well under a second). Every problem is reported as a
 :class:`~flowtex.errors.DataError` naming the file, the element and, inside a
@@ -48,7 +54,7 @@ HATT_NAMES = {
 }
 """Element names used in validation messages for HaTT files."""
 
-_REQUIRED_SCALARS = ("material", "SampleRate", "mu", "numMod", "numTri", "maxSpeed", "maxForce", "numARCoeff", "numMACoeff")
+_REQUIRED_SCALARS = ("material", "SampleRate", "numMod", "numTri", "maxSpeed", "maxForce", "numARCoeff", "numMACoeff")
 _MODEL_ARRAYS = ("ARcoeff", "ARlsf", "MAcoeff", "MAlsf")
 _MODEL_SCALARS = ("var", "gain")
 _EXPECTED_UNITS = {"SpeedUnits": "mm/s", "ForceUnits": "N", "AccelUnits": "m/s^2"}
@@ -220,7 +226,7 @@ def read_hatt_xml(path: str | Path) -> TextureModelSet:
     ms = TextureModelSet(
         material=scalars["material"], sample_rate=number("SampleRate"), speeds=np.array(speeds), forces=np.array(forces),
         triangles=triangles, ar_lsf=ar_lsf, ma_lsf=ma_lsf, variance=variance, gain=gain,
-        max_speed=number("maxSpeed"), max_force=number("maxForce"), mu=number("mu"),
+        max_speed=number("maxSpeed"), max_force=number("maxForce"), mu=number("mu") if scalars.get("mu") else None,
         ar_coeff=ar_coeff, ma_coeff=ma_coeff, source=path,
         metadata={"format": "hatt-xml", "texture": root.get("texture"),
                   "units": {"speed": scalars.get("SpeedUnits", "mm/s"), "force": scalars.get("ForceUnits", "N"),
@@ -254,7 +260,7 @@ def write_hatt_xml(ms: TextureModelSet, path: str | Path, texture: int = 0, digi
     """Write ``ms`` as a HaTT model file (exactly HaTT's documented shape); returns the path.
 
     Triangles are written 1-based; ``numARCoeff``/``numMACoeff`` hold the
-    orders p and q. Coefficients are ``ms.ar_coeff``/``ms.ma_coeff`` when
+    orders p and q; ``<mu>`` is left out when ``ms.mu`` is None. Coefficients are ``ms.ar_coeff``/``ms.ma_coeff`` when
     present, else computed from the LSFs with the float64 reference
     conversion. ``digits=None`` writes every float with ``repr`` (exact
     round trip); an integer writes that many significant digits, like a file
@@ -280,7 +286,8 @@ def write_hatt_xml(ms: TextureModelSet, path: str | Path, texture: int = 0, digi
     out.append(f"  <DTpicture>images/{pic}_DT.bmp</DTpicture>\n  <LinuxDTpicture>images/{pic}_DT.bmp</LinuxDTpicture>\n")
     out.append("  <AccelUnits>m/s^2</AccelUnits>\n  <SpeedUnits>mm/s</SpeedUnits>\n  <ForceUnits>N</ForceUnits>\n")
     out.append(f"  <SampleRate>{ms.sample_rate:g}</SampleRate>\n")
-    out.append(f"  <mu>{fmt(ms.mu if ms.mu is not None else 0.0)}</mu>\n")
+    if ms.mu is not None:  # no friction fitted: no <mu> (the reader gives mu = None), never a made-up 0
+        out.append(f"  <mu>{fmt(ms.mu)}</mu>\n")
     out.append(f"  <numMod>{ms.num_models}</numMod>\n  <numTri>{len(ms.triangles)}</numTri>\n")
     out.append(f"  <maxSpeed>{fmt(ms.max_speed)}</maxSpeed>\n  <maxForce>{fmt(ms.max_force)}</maxForce>\n")
     out.append(f"  <numARCoeff>{ms.ar_order}</numARCoeff>\n  <numMACoeff>{ms.ma_order}</numMACoeff>\n")

@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import re
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -207,30 +209,53 @@ def _load_h5(path: Path) -> Recording:
 
 def save_recording(path: str | Path, arrays: Mapping[str, np.ndarray], rate: float | None = None,
                    units: Mapping[str, str] | None = None) -> None:
-    """Write signals (time first) in the format named by the file's suffix, with their ``units`` if given."""
+    """Write signals (time first) in the format named by the file's suffix, with their ``units`` if given.
+
+    Written through the one writer (:func:`flowtex.io.atomic.atomic_output`): a failure or Ctrl-C leaves the old
+    file intact and no partial file; the mode comes from the umask.
+    """
+    from .atomic import atomic_output
+
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     suffix = path.suffix.lower()
+    if suffix not in (".npz", ".csv", ".h5", ".hdf5"):
+        raise DataError(f"{path}: unknown output format {suffix!r}; use .npz, .csv or .h5")
+    path.parent.mkdir(parents=True, exist_ok=True)
     arrays = {name: np.asarray(a, dtype=np.float64) for name, a in arrays.items()}
     units = {name: str(units[name]) for name in arrays if name in units} if units else {}
-    if suffix == ".npz":
-        extra: dict[str, np.ndarray] = {"rate": np.float64(rate)} if rate is not None else {}
-        if units and UNITS_KEY not in arrays:
-            extra[UNITS_KEY] = np.array(json.dumps(units))
-        np.savez(path, **arrays, **extra)
-    elif suffix == ".csv":
-        _save_csv(path, arrays, rate, units)
-    elif suffix in (".h5", ".hdf5"):
-        h5py = _h5py()
-        with h5py.File(path, "w") as fh:
-            for name, a in arrays.items():
-                ds = fh.create_dataset(name, data=a)
-                if name in units:
-                    ds.attrs["unit"] = units[name]
-            if rate is not None:
-                fh.attrs["rate"] = float(rate)
-    else:
-        raise DataError(f"{path}: unknown output format {suffix!r}; use .npz, .csv or .h5")
+    with atomic_output(path) as tmp:
+        if suffix == ".npz":
+            extra: dict[str, np.ndarray] = {"rate": np.float64(rate)} if rate is not None else {}
+            if units and UNITS_KEY not in arrays:
+                extra[UNITS_KEY] = np.array(json.dumps(units))
+            with open(tmp, "wb") as fh:
+                np.savez(fh, **arrays, **extra)
+                _write_hook(fh)
+        elif suffix == ".csv":
+            _save_csv(tmp, arrays, rate, units)
+        else:
+            h5py = _h5py()
+            with h5py.File(tmp, "w") as fh:
+                for name, a in arrays.items():
+                    ds = fh.create_dataset(name, data=a)
+                    if name in units:
+                        ds.attrs["unit"] = units[name]
+                if rate is not None:
+                    fh.attrs["rate"] = float(rate)
+
+
+WRITE_HOOK_ENV = "FLOWTEX_TEST_WRITE_HOOK"
+"""Test hook: when set to a file name, a recording writer creates that file once its data are written and then
+waits (up to 60 s) before finishing, so a test can interrupt a write in progress (tests/cli/test_atomic_cli.py)."""
+
+
+def _write_hook(fh) -> None:
+    marker = os.environ.get(WRITE_HOOK_ENV)
+    if not marker:
+        return
+    fh.flush()
+    Path(marker).write_text("writing\n")
+    time.sleep(60.0)
 
 
 def _save_csv(path: Path, arrays: Mapping[str, np.ndarray], rate: float | None, units: Mapping[str, str]) -> None:

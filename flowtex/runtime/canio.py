@@ -81,7 +81,7 @@ class CanIO:
         """Compiled decoder of the sensor messages it can take (None: Python decoders only)."""
         # outputs -> guard -> encoders
         self.out_names = list(canmap.outputs)
-        widths = [canmap.outputs[n].width for n in self.out_names]
+        self.out_widths = widths = [canmap.outputs[n].width for n in self.out_names]
         total = int(sum(widths))
         rows = sum(len(codecs[m].signals) for m in canmap.actuator_messages() if fast_ok(codecs[m]))
         self._fbuf = np.zeros(7 * total + _NF * rows)
@@ -212,6 +212,32 @@ class CanIO:
         events = out_packed(self.arena, self._ibuf, self._fbuf, self._gip, self.table_encoder.payload_view, force_safe)
         self.fill_frames()
         return events
+
+    def guard_counts(self) -> dict[str, dict[str, int]]:
+        """Output guard events so far per bound graph output (a vector output sums its components).
+
+        ``clamped``: held to the map's ``clamp``; ``peak_limited``: held to the ``peak`` limit within the
+        allowance; ``nonfinite``: NaN/inf replaced by the safe value (rules in :mod:`flowtex.runtime.safety`).
+        """
+        rows = {"clamped": "clamp_counts", "peak_limited": "peak_counts", "nonfinite": "nonfinite_counts"}
+        counts: dict[str, dict[str, int]] = {key: {} for key in rows}
+        start = 0
+        for name, w in zip(self.out_names, self.out_widths, strict=True):
+            for key, attr in rows.items():
+                counts[key][name] = int(getattr(self.guard, attr)[start:start + w].sum()) if self.guard is not None else 0
+            start += w
+        return counts
+
+    def limited_ticks(self) -> dict[str, int]:
+        """Per bound graph output, the ticks its busiest component was clamped or peak-limited (a lower bound on the
+        ticks any component was)."""
+        out: dict[str, int] = {}
+        start = 0
+        for name, w in zip(self.out_names, self.out_widths, strict=True):
+            g = self.guard
+            out[name] = int((g.clamp_counts[start:start + w] + g.peak_counts[start:start + w]).max()) if g is not None and w else 0
+            start += w
+        return out
 
     def encode_safe(self) -> None:
         """Encode every output's safe value into ``self.tx``."""

@@ -44,11 +44,12 @@ from .buses import BusError, open_bus, receiver, sender
 from .canio import CanIO, load_io, tick_out
 from .clock import DeadlineClock
 from .fused import fuse_tick
+from .preflight import preflight_live
 from .realtime import RealtimeStatus, enter_realtime, freeze_gc, leave_realtime
 from .safety import all_updated_after, first_stale
 from .simdevice import in_process_device
 from .stats import TickStats
-from .status import Shown, StatusDisplay, resolve_shown
+from .status import Shown, StatusDisplay, clamp_warnings, resolve_shown
 from .tick import rx_decoder, tick_compute, warmer
 
 __all__ = ["BusError", "CanIO", "LiveReport", "load_io", "run_live"]
@@ -78,6 +79,8 @@ class LiveReport:
     """One line naming the silent sensor messages (frame ids) and the bus, or None when every sensor message arrived."""
     no_sensor_frames: bool = False
     """Not one sensor frame arrived (outputs were safe throughout): ``flowtex live`` then exits with code 3."""
+    warnings: list[str] = field(default_factory=list)
+    """One line per output clamped or peak-limited on more than 1 % of the ticks (:func:`~flowtex.runtime.status.clamp_warnings`)."""
 
     @property
     def ok(self) -> bool:
@@ -89,7 +92,8 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
              rt: bool = False, rt_priority: int = 80, rt_cpu: int | None = None, stats_path: str | Path | None = None,
              seed: int | None = None, status: TextIO | None = sys.stderr, bitrate: int | None = None,
              drop: Mapping[str, tuple[int, int | None]] | None = None, install_signals: bool = True,
-             max_ticks: int | None = None, warm: bool = True, show: Sequence[str] = ()) -> LiveReport:
+             max_ticks: int | None = None, warm: bool = True, show: Sequence[str] = (),
+             inputs: Sequence[str | Path] = ()) -> LiveReport:
     """Run ``graph`` live against a CAN bus until ``duration_s`` (None: until Ctrl-C/SIGTERM).
 
     ``simulate``: a recording path (or :class:`~flowtex.io.recordings.Recording`);
@@ -100,7 +104,9 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
     length for tests). The session runs on ``graph.with_block_rows(1)`` (same code,
     parameters and seed, one-row port buffers), so ``graph`` itself is not stepped.
     ``show``: graph outputs or inputs (``NAME`` or ``NAME[i]``) whose current values follow the status line.
-    ``warm``: cache warming before each deadline (see :func:`~flowtex.runtime.tick.warmer`). Raises :class:`FlowtexError`
+    ``warm``: cache warming before each deadline (see :func:`~flowtex.runtime.tick.warmer`). ``inputs``: other files the
+    session was built from (e.g. a scene file), which ``record`` and ``stats_path`` must not be; both are checked before
+    the session (:func:`~flowtex.runtime.preflight.preflight_live`). Raises :class:`FlowtexError`
     for bad files or a bus that cannot be opened; failures during the loop end the session with safe values and are
     returned in ``LiveReport.error``.
     """
@@ -113,6 +119,8 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
             raise FlowtexError(f"--duration must be a positive number of seconds, got {duration_s!r}")
         n_ticks = min(n_ticks or 1 << 62, int(round(duration_s * float(graph.rate))))
     shown = resolve_shown(graph, show)
+    record, stats_path = preflight_live(graph, dbc_path, map_path, simulate=simulate, record=record, stats_path=stats_path,
+                                        inputs=inputs)
     io = load_io(graph, dbc_path, map_path)
     device = dev_bus = None
     if simulate is not None:
@@ -220,6 +228,7 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
         error = f"{error}; {safe_error}" if error else safe_error
     stats.watchdog_events = watchdog.events
     stats.timeouts = watchdog.stale_events
+    stats.guard = io.guard_counts()
     rt_granted = rt_status is not None and bool(rt_status.granted)
     if display is not None:
         display.finish(rt_granted)
@@ -230,7 +239,8 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                       guard_events=guard_events, exit_reason="error" if error else (stop[0] or "duration"), error=error,
                       summary=stats.summary(rt_granted), rt_message=rt_message, send_offset_ns=send_offset[:min(k, capacity)],
                       device=device, silent_messages=silent, silence=silence,
-                      no_sensor_frames=bool(k) and len(silent) == len(io.map.sensor_messages()) > 0)
+                      no_sensor_frames=bool(k) and len(silent) == len(io.map.sensor_messages()) > 0,
+                      warnings=clamp_warnings(io, k))
 
 
 def _silent_sensors(io: CanIO, last: np.ndarray, ticks: int, frames_in: int, where: str) -> tuple[list[str], str | None]:

@@ -10,7 +10,10 @@ where a *block* is the map's actuator messages, once each, in map order. Rule:
 every complete block closes one tick; the frames received (``is_rx=True``) since
 the previous block are that tick's inputs. The **last** block is the safe values
 sent at exit and is not a graph tick; received frames after the last regular
-block (a tick that failed) are ignored. Frames with ids the map does not read are
+block (a tick that failed) are ignored. A log cut short (a truncated file, a BLF
+whose header was never written; :func:`~flowtex.io.canlog.read_session_checked`)
+has no exit block: every complete block is a tick, and the report says how many
+ticks the session had (from the BLF header's frame count) and how many were found. Frames with ids the map does not read are
 skipped, as the live loop skips them.
 
 For every tick the replay decodes the same frames with the same codecs into the
@@ -25,6 +28,7 @@ else as ``unexplained`` (a real mismatch).
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,7 +37,8 @@ import can
 import numpy as np
 
 from ..errors import DataError
-from ..io.canlog import SessionWriter, read_session
+from ..io.atomic import atomic_output
+from ..io.canlog import SessionWriter, read_session_checked
 from .canio import load_io
 
 
@@ -64,6 +69,11 @@ class ReplayReport:
     session run with another graph, parameters, ``--seed``, DBC or map?"""
     output_path: Path | None = None
     session_path: Path | None = None
+    truncated: str | None = None
+    """Why the log does not hold the whole session (:func:`~flowtex.io.canlog.read_session_checked`), or None.
+    A truncated log has no exit block: its last complete block is replayed as a tick."""
+    expected_ticks: float | None = None
+    """Ticks the whole session had, from the frames the BLF header counts (None: the log does not say)."""
 
     @property
     def identical(self) -> bool:
@@ -73,10 +83,16 @@ class ReplayReport:
         """A few lines for the terminal: what was replayed, which ticks match, and why the others differ."""
         source = f" of {self.session_path}" if self.session_path is not None else ""
         ending = "ends with the exit block of safe values" if self.exit_block else "has no exit block (was the session killed?)"
+        if self.truncated:
+            ending = f"is TRUNCATED: {self.truncated}"
         lines = [f"replayed {self.ticks} ticks{source} ({self.frames_in} frames received, {self.frames_out} sent live; the log {ending})"]
+        if self.truncated:
+            said = (f"expected {_expected(self.expected_ticks)} ticks, found {self.ticks}" if self.expected_ticks is not None
+                    else f"found {self.ticks} ticks; the log does not say how many the session had")
+            lines.append(f"{said}: the rest of the session is not in the log, so nothing can be said about it")
         same = self.ticks - len(self.mismatched_ticks)
         lines.append(f"{_count(same)}: actuator frames equal to the live ones byte for byte"
-                     + (" (all of them)" if self.identical and self.ticks else ""))
+                     + (" (all of them)" if self.identical and self.ticks and not self.truncated else ""))
         if self.watchdog_ticks:
             lines.append(f"{_count(len(self.watchdog_ticks))} ({_ranges(self.watchdog_ticks)}): live sent the safe values because a sensor "
                          "was stale (input watchdog, recomputed by the replay)")
@@ -92,6 +108,21 @@ class ReplayReport:
         return "\n".join(lines)
 
     __str__ = summary
+
+
+def _expected(ticks: float) -> str:
+    """``2000``, or ``about 1999`` when the frames per tick were not constant."""
+    n = round(ticks)
+    return f"{n}" if abs(ticks - n) < 1e-9 else f"about {n}"
+
+
+def expected_ticks(expected_frames: int, ticks: list[tuple[list, list]], block: int) -> float | None:
+    """Ticks a whole session had, from the frame count of its log's header: each tick is its received frames
+    and one block of ``block`` actuator frames, plus one exit block; received frames a tick as in the ``ticks`` found."""
+    if not ticks:
+        return None
+    per_tick = block + sum(len(rx) for rx, _ in ticks) / len(ticks)
+    return max(float(len(ticks)), (expected_frames - block) / per_tick)
 
 
 def _count(n: int) -> str:
@@ -110,8 +141,10 @@ def _ranges(ticks: list[int], n: int = 6) -> str:
     return text + (", ..." if len(runs) > n else "")
 
 
-def _split_ticks(frames: list[can.Message], tx_ids: list[tuple[int, bool]], path: Path) -> tuple[list[tuple[list, list]], bool]:
-    """Group frames into ``(received, sent block)`` per tick, following the module's rule."""
+def _split_ticks(frames: list[can.Message], tx_ids: list[tuple[int, bool]], path: Path,
+                 complete: bool = True) -> tuple[list[tuple[list, list]], bool]:
+    """Group frames into ``(received, sent block)`` per tick, following the module's rule (the last block is the
+    exit block only in a ``complete`` log)."""
     ticks: list[tuple[list, list]] = []
     rx: list[can.Message] = []
     block: list[can.Message] = []
@@ -133,7 +166,7 @@ def _split_ticks(frames: list[can.Message], tx_ids: list[tuple[int, bool]], path
         if len(block) == k:
             ticks.append((rx, block))
             rx, block = [], []
-    exit_block = bool(ticks)
+    exit_block = bool(ticks) and complete
     if exit_block:
         ticks.pop()
     return ticks, exit_block
@@ -152,49 +185,54 @@ def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, m
     io = load_io(graph, dbc_path, map_path)
     if not io.tx:
         raise DataError(f"{map_path}: the map binds no outputs, so the session has no actuator blocks to mark ticks")
-    frames = list(read_session(session_path))
-    ticks, exit_block = _split_ticks(frames, io.tx_ids, session_path)
+    frames, completeness = read_session_checked(session_path)
+    ticks, exit_block = _split_ticks(frames, io.tx_ids, session_path, completeness.problem is None)
     suffix = Path(output_path).suffix.lower() if output_path is not None else ""
     if output_path is not None and suffix not in (".npz", ".blf", ".log", ".asc"):
         raise DataError(f"{output_path}: replay output must end in .npz (graph outputs) or .blf/.log/.asc (actuator frames)")
-    writer = SessionWriter(output_path) if suffix in (".blf", ".log", ".asc") else None
-    outputs = {name: np.zeros((len(ticks), *spec.shape)) for name, spec in graph.outputs.items()} if suffix == ".npz" else None
-    io.encode_safe()
-    safe = [bytes(m.data) for m in io.tx]
-    """The actuator payloads of the safe values: what live sends while the watchdog holds the outputs."""
-    graph.reset(seed)
-    watchdog = io.new_watchdog(1 << 62, emit_log=False)
-    report = ReplayReport(ticks=len(ticks), frames_in=sum(1 for m in frames if m.is_rx and not m.is_error_frame),
-                          frames_out=sum(1 for m in frames if not m.is_rx and not m.is_error_frame), exit_block=exit_block,
-                          session_path=session_path)
-    try:
-        for k, (rx, live_block) in enumerate(ticks):
-            for msg in rx:
-                io.decode(msg, k, watchdog)
-            graph.step_block(1)
-            stale = watchdog.check(k, 0)
-            io.guard_outputs(False)
-            io.encode()
-            if any(bytes(a.data) != bytes(b.data) for a, b in zip(io.tx, live_block, strict=True)):
-                report.mismatched_ticks.append(k)
-                if stale:
-                    report.watchdog_ticks.append(k)
-                elif [bytes(b.data) for b in live_block] == safe:
-                    report.overrun_ticks.append(k)
-                else:
-                    report.unexplained_ticks.append(k)
-            if outputs is not None:
-                for name, arr in outputs.items():
-                    arr[k] = graph.output_view(name).reshape(arr.shape[1:])
+    with contextlib.ExitStack() as stack:  # outputs go through the one writer: atomic, the old file kept on failure
+        target = stack.enter_context(atomic_output(output_path)) if output_path is not None else None
+        writer = SessionWriter(target) if suffix in (".blf", ".log", ".asc") else None
+        outputs = {name: np.zeros((len(ticks), *spec.shape)) for name, spec in graph.outputs.items()} if suffix == ".npz" else None
+        io.encode_safe()
+        safe = [bytes(m.data) for m in io.tx]
+        """The actuator payloads of the safe values: what live sends while the watchdog holds the outputs."""
+        graph.reset(seed)
+        watchdog = io.new_watchdog(1 << 62, emit_log=False)
+        report = ReplayReport(ticks=len(ticks), frames_in=sum(1 for m in frames if m.is_rx and not m.is_error_frame),
+                              frames_out=sum(1 for m in frames if not m.is_rx and not m.is_error_frame), exit_block=exit_block,
+                              session_path=session_path, truncated=completeness.problem)
+        if completeness.problem and completeness.expected_frames is not None:
+            report.expected_ticks = expected_ticks(completeness.expected_frames, ticks, len(io.tx))
+        try:
+            for k, (rx, live_block) in enumerate(ticks):
+                for msg in rx:
+                    io.decode(msg, k, watchdog)
+                graph.step_block(1)
+                stale = watchdog.check(k, 0)
+                io.guard_outputs(False)
+                io.encode()
+                if any(bytes(a.data) != bytes(b.data) for a, b in zip(io.tx, live_block, strict=True)):
+                    report.mismatched_ticks.append(k)
+                    if stale:
+                        report.watchdog_ticks.append(k)
+                    elif [bytes(b.data) for b in live_block] == safe:
+                        report.overrun_ticks.append(k)
+                    else:
+                        report.unexplained_ticks.append(k)
+                if outputs is not None:
+                    for name, arr in outputs.items():
+                        arr[k] = graph.output_view(name).reshape(arr.shape[1:])
+                if writer is not None:
+                    for m, live in zip(io.tx, live_block, strict=True):
+                        m.timestamp = live.timestamp
+                        writer.write(m, False)
+        finally:
             if writer is not None:
-                for m, live in zip(io.tx, live_block, strict=True):
-                    m.timestamp = live.timestamp
-                    writer.write(m, False)
-    finally:
-        if writer is not None:
-            writer.close()
-    if outputs is not None:
-        np.savez(output_path, rate=np.float64(graph.rate), **outputs)
+                writer.close()
+        if outputs is not None:
+            with open(target, "wb") as fh:
+                np.savez(fh, rate=np.float64(graph.rate), **outputs)
     if output_path is not None:
         report.output_path = Path(output_path)
     return report

@@ -28,7 +28,8 @@ OutputGuard rules (per actuator channel ``i``, applied every tick by :meth:`Outp
 
 The return value of :meth:`OutputGuard.apply` is the number of channels whose output
 differs from the command because of rules 2 and 4 (0 when all pass); cumulative
-per-channel counts are in ``clamp_counts`` and ``nonfinite_counts``.
+per-channel counts are in ``nonfinite_counts`` (rule 2), ``peak_counts`` (rule 4, limited to
+the peak range within the allowance) and ``clamp_counts`` (rule 4, clamped to ``[lo, hi]``).
 
 Watchdog rules (:class:`Watchdog`):
 
@@ -65,16 +66,16 @@ _log = logging.getLogger(__name__)
 
 # Rows of the OutputGuard parameter matrices.
 _LO, _HI, _SAFE, _PLO, _PHI = 0, 1, 2, 3, 4
-_PMAX, _RUN, _NCLAMP, _NNONFINITE = 0, 1, 2, 3
+_PMAX, _RUN, _NCLAMP, _NNONFINITE, _NPEAK = 0, 1, 2, 3, 4
 
 
 @njit(cache=True)
 def guard_kernel(fp: np.ndarray, ip: np.ndarray, values: np.ndarray, out: np.ndarray, force_safe: bool) -> int:
     """Apply the OutputGuard rules (module docstring) to one tick; returns the event count.
 
-    ``fp`` is ``(5, n)`` float64: rows lo, hi, safe, peak_lo, peak_hi. ``ip`` is ``(4, n)``
+    ``fp`` is ``(5, n)`` float64: rows lo, hi, safe, peak_lo, peak_hi. ``ip`` is ``(5, n)``
     int64: rows peak_max_ticks, run (consecutive out-of-range ticks), clamp count,
-    non-finite count; rows 1-3 are updated in place. ``values`` and ``out`` are ``(n,)``.
+    non-finite count, peak-limit count; rows 1-4 are updated in place. ``values`` and ``out`` are ``(n,)``.
     """
     n = out.shape[0]
     if force_safe:
@@ -97,7 +98,8 @@ def guard_kernel(fp: np.ndarray, ip: np.ndarray, values: np.ndarray, out: np.nda
             continue
         run = ip[_RUN, i] + 1
         ip[_RUN, i] = run
-        if run <= ip[_PMAX, i]:
+        peak = run <= ip[_PMAX, i]
+        if peak:
             lo = fp[_PLO, i]
             hi = fp[_PHI, i]
         if v > hi:
@@ -107,7 +109,10 @@ def guard_kernel(fp: np.ndarray, ip: np.ndarray, values: np.ndarray, out: np.nda
         else:
             out[i] = v
             continue
-        ip[_NCLAMP, i] += 1
+        if peak:
+            ip[_NPEAK, i] += 1
+        else:
+            ip[_NCLAMP, i] += 1
         events += 1
     return events
 
@@ -166,7 +171,7 @@ class OutputGuard:
             raise ValueError(f"OutputGuard: peak_max_ticks has {pmax.shape[0]} entries, expected {n}")
         self.n = n
         self._fp = np.ascontiguousarray(np.stack([lo_a, hi_a, safe_a, plo, phi]))
-        self._ip = np.zeros((4, n), dtype=np.int64)
+        self._ip = np.zeros((5, n), dtype=np.int64)
         self._ip[_PMAX] = pmax
 
     @property
@@ -206,6 +211,11 @@ class OutputGuard:
     @property
     def nonfinite_counts(self) -> np.ndarray:
         return self._ip[_NNONFINITE]
+
+    @property
+    def peak_counts(self) -> np.ndarray:
+        """Ticks each channel was limited to its peak range (a transient beyond ``[peak_lo, peak_hi]`` within the allowance)."""
+        return self._ip[_NPEAK]
 
     def apply(self, values: np.ndarray, out: np.ndarray, force_safe: bool) -> int:
         """Write guarded ``values`` (float64 ``(n,)``) into ``out`` (float64 ``(n,)``); return the event count."""

@@ -34,6 +34,7 @@ from typing import Any, TextIO
 import can
 import numpy as np
 
+from ..dsp.nonfinite import find_nonfinite
 from ..errors import DataError, FlowtexError
 from ..io.canmap import CanMap, load_map
 from ..io.codec import MessageCodec
@@ -43,16 +44,29 @@ from .buses import BusError, open_bus, parse_bus_spec
 from .clock import DeadlineClock
 
 
+def check_finite(canmap: CanMap, arrays: Mapping[str, np.ndarray], source: str) -> None:
+    """Refuse a recording whose sensor signals hold NaN or inf (a CAN signal cannot carry them), naming the signal and sample."""
+    for b in canmap.inputs.values():
+        if b.name in arrays:
+            bad = find_nonfinite(np.asarray(arrays[b.name], dtype=np.float64))
+            if bad is not None:
+                raise DataError(f"{source}: signal {b.name!r} has {bad.describe()}; a simulated device sends every sample "
+                                "as CAN frames: clean the recording (e.g. fill the gaps) before simulating it")
+
+
 class SimulatedDevice:
     """Publish sensor frames from recorded arrays; decode received actuator frames into graph units.
 
     ``drop`` maps a sensor message name to ``(first_tick, stop_tick)`` (stop None:
     forever) during which the device does not send that message (sensor dropout).
     ``history``: keep the actuator values seen after each collect (rows = ticks).
+    ``source`` names the recording in errors (a NaN or inf sample is refused here, before any frame is sent).
     """
 
     def __init__(self, bus: can.BusABC, canmap: CanMap, codecs: Mapping[str, MessageCodec], arrays: Mapping[str, np.ndarray],
-                 rate_hz: float = 1000.0, drop: Mapping[str, tuple[int, int | None]] | None = None, history: int = 0):
+                 rate_hz: float = 1000.0, drop: Mapping[str, tuple[int, int | None]] | None = None, history: int = 0,
+                 source: str = "recording"):
+        check_finite(canmap, arrays, source)
         self.bus = bus
         self.rate_hz = float(rate_hz)
         columns = []
@@ -188,7 +202,8 @@ def in_process_device(bus_spec: str | None, canmap: CanMap, codecs: Mapping[str,
     runtime_bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
     device_bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
     try:
-        return runtime_bus, device_bus, SimulatedDevice(device_bus, canmap, codecs, rec.arrays, rate_hz=rate_hz, drop=drop)
+        return runtime_bus, device_bus, SimulatedDevice(device_bus, canmap, codecs, rec.arrays, rate_hz=rate_hz, drop=drop,
+                                                         source=str(rec.path or recording))
     except Exception:
         runtime_bus.shutdown()
         device_bus.shutdown()
@@ -220,6 +235,7 @@ def run_device(bus_spec: str | None, dbc_path: str, map_path: str, recording: st
     used = set(canmap.sensor_messages()) | set(canmap.actuator_messages())
     codecs = {m.name: MessageCodec(m) for m in db.messages if m.name in used}
     rec = load_recording(recording)
+    check_finite(canmap, rec.arrays, str(recording))  # before the bus or pty opens
     rate = float(rate_hz or rec.rate or 1000.0)
     pty_pair = None
     if pty:
@@ -239,7 +255,7 @@ def run_device(bus_spec: str | None, dbc_path: str, map_path: str, recording: st
 
     old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        dev = SimulatedDevice(bus, canmap, codecs, rec.arrays, rate_hz=rate)
+        dev = SimulatedDevice(bus, canmap, codecs, rec.arrays, rate_hz=rate, source=str(recording))
         clock = DeadlineClock(rate)
         n = int(round(duration_s * rate)) if duration_s else None
         was_open = False

@@ -42,10 +42,11 @@ are reported in microseconds as floats.
 
 from __future__ import annotations
 
-import json
 import os
 
 import numpy as np
+
+from ..io.atomic import write_json_atomic
 
 LATE_LIMIT_NS = 1_000_000
 """Lateness above this (1 ms, strictly greater) counts in ``late_over_1ms``."""
@@ -78,6 +79,9 @@ class TickStats:
         self.watchdog_events = 0
         self._status_from = 0
         self._status_from_deadline = 0
+        self.guard: dict[str, dict[str, int]] | None = None
+        """Output guard events per output (``clamped``, ``peak_limited``, ``nonfinite``; see
+        :meth:`~flowtex.runtime.canio.CanIO.guard_counts`), set by the loop at the end; in :meth:`summary` when set."""
 
     def record(self, lateness_ns: int, compute_ns: int) -> None:
         """Store one executed tick's lateness and compute time (both ns)."""
@@ -157,7 +161,8 @@ class TickStats:
         the whole run, the rest over the latest ``lateness_window`` / ``window_ticks``),
         ``longest_stall_us`` (0 without a skipped deadline), ``overruns`` (stalls: waits that
         skipped deadlines), ``frames_in``, ``frames_out``, ``watchdog_events``, ``timeouts``,
-        ``rt`` (SCHED_FIFO granted), ``capacity_ticks``.
+        ``rt`` (SCHED_FIFO granted), ``capacity_ticks``; when :attr:`guard` is set, ``clamped``,
+        ``peak_limited`` and ``nonfinite``, each ``{output: events}``.
         """
         return {
             "ticks": int(self.ticks),
@@ -176,6 +181,7 @@ class TickStats:
             "window_ticks": int(min(self.ticks, self.capacity)),
             "lateness_window": int(min(self.deadlines, self.capacity)),
             "capacity_ticks": int(self.capacity),
+            **(self.guard or {}),
         }
 
     def status_line(self) -> str:
@@ -217,10 +223,10 @@ class TickStats:
                 f"compute   {dist(s['compute_us'])}",
                 f"frames in {s['frames_in']}  out {s['frames_out']}  timeouts {s['timeouts']}  watchdog events {s['watchdog_events']}",
             ]
+            + [f"guard     {key.replace('_', '-')} " + ", ".join(f"{k} {v}" for k, v in self.guard[key].items())
+               for key in ("clamped", "peak_limited", "nonfinite") if self.guard and any(self.guard.get(key, {}).values())]
         )
 
     def write_json(self, path: str | os.PathLike, rt: bool) -> None:
-        """Write :meth:`summary` as JSON (UTF-8, indented) to ``path``."""
-        with open(path, "w", encoding="utf-8") as f:
-            json.dump(self.summary(rt), f, indent=2, allow_nan=False)
-            f.write("\n")
+        """Write :meth:`summary` as JSON (UTF-8, indented) to ``path`` (atomically: :func:`~flowtex.io.atomic.write_json_atomic`)."""
+        write_json_atomic(path, self.summary(rt))

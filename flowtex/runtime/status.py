@@ -80,6 +80,35 @@ def format_values(shown: Sequence[Shown]) -> str:
     return " | ".join(parts)
 
 
+CLAMP_WARN_FRACTION = 0.01
+"""A session warns about an output clamped or peak-limited on more than this fraction of its ticks."""
+
+
+def guard_text(io: CanIO) -> str:
+    """`` | clamped NAME N, ...`` for the outputs the guard limited so far (clamp, peak limit or NaN), else ``""``."""
+    counts = io.guard_counts()
+    parts = []
+    for name in io.out_names:
+        c, p, n = counts["clamped"][name], counts["peak_limited"][name], counts["nonfinite"][name]
+        if c or p or n:
+            parts.append(f"{name} {c}" + (f" peak {p}" if p else "") + (f" nan {n}" if n else ""))
+    return f" | clamped {', '.join(parts)}" if parts else ""
+
+
+def clamp_warnings(io: CanIO, ticks: int) -> list[str]:
+    """One line per output clamped or peak-limited on more than 1 % of ``ticks`` (its busiest component)."""
+    if ticks <= 0:
+        return []
+    lines = []
+    for name, n in io.limited_ticks().items():
+        if n > CLAMP_WARN_FRACTION * ticks:
+            b = io.map.outputs[name]
+            lines.append(f"output {name!r} was clamped on {n} of {ticks} ticks ({100.0 * n / ticks:.1f} %, over the "
+                         f"{100 * CLAMP_WARN_FRACTION:g} % warning level): the graph commands more than clamp "
+                         f"[{b.lo.min():g}, {b.hi.max():g}] in {io.map.path.name} allows; check the graph's gains or the clamp")
+    return lines
+
+
 class StatusDisplay:
     """The status line and watchdog event lines of one session on ``out`` (a text stream, e.g. stderr).
 
@@ -110,8 +139,8 @@ class StatusDisplay:
             print("\r" + line, end="", file=self.out, flush=True)
 
     def line(self) -> str:
-        """The status line: timing and counters, then the shown values."""
-        line = self.stats.status_line()
+        """The status line: timing and counters, the outputs the guard limited so far, then the shown values."""
+        line = self.stats.status_line() + guard_text(self.io)
         return f"{line} | {format_values(self.shown)}" if self.shown else line
 
     def _events(self) -> None:

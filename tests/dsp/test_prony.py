@@ -72,3 +72,22 @@ def test_bad_inputs():
         prony(np.r_[1.0, np.nan, np.zeros(20)], 2, 2)
     b, a = prony(np.zeros(30), 2, 2)  # a zero response: no NaN out
     assert np.all(np.isfinite(b)) and np.all(np.isfinite(a))
+
+
+@pytest.mark.parametrize("true_order", [2, 4])
+def test_bic_picks_the_true_order_under_noise(true_order):
+    """criterion='bic' (n ln(RSS/n) + k ln n): the true order of a noisy response, not a higher one that fits the noise."""
+    from flowtex.datasets_patterns import parallel, resonance
+    from flowtex.dsp.prony import bic
+
+    filt = resonance(120.0, 0.0095, 1000.0)
+    if true_order == 4:
+        filt = parallel([filt, resonance(300.0, 0.006, 1000.0)])
+    clean = impulse_response(*filt, 80)
+    h = clean + 0.02 * np.max(np.abs(clean)) * np.random.default_rng(true_order).standard_normal(80)
+    fit = fit_iir(h, orders=range(1, 9), criterion="bic")
+    assert fit.p == true_order
+    big = fit_iir(h, orders=[8])
+    assert big.sad < fit.sad and bic(h, fit.b, fit.a) < bic(h, big.b, big.a)  # order 8 fits the noise better, and pays for it
+    with pytest.raises(ValueError, match="unknown criterion"):
+        fit_iir(h, orders=[2], criterion="aic")

@@ -112,7 +112,7 @@ def test_cli_writes_valid_and_invalid_results(tmp_path, capsys):
     assert "NaN or infinite values (first at sample 123)" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
     save_recording(tmp_path / "norate.npz", {"f": smooth["force"], "a": smooth["accel"]})
     assert main(["fit", "compliance", str(tmp_path / "norate.npz"), "--force", "f", "--accel", "a", "-o", str(tmp_path / "x.json")]) == 1
-    assert "states no sample rate; pass --rate HZ" in capsys.readouterr().err
+    assert "states no sample rate; pass --from-rate HZ" in capsys.readouterr().err
 
 
 def test_kc_er_relation_and_its_range():

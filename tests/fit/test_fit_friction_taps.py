@@ -23,7 +23,7 @@ def test_mu_within_3_percent(offset):
     """
     rec = friction_session(mu=0.4, duration_s=20.0, seed=3, offset=offset, spikes=25, lifts=4)
     a = rec.arrays
-    fit = fit_friction(a["normal_force"], a["tangential_force"])
+    fit = fit_friction(a["normal_force"], a["tangential_force"], offset=bool(offset))
     assert fit.mu == pytest.approx(0.4, rel=0.03)
     assert fit.in_contact < a["normal_force"].size  # the lift-offs were left out
     assert fit.rejected > 0                         # the stiction spikes got weight 0
@@ -47,7 +47,7 @@ def test_friction_cli_into(tmp_path, capsys):
     from flowtex.io.recordings import save_recording
 
     save_recording(tmp_path / "none.npz", bad, rec.rate)
-    assert main(["fit", "friction", str(tmp_path / "none.npz"), "--normal-force", "normal_force", "--friction-force",
+    assert main(["fit", "friction", str(tmp_path / "none.npz"), "--force", "normal_force", "--friction-force",
                  "tangential_force", "-o", str(tmp_path / "x.json")]) == 1
     assert "no contact anywhere" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
 

@@ -113,7 +113,7 @@ def test_bad_inputs(tmp_path, capsys):
     assert "no contact anywhere" in _bad(tmp_path, capsys, {**good, "normal_force": np.zeros(n)})
     assert "is constant" in _bad(tmp_path, capsys, {**good, "accel": np.ones(n)})
     assert "states no sample rate" in _bad(tmp_path, capsys, good, rate=None)
-    assert "--rate is 500" in _bad(tmp_path, capsys, good, extra=("--rate", "500"))
+    assert "--from-rate is 500" in _bad(tmp_path, capsys, good, extra=("--from-rate", "500"))
     assert "recording too short" in _bad(tmp_path, capsys, {k: v[:300] for k, v in good.items()})
     assert "too short for order" in _bad(tmp_path, capsys, {k: v[:800] for k, v in good.items()}, extra=("--order", "40,38"))
 

@@ -134,3 +134,11 @@ def test_dahl_graph_explicit_zmax_and_normal_input(tmp_path):
     np.testing.assert_allclose(out[:, 1], -0.5 * 2.0 * stretch / 0.5 / math.sqrt(2), rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(out[:, 2], out[:, 1], rtol=1e-12, atol=1e-14)
     assert np.all(out[:, 0] == 0.0)
+
+
+def test_coulomb_hatt_mode_with_mu_zero_renders_no_force(tmp_path):
+    """mu = 0 in hatt mode puts the threshold at 0 mm/s; at rest that divided 0 by 0 (ZeroDivisionError)."""
+    g = graph(tmp_path, COULOMB.format(params="{mu: 0.0, mode: hatt}"))
+    vel = np.array([[0.0, 0.0, 0.0], [100.0, 0.0, 0.0]])
+    out = g.run({"velocity": vel, "normal_force": np.array([1.0, 1.0])})["force"]
+    np.testing.assert_array_equal(out, np.zeros((2, 3)))

@@ -140,20 +140,23 @@ def test_bus_that_cannot_be_opened(setup):
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_signal_leaves_safe_values_last(setup, sig):
     rec = setup / f"s{int(sig)}.log"
-    cmd = [sys.executable, "-m", "flowtex.runtime.commands", "live", str(setup / "g.yaml"), "--dbc", str(DBC),
+    cmd = [sys.executable, "-m", "flowtex", "live", str(setup / "g.yaml"), "--dbc", str(DBC),
            "--map", str(setup / "m.yaml"), "--simulate", str(setup / "rec.npz"), "--record", str(rec), "--quiet"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
         deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and (not rec.exists() or rec.stat().st_size < 20000):
+        # the log grows in a temporary file beside it (renamed over s*.log at the end: atomic)
+        while time.monotonic() < deadline and sum(p.stat().st_size for p in setup.glob(f".{rec.name}.*.part.log")) < 20000:
             time.sleep(0.1)
             assert proc.poll() is None, proc.stderr.read().decode()
+        assert not rec.exists()
         proc.send_signal(sig)
         out, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
             proc.kill()
     assert proc.returncode == 0, err.decode()
+    assert not list(setup.glob(".*.part.log"))
     tx = _tx(rec)
     assert len(tx) > 100
     db = cantools.database.load_file(DBC)
@@ -389,13 +392,14 @@ def test_exception_inside_the_graph_sends_safe_values_last(setup):
     assert r.device.frames_received == 2 * first + 2
 
     # the command line reports it as one line and exit code 1
-    cmd = [sys.executable, "-m", "flowtex.runtime.commands", "live", str(setup / "boom.yaml"), "--plugins", str(plugins), "--dbc", str(DBC),
+    cmd = [sys.executable, "-m", "flowtex", "live", str(setup / "boom.yaml"), "--plugins", str(plugins), "--dbc", str(DBC),
            "--map", str(setup / "m.yaml"), "--simulate", str(setup / "rec.npz"), "--duration", "0.5", "--quiet"]
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert p.returncode == 1
-    # one line for the error; the only other line allowed is the compile notice (when this process misses the disk cache)
-    lines = [ln for ln in p.stderr.splitlines() if not ln.startswith("flowtex: compiling graph")]
-    assert lines == [f"flowtex live: error: tick {first}: ValueError: sensor overload (safe values sent)"]
+    # one line for the error; the only other lines allowed are the compile notice (when this process misses the disk
+    # cache) and the list of plugin files loaded
+    lines = [ln for ln in p.stderr.splitlines() if not ln.startswith(("flowtex: compiling graph", "flowtex: loaded plugin code"))]
+    assert lines == [f"tick {first}: ValueError: sensor overload (safe values sent)"]
 
 
 def test_map_peak_limit_is_mirrored_below_the_clamp(setup):
@@ -426,12 +430,12 @@ def test_map_peak_limit_is_mirrored_below_the_clamp(setup):
 def test_a_session_without_any_sensor_frame_says_so_and_exits_3(setup):
     # the user's mistake: no --simulate and no device on the bus; a private virtual channel nobody sends on
     channel = f"flowtex-silent-{os.getpid()}"
-    cmd = [sys.executable, "-m", "flowtex.runtime.commands", "live", str(setup / "g.yaml"), "--bus", f"virtual:{channel}",
+    cmd = [sys.executable, "-m", "flowtex", "live", str(setup / "g.yaml"), "--bus", f"virtual:{channel}",
            "--dbc", str(DBC), "--map", str(setup / "m.yaml"), "--duration", "0.3", "--quiet"]
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert p.returncode == 3, p.stderr
     last = p.stderr.strip().splitlines()[-1]
-    assert last.startswith("flowtex live: error: no sensor frame received in ")
+    assert last.startswith("no sensor frame received in ")
     # names the expected messages with the DBC's frame ids, and the bus
     assert "ToolPosition (id 0x100)" in last and "ToolForce (id 0x101)" in last, last
     assert f"bus 'virtual:{channel}'" in last and "safe values" in last

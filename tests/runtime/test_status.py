@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from test_live import DBC, setup  # noqa: F401  (fixture; rootdir-relative import as pytest does)
 
+from flowtex.cli.live import register
 from flowtex.errors import FlowtexError
 from flowtex.graph.compiled import load_graph
-from flowtex.runtime.commands import register
 from flowtex.runtime.live import run_live
 from flowtex.runtime.status import format_values, resolve_shown
 

@@ -1,16 +1,12 @@
-"""``flowtex fit texture``: recordings of free exploration (or a Romano-2012 grid) -> a texture model set.
+"""A texture fit job: recordings of free exploration (or a Romano-2012 grid) -> a texture model set, written.
 
-One recording: ``flowtex fit texture REC --accel A --speed S --force F -o SURFACE.json``.
-Many: ``flowtex fit texture DIR|GLOB ... --out-dir OUT [--workers N | --scheduler tcp://HOST:8786]``
-(flowtex.fit.batch). The pipeline is flowtex.fit.texture; docs/fitting.md
-describes every option.
+What ``flowtex fit texture`` (flowtex/cli/fit_texture.py) runs for one recording, a grid index or
+(flowtex.fit.batch) many recordings. The pipeline is flowtex.fit.texture; docs/fitting.md describes every option.
 """
 
 from __future__ import annotations
 
-import argparse
 import csv
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -18,8 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError
-from ..io.recordings import SUFFIXES
-from .inputs import atomic_output, check_not_constant, load, signal
+from .inputs import atomic_output, check_highpass, check_not_constant, load, signal
 from .texture import TextureFit, TextureOptions, fit_grid, fit_texture
 
 
@@ -59,6 +54,8 @@ def read_signals(path: Path, job: TextureJob, need_speed: bool = True) -> tuple[
     Grid cells (``need_speed=False``) need only the acceleration: speed and force come from the index.
     """
     rec, rate = load(path, job.rate)
+    if job.options is not None:
+        check_highpass(job.options.highpass_hz, rate)
     acc = signal(rec, job.accel, "--accel", (1, 3))
     if acc.ndim == 2:
         from ..dsp.dft321 import dft321
@@ -132,7 +129,7 @@ def _resample(ms: Any, rate: float) -> Any:
     """The set at ``rate`` Hz (flowtex models resample's method), with a one-line account of what it cost."""
     from .resample import resample_model_set
 
-    out = resample_model_set(ms, rate)
+    out = resample_model_set(ms, rate, option="--render-rate")
     info = out.metadata["resample"]
     print(f"resampled {info['from_hz']:g} Hz -> {info['to_hz']:g} Hz: orders {ms.ar_order}/{ms.ma_order} -> "
           f"{out.ar_order}/{out.ma_order}, worst LSD {info['worst_lsd_db']:.2f} dB, "
@@ -150,73 +147,3 @@ def parse_order(text: str) -> tuple[int, int] | None:
     if p < 1 or q < 0:
         raise DataError(f"--order {text}: the AR order must be >= 1 and the MA order >= 0")
     return p, q
-
-
-def job_from_args(args: argparse.Namespace) -> TextureJob:
-    opt = TextureOptions(order=parse_order(args.order), max_order=args.max_order, highpass_hz=args.highpass)
-    return TextureJob(accel=args.accel, speed=args.speed, force=args.force, position=args.position, normal=args.normal,
-                      rate=args.rate, options=opt, render_rate=args.render_rate, material=args.material)
-
-
-def run(args: argparse.Namespace) -> int:
-    from .report import print_table, write_report
-
-    job = job_from_args(args)
-    if args.xml == Path("-") and args.output is not None:
-        args.xml = args.output.with_suffix(".xml")
-    if args.grid is not None:
-        if args.recordings:
-            raise DataError("--grid INDEX.csv names the recordings itself; give no REC arguments with it")
-        if args.output is None:
-            raise DataError("--grid needs -o SURFACE.json")
-        fit = fit_grid_index(Path(args.grid), job)
-        print_table(fit)
-        write_outputs(fit, args.output, args.xml, job.render_rate)
-        if args.report:
-            write_report(fit, Path(args.report))
-        print(f"-> {args.output}")
-        return 0
-    from .batch import expand_inputs, fit_many
-
-    paths = expand_inputs(args.recordings)
-    if args.out_dir is not None:
-        return fit_many(paths, job, Path(args.out_dir), args.workers, args.scheduler, args.xml is not None, args.report is not None)
-    if len(paths) != 1:
-        raise DataError(f"{len(paths)} recordings given; fit several with --out-dir OUT (one surface file each), or give one with -o")
-    if args.output is None:
-        raise DataError("give -o SURFACE.json (or --out-dir OUT for many recordings)")
-    fit = fit_recording(paths[0], job)
-    print_table(fit)
-    write_outputs(fit, args.output, args.xml, job.render_rate)
-    if args.report:
-        write_report(fit, Path(args.report))
-    print(f"-> {args.output}" + (f", {args.xml}" if args.xml else ""), file=sys.stdout)
-    return 0
-
-
-def register_fit(kinds: Any) -> None:
-    """Add ``flowtex fit texture``."""
-    p = kinds.add_parser("texture", help="texture model set (ARMA models over speed and force) from free exploration",
-                         description="Segment free exploration into stationary pieces, fit one ARMA model per piece at one "
-                                     "order shared by the material, and assemble a Delaunay model set (docs/fitting.md).")
-    p.add_argument("recordings", nargs="*", help=f"recording(s) ({', '.join(SUFFIXES)}), folders or glob patterns")
-    p.add_argument("--accel", default="accel", metavar="A", help="acceleration signal (m/s^2): 1-D, or 3 axes reduced by DFT321")
-    p.add_argument("--speed", metavar="S", help="tangential speed signal (mm/s)")
-    p.add_argument("--force", default="normal_force", metavar="F", help="normal force signal (N)")
-    p.add_argument("--position", metavar="P", help="tool position (mm, 3 axes): speed from it, as speed_estimator does")
-    p.add_argument("--normal", metavar="N", help="surface normal signal (3 axes) for --position (default +z)")
-    p.add_argument("--rate", type=float, help="sample rate (Hz) when the file states none")
-    p.add_argument("--order", default="auto", help="auto (BIC, shared by all pieces) or P,Q")
-    p.add_argument("--max-order", type=int, default=20, help="largest p and q searched by --order auto")
-    p.add_argument("--highpass", type=float, default=10.0, metavar="HZ", help="zero-phase high-pass of the acceleration (0: none)")
-    p.add_argument("--render-rate", type=float, metavar="HZ", help="resample the models to this rate before writing")
-    p.add_argument("--material", help="surface name (default: the file's stem)")
-    p.add_argument("-o", "--output", type=Path, help="output model set (native JSON)")
-    p.add_argument("--xml", type=Path, help="also write HaTT XML (with --out-dir: one .xml beside each .json)", nargs="?",
-                   const=Path("-"))
-    p.add_argument("--report", metavar="DIR", help="write a markdown report with plots here")
-    p.add_argument("--grid", metavar="INDEX.csv", help="Romano-2012 grid: CSV of file, speed, force (one stationary recording each)")
-    p.add_argument("--out-dir", metavar="OUT", help="fit every recording given into OUT/<name>.json")
-    p.add_argument("--workers", type=int, help="Dask workers on this machine for --out-dir (default: one per core)")
-    p.add_argument("--scheduler", metavar="tcp://HOST:8786", help="use this running Dask scheduler for --out-dir")
-    p.set_defaults(func=run)

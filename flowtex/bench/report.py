@@ -1,0 +1,74 @@
+"""What ``flowtex bench`` reports (docs/bench.md): the table as CSV, the Pareto plot, and the Dask client it runs on."""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+
+@contextlib.contextmanager
+def dask_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
+    """A Dask client for ``workers`` local processes or a running ``scheduler``, else None (configurations run here)."""
+    if not (workers or scheduler):
+        yield None
+        return
+    from dask.distributed import Client, LocalCluster
+
+    if scheduler:
+        with Client(scheduler) as client:
+            yield client
+        return
+    with LocalCluster(n_workers=max(1, workers or 1), threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        yield client
+
+
+def need_matplotlib() -> None:
+    """Raise FlowtexError saying how to install matplotlib when it is missing (before any work)."""
+    from ..errors import FlowtexError
+
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise FlowtexError("plots need matplotlib: pip install 'flowtex[plot]'") from None
+
+
+def write_csv(path: str | Path, rows: list[list[str]]) -> None:
+    """The table as CSV, atomically."""
+    from ..io.atomic import atomic_output
+
+    with atomic_output(path) as tmp, open(tmp, "w", newline="") as fh:
+        csv.writer(fh).writerows(rows)
+
+
+def pareto_plot(configs: list, output: str, metric: str, path: Path) -> None:
+    """ns/tick against error, Pareto front joined and labelled."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    x = [c.ns_per_tick for c in configs]
+    y = [c.errors[output] for c in configs]
+    ax.scatter(x, y, color="0.6", label="configuration")
+    front = sorted((c for c in configs if c.pareto), key=lambda c: c.ns_per_tick)
+    ax.plot([c.ns_per_tick for c in front], [c.errors[output] for c in front], "o-", color="C3", label="Pareto front")
+    for c in front:
+        ax.annotate(", ".join(f"{k}={v}" for k, v in c.values.items()), (c.ns_per_tick, c.errors[output]), fontsize=7,
+                    xytext=(4, 4), textcoords="offset points")
+    ax.set_xlabel(f"ns/tick ({configs[0].timed_on})")
+    ax.set_ylabel(f"{output} error ({ {'lsd': 'LSD, dB', 'gfc': '1 - GFC'}.get(metric, metric.upper())})")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    from ..io.atomic import atomic_output
+
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp, dpi=120, format="png")
+    plt.close(fig)
+    print(f"Pareto plot -> {path}", file=sys.stderr)

@@ -1,0 +1,115 @@
+"""``flowtex fit texture``: one recording (-o), a Romano-2012 grid (--grid) or many recordings (--out-dir)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import Any
+
+from ..errors import DataError
+from .options import add_from_rate, int_at_least, number_in_range, positive_hz
+from .output import say
+
+
+def register_fit(kinds: Any) -> None:
+    """Add ``flowtex fit texture``."""
+    from ..io.recordings import SUFFIXES
+
+    p = kinds.add_parser("texture", help="texture model set (ARMA models over speed and force) from free exploration",
+                         description="Segment free exploration into stationary pieces, fit one ARMA model per piece at one "
+                                     "order shared by the material, and assemble a Delaunay model set (docs/fitting.md).")
+    p.add_argument("recordings", nargs="*", help=f"recording(s) ({', '.join(SUFFIXES)}), folders or glob patterns")
+    p.add_argument("--accel", default="accel", metavar="A", help="acceleration signal (m/s^2): 1-D, or 3 axes reduced by DFT321")
+    p.add_argument("--speed", metavar="S", help="tangential speed signal (mm/s)")
+    p.add_argument("--force", default="normal_force", metavar="F", help="normal force signal (N)")
+    p.add_argument("--position", metavar="P", help="tool position (mm, 3 axes): speed from it, as speed_estimator does")
+    p.add_argument("--normal", metavar="N", help="surface normal signal (3 axes) for --position (default +z)")
+    add_from_rate(p, old_rate=True)
+    p.add_argument("--order", default="auto", help="auto (BIC, shared by all pieces) or P,Q")
+    p.add_argument("--max-order", type=int_at_least(1, 40), default=20, help="largest p and q searched by --order auto (1..40)")
+    p.add_argument("--highpass", type=lambda t: number_in_range(t, 0.0, math.inf, unit="Hz"), default=10.0, metavar="HZ",
+                   help="zero-phase high-pass of the acceleration (0: none; below half the recording's rate)")
+    p.add_argument("--render-rate", type=positive_hz, metavar="HZ",
+                   help="resample the models to this rate before writing (at most 16x the recording's rate, up or down)")
+    p.add_argument("--material", help="surface name (default: the file's stem)")
+    p.add_argument("-o", "--output", type=Path, help="output model set (native JSON)")
+    p.add_argument("--xml", type=Path, help="also write HaTT XML (with --out-dir: one .xml beside each .json)", nargs="?",
+                   const=Path("-"))
+    p.add_argument("--report", metavar="DIR", help="write a markdown report with plots into this folder")
+    p.add_argument("--grid", metavar="INDEX.csv", help="Romano-2012 grid: CSV of file, speed, force (one stationary recording each)")
+    p.add_argument("--out-dir", metavar="OUT", help="fit every recording given into OUT/<name>.json")
+    p.add_argument("--workers", type=int_at_least(0), help="Dask workers on this machine for --out-dir (default: one per core)")
+    p.add_argument("--scheduler", metavar="tcp://HOST:8786", help="use this running Dask scheduler for --out-dir")
+    p.set_defaults(func=cmd_fit_texture)
+
+
+def _job(args: argparse.Namespace) -> Any:
+    from ..fit.texture import TextureOptions
+    from ..fit.texture_job import TextureJob, parse_order
+
+    opt = TextureOptions(order=parse_order(args.order), max_order=args.max_order, highpass_hz=args.highpass)
+    return TextureJob(accel=args.accel, speed=args.speed, force=args.force, position=args.position, normal=args.normal,
+                      rate=args.from_rate, options=opt, render_rate=args.render_rate, material=args.material)
+
+
+def check_report_folder(report: str | None, inputs: list) -> None:
+    """--report names a folder: refuse an existing file (or an input) before any work."""
+    from ..io.atomic import check_output
+
+    if report is None:
+        return
+    path = Path(report).expanduser()
+    if path.exists() and not path.is_dir():
+        raise DataError(f"--report {report}: is a file; --report names a folder to write the report into")
+    check_output(path / "report.md", inputs=inputs, option="--report")
+
+
+def _check_outputs(args: argparse.Namespace, inputs: list) -> None:
+    from ..io.atomic import check_output
+
+    check_output(args.output, inputs=inputs, option="-o")
+    check_output(args.xml, inputs=inputs + [args.output], option="--xml")
+    check_report_folder(args.report, inputs)
+
+
+def cmd_fit_texture(args: argparse.Namespace) -> int:
+    from ..fit.report import print_table, write_report
+    from ..fit.texture_job import fit_grid_index, fit_recording, write_outputs
+
+    job = _job(args)
+    if args.xml == Path("-") and args.output is not None:
+        args.xml = args.output.with_suffix(".xml")
+    if args.grid is not None:
+        if args.recordings:
+            raise DataError("--grid INDEX.csv names the recordings itself; give no REC arguments with it")
+        if args.output is None:
+            raise DataError("--grid needs -o SURFACE.json")
+        _check_outputs(args, [args.grid])
+        fit = fit_grid_index(Path(args.grid), job)
+        print_table(fit)
+        write_outputs(fit, args.output, args.xml, job.render_rate)
+        if args.report:
+            write_report(fit, Path(args.report))
+        say(f"-> {args.output}")
+        return 0
+    from ..fit.batch import expand_inputs, fit_many
+
+    paths = expand_inputs(args.recordings)
+    if args.out_dir is not None:
+        from ..io.atomic import check_output
+
+        check_output(Path(args.out_dir) / "x.json", inputs=paths, option="--out-dir")
+        return fit_many(paths, job, Path(args.out_dir), args.workers, args.scheduler, args.xml is not None, args.report is not None)
+    if len(paths) != 1:
+        raise DataError(f"{len(paths)} recordings given; fit several with --out-dir OUT (one surface file each), or give one with -o")
+    if args.output is None:
+        raise DataError("give -o SURFACE.json (or --out-dir OUT for many recordings)")
+    _check_outputs(args, list(paths))
+    fit = fit_recording(paths[0], job)
+    print_table(fit)
+    write_outputs(fit, args.output, args.xml, job.render_rate)
+    if args.report:
+        write_report(fit, Path(args.report))
+    say(f"-> {args.output}" + (f", {args.xml}" if args.xml else ""))
+    return 0

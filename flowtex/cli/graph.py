@@ -1,0 +1,99 @@
+"""``flowtex validate``, ``flowtex graph`` and ``flowtex nodes``: check, describe and list."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from ..errors import FlowtexError
+from .options import add_compile_option, add_graph_options, add_plugin_options, overrides
+from .output import note, say
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser("validate", help="check any flowtex file (graph, scene, device map, model set, pattern, tap library, "
+                                        "friction, compliance); one line per problem")
+    p.add_argument("graph", metavar="FILE")
+    add_graph_options(p)
+    p.set_defaults(func=cmd_validate)
+
+    p = sub.add_parser("graph", help="show execution order, buffers and dropped nodes")
+    p.add_argument("graph")
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--dot", action="store_true", help="print Graphviz source")
+    group.add_argument("--show-code", action="store_true",
+                       help="print what runs: the fused tier's generated tick source, or the dispatch tier's node order and driver")
+    add_compile_option(p, "fused")
+    add_graph_options(p)
+    p.set_defaults(func=cmd_graph)
+
+    p = sub.add_parser("nodes", help="list node types with ports, parameters and docs")
+    p.add_argument("type", nargs="?", help="show only this node type")
+    add_plugin_options(p)
+    p.set_defaults(func=cmd_nodes)
+
+
+def plugin_kwargs(args: argparse.Namespace) -> dict:
+    """``plugins=`` and ``auto_plugins=`` for flowtex.graph.compiled's loaders."""
+    return {"plugins": tuple(args.plugins), "auto_plugins": not args.no_plugins}
+
+
+def report_plugins(graph_path: str | Path, args: argparse.Namespace) -> None:
+    """One stderr line naming the plugin files (Python code) that ran to load ``graph_path``; nothing if none."""
+    from ..graph.compiled import graph_registry
+
+    files = graph_registry(graph_path, tuple(args.plugins), not args.no_plugins).plugin_files
+    if files:
+        note(f"flowtex: loaded plugin code: {', '.join(str(f) for f in files)} (skip the automatic ones with --no-plugins)")
+
+
+def load_graph_from_args(args: argparse.Namespace, path: str | Path | None = None, tier: str | None = None) -> Any:
+    """The compiled graph named by ``args.graph`` (or ``path``) with ``--set``, ``--plugins``, ``--no-plugins``,
+    compiled by ``tier`` (default ``--compile``, if the verb has it; docs/engine.md)."""
+    from ..graph.compiled import load_graph
+
+    path = path if path is not None else args.graph
+    tier = tier or getattr(args, "compile", None)
+    graph = load_graph(path, overrides(args.overrides), **plugin_kwargs(args), tier=tier)
+    report_plugins(path, args)
+    return graph
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    from ..graph.compiled import check_graph
+
+    rg = check_graph(args.graph, overrides(args.overrides), **plugin_kwargs(args))
+    report_plugins(args.graph, args)
+    dropped = f"; dropped (unused): {', '.join(rg.dropped)}" if rg.dropped else ""
+    say(f"{args.graph}: ok ({len(rg.nodes)} nodes, {len(rg.spec.outputs)} outputs{dropped})")
+    return 0
+
+
+def cmd_graph(args: argparse.Namespace) -> int:
+    from ..graph.describe import describe_graph, graph_dot
+
+    graph = load_graph_from_args(args)
+    if args.dot:
+        say(graph_dot(graph))
+    elif args.show_code:
+        say(graph.source)
+    else:
+        say(describe_graph(graph))
+    return 0
+
+
+def cmd_nodes(args: argparse.Namespace) -> int:
+    from ..graph.describe import describe_node_type, describe_registry
+    from ..node_api import suggest
+    from ..registry import load_registry
+
+    registry = load_registry(tuple(args.plugins), auto=not args.no_plugins)
+    if args.type:
+        cls = registry.get(args.type)
+        if cls is None:
+            raise FlowtexError(f"unknown node type {args.type!r}{suggest(args.type, registry.names())}")
+        say(describe_node_type(cls, registry.origins[args.type]))
+    else:
+        say(describe_registry(registry))
+    return 0

@@ -1,0 +1,85 @@
+"""The ``flowtex`` command: one parser, one error and exit-code convention (docs/cli.md).
+
+Every verb lives in one module of this package with ``register(subparsers)`` adding its parser and handlers named
+``cmd_<verb>``; handlers call library functions with Python values and return an exit code.
+
+Exit codes: 0 ok; 1 user error (a one-line message naming the file, option or signal and the fix, also for a bad
+command line); 2 internal error (a bug: ``flowtex: internal error: ...``; ``FLOWTEX_DEBUG=1`` shows the traceback);
+3 ``live`` ended without one sensor frame; 130 interrupted (Ctrl-C).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+from collections.abc import Sequence
+
+from ..errors import FlowtexError
+from .output import clean
+
+EXIT_OK = 0
+EXIT_USER_ERROR = 1
+EXIT_INTERNAL_ERROR = 2
+EXIT_NO_SENSOR_FRAMES = 3
+EXIT_INTERRUPTED = 130
+
+COMMAND_MODULES = (
+    "flowtex.cli.graph",
+    "flowtex.cli.run",
+    "flowtex.cli.live",
+    "flowtex.cli.fit",
+    "flowtex.cli.models",
+    "flowtex.cli.resample",
+    "flowtex.cli.scene",
+    "flowtex.cli.bench",
+    "flowtex.cli.plot",
+)
+"""Modules that add subcommands: each has ``register(subparsers)`` (one command group per module, one line here)."""
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with flowtex's convention for a bad command line: one line on stderr, exit code 1."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        print(clean(f"{self.prog}: {message} (see {self.prog} --help)"), file=sys.stderr)
+        sys.exit(EXIT_USER_ERROR)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .. import __version__
+
+    parser = Parser(prog="flowtex", description="Dataflow graphs for haptic signal processing (every flag: docs/cli.md).",
+                    epilog="Exit codes: 0 ok, 1 user error (one line), 2 internal error, 3 live without sensor frames, "
+                           "130 interrupted.")
+    parser.add_argument("--version", action="version", version=f"flowtex {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
+    for module_name in COMMAND_MODULES:
+        importlib.import_module(module_name).register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version (0) or a bad command line (1, one line already printed)
+        return int(exc.code or 0)
+    try:
+        return int(args.func(args) or 0)
+    except FlowtexError as exc:
+        for line in str(exc).splitlines() or [type(exc).__name__]:
+            print(clean(line), file=sys.stderr)
+        return EXIT_USER_ERROR
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        return EXIT_OK
+    except Exception as exc:
+        if os.environ.get("FLOWTEX_DEBUG"):
+            raise
+        print(clean(f"flowtex: internal error: {type(exc).__name__}: {exc} (set FLOWTEX_DEBUG=1 for a traceback; please report it)"),
+              file=sys.stderr)
+        return EXIT_INTERNAL_ERROR

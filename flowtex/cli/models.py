@@ -1,0 +1,52 @@
+"""``flowtex models resample IN --rate HZ -o OUT``: a texture model set at another sample rate (flowtex.fit.resample)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from .options import int_at_least, positive_hz
+from .output import say
+
+
+def register(sub: Any) -> None:
+    """Add ``flowtex models`` with its ``resample`` action."""
+    from ..fit.resample import MAX_EXTRA_ORDER
+
+    p = sub.add_parser("models", help="operate on texture model sets (resample)",
+                       description="Transform texture model sets (HaTT XML or native JSON).")
+    actions = p.add_subparsers(dest="models_action", required=True, metavar="ACTION", parser_class=type(p))
+    r = actions.add_parser("resample", help="resample every model to another sample rate",
+                           description="Resample each model of IN on its own to --rate, keeping its physical PSD below "
+                                       "min(old, new) Nyquist and adding nothing above it (docs/fitting.md).")
+    r.add_argument("input", metavar="IN", help="model set: HaTT .xml or native flowtex .json")
+    r.add_argument("--rate", type=positive_hz, required=True, metavar="HZ",
+                   help="target sample rate in Hz (the rate it produces; at most 16x up or down)")
+    r.add_argument("-o", "--output", required=True, metavar="OUT", help="native model-set JSON to write")
+    r.add_argument("--keep-order", action="store_true",
+                   help="keep the models' (p, q) when upsampling by more than 2x (cheaper to render, less exact)")
+    r.add_argument("--extra-order", type=int_at_least(0, MAX_EXTRA_ORDER), metavar="N",
+                   help=f"when upsampling, give every model N (even, 0..{MAX_EXTRA_ORDER}) more poles and zeros (default: the "
+                        "fewest of 0, 2, 4, 6 with which every model keeps its spectrum)")
+    r.set_defaults(func=cmd_models_resample)
+
+
+def cmd_models_resample(args: argparse.Namespace) -> int:
+    from ..fit.resample import resample_model_set, resample_summary, tqdm_progress
+    from ..io.atomic import atomic_output, check_output
+    from ..io.modelset import load_model_set, save_model_set
+
+    target = check_output(args.output, inputs=[args.input], option="-o")
+    ms = load_model_set(args.input)
+    progress, close = tqdm_progress(ms.num_models, "resample")
+    try:
+        out = resample_model_set(ms, args.rate, progress, keep_order=args.keep_order, extra_order=args.extra_order)
+    finally:
+        close()
+    with atomic_output(target) as tmp:
+        save_model_set(out, tmp)
+    line, warning = resample_summary(args.input, ms, out, str(target), args.keep_order)
+    say(line)
+    if warning:
+        say(warning)
+    return 0

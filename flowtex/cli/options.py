@@ -1,0 +1,143 @@
+"""Option builders shared by every verb: one spelling and one meaning per flag (docs/cli.md lists them all).
+
+- ``--plugins DIR`` / ``--no-plugins``: extra plugin folders; skip the automatic ./plugins and graph-folder plugins.
+- ``--set NODE.PARAM=VALUE``: override a node parameter.
+- ``--seed N``: noise seed.
+- ``--from-rate HZ``: the rate of a recording that states none (old spelling ``--rate`` in the fit verbs, with a notice).
+- the live options (``--bus``, ``--dbc``, ``--map``, ``--record``, ``--stats``, ...), shared by ``live`` and ``scene live``.
+
+Porting a new flag to several verbs is one line in the builder here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Sequence
+from typing import Any
+
+
+def add_plugin_options(p: argparse.ArgumentParser, no_plugins: bool = True) -> None:
+    """``--plugins DIR`` (repeatable) and (``no_plugins``) ``--no-plugins``."""
+    p.add_argument("--plugins", action="append", default=[], metavar="DIR",
+                   help="extra plugin folder (repeatable; plugin files are Python code that runs: docs/plugins.md)")
+    if not no_plugins:
+        p.set_defaults(no_plugins=False)
+        return
+    p.add_argument("--no-plugins", action="store_true",
+                   help="do not load ./plugins nor the graph folder's plugins/ (only --plugins DIR and $FLOWTEX_PLUGINS)")
+
+
+def add_set_option(p: argparse.ArgumentParser) -> None:
+    """``--set NODE.PARAM=VALUE`` (repeatable), stored in ``args.overrides``."""
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="NODE.PARAM=VALUE",
+                   help="override a node parameter (repeatable), e.g. --set lookup.models=Models_Cork.xml")
+
+
+def add_graph_options(p: argparse.ArgumentParser, no_plugins: bool = True) -> None:
+    """The options of every verb that loads a graph: plugins and ``--set``."""
+    add_plugin_options(p, no_plugins)
+    add_set_option(p)
+
+
+TIER_HELP = {
+    "fused": "fused: one compiled tick per graph structure (fastest ticks; seconds to compile a new structure)",
+    "dispatch": "dispatch: cached per-node kernels (a structural edit compiles nothing new)",
+    "auto": "auto: fused if cached, else dispatch with the fused tick compiled in the background",
+}
+
+
+def add_compile_option(p: argparse.ArgumentParser, default: str, choices: tuple[str, ...] = ("fused", "dispatch", "auto")) -> None:
+    """``--compile fused|dispatch|auto``: which compile tier builds the graph (docs/engine.md)."""
+    p.add_argument("--compile", choices=choices, default=default,
+                   help="; ".join(TIER_HELP[c] for c in choices) + f" (default: {default}; docs/engine.md)")
+
+
+def add_seed_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--seed", type=int, default=None, help="noise seed (default: the graph's)")
+
+
+def positive_hz(text: str) -> float:
+    """argparse type: a finite rate > 0 in Hz."""
+    return number_in_range(text, 0.0, math.inf, low_open=True, unit="Hz")
+
+
+def number_in_range(text: str, low: float, high: float, *, low_open: bool = False, unit: str = "") -> float:
+    """A finite float in [low, high] (or (low, high] with ``low_open``); argparse turns the ValueError into a usage line."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    below = value <= low if low_open else value < low
+    if not math.isfinite(value) or below or value > high:
+        lo = "(" if low_open else "["
+        hi = "inf)" if high == math.inf else f"{high:g}]"
+        raise argparse.ArgumentTypeError(f"{text} is out of range: valid {lo}{low:g}, {hi}{' ' + unit if unit else ''}")
+    return value
+
+
+def int_at_least(low: int, high: int | None = None) -> Any:
+    """argparse type: an integer in [low, high]."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if value < low or (high is not None and value > high):
+            raise argparse.ArgumentTypeError(f"{text} is out of range: valid {low}..{high if high is not None else 'inf'}")
+        return value
+
+    return parse
+
+
+class Renamed(argparse.Action):
+    """An old spelling of a flag: stores into the new one's ``dest`` and prints a one-line notice on stderr."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, new: str = "", meaning: str = "", **kwargs: Any) -> None:
+        self.new = new
+        self.meaning = meaning
+        super().__init__(option_strings, dest, **kwargs)
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: Any,
+                 option_string: str | None = None) -> None:
+        print(f"notice: {option_string} is now spelled {self.new}{' (' + self.meaning + ')' if self.meaning else ''}; "
+              f"the old spelling still works", file=sys.stderr)
+        setattr(namespace, self.dest, values)
+
+
+def add_from_rate(p: argparse.ArgumentParser, old_rate: bool = False) -> None:
+    """``--from-rate HZ`` (stored in ``args.from_rate``); ``old_rate`` also accepts the old ``--rate`` with a notice."""
+    p.add_argument("--from-rate", type=positive_hz, metavar="HZ", help="sample rate (Hz) of a recording that states none")
+    if old_rate:
+        p.add_argument("--rate", dest="from_rate", type=positive_hz, action=Renamed, new="--from-rate",
+                       meaning="the recording's rate", help=argparse.SUPPRESS)
+
+
+def add_live_options(p: argparse.ArgumentParser, device_required: bool = True) -> None:
+    """The options of a live session (``live`` and ``scene live``)."""
+    p.add_argument("--bus", help="INTERFACE[:CHANNEL], e.g. virtual, socketcan:can0, slcan:/dev/ttyACM0, pcan, kvaser, "
+                                 "socketcand:can0@127.0.0.1:29536")
+    p.add_argument("--bitrate", type=int_at_least(1), help="bus bitrate in bit/s (interfaces that need one)")
+    p.add_argument("--dbc", required=device_required, help="DBC file describing the device's messages")
+    p.add_argument("--map", required=device_required, help="map YAML binding DBC signals to graph inputs/outputs (docs/live.md)")
+    p.add_argument("--record", help="log every frame read and written to SESSION.blf or SESSION.log")
+    p.add_argument("--duration", type=lambda t: number_in_range(t, 0.0, math.inf, low_open=True, unit="s"),
+                   help="seconds to run (default: until Ctrl-C / SIGTERM)")
+    p.add_argument("--rt", action="store_true", help="ask for SCHED_FIFO real-time scheduling and pin the loop to a CPU")
+    p.add_argument("--rt-priority", type=int_at_least(1, 99), default=80, help="SCHED_FIFO priority with --rt (1..99, default 80)")
+    p.add_argument("--cpu", type=int_at_least(0), help="CPU to pin the loop to with --rt")
+    p.add_argument("--stats", help="write the end-of-run statistics as JSON to this file")
+    p.add_argument("--simulate", metavar="RECORDING", help="run a simulated device in this process playing RECORDING (.npz/.csv/.h5)")
+    p.add_argument("--quiet", action="store_true", help="no status line")
+    p.add_argument("--show", action="append", default=[], metavar="SIGNAL",
+                   help="add a graph output or input (NAME, or NAME[i] for one component) to the status line (repeatable)")
+    add_seed_option(p)
+    add_graph_options(p)
+
+
+def overrides(items: Sequence[str]) -> dict:
+    """``--set`` items as {"node.param": value}."""
+    from ..graph.spec import parse_override
+
+    return dict(parse_override(text) for text in items)

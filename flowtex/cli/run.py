@@ -1,0 +1,58 @@
+"""``flowtex run``: a graph offline over a recording, or the replay of a CAN session."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from ..errors import FlowtexError
+from .graph import load_graph_from_args
+from .options import add_compile_option, add_graph_options, add_seed_option
+from .output import say
+
+REPLAY_SUFFIXES = (".blf", ".log", ".asc")
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser("run", help="run a graph offline over a recording (or replay a CAN session)")
+    p.add_argument("graph")
+    p.add_argument("--input", "-i", required=True, help="recording: .npz, .csv, .h5; or a CAN session .blf/.log")
+    p.add_argument("--output", "-o", help="output file: .npz, .csv, .h5 (or .blf/.log when replaying)")
+    add_seed_option(p)
+    p.add_argument("--dbc", help="DBC file (replay of a CAN session)")
+    p.add_argument("--map", help="signal map file (replay of a CAN session)")
+    p.add_argument("--nonfinite", choices=("error", "hold", "zero", "pass"), default="error",
+                   help="NaN/inf in the recording: error (default; names signal, count, first index), "
+                        "hold (last finite value), zero, or pass (unchanged)")
+    add_compile_option(p, "auto")
+    add_graph_options(p)
+    p.set_defaults(func=cmd_run)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from ..io.atomic import check_output
+
+    check_output(args.output, inputs=[args.graph, args.input, args.dbc, args.map], option="-o")
+    graph = load_graph_from_args(args)
+    if Path(args.input).suffix.lower() in REPLAY_SUFFIXES:
+        if not (args.dbc and args.map):
+            raise FlowtexError(f"{args.input}: replaying a CAN session needs --dbc DEVICE.dbc and --map MAP.yaml")
+        from ..runtime.replay import replay_session
+
+        say(str(replay_session(graph, args.input, args.dbc, args.map, args.output, seed=args.seed)))
+        return 0
+    from ..runtime.offline import run_recording
+
+    outputs = run_recording(graph, args.input, args.output, seed=args.seed, progress=sys.stderr.isatty(),
+                            nonfinite=args.nonfinite)
+    say(run_summary(graph, outputs, args.output))
+    return 0
+
+
+def run_summary(graph: Any, outputs: dict, output: str | None) -> str:
+    """``NAME: N ticks at R Hz, outputs a, b -> OUT (TIER tier)``."""
+    n = next(iter(outputs.values())).shape[0] if outputs else 0
+    target = f" -> {output}" if output else ""
+    return f"{graph.name}: {n} ticks at {graph.rate:g} Hz, outputs {', '.join(outputs)}{target} ({graph.tier} tier)"

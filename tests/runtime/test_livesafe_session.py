@@ -1,0 +1,102 @@
+"""Live safety at start-up, session side: output paths and the simulated recording are checked before the first tick."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_live import DBC, setup  # noqa: F401  (fixture; rootdir-relative import as pytest does)
+
+from flowtex.cli import main as live_main
+from flowtex.errors import DataError
+from flowtex.graph.compiled import load_graph
+from flowtex.io.atomic import OutputError
+from flowtex.io.canlog import read_session
+from flowtex.runtime.live import run_live
+
+
+def _live(setup, **kw):  # noqa: F811
+    kw.setdefault("simulate", setup / "rec.npz")
+    return run_live(load_graph(setup / "g.yaml"), DBC, setup / "m.yaml", max_ticks=50, status=None, **kw)
+
+
+@pytest.mark.parametrize("option,inp", [("--stats", "g.yaml"), ("--stats", "m.yaml"), ("--record", "rec.npz")])
+def test_an_output_that_is_an_input_is_refused_before_the_session_and_left_intact(setup, option, inp, capsys):  # noqa: F811
+    before = (setup / inp).read_bytes()
+    args = ["live", str(setup / "g.yaml"), "--dbc", str(DBC), "--map", str(setup / "m.yaml"), "--simulate", str(setup / "rec.npz"),
+            "--duration", "0.05", "--quiet", option, str(setup / inp)]
+    if option == "--record":  # a .npz cannot be a CAN log: make the name a log that is the same file as the recording
+        (setup / "rec.log").symlink_to(setup / inp)
+        args[-1] = str(setup / "rec.log")
+    assert live_main(args) == 1
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip() and "loaded plugin code" not in line]
+    assert len(err) == 1 and err[0].startswith(f"{option} ") and "is an input of this command" in err[0], err
+    assert (setup / inp).read_bytes() == before
+
+
+def test_stats_and_record_into_missing_folders_are_created_before_the_session(setup):  # noqa: F811
+    stats, rec = setup / "out" / "a" / "stats.json", setup / "logs" / "s.blf"
+    r = _live(setup, stats_path=stats, record=rec)
+    assert r.error is None and r.ticks == 50
+    import json
+
+    doc = json.loads(stats.read_text())
+    assert doc["ticks"] == 50 and doc["frames_out"] == 100
+    assert sum(not m.is_rx for m in read_session(rec)) == 2 * 51  # 50 ticks and the exit block
+    assert sorted(p.name for p in rec.parent.iterdir()) == ["s.blf"]  # no temporary file left
+
+
+def test_stats_and_record_on_one_file_and_a_folder_are_refused(setup):  # noqa: F811
+    with pytest.raises(OutputError, match="--stats .*the same file as --record"):
+        _live(setup, stats_path=setup / "s.log", record=setup / "s.log")
+    (setup / "d.log").mkdir()
+    with pytest.raises(OutputError, match=r"--record .*d\.log: is a folder"):
+        _live(setup, record=setup / "d.log")
+    (setup / "file").write_text("x")
+    with pytest.raises(OutputError, match=r"--stats .*file is not a folder"):
+        _live(setup, stats_path=setup / "file" / "stats.json")
+
+
+def test_an_existing_record_is_replaced_only_by_a_complete_one(setup):  # noqa: F811
+    rec = setup / "s.log"
+    _live(setup, record=rec)
+    first = rec.read_bytes()
+    with pytest.raises(DataError):  # a session that cannot start (NaN below) leaves the old log as it was
+        np.savez(setup / "nan.npz", position=np.zeros((10, 3)), normal_force=np.array([1.0] * 4 + [np.nan] * 6),
+                 rate=np.float64(1000))
+        _live(setup, record=rec, simulate=setup / "nan.npz")
+    assert rec.read_bytes() == first
+
+
+def test_nan_in_the_simulated_recording_is_refused_before_the_session(setup):  # noqa: F811
+    """Not a ValueError from the encoder mid-session: one line naming the file, the signal and the first bad sample."""
+    t = np.arange(400) / 1000.0
+    force = 3 + np.sin(10 * np.pi * t)
+    force[237] = np.nan
+    force[300] = np.inf
+    path = setup / "nan.npz"
+    np.savez(path, position=np.zeros((400, 3)), normal_force=force, rate=np.float64(1000))
+    with pytest.raises(DataError) as e:
+        _live(setup, simulate=path, record=setup / "never.blf")
+    msg = str(e.value)
+    assert "\n" not in msg
+    assert msg.startswith(f"{path}: signal 'normal_force' has 2 non-finite sample(s), the first (nan) at index 237")
+    assert not (setup / "never.blf").exists()
+
+
+def test_simulate_device_refuses_nan_before_opening_the_bus(setup, capsys):  # noqa: F811
+    path = setup / "nan.npz"
+    np.savez(path, position=np.full((20, 3), np.inf), normal_force=np.ones(20), rate=np.float64(1000))
+    rc = live_main(["simulate-device", str(path), "--bus", "nosuchbus:0", "--dbc", str(DBC), "--map", str(setup / "m.yaml")])
+    assert rc == 1
+    err = capsys.readouterr().err
+    assert "signal 'position' has 20 non-finite sample(s), the first (inf) at index 0" in err
+    assert "nosuchbus" not in err  # refused before the (unknown) bus was tried
+
+
+def test_files_the_session_was_built_from_are_inputs_too(setup):  # noqa: F811
+    """``flowtex scene live SCENE --stats SCENE`` passes the scene file as one of the session's inputs."""
+    scene = setup / "scene.yaml"
+    scene.write_text("flowtex_scene: 1\n")
+    with pytest.raises(OutputError, match=r"--stats .*scene\.yaml: that is an input of this command"):
+        _live(setup, stats_path=scene, inputs=[scene])
+    assert scene.read_text() == "flowtex_scene: 1\n"
