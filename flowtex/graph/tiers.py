@@ -105,8 +105,9 @@ class FusedPlan:
         return self.seal_path().exists()
 
     def compile(self, ints: np.ndarray) -> Compiled:
+        """Load (or compile, sealed) this structure's ``block``, ``run`` and ``step``; ``ints`` is the layout's int arena."""
         module = load_generated(self.source, self.kernels, self.versions)
-        if module.block.signatures:  # compiled (or loaded) earlier in this process
+        if all(f.signatures for f in (module.block, module.run, module.step)):  # compiled (or loaded) earlier in this process
             return Compiled("fused", module.block, module.run, entry(module.step), ints, self.source)
         base = Path(module.block._cache._cache_path)
 
