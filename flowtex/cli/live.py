@@ -40,7 +40,17 @@ def register(sub: Any) -> None:
 
 def cmd_live(args: argparse.Namespace) -> int:
     """0 after a clean stop (duration, Ctrl-C, SIGTERM), 1 on errors, 3 when no sensor frame arrived."""
+    check_live_outputs(args, args.graph, args.dbc, args.map)
     return run_live_session(load_graph_from_args(args, tier="fused"), args)  # live keeps the fused tick
+
+
+def check_live_outputs(args: argparse.Namespace, source: str, dbc: str | None, map_: str | None) -> None:
+    """``--stats`` and ``--record``: not an input, folder there and writable, before the session (and the compile)."""
+    from ..io.atomic import check_output
+
+    inputs = [source, dbc, map_, args.simulate]
+    check_output(args.stats, inputs=inputs, option="--stats")
+    check_output(args.record, inputs=inputs + [args.stats], option="--record")
 
 
 def run_live_session(graph: Any, args: argparse.Namespace, dbc: str | None = None, map_: str | None = None) -> int:
@@ -53,7 +63,7 @@ def run_live_session(graph: Any, args: argparse.Namespace, dbc: str | None = Non
                       record=args.record, rt=args.rt, rt_priority=args.rt_priority, rt_cpu=args.cpu,
                       stats_path=args.stats, seed=args.seed, status=None if args.quiet else sys.stderr,
                       bitrate=args.bitrate, show=args.show,
-                      inputs=[p for p in (args.graph, getattr(args, "scene", None)) if p])
+                      inputs=[p for p in (getattr(args, "graph", None), getattr(args, "scene", None)) if p])
     for line in report.warnings:
         note(f"flowtex live: warning: {line}")
     if report.error:

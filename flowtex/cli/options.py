@@ -58,9 +58,13 @@ def add_seed_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=None, help="noise seed (default: the graph's)")
 
 
+MAX_RATE_HZ = 1_000_000.0
+"""Largest rate any option takes: 1 MHz, above any haptic or audio recording (filters designed at absurd rates fail)."""
+
+
 def positive_hz(text: str) -> float:
-    """argparse type: a finite rate > 0 in Hz."""
-    return number_in_range(text, 0.0, math.inf, low_open=True, unit="Hz")
+    """argparse type: a rate in (0, :data:`MAX_RATE_HZ`] Hz."""
+    return number_in_range(text, 0.0, MAX_RATE_HZ, low_open=True, unit="Hz")
 
 
 def number_in_range(text: str, low: float, high: float, *, low_open: bool = False, unit: str = "") -> float:

@@ -13,6 +13,7 @@ from .options import add_compile_option, add_graph_options, add_seed_option
 from .output import say
 
 REPLAY_SUFFIXES = (".blf", ".log", ".asc")
+RECORDING_SUFFIXES = (".npz", ".csv", ".h5", ".hdf5")
 
 
 def register(sub: Any) -> None:
@@ -34,9 +35,11 @@ def register(sub: Any) -> None:
 def cmd_run(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output
 
-    check_output(args.output, inputs=[args.graph, args.input, args.dbc, args.map], option="-o")
+    replay = Path(args.input).suffix.lower() in REPLAY_SUFFIXES
+    check_output(args.output, inputs=[args.graph, args.input, args.dbc, args.map], option="-o",
+                 suffixes=(".npz", *REPLAY_SUFFIXES) if replay else RECORDING_SUFFIXES)
     graph = load_graph_from_args(args)
-    if Path(args.input).suffix.lower() in REPLAY_SUFFIXES:
+    if replay:
         if not (args.dbc and args.map):
             raise FlowtexError(f"{args.input}: replaying a CAN session needs --dbc DEVICE.dbc and --map MAP.yaml")
         from ..runtime.replay import replay_session
