@@ -32,11 +32,16 @@ def register_fit(kinds: Any) -> None:
                    help="zero-phase high-pass of the acceleration (0: none; below half the recording's rate)")
     p.add_argument("--render-rate", type=positive_hz, metavar="HZ",
                    help="resample the models to this rate before writing (at most 16x the recording's rate, up or down)")
+    p.add_argument("--allow-misses", action="store_true",
+                   help="with --render-rate: write the set even if some resampled model misses its spectrum (else refused)")
     p.add_argument("--material", help="surface name (default: the file's stem)")
     p.add_argument("-o", "--output", type=Path, help="output model set (native JSON)")
     p.add_argument("--xml", type=Path, help="also write HaTT XML (with --out-dir: one .xml beside each .json)", nargs="?",
                    const=Path("-"))
     p.add_argument("--report", metavar="DIR", help="write a markdown report with plots into this folder")
+    p.add_argument("--holdout", type=lambda t: number_in_range(t, 0.0, 1.0, low_open=True), metavar="FRACTION",
+                   help="fit on all but the last FRACTION of the recording and compare the fit with that part "
+                        "(as flowtex compare does)")
     p.add_argument("--grid", metavar="INDEX.csv", help="Romano-2012 grid: CSV of file, speed, force (one stationary recording each)")
     p.add_argument("--out-dir", metavar="OUT", help="fit every recording given into OUT/<name>.json")
     p.add_argument("--workers", type=int_at_least(0), help="Dask workers on this machine for --out-dir (default: one per core)")
@@ -50,7 +55,8 @@ def _job(args: argparse.Namespace) -> Any:
 
     opt = TextureOptions(order=parse_order(args.order), max_order=args.max_order, highpass_hz=args.highpass)
     return TextureJob(accel=args.accel, speed=args.speed, force=args.force, position=args.position, normal=args.normal,
-                      rate=args.from_rate, options=opt, render_rate=args.render_rate, material=args.material)
+                      rate=args.from_rate, options=opt, render_rate=args.render_rate, material=args.material,
+                      allow_misses=args.allow_misses)
 
 
 def check_report_folder(report: str | None, inputs: list) -> None:
@@ -78,6 +84,9 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
     from ..fit.texture_job import fit_grid_index, fit_recording, write_outputs
 
     job = _job(args)
+    if args.holdout is not None and (args.grid is not None or args.out_dir is not None):
+        raise DataError("--holdout compares one free-exploration recording with its own held-out end; "
+                        "give one REC with -o (not --grid or --out-dir)")
     if args.xml == Path("-") and args.output is not None:
         args.xml = args.output.with_suffix(".xml")
     if args.grid is not None:
@@ -88,7 +97,7 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
         _check_outputs(args, [args.grid])
         fit = fit_grid_index(Path(args.grid), job)
         print_table(fit)
-        write_outputs(fit, args.output, args.xml, job.render_rate)
+        write_outputs(fit, args.output, args.xml, job.render_rate, job.allow_misses)
         if args.report:
             write_report(fit, Path(args.report))
         say(f"-> {args.output}")
@@ -106,10 +115,29 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
     if args.output is None:
         raise DataError("give -o SURFACE.json (or --out-dir OUT for many recordings)")
     _check_outputs(args, list(paths))
-    fit = fit_recording(paths[0], job)
-    print_table(fit)
-    write_outputs(fit, args.output, args.xml, job.render_rate)
+    if args.holdout is not None:
+        fit = _fit_holdout(paths[0], job, args.holdout)
+    else:
+        fit = fit_recording(paths[0], job)
+        print_table(fit)
+    write_outputs(fit, args.output, args.xml, job.render_rate, job.allow_misses)
     if args.report:
         write_report(fit, Path(args.report))
     say(f"-> {args.output}" + (f", {args.xml}" if args.xml else ""))
     return 0
+
+
+def _fit_holdout(path: Path, job: Any, fraction: float) -> Any:
+    """Fit on all but the last ``fraction`` of ``path``; print the fit table and the comparison on the held-out part."""
+    from ..fit.compare import summary_lines
+    from ..fit.evaluate import fit_holdout
+    from ..fit.report import print_table
+    from ..fit.texture_job import read_signals
+
+    acc, speed, force, rate = read_signals(path, job)
+    fit, cmp = fit_holdout(acc, speed, force, rate, fraction, job.options, job.material or path.stem, str(path))
+    print_table(fit)
+    say(f"held out: the last {fraction:g} of the recording ({fraction * acc.shape[0] / rate:.1f} s), not used by the fit")
+    for line in summary_lines(cmp):
+        say(line)
+    return fit

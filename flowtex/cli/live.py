@@ -49,7 +49,18 @@ def cmd_live(args: argparse.Namespace) -> int:
     missing = [f for f, v in (("GRAPH", args.graph), ("--dbc", args.dbc), ("--map", args.map)) if not v]
     if missing:
         raise FlowtexError(f"flowtex live: missing {', '.join(missing)} (usage: flowtex live GRAPH --dbc DEVICE.dbc --map MAP.yaml ...)")
-    return run_live_session(load_graph_from_args(args), args)
+    check_live_outputs(args, args.graph, args.dbc, args.map)
+    return run_live_session(load_graph_from_args(args, tier="fused"), args)  # live keeps the fused tick
+
+
+def check_live_outputs(args: argparse.Namespace, source: str, dbc: str | None, map_: str | None) -> None:
+    """``--stats`` and ``--record``: not an input, folder there and writable, before the session (and the compile)."""
+    from ..io.atomic import check_output
+
+    inputs = [source, dbc, map_, args.simulate]
+    check_output(args.stats, inputs=inputs, option="--stats")
+    check_output(args.record, inputs=inputs + [args.stats], option="--record")
+    check_output(getattr(args, "record_audio", None), inputs=inputs + [args.stats, args.record], option="--record-audio")
 
 
 def run_live_session(graph: Any, args: argparse.Namespace, dbc: str | None = None, map_: str | None = None) -> int:
@@ -62,7 +73,7 @@ def run_live_session(graph: Any, args: argparse.Namespace, dbc: str | None = Non
                       record=args.record, rt=args.rt, rt_priority=args.rt_priority, rt_cpu=args.cpu,
                       stats_path=args.stats, seed=args.seed, status=None if args.quiet else sys.stderr,
                       bitrate=args.bitrate, show=args.show,
-                      inputs=[p for p in (args.graph, getattr(args, "scene", None)) if p],
+                      inputs=[p for p in (getattr(args, "graph", None), getattr(args, "scene", None)) if p],
                       record_audio=getattr(args, "record_audio", None))
     for line in report.warnings:
         note(f"flowtex live: warning: {line}")

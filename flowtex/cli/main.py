@@ -30,6 +30,7 @@ COMMAND_MODULES = (
     "flowtex.cli.run",
     "flowtex.cli.live",
     "flowtex.cli.fit",
+    "flowtex.cli.compare",
     "flowtex.cli.models",
     "flowtex.cli.resample",
     "flowtex.cli.scene",

@@ -41,13 +41,30 @@ def add_graph_options(p: argparse.ArgumentParser, no_plugins: bool = True) -> No
     add_set_option(p)
 
 
+TIER_HELP = {
+    "fused": "fused: one compiled tick per graph structure (fastest ticks; seconds to compile a new structure)",
+    "dispatch": "dispatch: cached per-node kernels (a structural edit compiles nothing new)",
+    "auto": "auto: fused if cached, else dispatch with the fused tick compiled in the background",
+}
+
+
+def add_compile_option(p: argparse.ArgumentParser, default: str, choices: tuple[str, ...] = ("fused", "dispatch", "auto")) -> None:
+    """``--compile fused|dispatch|auto``: which compile tier builds the graph (docs/engine.md)."""
+    p.add_argument("--compile", choices=choices, default=default,
+                   help="; ".join(TIER_HELP[c] for c in choices) + f" (default: {default}; docs/engine.md)")
+
+
 def add_seed_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=None, help="noise seed (default: the graph's)")
 
 
+MAX_RATE_HZ = 1_000_000.0
+"""Largest rate any option takes: 1 MHz, above any haptic or audio recording (filters designed at absurd rates fail)."""
+
+
 def positive_hz(text: str) -> float:
-    """argparse type: a finite rate > 0 in Hz."""
-    return number_in_range(text, 0.0, math.inf, low_open=True, unit="Hz")
+    """argparse type: a rate in (0, :data:`MAX_RATE_HZ`] Hz."""
+    return number_in_range(text, 0.0, MAX_RATE_HZ, low_open=True, unit="Hz")
 
 
 def number_in_range(text: str, low: float, high: float, *, low_open: bool = False, unit: str = "") -> float:

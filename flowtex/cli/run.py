@@ -9,10 +9,11 @@ from typing import Any
 
 from ..errors import FlowtexError
 from .graph import load_graph_from_args
-from .options import add_graph_options, add_seed_option
+from .options import add_compile_option, add_graph_options, add_seed_option
 from .output import say
 
 REPLAY_SUFFIXES = (".blf", ".log", ".asc")
+RECORDING_SUFFIXES = (".npz", ".csv", ".h5", ".hdf5")
 
 
 def register(sub: Any) -> None:
@@ -27,6 +28,7 @@ def register(sub: Any) -> None:
     p.add_argument("--nonfinite", choices=("error", "hold", "zero", "pass"), default="error",
                    help="NaN/inf in the recording: error (default; names signal, count, first index), "
                         "hold (last finite value), zero, or pass (unchanged)")
+    add_compile_option(p, "auto")
     add_graph_options(p)
     p.set_defaults(func=cmd_run)
 
@@ -34,9 +36,11 @@ def register(sub: Any) -> None:
 def cmd_run(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output
 
-    check_output(args.output, inputs=[args.graph, args.input, args.dbc, args.map], option="-o")
+    replay = Path(args.input).suffix.lower() in REPLAY_SUFFIXES
+    check_output(args.output, inputs=[args.graph, args.input, args.dbc, args.map], option="-o",
+                 suffixes=(".npz", *REPLAY_SUFFIXES) if replay else RECORDING_SUFFIXES)
     graph = load_graph_from_args(args)
-    if Path(args.input).suffix.lower() in REPLAY_SUFFIXES:
+    if replay:
         if not (args.dbc and args.map):
             raise FlowtexError(f"{args.input}: replaying a CAN session needs --dbc DEVICE.dbc and --map MAP.yaml")
         from ..runtime.replay import replay_session
@@ -59,7 +63,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def run_summary(graph: Any, outputs: dict, output: str | None) -> str:
-    """``NAME: N ticks at R Hz, outputs a, b -> OUT``."""
+    """``NAME: N ticks at R Hz, outputs a, b -> OUT (TIER tier)``."""
     n = next(iter(outputs.values())).shape[0] if outputs else 0
     target = f" -> {output}" if output else ""
-    return f"{graph.name}: {n} ticks at {graph.rate:g} Hz, outputs {', '.join(outputs)}{target}"
+    return f"{graph.name}: {n} ticks at {graph.rate:g} Hz, outputs {', '.join(outputs)}{target} ({graph.tier} tier)"

@@ -13,6 +13,17 @@ Per query (Culbertson et al. 2012, section 4.2, HaTT's renderer):
    with the table's ``min_gap``); only an invalid one (LSFs closer than
    ``min_gap``, rounding) goes through :func:`~flowtex.dsp.lsf.repair_lsf`.
 
+Outside the measured models (``outside``, flowtex.models.outside): mode 0
+(``fade``, HaTT's) blends the silent corner models (variance 0) like any other,
+so the vibration fades out below the slowest fitted speed and the lightest
+fitted force; mode 1 (``hold``) and mode 2 (``trend``) replace every silent
+vertex by its nearest measured model (``src``), and ``trend`` then scales the
+variance by (speed / s_eff)^ks (force / f_eff)^kf, where (s_eff, f_eff) is the
+weighted point of the models actually blended and each ratio is capped at
+``trend_cap``; only beyond the measured models (a clamped query, or a silent
+vertex replaced): inside the measured models' triangles the three rules agree
+exactly.
+
 NaN in speed or force holds the last model (HaTT turns one NaN into NaN
 output forever); before any valid query the held model is silence:
 A = C = 1, gain 0, variance 0. A query equal to the previous one (after
@@ -47,7 +58,12 @@ T_FORCE_MARGIN = 10
 T_LOW_FORCE = 11
 T_LOW_FORCE_VALUE = 12
 T_MIN_GAP = 13
+T_OUTSIDE = 14
+T_OFF_OUT = 15
 T_HEADER = 16
+
+OUTSIDE_MODES = {"fade": 0, "hold": 1, "trend": 2}
+"""Codes of the rules outside the measured models (flowtex.models.outside)."""
 
 # Float state slots.
 S_X = 0
@@ -68,13 +84,17 @@ def pack_texture_table(speeds: np.ndarray, forces: np.ndarray, triangles: np.nda
                        variance: np.ndarray, gain: np.ndarray, max_speed: float, max_force: float,
                        speed_margin: float = 0.01, low_speed: float = 0.05, low_speed_value: float = 0.0001,
                        force_margin: float = 0.01, low_force: float = 0.05, low_force_value: float = 0.0001,
-                       min_gap: float = DEFAULT_MIN_GAP) -> np.ndarray:
+                       min_gap: float = DEFAULT_MIN_GAP, outside: str = "fade", src: np.ndarray | None = None,
+                       trend: tuple[float, float] = (1.0, 1.0), trend_cap: float = 4.0) -> np.ndarray:
     """One float64 array holding the clamping rule, the triangulation and the models, for :func:`texture_lookup_block`.
 
     Units: speeds, margins and thresholds on speed in mm/s; forces in N. The
     clamping defaults are HaTT's: above the maximum -> maximum - 0.01,
     below 0.05 -> 0.0001. The hull projection measures distance in units of
     (max_speed, max_force). ``min_gap`` (rad) is passed to ``repair_lsf``.
+    ``outside`` (a key of :data:`OUTSIDE_MODES`), ``src`` (per model, the
+    measured model standing in for it; default itself), ``trend`` (ks, kf) and
+    ``trend_cap``: the rule outside the measured models (module docstring).
     """
     ar_lsf = np.ascontiguousarray(ar_lsf, dtype=np.float64)
     ma_lsf = np.ascontiguousarray(ma_lsf, dtype=np.float64)
@@ -97,7 +117,12 @@ def pack_texture_table(speeds: np.ndarray, forces: np.ndarray, triangles: np.nda
     head[T_LOW_FORCE] = low_force
     head[T_LOW_FORCE_VALUE] = low_force_value
     head[T_MIN_GAP] = min_gap
-    return np.concatenate([head, tri_tab, models.ravel()])
+    head[T_OUTSIDE] = OUTSIDE_MODES[outside]
+    head[T_OFF_OUT] = T_HEADER + tri_tab.size + models.size
+    src = np.arange(count) if src is None else np.asarray(src)
+    out = np.concatenate([[trend[0], trend[1], trend_cap], src.astype(np.float64),
+                          np.column_stack([np.asarray(speeds, np.float64), np.asarray(forces, np.float64)]).ravel()])
+    return np.concatenate([head, tri_tab, models.ravel(), out])
 
 
 def state_sizes(ar_order: int, ma_order: int) -> tuple[int, int]:
@@ -144,6 +169,19 @@ def _blend_valid(models, width, col, n, v, w, min_gap, out):
     return ok & (last > 0.0) & (last >= min_gap)
 
 
+@njit(cache=True, inline="always")
+def _trend_factor(tab, o_out, v, w, speed, force):
+    """(speed / s_eff)^ks (force / f_eff)^kf with each ratio in [0, cap]; (s_eff, f_eff) = weighted point of models ``v``."""
+    nmod = int(tab[T_NMOD])
+    o_pts = o_out + 3 + nmod
+    se = w[0] * tab[o_pts + 2 * v[0]] + w[1] * tab[o_pts + 2 * v[1]] + w[2] * tab[o_pts + 2 * v[2]]
+    fe = w[0] * tab[o_pts + 2 * v[0] + 1] + w[1] * tab[o_pts + 2 * v[1] + 1] + w[2] * tab[o_pts + 2 * v[2] + 1]
+    cap = tab[o_out + 2]
+    rs = min(max(speed, 0.0) / se, cap) if se > 0.0 else 1.0
+    rf = min(max(force, 0.0) / fe, cap) if fe > 0.0 else 1.0
+    return rs ** tab[o_out] * rf ** tab[o_out + 1]
+
+
 @njit(cache=True)
 def lookup_model(tab: np.ndarray, s: np.ndarray, si: np.ndarray, speed: float, force: float) -> None:
     """Update the held model in ``s`` for one (speed mm/s, force N) query (see the module docstring)."""
@@ -151,9 +189,12 @@ def lookup_model(tab: np.ndarray, s: np.ndarray, si: np.ndarray, speed: float, f
         return  # NaN: hold
     p = int(tab[T_P])
     q = int(tab[T_Q])
+    mode = int(tab[T_OUTSIDE])
     x = clamp_query(speed, tab[T_MAX_SPEED], tab[T_SPEED_MARGIN], tab[T_LOW_SPEED], tab[T_LOW_SPEED_VALUE])
     y = clamp_query(force, tab[T_MAX_FORCE], tab[T_FORCE_MARGIN], tab[T_LOW_FORCE], tab[T_LOW_FORCE_VALUE])
-    if x == s[S_X] and y == s[S_Y] and si[SI_VALID] != 0:
+    kx = speed if mode == 2 else x  # trend: the raw query sets the power, so two queries clamped alike differ
+    ky = force if mode == 2 else y
+    if kx == s[S_X] and ky == s[S_Y] and si[SI_VALID] != 0:
         return
     o_tri = int(tab[T_OFF_TRI])
     o_mod = int(tab[T_OFF_MOD])
@@ -162,6 +203,14 @@ def lookup_model(tab: np.ndarray, s: np.ndarray, si: np.ndarray, speed: float, f
     w = s[S_W:S_W + 3]
     v = si[SI_V:SI_V + 3]
     si[SI_HINT] = locate(tri_tab, x, y, si[SI_HINT], w, v)
+    o_out = int(tab[T_OFF_OUT])
+    beyond = x != speed or y != force  # clamped, or (below) blending a silent model: outside the measured models
+    if mode != 0:
+        o_src = o_out + 3
+        for k in range(3):
+            m = int(tab[o_src + v[k]])
+            beyond |= m != v[k]
+            v[k] = m
     width = p + q + 2
     o_ma = S_AR + p + 1
     scratch = s[o_ma + q + 1:o_ma + q + 1 + max(p, q)]
@@ -178,8 +227,10 @@ def lookup_model(tab: np.ndarray, s: np.ndarray, si: np.ndarray, speed: float, f
     s[S_VAR] = w[0] * models[v[0] * width + b] + w[1] * models[v[1] * width + b] + w[2] * models[v[2] * width + b]
     b += 1
     s[S_GAIN] = w[0] * models[v[0] * width + b] + w[1] * models[v[1] * width + b] + w[2] * models[v[2] * width + b]
-    s[S_X] = x
-    s[S_Y] = y
+    if mode == 2 and beyond:
+        s[S_VAR] *= _trend_factor(tab, o_out, v, w, speed, force)
+    s[S_X] = kx
+    s[S_Y] = ky
     si[SI_VALID] = 1
 
 

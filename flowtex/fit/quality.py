@@ -10,16 +10,18 @@ from __future__ import annotations
 import numpy as np
 
 from ..dsp.arma import arma_psd
-from ..dsp.interp import initial_state, pack_texture_table, texture_lookup_block
+from ..dsp.interp import initial_state, texture_lookup_block
 from ..dsp.spectral import lsd_db
+from ..models.outside import OUTSIDE_CHOICES, texture_table
 from ..models.texture import TextureModelSet
 
 
-def models_at(ms: TextureModelSet, speeds: np.ndarray, forces: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, float, float]]:
-    """(ar, ma, gain, variance) that ``texture_lookup`` renders at each (speed mm/s, force N): the same kernel."""
+def models_at(ms: TextureModelSet, speeds: np.ndarray, forces: np.ndarray,
+              outside: str = OUTSIDE_CHOICES[0]) -> list[tuple[np.ndarray, np.ndarray, float, float]]:
+    """(ar, ma, gain, variance) that ``texture_lookup`` (its ``outside`` rule) renders at each (speed mm/s, force N): the same kernel."""
     speeds = np.asarray(speeds, float).reshape(-1, 1)
     forces = np.asarray(forces, float).reshape(-1, 1)
-    tab = pack_texture_table(ms.speeds, ms.forces, ms.triangles, ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain, ms.max_speed, ms.max_force)
+    tab = texture_table(ms, outside)
     n = speeds.shape[0]
     ar = np.empty((n, ms.ar_order + 1))
     ma = np.empty((n, ms.ma_order + 1))
@@ -35,12 +37,16 @@ def models_at(ms: TextureModelSet, speeds: np.ndarray, forces: np.ndarray) -> li
 
 def set_lsd_db(fitted: TextureModelSet, truth: TextureModelSet, speeds: np.ndarray, forces: np.ndarray,
                nfreq: int = 512) -> np.ndarray:
-    """LSD (dB) between two model sets at each (speed, force) point, both interpolated as texture_lookup does."""
-    rate = truth.sample_rate
-    freqs = np.linspace(0.0, rate / 2, nfreq + 1)[1:-1]
+    """LSD (dB) between two model sets at each (speed, force) point, both interpolated as texture_lookup does.
+
+    Each set's PSD is taken at its own sample rate, over their common band (up to the lower Nyquist).
+    """
+    nyquist = 0.5 * min(truth.sample_rate, fitted.sample_rate)
+    freqs = np.linspace(0.0, nyquist, nfreq + 1)[1:-1]
     out = []
     for (a1, c1, g1, v1), (a2, c2, g2, v2) in zip(models_at(fitted, speeds, forces), models_at(truth, speeds, forces), strict=True):
-        out.append(lsd_db(arma_psd(a1, c1, g1, v1, freqs, rate), arma_psd(a2, c2, g2, v2, freqs, fitted.sample_rate), freqs))
+        out.append(lsd_db(arma_psd(a1, c1, g1, v1, freqs, fitted.sample_rate), arma_psd(a2, c2, g2, v2, freqs, truth.sample_rate),
+                          freqs))
     return np.array(out)
 
 

@@ -43,16 +43,19 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def check_output(path: str | Path | None, *, inputs: Iterable[str | Path | None] = (), option: str = "-o",
-                 create_folders: bool = True) -> Path | None:
+                 create_folders: bool = True, suffixes: tuple[str, ...] = ()) -> Path | None:
     """Check an output path before any work starts; return it (expanded), or None when ``path`` is None.
 
     Refuses (one line naming ``option`` and the file) an output that is the same file as one of ``inputs``, an
     existing folder given as a file, and a folder that does not exist and cannot be created or is not writable.
-    Missing folders are created here, before the work, so no verb fails after its work is done.
+    Missing folders are created here, before the work, so no verb fails after its work is done. ``suffixes``
+    (lower case, with the dot), when given, are the formats the verb can write.
     """
     if path is None:
         return None
     out = Path(path).expanduser()
+    if suffixes and out.suffix.lower() not in suffixes:
+        raise OutputError(f"{option} {path}: unknown output format {out.suffix!r}; use {', '.join(suffixes)}")
     for item in inputs:
         if item is not None and _same_file(out, Path(item).expanduser()):
             raise OutputError(f"{option} {path}: that is an input of this command ({item}); "

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError
+from ..limits import excerpt
 from ..models.taps import TapLibrary
 from ..node_api import suggest
 from .jsondoc import read_json_document
@@ -28,7 +29,7 @@ _TAP_KEYS = ("speed", "acceleration")
 
 def _number(path: Path, field: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise DataError(f"{path}: field {field!r}: expected a finite number, got {value!r}")
+        raise DataError(f"{path}: field {field!r}: expected a finite number, got {excerpt(value)}")
     return float(value)
 
 
@@ -102,5 +103,6 @@ def write_tap_library(path: str | Path, lib: TapLibrary, notes: str = "") -> Pat
     if notes:
         doc["notes"] = notes
     doc["taps"] = [{"speed": float(v), "acceleration": [float(a) for a in row]} for v, row in zip(lib.speeds, lib.transients, strict=True)]
-    path.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
-    return path
+    from .atomic import write_text_atomic
+
+    return write_text_atomic(path, json.dumps(doc, indent=1) + "\n")

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from numba import njit
 
-from ..dsp.interp import initial_state, pack_texture_table, texture_lookup_block
+from ..dsp.interp import initial_state, texture_lookup_block
 from ..errors import DataError, ParamError
 from ..io.modelset import load_model_set
+from ..models.outside import OUTSIDE_CHOICES, texture_table
 from ..models.texture import TextureModelSet
 from ..node_api import Node, NodeState, Param, Port, PortSpec
 
@@ -14,6 +15,16 @@ from ..node_api import Node, NodeState, Param, Port, PortSpec
 @njit(cache=True)
 def _texture_lookup(p, s, si, speed, force, ar, ma, gain, variance):
     texture_lookup_block(p, s, si, speed, force, ar, ma, gain, variance)
+
+
+def rate_mismatch_message(path: str, ms: TextureModelSet, graph_rate: float) -> str:
+    """One line refusing a model set at another rate: the file's own field (XML tag or JSON key) and the fix."""
+    import shlex
+
+    field = "<SampleRate>" if str(path).lower().endswith(".xml") else '"sample_rate"'
+    return (f"{path}: the models are for {ms.sample_rate:g} Hz ({field}) but the graph runs at {graph_rate:g} Hz; "
+            f"run 'flowtex models resample {shlex.quote(str(path))} --rate {graph_rate:g} -o OUT.json' and load OUT.json, "
+            f"or run the graph at the models' rate (--set rate={ms.sample_rate:g})")
 
 
 class TextureLookup(Node):
@@ -25,7 +36,9 @@ class TextureLookup(Node):
     outside the triangulation's hull (after clamping) use the nearest point of
     the hull (distance measured in units of max speed and max force). NaN in
     either input holds the last model; before the first valid input the model
-    is silent (A = C = 1, gain 0, variance 0).
+    is silent (A = C = 1, gain 0, variance 0). ``outside`` says what the surface
+    does below its slowest and above its fastest measured speed and force
+    (flowtex.models.outside, docs/texture.md).
     """
 
     type_name = "texture_lookup"
@@ -39,6 +52,10 @@ class TextureLookup(Node):
         "low_force_value": Param("float", default=0.0001, unit="N", min=0.0, doc="force used below low_force (HaTT: 0.0001)"),
         "force_margin": Param("float", default=0.01, unit="N", min=0.0,
                               doc="forces above the set's maxForce become maxForce - force_margin (HaTT: 0.01)"),
+        "outside": Param("choice", default=OUTSIDE_CHOICES[0], choices=OUTSIDE_CHOICES,
+                         doc="beyond the measured models: trend (spectrum of the nearest models, power along the set's own "
+                             "power law in speed and force: fades to 0 at rest, grows above the fastest), hold (nearest "
+                             "models as they are) or fade (HaTT: silent corners, linear fade below the slowest speed)"),
         "order": Param("floats", default=None, length=(2, 2),
                        doc="[p, q]: render lower orders (Levinson step-down of each model, output power kept; "
                            "flowtex.dsp.order); default: the set's own"),
@@ -66,9 +83,7 @@ class TextureLookup(Node):
             self.model_set = self._truncated(p_order)
         ms = self.model_set
         if ms.sample_rate != context.rate:
-            raise ParamError("models", f"{path}: the models are for {ms.sample_rate:g} Hz (<SampleRate>) but the graph runs at "
-                                       f"{context.rate:g} Hz; rate conversion of texture models is not supported yet: "
-                                       f"set the graph's rate to {ms.sample_rate:g} or use a model set fitted at {context.rate:g} Hz")
+            raise ParamError("models", rate_mismatch_message(str(path), ms, context.rate))
         p = self.p
         for low, value in (("low_speed", "low_speed_value"), ("low_force", "low_force_value")):
             if p[value] > p[low]:
@@ -109,10 +124,9 @@ class TextureLookup(Node):
         ms = self.model_set
         p = self.p
         try:
-            table = pack_texture_table(ms.speeds, ms.forces, ms.triangles, ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain,
-                                       ms.max_speed, ms.max_force,
-                                       speed_margin=p["speed_margin"], low_speed=p["low_speed"], low_speed_value=p["low_speed_value"],
-                                       force_margin=p["force_margin"], low_force=p["low_force"], low_force_value=p["low_force_value"])
+            table = texture_table(ms, p["outside"],
+                                  speed_margin=p["speed_margin"], low_speed=p["low_speed"], low_speed_value=p["low_speed_value"],
+                                  force_margin=p["force_margin"], low_force=p["low_force"], low_force_value=p["low_force_value"])
         except ValueError as exc:
             raise ParamError("models", f"{p['models']}: {exc}") from None
         s, si = initial_state(ms.ar_order, ms.ma_order)

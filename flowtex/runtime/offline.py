@@ -76,7 +76,8 @@ def run_recording(graph: Graph, input_path: str | Path, output_path: str | Path 
         raise DataError(f"{input_path}: {exc}") from None
     arrays = apply_nonfinite_policy(arrays, nonfinite, str(input_path),
                                     fix="or pass --nonfinite hold (last finite value) or --nonfinite zero")
-    outputs = graph.run(arrays, seed=seed, progress=progress, nonfinite="error")
+    # the policy is applied above; 'pass' hands the NaN/inf on unchanged, so the graph must not refuse them again
+    outputs = graph.run(arrays, seed=seed, progress=progress, nonfinite="pass" if nonfinite == "pass" else "error")
     if output_path is not None:
         save_recording(output_path, outputs, rate=graph.rate, units={n: spec.unit for n, spec in graph.outputs.items()})
     return outputs

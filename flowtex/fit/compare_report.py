@@ -1,0 +1,91 @@
+"""``flowtex compare --report DIR``: a markdown page with the comparison's figures and three plots (matplotlib).
+
+Plots: ``spectrum.png`` (recorded and rendered Welch PSDs, high-passed, start
+skipped), ``loudness.png`` (recorded and rendered RMS of each window over
+time) and ``windows.png`` (LSD and spectral centroids per window).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import DataError
+from .compare import Comparison, summary_lines
+
+PLOT_ERROR = "--report needs matplotlib for its plots: pip install 'flowtex[plot]' (or leave out --report)"
+
+
+def pyplot() -> Any:
+    """matplotlib.pyplot on the Agg backend; DataError naming the ``plot`` extra when matplotlib is missing."""
+    try:
+        import matplotlib
+    except ImportError:
+        raise DataError(PLOT_ERROR) from None
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def write_compare_report(c: Comparison, folder: Path, title: str) -> Path:
+    """Write ``folder/report.md`` with the figures, the per-window table and the plots; returns the markdown path."""
+    plt = pyplot()
+    folder.mkdir(parents=True, exist_ok=True)
+    _spectrum(c, folder / "spectrum.png", plt)
+    _loudness(c, folder / "loudness.png", plt)
+    _windows(c, folder / "windows.png", plt)
+    md = [f"# {title}", "", "```", *summary_lines(c), "```", "",
+          "![spectrum](spectrum.png)", "", "![loudness](loudness.png)", "", "![windows](windows.png)", "",
+          "| start s | recorded RMS | rendered RMS | LSD dB | GFC | centroid Hz (rec / ren) |", "|---|---|---|---|---|---|"]
+    for w in c.windows:
+        md.append(f"| {w['start_s']:.1f} | {w['recorded_rms']:.3g} | {w['rendered_rms']:.3g} | {w['lsd_db']:.2f} | {w['gfc']:.3f} | "
+                  f"{w['centroid_hz']:.0f} / {w['rendered_centroid_hz']:.0f} |")
+    path = folder / "report.md"
+    path.write_text("\n".join(md) + "\n", encoding="utf-8")
+    return path
+
+
+def _spectrum(c: Comparison, path: Path, plt: Any) -> None:
+    fig, ax = plt.subplots(figsize=(7, 4))
+    if c.freqs is not None:
+        ax.semilogy(c.freqs, c.recorded_psd, color="0.4", lw=1.0, label="recorded")
+        ax.semilogy(c.freqs, c.rendered_psd, color="C0", lw=1.0, label=f"rendered (mean of {c.seeds})")
+    ax.set_xlabel("Hz")
+    ax.set_ylabel("(m/s^2)^2/Hz")
+    ax.set_title(f"power ratio {c.power_ratio_db:+.2f} dB, LSD {c.lsd_db:.2f} dB, GFC {c.gfc:.3f}", fontsize=9)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+
+
+def _loudness(c: Comparison, path: Path, plt: Any) -> None:
+    t = np.array([w["start_s"] + 0.5 * w["seconds"] for w in c.windows])
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    ax.plot(t, [w["recorded_rms"] for w in c.windows], "o-", color="0.4", ms=3, label="recorded")
+    ax.plot(t, [w["rendered_rms"] for w in c.windows], "o-", color="C0", ms=3, label="rendered")
+    ax.set_xlabel("s")
+    ax.set_ylabel("window RMS (m/s^2)")
+    ax.set_title(f"window RMS correlation {c.rms_correlation:.2f}", fontsize=9)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+
+
+def _windows(c: Comparison, path: Path, plt: Any) -> None:
+    t = np.array([w["start_s"] + 0.5 * w["seconds"] for w in c.windows])
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7, 4.5), sharex=True)
+    a1.plot(t, [w["lsd_db"] for w in c.windows], "o-", ms=3)
+    a1.set_ylabel("LSD (dB)")
+    a2.plot(t, [w["centroid_hz"] for w in c.windows], "o-", color="0.4", ms=3, label="recorded")
+    a2.plot(t, [w["rendered_centroid_hz"] for w in c.windows], "o-", color="C0", ms=3, label="rendered")
+    a2.set_ylabel("centroid (Hz)")
+    a2.set_xlabel("s")
+    a2.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
