@@ -38,7 +38,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     replay = Path(args.input).suffix.lower() in REPLAY_SUFFIXES
     check_output(args.output, inputs=[args.graph, args.input, args.dbc, args.map], option="-o",
-                 suffixes=(".npz", *REPLAY_SUFFIXES) if replay else RECORDING_SUFFIXES)
+                 suffixes=(".npz", ".wav", *REPLAY_SUFFIXES) if replay else (*RECORDING_SUFFIXES, ".wav"))
     graph = load_graph_from_args(args)
     if replay:
         if not (args.dbc and args.map):
