@@ -126,6 +126,8 @@ def add_live_options(p: argparse.ArgumentParser, device_required: bool = True) -
     p.add_argument("--dbc", required=device_required, help="DBC file describing the device's messages")
     p.add_argument("--map", required=device_required, help="map YAML binding DBC signals to graph inputs/outputs (docs/live.md)")
     p.add_argument("--record", help="log every frame read and written to SESSION.blf or SESSION.log")
+    p.add_argument("--record-audio", metavar="OUT.wav", help="write the samples handed to the sound card (the map's audio "
+                                                             "section) as a float32 WAV")
     p.add_argument("--duration", type=lambda t: number_in_range(t, 0.0, math.inf, low_open=True, unit="s"),
                    help="seconds to run (default: until Ctrl-C / SIGTERM)")
     p.add_argument("--rt", action="store_true", help="ask for SCHED_FIFO real-time scheduling and pin the loop to a CPU")

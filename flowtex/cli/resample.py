@@ -30,6 +30,6 @@ def cmd_resample(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output
     from ..io.recording_resample import resample_recording
 
-    check_output(args.output, inputs=[args.input], option="-o", suffixes=RECORDING_SUFFIXES)
+    check_output(args.output, inputs=[args.input], option="-o", suffixes=(*RECORDING_SUFFIXES, ".wav"))
     say(resample_recording(args.input, args.output, args.rate, args.from_rate, args.atten_db))
     return 0
