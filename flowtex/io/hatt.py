@@ -32,8 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..dsp.lsf import lsf_to_poly_new
 from ..errors import DataError
-from ..models.synthetic import lsf_to_poly_reference
 from ..models.texture import TextureModelSet
 from .xmldoc import parse_xml
 
@@ -262,8 +262,8 @@ def write_hatt_xml(ms: TextureModelSet, path: str | Path, texture: int = 0, digi
     """
     path = Path(path)
     fmt = _fmt if digits is None else (lambda x: f"{float(x):.{digits}g}")
-    ar_coeff = ms.ar_coeff if ms.ar_coeff is not None else np.array([lsf_to_poly_reference(r) for r in ms.ar_lsf])
-    ma_coeff = ms.ma_coeff if ms.ma_coeff is not None else np.array([lsf_to_poly_reference(r) for r in ms.ma_lsf])
+    ar_coeff = ms.ar_coeff if ms.ar_coeff is not None else np.array([lsf_to_poly_new(r) for r in ms.ar_lsf])
+    ma_coeff = ms.ma_coeff if ms.ma_coeff is not None else np.array([lsf_to_poly_new(r) for r in ms.ma_lsf])
 
     def arr(tag: str, values: np.ndarray, indent: str = "  ") -> str:
         inner = "".join(f"{indent}  <value>{fmt(v)}</value>\n" for v in values)
