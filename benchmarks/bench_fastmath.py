@@ -31,10 +31,10 @@ import numpy as np
 from numba import njit
 from scipy import signal
 
+from flowtex.datasets.model_sets import cork_like_model_set
 from flowtex.dsp.arma import lattice_ladder_coefficients
 from flowtex.dsp.filters import sos_block, sos_to_params
 from flowtex.dsp.lsf import lsf_to_poly
-from flowtex.models.synthetic import cork_like_model_set
 
 REPO = Path(__file__).resolve().parents[1]
 RATE = 10_000.0

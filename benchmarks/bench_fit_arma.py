@@ -3,7 +3,7 @@
     python benchmarks/bench_fit_arma.py [--models 3] [--repeats 3] [--mle] [--auto]
 
 For HaTT-size models (19/17, poles to r 0.985, MA zeros at |z| = 0.9999 near
-z = -1; flowtex.models.synthetic.hatt_like_model), 10 s at 1 kHz of data from
+z = -1; flowtex.datasets.model_sets.hatt_like_model), 10 s at 1 kHz of data from
 scipy.signal.lfilter with a seeded RNG:
 
 1. ``fit_arma(x, order=(19, 17))``: median wall time over repeats (after a
@@ -29,10 +29,10 @@ import warnings
 import numpy as np
 import scipy.signal
 
+from flowtex.datasets.model_sets import hatt_like_model
 from flowtex.dsp.arma import arma_psd
 from flowtex.dsp.spectral import lsd_db
 from flowtex.fit import fit_arma
-from flowtex.models.synthetic import hatt_like_model
 
 FS = 1000.0
 FREQS = np.linspace(0.0, FS / 2, 2049)

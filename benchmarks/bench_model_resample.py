@@ -3,7 +3,7 @@
     python benchmarks/bench_model_resample.py [--seeds 30] [--ratios 2,2.5,4] [--cork] [--render]
     python benchmarks/bench_model_resample.py --corpus all [--corpus-rates 2000,4000] [--baseline]
 
-For HaTT-like 19/17 models (flowtex.models.synthetic.hatt_like_model: poles to
+For HaTT-like 19/17 models (flowtex.datasets.model_sets.hatt_like_model: poles to
 r = 0.985, an MA zero pair at 0.9999 near z = -1) at 1 kHz, side by side in one
 process on the same models, for each target rate:
 
@@ -38,13 +38,13 @@ import time
 import numpy as np
 import scipy.linalg
 
+from flowtex.datasets.model_sets import hatt_like_model
 from flowtex.dsp.arma import arma_psd
 from flowtex.dsp.arma_estimate import whittle_refine
 from flowtex.dsp.arma_resample import GRID, STOPBAND_FLOOR, _map_roots, _model_power_spectrum, resample_arma_lsf
 from flowtex.dsp.lsf import is_valid_lsf, lsf_to_poly_new, poly_to_lsf
 from flowtex.fit.arma import min_phase_for_lsf
 from flowtex.fit.resample import resample_quality
-from flowtex.models.synthetic import hatt_like_model
 
 FS1 = 1000.0
 
@@ -102,8 +102,8 @@ def sweep(fs2: float, seeds: int, name: str) -> None:
 
 
 def cork(rates) -> None:
+    from flowtex.datasets.model_sets import cork_like_model_set
     from flowtex.fit.resample import resample_model_set
-    from flowtex.models.synthetic import cork_like_model_set
 
     ms = cork_like_model_set()
     for rate in rates:
@@ -118,7 +118,7 @@ def cork(rates) -> None:
 
 def corpus_sets(names):
     """The model sets the test suite resamples (tests/fit/test_arma_resample.py, test_resample_bounded.py, test_resample_render.py)."""
-    from flowtex.models.synthetic import cork_like_model_set, hard_model_set, narrow_peak_model_set, synthetic_model_set
+    from flowtex.datasets.model_sets import cork_like_model_set, hard_model_set, narrow_peak_model_set, synthetic_model_set
 
     makers = {
         "grid8/6": lambda: synthetic_model_set([60.0, 150.0, 240.0], [0.5, 1.5, 2.5], ar_order=8, ma_order=6),
@@ -134,8 +134,8 @@ def corpus_sets(names):
 def corpus(names, rates, baseline: bool) -> None:
     """Seconds per model fit (median, worst) of resample_model_set on each corpus set, new stopping rule vs the old one."""
     import flowtex.dsp.arma_logfit as logfit
+    from flowtex.datasets.model_sets import synthetic_model_set
     from flowtex.fit.resample import resample_model_set
-    from flowtex.models.synthetic import synthetic_model_set
 
     resample_model_set(synthetic_model_set([60.0], [0.5], ar_order=4, ma_order=2), 2000.0)  # warm-up: numba compiles, imports
     rules = [("new", {})] + ([("old", {"EVALUATIONS": 10**9, "REL_TOL": 1e-6, "GOOD_DB": 1e-3})] if baseline else [])

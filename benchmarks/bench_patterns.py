@@ -28,7 +28,7 @@ import numpy as np
 import scipy.linalg
 from numba import njit
 
-from flowtex.datasets_patterns import patterned_recording, render_features, resonance, stroking_recording
+from flowtex.datasets.patterns import patterned_recording, render_features, resonance, stroking_recording
 from flowtex.dsp.compliance import compliance_params, new_state
 from flowtex.dsp.patterns import RING_DECAY, pattern_block, pattern_params, pattern_state
 from flowtex.dsp.prony import fit_iir, impulse_response, lstsq_numpy, ring_length, sad

@@ -42,13 +42,13 @@ import numpy as np
 from numba import njit
 
 import flowtex
+from flowtex.datasets.model_sets import cork_like_model_set
 from flowtex.dsp.arma import arma_lattice_block, arma_psd, lattice_ladder_coefficients, new_state
 from flowtex.dsp.lsf import lsf_to_poly, lsf_to_poly_new
 from flowtex.dsp.rng import next_normal, seed_rng
 from flowtex.dsp.spectral import gfc, welch_psd
 from flowtex.dsp.triangulation import locate
 from flowtex.io.modelset import save_model_set
-from flowtex.models.synthetic import cork_like_model_set
 
 RATE = 1000.0
 

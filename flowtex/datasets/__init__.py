@@ -30,10 +30,10 @@ import numpy as np
 from ..io.modelset import save_model_set
 from ..io.recordings import save_recording
 from ..io.taplib import write_tap_library
-from ..models.synthetic import synthetic_model_set
 from ..models.taps import TapLibrary, synthetic_tap_library
 from ..models.texture import TextureModelSet
 from .graphs import FRICTION_GRAPH, TAP_GRAPH, TEXTURE_GRAPH, run_graph
+from .model_sets import synthetic_model_set
 from .trajectories import Plateau, circle_path, plateau_trajectory, sweep_trajectory
 
 __all__ = ["Plateau", "SyntheticRecording", "default_surface", "free_exploration", "friction_session", "render_texture",
@@ -57,7 +57,7 @@ class SyntheticRecording:
 def default_surface(ar_order: int = 6, ma_order: int = 4, sample_rate: float = 1000.0) -> TextureModelSet:
     """A known surface: stable ARMA models on a 4 x 4 grid (40..320 mm/s, 0.4..3 N) with silent corners.
 
-    Models change smoothly with speed and force (flowtex.models.synthetic);
+    Models change smoothly with speed and force (flowtex.datasets.model_sets);
     variances are scaled so that the vibration is about 1 m/s^2 RMS.
     """
     ms = synthetic_model_set(np.linspace(40.0, 320.0, 4), np.linspace(0.4, 3.0, 4), ar_order, ma_order,

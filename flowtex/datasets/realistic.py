@@ -23,8 +23,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..dsp.arma import arma_output_variance
-from ..models.synthetic import lsf_to_poly_reference, synthetic_model_set
 from ..models.texture import TextureModelSet
+from .model_sets import lsf_to_poly_reference, synthetic_model_set
 from .trajectories import _smooth_noise
 
 EDGE_PERIODS = 4.0
@@ -40,7 +40,7 @@ def loud_surface(speeds: tuple[float, ...] = (15.0, 40.0, 90.0, 180.0, 320.0), f
     """A known surface: ARMA models on the ``speeds`` x ``forces`` grid whose power spans ``range_db`` dB (module docstring).
 
     The fastest, heaviest model has an RMS of ``peak_rms`` m/s^2. Spectral
-    shapes move with speed and force (flowtex.models.synthetic).
+    shapes move with speed and force (flowtex.datasets.model_sets).
     """
     ms = synthetic_model_set(np.asarray(speeds, float), np.asarray(forces, float), ar_order, ma_order, grid=True,
                              sample_rate=sample_rate, material="loud-truth")

@@ -1,7 +1,7 @@
 """Synthetic stand-ins for the 15 surfaces of Culbertson & Kuchenbecker 2017's study, for tests, benchmarks and the docs example.
 
 flowtex ships no HaTT file. These sets are built with
-:func:`flowtex.models.synthetic.synthetic_model_set` (small orders, 3 x 3
+:func:`flowtex.datasets.model_sets.synthetic_model_set` (small orders, 3 x 3
 grid) and scaled so that the planner's texture salience (mean vibration
 power over speed 50-250 mm/s x force 0.5-2.5 N) equals the target below;
 tap libraries are decaying sinusoids tuned to a target spectral centroid.
@@ -54,8 +54,8 @@ STUDY_SURFACES = (
 
 def study_model_set(surface: StudySurface, ar_order: int = 6, ma_order: int = 4):
     """A synthetic model set with the surface's mu, scaled to its target texture power."""
+    from ..datasets.model_sets import synthetic_model_set
     from ..dsp.salience import mean_texture_power
-    from ..models.synthetic import synthetic_model_set
 
     ms = synthetic_model_set([50.0, 150.0, 250.0], [0.5, 1.5, 2.5], ar_order, ma_order, mu=surface.mu, material=surface.key)
     ms.variance = ms.variance * (surface.power / mean_texture_power(ms, SPEED_RANGE, FORCE_RANGE))

@@ -7,11 +7,11 @@ Writes:
 * ``synthetic_pattern.json`` -- a pattern file (docs/pattern-format.md) fitted with
   ``flowtex.fit.pattern.fit_pattern`` to a 2 s synthetic grating recording: features
   every 2 mm along x, 180 Hz resonances decaying in 6 ms, scanned at 60 mm/s, 5 % noise
-  (``flowtex.datasets_patterns.patterned_recording``, seed 1);
+  (``flowtex.datasets.patterns.patterned_recording``, seed 1);
 * ``pattern_demo.npz`` -- 6 s at 1000 Hz (float32): ``position`` (n, 3) mm sweeping
   x = 3..90 mm and back at 60 mm/s, and a probe stroking a material with k_c = 0.5
   (k_g = 0.5 kg): ``normal_force`` (n,) N and ``acceleration`` (n,) m/s^2
-  (``flowtex.datasets_patterns.stroking_recording``, seed 7), plus ``rate``.
+  (``flowtex.datasets.patterns.stroking_recording``, seed 7), plus ``rate``.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flowtex.datasets_patterns import patterned_recording, stroking_recording
+from flowtex.datasets.patterns import patterned_recording, stroking_recording
 from flowtex.fit.pattern import fit_pattern
 from flowtex.io.patternfile import write_pattern
 
@@ -31,7 +31,7 @@ RATE = 1000.0
 def main() -> None:
     rec = patterned_recording(seconds=2.0, seed=1)
     pat = fit_pattern(rec["accel"], rec["position"], RATE, orders=range(2, 7))
-    pat.metadata["recording"] = "flowtex.datasets_patterns.patterned_recording(seconds=2.0, seed=1)"
+    pat.metadata["recording"] = "flowtex.datasets.patterns.patterned_recording(seconds=2.0, seed=1)"
     write_pattern(HERE / "synthetic_pattern.json", pat)
     n = int(6 * RATE)
     t = np.arange(n) / RATE

@@ -29,9 +29,9 @@ from pathlib import Path
 import numpy as np
 from scipy.signal import lfilter
 
+from flowtex.datasets.model_sets import cork_like_model_set
 from flowtex.io.modelset import save_model_set
 from flowtex.io.taplib import write_tap_library
-from flowtex.models.synthetic import cork_like_model_set
 from flowtex.models.taps import synthetic_tap_library
 from flowtex.models.texture import TextureModelSet
 

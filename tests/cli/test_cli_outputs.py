@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from flowtex.cli import main
+from flowtex.datasets.model_sets import synthetic_model_set
 from flowtex.io.modelset import save_model_set
 from flowtex.io.recordings import save_recording
-from flowtex.models.synthetic import synthetic_model_set
 from tests.cli.gain_graph import GAIN_GRAPH as GRAPH
 from tests.conftest import REPO
 

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from flowtex.cli import main
+from flowtex.datasets.model_sets import synthetic_model_set
 from flowtex.filecheck import COMPLIANCE, DEVICE_MAP, FRICTION, GRAPH, MODEL_SET, PATTERN, SCENE, TAP_LIBRARY, file_kind
 from flowtex.io.hatt import write_hatt_xml
 from flowtex.io.modelset import save_model_set
-from flowtex.models.synthetic import synthetic_model_set
 from tests.conftest import REPO
 
 DBC = REPO / "graphs" / "devices" / "example.dbc"

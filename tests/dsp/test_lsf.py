@@ -321,7 +321,7 @@ def test_lsf_round_trip_of_roots_crowded_near_z_1_and_minus_1() -> None:
     # rate (r^0.5, angle / 2): what a 1 kHz model upsampled 4x is made of. 38 roots crowd into 0..0.75 rad and
     # pi..pi+0.75 at r up to 0.9962; |A| spans ~1e-9..1e4. lsf_to_poly of the exact LSFs must keep the spectrum
     # (multiplying the factors in increasing LSF order puts all near-z=1 factors first: 20-60 dB off here).
-    from flowtex.models.synthetic import hatt_like_model
+    from flowtex.datasets.model_sets import hatt_like_model
 
     z = np.roots(hatt_like_model(5)[0])
     half = np.where(np.abs(z.imag) > 0, np.sqrt(np.abs(z)) * np.exp(0.5j * np.angle(z)), np.sign(z.real) * np.sqrt(np.abs(z)))

@@ -9,12 +9,12 @@ import pytest
 import scipy.linalg
 import scipy.signal
 
+from flowtex.datasets.model_sets import poly_from_roots, synthetic_model_set
 from flowtex.dsp.arma import arma_output_variance
 from flowtex.dsp.lsf import lsf_to_poly_new
 from flowtex.dsp.order import step_down, truncate_models
 from flowtex.errors import ParamError
 from flowtex.io.modelset import save_model_set
-from flowtex.models.synthetic import poly_from_roots, synthetic_model_set
 from flowtex.node_api import BuildContext
 from flowtex.nodes.texture import TextureLookup
 

@@ -77,7 +77,7 @@ def test_bad_inputs():
 @pytest.mark.parametrize("true_order", [2, 4])
 def test_bic_picks_the_true_order_under_noise(true_order):
     """criterion='bic' (n ln(RSS/n) + k ln n): the true order of a noisy response, not a higher one that fits the noise."""
-    from flowtex.datasets_patterns import parallel, resonance
+    from flowtex.datasets.patterns import parallel, resonance
     from flowtex.dsp.prony import bic
 
     filt = resonance(120.0, 0.0095, 1000.0)

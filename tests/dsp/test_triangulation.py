@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from scipy.spatial import Delaunay
 
+from flowtex.datasets.model_sets import cork_like_model_set, hard_model_set
 from flowtex.dsp.triangulation import clamp_query, locate_many, pack_triangulation
-from flowtex.models.synthetic import cork_like_model_set, hard_model_set
 
 
 def scipy_bary(d: Delaunay, simplex: np.ndarray, pts: np.ndarray) -> np.ndarray:

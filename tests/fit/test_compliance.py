@@ -10,7 +10,7 @@ import scipy.stats
 
 import flowtex
 from flowtex.cli import main
-from flowtex.datasets_patterns import stroking_recording
+from flowtex.datasets.patterns import stroking_recording
 from flowtex.dsp.compliance import KC_ER_RANGE_MPA, er_from_kc, kc_from_er
 from flowtex.fit.compliance import estimate_compliance
 from flowtex.io.recordings import save_recording

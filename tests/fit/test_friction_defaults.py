@@ -9,10 +9,10 @@ import pytest
 
 from flowtex.cli import main
 from flowtex.datasets import friction_session
+from flowtex.datasets.model_sets import synthetic_model_set
 from flowtex.fit.friction import LOW_R2, fit_friction
 from flowtex.io.modelset import load_model_set, save_model_set
 from flowtex.io.recordings import save_recording
-from flowtex.models.synthetic import synthetic_model_set
 
 
 def _independent(seed=0, n=20000):

@@ -9,7 +9,7 @@ import pytest
 
 import flowtex
 from flowtex.cli import main
-from flowtex.datasets_patterns import patterned_recording, render_features
+from flowtex.datasets.patterns import patterned_recording, render_features
 from flowtex.dsp.spectral import welch_psd
 from flowtex.errors import GraphError
 from flowtex.fit.pattern import fit_pattern
@@ -110,7 +110,7 @@ def test_bounded_active_ring_downs(fitted):
     filters = list(zip(pat.b, pat.a, strict=True))
     # with one slot each new feature replaces the previous ring-down: equal to truncated superposition
     xs = (pos - pat.origin) @ pat.axis
-    from flowtex.datasets_patterns import feature_crossings
+    from flowtex.datasets.patterns import feature_crossings
     from flowtex.dsp.prony import impulse_response
 
     ref = np.zeros(x.size)

@@ -8,7 +8,7 @@ import pytest
 
 import flowtex
 from flowtex.cli import main
-from flowtex.datasets_patterns import feature_crossings, patterned_recording, pole_decay_s
+from flowtex.datasets.patterns import feature_crossings, patterned_recording, pole_decay_s
 from flowtex.dsp.prony import impulse_response
 from flowtex.dsp.spectral import welch_psd
 from flowtex.fit.pattern import fit_pattern

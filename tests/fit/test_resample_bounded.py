@@ -14,12 +14,12 @@ import pytest
 
 import flowtex.dsp.arma_logfit as logfit
 from flowtex.cli import main
+from flowtex.datasets.model_sets import narrow_peak_model_set, synthetic_model_set
 from flowtex.dsp.arma import arma_psd
 from flowtex.dsp.lsf import lsf_to_poly_new
 from flowtex.dsp.spectral import lsd_db
 from flowtex.fit.resample import EXTRA_ORDERS, MAX_EXTRA_ORDER, resample_model_set
 from flowtex.io.modelset import load_model_set, save_model_set
-from flowtex.models.synthetic import narrow_peak_model_set, synthetic_model_set
 
 
 def _worst_lsd(src, res, fs1, fs2):

@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 
 from flowtex.datasets import render_texture
+from flowtex.datasets.model_sets import synthetic_model_set
 from flowtex.dsp.spectral import lsd_db, welch_psd
 from flowtex.fit.quality import models_at
 from flowtex.fit.resample import resample_model_set
-from flowtex.models.synthetic import synthetic_model_set
 
 SECONDS = 60.0
 SEEDS = range(4)

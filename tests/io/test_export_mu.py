@@ -9,9 +9,9 @@ import pytest
 
 from flowtex.cli import main
 from flowtex.datasets import friction_session
+from flowtex.datasets.model_sets import synthetic_model_set
 from flowtex.io.hatt import read_hatt_xml, write_hatt_xml
 from flowtex.io.modelset import load_model_set, save_model_set
-from flowtex.models.synthetic import synthetic_model_set
 from tests.conftest import REPO
 
 

@@ -7,10 +7,10 @@ import textwrap
 import numpy as np
 import pytest
 
+from flowtex.datasets.model_sets import cork_like_model_set, hard_model_set, lsf_to_poly_reference
 from flowtex.errors import DataError
 from flowtex.io.hatt import read_hatt_xml, write_hatt_xml
 from flowtex.io.modelset import load_model_set
-from flowtex.models.synthetic import cork_like_model_set, hard_model_set, lsf_to_poly_reference
 
 
 def values(xs, indent="    "):

@@ -317,7 +317,7 @@ def test_fit_texture_accel_scaled_absurdly(tmp_path, capsys, factor, match):
 
 
 def test_fit_compliance_zero_accel_and_force_1e30(tmp_path, capsys):
-    from flowtex.datasets_patterns import stroking_recording
+    from flowtex.datasets.patterns import stroking_recording
     from flowtex.io.recordings import save_recording
 
     rec = stroking_recording(0.5, seconds=1.0, k_g=0.5, seed=1)

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from scipy.spatial import Delaunay
 
+from flowtex.datasets.model_sets import cork_like_model_set, hard_model_set, synthetic_model_set
 from flowtex.errors import DataError
 from flowtex.io.hatt import write_hatt_xml
 from flowtex.io.modelset import load_model_set, save_model_set
-from flowtex.models.synthetic import cork_like_model_set, hard_model_set, synthetic_model_set
 
 ARRAYS = ("speeds", "forces", "ar_lsf", "ma_lsf", "variance", "gain", "ar_coeff", "ma_coeff", "triangles")
 

@@ -22,6 +22,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from flowtex.datasets.model_sets import synthetic_model_set
 from flowtex.errors import FlowtexError
 from flowtex.graph.compiled import check_graph
 from flowtex.io.canlog import SessionWriter, read_session
@@ -32,7 +33,6 @@ from flowtex.io.modelset import load_model_set, save_model_set
 from flowtex.io.patternfile import Pattern, read_pattern, write_pattern
 from flowtex.io.recordings import load_recording, save_recording
 from flowtex.io.taplib import read_tap_library, write_tap_library
-from flowtex.models.synthetic import synthetic_model_set
 from flowtex.models.taps import TapLibrary
 from flowtex.scene.file import load_scene
 

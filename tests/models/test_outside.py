@@ -10,11 +10,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from flowtex.datasets.model_sets import lsf_to_poly_reference
 from flowtex.datasets.realistic import SPEED_SHARE, loud_surface
 from flowtex.dsp.arma import arma_output_variance
 from flowtex.fit.quality import models_at
 from flowtex.models.outside import TREND_CAP, model_powers, nearest_measured, power_trend
-from flowtex.models.synthetic import lsf_to_poly_reference
 
 
 @pytest.fixture(scope="module")

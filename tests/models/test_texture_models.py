@@ -7,8 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from flowtex.errors import DataError
-from flowtex.models.synthetic import (
+from flowtex.datasets.model_sets import (
     cork_like_model_set,
     hard_model_set,
     lsf_to_poly_reference,
@@ -16,6 +15,7 @@ from flowtex.models.synthetic import (
     poly_to_lsf_reference,
     synthetic_model_set,
 )
+from flowtex.errors import DataError
 
 
 def small():

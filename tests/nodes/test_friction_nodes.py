@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import flowtex
+from flowtex.datasets.model_sets import synthetic_model_set
 from flowtex.errors import GraphError
 from flowtex.io.modelset import save_model_set
-from flowtex.models.synthetic import synthetic_model_set
 
 
 def graph(tmp_path, body, name="g.yaml"):

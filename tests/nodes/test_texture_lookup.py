@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 from scipy.spatial import Delaunay
 
+from flowtex.datasets.model_sets import cork_like_model_set, hard_model_set, lsf_to_poly_reference
 from flowtex.dsp.lsf import lsf_to_poly_new
 from flowtex.errors import GraphError
 from flowtex.graph.compiled import load_graph
 from flowtex.io.hatt import write_hatt_xml
 from flowtex.io.modelset import save_model_set
-from flowtex.models.synthetic import cork_like_model_set, hard_model_set, lsf_to_poly_reference
 
 
 def graph_file(folder: Path, models: str, rate: float = 1000, extra: str = "", outside: str = "fade") -> Path:

@@ -9,9 +9,9 @@ import pytest
 import scipy.signal
 
 from flowtex.cli import main
+from flowtex.datasets.model_sets import synthetic_model_set
 from flowtex.dsp.salience import texture_power_grid, trajectory_ranges
 from flowtex.errors import GraphError
-from flowtex.models.synthetic import synthetic_model_set
 from flowtex.models.taps import spectral_centroid
 from flowtex.scene.file import parse_scene
 from flowtex.scene.plan import plan_scene

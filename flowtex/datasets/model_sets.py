@@ -19,7 +19,7 @@ import math
 import numpy as np
 from scipy.spatial import Delaunay
 
-from .texture import TextureModelSet
+from ..models.texture import TextureModelSet
 
 
 def lsf_to_poly_reference(lsf: np.ndarray) -> np.ndarray:
@@ -144,7 +144,7 @@ def synthetic_model_set(speeds: np.ndarray, forces: np.ndarray, ar_order: int = 
     ms = TextureModelSet(material=material, sample_rate=sample_rate, speeds=pts[:, 0].copy(), forces=pts[:, 1].copy(),
                          triangles=tri, ar_lsf=ar_lsf, ma_lsf=ma_lsf, variance=variance, gain=gain,
                          max_speed=max_speed, max_force=max_force, mu=mu, ar_coeff=ar_coeff, ma_coeff=ma_coeff,
-                         metadata={"generator": "flowtex.models.synthetic"})
+                         metadata={"generator": "flowtex.datasets.model_sets"})
     return ms.validate()
 
 
@@ -230,7 +230,7 @@ def hard_model_set(ar_order: int = 12, ma_order: int = 10) -> TextureModelSet:
                          variance=variance, gain=gain, max_speed=220.0, max_force=2.5, mu=0.5,
                          ar_coeff=np.array([lsf_to_poly_reference(r) for r in ar_lsf]),
                          ma_coeff=np.array([lsf_to_poly_reference(r) for r in ma_lsf]),
-                         metadata={"generator": "flowtex.models.synthetic.hard_model_set"})
+                         metadata={"generator": "flowtex.datasets.model_sets.hard_model_set"})
     return ms.validate()
 
 
@@ -286,5 +286,5 @@ def narrow_peak_model_set(count: int = 24, ar_order: int = 20, ma_order: int = 2
                          triangles=Delaunay(pts).simplices.astype(np.int64), ar_lsf=ar_lsf, ma_lsf=ma_lsf,
                          variance=variance, gain=np.ones(total), max_speed=300.0, max_force=3.0, mu=0.3,
                          ar_coeff=ar_coeff, ma_coeff=ma_coeff,
-                         metadata={"generator": "flowtex.models.synthetic.narrow_peak_model_set"})
+                         metadata={"generator": "flowtex.datasets.model_sets.narrow_peak_model_set"})
     return ms.validate()
