@@ -1,7 +1,7 @@
 """Option builders shared by every verb: one spelling and one meaning per flag (docs/cli.md lists them all).
 
 - ``--plugins DIR`` / ``--no-plugins``: extra plugin folders; skip the automatic ./plugins and graph-folder plugins.
-- ``--set NODE.PARAM=VALUE``: override a node parameter.
+- ``--set NODE.PARAM=VALUE``: override a node parameter (``--set rate=HZ``: the graph's rate).
 - ``--seed N``: noise seed.
 - ``--from-rate HZ``: the rate of a recording that states none (old spelling ``--rate`` in the fit verbs, with a notice).
 - the live options (``--bus``, ``--dbc``, ``--map``, ``--record``, ``--stats``, ...), shared by ``live`` and ``scene live``.
@@ -32,7 +32,8 @@ def add_plugin_options(p: argparse.ArgumentParser, no_plugins: bool = True) -> N
 def add_set_option(p: argparse.ArgumentParser) -> None:
     """``--set NODE.PARAM=VALUE`` (repeatable), stored in ``args.overrides``."""
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="NODE.PARAM=VALUE",
-                   help="override a node parameter (repeatable), e.g. --set lookup.models=Models_Cork.xml")
+                   help="override a node parameter (repeatable), e.g. --set lookup.models=Models_Cork.xml; "
+                        "--set rate=HZ sets the graph's rate")
 
 
 def add_graph_options(p: argparse.ArgumentParser, no_plugins: bool = True) -> None:

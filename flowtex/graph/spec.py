@@ -258,8 +258,14 @@ def _apply_overrides(c: Collector, spec: GraphSpec, overrides: dict[str, Any]) -
     for key, value in overrides.items():
         where = Location(f"--set {key}")
         node, _, param = key.partition(".")
+        if key == "rate":
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
+                c.error(where, f"rate must be a positive number of Hz, got {value!r}")
+            else:
+                spec.rate = float(value)
+            continue
         if not param:
-            c.error(where, "expected --set NODE.PARAM=VALUE")
+            c.error(where, "expected --set NODE.PARAM=VALUE (or --set rate=HZ for the graph's rate)")
             continue
         if node not in spec.nodes:
             hint = suggest(node, list(spec.nodes))
