@@ -10,9 +10,10 @@ from pathlib import Path
 
 import pytest
 
-from flowtex.errors import GraphError
+from flowtex.errors import DataError, GraphError
 from flowtex.graph.spec import parse_spec
 from flowtex.io.atomic import check_output, write_json_atomic
+from flowtex.io.recordings import load_recording
 
 GRAPH = """flowtex: 1
 name: g
@@ -53,3 +54,16 @@ def test_output_into_a_fifo_writes_into_it_and_keeps_it(tmp_path: Path) -> None:
     assert stat.S_ISFIFO(os.stat(fifo).st_mode)
     assert json.loads(got[0]) == {"mu": 0.5}
     assert [p.name for p in tmp_path.iterdir()] == ["pipe.json"]   # no temporary file left behind
+
+
+@pytest.mark.parametrize(("content", "message"), [
+    (b"", "empty file, not an .npz recording"),                        # numpy: EOFError -> "internal error"
+    (b"garbage\n", "not an .npz recording"),                           # numpy: "pickled data ... allow_pickle" advice
+    (b"\x93NUMPY\x01\x00" + b" " * 60, "not an .npz recording"),      # an .npy saved under an .npz name
+])
+def test_a_file_that_is_not_an_npz_is_refused_in_one_line(tmp_path: Path, content: bytes, message: str) -> None:
+    path = tmp_path / "rec.npz"
+    path.write_bytes(content)
+    with pytest.raises(DataError, match=message) as info:
+        load_recording(path)
+    assert "pickle" not in str(info.value) and "\n" not in str(info.value)

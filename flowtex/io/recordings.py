@@ -23,6 +23,7 @@ import json
 import os
 import re
 import time
+import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -99,7 +100,26 @@ def _stated_rate(value: object, path: Path) -> float:
     return rate
 
 
+ZIP_MAGIC = b"PK\x03\x04"
+"""An .npz file is a zip archive of .npy arrays; its first four bytes are these."""
+
+
+def _check_npz_magic(path: Path) -> None:
+    """Refuse, before numpy reads it, a file that is not a zip archive (numpy would call it 'pickled data' or EOFError)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(len(ZIP_MAGIC))
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read the recording ({exc.strerror})") from None
+    if not head:
+        raise DataError(f"{path}: empty file, not an .npz recording; record or export it again")
+    if head != ZIP_MAGIC:
+        raise DataError(f"{path}: not an .npz recording (an .npz is a zip archive of .npy arrays, e.g. from numpy.savez); "
+                        "check the file or its suffix")
+
+
 def _load_npz(path: Path) -> Recording:
+    _check_npz_magic(path)
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {}
@@ -117,7 +137,7 @@ def _load_npz(path: Path) -> Recording:
                     arrays[name] = np.asarray(arr, dtype=np.float64)
     except DataError:
         raise
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
         raise DataError(f"{path}: not a readable .npz recording ({exc})") from None
     return Recording(arrays, rate, units=units)
 
