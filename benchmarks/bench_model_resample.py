@@ -1,6 +1,7 @@
 """Texture-model upsampling (flowtex.dsp.arma_resample): accuracy, orders and time, against the previous method.
 
     python benchmarks/bench_model_resample.py [--seeds 30] [--ratios 2,2.5,4] [--cork] [--render]
+    python benchmarks/bench_model_resample.py --corpus all [--corpus-rates 2000,4000] [--baseline]
 
 For HaTT-like 19/17 models (flowtex.models.synthetic.hatt_like_model: poles to
 r = 0.985, an MA zero pair at 0.9999 near z = -1) at 1 kHz, side by side in one
@@ -19,8 +20,12 @@ up to 0.9 x the old Nyquist, frequencies within 40 dB of the peak), worst
 band-power error, worst fraction of the power above the old Nyquist, mean / max
 seconds per model. ``--cork``: resample_model_set on cork_like_model_set (45
 models) 1 kHz -> 2 and 4 kHz. ``--render``: arma_lattice_block ns per tick at
-the orders produced (the rendering cost of a higher order). The machine is
-shared: quote ``uptime`` with the numbers.
+the orders produced (the rendering cost of a higher order). ``--corpus``: the
+test suite's model sets (the narrow-peak copper-like ones included), seconds per
+model fit (median and worst, from the progress callback), fits done, extra order,
+worst LSD and misses; ``--baseline`` runs the previous stopping rule of the
+log-spectral fit (1e-6 relative, 1e-3 dB, no evaluation budget) beside it. The
+machine is shared: quote ``uptime`` with the numbers.
 """
 
 from __future__ import annotations
@@ -111,6 +116,53 @@ def cork(rates) -> None:
               f"{dt / ms.num_models:.2f} s per model ({dt:.1f} s)", flush=True)
 
 
+def corpus_sets(names):
+    """The model sets the test suite resamples (tests/fit/test_arma_resample.py, test_resample_bounded.py, test_resample_render.py)."""
+    from flowtex.models.synthetic import cork_like_model_set, hard_model_set, narrow_peak_model_set, synthetic_model_set
+
+    makers = {
+        "grid8/6": lambda: synthetic_model_set([60.0, 150.0, 240.0], [0.5, 1.5, 2.5], ar_order=8, ma_order=6),
+        "ar2": lambda: synthetic_model_set([60.0, 150.0], [0.5, 1.5], ar_order=2, ma_order=0),
+        "hard12/10": lambda: hard_model_set(),
+        "narrow6/6": lambda: narrow_peak_model_set(count=20, ar_order=6, ma_order=6, max_pole_radius=0.9995),
+        "narrow20/20": lambda: narrow_peak_model_set(count=24, ar_order=20, ma_order=20, max_pole_radius=0.9995),
+        "cork19/17": cork_like_model_set,
+    }
+    return [(n, makers[n]()) for n in names]
+
+
+def corpus(names, rates, baseline: bool) -> None:
+    """Seconds per model fit (median, worst) of resample_model_set on each corpus set, new stopping rule vs the old one."""
+    import flowtex.dsp.arma_logfit as logfit
+    from flowtex.fit.resample import resample_model_set
+    from flowtex.models.synthetic import synthetic_model_set
+
+    resample_model_set(synthetic_model_set([60.0], [0.5], ar_order=4, ma_order=2), 2000.0)  # warm-up: numba compiles, imports
+    rules = [("new", {})] + ([("old", {"EVALUATIONS": 10**9, "REL_TOL": 1e-6, "GOOD_DB": 1e-3})] if baseline else [])
+    print(f"{'set':<12} {'to Hz':>6} {'rule':<4} {'models':>6} {'fits':>5} {'extra':>5} {'LSD max':>8} {'misses':>6} "
+          f"{'s/model med':>11} {'worst':>6} {'total s':>8} {'ratio':>6}")
+    for name, ms in corpus_sets(names):
+        for rate in rates:
+            base = None
+            for rule, params in rules:
+                saved = {k: getattr(logfit, k) for k in params}
+                for k, v in params.items():
+                    setattr(logfit, k, v)
+                stamps = [time.perf_counter()]
+                try:
+                    out = resample_model_set(ms, rate, progress=lambda d, t, st=stamps: st.append(time.perf_counter()))
+                finally:
+                    for k, v in saved.items():
+                        setattr(logfit, k, v)
+                per = np.diff(stamps)
+                total = stamps[-1] - stamps[0]
+                base = base or total
+                info = out.metadata["resample"]
+                print(f"{name:<12} {rate:6g} {rule:<4} {ms.num_models:6d} {per.size:5d} {info['extra_order']:5d} "
+                      f"{info['worst_lsd_db']:8.3f} {len(info['misses']):6d} {np.median(per):11.3f} {per.max():6.2f} "
+                      f"{total:8.1f} {total / base:6.2f}", flush=True)
+
+
 def render(orders) -> None:
     from flowtex.dsp.arma import arma_lattice_block, new_state
     from flowtex.dsp.rng import seed_rng
@@ -142,7 +194,16 @@ def main() -> None:
     ap.add_argument("--methods", default="new,keep,old")
     ap.add_argument("--cork", action="store_true")
     ap.add_argument("--render", action="store_true")
+    ap.add_argument("--corpus", metavar="SETS", help="comma-separated corpus sets (grid8/6, ar2, hard12/10, narrow6/6, narrow20/20, "
+                                                       "cork19/17) or 'all': seconds per model at --corpus-rates, then exit")
+    ap.add_argument("--corpus-rates", default="2000,4000")
+    ap.add_argument("--baseline", action="store_true", help="with --corpus: also the previous stopping rule (ratio column)")
     args = ap.parse_args()
+    if args.corpus:
+        names = ["grid8/6", "ar2", "hard12/10", "narrow6/6", "narrow20/20", "cork19/17"] if args.corpus == "all" \
+            else args.corpus.split(",")
+        corpus(names, [float(r) for r in args.corpus_rates.split(",")], args.baseline)
+        return
     print(f"hatt_like_model seeds 0..{args.seeds - 1}, 19/17 at 1 kHz; LSD and powers of the model rebuilt from its LSFs")
     print(f"{'to Hz':>7} {'meth':<5} {'orders':>6} {'LSD max':>8} {'LSD med':>8} {'band %':>8} {'above %':>9} {'LSF ok':>7} "
           f"{'s mean':>7} {'s max':>6}")

@@ -6,7 +6,7 @@ defines a function, not of the functions it calls: edit a kernel in
 would keep the old machine code. flowtex therefore keys numba's cache folder
 by a fingerprint of its whole source tree (every ``.py`` file's path, size and
 modification time): any edit to flowtex gives a fresh folder, and unchanged
-sources load instantly. Older folders are pruned. Setting ``NUMBA_CACHE_DIR``
+sources load instantly. Older folders are pruned (the newest few, and any used in the last hour, are kept). Setting ``NUMBA_CACHE_DIR``
 yourself turns this off.
 """
 
@@ -15,12 +15,15 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
+import time
 from pathlib import Path
 
 from .dsp.fastmath import CONTRACT
 
 CACHE_ENV = "FLOWTEX_CACHE_DIR"
 KEEP_OLD = 3
+IN_USE_S = 3600.0
+"""A folder used this recently is never pruned: another checkout of flowtex (another source tree) may be compiling into it."""
 
 
 def cache_dir() -> Path:
@@ -69,5 +72,11 @@ def _prune(root: Path, current: Path) -> None:
         others = sorted((p for p in root.iterdir() if p.is_dir() and p != current), key=lambda p: p.stat().st_mtime)
     except OSError:
         return
+    now = time.time()
     for old in others[:-KEEP_OLD] if len(others) > KEEP_OLD else []:
+        try:
+            if now - max([old.stat().st_mtime] + [c.stat().st_mtime for c in old.iterdir()]) < IN_USE_S:
+                continue
+        except OSError:
+            continue
         shutil.rmtree(old, ignore_errors=True)

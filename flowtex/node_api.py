@@ -36,6 +36,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .errors import ParamError
+from .limits import MAX_INT_PARAM, excerpt, short_number
 
 
 class _Required:
@@ -104,12 +105,14 @@ class Param:
         if kind == "bool":
             if isinstance(value, bool):
                 return value
-            raise ValueError(f"expected true or false, got {value!r}")
+            raise ValueError(f"expected true or false, got {excerpt(value)}")
         if kind == "int":
             if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ValueError(f"expected an integer, got {value!r}")
+                raise ValueError(f"expected an integer, got {excerpt(value)}")
             if isinstance(value, float) and not value.is_integer():
-                raise ValueError(f"expected an integer, got {value!r}")
+                raise ValueError(f"expected an integer, got {excerpt(value)}")
+            if isinstance(value, float) and abs(value) > 2.0**53:
+                raise ValueError(f"{value:g} is too large for an integer parameter")
             value = int(value)
             self._check_bounds(value)
             return value
@@ -126,12 +129,12 @@ class Param:
             return out
         if kind == "choice":
             if not isinstance(value, str) or value not in self.choices:
-                hint = suggest(str(value), self.choices)
-                raise ValueError(f"expected one of {', '.join(self.choices)}, got {value!r}{hint}")
+                hint = suggest(value, self.choices) if isinstance(value, str) else ""
+                raise ValueError(f"expected one of {', '.join(self.choices)}, got {excerpt(value)}{hint}")
             return value
         if kind in ("str", "path"):
             if not isinstance(value, str) or not value:
-                raise ValueError(f"expected a non-empty string, got {value!r}")
+                raise ValueError(f"expected a non-empty string, got {excerpt(value)}")
             if kind == "path":
                 path = Path(value).expanduser()
                 if not path.is_absolute() and base_dir is not None:
@@ -142,22 +145,27 @@ class Param:
 
     def _coerce_number(self, value: Any) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ValueError(f"expected a number, got {value!r}")
-        value = float(value)
-        if not math.isfinite(value):
-            raise ValueError(f"expected a finite number, got {value!r}")
-        self._check_bounds(value)
-        return value
+            raise ValueError(f"expected a number, got {excerpt(value)}")
+        try:
+            number = float(value)
+        except OverflowError:  # an integer beyond 1.8e308
+            number = math.inf
+        if not math.isfinite(number):
+            raise ValueError(f"expected a finite number, got {excerpt(value, 24)}")
+        self._check_bounds(number)
+        return number
 
     def _check_bounds(self, value: float) -> None:
+        if self.kind == "int" and self.max is None and value > MAX_INT_PARAM:
+            raise ValueError(f"must be <= {MAX_INT_PARAM} (the largest integer parameter), got {short_number(value)}")
         if self.min is not None:
             if value < self.min or (self.min_exclusive and value == self.min):
                 op = ">" if self.min_exclusive else ">="
-                raise ValueError(f"must be {op} {self.min:g}, got {value:g}")
+                raise ValueError(f"must be {op} {self.min:g}, got {short_number(value)}")
         if self.max is not None:
             if value > self.max or (self.max_exclusive and value == self.max):
                 op = "<" if self.max_exclusive else "<="
-                raise ValueError(f"must be {op} {self.max:g}, got {value:g}")
+                raise ValueError(f"must be {op} {self.max:g}, got {short_number(value)}")
 
 
 @dataclass(frozen=True)

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import os
 import textwrap
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
+
+os.environ.setdefault("FLOWTEX_BACKGROUND", "0")  # no background fused compiles (docs/engine.md) competing with the tests
 
 
 @pytest.fixture

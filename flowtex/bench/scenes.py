@@ -51,11 +51,11 @@ def check_plan_knob(key: str, values: list[Any]) -> None:
 
 def is_scene_file(path: str | Path) -> bool:
     """True if ``path`` is a scene file (a YAML mapping with ``surfaces``) rather than a graph."""
-    import yaml
+    from ..yamlsource import load_yaml, read_source
 
     try:
-        doc = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError, UnicodeDecodeError):
+        doc = load_yaml(read_source(Path(path), "graph or scene file"), str(path))
+    except FlowtexError:
         return False  # the graph loader reports the problem with its own message
     return isinstance(doc, dict) and "surfaces" in doc and "nodes" not in doc
 

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..dsp.errors import pareto_front, signal_error
 from ..errors import FlowtexError
+from ..yamlsource import parse_value
 from .scenes import PLAN_KNOB, check_plan_knob, is_plan_knob, is_scene_file, write_planned_graph
 
 VIBRATION_UNITS = ("m/s^2",)
@@ -38,7 +39,6 @@ class Config:
 
 def parse_knob(text: str) -> tuple[str, list[Any]]:
     """``"lookup.every=1,2"`` -> ``("lookup.every", [1, 2])`` (values parsed as YAML scalars)."""
-    import yaml
 
     key, sep, values = text.partition("=")
     node, dot, param = key.strip().partition(".")
@@ -48,13 +48,13 @@ def parse_knob(text: str) -> tuple[str, list[Any]]:
         parts = values.split(";")
     else:
         parts = values.split(",")
-    parsed = [yaml.safe_load(v) for v in parts]
+    parsed = [parse_value(v, f"--knob {key.strip()}") for v in parts]
     if is_plan_knob(key.strip()):
         check_plan_knob(key.strip(), parsed)
     return key.strip(), parsed
 
 
-def build(graph_path: str | Path, values: dict[str, Any], plugins: tuple[str | Path, ...] = ()):
+def build(graph_path: str | Path, values: dict[str, Any], plugins: tuple[str | Path, ...] = (), tier: str = "dispatch"):
     """Compile the graph with ``values`` applied (``node.every`` sets the rate divider, others are params).
 
     A scene file is planned first, with the ``plan`` knobs applied (flowtex.bench.scenes).
@@ -63,13 +63,13 @@ def build(graph_path: str | Path, values: dict[str, Any], plugins: tuple[str | P
     if is_scene_file(graph_path):
         with tempfile.TemporaryDirectory(prefix="flowtex-bench-") as tmp:
             graph_file = write_planned_graph(graph_path, plan, Path(tmp) / "scene_graph.yaml", plugins)
-            return _build_graph(graph_file, {k: v for k, v in values.items() if k not in plan}, plugins)
+            return _build_graph(graph_file, {k: v for k, v in values.items() if k not in plan}, plugins, tier)
     if plan:
         raise FlowtexError(f"--knob {next(iter(plan))}: plan knobs need a scene file, and {graph_path} is a graph")
-    return _build_graph(graph_path, values, plugins)
+    return _build_graph(graph_path, values, plugins, tier)
 
 
-def _build_graph(graph_path: str | Path, values: dict[str, Any], plugins: tuple[str | Path, ...]):
+def _build_graph(graph_path: str | Path, values: dict[str, Any], plugins: tuple[str | Path, ...], tier: str):
     from ..graph.compiled import Graph
     from ..graph.resolve import resolve_graph
     from ..graph.spec import load_spec
@@ -85,7 +85,7 @@ def _build_graph(graph_path: str | Path, values: dict[str, Any], plugins: tuple[
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise FlowtexError(f"--knob {key}: every must be a positive integer, got {v!r}")
             spec.nodes[node].every = v
-    return Graph(resolve_graph(spec, load_registry(plugins)))
+    return Graph(resolve_graph(spec, load_registry(plugins)), tier=tier)
 
 
 def graph_inputs(graph: Any, inputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -100,19 +100,23 @@ def default_metric(unit: str) -> str:
 
 def sweep(graph_path: str | Path, inputs: dict[str, np.ndarray], knobs: dict[str, list[Any]], reference: dict[str, Any] | None = None,
           outputs: list[str] | None = None, metric: str | None = None, repeats: int = 5, seed: int | None = None,
-          plugins: tuple[str | Path, ...] = (), client: Any = None) -> tuple[list[Config], list[str]]:
+          plugins: tuple[str | Path, ...] = (), client: Any = None, tier: str = "dispatch") -> tuple[list[Config], list[str]]:
     """Run every combination of ``knobs``; returns the configurations (with ns/tick, errors, Pareto flag) and the outputs compared.
 
     The reference is ``reference`` (default: the first value of every knob).
     The Pareto front is over (ns/tick, error of the first compared output).
     With a Dask ``client`` each configuration is compiled, run and timed on a
     worker (timings labelled "dask workers": not comparable to local ones).
+    ``tier``: how each configuration is compiled (docs/engine.md). The default,
+    ``dispatch``, compiles nothing for knobs that change the graph's shape
+    (``every``, ``plan``) once the node types are cached; ``fused`` compiles each
+    shape (seconds each) for the fastest ticks.
     """
     names = list(knobs)
     combos = [dict(zip(names, vals, strict=True)) for vals in itertools.product(*(knobs[n] for n in names))]
     ref_values = {n: knobs[n][0] for n in names}
     ref_values.update(reference or {})
-    ref_graph = build(graph_path, ref_values, plugins)
+    ref_graph = build(graph_path, ref_values, plugins, tier)
     if outputs is None:
         outputs = list(ref_graph.outputs)
     missing = [o for o in outputs if o not in ref_graph.outputs]
@@ -122,12 +126,13 @@ def sweep(graph_path: str | Path, inputs: dict[str, np.ndarray], knobs: dict[str
     configs = [Config(c) for c in combos]
     if client is not None:
         futures = client.map(run_config, [str(Path(graph_path).resolve())] * len(combos), combos, [inputs] * len(combos), [outputs] * len(combos),
-                             [seed] * len(combos), [repeats] * len(combos), [plugins] * len(combos), pure=False)
+                             [seed] * len(combos), [repeats] * len(combos), [plugins] * len(combos), [tier] * len(combos),
+                             pure=False)
         results = client.gather(futures)
-        timed_on = "dask workers"
+        timed_on = f"dask workers, {tier} tier"
     else:
-        results = _run_local(graph_path, combos, inputs, outputs, seed, repeats, plugins)
-        timed_on = "local"
+        results = _run_local(graph_path, combos, inputs, outputs, seed, repeats, plugins, tier)
+        timed_on = f"local, {tier} tier"
     for cfg, (out, ns) in zip(configs, results, strict=True):
         cfg.ns_per_tick = ns
         cfg.timed_on = timed_on
@@ -154,8 +159,8 @@ def _time_runs(graphs: list, inputs: dict[str, np.ndarray], seed: int | None, re
     return [float(np.median(t)) for t in times]
 
 
-def _run_local(graph_path, combos, inputs, outputs, seed, repeats, plugins) -> list[tuple[dict[str, np.ndarray], float]]:
-    graphs = [build(graph_path, c, plugins) for c in combos]
+def _run_local(graph_path, combos, inputs, outputs, seed, repeats, plugins, tier) -> list[tuple[dict[str, np.ndarray], float]]:
+    graphs = [build(graph_path, c, plugins, tier) for c in combos]
     outs = []
     for g in graphs:
         result = g.run(graph_inputs(g, inputs), seed=seed)
@@ -163,9 +168,9 @@ def _run_local(graph_path, combos, inputs, outputs, seed, repeats, plugins) -> l
     return list(zip(outs, _time_runs(graphs, inputs, seed, repeats), strict=True))
 
 
-def run_config(graph_path, values, inputs, outputs, seed, repeats, plugins) -> tuple[dict[str, np.ndarray], float]:
+def run_config(graph_path, values, inputs, outputs, seed, repeats, plugins, tier="dispatch") -> tuple[dict[str, np.ndarray], float]:
     """One configuration, compiled, run and timed where this is called (a Dask worker): (outputs, median ns/tick)."""
-    g = build(graph_path, values, plugins)
+    g = build(graph_path, values, plugins, tier)
     result = g.run(graph_inputs(g, inputs), seed=seed)
     return {name: result[name] for name in outputs if name in result}, _time_runs([g], inputs, seed, repeats)[0]
 

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import DataError, FlowtexError
-from .options import add_graph_options, add_seed_option, int_at_least, overrides
+from .options import add_compile_option, add_graph_options, add_seed_option, int_at_least, overrides
 from .output import say
 
 
@@ -30,6 +30,7 @@ def register(sub: Any) -> None:
     where = p.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int_at_least(1), help="run the configurations on a local Dask cluster of N worker processes")
     where.add_argument("--scheduler", help="run the configurations on an existing Dask cluster (scheduler address, e.g. tcp://host:8786)")
+    add_compile_option(p, "dispatch", ("dispatch", "fused"))
     add_graph_options(p, no_plugins=False)
     p.set_defaults(func=cmd_bench)
 
@@ -57,10 +58,10 @@ def cmd_bench(args: argparse.Namespace) -> int:
     rec = load_recording(args.input)
     with dask_client(args.workers, args.scheduler) as client:
         configs, outputs = sweep(args.graph, dict(rec.arrays), knobs, reference, args.outputs, args.metric, args.repeats,
-                                 args.seed, tuple(args.plugins), client=client)
+                                 args.seed, tuple(args.plugins), client=client, tier=args.compile)
     if not configs:
         raise DataError("no configuration to run")
-    units = build(args.graph, configs[0].values, tuple(args.plugins)).outputs
+    units = build(args.graph, configs[0].values, tuple(args.plugins), args.compile).outputs
     metrics = {o: args.metric or default_metric(units[o].unit) for o in outputs}
     rows = table(configs, outputs, metrics)
     say(format_table(rows))

@@ -32,6 +32,8 @@ def register_fit(kinds: Any) -> None:
                    help="zero-phase high-pass of the acceleration (0: none; below half the recording's rate)")
     p.add_argument("--render-rate", type=positive_hz, metavar="HZ",
                    help="resample the models to this rate before writing (at most 16x the recording's rate, up or down)")
+    p.add_argument("--allow-misses", action="store_true",
+                   help="with --render-rate: write the set even if some resampled model misses its spectrum (else refused)")
     p.add_argument("--material", help="surface name (default: the file's stem)")
     p.add_argument("-o", "--output", type=Path, help="output model set (native JSON)")
     p.add_argument("--xml", type=Path, help="also write HaTT XML (with --out-dir: one .xml beside each .json)", nargs="?",
@@ -53,7 +55,8 @@ def _job(args: argparse.Namespace) -> Any:
 
     opt = TextureOptions(order=parse_order(args.order), max_order=args.max_order, highpass_hz=args.highpass)
     return TextureJob(accel=args.accel, speed=args.speed, force=args.force, position=args.position, normal=args.normal,
-                      rate=args.from_rate, options=opt, render_rate=args.render_rate, material=args.material)
+                      rate=args.from_rate, options=opt, render_rate=args.render_rate, material=args.material,
+                      allow_misses=args.allow_misses)
 
 
 def check_report_folder(report: str | None, inputs: list) -> None:
@@ -94,7 +97,7 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
         _check_outputs(args, [args.grid])
         fit = fit_grid_index(Path(args.grid), job)
         print_table(fit)
-        write_outputs(fit, args.output, args.xml, job.render_rate)
+        write_outputs(fit, args.output, args.xml, job.render_rate, job.allow_misses)
         if args.report:
             write_report(fit, Path(args.report))
         say(f"-> {args.output}")
@@ -117,7 +120,7 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
     else:
         fit = fit_recording(paths[0], job)
         print_table(fit)
-    write_outputs(fit, args.output, args.xml, job.render_rate)
+    write_outputs(fit, args.output, args.xml, job.render_rate, job.allow_misses)
     if args.report:
         write_report(fit, Path(args.report))
     say(f"-> {args.output}" + (f", {args.xml}" if args.xml else ""))

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import FlowtexError
-from .options import add_graph_options, add_plugin_options, overrides
+from .options import add_compile_option, add_graph_options, add_plugin_options, overrides
 from .output import note, say
 
 
@@ -22,7 +22,9 @@ def register(sub: Any) -> None:
     p.add_argument("graph")
     group = p.add_mutually_exclusive_group()
     group.add_argument("--dot", action="store_true", help="print Graphviz source")
-    group.add_argument("--show-code", action="store_true", help="print the generated tick source")
+    group.add_argument("--show-code", action="store_true",
+                       help="print what runs: the fused tier's generated tick source, or the dispatch tier's node order and driver")
+    add_compile_option(p, "fused")
     add_graph_options(p)
     p.set_defaults(func=cmd_graph)
 
@@ -46,12 +48,14 @@ def report_plugins(graph_path: str | Path, args: argparse.Namespace) -> None:
         note(f"flowtex: loaded plugin code: {', '.join(str(f) for f in files)} (skip the automatic ones with --no-plugins)")
 
 
-def load_graph_from_args(args: argparse.Namespace, path: str | Path | None = None) -> Any:
-    """The compiled graph named by ``args.graph`` (or ``path``) with ``--set``, ``--plugins``, ``--no-plugins``."""
+def load_graph_from_args(args: argparse.Namespace, path: str | Path | None = None, tier: str | None = None) -> Any:
+    """The compiled graph named by ``args.graph`` (or ``path``) with ``--set``, ``--plugins``, ``--no-plugins``,
+    compiled by ``tier`` (default ``--compile``, if the verb has it; docs/engine.md)."""
     from ..graph.compiled import load_graph
 
     path = path if path is not None else args.graph
-    graph = load_graph(path, overrides(args.overrides), **plugin_kwargs(args))
+    tier = tier or getattr(args, "compile", None)
+    graph = load_graph(path, overrides(args.overrides), **plugin_kwargs(args), tier=tier)
     report_plugins(path, args)
     return graph
 

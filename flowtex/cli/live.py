@@ -40,7 +40,7 @@ def register(sub: Any) -> None:
 
 def cmd_live(args: argparse.Namespace) -> int:
     """0 after a clean stop (duration, Ctrl-C, SIGTERM), 1 on errors, 3 when no sensor frame arrived."""
-    return run_live_session(load_graph_from_args(args), args)
+    return run_live_session(load_graph_from_args(args, tier="fused"), args)  # live keeps the fused tick
 
 
 def run_live_session(graph: Any, args: argparse.Namespace, dbc: str | None = None, map_: str | None = None) -> int:

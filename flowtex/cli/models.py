@@ -27,12 +27,15 @@ def register(sub: Any) -> None:
                    help="keep the models' (p, q) when upsampling by more than 2x (cheaper to render, less exact)")
     r.add_argument("--extra-order", type=int_at_least(0, MAX_EXTRA_ORDER), metavar="N",
                    help=f"when upsampling, give every model N (even, 0..{MAX_EXTRA_ORDER}) more poles and zeros (default: the "
-                        "fewest of 0, 2, 4, 6 with which every model keeps its spectrum)")
+                        "fewest of 0, 2, 4, 6, 8 with which every model keeps its spectrum)")
+    r.add_argument("--allow-misses", action="store_true",
+                   help="write the set even if some model misses LSD <= 0.5 dB / band power within 2 %% (named in a warning); "
+                        "without it such a set is not written and the command fails")
     r.set_defaults(func=cmd_models_resample)
 
 
 def cmd_models_resample(args: argparse.Namespace) -> int:
-    from ..fit.resample import resample_model_set, resample_summary, tqdm_progress
+    from ..fit.resample import check_misses, resample_model_set, resample_summary, tqdm_progress
     from ..io.atomic import atomic_output, check_output
     from ..io.modelset import load_model_set, save_model_set
 
@@ -43,6 +46,7 @@ def cmd_models_resample(args: argparse.Namespace) -> int:
         out = resample_model_set(ms, args.rate, progress, keep_order=args.keep_order, extra_order=args.extra_order)
     finally:
         close()
+    check_misses(out, args.allow_misses, str(args.input))  # refuses (FlowtexError naming the models) unless --allow-misses
     with atomic_output(target) as tmp:
         save_model_set(out, tmp)
     line, warning = resample_summary(args.input, ms, out, str(target), args.keep_order)

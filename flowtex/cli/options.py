@@ -42,6 +42,19 @@ def add_graph_options(p: argparse.ArgumentParser, no_plugins: bool = True) -> No
     add_set_option(p)
 
 
+TIER_HELP = {
+    "fused": "fused: one compiled tick per graph structure (fastest ticks; seconds to compile a new structure)",
+    "dispatch": "dispatch: cached per-node kernels (a structural edit compiles nothing new)",
+    "auto": "auto: fused if cached, else dispatch with the fused tick compiled in the background",
+}
+
+
+def add_compile_option(p: argparse.ArgumentParser, default: str, choices: tuple[str, ...] = ("fused", "dispatch", "auto")) -> None:
+    """``--compile fused|dispatch|auto``: which compile tier builds the graph (docs/engine.md)."""
+    p.add_argument("--compile", choices=choices, default=default,
+                   help="; ".join(TIER_HELP[c] for c in choices) + f" (default: {default}; docs/engine.md)")
+
+
 def add_seed_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=None, help="noise seed (default: the graph's)")
 

@@ -9,7 +9,7 @@ from typing import Any
 
 from ..errors import FlowtexError
 from .graph import load_graph_from_args
-from .options import add_graph_options, add_seed_option
+from .options import add_compile_option, add_graph_options, add_seed_option
 from .output import say
 
 REPLAY_SUFFIXES = (".blf", ".log", ".asc")
@@ -26,6 +26,7 @@ def register(sub: Any) -> None:
     p.add_argument("--nonfinite", choices=("error", "hold", "zero", "pass"), default="error",
                    help="NaN/inf in the recording: error (default; names signal, count, first index), "
                         "hold (last finite value), zero, or pass (unchanged)")
+    add_compile_option(p, "auto")
     add_graph_options(p)
     p.set_defaults(func=cmd_run)
 
@@ -51,7 +52,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def run_summary(graph: Any, outputs: dict, output: str | None) -> str:
-    """``NAME: N ticks at R Hz, outputs a, b -> OUT``."""
+    """``NAME: N ticks at R Hz, outputs a, b -> OUT (TIER tier)``."""
     n = next(iter(outputs.values())).shape[0] if outputs else 0
     target = f" -> {output}" if output else ""
-    return f"{graph.name}: {n} ticks at {graph.rate:g} Hz, outputs {', '.join(outputs)}{target}"
+    return f"{graph.name}: {n} ticks at {graph.rate:g} Hz, outputs {', '.join(outputs)}{target} ({graph.tier} tier)"

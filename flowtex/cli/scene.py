@@ -11,7 +11,7 @@ from typing import Any
 
 from ..errors import FlowtexError
 from .graph import load_graph_from_args
-from .options import add_graph_options, add_live_options, add_plugin_options, add_seed_option
+from .options import add_compile_option, add_graph_options, add_live_options, add_plugin_options, add_seed_option
 from .output import say
 from .run import run_summary
 
@@ -38,6 +38,7 @@ def register(sub: Any) -> None:
     p.add_argument("--surface", help="render this surface alone (the recording then needs no surface input)")
     add_seed_option(p)
     p.add_argument("--explain", action="store_true", help="print the plan first")
+    add_compile_option(p, "auto")
     add_graph_options(p)
     p.set_defaults(func=cmd_scene_run)
 
@@ -99,6 +100,6 @@ def cmd_scene_live(args: argparse.Namespace) -> int:
         graph_path = Path(tmp) / "scene.yaml"
         plan_to_graph(args.scene, graph_path, tuple(args.plugins), fixed=args.surface, relative=False,
                       auto_plugins=not args.no_plugins)
-        graph = load_graph_from_args(args, graph_path)
+        graph = load_graph_from_args(args, graph_path, tier="fused")  # live keeps the fused tick
         args.graph = args.scene
         return run_live_session(graph, args, dbc, map_)

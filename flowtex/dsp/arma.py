@@ -290,13 +290,10 @@ def _check_model(ar: np.ndarray, ma: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 def arma_impulse_response(ar: np.ndarray, ma: np.ndarray, gain: float, n: int) -> np.ndarray:
     """First ``n`` samples of the impulse response of g C(z) / A(z) (scipy.signal.lfilter)."""
-    import scipy.signal
+    from .poly import impulse_response
 
     ar, ma = _check_model(ar, ma)
-    impulse = np.zeros(n)
-    if n:
-        impulse[0] = 1.0
-    return scipy.signal.lfilter(gain * ma, ar, impulse)
+    return impulse_response(gain * ma, ar, n)
 
 
 def arma_output_variance(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float) -> float:
@@ -334,10 +331,9 @@ def arma_psd(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, freqs
     """
     ar, ma = _check_model(ar, ma)
     freqs_hz = np.asarray(freqs_hz, dtype=np.float64)
-    z = np.exp(-2j * np.pi * freqs_hz / rate_hz)
-    num = np.polynomial.polynomial.polyval(z, ma)
-    den = np.polynomial.polynomial.polyval(z, ar)
-    psd = variance * gain**2 * np.abs(num / den) ** 2 / rate_hz
+    from .poly import power_spectrum
+
+    psd = variance * gain**2 * power_spectrum(ar, ma, 2.0 * np.pi * freqs_hz / rate_hz) / rate_hz
     if onesided:
         inner = (freqs_hz > 0) & (freqs_hz < rate_hz / 2)
         psd = np.where(inner, 2.0 * psd, psd)

@@ -23,24 +23,33 @@ Why these steps:
    entries are Toeplitz in the lag, so one iteration costs a few real FFTs
    of length M plus a (p+q)^2 solve, independent of the data length.
 
-Stability and minimum phase: every trial polynomial has its roots outside
-the unit circle reflected inside (z -> 1/conj(z), which changes |A(e^jw)|
-only by a constant factor) and roots closer than :data:`MAX_RADIUS` to the
-circle pulled in to it. Nothing is moved further than that.
+Sources: Burg, J. P. (1975), *Maximum entropy spectral analysis*, PhD
+thesis, Stanford University (the lattice AR fit of :func:`burg_ar`);
+Hannan, E. J. and Rissanen, J. (1982), "Recursive estimation of mixed
+autoregressive-moving average order", Biometrika 69(1), 81-94 (the
+regression on estimated innovations, :class:`HRDesign`); Whittle, P. (1953),
+"Estimation and information in stationary time series", Arkiv for Matematik
+2, 423-434 (the frequency-domain likelihood, :func:`whittle_refine`);
+Levinson, N. (1947), "The Wiener RMS error criterion in filter design and
+prediction", J. Math. Phys. 25, 261-278 (the recursion whose step-down,
+:func:`flowtex.dsp.poly.step_down`, tests stability).
+
+Stability and minimum phase: every trial polynomial is stabilised by
+:func:`flowtex.dsp.poly.stabilize` (the radius policy: roots outside the unit
+circle reflected inside, z -> 1/conj(z), which changes |A(e^jw)| only by a
+constant factor, and roots beyond :data:`flowtex.dsp.poly.MAX_RADIUS` pulled
+in to it). Nothing is moved further than that.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-MAX_RADIUS = 1.0 - 1e-5
-"""Largest root radius kept (AR poles and MA zeros). HaTT's MA zeros sit at |z| ~ 0.9999, 10x further in; at 1 - 1e-5
-the line spectral frequencies of an isolated root pair near z = -1 are still ~1e-5 rad apart, which
-:func:`flowtex.dsp.lsf.poly_to_lsf` resolves (the caller checks and pulls further in only if it does not)."""
+from .poly import MAX_RADIUS, roots_inside, stabilize  # noqa: F401  (re-exported: the one radius policy)
 
 
 def burg_ar(x: np.ndarray, order: int) -> tuple[np.ndarray, np.ndarray]:
-    """Burg AR fit: ([1, a1..aL] of A(z), forward prediction residuals of length N - L).
+    """Burg AR fit (Burg 1975): ([1, a1..aL] of A(z), forward prediction residuals of length N - L).
 
     Always minimum phase (|reflection coefficients| < 1). O(N L) numpy.
     """
@@ -92,7 +101,7 @@ def lagged_gram(src: list[np.ndarray], lag: list[int], t0: int) -> np.ndarray:
 
 
 class HRDesign:
-    """Hannan-Rissanen regression for every order (p, q) <= (P, Q), from one Gram matrix.
+    """Hannan-Rissanen (1982) regression for every order (p, q) <= (P, Q), from one Gram matrix.
 
     Regressors at time t: -x_{t-1..t-P} and e_{t-1..t-Q} (e: long-AR
     residuals); the response is x_t; t runs over the same samples for every
@@ -149,41 +158,6 @@ def hr_order_screen(design: HRDesign, max_p: int, max_q: int) -> np.ndarray:
             s2 = design.fit(p, q)[2]
             bic[p, q] = design.n * np.log(s2) + (p + q) * ln_n
     return bic
-
-
-def roots_inside(poly: np.ndarray, radius: float = 1.0) -> bool:
-    """True if every root of the monic ``poly`` has magnitude < ``radius`` (Schur-Cohn step-down, O(p^2), no eigenvalues).
-
-    The roots of P(z) scaled as p_k radius^-k are the roots of P divided by
-    ``radius``; the step-down recursion of that polynomial has all
-    |reflection coefficients| < 1 exactly when they are inside the unit circle.
-    """
-    a = np.asarray(poly, dtype=np.float64) / (radius ** np.arange(poly.shape[0]))
-    for m in range(a.shape[0] - 1, 0, -1):
-        k = a[m]
-        if not abs(k) < 1.0:
-            return False
-        a = (a[:m] - k * a[m:0:-1]) / (1.0 - k * k)
-    return True
-
-
-def stabilize(poly: np.ndarray, max_radius: float = MAX_RADIUS) -> np.ndarray:
-    """Monic polynomial with roots outside the unit circle reflected in and roots beyond ``max_radius`` pulled to it.
-
-    A polynomial already inside ``max_radius`` is returned unchanged (same
-    array values). Reflection keeps |P(e^jw)| up to a constant factor.
-    """
-    poly = np.asarray(poly, dtype=np.float64)
-    if poly.shape[0] <= 1 or roots_inside(poly, max_radius):
-        return poly
-    roots = np.roots(poly)
-    r = np.abs(roots)
-    big = r > 1.0
-    roots = np.where(big, 1.0 / np.conj(roots), roots)
-    r = np.abs(roots)
-    roots = np.where(r > max_radius, roots * (max_radius / np.maximum(r, 1e-300)), roots)
-    out = np.real(np.poly(roots))
-    return out / out[0]
 
 
 TAPER = 0.2
@@ -245,7 +219,7 @@ def prediction_error_variance(S: np.ndarray, nfft: int, a: np.ndarray, c: np.nda
 
 def whittle_refine(S: np.ndarray, nfft: int, a: np.ndarray, c: np.ndarray, iterations: int = 30,
                    tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray, float]:
-    """Gauss-Newton minimisation of the prediction-error variance over monic minimum-phase (A, C).
+    """Gauss-Newton minimisation of the prediction-error variance over monic minimum-phase (A, C) (Whittle 1953).
 
     ``S``: real spectrum on the rfft half grid (nfft // 2 + 1 values, e.g.
     :func:`periodogram_grid`). ``a``, ``c``: starting polynomials (made

@@ -36,6 +36,18 @@ DB = 10.0 / math.log(10.0)
 IMAG_TOL = 1e-9
 """Roots with |imag| below this are treated as real."""
 
+STEPS = 100
+"""Most accepted Levenberg-Marquardt steps of :func:`fit_log_spectrum`."""
+
+EVALUATIONS = 120
+"""Most residual evaluations (accepted and rejected steps, Jacobians) of :func:`fit_log_spectrum`: its cost bound."""
+
+REL_TOL = 1e-4
+""":func:`fit_log_spectrum` stops when an accepted step lowers the cost by less than this, relative."""
+
+GOOD_DB = 0.02
+""":func:`fit_log_spectrum` stops when the RMS fit residual is below this (dB): nothing left worth a step."""
+
 
 def split_roots(poly: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(radii, angles in (0, pi]) of the upper-half conjugate pairs and the real roots of a real polynomial [1, c1..cn]."""
@@ -156,9 +168,9 @@ def log_spectrum_db(w: np.ndarray, x: np.ndarray, lay: _Layout, jac: bool = Fals
 
 
 def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, one_sided: np.ndarray,
-                     a0: np.ndarray, c0: np.ndarray, pole_radius: float, zero_radius: float, iterations: int = 100,
-                     tol: float = 1e-6
-                     ) -> tuple[np.ndarray, np.ndarray, float, float]:
+                     a0: np.ndarray, c0: np.ndarray, pole_radius: float, zero_radius: float, iterations: int | None = None,
+                     tol: float | None = None, evaluations: int | None = None, good_db: float | None = None,
+                     offset_db: float | None = None) -> tuple[np.ndarray, np.ndarray, float, float]:
     """Least-squares fit of the model's dB spectrum (see the module docstring), started from (``a0``, ``c0``).
 
     ``w``: frequencies in rad/sample; ``level_db``: target (or ceiling, where
@@ -168,12 +180,22 @@ def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, on
     spike between its frequencies, invisible to the fit), and pair
     angles in [0, pi]. The numbers of conjugate pairs and real roots are those
     of the start. Levenberg-Marquardt (Marquardt's diagonal scaling) with steps
-    projected onto those bounds; it stops when a step lowers the cost by less
-    than ``tol`` relative, when the RMS fit residual is below 1e-3 dB, or after
-    ``iterations`` steps. Returns (poles, zeros, dB offset 10 log10 K, cost =
-    sum of squared weighted residuals); poles and zeros are complete root sets
+    projected onto those bounds. Stopping rule (every bound is finite, so the fit
+    always ends): it stops when an accepted step lowers the cost by less than
+    ``tol`` relative, when the RMS weighted residual over the two-sided
+    frequencies is below ``good_db`` dB (with no ceiling crossed by more than
+    that), when no damping up to 1e10 finds a lower cost, after ``iterations``
+    accepted steps, or after ``evaluations`` residual evaluations in all (each
+    costs len(w) x roots; rejected trial steps count). None: :data:`STEPS`, :data:`REL_TOL`,
+    :data:`EVALUATIONS`, :data:`GOOD_DB` (read at the call). Returns (poles, zeros, dB offset 10 log10 K, cost =
+    sum of squared weighted residuals); ``offset_db`` fixes 10 log10 K instead (the level of the monic model
+    then follows the target's: see flowtex.dsp.arma_resample.STOP_DEPTH_DB). Poles and zeros are complete root sets
     (conjugates included), :func:`real_poly` makes the polynomials.
     """
+    iterations = STEPS if iterations is None else iterations
+    tol = REL_TOL if tol is None else tol
+    evaluations = EVALUATIONS if evaluations is None else evaluations
+    good_db = GOOD_DB if good_db is None else good_db
     zrad, zang, zreal = split_roots(c0)
     prad, pang, preal = split_roots(a0)
     lay = _Layout(zrad.shape[0], zreal.shape[0], prad.shape[0], preal.shape[0])
@@ -194,19 +216,25 @@ def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, on
         return weight * np.where(one_sided, np.maximum(d, 0.0), d), (two | (d > 0.0)), J
 
     s0, _ = log_spectrum_db(w, x, lay)
-    x[0] = float(np.sum((w2 * (level_db - s0))[two]) / max(np.sum(w2[two]), 1e-300))  # best offset for the start
+    if offset_db is None:
+        x[0] = float(np.sum((w2 * (level_db - s0))[two]) / max(np.sum(w2[two]), 1e-300))  # best offset for the start
+    else:
+        x[0] = lo[0] = hi[0] = offset_db
     r, active, J = residual(x, True)
     cost = float(r @ r)
     lam = 1e-3
-    floor = 1e-6 * float(np.sum(w2[two]))  # RMS weighted residual of 1e-3 dB: nothing left worth a step
+    floor = good_db ** 2 * float(np.sum(w2[two]))  # RMS weighted residual of good_db: nothing left worth a step
+    used = 2
     for _ in range(iterations):
+        if used >= evaluations:
+            break
         Ja = (weight * active)[:, None] * J
         # einsum, not a BLAS product: small products on a loaded machine stall in multithreaded BLAS
         H = np.einsum("ij,ik->jk", Ja, Ja)
         g = np.einsum("ij,i->j", Ja, r)
         d = np.maximum(np.diag(H), 1e-12 * max(np.max(np.diag(H)), 1e-300))
         improved = False
-        while lam < 1e10:
+        while lam < 1e10 and used < evaluations:
             try:
                 step = -np.linalg.solve(H + lam * np.diag(d), g)
             except np.linalg.LinAlgError:
@@ -214,6 +242,7 @@ def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, on
                 continue
             x_new = np.clip(x + step, lo, hi)
             r_new, _, _ = residual(x_new, False)
+            used += 1
             cost_new = float(r_new @ r_new)
             if cost_new < cost:
                 improved = True
@@ -225,6 +254,7 @@ def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, on
         rel = (cost - cost_new) / max(cost, 1e-300)
         x = x_new
         r, active, J = residual(x, True)
+        used += 1
         cost = float(r @ r)
         if rel < tol or cost < floor:
             break

@@ -44,12 +44,13 @@ are computed from the roots (:func:`flowtex.dsp.lsf.roots_to_lsf`), not from
 the coefficients.
 
 Measured on 30 HaTT-like 19/17 models (benchmarks/bench_model_resample.py),
-as rendered (rebuilt from the stored LSFs, on which the variance is matched):
+as rendered (rebuilt from the stored LSFs, on which the variance is matched),
+2026-11-23, before the level convention (:data:`STOP_DEPTH_DB`) and the bounded fit:
 LSD max / median 0.11 / 0.001 dB at 2x (19/17), 0.009 / 0.001 at 2.5x and
 0.08 / 0.001 at 4x (38/42); band power within 0.3 %, power above the old
 Nyquist <= 0.06 %. At 6x (57/59) one model of 10 missed (2.4 dB) and 8x
-(76/78) fails: the float64 coefficients again; the LSD is reported and the
-command warns.
+(76/78) fails: the float64 coefficients again; the command names the models
+that miss and refuses the set unless --allow-misses.
 
 Why not Culbertson et al. 2012's method (match the autocorrelation at the lags common to both
 rates, then correct the noise variance): the ACF at the common lags carries
@@ -67,9 +68,19 @@ import math
 
 import numpy as np
 
-from .arma_estimate import MAX_RADIUS, stabilize, whittle_refine
+from .arma_estimate import whittle_refine
 from .arma_logfit import fit_log_spectrum, real_poly
 from .lsf import is_valid_lsf, lsf_to_poly_new, roots_to_lsf
+from .poly import MAX_RADIUS, stabilize
+from .poly import power_spectrum as _model_power_spectrum
+from .poly import root_power_spectrum as _root_power_spectrum
+
+START_RADIUS = 0.999
+"""Mapped roots (the fit's start) are pulled to at most this radius; the fit then moves them up to the radius policy's
+bound (flowtex.dsp.poly.MAX_RADIUS, and at most twice as sharp as the sharpest original pole)."""
+
+FIR_ZERO_RADIUS = 0.9999
+"""The anti-imaging FIR's zeros (designed on the unit circle) are pulled to this radius: valid, resolvable LSFs."""
 
 STOPBAND_FLOOR = 1e-4
 """Downsampling: target level above the new Nyquist, relative to the band's mean (-40 dB)."""
@@ -90,21 +101,33 @@ BAND_EDGE = 0.92
 """Band fitted two-sided: up to this fraction of the old Nyquist (the requirement's 0.9, plus a margin)."""
 
 LSD_RANGE_DB = 40.0
-"""Frequencies more than this below the band's peak only get a one-sided ceiling (as in lsd_db's band)."""
+"""The LSD's range (lsd_db's band: frequencies within this of the peak below 0.9 x the old Nyquist)."""
+
+RANGE_MARGIN_DB = 6.0
+"""Fitted two-sided: frequencies within LSD_RANGE_DB + this of the peak *below 0.9 x the old Nyquist* (the LSD's
+band; a peak above it, up to BAND_EDGE, does not set the range: measured, a 46 dB resonance at 0.908 x the old
+Nyquist left the lower band one-sided and 5-10 dB off there); the margin covers a peak sampled off its top."""
 
 BAND_POINTS, EDGE_POINTS, STOP_POINTS = 2000, 40, 1000
-"""Frequencies of the upsampling fit: in the band (at least; more for sharper poles), from BAND_EDGE to the old Nyquist, and above it."""
+"""Frequencies of the upsampling fit: uniform in the band (plus some around sharp poles), from BAND_EDGE to the old Nyquist, and above it."""
 
-MAX_BAND_POINTS = 20000
-"""Cap on the band's frequencies (poles within ~1e-4 of the circle): the fit's cost is linear in them."""
+PEAK_WIDTHS, PEAK_POINTS = 12.0, 97
+"""Around a resonance narrower than the band's step: frequencies over +-PEAK_WIDTHS half-bandwidths, PEAK_POINTS of them
+(4 per half-bandwidth; see :func:`_band_grid`)."""
+
+STOP_DEPTH_DB = 30.0
+"""Upsampling: every fitted monic model lies STOP_DEPTH_DB (ratio - 1) / ratio dB above the original in the band.
+
+Why: a monic minimum-phase |C/A|^2 has log-mean 0 over the whole circle (Jensen), so how deep the new stopband
+lies sets the band's level, and with it the variance that restores the band's power: v2 / v1 = (fs2 / fs1)
+x exp(mean of ln|C2/A2|^2 over the stopband). With a free level (the fit's dB offset a free parameter and a
+one-sided stopband) that factor varied by 5 dB between neighbouring models of a cork-like set; texture_lookup
+interpolates variances linearly, so between vertices the 2 kHz render was up to 1.1 dB off the 1 kHz one (the
+shapes within 0.1 dB). With the offset fixed, v2 / v1 is one constant for the set, (fs2 / fs1) 10^(-offset / 10)
+(for an original with log-mean 0 in the band, the stopband's log-mean then lies STOP_DEPTH_DB below the band's)."""
 
 GRID = 16384
 """FFT grid of the spectral fit (w resolution 2 pi / GRID: ~3.8e-4 rad, finer than HaTT's sharpest resonances)."""
-
-
-def _model_power_spectrum(ar: np.ndarray, ma: np.ndarray, w: np.ndarray) -> np.ndarray:
-    z = np.exp(-1j * w)
-    return np.abs(np.polynomial.polynomial.polyval(z, ma)) ** 2 / np.abs(np.polynomial.polynomial.polyval(z, ar)) ** 2
 
 
 def _map_roots(poly: np.ndarray, ratio: float) -> np.ndarray:
@@ -116,7 +139,7 @@ def _map_roots(poly: np.ndarray, ratio: float) -> np.ndarray:
     ang = np.angle(roots) * ratio
     out = np.abs(ang) > 0.98 * math.pi
     ang = np.where(out, np.sign(ang) * 0.98 * math.pi, ang)
-    r = np.where(out, 0.5, np.minimum(r, 0.999))
+    r = np.where(out, 0.5, np.minimum(r, START_RADIUS))
     new = np.real(np.poly(r * np.exp(1j * ang)))
     return stabilize(new / new[0])
 
@@ -169,7 +192,7 @@ def _anti_imaging(rate_from: float, rate_to: float, m: int) -> tuple[np.ndarray,
 
     An all-zero (FIR) equiripple lowpass (scipy.signal.remez, stopband weighted
     30x), made minimum phase by reflecting its zeros into the unit circle (same
-    magnitude) and pulling them to radius <= 0.9999 (valid LSFs): passband up to
+    magnitude) and pulling them to radius <= FIR_ZERO_RADIUS (valid LSFs): passband up to
     the old Nyquist, stopband from its first image (rate_to / m - rate_from / 2),
     the fewest taps (odd, >= 9) that reach :data:`IMAGE_ATTENUATION_DB`. Its
     passband ripple is compensated inside the fit. Why no poles: an elliptic
@@ -186,20 +209,12 @@ def _anti_imaging(rate_from: float, rate_to: float, m: int) -> tuple[np.ndarray,
     f = np.linspace(0.0, 1.0, 4097)
     for taps in range(9, 202, 2):
         h = scipy.signal.remez(taps, [0.0, 0.5 * wp, 0.5 * ws, 0.5], [1.0, 0.0], weight=[1.0, 30.0])
-        mag = np.abs(np.polynomial.polynomial.polyval(np.exp(-1j * math.pi * f), h))
+        mag = np.sqrt(_model_power_spectrum(np.array([1.0]), h, math.pi * f))
         if 20.0 * math.log10(np.max(mag[f <= wp]) / np.max(mag[f >= ws])) >= IMAGE_ATTENUATION_DB:
             break
     z = np.roots(h)
     z = np.where(np.abs(z) > 1.0, 1.0 / np.conj(z), z)
-    return np.zeros(0, dtype=np.complex128), z * np.minimum(1.0, 0.9999 / np.abs(z))
-
-
-def _root_power_spectrum(poles: np.ndarray, zeros: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """|C/A(e^jw)|^2 from the roots (products of distances: no cancellation among large coefficients)."""
-    e = np.exp(1j * w)[:, None]
-    num = np.prod(np.abs(1.0 - zeros[None, :] / e) ** 2, axis=1) if zeros.shape[0] else np.ones(w.shape[0])
-    den = np.prod(np.abs(1.0 - poles[None, :] / e) ** 2, axis=1) if poles.shape[0] else np.ones(w.shape[0])
-    return num / den
+    return np.zeros(0, dtype=np.complex128), z * np.minimum(1.0, FIR_ZERO_RADIUS / np.abs(z))
 
 
 def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre: tuple[np.ndarray, np.ndarray] | None,
@@ -210,7 +225,7 @@ def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre
 
     Residuals (flowtex.dsp.arma_logfit): 10 log10(model / original) on
     BAND_POINTS frequencies up to BAND_EDGE x the old Nyquist where the original
-    is within 40 dB of its peak (lsd_db's band); one-sided ceilings elsewhere:
+    is within 40 + RANGE_MARGIN_DB dB of its peak below 0.9 x the old Nyquist (lsd_db's band); one-sided ceilings elsewhere:
     the peak - 40 dB in the band's valleys, the band's peak from BAND_EDGE to the
     old Nyquist, and STOPBAND_CEILING x the band's mean power / (ratio - 1)
     above it (then the power above the old Nyquist is <= ~STOPBAND_CEILING of the band's).
@@ -218,22 +233,22 @@ def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre
     """
     f_lim = 0.5 * rate_from
     a0, c0 = _extra_roots(_map_roots(ar, rate_from / rate), _map_roots(ma, rate_from / rate), extra, math.pi * rate_from / rate)
-    # poles at most twice as sharp as the sharpest mapped original pole ((1 - r) halved), and at least 3 fitted
-    # frequencies per half-power bandwidth (2 (1 - r) rad) of such a pole (and at least BAND_POINTS)
+    # poles at most twice as sharp as the sharpest mapped original pole ((1 - r) halved)
     r_max = float(np.max(np.abs(np.roots(ar)))) ** (rate_from / rate) if ar.shape[0] > 1 else 0.0
     pole_radius = min(MAX_RADIUS, 1.0 - 0.5 * (1.0 - r_max))
-    n_band = int(min(MAX_BAND_POINTS, max(BAND_POINTS, math.ceil(3.0 * math.pi * BAND_EDGE * rate_from / rate
-                                                                  / (2.0 * (1.0 - pole_radius))))))
-    f_in = np.linspace(0.0, BAND_EDGE * f_lim, n_band + 1)[1:]
+    f_in, w_in = _band_grid(ar, rate_from, BAND_EDGE * f_lim)
     t_db = 10.0 * np.log10(_model_power_spectrum(ar, ma, 2.0 * math.pi * f_in / rate_from))
-    peak = float(np.max(t_db))
-    inside = t_db >= peak - LSD_RANGE_DB
+    peak = float(np.max(t_db[f_in <= 0.9 * f_lim]))
+    inside = t_db >= peak - LSD_RANGE_DB - RANGE_MARGIN_DB
     f_tr = np.linspace(BAND_EDGE * f_lim, f_lim, EDGE_POINTS)
     f_st = np.linspace(f_lim, 0.5 * rate, STOP_POINTS)
     ratio = rate / rate_from
-    ceiling = 10.0 * math.log10(STOPBAND_CEILING / max(ratio - 1.0, 1e-3) * float(np.mean(10.0 ** (t_db / 10.0))))
+    mean_power = float(np.sum(w_in ** 2 * 10.0 ** (t_db / 10.0)) / np.sum(w_in ** 2))  # per Hz, as on a uniform grid
+    ceiling = 10.0 * math.log10(STOPBAND_CEILING / max(ratio - 1.0, 1e-3) * mean_power)
     f = np.r_[f_in, f_tr, f_st]
-    level = np.r_[np.where(inside, t_db, peak - LSD_RANGE_DB), np.full(f_tr.shape[0], peak), np.full(f_st.shape[0], ceiling)]
+    top = max(peak, float(np.max(t_db)))
+    level = np.r_[np.where(inside, t_db, peak - LSD_RANGE_DB - RANGE_MARGIN_DB), np.full(f_tr.shape[0], top),
+                  np.full(f_st.shape[0], ceiling)]
     if pre is not None:  # compensate the lowpass in the band and at its edge; the stopband ceiling stays the model's own
         n_pre = f_in.shape[0] + f_tr.shape[0]
         pre_db = 10.0 * np.log10(_root_power_spectrum(pre[0], pre[1], 2.0 * math.pi * f[:n_pre] / rate_pre))
@@ -242,10 +257,38 @@ def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre
         # sits that much higher relative to the band (measured before this line: low-order sets at 4x left 9-11 %
         # of their power above the old Nyquist)
         level[n_pre:] -= float(np.mean(pre_db[:f_in.shape[0]]))
-    one_sided = np.r_[~inside, np.ones(f_tr.shape[0] + f_st.shape[0], dtype=bool)]
-    poles, zeros, _, _ = fit_log_spectrum(2.0 * math.pi * f / rate, level, np.ones(f.shape[0]), one_sided, a0, c0,
-                                          pole_radius, MAX_RADIUS)
+    one_sided = np.r_[~inside, np.ones(f_tr.shape[0], dtype=bool), np.ones(f_st.shape[0], dtype=bool)]
+    # the monic model's level fixed (see STOP_DEPTH_DB): the same level convention, so the same v2 / v1, for every model
+    offset = -STOP_DEPTH_DB * (ratio - 1.0) / ratio - (float(np.mean(pre_db[:f_in.shape[0]])) if pre is not None else 0.0)
+    weight = np.r_[w_in, np.ones(f_tr.shape[0] + f_st.shape[0])]
+    poles, zeros, _, _ = fit_log_spectrum(2.0 * math.pi * f / rate, level, weight, one_sided, a0, c0,
+                                          pole_radius, MAX_RADIUS, offset_db=offset)
     return poles, zeros
+
+
+def _band_grid(ar: np.ndarray, rate_from: float, f_edge: float) -> tuple[np.ndarray, np.ndarray]:
+    """(frequencies in (0, ``f_edge``] Hz, residual weights) of the upsampling fit's band.
+
+    :data:`BAND_POINTS` uniform frequencies, plus, around every pole of ``ar`` (at ``rate_from`` Hz) whose
+    resonance is narrower than 1.5 uniform steps, :data:`PEAK_POINTS` frequencies over +-:data:`PEAK_WIDTHS`
+    half-bandwidths of a pole twice as sharp (the sharpest the fit may make it). Each weight is
+    sqrt(local spacing / uniform spacing), so the sum of squared residuals is the uniform grid's (the LSD's
+    average over frequency) while a 0.16 Hz wide resonance is still resolved. Before: a uniform grid fine
+    enough for the sharpest pole, up to 20000 frequencies for poles at r >= 0.9995 (7x the cost per model).
+    """
+    du = f_edge / BAND_POINTS
+    parts = [np.linspace(0.0, f_edge, BAND_POINTS + 1)[1:]]
+    if ar.shape[0] > 1:
+        roots = np.roots(ar)
+        half_bw = 0.5 * np.maximum(1.0 - np.abs(roots), 1e-9) * rate_from / (2.0 * math.pi)  # Hz
+        centre = np.abs(np.angle(roots)) * rate_from / (2.0 * math.pi)
+        for f0, bw in zip(centre, half_bw, strict=True):
+            if bw < 1.5 * du and f0 <= f_edge + PEAK_WIDTHS * bw:
+                parts.append(f0 + bw * np.linspace(-PEAK_WIDTHS, PEAK_WIDTHS, PEAK_POINTS))
+    f = np.unique(np.concatenate(parts))
+    f = f[(f > 0.0) & (f <= f_edge)]
+    spacing = np.gradient(f) if f.shape[0] > 1 else np.array([du])
+    return f, np.sqrt(np.minimum(spacing / du, 1.0))
 
 
 def _stretched_roots(roots: np.ndarray, m: int) -> np.ndarray:

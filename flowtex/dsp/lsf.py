@@ -303,7 +303,12 @@ def _half_product_roots(a: np.ndarray, sign: float, trivial: np.ndarray) -> np.n
     series in x = cos w, whose m real roots in (-1, 1) are found with the
     (well conditioned) colleague matrix and then polished by Newton's method
     in w (:func:`_polish`), which stays accurate for roots near 0 and pi where
-    arccos is not.
+    arccos is not. Source of the substitution x = cos w (the LSF root search
+    on Chebyshev polynomials): Kabal, P. and Ramachandran, R. P. (1986), "The
+    computation of line spectral frequencies using Chebyshev polynomials",
+    IEEE Trans. Acoustics, Speech, and Signal Processing 34(6), 1419-1426;
+    they search sign changes on a grid, here the colleague matrix (Good 1961)
+    finds all m roots at once.
     """
     p = a.shape[0] - 1
     full = np.zeros(p + 2)

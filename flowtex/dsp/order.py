@@ -17,17 +17,7 @@ import numpy as np
 
 from .arma import arma_output_variance
 from .lsf import lsf_to_poly_new, poly_to_lsf
-
-
-def step_down(a: np.ndarray, order: int) -> np.ndarray:
-    """Monic minimum-phase ``a`` (length p+1) reduced to ``order`` by the Levinson step-down recursion."""
-    a = np.asarray(a, dtype=np.float64).copy()
-    for m in range(a.shape[0] - 1, order, -1):
-        k = a[m]
-        if not abs(k) < 1.0:
-            raise ValueError(f"polynomial is not minimum phase (reflection coefficient {k:.6g} at order {m})")
-        a = (a[:m] - k * a[m:0:-1]) / (1.0 - k * k)
-    return a
+from .poly import step_down  # noqa: F401  (re-exported)
 
 
 def truncate_models(ar_lsf: np.ndarray, ma_lsf: np.ndarray, variance: np.ndarray, gain: np.ndarray,

@@ -28,6 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import poly as _poly
+from .poly import impulse_response  # noqa: F401  (re-exported)
+
 Solver = Callable[[np.ndarray, np.ndarray], np.ndarray]
 STABLE_RADIUS = 0.9995
 """Poles are kept at or inside this radius (a ring-down of ~2000 samples per e-fold at most)."""
@@ -36,16 +39,6 @@ STABLE_RADIUS = 0.9995
 def lstsq_numpy(A: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Minimum-norm least-squares solution of ``A x ~= y`` (numpy's SVD-based LAPACK gelsd)."""
     return np.linalg.lstsq(A, y, rcond=None)[0]
-
-
-def impulse_response(b: np.ndarray, a: np.ndarray, n: int) -> np.ndarray:
-    """First ``n`` samples of the impulse response of b / a."""
-    import scipy.signal
-
-    x = np.zeros(n)
-    if n:
-        x[0] = 1.0
-    return scipy.signal.lfilter(b, a, x)
 
 
 def sad(h: np.ndarray, b: np.ndarray, a: np.ndarray) -> float:
@@ -90,28 +83,13 @@ def prony(h: np.ndarray, p: int, q: int, solver: Solver = lstsq_numpy) -> tuple[
 
 
 def stabilize(a: np.ndarray, radius: float = STABLE_RADIUS) -> np.ndarray:
-    """Denominator with every pole outside ``radius`` reflected to 1/conj(z) (and clipped to ``radius``).
-
-    Reflection keeps each pole's angle (the resonance frequency) and the magnitude
-    response's shape; the numerator should be refitted afterwards.
-    """
-    a = np.asarray(a, dtype=np.float64)
-    if a.size <= 1:
-        return a.copy()
-    poles = np.roots(a)
-    mag = np.abs(poles)
-    if np.all(mag <= radius):
-        return a.copy()
-    outside = mag > 1.0
-    poles[outside] = 1.0 / np.conj(poles[outside])
-    mag = np.abs(poles)
-    poles = np.where(mag > radius, poles * (radius / np.maximum(mag, 1e-300)), poles)
-    return np.real(np.poly(poles)) * a[0]
+    """Denominator stabilised by :func:`flowtex.dsp.poly.stabilize` at Prony's radius (the numerator should be refitted)."""
+    return _poly.stabilize(a, radius)
 
 
 def is_stable(a: np.ndarray, radius: float = STABLE_RADIUS) -> bool:
-    """True if every root of the denominator ``a`` lies within ``radius``."""
-    return a.size <= 1 or bool(np.all(np.abs(np.roots(a)) <= radius + 1e-12))
+    """True if every root of the denominator ``a`` lies within ``radius`` (:func:`flowtex.dsp.poly.is_stable`)."""
+    return _poly.is_stable(np.asarray(a, dtype=np.float64), radius)
 
 
 def refit_numerator(h: np.ndarray, a: np.ndarray, q: int, solver: Solver = lstsq_numpy) -> np.ndarray:

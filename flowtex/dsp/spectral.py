@@ -6,6 +6,8 @@ which graph loading should not pay.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -46,23 +48,36 @@ def welch_psd(x: np.ndarray, rate_hz: float, nperseg: int = 1024) -> tuple[np.nd
 
 
 def lsd_db(s_fit: np.ndarray, s_true: np.ndarray, freqs_hz: np.ndarray, min_freq_hz: float = 15.0,
-           range_db: float = 40.0) -> float:
-    """Log-spectral distance in dB: RMS of 10 log10(S_fit / S_true) (issue 11's definition).
+           range_db: float | None = 40.0, max_freq_hz: float = math.inf, floor: float = 0.0) -> float:
+    """Log-spectral distance in dB: RMS over a band of 10 log10(S_fit / S_true) -- the project's one LSD.
 
-    Taken over the frequencies above ``min_freq_hz`` where ``s_true`` is
-    within ``range_db`` of its peak (there), so deep notches and the DC
-    region, where a 10 s record says little, do not dominate. Both PSDs are
-    sampled at ``freqs_hz`` in the same units. Returns inf if ``s_fit`` is
-    zero or non-finite anywhere in that band.
+    Band: the frequencies ``freqs_hz`` with ``min_freq_hz`` < f <= ``max_freq_hz``
+    (Hz, the units of ``freqs_hz``) where ``s_true`` is within ``range_db`` dB of
+    its peak in that band (None: all of them), so deep notches and the DC region,
+    where a 10 s record says little, do not dominate (issue 11's definition is the
+    default: above 15 Hz, 40 dB range). ``floor`` (PSD units, >= 0) raises both
+    spectra to at least that before the logs (silent bands of rendered signals;
+    0: none). Both PSDs are sampled at ``freqs_hz`` in the same units. Returns inf
+    if ``s_fit`` is zero or non-finite anywhere in the band (with ``floor`` 0).
+    Used for model fits (:mod:`flowtex.fit.arma`), resampling
+    (:mod:`flowtex.fit.resample`), bench errors (:mod:`flowtex.dsp.errors`) and
+    renders compared with recordings.
     """
     s_fit = np.asarray(s_fit, dtype=np.float64)
     s_true = np.asarray(s_true, dtype=np.float64)
     freqs_hz = np.asarray(freqs_hz, dtype=np.float64)
-    band = freqs_hz > min_freq_hz
+    if floor < 0.0 or not math.isfinite(floor):
+        raise ValueError(f"lsd_db floor must be finite and >= 0, got {floor}")
+    if floor > 0.0:
+        s_fit = np.maximum(s_fit, floor)
+        s_true = np.maximum(s_true, floor)
+    band = (freqs_hz > min_freq_hz) & (freqs_hz <= max_freq_hz)
     if not np.any(band):
-        raise ValueError(f"no frequency above {min_freq_hz} Hz to compare")
-    peak = np.max(s_true[band])
-    mask = band & (s_true >= peak * 10.0 ** (-range_db / 10.0))
+        raise ValueError(f"no frequency in ({min_freq_hz}, {max_freq_hz}] Hz to compare")
+    mask = band
+    if range_db is not None:
+        peak = np.max(s_true[band])
+        mask = band & (s_true >= peak * 10.0 ** (-range_db / 10.0))
     with np.errstate(divide="ignore", invalid="ignore"):
         d = 10.0 * np.log10(s_fit[mask] / s_true[mask])
     if not np.all(np.isfinite(d)):
@@ -84,5 +99,7 @@ def gfc_data_model(x: np.ndarray, ar: np.ndarray, ma: np.ndarray, smooth: int = 
     ad = np.abs(np.fft.rfft(x - np.mean(x))) / np.sqrt(n)
     w = scipy.signal.windows.barthann(smooth)
     ad = np.convolve(ad, w / np.sum(w), mode="same")
-    am = np.abs(np.fft.rfft(np.asarray(ma, dtype=np.float64), n)) / np.abs(np.fft.rfft(np.asarray(ar, dtype=np.float64), n))
+    from .poly import power_spectrum
+
+    am = np.sqrt(power_spectrum(ar, ma, 2.0 * np.pi * np.arange(n // 2 + 1) / n))
     return gfc(ad, am)

@@ -50,7 +50,7 @@ def fit_one(path: str, job, out_dir: str, xml: bool, report: bool) -> tuple[str,
     out = Path(out_dir) / f"{p.stem}.json"
     try:
         fit = fit_recording(p, job)
-        write_outputs(fit, out, out.with_suffix(".xml") if xml else None, job.render_rate)
+        write_outputs(fit, out, out.with_suffix(".xml") if xml else None, job.render_rate, job.allow_misses)
         if report:
             write_report(fit, Path(out_dir) / f"{p.stem}_report")
         return path, summary_line(fit)

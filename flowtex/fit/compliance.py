@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 from pathlib import Path
 from typing import Any
 
@@ -10,6 +11,7 @@ import numpy as np
 from ..dsp import compliance as cm
 from ..errors import DataError
 from ..io.recordings import load_recording
+from .inputs import check_plausible
 from .recording_signals import recording_rate, signal
 
 FORMAT_NAME = "flowtex-compliance"
@@ -30,6 +32,13 @@ def estimate_compliance(force: np.ndarray, accel: np.ndarray, rate_hz: float, co
     if accel.shape[1] > 3:
         raise ValueError(f"acceleration has {accel.shape[1]} axes; give 1 to 3")
     contact = np.ones(force.size) if contact is None else np.ascontiguousarray(contact, dtype=np.float64).ravel()
+    check_plausible(force, "the normal force", "--force")  # a force x1e30 would otherwise fit "valid" with k_c x1e-30
+    check_plausible(accel, "the acceleration", "--accel")
+    threshold = options.get("force_threshold", inspect.signature(cm.compliance_params).parameters["force_threshold"].default)
+    touching = (contact > 0.5) & (force > threshold)
+    if touching.any() and not np.any(accel[touching] != accel[touching][:1]):  # in contact, yet no vibration at all
+        raise ValueError(f"the acceleration (--accel) is {accel[touching][0, 0]:g} m/s^2 throughout the contact: "
+                         "no vibration was recorded; check the accelerometer signal")
     out = np.zeros(5)
     if force_range is None:
         p = cm.compliance_params(rate_hz, -1e300, 1e300, **options)

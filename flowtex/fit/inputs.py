@@ -3,7 +3,9 @@
 Shared by every ``flowtex fit`` kind: the rate rule (a rate stated in the
 file wins; ``--from-rate`` supplies a missing one; a conflicting ``--from-rate`` is an
 error), signal presence and shape, NaN/inf (how many, where), constant
-signals. Outputs go through the one writer, :mod:`flowtex.io.atomic`.
+signals, magnitudes no sensor produces (:data:`PLAUSIBLE`: a signal in the
+wrong unit, or scaled by 1e30, is refused before any fit math runs). Outputs go
+through the one writer, :mod:`flowtex.io.atomic`.
 """
 
 from __future__ import annotations
@@ -52,7 +54,39 @@ def signal(rec: Recording, name: str, option: str, width: tuple[int, ...] = (1,)
         raise DataError(f"{where}: signal {name!r} ({option}) has shape {a.shape}; expected {want}")
     if finite:
         check_finite(a, f"{where}: signal {name!r} ({option})")
+        check_plausible(a, f"{where}: signal {name!r} ({option})", option)
     return a
+
+
+PLAUSIBLE = {
+    "acceleration": ("m/s^2", 1e-9, 1e5),
+    "force": ("N", 0.0, 1e4),
+    "speed": ("mm/s", 0.0, 1e5),
+    "position": ("mm", 0.0, 1e6),
+}
+"""Quantity -> (unit, least nonzero peak, largest peak): a signal outside is in another unit or corrupt (0 means no floor)."""
+QUANTITY_OF_OPTION = {"--accel": "acceleration", "--force": "force", "--normal-force": "force",
+                      "--friction-force": "force", "--speed": "speed", "--position": "position"}
+"""The quantity each signal option of the fit verbs names (checked against :data:`PLAUSIBLE`)."""
+
+
+def check_plausible(a: np.ndarray, label: str, option: str) -> None:
+    """Refuse a finite signal given by ``option`` whose peak magnitude is outside :data:`PLAUSIBLE` for its quantity.
+
+    ``label`` names the file and signal. Options not in :data:`QUANTITY_OF_OPTION` pass.
+    An all-zero acceleration is refused too (no vibration was recorded).
+    """
+    quantity = QUANTITY_OF_OPTION.get(option)
+    if quantity is None or a.size == 0:
+        return
+    unit, least, most = PLAUSIBLE[quantity]
+    peak = float(np.max(np.abs(a)))
+    if peak > most:
+        raise DataError(f"{label}: peak {quantity} {peak:.3g} {unit} is beyond any sensor's range (at most {most:g} {unit}); "
+                        f"is the signal in {unit}? Rescale it")
+    if 0.0 < peak < least:
+        raise DataError(f"{label}: peak {quantity} {peak:.3g} {unit} is below any sensor's resolution (at least {least:g} {unit}); "
+                        f"is the signal in {unit}? Rescale it")
 
 
 def check_finite(a: np.ndarray, label: str) -> None:

@@ -37,12 +37,16 @@ def models_at(ms: TextureModelSet, speeds: np.ndarray, forces: np.ndarray,
 
 def set_lsd_db(fitted: TextureModelSet, truth: TextureModelSet, speeds: np.ndarray, forces: np.ndarray,
                nfreq: int = 512) -> np.ndarray:
-    """LSD (dB) between two model sets at each (speed, force) point, both interpolated as texture_lookup does."""
-    rate = truth.sample_rate
-    freqs = np.linspace(0.0, rate / 2, nfreq + 1)[1:-1]
+    """LSD (dB) between two model sets at each (speed, force) point, both interpolated as texture_lookup does.
+
+    Each set's PSD is taken at its own sample rate, over their common band (up to the lower Nyquist).
+    """
+    nyquist = 0.5 * min(truth.sample_rate, fitted.sample_rate)
+    freqs = np.linspace(0.0, nyquist, nfreq + 1)[1:-1]
     out = []
     for (a1, c1, g1, v1), (a2, c2, g2, v2) in zip(models_at(fitted, speeds, forces), models_at(truth, speeds, forces), strict=True):
-        out.append(lsd_db(arma_psd(a1, c1, g1, v1, freqs, rate), arma_psd(a2, c2, g2, v2, freqs, fitted.sample_rate), freqs))
+        out.append(lsd_db(arma_psd(a1, c1, g1, v1, freqs, fitted.sample_rate), arma_psd(a2, c2, g2, v2, freqs, truth.sample_rate),
+                          freqs))
     return np.array(out)
 
 

@@ -7,6 +7,7 @@ import numpy as np
 from ..errors import DataError
 from ..io.atomic import write_json_atomic  # noqa: F401 -- re-exported for the fit modules
 from ..io.recordings import Recording
+from .inputs import check_plausible
 
 
 def recording_rate(rec: Recording, from_rate: float | None) -> float:
@@ -35,4 +36,5 @@ def signal(rec: Recording, name: str, option: str, widths: tuple[int, ...]) -> n
     if not np.all(np.isfinite(flat)):
         bad = int(np.argmax(~np.all(np.isfinite(flat), axis=1)))
         raise DataError(f"{rec.path}: signal {name!r} ({option}) has NaN or infinite values (first at sample {bad}); clean the recording")
+    check_plausible(flat, f"{rec.path}: signal {name!r} ({option})", option)
     return flat[:, 0].copy() if flat.shape[1] == 1 and 1 in widths else flat

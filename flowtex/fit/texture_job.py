@@ -31,6 +31,7 @@ class TextureJob:
     options: TextureOptions | None = None
     render_rate: float | None = None
     material: str | None = None
+    allow_misses: bool = False
 
 
 def speed_from_position(position: np.ndarray, normal: np.ndarray | None, rate: float) -> np.ndarray:
@@ -110,14 +111,17 @@ def fit_grid_index(index: Path, job: TextureJob) -> TextureFit:
     return fit_grid(cells, rate, job.options, job.material or index.stem, str(index))
 
 
-def write_outputs(fit: TextureFit, output: Path, xml: Path | None, render_rate: float | None) -> None:
-    """Write the native set (and HaTT XML) atomically, after resampling to ``render_rate`` if given."""
+def write_outputs(fit: TextureFit, output: Path, xml: Path | None, render_rate: float | None, allow_misses: bool = False) -> None:
+    """Write the native set (and HaTT XML) atomically, after resampling to ``render_rate`` if given.
+
+    A resampled set with models that miss their spectrum is refused (FlowtexError naming them) unless ``allow_misses``.
+    """
     from ..io.hatt import write_hatt_xml
     from ..io.modelset import save_model_set
 
     ms = fit.model_set
     if render_rate is not None and render_rate != ms.sample_rate:
-        ms = _resample(ms, render_rate)
+        ms = _resample(ms, render_rate, allow_misses, str(output))
     with atomic_output(output) as tmp:
         save_model_set(ms, tmp)
         if xml is not None:
@@ -125,15 +129,22 @@ def write_outputs(fit: TextureFit, output: Path, xml: Path | None, render_rate: 
                 write_hatt_xml(ms, tmp_xml)
 
 
-def _resample(ms: Any, rate: float) -> Any:
+def _resample(ms: Any, rate: float, allow_misses: bool, where: str) -> Any:
     """The set at ``rate`` Hz (flowtex models resample's method), with a one-line account of what it cost."""
-    from .resample import resample_model_set
+    from .resample import check_misses, resample_model_set, tqdm_progress
 
-    out = resample_model_set(ms, rate, option="--render-rate")
+    progress, close = tqdm_progress(ms.num_models, "resample")
+    try:
+        out = resample_model_set(ms, rate, progress, option="--render-rate")
+    finally:
+        close()
+    warning = check_misses(out, allow_misses, where)
     info = out.metadata["resample"]
     print(f"resampled {info['from_hz']:g} Hz -> {info['to_hz']:g} Hz: orders {ms.ar_order}/{ms.ma_order} -> "
           f"{out.ar_order}/{out.ma_order}, worst LSD {info['worst_lsd_db']:.2f} dB, "
           f"worst band-power error {100 * info['worst_band_power_error']:.2f} %")
+    if warning:
+        print(warning)
     return out
 
 

@@ -35,7 +35,9 @@ OUT_TABLE = 5
 TABLE_STRIDE = 5
 IN_WIDTH = 6
 OUT_WIDTH = 7
-HEADER = 8
+DISPATCH = 8
+"""Position of the dispatch tier's table (:mod:`flowtex.graph.dispatch`); 0 for the fused tier."""
+HEADER = 9
 
 
 @dataclass

@@ -20,11 +20,10 @@ from ..node_api import PortSpec, suggest
 from ..nodecheck import check_kernel_compiles
 from ..registry import Registry, load_registry
 from .arena import OUT_WIDTH, TICK, Layout, plan_layout
-from .codegen import generate
-from .jit import load_generated
 from .notice import compile_notice
 from .resolve import ResolvedGraph, resolve_graph
 from .spec import GraphSpec, load_spec
+from .tiers import FusedPlan, check_tier, compile_dispatch, default_tier, entry
 
 DEFAULT_BLOCK_ROWS = 1024
 PROGRESS_CHUNK = 1 << 17
@@ -33,40 +32,36 @@ PROGRESS_CHUNK = 1 << 17
 class Graph:
     """A compiled graph. Build one with :func:`flowtex.load_graph`."""
 
-    def __init__(self, resolved: ResolvedGraph, block_rows: int = DEFAULT_BLOCK_ROWS):
+    def __init__(self, resolved: ResolvedGraph, block_rows: int = DEFAULT_BLOCK_ROWS, tier: str | None = None):
+        """``tier``: ``fused``, ``dispatch`` or ``auto`` (docs/engine.md); default ``$FLOWTEX_COMPILE`` or ``fused``."""
         self.resolved = resolved
         self.spec: GraphSpec = resolved.spec
         self.layout: Layout = plan_layout(resolved, block_rows)
-        kernels: dict[str, Callable] = {}
-        names: dict[str, str] = {}
-        for idx, (name, rn) in enumerate(resolved.nodes.items()):
-            names[name] = f"k{idx}"
-            kernels[f"k{idx}"] = rn.cls.get_kernel()
-            if resolved.cyclic and rn.cls.breaks_cycles:
-                names[name + ":emit"] = f"k{idx}_emit"
-                names[name + ":absorb"] = f"k{idx}_absorb"
-                kernels[f"k{idx}_emit"] = rn.cls.get_kernel("emit_kernel")
-                kernels[f"k{idx}_absorb"] = rn.cls.get_kernel("absorb_kernel")
         # step() passes scalar inputs as arguments and gets scalar outputs back as a tuple.
         self._step_in = [n for n, spec in resolved.input_specs.items() if spec.shape == ()]
         self._step_out = [n for n, spec in resolved.output_specs.items() if spec.shape == ()]
         self._vector_out = [n for n, spec in resolved.output_specs.items() if spec.shape != ()]
-        self.source = generate(resolved, self.layout.nodes, names,
-                               [self.layout.graph_inputs[n] for n in self._step_in],
-                               [self.layout.graph_outputs[n] for n in self._step_out])
-        versions = ";".join(f"{rn.cls.type_name}@{rn.cls.version}" for rn in resolved.nodes.values())
+        self.requested_tier = check_tier(tier or default_tier())
+        plan = FusedPlan(resolved, self.layout, self._step_in, self._step_out)
+        self.fused_plan = plan
+        use = self.requested_tier
+        if use == "auto":
+            use = "fused" if plan.cached() else "dispatch"
         types = sorted({rn.cls.type_name for rn in resolved.nodes.values()})
-        with compile_notice(f"graph {self.spec.name!r} ({len(resolved.nodes)} nodes: {', '.join(types)})", str(cache_dir())):
+        what = f"graph {self.spec.name!r} ({len(resolved.nodes)} nodes: {', '.join(types)})"
+        with compile_notice(what if use == "fused" else f"node kernels of {what}", str(cache_dir())):
             for cls in {rn.cls for rn in resolved.nodes.values() if not rn.cls.__module__.startswith("flowtex.")}:
                 check_kernel_compiles(cls)  # a plugin's typing error is reported as the plugin's, at its line
-            self._module = load_generated(self.source, kernels, versions)
-            self._block = self._module.block
-            self._run = self._module.run
-            self._step = self._module.step
             # Compile (or load from the disk cache) now, not on the first live tick.
-            self._block.compile("(float64[::1], int64[::1], int64)")
-            self._run.compile("(float64[::1], int64[::1], float64[::1], float64[::1])")
-            self._step.compile("(float64[::1], int64[::1]" + ", float64" * len(self._step_in) + ")")
+            code = plan.compile(self.layout.i) if use == "fused" else \
+                compile_dispatch(resolved, self.layout, self._step_in, self._step_out)
+        self.tier = code.tier
+        """The tier that runs: ``fused`` or ``dispatch``."""
+        self.layout.i = code.ints
+        self.source = code.source
+        self.rebuilt_cache_entries = code.rebuilt
+        self._block = code.block
+        self._run = code.run
         self._f0 = self.layout.f.copy()
         self._i0 = self.layout.i.copy()
         self.f = self.layout.f
@@ -79,8 +74,8 @@ class Graph:
         self._scalar_in = frozenset(self._in_scalar_off)
         # Compiled entry points of the signatures compiled above: calling them skips
         # numba's per-call argument-type dispatch (the arena arrays never change type).
-        self._step_entry = self._step.overloads[self._step.signatures[0]].entry_point
-        self._block_entry = self._block.overloads[self._block.signatures[0]].entry_point
+        self._step_entry = code.step
+        self._block_entry = entry(self._block)
         self._scratch: tuple[np.ndarray, np.ndarray] | None = None
         self._py_step = self._make_py_step()
         self.step = self._py_step  # type: ignore[method-assign]  # the generated function, one call layer less
@@ -275,7 +270,7 @@ class Graph:
         """
         if rows == self.layout.block_rows:
             return self
-        other = Graph(self.resolved, rows)
+        other = Graph(self.resolved, rows, self.tier)
         other.reset(self.seed)
         return other
 
@@ -362,8 +357,13 @@ def apply_nonfinite_policy(arrays: dict[str, np.ndarray], policy: str, source: s
 
 
 def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
-               plugins: tuple[str | Path, ...] = (), block_rows: int = DEFAULT_BLOCK_ROWS, auto_plugins: bool = True) -> Graph:
+               plugins: tuple[str | Path, ...] = (), block_rows: int = DEFAULT_BLOCK_ROWS, auto_plugins: bool = True,
+               tier: str | None = None) -> Graph:
     """Read, check and compile the graph file at ``path``.
+
+    ``tier`` is ``fused``, ``dispatch`` or ``auto`` (docs/engine.md; default
+    ``$FLOWTEX_COMPILE`` or ``fused``). When ``auto`` picks ``dispatch``, the fused
+    code is compiled for next time in a low-priority background process.
 
     ``overrides`` maps ``"node.param"`` to a value (as ``--set`` does);
     ``plugins`` adds plugin folders to ``./plugins``, ``$FLOWTEX_PLUGINS`` and
@@ -373,7 +373,12 @@ def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
     """
     spec = load_spec(path, dict(overrides or {}))
     resolved = resolve_graph(spec, graph_registry(path, plugins, auto_plugins))
-    return Graph(resolved, block_rows)
+    graph = Graph(resolved, block_rows, tier)
+    if graph.requested_tier == "auto" and graph.tier == "dispatch":
+        from .background import compile_in_background
+
+        compile_in_background(path, dict(overrides or {}), plugins, block_rows, auto_plugins)
+    return graph
 
 
 def check_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,

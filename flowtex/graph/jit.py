@@ -17,7 +17,9 @@ import os
 import sys
 import tempfile
 from collections.abc import Callable
+from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import numba
 
@@ -37,8 +39,8 @@ def kernel_fingerprint(kernel: Callable) -> str:
 _LOADED: dict[str, ModuleType] = {}
 
 
-def load_generated(source: str, kernels: dict[str, Callable], extra_key: str = "") -> ModuleType:
-    """Import the generated ``source`` with ``kernels`` as its globals."""
+def generated_digest(source: str, kernels: dict[str, Callable], extra_key: str = "") -> tuple[str, Path]:
+    """Cache key of generated ``source`` calling ``kernels``, and the folder its files go to."""
     from .. import SOURCE_FINGERPRINT, __version__
 
     h = hashlib.sha256()
@@ -46,23 +48,32 @@ def load_generated(source: str, kernels: dict[str, Callable], extra_key: str = "
     for name in sorted(kernels):
         h.update(f"{name}={kernel_fingerprint(kernels[name])}".encode())
     h.update(f"numba={numba.__version__};flowtex={__version__};tree={SOURCE_FINGERPRINT};{extra_key}".encode())
-    digest = h.hexdigest()[:24]
+    return h.hexdigest()[:24], cache_dir() / "codegen"
+
+
+def load_generated(source: str, kernels: dict[str, Callable], extra_key: str = "") -> ModuleType:
+    """Import the generated ``source`` with ``kernels`` as its globals."""
+    digest, folder = generated_digest(source, kernels, extra_key)
     if digest in _LOADED:
         return _LOADED[digest]
-    folder = cache_dir() / "codegen"
-    folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"g_{digest}.py"
+    module = import_source(folder / f"g_{digest}.py", source, kernels, f"flowtex_generated_{digest}")
+    _LOADED[digest] = module
+    return module
+
+
+def import_source(path: Path, source: str, namespace: dict[str, Any], mod_name: str) -> ModuleType:
+    """Write ``source`` to ``path`` (atomically, only if it differs: numba's cache checks the file's time stamp)
+    and import it as ``mod_name`` with ``namespace`` added to its globals."""
+    path.parent.mkdir(parents=True, exist_ok=True)
     if not path.exists() or path.read_text() != source:
-        fd, tmp = tempfile.mkstemp(dir=folder, suffix=".tmp")
+        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
         with os.fdopen(fd, "w") as fh:
             fh.write(source)
         os.replace(tmp, path)
-    mod_name = f"flowtex_generated_{digest}"
     spec = importlib.util.spec_from_file_location(mod_name, path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
-    module.__dict__.update(kernels)
+    module.__dict__.update(namespace)
     sys.modules[mod_name] = module
     spec.loader.exec_module(module)
-    _LOADED[digest] = module
     return module

@@ -72,3 +72,30 @@ def copy_row(base: int, dst: int, src: int, width: int) -> None:
     s = carray(_float_ptr(base + src * ITEM), width)
     for q in range(width):
         d[q] = s[q]
+
+
+@njit(inline="always", cache=True)
+def at(base: int, k: int) -> int:
+    """Item ``k`` of the int arena at data address ``base`` (the dispatch tier's table reads)."""
+    return carray(_int_ptr(base + k * ITEM), 1)[0]
+
+
+@intrinsic
+def call_pointer(typingctx, fn, a, b, c, d, e):
+    """Call the C function at address ``fn`` as ``void(int64 a, int64 b, int64 c, int64 d, int64 e)``.
+
+    The dispatch tier's driver calls each node's compiled wrapper (a numba ``cfunc``)
+    through its address, read from the int arena at run time.
+    """
+    sig = types.void(types.int64, types.int64, types.int64, types.int64, types.int64, types.int64)
+
+    def codegen(context, builder, signature, args):
+        from llvmlite import ir
+
+        i64 = ir.IntType(64)
+        fnty = ir.FunctionType(ir.VoidType(), [i64] * 5)
+        values = list(args)  # the signature is all int64: numba casts the arguments before the call
+        builder.call(builder.inttoptr(values[0], fnty.as_pointer()), values[1:])
+        return context.get_dummy_value()
+
+    return sig, codegen

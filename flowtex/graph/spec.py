@@ -12,11 +12,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from ..errors import Diagnostic, GraphError, Location
+from ..limits import MAX_EVERY, excerpt
 from ..node_api import suggest
-from ..yamlsource import LocDict, LocList, load_yaml
+from ..yamlsource import LocDict, LocList, load_yaml, parse_value, read_source
 
 FORMAT_VERSION = 1
 TOP_KEYS = ("flowtex", "name", "rate", "seed", "inputs", "nodes", "edges", "outputs", "description")
@@ -101,14 +100,7 @@ class Collector:
 def load_spec(path: str | Path, overrides: dict[str, Any] | None = None) -> GraphSpec:
     """Read and shape-check a graph file. Raises :class:`GraphError`."""
     path = Path(path)
-    display = str(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise GraphError([Diagnostic(Location(display), "graph file not found")]) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise GraphError([Diagnostic(Location(display), f"cannot read graph file: {exc}")]) from None
-    return parse_spec(text, path, overrides)
+    return parse_spec(read_source(path, "graph file"), path, overrides)
 
 
 def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -> GraphSpec:
@@ -119,13 +111,13 @@ def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -
         raise GraphError([Diagnostic(Location(str(path), 1, 1), message)])
     for key in data:
         if key not in TOP_KEYS:
-            c.error(data.key_pos[key], f"unknown top-level key {key!r}{suggest(str(key), TOP_KEYS)}")
+            c.error(data.key_pos[key], f"unknown top-level key {excerpt(key)}{suggest(str(key), TOP_KEYS)}")
     for key in ("flowtex", "rate", "nodes", "outputs"):
         if key not in data:
             c.error(data.pos, f"missing top-level key {key!r}" + (" (the format version; write 'flowtex: 1')" if key == "flowtex" else ""))
     version = data.get("flowtex", FORMAT_VERSION)
     if "flowtex" in data and version != FORMAT_VERSION:
-        c.error(data.value_pos["flowtex"], f"unsupported format version {version!r}; this flowtex reads version {FORMAT_VERSION}")
+        c.error(data.value_pos["flowtex"], f"unsupported format version {excerpt(version)}; this flowtex reads version {FORMAT_VERSION}")
     name = data.get("name", path.stem)
     if not isinstance(name, str):
         c.error(data.value_pos.get("name"), "name must be a string")
@@ -147,7 +139,7 @@ def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -
 def _rate(c: Collector, data: LocDict) -> float:
     rate = data.get("rate", 1000.0)
     if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not math.isfinite(rate) or rate <= 0:
-        c.error(data.value_pos.get("rate"), f"rate must be a positive number of Hz, got {rate!r}")
+        c.error(data.value_pos.get("rate"), f"rate must be a positive number of Hz, got {excerpt(rate)}")
         return 1000.0
     return float(rate)
 
@@ -155,14 +147,14 @@ def _rate(c: Collector, data: LocDict) -> float:
 def _seed(c: Collector, data: LocDict) -> int:
     seed = data.get("seed", 0)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        c.error(data.value_pos.get("seed"), f"seed must be a non-negative integer, got {seed!r}")
+        c.error(data.value_pos.get("seed"), f"seed must be a non-negative integer, got {excerpt(seed)}")
         return 0
     return seed
 
 
 def _check_name(c: Collector, name: Any, pos: tuple[int, int], what: str) -> bool:
     if not isinstance(name, str) or not NAME_RE.match(name):
-        c.error(pos, f"{what} name {name!r} is not valid: use letters, digits and '_', not starting with a digit")
+        c.error(pos, f"{what} name {excerpt(name)} is not valid: use letters, digits and '_', not starting with a digit")
         return False
     return True
 
@@ -187,7 +179,7 @@ def _inputs(c: Collector, data: LocDict) -> dict[str, InputSpec]:
             continue
         for key in value:
             if key not in INPUT_KEYS:
-                c.error(value.key_pos[key], f"input {name!r}: unknown key {key!r}{suggest(str(key), INPUT_KEYS)}")
+                c.error(value.key_pos[key], f"input {name!r}: unknown key {excerpt(key)}{suggest(str(key), INPUT_KEYS)}")
         if "shape" in value:
             shape_raw = value["shape"]
             if isinstance(shape_raw, int) and not isinstance(shape_raw, bool):
@@ -226,7 +218,7 @@ def _nodes(c: Collector, data: LocDict, inputs: dict[str, InputSpec]) -> dict[st
             continue
         for key in value:
             if key not in NODE_KEYS:
-                c.error(value.key_pos[key], f"node {name!r}: unknown key {key!r}{suggest(str(key), NODE_KEYS)}")
+                c.error(value.key_pos[key], f"node {name!r}: unknown key {excerpt(key)}{suggest(str(key), NODE_KEYS)}")
         if "type" not in value or not isinstance(value["type"], str):
             c.error(value.value_pos.get("type", pos), f"node {name!r}: missing 'type' (run 'flowtex nodes' to list node types)")
             continue
@@ -238,8 +230,9 @@ def _nodes(c: Collector, data: LocDict, inputs: dict[str, InputSpec]) -> dict[st
             c.error(value.value_pos.get("params"), f"node {name!r}: params must be a mapping of name: value")
             continue
         every = value.get("every", 1)
-        if isinstance(every, bool) or not isinstance(every, int) or every < 1:
-            c.error(value.value_pos.get("every"), f"node {name!r}: every must be a positive integer (run every k ticks), got {every!r}")
+        if isinstance(every, bool) or not isinstance(every, int) or not 1 <= every <= MAX_EVERY:
+            c.error(value.value_pos.get("every"), f"node {name!r}: every must be a positive integer up to {MAX_EVERY:,} "
+                                                  f"(run every k ticks), got {excerpt(every)}")
             every = 1
         out[name] = NodeSpec(
             name=name,
@@ -255,17 +248,18 @@ def _nodes(c: Collector, data: LocDict, inputs: dict[str, InputSpec]) -> dict[st
 
 
 def _apply_overrides(c: Collector, spec: GraphSpec, overrides: dict[str, Any]) -> None:
+    """Apply ``--set`` values: ``rate`` (the graph's base rate, Hz) or ``NODE.PARAM``."""
     for key, value in overrides.items():
         where = Location(f"--set {key}")
-        node, _, param = key.partition(".")
         if key == "rate":
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
                 c.error(where, f"rate must be a positive number of Hz, got {value!r}")
             else:
                 spec.rate = float(value)
             continue
+        node, _, param = key.partition(".")
         if not param:
-            c.error(where, "expected --set NODE.PARAM=VALUE (or --set rate=HZ for the graph's rate)")
+            c.error(where, "expected --set NODE.PARAM=VALUE or --set rate=HZ")
             continue
         if node not in spec.nodes:
             hint = suggest(node, list(spec.nodes))
@@ -279,26 +273,22 @@ def _apply_overrides(c: Collector, spec: GraphSpec, overrides: dict[str, Any]) -
 
 
 def parse_override(text: str) -> tuple[str, Any]:
-    """``"lookup.models=x.xml"`` -> ``("lookup.models", "x.xml")`` (value read as YAML)."""
+    """``"lookup.models=x.xml"`` -> ``("lookup.models", "x.xml")`` (value read as YAML); ``"rate=2000"`` -> ``("rate", 2000)``."""
     key, sep, value = text.partition("=")
     if not sep or not key.strip():
-        raise GraphError([Diagnostic(Location(f"--set {text}"), "expected --set NODE.PARAM=VALUE")])
-    try:
-        parsed = yaml.safe_load(value) if value.strip() else ""
-    except yaml.YAMLError:
-        parsed = value
-    return key.strip(), parsed
+        raise GraphError([Diagnostic(Location(f"--set {text}"), "expected --set NODE.PARAM=VALUE or --set rate=HZ")])
+    return key.strip(), parse_value(value, f"--set {key.strip()}")
 
 
 def _endpoint(c: Collector, text: str, pos: tuple[int, int], side: str) -> Endpoint | None:
     node, dot, port = text.partition(".")
     if not dot:
         if side == "consumer":
-            c.error(pos, f"edge target {text!r} must name a node input as node.port")
+            c.error(pos, f"edge target {excerpt(text)} must name a node input as node.port")
             return None
         return Endpoint(None, text)
     if not node or not port or "." in port:
-        c.error(pos, f"{text!r} is not node.port")
+        c.error(pos, f"{excerpt(text)} is not node.port")
         return None
     return Endpoint(node, port)
 
@@ -313,11 +303,11 @@ def _edges(c: Collector, data: LocDict) -> list[EdgeSpec]:
     out: list[EdgeSpec] = []
     for item, pos in zip(raw, raw.item_pos, strict=False):
         if not isinstance(item, str):
-            c.error(pos, f'edge must be a string "producer.port -> consumer.port", got {item!r}')
+            c.error(pos, f'edge must be a string "producer.port -> consumer.port", got {excerpt(item)}')
             continue
         m = EDGE_RE.match(item)
         if not m:
-            c.error(pos, f'cannot read edge {item!r}: write "producer.port -> consumer.port" (a graph input by its bare name)')
+            c.error(pos, f'cannot read edge {excerpt(item)}: write "producer.port -> consumer.port" (a graph input by its bare name)')
             continue
         src = _endpoint(c, m.group("src"), pos, "producer")
         dst = _endpoint(c, m.group("dst"), pos, "consumer")
@@ -339,7 +329,7 @@ def _outputs(c: Collector, data: LocDict) -> dict[str, OutputSpec]:
         if not _check_name(c, name, raw.key_pos[name], "output"):
             continue
         if not isinstance(value, str):
-            c.error(pos, f"output {name!r}: expected node.port, got {value!r}")
+            c.error(pos, f"output {name!r}: expected node.port, got {excerpt(value)}")
             continue
         src = _endpoint(c, value.strip(), pos, "producer")
         if src is not None:

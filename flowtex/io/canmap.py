@@ -34,7 +34,8 @@ import numpy as np
 from cantools.database.can import Database
 
 from ..errors import DataError, Diagnostic, GraphError, Location
-from ..yamlsource import LocDict, LocList, load_yaml
+from ..limits import excerpt
+from ..yamlsource import LocDict, LocList, load_yaml, read_source
 from .dbc import find_signal, suggest
 from .dbcrange import check_value, sendable_range
 
@@ -112,13 +113,7 @@ def load_map(path: str | Path, db: Database, dbc_path: str | Path = "DBC",
     Every graph input must be bound; graph outputs may stay unbound (not sent).
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise DataError(f"{path}: map file not found") from None
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read map file: {exc.strerror or exc}") from None
-    data = load_yaml(text, str(path))
+    data = load_yaml(read_source(path, "map file"), str(path))
     p = _Problems(str(path))
     if not isinstance(data, LocDict):
         raise GraphError([Diagnostic(Location(str(path), 1, 1), "a map file is a mapping with keys 'inputs' and 'outputs'")])
@@ -127,10 +122,10 @@ def load_map(path: str | Path, db: Database, dbc_path: str | Path = "DBC",
             p.add(data.key_pos[key], f"unknown key {key!r}{suggest(str(key), list(TOP_KEYS))}")
     version = data.get("flowtex_map", 1)
     if version != 1:
-        p.add(data.value_pos.get("flowtex_map"), f"unsupported map format version {version!r} (this flowtex reads version 1)")
+        p.add(data.value_pos.get("flowtex_map"), f"unsupported map format version {excerpt(version)} (this flowtex reads version 1)")
     overrun = data.get("overrun_limit_ms", DEFAULT_OVERRUN_MS)
     if not _number(overrun) or overrun <= 0:
-        p.add(data.value_pos.get("overrun_limit_ms"), f"overrun_limit_ms must be a positive number of milliseconds, got {overrun!r}")
+        p.add(data.value_pos.get("overrun_limit_ms"), f"overrun_limit_ms must be a positive number of milliseconds, got {excerpt(overrun)}")
         overrun = DEFAULT_OVERRUN_MS
     used: dict[tuple[str, str], str] = {}
     inputs: dict[str, InputBinding] = {}
@@ -190,7 +185,7 @@ def _per_component(p: _Problems, entry: LocDict, key: str, width: int, default: 
         return np.full(width, float(v))
     if isinstance(v, LocList) and len(v) == width and all(_number(x) for x in v):
         return np.array([float(x) for x in v])
-    p.add(pos, f"{what}: '{key}' must be a number or a list of {width} numbers, got {v!r}")
+    p.add(pos, f"{what}: '{key}' must be a number or a list of {width} numbers, got {excerpt(v)}")
     return None
 
 
@@ -250,7 +245,7 @@ def _binding(p: _Problems, db: Database, dbc_path: str | Path, section: str, nam
             p.add(pos, f"{what}: missing 'timeout_ms' (how old, in ms, a sensor value may get before outputs go safe)")
             return None
         if not _number(t) or t <= 0:
-            p.add(entry.value_pos["timeout_ms"], f"{what}: timeout_ms must be a positive number of milliseconds, got {t!r}")
+            p.add(entry.value_pos["timeout_ms"], f"{what}: timeout_ms must be a positive number of milliseconds, got {excerpt(t)}")
             return None
         return InputBinding(name, width, signals, scale, offset, loc, timeout_ms=float(t))
     safe = _per_component(p, entry, "safe", width, 0.0, what)

@@ -9,12 +9,14 @@ the file, and resolves the ``Message.Signal`` names used in map files (with
 from __future__ import annotations
 
 import difflib
+import math
 from pathlib import Path
 
 import cantools
 from cantools.database.can import Database, Message, Signal
 
 from ..errors import DataError
+from ..limits import MAX_DBC_BYTES, check_file_size
 
 
 def load_dbc(path: str | Path) -> Database:
@@ -26,6 +28,7 @@ def load_dbc(path: str | Path) -> Database:
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: DBC file not found")
+    check_file_size(path, "DBC file", MAX_DBC_BYTES)
     try:
         text = path.read_text(encoding="utf-8", errors="replace")
     except OSError as exc:
@@ -37,6 +40,7 @@ def load_dbc(path: str | Path) -> Database:
     if not db.messages:
         raise DataError(f"{path}: the DBC file defines no messages (BO_ lines)")
     check_unique_ids(db, path)
+    check_scales(db, path)
     return db
 
 
@@ -50,6 +54,19 @@ def check_unique_ids(db: Database, path: str | Path = "DBC") -> None:
             raise DataError(f"{path}: messages {seen[key]!r} and {m.name!r} both use {kind} CAN ID {key[0]:#x}; "
                             "give each message its own ID in its BO_ line")
         seen[key] = m.name
+
+
+def check_scales(db: Database, path: str | Path) -> None:
+    """Refuse a signal whose scale (factor) is 0 or not finite, or whose offset is not finite: no value could be encoded."""
+    for msg in db.messages:
+        for sig in msg.signals:
+            scale, offset = sig.scale, sig.offset
+            if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale != 0):
+                raise DataError(f"{path}: signal {msg.name}.{sig.name} has scale {scale!r}; a DBC scale (the factor in "
+                                "'(factor,offset)' of its SG_ line) must be a nonzero finite number")
+            if not (isinstance(offset, (int, float)) and math.isfinite(offset)):
+                raise DataError(f"{path}: signal {msg.name}.{sig.name} has offset {offset!r}; the offset in its SG_ line "
+                                "must be a finite number")
 
 
 def one_line(exc: BaseException) -> str:

@@ -35,6 +35,7 @@ import numpy as np
 from ..errors import DataError
 from ..models.synthetic import lsf_to_poly_reference
 from ..models.texture import TextureModelSet
+from .xmldoc import parse_xml
 
 HATT_NAMES = {
     "speeds": "<speedList>",
@@ -93,14 +94,7 @@ def read_hatt_xml(path: str | Path) -> TextureModelSet:
     """
     path = Path(path)
     name = str(path)
-    try:
-        root = ET.parse(path).getroot()
-    except FileNotFoundError:
-        raise DataError(f"{name}: no such model file") from None
-    except ET.ParseError as exc:
-        raise DataError(f"{name}: not well-formed XML ({exc})") from None
-    except OSError as exc:
-        raise DataError(f"{name}: cannot read the model file ({exc.strerror or exc})") from None
+    root = parse_xml(path, "model file")  # bounded: size, depth, no DTD or entities
     if root.tag != "modelSet":
         raise DataError(f"{name}: root element is <{root.tag}>, expected <modelSet> (is this a HaTT model file?)")
 

@@ -3,7 +3,8 @@
 Every problem raises :class:`flowtex.errors.DataError` naming the file (and, for
 broken JSON, line and column): unreadable file, invalid JSON, a NaN or Infinity
 constant (not JSON, though Python's reader accepts it), a top level that is not an
-object, the wrong ``format``, an unsupported ``version``.
+object, the wrong ``format``, an unsupported ``version``, a file larger than
+:data:`flowtex.limits.MAX_TEXT_BYTES` or nested deeper than :data:`flowtex.limits.MAX_DEPTH`.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import DataError
+from ..limits import MAX_DEPTH, check_file_size, depth_of, excerpt, too_deep
 
 
 def read_json_document(path: Path, kind: str, format_name: str, versions: tuple[int, ...]) -> dict[str, Any]:
@@ -21,8 +23,23 @@ def read_json_document(path: Path, kind: str, format_name: str, versions: tuple[
     def no_constant(token: str) -> None:
         raise ValueError(f"{token} is not allowed in a {kind} (only finite numbers)")
 
+    def finite_float(token: str) -> float:
+        value = float(token)
+        if value in (float("inf"), float("-inf")):
+            raise ValueError(f"the number {token[:30]} is too large (beyond 1.8e308)")
+        return value
+
+    def bounded_int(token: str) -> int:
+        if len(token.lstrip("-")) > 18:
+            raise ValueError(f"the integer {token[:30]} is too large (flowtex files use integers below 1e18)")
+        return int(token)
+
+    check_file_size(path, f"the {kind} file")
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"), parse_constant=no_constant)
+        doc = json.loads(path.read_text(encoding="utf-8"), parse_constant=no_constant,
+                         parse_float=finite_float, parse_int=bounded_int)
+    except RecursionError:  # json's C scanner gives up near the interpreter's recursion limit, cleanly
+        raise too_deep(path, f"the {kind} file") from None
     except FileNotFoundError:
         raise DataError(f"{path}: {kind} file not found (check the path; relative paths resolve against the graph file's folder)") from None
     except json.JSONDecodeError as exc:
@@ -31,12 +48,14 @@ def read_json_document(path: Path, kind: str, format_name: str, versions: tuple[
         raise DataError(f"{path}: {exc}") from None
     except OSError as exc:
         raise DataError(f"{path}: cannot read the {kind} file ({exc.strerror or exc})") from None
+    if depth_of(doc) > MAX_DEPTH:
+        raise too_deep(path, f"the {kind} file")
     if not isinstance(doc, dict):
         raise DataError(f"{path}: expected a JSON object with \"format\": \"{format_name}\" at the top level")
     if doc.get("format") != format_name:
-        raise DataError(f"{path}: key 'format' is {doc.get('format')!r}, expected {format_name!r} (is this a {kind}?)")
+        raise DataError(f"{path}: key 'format' is {excerpt(doc.get('format'))}, expected {format_name!r} (is this a {kind}?)")
     version = doc.get("version")
     if version not in versions:
-        raise DataError(f"{path}: {kind} format version {version!r} is not supported by this flowtex "
+        raise DataError(f"{path}: {kind} format version {excerpt(version)} is not supported by this flowtex "
                         f"(it reads version {', '.join(map(str, versions))}; key 'version'); upgrade flowtex or re-export the file")
     return doc

@@ -29,7 +29,9 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError
+from ..limits import excerpt
 from ..models.texture import TextureModelSet
+from ..node_api import suggest
 from .hatt import read_hatt_xml
 from .jsondoc import read_json_document
 
@@ -43,6 +45,13 @@ NATIVE_NAMES = {  # only what differs from TextureModelSet's default names
     "model": "models[{}]",
     "index_base": "0",
 }
+
+
+TOP_KEYS = ("format", "version", "material", "sample_rate", "mu", "max_speed", "max_force", "ar_order", "ma_order",
+            "triangles", "models", "metadata")
+"""Keys a native model set may have at its top level (anything else is a typo, refused with a suggestion)."""
+MAX_ORDER = 1000
+"""Largest AR or MA order a model set may declare (fitted sets use tens)."""
 
 
 def load_model_set(path: str | Path) -> TextureModelSet:
@@ -119,13 +128,17 @@ def read_native(path: str | Path) -> TextureModelSet:
     path = Path(path)
     name = str(path)
     doc = read_json_document(path, "model-set", FORMAT_NAME, SUPPORTED_VERSIONS)
+    for key in doc:
+        if key not in TOP_KEYS:
+            raise DataError(f"{name}: unknown top-level key {excerpt(key)}{suggest(key, TOP_KEYS)}; "
+                            f"a model set has {', '.join(TOP_KEYS)}")
 
     def need(key: str, kind: type | tuple[type, ...], where: dict = doc, label: str = "") -> Any:
         if key not in where:
             raise DataError(f"{name}: {label}missing key {key!r}")
         value = where[key]
         if isinstance(value, bool) or not isinstance(value, kind):
-            raise DataError(f"{name}: {label}key {key!r} is {value!r}; expected {_kind_name(kind)}")
+            raise DataError(f"{name}: {label}key {key!r} is {excerpt(value)}; expected {_kind_name(kind)}")
         return value
 
     material = need("material", str)
@@ -135,9 +148,12 @@ def read_native(path: str | Path) -> TextureModelSet:
         raise DataError(f"{name}: key 'models' is empty")
     p = need("ar_order", int)
     q = need("ma_order", int)
+    for key, order in (("ar_order", p), ("ma_order", q)):
+        if not 0 <= order <= MAX_ORDER:
+            raise DataError(f"{name}: key {key!r} is {excerpt(order)}; model orders run from 0 to {MAX_ORDER}")
     mu = doc.get("mu")
     if mu is not None and (isinstance(mu, bool) or not isinstance(mu, (int, float))):
-        raise DataError(f"{name}: key 'mu' is {mu!r}; expected a number or null")
+        raise DataError(f"{name}: key 'mu' is {excerpt(mu)}; expected a number or null")
     count = len(models)
     speeds = np.empty(count)
     forces = np.empty(count)
@@ -155,7 +171,7 @@ def read_native(path: str | Path) -> TextureModelSet:
             raise DataError(f"{name}: {label}expected an object")
         unknown = set(entry) - {"speed", "force", "ar_lsf", "ma_lsf", "variance", "gain", "ar_coeff", "ma_coeff"}
         if unknown:
-            raise DataError(f"{name}: {label}unknown key(s) {', '.join(sorted(map(repr, unknown)))}")
+            raise DataError(f"{name}: {label}unknown key(s) {', '.join(sorted(map(excerpt, unknown)))}")
         speeds[m] = need("speed", (int, float), entry, label)
         forces[m] = need("force", (int, float), entry, label)
         variance[m] = need("variance", (int, float), entry, label)

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError
+from ..limits import excerpt
 from .atomic import write_json_atomic
 from .jsondoc import read_json_document
 
@@ -67,7 +68,7 @@ def read_pattern(path: str | Path) -> Pattern:
     doc = read_json_document(path, "pattern", FORMAT_NAME, (FORMAT_VERSION,))
     rate = doc.get("sample_rate_hz")
     if not isinstance(rate, (int, float)) or isinstance(rate, bool) or not rate > 0:
-        raise DataError(f"{path}: key 'sample_rate_hz' must be a positive number of Hz, got {rate!r}")
+        raise DataError(f"{path}: key 'sample_rate_hz' must be a positive number of Hz, got {excerpt(rate)}")
     axis = _numbers(doc.get("axis"), "key 'axis'", path, 3)
     norm = float(np.linalg.norm(axis))
     if not norm > 0:
@@ -84,7 +85,7 @@ def read_pattern(path: str | Path) -> Pattern:
         for key in ("position_mm", "amplitude"):
             v = f.get(key)
             if not isinstance(v, (int, float)) or isinstance(v, bool):
-                raise DataError(f"{path}: {where}.{key} must be a number, got {v!r}")
+                raise DataError(f"{path}: {where}.{key} must be a number, got {excerpt(v)}")
         b = _numbers(f.get("b"), f"{where}.b", path)
         a = _numbers(f.get("a"), f"{where}.a", path)
         if not 1 <= b.size <= MAX_ORDER + 1 or not 1 <= a.size <= MAX_ORDER + 1:

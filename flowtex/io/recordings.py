@@ -23,7 +23,6 @@ import json
 import os
 import re
 import time
-import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,6 +30,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError
+from ..limits import MAX_RECORDING_VALUES, check_values, excerpt
+from .npzread import read_npz_arrays
+from .recording_rules import check_signals, numeric_signal
 
 SUFFIXES = (".npz", ".csv", ".h5", ".hdf5")
 _COLUMN = re.compile(r"^(?P<name>[^\[\]]+)(?:\[(?P<index>\d+)\])?$")
@@ -65,7 +67,7 @@ def load_recording(path: str | Path) -> Recording:
         rec = _load_h5(path)
     else:
         raise DataError(f"{path}: unknown recording format {suffix!r}; use .npz, .csv or .h5")
-    _check_lengths(rec, path)
+    check_signals(rec.arrays, path)
     rec.path = path
     return rec
 
@@ -76,18 +78,11 @@ UNITS_KEY = "units"
 def _parse_units(text: str, path: Path) -> dict[str, str]:
     try:
         units = json.loads(text)
-    except ValueError:
-        raise DataError(f"{path}: 'units' must be JSON like {{\"y\": \"m/s^2\"}}, got {text!r}") from None
+    except (ValueError, RecursionError):
+        raise DataError(f"{path}: 'units' must be JSON like {{\"y\": \"m/s^2\"}}, got {excerpt(text)}") from None
     if not isinstance(units, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in units.items()):
-        raise DataError(f"{path}: 'units' must map signal names to unit strings, got {text!r}")
+        raise DataError(f"{path}: 'units' must map signal names to unit strings, got {excerpt(text)}")
     return units
-
-
-def _check_lengths(rec: Recording, path: Path) -> None:
-    lengths = {name: a.shape[0] for name, a in rec.arrays.items()}
-    if len(set(lengths.values())) > 1:
-        detail = ", ".join(f"{n}: {k}" for n, k in lengths.items())
-        raise DataError(f"{path}: signals have different lengths ({detail}); time must be the first axis of every array")
 
 
 def _stated_rate(value: object, path: Path) -> float:
@@ -100,101 +95,123 @@ def _stated_rate(value: object, path: Path) -> float:
     return rate
 
 
-ZIP_MAGIC = b"PK\x03\x04"
-"""An .npz file is a zip archive of .npy arrays; its first four bytes are these."""
-
-
-def _check_npz_magic(path: Path) -> None:
-    """Refuse, before numpy reads it, a file that is not a zip archive (numpy would call it 'pickled data' or EOFError)."""
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(len(ZIP_MAGIC))
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read the recording ({exc.strerror})") from None
-    if not head:
-        raise DataError(f"{path}: empty file, not an .npz recording; record or export it again")
-    if head != ZIP_MAGIC:
-        raise DataError(f"{path}: not an .npz recording (an .npz is a zip archive of .npy arrays, e.g. from numpy.savez); "
-                        "check the file or its suffix")
-
-
 def _load_npz(path: Path) -> Recording:
-    _check_npz_magic(path)
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = {}
-            rate = None
-            units: dict[str, str] = {}
-            for name in data.files:
-                arr = data[name]
-                if name == "rate" and arr.ndim == 0:
-                    rate = _stated_rate(arr, path)
-                elif name == UNITS_KEY and arr.ndim == 0 and arr.dtype.kind == "U":
-                    units = _parse_units(str(arr), path)
-                elif arr.ndim == 0:
-                    raise DataError(f"{path}: entry {name!r} is a single number; signals need time on the first axis")
-                else:
-                    arrays[name] = np.asarray(arr, dtype=np.float64)
-    except DataError:
-        raise
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise DataError(f"{path}: not a readable .npz recording ({exc})") from None
+    arrays = {}
+    rate = None
+    units: dict[str, str] = {}
+    for name, arr in read_npz_arrays(path).items():
+        if name == "rate" and arr.ndim == 0:
+            rate = _stated_rate(arr, path)
+        elif name == UNITS_KEY and arr.ndim == 0 and arr.dtype.kind == "U":
+            units = _parse_units(str(arr), path)
+        elif arr.ndim == 0:
+            raise DataError(f"{path}: entry {excerpt(name)} is a single number; signals need time on the first axis")
+        else:
+            arrays[name] = numeric_signal(arr, path, name)
     return Recording(arrays, rate, units=units)
 
 
+MAX_CSV_LINE = 1 << 20
+"""Longest CSV line read (characters); a longer one is not a recording row."""
+_CSV_CHUNK = 1 << 20
+"""Values parsed into Python floats before they are packed into a numpy block (bounds Python-object memory)."""
+
+
+def _bounded_lines(fh, path: Path):
+    """Lines of ``fh``, refusing one longer than MAX_CSV_LINE (a binary or one-line file would otherwise be read whole)."""
+    while True:
+        line = fh.readline(MAX_CSV_LINE + 1)
+        if not line:
+            return
+        if len(line) > MAX_CSV_LINE:
+            raise DataError(f"{path}: a line is longer than {MAX_CSV_LINE:,} characters; this is not a CSV recording")
+        yield line
+
+
 def _load_csv(path: Path) -> Recording:
+    try:
+        with path.open(newline="", encoding="utf-8") as fh:
+            return _parse_csv(_bounded_lines(fh, path), path)
+    except UnicodeDecodeError as exc:
+        raise DataError(f"{path}: not UTF-8 text at byte {exc.start}; a CSV recording is text") from None
+    except csv.Error as exc:
+        raise DataError(f"{path}: not a readable CSV file ({excerpt(str(exc), 120)})") from None
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read the recording ({exc.strerror or exc})") from None
+
+
+def _parse_csv(lines, path: Path) -> Recording:
     rate = None
     units: dict[str, str] = {}
     comments = 0
-    with path.open(newline="", encoding="utf-8") as fh:
-        while True:
-            start = fh.tell()
-            line = fh.readline()
-            if not line.startswith("#"):
-                fh.seek(start)
-                break
-            comments += 1
-            m = re.match(r"#\s*(rate|units)\s*:\s*(.+?)\s*$", line)
-            if m and m.group(1) == "rate":
-                rate = _stated_rate(m.group(2), path)
-            elif m:
-                units = _parse_units(m.group(2), path)
-        reader = csv.reader(fh)
+    first = None
+    for line in lines:
+        if not line.startswith("#"):
+            first = line
+            break
+        comments += 1
+        m = re.match(r"#\s*(rate|units)\s*:\s*(.+?)\s*$", line)
+        if m and m.group(1) == "rate":
+            rate = _stated_rate(m.group(2), path)
+        elif m:
+            units = _parse_units(m.group(2), path)
+    if first is None:
+        raise DataError(f"{path}: empty CSV; the first row must name the columns")
+    header = next(csv.reader([first]))
+    columns = _csv_columns(header, path)
+    width = len(header)
+    blocks: list[np.ndarray] = []
+    rows: list[list[float]] = []
+    count = 0
+    for lineno, row in enumerate(csv.reader(lines), start=comments + 2):
+        if not row:
+            continue
+        if len(row) != width:
+            raise DataError(f"{path}:{lineno}: {len(row)} values but {width} columns in the header")
         try:
-            header = next(reader)
-        except StopIteration:
-            raise DataError(f"{path}: empty CSV; the first row must name the columns") from None
-        rows = []
-        for lineno, row in enumerate(reader, start=comments + 2):
-            if not row:
-                continue
-            if len(row) != len(header):
-                raise DataError(f"{path}:{lineno}: {len(row)} values but {len(header)} columns in the header")
-            try:
-                rows.append([float(v) for v in row])
-            except ValueError:
-                raise DataError(f"{path}:{lineno}: non-numeric value in {row!r}") from None
-    table = np.array(rows, dtype=np.float64).reshape(len(rows), len(header))
+            rows.append([float(v) for v in row])
+        except ValueError:
+            raise DataError(f"{path}:{lineno}: non-numeric value in {excerpt(row)}") from None
+        count += width
+        if count > MAX_RECORDING_VALUES:
+            check_values(path, count, "the CSV table (so far)")
+        if len(rows) * width >= _CSV_CHUNK:
+            blocks.append(np.array(rows, dtype=np.float64))
+            rows = []
+    blocks.append(np.array(rows, dtype=np.float64).reshape(len(rows), width))
+    table = np.concatenate(blocks)
+    arrays = {}
+    for name, parts in columns.items():
+        if -1 in parts:
+            arrays[name] = table[:, parts[-1]].copy()
+        else:
+            arrays[name] = table[:, [parts[i] for i in range(max(parts) + 1)]].copy()
+    return Recording(arrays, rate, units=units)
+
+
+def _csv_columns(header: list[str], path: Path) -> dict[str, dict[int, int]]:
+    """Signal name -> {component index (-1 for a scalar): column}; refuses malformed, duplicate and incomplete columns."""
     columns: dict[str, dict[int, int]] = {}
     for col, name in enumerate(header):
         m = _COLUMN.match(name.strip())
         if not m:
-            raise DataError(f"{path}:1: column name {name!r} is not 'name' or 'name[i]'")
+            raise DataError(f"{path}:1: column name {excerpt(name)} is not 'name' or 'name[i]'")
         index = int(m.group("index")) if m.group("index") is not None else -1
-        columns.setdefault(m.group("name"), {})[index] = col
-    arrays = {}
+        parts = columns.setdefault(m.group("name"), {})
+        if index in parts:
+            raise DataError(f"{path}:1: column {excerpt(name.strip())} appears twice (columns {parts[index] + 1} and {col + 1}); "
+                            "rename or delete one")
+        if index > len(header):
+            raise DataError(f"{path}:1: column {excerpt(name.strip())} has index {index} but the file has {len(header)} columns")
+        parts[index] = col
     for name, parts in columns.items():
-        if -1 in parts:
-            if len(parts) > 1:
-                raise DataError(f"{path}:1: column {name!r} appears both as a scalar and as {name}[i]")
-            arrays[name] = table[:, parts[-1]].copy()
-        else:
-            width = max(parts) + 1
-            missing = [i for i in range(width) if i not in parts]
+        if -1 in parts and len(parts) > 1:
+            raise DataError(f"{path}:1: column {name!r} appears both as a scalar and as {name}[i]")
+        if -1 not in parts:
+            missing = [i for i in range(max(parts) + 1) if i not in parts]
             if missing:
-                raise DataError(f"{path}:1: vector {name!r} lacks column(s) " + ", ".join(f"{name}[{i}]" for i in missing))
-            arrays[name] = table[:, [parts[i] for i in range(width)]].copy()
-    return Recording(arrays, rate, units=units)
+                raise DataError(f"{path}:1: vector {name!r} lacks column(s) " + ", ".join(f"{name}[{i}]" for i in missing[:8]))
+    return columns
 
 
 def _h5py():
@@ -212,18 +229,24 @@ def _load_h5(path: Path) -> Recording:
             rate = _stated_rate(fh.attrs["rate"], path) if "rate" in fh.attrs else None
             arrays = {}
             units = {}
+            total = 0
             for name, item in fh.items():
                 if isinstance(item, h5py.Dataset):
                     if item.ndim == 0:
-                        raise DataError(f"{path}: dataset {name!r} is a single number; signals need time on the first axis")
-                    arrays[name] = np.asarray(item[()], dtype=np.float64)
+                        raise DataError(f"{path}: dataset {excerpt(name)} is a single number; signals need time on the first axis")
+                    if item.dtype.kind not in "biufc":
+                        raise DataError(f"{path}: dataset {excerpt(name)} holds {str(item.dtype)[:40]} values, not numbers; "
+                                        "store text (names, units) as attributes")
+                    total += int(item.size)
+                    check_values(path, total, f"dataset {excerpt(name)} (shape {item.shape})")
+                    arrays[name] = numeric_signal(item[()], path, name)
                     if "unit" in item.attrs:
                         unit = item.attrs["unit"]
-                        units[name] = unit.decode() if isinstance(unit, bytes) else str(unit)
+                        units[name] = unit.decode(errors="replace") if isinstance(unit, bytes) else str(unit)
     except DataError:
         raise
-    except OSError as exc:
-        raise DataError(f"{path}: not a readable HDF5 recording ({exc})") from None
+    except (OSError, KeyError, RuntimeError, ValueError, TypeError) as exc:  # h5py reports damaged files in all of these
+        raise DataError(f"{path}: not a readable HDF5 recording ({excerpt(str(exc), 120)})") from None
     return Recording(arrays, rate, units=units)
 
 

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError
+from ..limits import excerpt
 from ..models.taps import TapLibrary
 from ..node_api import suggest
 from .jsondoc import read_json_document
@@ -28,7 +29,7 @@ _TAP_KEYS = ("speed", "acceleration")
 
 def _number(path: Path, field: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise DataError(f"{path}: field {field!r}: expected a finite number, got {value!r}")
+        raise DataError(f"{path}: field {field!r}: expected a finite number, got {excerpt(value)}")
     return float(value)
 
 

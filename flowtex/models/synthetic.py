@@ -256,3 +256,35 @@ def hatt_like_model(seed: int, ar_order: int = 19, ma_order: int = 17, max_pole_
     mrad = np.r_[notch_radius, rng.uniform(0.5, 0.9, max(mpair - 1, 0))][:mpair]
     c = poly_from_roots(mrad, mang, [rng.uniform(-0.5, 0.5)] if ma_order % 2 else [])
     return a, c
+
+
+def narrow_peak_model_set(count: int = 24, ar_order: int = 20, ma_order: int = 20, max_pole_radius: float = 0.9995,
+                          seed: int = 0) -> TextureModelSet:
+    """``count`` models (plus 3 silent corners) with the features that made resampling slow on real recordings.
+
+    Copper-like: every model is :func:`hatt_like_model` at the given orders with
+    poles up to ``max_pole_radius`` (one pair exactly there: a resonance
+    2 (1 - r) fs / (2 pi) Hz wide, 0.16 Hz at 0.9995 and 1 kHz) and no notch at
+    z = -1 (the zero pair sits at radius 0.5, so the spectrum stays high up to
+    the Nyquist frequency, as in a fit of a recording without an anti-aliasing
+    notch). Scattered (speed mm/s, force N) points in (20..300) x (0.2..3),
+    Delaunay-triangulated, silent (variance 0) models at (0, 0), (0, 3) and
+    (300, 0). Variances span 15 dB, as real surfaces' do.
+    """
+    rng = np.random.default_rng(seed)
+    pts = np.vstack([np.column_stack([rng.uniform(20.0, 300.0, count), rng.uniform(0.2, 3.0, count)]),
+                     [[0.0, 0.0], [0.0, 3.0], [300.0, 0.0]]])
+    total = pts.shape[0]
+    ar_lsf, ma_lsf = np.empty((total, ar_order)), np.empty((total, ma_order))
+    ar_coeff, ma_coeff = np.empty((total, ar_order + 1)), np.empty((total, ma_order + 1))
+    for m in range(total):
+        a, c = hatt_like_model(seed * 1000 + min(m, count - 1), ar_order, ma_order, max_pole_radius, notch_radius=0.5)
+        ar_coeff[m], ma_coeff[m] = a, c
+        ar_lsf[m], ma_lsf[m] = poly_to_lsf_reference(a), poly_to_lsf_reference(c)
+    variance = np.r_[1e-3 * 10.0 ** (rng.uniform(0.0, 1.5, count)), np.zeros(3)]
+    ms = TextureModelSet(material="narrow peaks", sample_rate=1000.0, speeds=pts[:, 0].copy(), forces=pts[:, 1].copy(),
+                         triangles=Delaunay(pts).simplices.astype(np.int64), ar_lsf=ar_lsf, ma_lsf=ma_lsf,
+                         variance=variance, gain=np.ones(total), max_speed=300.0, max_force=3.0, mu=0.3,
+                         ar_coeff=ar_coeff, ma_coeff=ma_coeff,
+                         metadata={"generator": "flowtex.models.synthetic.narrow_peak_model_set"})
+    return ms.validate()

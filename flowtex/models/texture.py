@@ -169,6 +169,13 @@ class TextureModelSet:
         neg = np.flatnonzero(vec["variance"] < 0)
         if neg.size:
             fail(f"{model_name(int(neg[0]))}: {n['variance']} is {float(vec['variance'][neg[0]])!r}; a variance must be >= 0")
+        _, first, counts = np.unique(np.column_stack([vec["speeds"], vec["forces"]]), axis=0, return_index=True, return_counts=True)
+        if np.any(counts > 1):
+            point = np.column_stack([vec["speeds"], vec["forces"]])[first[np.argmax(counts > 1)]]
+            twins = np.flatnonzero((vec["speeds"] == point[0]) & (vec["forces"] == point[1]))
+            fail(f"{model_name(int(twins[0]))} and {model_name(int(twins[1]))} sit at the same point "
+                 f"({float(point[0]):g} mm/s, {float(point[1]):g} N); a model set needs one model per (speed, force): "
+                 "remove or merge the duplicate")
 
         for key in ("ar_lsf", "ma_lsf"):
             arr = np.ascontiguousarray(getattr(self, key), dtype=np.float64)

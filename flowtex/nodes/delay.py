@@ -44,12 +44,16 @@ def _absorb(p, s, si, x):
     si[0] = 0 if pos == k else pos
 
 
+MAX_SAMPLES = 10_000_000
+"""Longest delay in ticks (80 MB of state per component; 2.8 hours at 1 kHz)."""
+
+
 class Delay(Node):
     """Delay by a whole number of ticks: y[t] = x[t - samples] (zeros before the start)."""
 
     type_name = "delay"
     breaks_cycles = True
-    params = {"samples": Param("int", default=1, doc="delay in ticks of this node", min=1)}
+    params = {"samples": Param("int", default=1, doc="delay in ticks of this node", min=1, max=MAX_SAMPLES)}
     inputs = {"x": Port(None, "*", "signal")}
     outputs = {"y": Port("=x", "=x", "delayed signal")}
     kernel = _delay

@@ -17,6 +17,16 @@ def _texture_lookup(p, s, si, speed, force, ar, ma, gain, variance):
     texture_lookup_block(p, s, si, speed, force, ar, ma, gain, variance)
 
 
+def rate_mismatch_message(path: str, ms: TextureModelSet, graph_rate: float) -> str:
+    """One line refusing a model set at another rate: the file's own field (XML tag or JSON key) and the fix."""
+    import shlex
+
+    field = "<SampleRate>" if str(path).lower().endswith(".xml") else '"sample_rate"'
+    return (f"{path}: the models are for {ms.sample_rate:g} Hz ({field}) but the graph runs at {graph_rate:g} Hz; "
+            f"run 'flowtex models resample {shlex.quote(str(path))} --rate {graph_rate:g} -o OUT.json' and load OUT.json, "
+            f"or run the graph at the models' rate (--set rate={ms.sample_rate:g})")
+
+
 class TextureLookup(Node):
     """Interpolate a texture model set at the current (speed, force): AR and MA polynomials, gain and excitation variance.
 
@@ -73,9 +83,7 @@ class TextureLookup(Node):
             self.model_set = self._truncated(p_order)
         ms = self.model_set
         if ms.sample_rate != context.rate:
-            raise ParamError("models", f"{path}: the models are for {ms.sample_rate:g} Hz (<SampleRate>) but the graph runs at "
-                                       f"{context.rate:g} Hz; rate conversion of texture models is not supported yet: "
-                                       f"set the graph's rate to {ms.sample_rate:g} or use a model set fitted at {context.rate:g} Hz")
+            raise ParamError("models", rate_mismatch_message(str(path), ms, context.rate))
         p = self.p
         for low, value in (("low_speed", "low_speed_value"), ("low_force", "low_force_value")):
             if p[value] > p[low]:

@@ -14,8 +14,9 @@ from typing import Any
 
 from ..errors import Diagnostic, GraphError, Location
 from ..graph.spec import FORMAT_VERSION, NAME_RE, Collector
+from ..limits import excerpt
 from ..node_api import suggest
-from ..yamlsource import LocDict, LocList, load_yaml
+from ..yamlsource import LocDict, LocList, load_yaml, read_source
 
 TOP_KEYS = ("flowtex", "name", "rate", "surfaces", "trajectory", "select", "device", "thresholds", "description")
 SURFACE_KEYS = ("models", "mu", "taps", "pattern", "compliance", "stiffness", "keep", "drop", "doc")
@@ -74,18 +75,12 @@ class Scene:
 def load_scene(path: str | Path) -> Scene:
     """Read and check a scene file. Raises :class:`GraphError` listing every problem."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise GraphError([Diagnostic(Location(str(path)), "scene file not found")]) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise GraphError([Diagnostic(Location(str(path)), f"cannot read scene file: {exc}")]) from None
-    return parse_scene(text, path)
+    return parse_scene(read_source(path, "scene file"), path)
 
 
 def _number(c: Collector, value: Any, pos: Any, what: str, positive: bool = False) -> float | None:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0 or (positive and value == 0):
-        c.error(pos, f"{what} must be a {'positive' if positive else 'non-negative'} number, got {value!r}")
+        c.error(pos, f"{what} must be a {'positive' if positive else 'non-negative'} number, got {excerpt(value)}")
         return None
     return float(value)
 
@@ -133,7 +128,7 @@ def parse_scene(text: str, path: Path) -> Scene:
         if key not in data:
             c.error(data.pos, f"missing top-level key {key!r}" + (" (the format version; write 'flowtex: 1')" if key == "flowtex" else ""))
     if "flowtex" in data and data["flowtex"] != FORMAT_VERSION:
-        c.error(data.value_pos["flowtex"], f"unsupported format version {data['flowtex']!r}; this flowtex reads version {FORMAT_VERSION}")
+        c.error(data.value_pos["flowtex"], f"unsupported format version {excerpt(data['flowtex'])}; this flowtex reads version {FORMAT_VERSION}")
     name = data.get("name", path.stem)
     if not isinstance(name, str) or not name:
         c.error(data.value_pos.get("name"), "name must be a non-empty string")
@@ -153,7 +148,7 @@ def parse_scene(text: str, path: Path) -> Scene:
     if sel is not None:
         if "input" in sel:
             if not isinstance(sel["input"], str) or not NAME_RE.match(sel["input"]):
-                c.error(sel.value_pos["input"], f"select.input must be a graph input name (letters, digits, '_'), got {sel['input']!r}")
+                c.error(sel.value_pos["input"], f"select.input must be a graph input name (letters, digits, '_'), got {excerpt(sel['input'])}")
             else:
                 scene.select_input = sel["input"]
         if "fade" in sel:
@@ -161,7 +156,7 @@ def parse_scene(text: str, path: Path) -> Scene:
             scene.fade_s = scene.fade_s if v is None else v
         if "fixed" in sel:
             if sel["fixed"] not in scene.surfaces:
-                c.error(sel.value_pos["fixed"], f"select.fixed: no surface {sel['fixed']!r}{suggest(str(sel['fixed']), list(scene.surfaces))}")
+                c.error(sel.value_pos["fixed"], f"select.fixed: no surface {excerpt(sel['fixed'])}{suggest(str(sel['fixed']), list(scene.surfaces))}")
             else:
                 scene.fixed = sel["fixed"]
     dev = _mapping(c, data, "device", DEVICE_KEYS, "{dbc: device.dbc, map: map.yaml}")
@@ -211,7 +206,7 @@ def _components(c: Collector, s: LocDict, key: str, surface: str) -> tuple[str, 
     for i, item in enumerate(items):
         pos = items.item_pos[i] if isinstance(items, LocList) else s.value_pos[key]
         if item not in COMPONENTS:
-            c.error(pos, f"surface {surface!r}: unknown component {item!r} in {key}{suggest(str(item), COMPONENTS)}; "
+            c.error(pos, f"surface {surface!r}: unknown component {excerpt(item)} in {key}{suggest(str(item), COMPONENTS)}; "
                          f"components: {', '.join(COMPONENTS)}")
         else:
             out.append(item)
@@ -269,6 +264,6 @@ def _compliance(c: Collector, value: Any, pos: Any, surface: str, base: Path) ->
         return base / value
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or not 0.0 <= value <= 1.0:
         c.error(pos, f"surface {surface!r}: compliance must be k_c between 0 (soft) and 1 (stiff), or the JSON file "
-                     f"'flowtex fit compliance' writes; got {value!r}")
+                     f"'flowtex fit compliance' writes; got {excerpt(value)}")
         return None
     return float(value)

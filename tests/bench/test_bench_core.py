@@ -50,7 +50,7 @@ def test_sweep_every_knob_end_to_end(tmp_path, capsys):
     assert main(["bench", str(graph), "--input", str(tmp_path / "in.npz"), "--knob", "g.every=1,2", "--repeats", "2",
                  "-o", str(tmp_path / "t.csv")]) == 0
     rows = list(csv.reader(open(tmp_path / "t.csv")))
-    assert rows[0] == ["g.every", "ns/tick (local)", "y rms", "pareto"]
+    assert rows[0] == ["g.every", "ns/tick (local, dispatch tier)", "y rms", "pareto"]
     assert rows[1][0] == "1" and float(rows[1][2]) == 0.0  # the reference itself
     # every=2: the gain runs on even ticks and holds its output on odd ones (a force: RMS metric)
     held = 2.0 * x[np.arange(1000) // 2 * 2]

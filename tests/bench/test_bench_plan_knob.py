@@ -44,7 +44,7 @@ def test_plan_all_against_independently_planned_graph(scene_and_input, capsys):
     assert main(["bench", str(scene), "--input", str(folder / "in.npz"), "--knob", "plan=planned,all", "--outputs", "force",
                  "--repeats", "1", "-o", str(table)]) == 0
     rows = list(csv.reader(open(table)))
-    assert rows[0] == ["plan", "ns/tick (local)", "force rms", "pareto"]
+    assert rows[0] == ["plan", "ns/tick (local, dispatch tier)", "force rms", "pareto"]
     assert [r[0] for r in rows[1:]] == ["planned", "all"]
     assert float(rows[1][2]) == 0.0
     # independent: thresholds 0 in the scene file itself, planned and run outside the bench

@@ -41,9 +41,9 @@ def test_bench_on_a_dask_scheduler_equals_a_local_run(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert computed == 6  # every configuration (3 x 2) was computed on the cluster
     local, remote = _rows(tmp_path / "local.csv"), _rows(tmp_path / "dask.csv")
-    assert local[0] == ["g.every", "lp.cutoff_hz", "ns/tick (local)", "y rms", "pareto"]
-    assert remote[0] == ["g.every", "lp.cutoff_hz", "ns/tick (dask workers)", "y rms", "pareto"]
-    assert "ns/tick (dask workers)" in printed
+    assert local[0] == ["g.every", "lp.cutoff_hz", "ns/tick (local, dispatch tier)", "y rms", "pareto"]
+    assert remote[0] == ["g.every", "lp.cutoff_hz", "ns/tick (dask workers, dispatch tier)", "y rms", "pareto"]
+    assert "ns/tick (dask workers, dispatch tier)" in printed
     assert len(remote) == len(local) == 7
     for a, b in zip(local[1:], remote[1:], strict=True):
         assert a[:2] == b[:2]  # same configuration, same order

@@ -109,7 +109,7 @@ def test_models_are_ordered_by_modnum(tmp_path):
     ({"mod_nums": (1, 1, 3, 4)}, "<model> modNum 1: two <model> elements have this modNum"),
     ({"units": "m/s"}, "<SpeedUnits> is 'm/s'; flowtex reads HaTT files in mm/s only"),
     ({"tri_rows": ((1, 2, 3), (1, 2, 1))}, "<tri> 2 repeats a model"),
-    ({"speeds": ("0", "100", "0", "0")}, "<tri> 2 is degenerate"),
+    ({"speeds": ("0", "100", "0", "0")}, "<model> modNum 3 and <model> modNum 4 sit at the same point (0 mm/s, 2 N)"),
 ])
 def test_malformed_files_name_file_and_element(tmp_path, kwargs, message):
     path = tmp_path / "Models_Bad File.xml"

@@ -242,14 +242,35 @@ def test_zero_variance_corners_silence_the_texture(hard):
     assert np.all(out["variance"] <= 2e-4 * ms.variance.max())
 
 
-def test_sample_rate_mismatch_refused(tmp_path):
-    path = write_hatt_xml(hard_model_set(), tmp_path / "Models_Rate Test.xml")
+@pytest.mark.parametrize("suffix, field", [(".xml", "(<SampleRate>)"), (".json", '("sample_rate")')])
+def test_sample_rate_mismatch_refused(tmp_path, suffix, field):
+    from flowtex.io.modelset import save_model_set
+
+    name = tmp_path / f"Models_Rate Test{suffix}"
+    path = write_hatt_xml(hard_model_set(), name) if suffix == ".xml" else save_model_set(hard_model_set(), name)
     with pytest.raises(GraphError) as err:
         load_graph(graph_file(tmp_path / "g", str(path), rate=2000))
     msg = str(err.value)
-    assert "Models_Rate Test.xml" in msg and "1000 Hz" in msg and "2000 Hz" in msg
-    assert "rate conversion of texture models is not supported yet" in msg
+    assert "Models_Rate Test" in msg and f"1000 Hz {field}" in msg and "2000 Hz" in msg
+    assert "flowtex models resample" in msg and "--rate 2000" in msg and "not supported" not in msg
+    assert ("<SampleRate>" in msg) == (suffix == ".xml")  # the file's own field name, not the other format's
     assert "lookup.yaml:" in msg  # points at the graph file
+    # the graph's rate from the command line (--set rate=...): the same graph file at the models' rate loads
+    g = load_graph(graph_file(tmp_path / "g", str(path), rate=2000), {"rate": 1000})
+    assert g.rate == 1000.0
+
+
+def test_set_rate_parses_as_a_graph_level_override():
+    from flowtex.graph.spec import parse_override
+
+    assert parse_override("rate=2000") == ("rate", 2000)
+
+
+@pytest.mark.parametrize("bad", [0, -5, "fast", True])
+def test_set_rate_must_be_positive(tmp_path, bad):
+    path = write_hatt_xml(hard_model_set(), tmp_path / "m.xml")
+    with pytest.raises(GraphError, match="--set rate.*rate must be a positive number of Hz"):
+        load_graph(graph_file(tmp_path / "g", str(path)), {"rate": bad})
 
 
 def test_missing_and_malformed_files_name_file_and_element(tmp_path):

@@ -1,0 +1,78 @@
+"""What makes a recording a recording: the checks every format (npz, CSV, HDF5) passes through after reading.
+
+Rules (``docs/recordings.md``), each refused with one line naming the file,
+the signal and the fix:
+
+* at least one signal; every signal numeric and real (complex or text is refused,
+  never silently cast);
+* time is the first axis: a signal is ``(n,)`` or ``(n, k, ...)``; one whose
+  per-sample width exceeds both :data:`~flowtex.limits.MAX_SIGNAL_WIDTH` and
+  its number of samples looks transposed (a ``(3, n)`` array) and is refused;
+* at least 2 samples (an empty or one-sample recording has no signal to process);
+* every signal has the same number of samples;
+* a 1-D signal named ``time`` increases strictly, with no step longer than
+  :data:`~flowtex.limits.TIME_GAP_TOLERANCE` median steps (samples are missing there).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataError
+from ..limits import MAX_SIGNAL_WIDTH, TIME_GAP_TOLERANCE, excerpt
+
+TIME_SIGNAL = "time"
+"""A signal of this name holds sample times (seconds) and is checked for order and gaps."""
+
+
+def numeric_signal(arr: np.ndarray, path: Path | str, name: str) -> np.ndarray:
+    """``arr`` as float64 if it holds real numbers (booleans, integers, floats); else :class:`DataError`."""
+    kind = arr.dtype.kind
+    if kind == "c":
+        raise DataError(f"{path}: signal {excerpt(name)} is complex; flowtex signals are real: store the real and "
+                        "imaginary parts (or magnitude and phase) as two signals")
+    if kind not in "biuf":
+        raise DataError(f"{path}: signal {excerpt(name)} holds {str(arr.dtype)[:40]} values, not numbers; "
+                        "store text (names, units) outside the recording")
+    return np.asarray(arr, dtype=np.float64)
+
+
+def check_signals(arrays: dict[str, np.ndarray], path: Path | str) -> None:
+    """Apply the module's rules to float64 signals read from ``path``."""
+    if not arrays:
+        raise DataError(f"{path}: the recording holds no signals; store one array per signal, time first")
+    for name, a in arrays.items():
+        n = a.shape[0]
+        width = int(np.prod(a.shape[1:], dtype=np.int64))
+        if a.ndim > 1 and width > MAX_SIGNAL_WIDTH and width > n:
+            raise DataError(f"{path}: signal {excerpt(name)} has shape {a.shape}: {n} samples of {width} values each looks "
+                            f"transposed (time is the first axis); store it as shape {a.shape[::-1]} (array.T)")
+        if n < 2:
+            what = "no samples (the recording is empty)" if n == 0 else "one sample"
+            raise DataError(f"{path}: signal {excerpt(name)} has {what}; a recording needs at least 2 samples")
+    lengths = {name: a.shape[0] for name, a in arrays.items()}
+    if len(set(lengths.values())) > 1:
+        detail = ", ".join(f"{excerpt(n, 30)}: {k}" for n, k in list(lengths.items())[:8])
+        raise DataError(f"{path}: signals have different lengths ({detail}); time must be the first axis of every array")
+    time = arrays.get(TIME_SIGNAL)
+    if time is not None and time.ndim == 1:
+        check_time(time, path)
+
+
+def check_time(time: np.ndarray, path: Path | str) -> None:
+    """Refuse a time column that does not increase strictly or that jumps (a step > TIME_GAP_TOLERANCE median steps)."""
+    step = np.diff(time)
+    back = np.flatnonzero(~(step > 0))  # also catches NaN
+    if back.size:
+        i = int(back[0])
+        raise DataError(f"{path}: signal 'time' does not increase at sample {i + 1} ({time[i]:g} then {time[i + 1]:g}; "
+                        f"{back.size} such step(s)); sort the rows, cut the repeated part, or drop the time column")
+    median = float(np.median(step))
+    gaps = np.flatnonzero(step > TIME_GAP_TOLERANCE * median)
+    if gaps.size:
+        i = int(gaps[0])
+        raise DataError(f"{path}: signal 'time' jumps from {time[i]:g} to {time[i + 1]:g} at sample {i + 1}, "
+                        f"{step[i] / median:.3g} times its median step of {median:g} (at most {TIME_GAP_TOLERANCE:g}; "
+                        f"{gaps.size} gap(s)): samples are missing; cut the recording at the gap or fill it")

@@ -1,0 +1,124 @@
+"""Documented limits every reader checks before it allocates, and :func:`excerpt` for quoting user values.
+
+A hostile or broken file costs the user one line of text, never the machine's
+memory: each reader compares what a file *claims* (an npy header's shape, a
+YAML alias tree's expanded size, a document's nesting depth, a file's size)
+with these limits first, and refuses with a :class:`~flowtex.errors.FlowtexError`
+that names the file and the limit. The limits are far above anything a real
+flowtex file needs; ``docs/recordings.md`` ("Limits") lists them.
+
+This module sits at the bottom of the layers (beside ``errors``) so that the
+YAML loader, the graph checker and every reader in ``flowtex.io`` share it.
+"""
+
+from __future__ import annotations
+
+import reprlib
+from pathlib import Path
+from typing import Any
+
+from .errors import DataError
+
+MAX_RECORDING_VALUES = 100_000_000
+"""Numbers a recording may hold, all signals together (800 MB as float64; 9 hours of 3 axes at 1 kHz)."""
+MAX_TEXT_BYTES = 64 * 1024 * 1024
+"""Size of a JSON or XML file (model set, pattern, tap library), read by C parsers (64 MiB)."""
+MAX_YAML_BYTES = 1024 * 1024
+"""Size of a YAML file (graph, scene, device map): 1 MiB, 250 times the largest bundled one. The safe YAML
+parser is pure Python (0.04 MiB/s measured on a loaded 2-core machine, 2026-11-25), so this bounds the time too."""
+MAX_DBC_BYTES = 4 * 1024 * 1024
+"""Size of a DBC file (cantools parsed 0.075 MiB/s on a loaded 2-core machine, 2026-11-25)."""
+MAX_DEPTH = 100
+"""Nesting of maps and lists in YAML and JSON, and of elements in XML (real flowtex files nest fewer than 10)."""
+MAX_YAML_NODES = 1_000_000
+"""Values in a YAML document with every alias (``*name``) expanded: an alias bomb is refused, not built."""
+MAX_YAML_INT = 10**300
+"""YAML integers at or beyond this magnitude are refused while loading (every flowtex number fits a float64)."""
+MAX_SIGNAL_WIDTH = 16
+"""A recording signal may have more components per sample than samples only up to this width (else it looks transposed)."""
+TIME_GAP_TOLERANCE = 1.5
+"""A ``time`` column step longer than this many median steps is a gap (a sample or more is missing)."""
+MAX_EVERY = 1_000_000
+"""Largest ``every:`` of a graph node (ticks between runs)."""
+MAX_INT_PARAM = 2**31 - 1
+"""Upper bound of an integer node parameter that declares none (kernels hold parameters as float64)."""
+EXCERPT_CHARS = 60
+"""Longest quote of a user value in an error message."""
+
+class _Repr(reprlib.Repr):
+    """reprlib's bounded repr, applied to dict and list subclasses too (the YAML loader's LocDict, LocList)."""
+
+    def repr1(self, x: Any, level: int) -> str:
+        if isinstance(x, dict) and type(x) is not dict:
+            return self.repr_dict(x, level)
+        if isinstance(x, list) and type(x) is not list:
+            return self.repr_list(x, level)
+        return super().repr1(x, level)
+
+
+_repr = _Repr()
+_repr.maxlevel = 3
+_repr.maxlist = _repr.maxtuple = _repr.maxdict = _repr.maxset = 6
+_repr.maxstring = _repr.maxother = _repr.maxlong = EXCERPT_CHARS
+
+
+def excerpt(value: Any, limit: int = EXCERPT_CHARS) -> str:
+    """A repr of ``value`` of at most ``limit`` characters, built without expanding large or shared structures."""
+    try:
+        text = _repr.repr(value)
+    except Exception:  # a user value whose repr fails is still quoted by its type
+        text = f"<{type(value).__name__}>"
+    text = " ".join(text.split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def short_number(value: float) -> str:
+    """A number for a message: ``%g`` when a float can hold it, else a short excerpt of the integer."""
+    try:
+        return f"{float(value):g}"
+    except OverflowError:
+        return excerpt(value, 24)
+
+
+def check_file_size(path: Path, kind: str, limit: int = MAX_TEXT_BYTES) -> None:
+    """Refuse the file at ``path`` when it is larger than ``limit`` bytes (a missing file passes: its reader says so)."""
+    try:
+        size = path.stat().st_size
+    except OSError:
+        return
+    if size > limit:
+        raise DataError(f"{path}: {kind} is {size / 2**20:.1f} MiB; flowtex reads such files up to {limit / 2**20:g} MiB "
+                        "(is this the right file?)")
+
+
+def check_values(path: Path | str, count: int, what: str) -> None:
+    """Refuse a recording that would hold ``count`` numbers, more than :data:`MAX_RECORDING_VALUES`."""
+    if count > MAX_RECORDING_VALUES:
+        raise DataError(f"{path}: {what} holds {count:,} numbers; flowtex reads recordings of up to "
+                        f"{MAX_RECORDING_VALUES:,} numbers ({MAX_RECORDING_VALUES * 8 / 1e6:,.0f} MB): split or decimate it first")
+
+
+def depth_of(value: Any, limit: int = MAX_DEPTH) -> int:
+    """Nesting depth of dicts and lists in ``value`` (a scalar is 0), counted without recursion; stops past ``limit``."""
+    deepest = 0
+    stack: list[tuple[Any, int]] = [(value, 0)]
+    while stack:
+        item, depth = stack.pop()
+        if isinstance(item, dict):
+            children = item.values()
+        elif isinstance(item, list):
+            children = item
+        else:
+            continue
+        depth += 1
+        deepest = max(deepest, depth)
+        if deepest > limit:
+            return deepest
+        stack.extend((child, depth) for child in children)
+    return deepest
+
+
+def too_deep(path: Path | str, kind: str) -> DataError:
+    """The error for a document nested deeper than :data:`MAX_DEPTH`."""
+    return DataError(f"{path}: {kind} nests lists or maps more than {MAX_DEPTH} levels deep; flowtex files nest a few levels "
+                     "(is this the right file?)")

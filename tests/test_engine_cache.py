@@ -1,0 +1,111 @@
+"""The dispatch tier's kernel cache: damaged entries are rebuilt, concurrent compiles leave one good entry, keys."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from flowtex.graph import wrappers
+from flowtex.graph.kcache import entry_ok
+from flowtex.nodes.arith import Add, Gain
+
+GRAPHS = {  # node type -> (graph wiring, expected y for a = 0..4, b = 1)
+    "gain": ("  n: {type: gain, params: {k: 2}}\nedges:\n  - a -> n.x\n", [0.0, 2.0, 4.0, 6.0, 8.0]),
+    "add": ("  n: {type: add}\nedges:\n  - a -> n.a\n  - b -> n.b\n", [1.0, 2.0, 3.0, 4.0, 5.0]),
+    "multiply": ("  n: {type: multiply}\nedges:\n  - a -> n.a\n  - b -> n.b\n", [0.0, 1.0, 2.0, 3.0, 4.0]),
+}
+
+SCRIPT = """
+import json, sys
+import numpy as np
+from flowtex.graph import wrappers
+from flowtex.graph.compiled import load_graph
+graph = load_graph(sys.argv[1], tier="dispatch")
+y = graph.run({k: v for k, v in {"a": np.arange(5.0), "b": np.ones(5)}.items() if k in graph.inputs})["y"]
+(digest, cf), = [(d, c) for d, c in wrappers._LOADED.items()]
+print(json.dumps({"digest": digest, "rebuilt": len(wrappers.REBUILT), "hits": cf.cache_hits, "y": y.tolist()}))
+"""
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    """One empty cache (flowtex's and numba's) for this module: the driver compiles once, each test uses its own kernel."""
+    root = tmp_path_factory.mktemp("kcache")
+    env = {**os.environ, "FLOWTEX_CACHE_DIR": str(root / "cache"), "FLOWTEX_BACKGROUND": "0"}
+    env.pop("NUMBA_CACHE_DIR", None)
+    return root, env
+
+
+def _start(cache, node: str) -> subprocess.Popen:
+    root, env = cache
+    path = root / f"{node}.yaml"
+    path.write_text("flowtex: 1\nname: tiny\nrate: 1000\ninputs:\n  a: {}\n  b: {}\nnodes:\n" + GRAPHS[node][0]
+                    + "outputs:\n  y: n.y\n")
+    return subprocess.Popen([sys.executable, "-c", SCRIPT, str(path)], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def _run(cache, node: str) -> dict:
+    return _finish(_start(cache, node), node)
+
+
+def _finish(proc: subprocess.Popen, node: str) -> dict:
+    out, err = proc.communicate(timeout=600)
+    assert proc.returncode == 0, err
+    result = json.loads(out.strip().splitlines()[-1])
+    assert result.pop("y") == GRAPHS[node][1]
+    return result
+
+
+def _entry(cache, digest: str) -> tuple[Path, list[Path]]:
+    """Seal and numba files of the wrapper entry ``digest``."""
+    root = cache[0] / "cache"
+    return root / "kernels" / f"w_{digest}.seal", sorted(p for p in (root / "numba").rglob(f"w_{digest}.*")
+                                                         if p.suffix in (".nbi", ".nbc"))
+
+
+@pytest.mark.parametrize("damage,node", [("flip", "gain"), ("truncate", "multiply")])
+def test_a_corrupt_entry_is_detected_and_rebuilt(cache, damage, node):
+    first = _run(cache, node)
+    assert first["rebuilt"] == 0 and first["hits"] == 0  # (an intact entry loads: the test below)
+    seal, files = _entry(cache, first["digest"])
+    data = next(p for p in files if p.suffix == ".nbc")
+    raw = bytearray(data.read_bytes())
+    if damage == "flip":
+        raw[len(raw) // 2] ^= 0xFF  # a byte of machine code or of its pickle: unpickling may even succeed
+        data.write_bytes(bytes(raw))
+    else:
+        data.write_bytes(bytes(raw[: len(raw) // 3]))
+    again = _run(cache, node)  # and still computes the right numbers (checked in _finish)
+    assert again["rebuilt"] == 1 and again["hits"] == 0  # never trusted: compiled afresh
+    assert entry_ok(*_entry(cache, first["digest"]))  # and sealed again
+
+
+def test_two_processes_compiling_the_same_kernel_leave_one_good_entry(cache):
+    procs = [_start(cache, "add"), _start(cache, "add")]
+    results = [_finish(p, "add") for p in procs]
+    assert all(r["rebuilt"] == 0 for r in results)
+    assert sorted(r["hits"] for r in results) == [0, 1]  # the second waited for the first, then loaded its entry
+    seal, files = _entry(cache, results[0]["digest"])
+    assert [p.suffix for p in files] == [".nbc", ".nbi"], files  # one data file, one index: no duplicate
+    assert entry_ok(seal, files)
+    assert _run(cache, "add") == {"digest": results[0]["digest"], "rebuilt": 0, "hits": 1}
+
+
+def test_the_cache_key_covers_kernel_source_numba_cpu_and_fastmath(monkeypatch):
+    gain, add = Gain.get_kernel(), Add.get_kernel()
+    src = wrappers.wrapper_source("k", 1, 1)
+    base = wrappers.wrapper_digest(src, gain)
+    assert wrappers.wrapper_digest(src, add) != base  # another kernel (source and name)
+    assert wrappers.wrapper_digest(wrappers.wrapper_source("k", 2, 1), gain) != base  # another wrapper
+    key = wrappers.machine_key()
+    assert "cpu=" in key and "features=" in key and "numba=" in key and "contract=" in key
+    for part, other in (("numba=", "numba=0.0.0;"), ("cpu=", "cpu=other;"), ("contract=", "contract=other")):
+        changed = ";".join(other if item.startswith(part) else item for item in key.split(";"))
+        monkeypatch.setattr(wrappers, "machine_key", lambda changed=changed: changed)
+        assert wrappers.wrapper_digest(src, gain) != base, part
