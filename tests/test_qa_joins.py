@@ -56,14 +56,14 @@ def test_output_into_a_fifo_writes_into_it_and_keeps_it(tmp_path: Path) -> None:
     assert [p.name for p in tmp_path.iterdir()] == ["pipe.json"]   # no temporary file left behind
 
 
-@pytest.mark.parametrize(("content", "message"), [
-    (b"", "empty file, not an .npz recording"),                        # numpy: EOFError -> "internal error"
-    (b"garbage\n", "not an .npz recording"),                           # numpy: "pickled data ... allow_pickle" advice
-    (b"\x93NUMPY\x01\x00" + b" " * 60, "not an .npz recording"),      # an .npy saved under an .npz name
+@pytest.mark.parametrize("content", [
+    b"",                                     # numpy: EOFError -> "internal error"
+    b"garbage\n",                            # numpy: "pickled data ... allow_pickle" advice
+    b"\x93NUMPY\x01\x00" + b" " * 60,        # an .npy saved under an .npz name
 ])
-def test_a_file_that_is_not_an_npz_is_refused_in_one_line(tmp_path: Path, content: bytes, message: str) -> None:
+def test_a_file_that_is_not_an_npz_is_refused_in_one_line(tmp_path: Path, content: bytes) -> None:
     path = tmp_path / "rec.npz"
     path.write_bytes(content)
-    with pytest.raises(DataError, match=message) as info:
+    with pytest.raises(DataError, match=r"rec\.npz: .*npz") as info:
         load_recording(path)
     assert "pickle" not in str(info.value) and "\n" not in str(info.value)
