@@ -67,3 +67,28 @@ def test_a_file_that_is_not_an_npz_is_refused_in_one_line(tmp_path: Path, conten
     with pytest.raises(DataError, match=r"rec\.npz: .*npz") as info:
         load_recording(path)
     assert "pickle" not in str(info.value) and "\n" not in str(info.value)
+
+
+def test_compare_of_a_resampled_set_measures_shape_below_the_old_nyquist() -> None:
+    # `models resample` 1 -> 2 kHz, `resample` of the recording, then `compare`: the recording holds only the
+    # resampler's transition band above 0.8 x 500 Hz, so an LSD to 1 kHz said 2.5 dB for a twin that agrees within 0.6.
+    import numpy as np
+    from scipy.signal import butter, sosfiltfilt
+
+    from flowtex.fit.compare import CompareOptions, compare_signals, resampled_band_hz
+    from flowtex.models.synthetic import synthetic_model_set
+
+    rate = 2000.0
+    rng = np.random.default_rng(0)
+    render = rng.standard_normal(40000)
+    recorded = sosfiltfilt(butter(8, 450.0, fs=rate, output="sos"), render)   # content of a 1 kHz recording, upsampled
+    full = compare_signals(recorded, [render], rate)
+    band = compare_signals(recorded, [render], rate, CompareOptions(max_freq_hz=400.0))
+    assert full.lsd_db > 3.0                       # the 450-1000 Hz bins within 40 dB of the peak dominate
+    assert band.lsd_db < 0.5                        # identical below 400 Hz (8th-order Butterworth: < 0.1 dB there)
+    assert band.max_freq_hz == 400.0 and band.to_json()["max_freq_hz"] == 400.0
+
+    ms = synthetic_model_set(np.array([50.0, 100.0]), np.array([1.0, 2.0]), 4, 2, grid=True, sample_rate=2000.0)
+    assert resampled_band_hz(ms) == float("inf")
+    ms.metadata["resample"] = {"from_hz": 1000.0, "to_hz": 2000.0}
+    assert resampled_band_hz(ms) == 400.0           # flowtex.dsp.resample.PASSBAND x the old Nyquist
