@@ -92,3 +92,23 @@ def test_compare_of_a_resampled_set_measures_shape_below_the_old_nyquist() -> No
     assert resampled_band_hz(ms) == float("inf")
     ms.metadata["resample"] = {"from_hz": 1000.0, "to_hz": 2000.0}
     assert resampled_band_hz(ms) == 400.0           # flowtex.dsp.resample.PASSBAND x the old Nyquist
+
+
+def test_friction_warning_quotes_one_force_ratio_for_either_fit() -> None:
+    # A tangential force that ignores the normal force: both fits warn and quote "force ratio"; it was weighted by each
+    # fit's own IRLS weights, so the same recording read 0.455 through the origin and 0.439 with --offset yes.
+    import re
+
+    import numpy as np
+
+    from flowtex.fit.friction import fit_friction
+
+    rng = np.random.default_rng(1)
+    normal = 0.5 + 3.0 * rng.random(5000)
+    tangential = 0.6 + 0.05 * rng.standard_normal(5000)
+    ratios = set()
+    for offset in (False, True):
+        fit = fit_friction(normal, tangential, offset=offset)
+        ratios.add(re.search(r"force ratio ([0-9.]+)", fit.warning).group(1))
+    expected = f"{tangential.sum() / normal.sum():.3f}"   # mean T / mean N, all samples in contact
+    assert ratios == {expected}
