@@ -112,3 +112,17 @@ def test_friction_warning_quotes_one_force_ratio_for_either_fit() -> None:
         ratios.add(re.search(r"force ratio ([0-9.]+)", fit.warning).group(1))
     expected = f"{tangential.sum() / normal.sum():.3f}"   # mean T / mean N, all samples in contact
     assert ratios == {expected}
+
+
+def test_a_signed_velocity_given_as_speed_is_named(tmp_path: Path) -> None:
+    # `fit texture --speed v` with a signed velocity said "no stationary piece ... none is moving" at 240 mm/s.
+    import numpy as np
+
+    from flowtex.fit.inputs import check_speed_magnitude
+
+    t = np.arange(5000) / 1000.0
+    with pytest.raises(DataError, match=r"speed is negative in 50 % .*--speed takes the speed magnitude"):
+        check_speed_magnitude(200.0 * np.sin(2 * np.pi * t), "rec.npz: signal 'v' (--speed)")
+    speed = np.abs(200.0 * np.sin(2 * np.pi * t))
+    speed[::50] -= 0.5                              # a resampled magnitude dipping below 0 near rest is accepted
+    check_speed_magnitude(speed, "rec.npz: signal 'speed' (--speed)")
