@@ -126,3 +126,15 @@ def test_a_signed_velocity_given_as_speed_is_named(tmp_path: Path) -> None:
     speed = np.abs(200.0 * np.sin(2 * np.pi * t))
     speed[::50] -= 0.5                              # a resampled magnitude dipping below 0 near rest is accepted
     check_speed_magnitude(speed, "rec.npz: signal 'speed' (--speed)")
+
+
+def test_holdout_one_is_refused_by_the_option_that_said_it_was_valid() -> None:
+    # `--holdout 1` passed the option check ("valid (0, 1]") and was then refused by the library ("between 0 and 1").
+    import argparse
+
+    from flowtex.cli.options import number_in_range
+
+    with pytest.raises(argparse.ArgumentTypeError, match=r"valid \(0, 1\)"):
+        number_in_range("1", 0.0, 1.0, low_open=True, high_open=True)
+    assert number_in_range("0.999", 0.0, 1.0, low_open=True, high_open=True) == 0.999
+    assert number_in_range("1", 0.0, 1.0) == 1.0    # closed by default, as before

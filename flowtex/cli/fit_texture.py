@@ -39,7 +39,7 @@ def register_fit(kinds: Any) -> None:
     p.add_argument("--xml", type=Path, help="also write HaTT XML (with --out-dir: one .xml beside each .json)", nargs="?",
                    const=Path("-"))
     p.add_argument("--report", metavar="DIR", help="write a markdown report with plots into this folder")
-    p.add_argument("--holdout", type=lambda t: number_in_range(t, 0.0, 1.0, low_open=True), metavar="FRACTION",
+    p.add_argument("--holdout", type=lambda t: number_in_range(t, 0.0, 1.0, low_open=True, high_open=True), metavar="FRACTION",
                    help="fit on all but the last FRACTION of the recording and compare the fit with that part "
                         "(as flowtex compare does)")
     p.add_argument("--grid", metavar="INDEX.csv", help="Romano-2012 grid: CSV of file, speed, force (one stationary recording each)")

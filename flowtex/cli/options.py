@@ -64,16 +64,18 @@ def positive_hz(text: str) -> float:
     return number_in_range(text, 0.0, math.inf, low_open=True, unit="Hz")
 
 
-def number_in_range(text: str, low: float, high: float, *, low_open: bool = False, unit: str = "") -> float:
-    """A finite float in [low, high] (or (low, high] with ``low_open``); argparse turns the ValueError into a usage line."""
+def number_in_range(text: str, low: float, high: float, *, low_open: bool = False, high_open: bool = False,
+                    unit: str = "") -> float:
+    """A finite float in [low, high] (open at either end with ``low_open`` / ``high_open``); argparse turns the error into a usage line."""
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
     below = value <= low if low_open else value < low
-    if not math.isfinite(value) or below or value > high:
+    above = value >= high if high_open else value > high
+    if not math.isfinite(value) or below or above:
         lo = "(" if low_open else "["
-        hi = "inf)" if high == math.inf else f"{high:g}]"
+        hi = "inf)" if high == math.inf else f"{high:g}" + (")" if high_open else "]")
         raise argparse.ArgumentTypeError(f"{text} is out of range: valid {lo}{low:g}, {hi}{' ' + unit if unit else ''}")
     return value
 
