@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from ..errors import DataError
 from .options import int_at_least, positive_hz
 from .output import say
 
@@ -22,7 +23,8 @@ def register(sub: Any) -> None:
     r.add_argument("input", metavar="IN", help="model set: HaTT .xml or native flowtex .json")
     r.add_argument("--rate", type=positive_hz, required=True, metavar="HZ",
                    help="target sample rate in Hz (the rate it produces; at most 16x up or down)")
-    r.add_argument("-o", "--output", required=True, metavar="OUT", help="native model-set JSON to write")
+    r.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="model set to write: .json (native, with the resampling record) or .xml (HaTT)")
     r.add_argument("--keep-order", action="store_true",
                    help="keep the models' (p, q) when upsampling by more than 2x (cheaper to render, less exact)")
     r.add_argument("--extra-order", type=int_at_least(0, MAX_EXTRA_ORDER), metavar="N",
@@ -37,9 +39,13 @@ def register(sub: Any) -> None:
 def cmd_models_resample(args: argparse.Namespace) -> int:
     from ..fit.resample import check_misses, resample_model_set, resample_summary, tqdm_progress
     from ..io.atomic import atomic_output, check_output
+    from ..io.hatt import write_hatt_xml
     from ..io.modelset import load_model_set, save_model_set
 
     target = check_output(args.output, inputs=[args.input], option="-o")
+    if target.suffix.lower() not in (".json", ".xml"):
+        raise DataError(f"-o {args.output}: write the resampled set as .json (flowtex's format, with the resampling "
+                        "record) or .xml (HaTT's format)")
     ms = load_model_set(args.input)
     progress, close = tqdm_progress(ms.num_models, "resample")
     try:
@@ -48,7 +54,10 @@ def cmd_models_resample(args: argparse.Namespace) -> int:
         close()
     check_misses(out, args.allow_misses, str(args.input))  # refuses (FlowtexError naming the models) unless --allow-misses
     with atomic_output(target) as tmp:
-        save_model_set(out, tmp)
+        if target.suffix.lower() == ".xml":
+            write_hatt_xml(out, tmp, texture=int(out.metadata.get("texture") or 0))
+        else:
+            save_model_set(out, tmp)
     line, warning = resample_summary(args.input, ms, out, str(target), args.keep_order)
     say(line)
     if warning:
