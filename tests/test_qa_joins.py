@@ -166,3 +166,22 @@ def test_models_resample_writes_the_format_its_output_suffix_names(tmp_path: Pat
                            "-o", str(tmp_path / "out.txt")], capture_output=True, text=True, timeout=300)
     assert done.returncode != 0 and ".json" in done.stderr and "Traceback" not in done.stderr
     assert not (tmp_path / "out.txt").exists()
+
+
+@pytest.mark.parametrize(("flags", "message"), [
+    (["-o", "surf.xml"], "-o writes flowtex's JSON model set"),       # wrote JSON into surf.xml
+    (["-o", "surf.json", "--xml", "hatt.json"], "--xml writes HaTT's XML"),
+])
+def test_fit_texture_refuses_an_output_whose_suffix_names_the_other_format(tmp_path: Path, capsys, flags, message) -> None:
+    import numpy as np
+
+    from flowtex.cli.main import main
+    from flowtex.io.recordings import save_recording
+
+    n = 4000
+    rec = save_recording(tmp_path / "rec.npz", {"accel": np.random.default_rng(0).standard_normal(n),
+                                                "speed": np.full(n, 100.0), "force": np.full(n, 1.0)}, rate=1000.0)
+    out = [str(tmp_path / f) if not f.startswith("-") else f for f in flags]
+    code = main(["fit", "texture", str(rec), "--accel", "accel", "--speed", "speed", "--force", "force", *out])
+    assert code != 0 and message in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.npz"]   # refused before any work: nothing written

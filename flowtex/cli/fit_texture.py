@@ -76,6 +76,11 @@ def _check_outputs(args: argparse.Namespace, inputs: list) -> None:
 
     check_output(args.output, inputs=inputs, option="-o")
     check_output(args.xml, inputs=inputs + [args.output], option="--xml")
+    if args.output is not None and Path(args.output).suffix.lower() == ".xml":
+        raise DataError(f"-o {args.output}: -o writes flowtex's JSON model set; name it .json and give --xml "
+                        f"{args.output} for HaTT's XML")
+    if args.xml is not None and Path(args.xml).suffix.lower() == ".json":
+        raise DataError(f"--xml {args.xml}: --xml writes HaTT's XML; name it .xml (-o writes the JSON)")
     check_report_folder(args.report, inputs)
 
 
