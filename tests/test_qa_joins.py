@@ -185,3 +185,24 @@ def test_fit_texture_refuses_an_output_whose_suffix_names_the_other_format(tmp_p
     code = main(["fit", "texture", str(rec), "--accel", "accel", "--speed", "speed", "--force", "force", *out])
     assert code != 0 and message in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.npz"]   # refused before any work: nothing written
+
+
+def test_models_resample_takes_a_tap_library(tmp_path: Path, capsys) -> None:
+    # A 2 kHz surface with taps needed Python (the tap_player error named resample_tap_library); now one command.
+    import numpy as np
+    from scipy.signal import resample_poly
+
+    from flowtex.cli.main import main
+    from flowtex.io.taplib import read_tap_library, write_tap_library
+    from flowtex.models.taps import synthetic_tap_library
+
+    lib = synthetic_tap_library()
+    src = write_tap_library(tmp_path / "taps.json", lib)
+    assert main(["models", "resample", str(src), "--rate", "2000", "-o", str(tmp_path / "taps2k.json")]) == 0
+    out = read_tap_library(tmp_path / "taps2k.json")
+    assert out.sample_rate_hz == 2000.0
+    np.testing.assert_array_equal(out.speeds, lib.speeds)
+    expected = resample_poly(lib.transients, 2, 1, axis=1)       # scipy's polyphase resampler is the reference
+    np.testing.assert_allclose(out.transients[:, :expected.shape[1]], expected[:, :out.transients.shape[1]], rtol=1e-12)
+    assert main(["models", "resample", str(src), "--rate", "2000", "-o", str(tmp_path / "taps2k.xml")]) != 0
+    assert "tap library is written as .json" in capsys.readouterr().err

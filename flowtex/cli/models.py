@@ -14,7 +14,7 @@ def register(sub: Any) -> None:
     """Add ``flowtex models`` with its ``resample`` action."""
     from ..fit.resample import MAX_EXTRA_ORDER
 
-    p = sub.add_parser("models", help="operate on texture model sets (resample)",
+    p = sub.add_parser("models", help="operate on texture model sets and tap libraries (resample)",
                        description="Transform texture model sets (HaTT XML or native JSON).")
     actions = p.add_subparsers(dest="models_action", required=True, metavar="ACTION", parser_class=type(p))
     r = actions.add_parser("resample", help="resample every model to another sample rate",
@@ -43,6 +43,8 @@ def cmd_models_resample(args: argparse.Namespace) -> int:
     from ..io.modelset import load_model_set, save_model_set
 
     target = check_output(args.output, inputs=[args.input], option="-o")
+    if _resample_taps(args, target):
+        return 0
     if target.suffix.lower() not in (".json", ".xml"):
         raise DataError(f"-o {args.output}: write the resampled set as .json (flowtex's format, with the resampling "
                         "record) or .xml (HaTT's format)")
@@ -63,3 +65,23 @@ def cmd_models_resample(args: argparse.Namespace) -> int:
     if warning:
         say(warning)
     return 0
+
+
+def _resample_taps(args: argparse.Namespace, target: Any) -> bool:
+    """A tap library (``flowtex fit taps``) as input: resample its transients to ``--rate``, write it; False for a model set."""
+    from ..errors import FlowtexError
+    from ..io.atomic import atomic_output
+    from ..io.taplib import read_tap_library, write_tap_library
+    from ..models.taps import resample_tap_library
+
+    try:
+        lib = read_tap_library(args.input)
+    except FlowtexError:
+        return False                     # not a tap library: the model-set reader gives the error, if any
+    if target.suffix.lower() != ".json":
+        raise DataError(f"-o {args.output}: a tap library is written as .json")
+    out = resample_tap_library(lib, args.rate)
+    with atomic_output(target) as tmp:
+        write_tap_library(tmp, out, notes=f"resampled by flowtex models resample from {lib.sample_rate_hz:g} Hz")
+    say(f"{args.input}: tap library ({len(lib.speeds)} taps) {lib.sample_rate_hz:g} Hz -> {args.rate:g} Hz, written to {target}")
+    return True
