@@ -206,3 +206,29 @@ def test_models_resample_takes_a_tap_library(tmp_path: Path, capsys) -> None:
     np.testing.assert_allclose(out.transients[:, :expected.shape[1]], expected[:, :out.transients.shape[1]], rtol=1e-12)
     assert main(["models", "resample", str(src), "--rate", "2000", "-o", str(tmp_path / "taps2k.xml")]) != 0
     assert "tap library is written as .json" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("surface", "line"), [
+    ("    models: {data}/synthetic_texture.json\n", 7),
+    ("    models: {data}/synthetic_texture_2k.json\n    taps: {data}/synthetic_taps.json\n", 8),
+])
+def test_scene_plan_refuses_a_file_at_another_rate_at_its_line(tmp_path: Path, surface: str, line: int) -> None:
+    # A 2 kHz scene naming 1 kHz files was planned, then `scene run` failed naming a temporary graph file.
+    from flowtex.errors import FlowtexError
+    from flowtex.io.modelset import load_model_set, save_model_set
+    from flowtex.scene.file import load_scene
+    from flowtex.scene.plan import plan_scene
+
+    data = Path(__file__).resolve().parents[1] / "graphs" / "data"
+    ms = load_model_set(data / "synthetic_texture.json")
+    ms.sample_rate = 2000.0                       # only the rate matters to the planner's check
+    save_model_set(ms, tmp_path / "synthetic_texture_2k.json")
+    for name in ("synthetic_taps.json",):
+        (tmp_path / name).write_bytes((data / name).read_bytes())
+    (tmp_path / "synthetic_texture.json").write_bytes((data / "synthetic_texture.json").read_bytes())
+    scene = tmp_path / "s.yaml"
+    scene.write_text("flowtex: 1\nname: s\nrate: 2000\ntrajectory: {speed: [50, 250], force: [0.5, 2.5]}\n"
+                     "surfaces:\n  a:\n" + surface.format(data="."))
+    with pytest.raises(FlowtexError, match=rf"s\.yaml:{line}:\d+: surface 'a': .* is sampled at 1000 Hz but the scene "
+                                           r"runs at 2000 Hz; run 'flowtex models resample"):
+        plan_scene(load_scene(scene))
