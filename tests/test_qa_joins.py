@@ -232,3 +232,17 @@ def test_scene_plan_refuses_a_file_at_another_rate_at_its_line(tmp_path: Path, s
     with pytest.raises(FlowtexError, match=rf"s\.yaml:{line}:\d+: surface 'a': .* is sampled at 1000 Hz but the scene "
                                            r"runs at 2000 Hz; run 'flowtex models resample"):
         plan_scene(load_scene(scene))
+
+
+def test_outputs_of_one_format_refuse_a_suffix_that_names_another(tmp_path: Path) -> None:
+    # `fit friction -o mu.xml`, `fit taps -o t.xml` and `scene plan -o g.json` wrote JSON or YAML under those names.
+    from flowtex.io.atomic import OutputError
+
+    with pytest.raises(OutputError, match=r"-o .*mu\.xml: this output is written as \.json"):
+        check_output(tmp_path / "mu.xml", option="-o", suffixes=(".json",))
+    with pytest.raises(OutputError, match=r"written as \.yaml or \.yml"):
+        check_output(tmp_path / "g.json", option="-o", suffixes=(".yaml", ".yml"))
+    assert check_output(tmp_path / "MU.JSON", suffixes=(".json",)) == tmp_path / "MU.JSON"
+    fifo = tmp_path / "pipe"                       # /dev/null and pipes have no suffix: accepted
+    os.mkfifo(fifo)
+    assert check_output(fifo, suffixes=(".json",)) == fifo

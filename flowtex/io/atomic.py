@@ -46,11 +46,12 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def check_output(path: str | Path | None, *, inputs: Iterable[str | Path | None] = (), option: str = "-o",
-                 create_folders: bool = True) -> Path | None:
+                 create_folders: bool = True, suffixes: tuple[str, ...] = ()) -> Path | None:
     """Check an output path before any work starts; return it (expanded), or None when ``path`` is None.
 
     Refuses (one line naming ``option`` and the file) an output that is the same file as one of ``inputs``, an
-    existing folder given as a file, and a folder that does not exist and cannot be created or is not writable.
+    existing folder given as a file, a suffix not in ``suffixes`` (when given: the format the file is written in),
+    and a folder that does not exist and cannot be created or is not writable.
     Missing folders are created here, before the work, so no verb fails after its work is done.
     """
     if path is None:
@@ -62,6 +63,9 @@ def check_output(path: str | Path | None, *, inputs: Iterable[str | Path | None]
                               "flowtex never overwrites an input: choose another output file")
     if out.is_dir():
         raise OutputError(f"{option} {path}: is a folder; give a file name inside it")
+    if suffixes and out.suffix.lower() not in suffixes and not _is_special(out):
+        raise OutputError(f"{option} {path}: this output is written as {' or '.join(suffixes)}; "
+                          f"name it so (the suffix names the format)")
     folder = out.parent if str(out.parent) else Path(".")
     if not folder.exists():
         if not create_folders:
