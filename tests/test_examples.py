@@ -25,6 +25,7 @@ EXAMPLES: dict[str, tuple[str, dict]] = {
     "hatt_texture.yaml": ("data/exploration.npz", {}),
     "surface_render.yaml": ("data/exploration.npz", {}),
     "live_texture.yaml": ("data/exploration.npz", {}),
+    "live_audio.yaml": ("data/exploration.npz", {}),
     "pattern_compliance.yaml": ("data/pattern_demo.npz", {}),
 }
 

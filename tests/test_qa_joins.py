@@ -238,9 +238,9 @@ def test_outputs_of_one_format_refuse_a_suffix_that_names_another(tmp_path: Path
     # `fit friction -o mu.xml`, `fit taps -o t.xml` and `scene plan -o g.json` wrote JSON or YAML under those names.
     from flowtex.io.atomic import OutputError
 
-    with pytest.raises(OutputError, match=r"-o .*mu\.xml: this output is written as \.json"):
+    with pytest.raises(OutputError, match=r"-o .*mu\.xml: unknown output format '\.xml'; use \.json"):
         check_output(tmp_path / "mu.xml", option="-o", suffixes=(".json",))
-    with pytest.raises(OutputError, match=r"written as \.yaml or \.yml"):
+    with pytest.raises(OutputError, match=r"unknown output format '\.json'; use \.yaml, \.yml"):
         check_output(tmp_path / "g.json", option="-o", suffixes=(".yaml", ".yml"))
     assert check_output(tmp_path / "MU.JSON", suffixes=(".json",)) == tmp_path / "MU.JSON"
     fifo = tmp_path / "pipe"                       # /dev/null and pipes have no suffix: accepted

@@ -56,6 +56,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if args.plot:
         need_matplotlib()
     rec = load_recording(args.input)
+    if rec.samples < 2:
+        raise DataError(f"{args.input}: the recording has {rec.samples} sample(s); bench needs at least 2")
     with dask_client(args.workers, args.scheduler) as client:
         configs, outputs = sweep(args.graph, dict(rec.arrays), knobs, reference, args.outputs, args.metric, args.repeats,
                                  args.seed, tuple(args.plugins), client=client, tier=args.compile)

@@ -14,7 +14,8 @@ from .output import note, say
 def register(sub: Any) -> None:
     p = sub.add_parser("validate", help="check any flowtex file (graph, scene, device map, model set, pattern, tap library, "
                                         "friction, compliance); one line per problem")
-    p.add_argument("graph", metavar="FILE")
+    p.add_argument("graph", metavar="FILE", help="any flowtex file; its kind is read from its content")
+    p.add_argument("--dbc", metavar="DEVICE.dbc", help="the device a map file is checked against")
     add_graph_options(p)
     p.set_defaults(func=cmd_validate)
 
@@ -61,8 +62,15 @@ def load_graph_from_args(args: argparse.Namespace, path: str | Path | None = Non
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
+    from ..filecheck import GRAPH, check_file, file_kind
     from ..graph.compiled import check_graph
 
+    kind = file_kind(args.graph)
+    if kind != GRAPH:
+        if args.overrides:
+            raise FlowtexError(f"--set: {args.graph} is a {kind}, not a graph; --set applies to graphs only")
+        say(check_file(args.graph, kind, args.dbc, tuple(args.plugins), not args.no_plugins))
+        return 0
     rg = check_graph(args.graph, overrides(args.overrides), **plugin_kwargs(args))
     report_plugins(args.graph, args)
     dropped = f"; dropped (unused): {', '.join(rg.dropped)}" if rg.dropped else ""

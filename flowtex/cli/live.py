@@ -10,7 +10,7 @@ from ..errors import FlowtexError
 from .graph import load_graph_from_args
 from .main import EXIT_NO_SENSOR_FRAMES
 from .options import add_live_options, int_at_least, positive_hz
-from .output import note
+from .output import note, say
 
 
 def register(sub: Any) -> None:
@@ -18,8 +18,9 @@ def register(sub: Any) -> None:
                        description="Run GRAPH live: CAN sensor frames -> graph inputs, graph outputs -> guarded actuator frames.",
                        epilog="Exit codes: 0 clean stop (duration, Ctrl-C, SIGTERM); 1 error (safe values sent); "
                               "3 no sensor frame arrived during the whole session (outputs stayed safe).")
-    p.add_argument("graph", help="graph YAML file")
-    add_live_options(p)
+    p.add_argument("graph", nargs="?", help="graph YAML file")
+    p.add_argument("--list-audio", action="store_true", help="list the audio devices PortAudio sees (for a map's audio.device), and exit")
+    add_live_options(p, device_required=False)
     p.set_defaults(func=cmd_live)
 
     s = sub.add_parser("simulate-device", help="run the simulated CAN device as its own process",
@@ -40,7 +41,26 @@ def register(sub: Any) -> None:
 
 def cmd_live(args: argparse.Namespace) -> int:
     """0 after a clean stop (duration, Ctrl-C, SIGTERM), 1 on errors, 3 when no sensor frame arrived."""
+    if args.list_audio:
+        from ..runtime.audio import list_audio_devices
+
+        say(list_audio_devices())
+        return 0
+    missing = [f for f, v in (("GRAPH", args.graph), ("--dbc", args.dbc), ("--map", args.map)) if not v]
+    if missing:
+        raise FlowtexError(f"flowtex live: missing {', '.join(missing)} (usage: flowtex live GRAPH --dbc DEVICE.dbc --map MAP.yaml ...)")
+    check_live_outputs(args, args.graph, args.dbc, args.map)
     return run_live_session(load_graph_from_args(args, tier="fused"), args)  # live keeps the fused tick
+
+
+def check_live_outputs(args: argparse.Namespace, source: str, dbc: str | None, map_: str | None) -> None:
+    """``--stats`` and ``--record``: not an input, folder there and writable, before the session (and the compile)."""
+    from ..io.atomic import check_output
+
+    inputs = [source, dbc, map_, args.simulate]
+    check_output(args.stats, inputs=inputs, option="--stats")
+    check_output(args.record, inputs=inputs + [args.stats], option="--record")
+    check_output(getattr(args, "record_audio", None), inputs=inputs + [args.stats, args.record], option="--record-audio")
 
 
 def run_live_session(graph: Any, args: argparse.Namespace, dbc: str | None = None, map_: str | None = None) -> int:
@@ -53,7 +73,8 @@ def run_live_session(graph: Any, args: argparse.Namespace, dbc: str | None = Non
                       record=args.record, rt=args.rt, rt_priority=args.rt_priority, rt_cpu=args.cpu,
                       stats_path=args.stats, seed=args.seed, status=None if args.quiet else sys.stderr,
                       bitrate=args.bitrate, show=args.show,
-                      inputs=[p for p in (args.graph, getattr(args, "scene", None)) if p])
+                      inputs=[p for p in (getattr(args, "graph", None), getattr(args, "scene", None)) if p],
+                      record_audio=getattr(args, "record_audio", None))
     for line in report.warnings:
         note(f"flowtex live: warning: {line}")
     if report.error:

@@ -59,9 +59,13 @@ def add_seed_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=None, help="noise seed (default: the graph's)")
 
 
+MAX_RATE_HZ = 1_000_000.0
+"""Largest rate any option takes: 1 MHz, above any haptic or audio recording (filters designed at absurd rates fail)."""
+
+
 def positive_hz(text: str) -> float:
-    """argparse type: a finite rate > 0 in Hz."""
-    return number_in_range(text, 0.0, math.inf, low_open=True, unit="Hz")
+    """argparse type: a rate in (0, :data:`MAX_RATE_HZ`] Hz."""
+    return number_in_range(text, 0.0, MAX_RATE_HZ, low_open=True, unit="Hz")
 
 
 def number_in_range(text: str, low: float, high: float, *, low_open: bool = False, high_open: bool = False,
@@ -125,6 +129,8 @@ def add_live_options(p: argparse.ArgumentParser, device_required: bool = True) -
     p.add_argument("--dbc", required=device_required, help="DBC file describing the device's messages")
     p.add_argument("--map", required=device_required, help="map YAML binding DBC signals to graph inputs/outputs (docs/live.md)")
     p.add_argument("--record", help="log every frame read and written to SESSION.blf or SESSION.log")
+    p.add_argument("--record-audio", metavar="OUT.wav", help="write the samples handed to the sound card (the map's audio "
+                                                             "section) as a float32 WAV")
     p.add_argument("--duration", type=lambda t: number_in_range(t, 0.0, math.inf, low_open=True, unit="s"),
                    help="seconds to run (default: until Ctrl-C / SIGTERM)")
     p.add_argument("--rt", action="store_true", help="ask for SCHED_FIFO real-time scheduling and pin the loop to a CPU")

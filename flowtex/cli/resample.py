@@ -7,6 +7,7 @@ from typing import Any
 
 from .options import add_from_rate, number_in_range, positive_hz
 from .output import say
+from .run import RECORDING_SUFFIXES
 
 
 def register(sub: Any) -> None:
@@ -29,6 +30,6 @@ def cmd_resample(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output
     from ..io.recording_resample import resample_recording
 
-    check_output(args.output, inputs=[args.input], option="-o")
+    check_output(args.output, inputs=[args.input], option="-o", suffixes=(*RECORDING_SUFFIXES, ".wav"))
     say(resample_recording(args.input, args.output, args.rate, args.from_rate, args.atten_db))
     return 0

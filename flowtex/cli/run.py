@@ -13,16 +13,18 @@ from .options import add_compile_option, add_graph_options, add_seed_option
 from .output import say
 
 REPLAY_SUFFIXES = (".blf", ".log", ".asc")
+RECORDING_SUFFIXES = (".npz", ".csv", ".h5", ".hdf5")
 
 
 def register(sub: Any) -> None:
     p = sub.add_parser("run", help="run a graph offline over a recording (or replay a CAN session)")
     p.add_argument("graph")
     p.add_argument("--input", "-i", required=True, help="recording: .npz, .csv, .h5; or a CAN session .blf/.log")
-    p.add_argument("--output", "-o", help="output file: .npz, .csv, .h5 (or .blf/.log when replaying)")
+    p.add_argument("--output", "-o", help="output file: .npz, .csv, .h5, .wav (audio-rate, as --map's audio section plays it) "
+                                          "(or .blf/.log/.wav when replaying)")
     add_seed_option(p)
     p.add_argument("--dbc", help="DBC file (replay of a CAN session)")
-    p.add_argument("--map", help="signal map file (replay of a CAN session)")
+    p.add_argument("--map", help="signal map file (replay of a CAN session; its audio section for --output OUT.wav)")
     p.add_argument("--nonfinite", choices=("error", "hold", "zero", "pass"), default="error",
                    help="NaN/inf in the recording: error (default; names signal, count, first index), "
                         "hold (last finite value), zero, or pass (unchanged)")
@@ -34,14 +36,23 @@ def register(sub: Any) -> None:
 def cmd_run(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output
 
-    check_output(args.output, inputs=[args.graph, args.input, args.dbc, args.map], option="-o")
+    replay = Path(args.input).suffix.lower() in REPLAY_SUFFIXES
+    check_output(args.output, inputs=[args.graph, args.input, args.dbc, args.map], option="-o",
+                 suffixes=(".npz", ".wav", *REPLAY_SUFFIXES) if replay else (*RECORDING_SUFFIXES, ".wav"))
     graph = load_graph_from_args(args)
-    if Path(args.input).suffix.lower() in REPLAY_SUFFIXES:
+    if replay:
         if not (args.dbc and args.map):
             raise FlowtexError(f"{args.input}: replaying a CAN session needs --dbc DEVICE.dbc and --map MAP.yaml")
         from ..runtime.replay import replay_session
 
         say(str(replay_session(graph, args.input, args.dbc, args.map, args.output, seed=args.seed)))
+        return 0
+    if args.output and Path(args.output).suffix.lower() == ".wav":
+        from ..runtime.offline import render_recording_audio
+
+        samples, rate = render_recording_audio(graph, args.input, args.output, args.map, seed=args.seed,
+                                               progress=sys.stderr.isatty(), nonfinite=args.nonfinite)
+        say(f"{graph.name}: {samples.shape[0]} frames x {samples.shape[1]} channel(s) at {rate:g} Hz -> {args.output}")
         return 0
     from ..runtime.offline import run_recording
 

@@ -13,7 +13,7 @@ from ..errors import FlowtexError
 from .graph import load_graph_from_args
 from .options import add_compile_option, add_graph_options, add_live_options, add_plugin_options, add_seed_option
 from .output import say
-from .run import run_summary
+from .run import RECORDING_SUFFIXES, run_summary
 
 
 def register(sub: Any) -> None:
@@ -73,7 +73,7 @@ def cmd_scene_run(args: argparse.Namespace) -> int:
     from ..scene.build import plan_to_graph
     from ..scene.plan import explain
 
-    check_output(args.output, inputs=[args.scene, args.input], option="-o")
+    check_output(args.output, inputs=[args.scene, args.input], option="-o", suffixes=RECORDING_SUFFIXES)
     with tempfile.TemporaryDirectory(prefix="flowtex-scene-") as tmp:
         graph_path = Path(tmp) / "scene.yaml"
         plan = plan_to_graph(args.scene, graph_path, tuple(args.plugins), fixed=args.surface, relative=False,
@@ -89,17 +89,17 @@ def cmd_scene_run(args: argparse.Namespace) -> int:
 def cmd_scene_live(args: argparse.Namespace) -> int:
     from ..scene.build import plan_to_graph
     from ..scene.file import load_scene
-    from .live import run_live_session
+    from .live import check_live_outputs, run_live_session
 
     scene = load_scene(args.scene)
     dbc = args.dbc or (str(scene.dbc) if scene.dbc else None)
     map_ = args.map or (str(scene.map) if scene.map else None)
     if not (dbc and map_):
         raise FlowtexError(f"{args.scene}: live use needs a device: add device: {{dbc: FILE, map: FILE}} to the scene or give --dbc and --map")
+    check_live_outputs(args, args.scene, dbc, map_)
     with tempfile.TemporaryDirectory(prefix="flowtex-scene-") as tmp:
         graph_path = Path(tmp) / "scene.yaml"
         plan_to_graph(args.scene, graph_path, tuple(args.plugins), fixed=args.surface, relative=False,
                       auto_plugins=not args.no_plugins)
         graph = load_graph_from_args(args, graph_path, tier="fused")  # live keeps the fused tick
-        args.graph = args.scene
         return run_live_session(graph, args, dbc, map_)

@@ -165,6 +165,13 @@ def _resample_models(ms: TextureModelSet, rate_to: float, keep_order: bool, trie
             i += 1
 
 
+def check_rate_ratio(rate_from: float, rate_to: float, option: str = "--rate", what: str = "model set") -> None:
+    """Raise FlowtexError unless ``rate_to`` (Hz) is within :data:`MAX_RATE_RATIO` of ``rate_from`` (Hz) either way."""
+    if not (math.isfinite(rate_to) and rate_from / MAX_RATE_RATIO <= rate_to <= rate_from * MAX_RATE_RATIO):
+        raise FlowtexError(f"{option} {rate_to:g}: valid range for this {rate_from:g} Hz {what} is {rate_from / MAX_RATE_RATIO:g} "
+                           f"to {rate_from * MAX_RATE_RATIO:g} Hz (at most {MAX_RATE_RATIO:g}x up or down)")
+
+
 def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[int, int], None] | None = None,
                        keep_order: bool = False, extra_order: int | None = None, option: str = "--rate") -> TextureModelSet:
     """A copy of ``ms`` whose models run at ``rate_hz`` (Hz) with the same physical PSDs below min Nyquist.
@@ -188,9 +195,7 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
     if extra_order is not None and not (0 <= extra_order <= MAX_EXTRA_ORDER and extra_order % 2 == 0):
         raise FlowtexError(f"--extra-order must be an even number from 0 to {MAX_EXTRA_ORDER}, got {extra_order}")
     rate_from = float(ms.sample_rate)
-    if not rate_from / MAX_RATE_RATIO <= rate_hz <= rate_from * MAX_RATE_RATIO:
-        raise FlowtexError(f"{option} {rate_hz:g}: valid range for this {rate_from:g} Hz model set is {rate_from / MAX_RATE_RATIO:g} "
-                           f"to {rate_from * MAX_RATE_RATIO:g} Hz (at most {MAX_RATE_RATIO:g}x up or down)")
+    check_rate_ratio(rate_from, rate_hz, option, "model set")
     rate_to = float(rate_hz)
     upsampling = rate_to > rate_from
     tries = (0,) if not upsampling or keep_order else EXTRA_ORDERS if extra_order is None else (extra_order,)

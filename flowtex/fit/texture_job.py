@@ -57,6 +57,10 @@ def read_signals(path: Path, job: TextureJob, need_speed: bool = True) -> tuple[
     rec, rate = load(path, job.rate)
     if job.options is not None:
         check_highpass(job.options.highpass_hz, rate)
+    if job.render_rate is not None:
+        from .resample import check_rate_ratio
+
+        check_rate_ratio(rate, job.render_rate, "--render-rate", "recording")
     acc = signal(rec, job.accel, "--accel", (1, 3))
     if acc.ndim == 2:
         from ..dsp.dft321 import dft321

@@ -50,22 +50,22 @@ def check_output(path: str | Path | None, *, inputs: Iterable[str | Path | None]
     """Check an output path before any work starts; return it (expanded), or None when ``path`` is None.
 
     Refuses (one line naming ``option`` and the file) an output that is the same file as one of ``inputs``, an
-    existing folder given as a file, a suffix not in ``suffixes`` (when given: the format the file is written in),
-    and a folder that does not exist and cannot be created or is not writable.
-    Missing folders are created here, before the work, so no verb fails after its work is done.
+    existing folder given as a file, and a folder that does not exist and cannot be created or is not writable.
+    Missing folders are created here, before the work, so no verb fails after its work is done. ``suffixes``
+    (lower case, with the dot), when given, are the formats the verb can write.
     """
     if path is None:
         return None
     out = Path(path).expanduser()
+    if suffixes and out.suffix.lower() not in suffixes and not (len(suffixes) == 1 and _is_special(out)):
+        # -o /dev/null (no suffix) is accepted where one format is written; where the suffix picks it, it is refused
+        raise OutputError(f"{option} {path}: unknown output format {out.suffix!r}; use {', '.join(suffixes)}")
     for item in inputs:
         if item is not None and _same_file(out, Path(item).expanduser()):
             raise OutputError(f"{option} {path}: that is an input of this command ({item}); "
                               "flowtex never overwrites an input: choose another output file")
     if out.is_dir():
         raise OutputError(f"{option} {path}: is a folder; give a file name inside it")
-    if suffixes and out.suffix.lower() not in suffixes and not _is_special(out):
-        raise OutputError(f"{option} {path}: this output is written as {' or '.join(suffixes)}; "
-                          f"name it so (the suffix names the format)")
     folder = out.parent if str(out.parent) else Path(".")
     if not folder.exists():
         if not create_folders:

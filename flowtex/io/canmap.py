@@ -17,6 +17,7 @@ The format is documented in docs/live.md. In short::
         clamp: [-1.5, 1.5]       # required, in graph units
         safe: 0.0                # optional (default 0), in graph units, inside clamp; the DBC must carry it
         peak: {limit: 2.0, max_ms: 20}   # optional: |value| up to limit for max_ms
+    audio: {rate: 8000, block: 64, channels: [{output: vibration, scale: 1.5, clip: 1.0}]}   # optional: flowtex.io.audiomap
 
 :func:`load_map` checks the file against the DBC and (when given) the graph's
 input/output shapes and raises :class:`~flowtex.errors.GraphError` whose lines
@@ -36,10 +37,11 @@ from cantools.database.can import Database
 from ..errors import DataError, Diagnostic, GraphError, Location
 from ..limits import excerpt
 from ..yamlsource import LocDict, LocList, load_yaml, read_source
+from .audiomap import AudioMap, parse_audio
 from .dbc import find_signal, suggest
 from .dbcrange import check_value, sendable_range
 
-TOP_KEYS = ("flowtex_map", "description", "overrun_limit_ms", "inputs", "outputs")
+TOP_KEYS = ("flowtex_map", "description", "overrun_limit_ms", "inputs", "outputs", "audio")
 INPUT_KEYS = ("signal", "signals", "scale", "offset", "timeout_ms", "doc")
 OUTPUT_KEYS = ("signal", "signals", "scale", "offset", "clamp", "safe", "peak", "doc")
 PEAK_KEYS = ("limit", "max_ms")
@@ -81,6 +83,8 @@ class CanMap:
     inputs: dict[str, InputBinding]
     outputs: dict[str, OutputBinding]
     overrun_limit_ms: float = DEFAULT_OVERRUN_MS
+    audio: AudioMap | None = None
+    """The ``audio`` section (:mod:`flowtex.io.audiomap`), if the map has one."""
 
     def sensor_messages(self) -> list[str]:
         """Messages read by the runtime, in order of first use."""
@@ -161,9 +165,10 @@ def load_map(path: str | Path, db: Database, dbc_path: str | Path = "DBC",
             p.add((b.loc.line, b.loc.column), f"output {b.name!r} writes message {both[0]!r}, which inputs also read; "
                   "a message is either sensor or actuator")
     _one_message_per_id(p, db, [*inputs.values(), *outputs.values()])
+    audio = parse_audio(data["audio"], data.value_pos["audio"], p.add, graph_outputs) if "audio" in data else None
     if p.items:
         raise GraphError(p.items)
-    return CanMap(path, inputs, outputs, float(overrun))
+    return CanMap(path, inputs, outputs, float(overrun), audio)
 
 
 def _one_message_per_id(p: _Problems, db: Database, bindings: list[Binding]) -> None:

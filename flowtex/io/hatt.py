@@ -301,5 +301,6 @@ def write_hatt_xml(ms: TextureModelSet, path: str | Path, texture: int = 0, digi
         out.append(f"    <speedMod>{fmt(ms.speeds[m])}</speedMod>\n    <forceMod>{fmt(ms.forces[m])}</forceMod>\n")
         out.append("  </model>\n")
     out.append("</modelSet>\n")
-    path.write_text("".join(out), encoding="utf-8")
-    return path
+    from .atomic import write_text_atomic
+
+    return write_text_atomic(path, "".join(out))

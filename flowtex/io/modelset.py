@@ -119,8 +119,9 @@ def save_model_set(ms: TextureModelSet, path: str | Path) -> Path:
         text = json.dumps(doc, indent=1, allow_nan=False)
     except (TypeError, ValueError) as exc:
         raise DataError(f"{path}: cannot write model set {ms.material!r}: metadata is not plain JSON ({exc})") from None
-    path.write_text(text + "\n", encoding="utf-8")
-    return path
+    from .atomic import write_text_atomic
+
+    return write_text_atomic(path, text + "\n")
 
 
 def read_native(path: str | Path) -> TextureModelSet:

@@ -35,6 +35,8 @@ from .npzread import read_npz_arrays
 from .recording_rules import check_signals, numeric_signal
 
 SUFFIXES = (".npz", ".csv", ".h5", ".hdf5")
+AUDIO_SUFFIXES = (".wav",)
+"""Also read and written by load_recording/save_recording (channels ch0, ch1, ...; flowtex.io.wav), but not searched for by the fitters."""
 _COLUMN = re.compile(r"^(?P<name>[^\[\]]+)(?:\[(?P<index>\d+)\])?$")
 
 
@@ -65,8 +67,13 @@ def load_recording(path: str | Path) -> Recording:
         rec = _load_csv(path)
     elif suffix in (".h5", ".hdf5"):
         rec = _load_h5(path)
+    elif suffix == ".wav":
+        from .wav import read_wav
+
+        rate, arrays = read_wav(path)
+        rec = Recording(arrays, rate)
     else:
-        raise DataError(f"{path}: unknown recording format {suffix!r}; use .npz, .csv or .h5")
+        raise DataError(f"{path}: unknown recording format {suffix!r}; use .npz, .csv, .h5 or .wav")
     check_signals(rec.arrays, path)
     rec.path = path
     return rec
@@ -261,8 +268,13 @@ def save_recording(path: str | Path, arrays: Mapping[str, np.ndarray], rate: flo
 
     path = Path(path)
     suffix = path.suffix.lower()
+    if suffix == ".wav":
+        from .wav import write_signals_wav
+
+        write_signals_wav(path, arrays, rate)
+        return
     if suffix not in (".npz", ".csv", ".h5", ".hdf5"):
-        raise DataError(f"{path}: unknown output format {suffix!r}; use .npz, .csv or .h5")
+        raise DataError(f"{path}: unknown output format {suffix!r}; use .npz, .csv, .h5 or .wav")
     path.parent.mkdir(parents=True, exist_ok=True)
     arrays = {name: np.asarray(a, dtype=np.float64) for name, a in arrays.items()}
     units = {name: str(units[name]) for name in arrays if name in units} if units else {}

@@ -103,5 +103,6 @@ def write_tap_library(path: str | Path, lib: TapLibrary, notes: str = "") -> Pat
     if notes:
         doc["notes"] = notes
     doc["taps"] = [{"speed": float(v), "acceleration": [float(a) for a in row]} for v, row in zip(lib.speeds, lib.transients, strict=True)]
-    path.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
-    return path
+    from .atomic import write_text_atomic
+
+    return write_text_atomic(path, json.dumps(doc, indent=1) + "\n")

@@ -145,6 +145,11 @@ class DeadlineClock:
             now = self._now()
         return now - target
 
+    def shift(self, ns: int) -> None:
+        """Move the current deadline, and so every later one, by ``ns`` (positive: later); for a clock that
+        follows another one, e.g. the sound card's (:meth:`flowtex.runtime.audio.AudioOutput.pace`)."""
+        self.deadline_ns += int(ns)
+
     def time_left_ns(self) -> int:
         """Nanoseconds from now until the next tick's deadline (negative once it has passed)."""
         return self.deadline_ns + self.period_ns - self._now()

@@ -12,8 +12,10 @@ Per tick (the order is the contract replay relies on, see docs/live.md):
    watchdog, output guard, encode every actuator frame (:mod:`flowtex.runtime.canio`,
    fused into one compiled call by :mod:`flowtex.runtime.fused` when the graph allows);
 6. send exactly one frame per actuator message, in map order;
-7. in the slack: write the tick's received and sent frames to the ``--record``
-   log, step the simulated device, statistics and the status line.
+7. in the slack: hand the tick's audio samples to the sound card's callback (when the
+   map has an ``audio`` section, :mod:`flowtex.runtime.audio`), write the tick's received
+   and sent frames to the ``--record`` log, step the simulated device, statistics and the
+   status line.
 
 On every exit path (duration reached, Ctrl-C, SIGTERM, exception in the graph,
 bus error) the safe values are encoded and sent once more, as the last frames
@@ -40,6 +42,7 @@ import numpy as np
 from ..errors import FlowtexError
 from ..io.canlog import SessionWriter
 from ..io.dbc import one_line
+from .audio import AudioOutput
 from .buses import BusError, open_bus, receiver, sender
 from .canio import CanIO, load_io, tick_out
 from .clock import DeadlineClock
@@ -79,6 +82,8 @@ class LiveReport:
     """One line naming the silent sensor messages (frame ids) and the bus, or None when every sensor message arrived."""
     no_sensor_frames: bool = False
     """Not one sensor frame arrived (outputs were safe throughout): ``flowtex live`` then exits with code 3."""
+    audio: dict | None = None
+    """The audio output's summary (:meth:`~flowtex.runtime.audio.AudioOutput.summary`) when the map has an ``audio`` section."""
     warnings: list[str] = field(default_factory=list)
     """One line per output clamped or peak-limited on more than 1 % of the ticks (:func:`~flowtex.runtime.status.clamp_warnings`)."""
 
@@ -93,7 +98,7 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
              seed: int | None = None, status: TextIO | None = sys.stderr, bitrate: int | None = None,
              drop: Mapping[str, tuple[int, int | None]] | None = None, install_signals: bool = True,
              max_ticks: int | None = None, warm: bool = True, show: Sequence[str] = (),
-             inputs: Sequence[str | Path] = ()) -> LiveReport:
+             inputs: Sequence[str | Path] = (), record_audio: str | Path | None = None) -> LiveReport:
     """Run ``graph`` live against a CAN bus until ``duration_s`` (None: until Ctrl-C/SIGTERM).
 
     ``simulate``: a recording path (or :class:`~flowtex.io.recordings.Recording`);
@@ -106,7 +111,9 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
     ``show``: graph outputs or inputs (``NAME`` or ``NAME[i]``) whose current values follow the status line.
     ``warm``: cache warming before each deadline (see :func:`~flowtex.runtime.tick.warmer`). ``inputs``: other files the
     session was built from (e.g. a scene file), which ``record`` and ``stats_path`` must not be; both are checked before
-    the session (:func:`~flowtex.runtime.preflight.preflight_live`). Raises :class:`FlowtexError`
+    the session (:func:`~flowtex.runtime.preflight.preflight_live`).
+    ``record_audio``: write the samples handed to PortAudio as a float32 WAV (the map needs an ``audio`` section).
+    Raises :class:`FlowtexError`
     for bad files or a bus that cannot be opened; failures during the loop end the session with safe values and are
     returned in ``LiveReport.error``.
     """
@@ -121,7 +128,16 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
     shown = resolve_shown(graph, show)
     record, stats_path = preflight_live(graph, dbc_path, map_path, simulate=simulate, record=record, stats_path=stats_path,
                                         inputs=inputs)
+    if record_audio is not None:
+        from ..io.atomic import check_output
+
+        record_audio = check_output(record_audio, inputs=[dbc_path, map_path, *inputs, *(p for p in (record, stats_path, simulate)
+                                                                                         if isinstance(p, (str, Path)))],
+                                    option="--record-audio")
     io = load_io(graph, dbc_path, map_path)
+    if record_audio is not None and io.map.audio is None:
+        raise FlowtexError(f"--record-audio: {map_path} has no 'audio' section, so nothing is played (docs/live.md, \"Audio output\")")
+    audio = AudioOutput(graph, io.map.audio, record_audio, str(map_path)) if io.map.audio is not None else None
     device = dev_bus = None
     if simulate is not None:
         bus_obj, dev_bus, device = in_process_device(bus, io.map, io.codecs, simulate, float(graph.rate), drop, graph.name)
@@ -136,8 +152,10 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
         writer = SessionWriter(record) if record is not None else None
         where = "the simulated device's virtual bus" if device is not None else f"bus {bus!r}"
         return _loop(graph, io, bus_obj, device, writer, n_ticks, rt, rt_priority, rt_cpu, stats_path, seed, status,
-                     install_signals, warm, where, shown)
+                     install_signals, warm, where, shown, audio)
     finally:
+        if audio is not None:
+            audio.close()
         if writer is not None:
             writer.close()
         for b in (bus_obj, dev_bus):
@@ -148,7 +166,8 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
 
 def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWriter | None, n_ticks: int | None,
           rt: bool, rt_priority: int, rt_cpu: int | None, stats_path: str | Path | None, seed: int | None,
-          status: TextIO | None, install_signals: bool, warm: bool, where: str, shown: list[Shown]) -> LiveReport:
+          status: TextIO | None, install_signals: bool, warm: bool, where: str, shown: list[Shown],
+          audio: AudioOutput | None = None) -> LiveReport:
     rate = float(graph.rate)
     capacity = int(min(n_ticks if n_ticks else 600 * rate, 3600 * rate)) + 1
     stats = TickStats(capacity)
@@ -175,6 +194,9 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     clock = DeadlineClock(rate, prepare=prepare)
     period = clock.period_ns
     display = StatusDisplay(status, io, watchdog, stats, int(rate / 2), shown) if status is not None else None
+    if display is not None and audio is not None:
+        display.extra = audio.status_text
+    wall_minus_perf = time.time_ns() - time.perf_counter_ns()  # python-can timestamps are wall-clock seconds
     graph.reset(seed)
     rt_status, rt_message = _enter_rt(rt, rt_priority, rt_cpu, status)
     stop: list[str | None] = [None]
@@ -184,8 +206,10 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     if device is not None:
         device.publish(0)
     with _stop_signals(stop, install_signals), freeze_gc():
-        clock.start()
         try:
+            if audio is not None:
+                audio.start()  # silence until tick 0's samples are due; returns after PortAudio's first callback
+            clock.start()
             while True:
                 receive(rx)  # 2. whatever arrived since prepare() (bus time, not compute)
                 t0 = now()
@@ -197,6 +221,8 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                 send_offset[k % capacity] = t2 - clock.deadline_ns
                 stats.frames_in += len(rx)
                 stats.frames_out += len(tx)
+                if audio is not None:
+                    audio.push(k, _arrival_ns(rx, wall_minus_perf), watchdog.tripped)
                 if writer is not None:
                     writer.write_tick(rx, tx)
                 rx.clear()
@@ -208,6 +234,9 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                     break
                 if display is not None:
                     display.tick(k)
+                if audio is not None:
+                    audio.check()
+                    clock.shift(audio.pace(k - 1, clock.deadline_ns + period))
                 lateness = overrun = clock.wait()  # 1. the next deadline
                 if clock.skipped:  # a stall: the skipped deadlines count as late, until now
                     stats.record_skipped(clock.skipped, lateness, period)
@@ -220,6 +249,12 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
             error = f"tick {k}: {type(exc).__name__}: {one_line(exc)}"
         finally:
             safe_error = _send_safe(io, bus, writer)
+            if audio is not None:
+                try:  # fade, stop, write --record-audio; a failure here must not skip what follows
+                    audio_error = audio.stop()
+                except Exception as exc:
+                    audio_error = f"audio output: {type(exc).__name__}: {one_line(exc)}"
+                safe_error = "; ".join(e for e in (safe_error, audio_error) if e) or None
             if device is not None:
                 device.collect(k)
             if rt_status is not None:
@@ -232,15 +267,25 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     rt_granted = rt_status is not None and bool(rt_status.granted)
     if display is not None:
         display.finish(rt_granted)
+    audio_summary = audio.summary() if audio is not None else None
     if stats_path is not None:
-        stats.write_json(stats_path, rt_granted)
+        stats.write_json(stats_path, rt_granted, extra={"audio": audio_summary} if audio_summary is not None else None)
     silent, silence = _silent_sensors(io, watchdog.last, k, stats.frames_in, where)
     return LiveReport(ticks=k, frames_in=stats.frames_in, frames_out=stats.frames_out, watchdog_events=watchdog.events,
                       guard_events=guard_events, exit_reason="error" if error else (stop[0] or "duration"), error=error,
                       summary=stats.summary(rt_granted), rt_message=rt_message, send_offset_ns=send_offset[:min(k, capacity)],
                       device=device, silent_messages=silent, silence=silence,
                       no_sensor_frames=bool(k) and len(silent) == len(io.map.sensor_messages()) > 0,
-                      warnings=clamp_warnings(io, k))
+                      warnings=clamp_warnings(io, k), audio=audio_summary)
+
+
+def _arrival_ns(rx: list[Any], wall_minus_perf: int) -> int:
+    """perf_counter time (ns) at which the newest received frame arrived (its bus timestamp), 0 without frames."""
+    newest = 0.0
+    for m in rx:
+        if m.timestamp > newest:
+            newest = m.timestamp
+    return int(newest * 1e9) - wall_minus_perf if newest > 0.0 else 0
 
 
 def _silent_sensors(io: CanIO, last: np.ndarray, ticks: int, frames_in: int, where: str) -> tuple[list[str], str | None]:

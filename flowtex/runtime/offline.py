@@ -76,7 +76,38 @@ def run_recording(graph: Graph, input_path: str | Path, output_path: str | Path 
         raise DataError(f"{input_path}: {exc}") from None
     arrays = apply_nonfinite_policy(arrays, nonfinite, str(input_path),
                                     fix="or pass --nonfinite hold (last finite value) or --nonfinite zero")
-    outputs = graph.run(arrays, seed=seed, progress=progress, nonfinite="error")
+    # the policy is applied above; 'pass' hands the NaN/inf on unchanged, so the graph must not refuse them again
+    outputs = graph.run(arrays, seed=seed, progress=progress, nonfinite="pass" if nonfinite == "pass" else "error")
     if output_path is not None:
         save_recording(output_path, outputs, rate=graph.rate, units={n: spec.unit for n, spec in graph.outputs.items()})
     return outputs
+
+
+AUDIO_RATE_FACTOR = 8
+"""Without a map's ``audio`` section, ``--output OUT.wav`` renders at this many times the graph's rate."""
+
+
+def render_recording_audio(graph: Graph, input_path: str | Path, output_path: str | Path, map_path: str | Path | None = None,
+                           seed: int | None = None, progress: bool = True, nonfinite: str = "error") -> tuple[np.ndarray, float]:
+    """Run ``graph`` over a recording and write its audio-rate output as a float32 WAV; returns (samples, rate).
+
+    The channels, rate, scales and clips come from the ``audio`` section of ``map_path``
+    (:mod:`flowtex.io.audiomap`); without a map every scalar output is one channel at
+    scale 1, clipped to [-1, 1], at :data:`AUDIO_RATE_FACTOR` times the graph's rate.
+    The samples equal what ``flowtex live`` plays for the same outputs, without the live lead of silence.
+    """
+    from ..io.audiomap import default_audio_map, load_audio_section
+    from ..io.wav import write_wav
+    from .audio_render import render_outputs
+
+    widths = {n: int(np.prod(spec.shape)) for n, spec in graph.outputs.items()}
+    if map_path is not None:
+        amap = load_audio_section(map_path, widths)
+    else:
+        amap = default_audio_map(widths, AUDIO_RATE_FACTOR * float(graph.rate))
+        if not amap.channels:
+            raise FlowtexError(f"graph {graph.name!r} has no scalar output to play; give --map MAP.yaml with an 'audio' section")
+    outputs = run_recording(graph, input_path, None, seed=seed, progress=progress, nonfinite=nonfinite)
+    samples = render_outputs(outputs, amap, float(graph.rate))
+    write_wav(output_path, samples, amap.rate)
+    return samples, amap.rate

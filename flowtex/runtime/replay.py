@@ -188,12 +188,15 @@ def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, m
     frames, completeness = read_session_checked(session_path)
     ticks, exit_block = _split_ticks(frames, io.tx_ids, session_path, completeness.problem is None)
     suffix = Path(output_path).suffix.lower() if output_path is not None else ""
-    if output_path is not None and suffix not in (".npz", ".blf", ".log", ".asc"):
-        raise DataError(f"{output_path}: replay output must end in .npz (graph outputs) or .blf/.log/.asc (actuator frames)")
+    if output_path is not None and suffix not in (".npz", ".blf", ".log", ".asc", ".wav"):
+        raise DataError(f"{output_path}: replay output must end in .npz (graph outputs), .blf/.log/.asc (actuator frames) "
+                        "or .wav (what the map's audio section plays)")
+    if suffix == ".wav" and io.map.audio is None:
+        raise DataError(f"{output_path}: {map_path} has no 'audio' section, so the session played no audio")
     with contextlib.ExitStack() as stack:  # outputs go through the one writer: atomic, the old file kept on failure
-        target = stack.enter_context(atomic_output(output_path)) if output_path is not None else None
+        target = stack.enter_context(atomic_output(output_path)) if output_path is not None and suffix != ".wav" else None
         writer = SessionWriter(target) if suffix in (".blf", ".log", ".asc") else None
-        outputs = {name: np.zeros((len(ticks), *spec.shape)) for name, spec in graph.outputs.items()} if suffix == ".npz" else None
+        outputs = {name: np.zeros((len(ticks), *spec.shape)) for name, spec in graph.outputs.items()} if suffix in (".npz", ".wav") else None
         io.encode_safe()
         safe = [bytes(m.data) for m in io.tx]
         """The actuator payloads of the safe values: what live sends while the watchdog holds the outputs."""
@@ -230,9 +233,21 @@ def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, m
         finally:
             if writer is not None:
                 writer.close()
-        if outputs is not None:
+        if outputs is not None and suffix == ".wav":
+            _write_audio(graph, io.map.audio, outputs, output_path)  # atomic itself (flowtex.io.wav.write_wav)
+        elif outputs is not None:
             with open(target, "wb") as fh:
                 np.savez(fh, rate=np.float64(graph.rate), **outputs)
     if output_path is not None:
         report.output_path = Path(output_path)
     return report
+
+
+def _write_audio(graph: Any, amap: Any, outputs: dict[str, np.ndarray], path: str | Path) -> None:
+    """The audio the session's ticks play, after the live lead of silence: sample for sample the live ``--record-audio``
+    wherever live did not play safe silence (docs/live.md)."""
+    from ..io.wav import write_wav
+    from .audio_render import lead_frames, render_outputs, samples_per_tick
+
+    lead = lead_frames(amap, samples_per_tick(amap, float(graph.rate)))  # the live stream's lead
+    write_wav(path, render_outputs(outputs, amap, float(graph.rate), lead=lead), amap.rate)

@@ -227,6 +227,7 @@ class TickStats:
                for key in ("clamped", "peak_limited", "nonfinite") if self.guard and any(self.guard.get(key, {}).values())]
         )
 
-    def write_json(self, path: str | os.PathLike, rt: bool) -> None:
-        """Write :meth:`summary` as JSON (UTF-8, indented) to ``path`` (atomically: :func:`~flowtex.io.atomic.write_json_atomic`)."""
-        write_json_atomic(path, self.summary(rt))
+    def write_json(self, path: str | os.PathLike, rt: bool, extra: dict | None = None) -> None:
+        """Write :meth:`summary` (plus the entries of ``extra``, e.g. ``"audio"``) as JSON (UTF-8, indented) to ``path``
+        (atomically: :func:`~flowtex.io.atomic.write_json_atomic`)."""
+        write_json_atomic(path, {**self.summary(rt), **(extra or {})})

@@ -11,7 +11,7 @@ when the line is printed. Everything here runs in the slack after a tick's frame
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, TextIO
 
 import numpy as np
@@ -126,6 +126,8 @@ class StatusDisplay:
         self.every = max(1, int(every))
         self._shown = 0
         self._line_len = 0
+        self.extra: Callable[[], str] | None = None
+        """Returns more counters for the status line (the audio output's underruns)."""
 
     def tick(self, k: int) -> None:
         """Called after tick ``k - 1`` ran (``k`` ticks executed)."""
@@ -141,6 +143,8 @@ class StatusDisplay:
     def line(self) -> str:
         """The status line: timing and counters, the outputs the guard limited so far, then the shown values."""
         line = self.stats.status_line() + guard_text(self.io)
+        if self.extra is not None:
+            line = f"{line} | {self.extra()}"
         return f"{line} | {format_values(self.shown)}" if self.shown else line
 
     def _events(self) -> None:

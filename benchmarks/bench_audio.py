@@ -1,0 +1,209 @@
+"""Audio-rate output (issue 19), side by side with its baselines.
+
+    python benchmarks/bench_audio.py [--no-jack]
+
+1. Cost: ns per audio sample of the bundled texture (graphs/live_audio.yaml over
+   graphs/data/exploration.npz: the graph at 1 kHz plus the band-limited
+   interpolator) at 8 and 48 kHz, against a plain numba loop of the same
+   arithmetic's core (ARMA synthesis of one fixed model at 1 kHz and the same
+   polyphase FIR up to the audio rate; no model lookup, speed, contact or friction,
+   so it is a floor), and the other design: synthesis at the audio rate from models
+   resampled to it (``flowtex models resample``, at most 5x: 5 kHz).
+2. Images: power above 0.55 x the model set's rate (550 Hz) relative to the total,
+   for this interpolator, the same filter with linear phase, linear interpolation,
+   a zero-order hold of the 1 kHz signal, and the 5 kHz synthesis; with each one's
+   delay at 50 Hz.
+3. Live against a JACK server with the dummy backend (jackd2): 10 s at 8 kHz,
+   period 64 (underruns, resyncs, latency), and 5 s at 48 kHz, period 128
+   (sensor-to-DAC latency p50/p99/max; goal p99 <= 10 ms). The machine is shared:
+   the load average is printed beside the numbers.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+from scipy import signal
+
+REPO = Path(__file__).resolve().parents[1]
+GRAPH = REPO / "graphs" / "live_audio.yaml"
+REC = REPO / "graphs" / "data" / "exploration.npz"
+MAP = REPO / "graphs" / "devices" / "example_audio_map.yaml"
+DBC = REPO / "graphs" / "devices" / "example.dbc"
+MODELS = REPO / "graphs" / "data" / "synthetic_texture.json"
+
+
+def power_above(y: np.ndarray, rate: float, f0: float = 550.0) -> float:
+    f, p = signal.welch(np.asarray(y, dtype=np.float64), rate, nperseg=4096)
+    return float(p[f > f0].sum() / p.sum())
+
+
+@njit(cache=True)
+def plain_loop(a, c, g, x, branches, out):
+    """ARMA(p, q) of white noise x at the tick rate, then polyphase interpolation (branches: up x taps, oldest first)."""
+    p, q = a.size - 1, c.size - 1
+    up, taps = branches.shape
+    e_hist = np.zeros(q + 1)
+    y_hist = np.zeros(p + 1)
+    hist = np.zeros(taps)
+    for k in range(x.size):
+        for j in range(q, 0, -1):
+            e_hist[j] = e_hist[j - 1]
+        e_hist[0] = x[k]
+        acc = 0.0
+        for j in range(q + 1):
+            acc += c[j] * e_hist[j]
+        acc *= g
+        for j in range(1, p + 1):
+            acc -= a[j] * y_hist[j - 1]
+        for j in range(p, 0, -1):
+            y_hist[j] = y_hist[j - 1]
+        y_hist[0] = acc
+        for j in range(taps - 1):
+            hist[j] = hist[j + 1]
+        hist[taps - 1] = acc
+        for r in range(up):
+            s = 0.0
+            for j in range(taps):
+                s += branches[r, j] * hist[j]
+            out[k * up + r] = np.float32(s)
+
+
+def best_of(fn, repeats: int = 3) -> float:
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def cost_and_images() -> None:
+    from flowtex.dsp.audio_interp import Interpolator, low_frequency_delay
+    from flowtex.dsp.filter_design import resampling_fir
+    from flowtex.dsp.resample_stream import stream_params
+    from flowtex.graph.compiled import load_graph
+    from flowtex.io.modelset import load_model_set
+    from flowtex.io.recordings import load_recording
+
+    rec = load_recording(REC)
+    graph = load_graph(GRAPH)
+    inputs = {n: rec.arrays[n] for n in graph.inputs}
+    graph.run(inputs, progress=False)
+    n = rec.samples
+    t_graph = best_of(lambda: graph.run(inputs, progress=False))
+    vib = np.ascontiguousarray(graph.run(inputs, progress=False)["vibration"].reshape(-1, 1))
+    ms = load_model_set(MODELS)
+    from flowtex.dsp.lsf import lsf_to_poly_new
+
+    mid = len(ms.variance) // 2
+    a, c = lsf_to_poly_new(ms.ar_lsf[mid]), lsf_to_poly_new(ms.ma_lsf[mid])
+    noise = np.random.default_rng(0).standard_normal(n) * np.sqrt(ms.variance[mid])
+    print(f"1. cost per audio sample, texture over {n} ticks ({n / 1000:g} s), best of 3")
+    print(f"   {'rate':>6}  {'flowtex graph+interp':>22}  {'plain numba loop':>17}  {'ratio':>6}")
+    for rate in (8000, 48000):
+        up = rate // 1000
+        it = Interpolator(up, 1, [1.5], [-1.0], [1.0])
+        out = np.zeros((n * up, 1), dtype=np.float32)
+        it.render(vib, out)
+        t_interp = best_of(lambda it=it, out=out: (it.reset(), it.render(vib, out)))
+        coef = stream_params(it.h, up, 1)[4:].reshape(up, -1)
+        flat = np.zeros(n * up, dtype=np.float32)
+        plain_loop(a, c, float(ms.gain[mid]), noise, coef, flat)
+        t_plain = best_of(lambda coef=coef, flat=flat: plain_loop(a, c, float(ms.gain[mid]), noise, coef, flat))
+        ours = (t_graph + t_interp) / (n * up) * 1e9
+        base = t_plain / (n * up) * 1e9
+        print(f"   {rate:>6}  {ours:>19.1f} ns  {base:>14.1f} ns  {ours / base:>6.2f}"
+              f"   (graph {t_graph / n * 1e9:.0f} ns/tick, interpolator {t_interp / (n * up) * 1e9:.1f} ns/sample)")
+    # the other design: the graph at 5 kHz on models resampled to 5 kHz
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        subprocess.run([sys.executable, "-m", "flowtex", "models", "resample", str(MODELS), "--rate", "5000", "-o",
+                        str(tmp / "m5k.json")], check=True, capture_output=True)
+        subprocess.run([sys.executable, "-m", "flowtex", "resample", str(REC), "--rate", "5000", "-o", str(tmp / "rec5k.npz")],
+                       check=True, capture_output=True)
+        text = GRAPH.read_text().replace("rate: 1000", "rate: 5000").replace("data/synthetic_texture.json", str(tmp / "m5k.json"))
+        (tmp / "g5k.yaml").write_text(text)
+        g5 = load_graph(tmp / "g5k.yaml")
+        rec5 = load_recording(tmp / "rec5k.npz")
+        in5 = {k: rec5.arrays[k] for k in g5.inputs}
+        y5 = g5.run(in5, progress=False)["vibration"].reshape(-1)
+        t5 = best_of(lambda: g5.run(in5, progress=False))
+        it5 = Interpolator(5, 1, [1.0], [-10.0], [10.0])
+        o5 = np.zeros((n * 5, 1), dtype=np.float32)
+        t5i = best_of(lambda: (it5.reset(), it5.render(vib, o5)))
+        print(f"   {5000:>6}  graph at 5 kHz on resampled models (orders {g5_orders(tmp / 'm5k.json')}): {t5 / y5.size * 1e9:.1f} ns/sample; "
+              f"1 kHz graph + interpolator: {(t_graph + t5i) / (n * 5) * 1e9:.1f} ns/sample")
+    print("\n2. images: power above 550 Hz / total, and delay at 50 Hz (bundled example)")
+    up = 8
+    h_lin = resampling_fir(up, 1, 60.0, 0.8)
+    rows = []
+    it = Interpolator(up, 1, [1.0], [-10.0], [10.0])
+    o = np.zeros((n * up, 1), dtype=np.float32)
+    it.render(vib, o)
+    rows.append(("minimum-phase polyphase (flowtex)", power_above(o[:, 0], 8000), low_frequency_delay(it.h, 8000)))
+    rows.append(("same filter, linear phase", power_above(signal.upfirdn(up * h_lin, vib[:, 0], up), 8000), (h_lin.size - 1) / 2 / 8000))
+    t = np.arange(n * up) / up
+    rows.append(("linear interpolation", power_above(np.interp(t, np.arange(n), vib[:, 0]), 8000), 1e-3))
+    rows.append(("zero-order hold (baseline)", power_above(np.repeat(vib[:, 0], up), 8000), 0.5e-3))
+    rows.append(("synthesis at 5 kHz, resampled models", power_above(y5, 5000), 0.0))
+    zoh = rows[3][1]
+    for name, pa, d in rows:
+        print(f"   {name:<40} {pa:10.2e}  ({pa / zoh:8.1e} x hold)  delay {d * 1e3:5.2f} ms")
+
+
+def g5_orders(path: Path) -> str:
+    d = json.loads(path.read_text())
+    return f"{d['ar_order']}/{d['ma_order']}"
+
+
+def jack_session(rate: int, period: int, seconds: float) -> dict:
+    name = f"flowtex-bench-{os.getpid()}-{rate}-{period}"
+    env = {**os.environ, "JACK_DEFAULT_SERVER": name, "JACK_NO_START_SERVER": "1"}
+    jackd = subprocess.Popen(["jackd", "--no-realtime", "-n", name, "-d", "dummy", "-r", str(rate), "-p", str(period)],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+    try:
+        time.sleep(1.5)
+        with tempfile.TemporaryDirectory() as tmp:
+            m = Path(tmp) / "m.yaml"
+            m.write_text(MAP.read_text().replace("rate: 8000", f"rate: {rate}").replace("block: 64", f"block: {period}"))
+            stats = Path(tmp) / "stats.json"
+            load = os.getloadavg()[0]
+            subprocess.run([sys.executable, "-m", "flowtex", "live", str(GRAPH), "--bus", "virtual", "--dbc", str(DBC), "--map", str(m),
+                            "--simulate", str(REC), "--duration", str(seconds), "--stats", str(stats), "--quiet"],
+                           env=env, check=True, timeout=300)
+            s = json.loads(stats.read_text())
+            s["load"] = load
+            return s
+    finally:
+        jackd.terminate()
+        jackd.wait(10)
+
+
+def live() -> None:
+    if shutil.which("jackd") is None:
+        print("\n3. live: jackd not installed (apt-get install jackd2 libportaudio2); skipped")
+        return
+    print("\n3. live against JACK's dummy backend (flowtex live, simulated CAN device)")
+    for rate, period, seconds in ((8000, 64, 10.0), (48000, 128, 5.0)):
+        s = jack_session(rate, period, seconds)
+        a = s["audio"]
+        lat = a["latency_ms"]
+        print(f"   {rate} Hz, period {period}, {seconds:g} s: underruns {a['underruns']} (late frames {a['late_frames']}, "
+              f"resyncs {len(a['resyncs'])}), latency p50 {lat['p50']:.2f} p99 {lat['p99']:.2f} max {lat['max']:.2f} ms; "
+              f"ticks late > 1 ms {s['late_over_1ms']}, load average {s['load']:.1f}")
+
+
+if __name__ == "__main__":
+    cost_and_images()
+    if "--no-jack" not in sys.argv:
+        live()

@@ -1,0 +1,76 @@
+"""WAV files in and out, through ``scipy.io.wavfile`` (scipy is already a dependency; see docs/live.md).
+
+scipy reads and writes uncompressed PCM (8/16/24/32-bit integer) and IEEE float
+WAV, which is every WAV the audio path makes or a recorder of raw samples
+writes; compressed formats (FLAC, MP3, ADPCM) are out of scope, so the
+``soundfile``/libsndfile dependency would buy nothing here. flowtex writes
+float32 (the samples handed to PortAudio, bit for bit). Channels become
+signals ``ch0``, ``ch1``, ... in full-scale units (integer PCM is divided by
+its full scale: 32768 for 16 bit, 2**31 for 32 bit, 128 around 128 for 8 bit).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataError
+
+CHANNEL_PREFIX = "ch"
+
+
+def channel_names(n: int) -> list[str]:
+    """Signal names of a WAV's channels: ch0, ch1, ..."""
+    return [f"{CHANNEL_PREFIX}{i}" for i in range(n)]
+
+
+def read_wav(path: str | Path) -> tuple[float, dict[str, np.ndarray]]:
+    """(rate in Hz, {``chN``: float64 samples in full-scale units}) of a WAV file."""
+    from scipy.io import wavfile
+
+    path = Path(path)
+    try:
+        rate, data = wavfile.read(path)
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except Exception as exc:  # scipy reports a broken header with ValueError, EOFError or even UnboundLocalError
+        raise DataError(f"{path}: not a WAV file scipy can read ({type(exc).__name__}: {exc}); write PCM or float WAV") from None
+    if data.dtype.kind == "f":
+        x = data.astype(np.float64)
+    elif data.dtype == np.uint8:
+        x = (data.astype(np.float64) - 128.0) / 128.0
+    else:
+        x = data.astype(np.float64) / float(2 ** (8 * data.dtype.itemsize - 1))
+    x = x.reshape(x.shape[0], -1)
+    return float(rate), {n: x[:, i] for i, n in enumerate(channel_names(x.shape[1]))}
+
+
+def write_wav(path: str | Path, samples: np.ndarray, rate: float) -> None:
+    """Write ``samples`` (n, channels) or (n,) as a float32 WAV at ``rate`` Hz (a whole number)."""
+    from scipy.io import wavfile
+
+    path = Path(path)
+    if rate != int(rate) or rate <= 0:
+        raise DataError(f"{path}: a WAV file needs a whole positive number of Hz, got {rate:g}; resample to e.g. 8000 first")
+    from .atomic import atomic_output
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_output(path) as tmp:  # a failure or Ctrl-C leaves no partial file
+        wavfile.write(tmp, int(rate), np.ascontiguousarray(samples, dtype=np.float32))
+
+
+def write_signals_wav(path: str | Path, arrays: Mapping[str, np.ndarray], rate: float | None) -> None:
+    """Write scalar signals (one per channel, in order) as a float32 WAV; values are taken as full-scale units."""
+    if rate is None:
+        raise DataError(f"{path}: a WAV file needs a sample rate; the signals state none")
+    cols = []
+    for name, a in arrays.items():
+        a = np.asarray(a)
+        if a.ndim != 1:
+            raise DataError(f"{path}: signal {name!r} has shape {a.shape[1:]}; a WAV channel holds one scalar signal")
+        cols.append(a)
+    if not cols:
+        raise DataError(f"{path}: no signals to write")
+    write_wav(path, np.stack(cols, axis=1), rate)

@@ -1,0 +1,241 @@
+"""The live audio sink: graph outputs -> PortAudio (``sounddevice``) output stream, any host API.
+
+The tick loop renders each tick's samples (:mod:`flowtex.runtime.audio_render`)
+into an :class:`~flowtex.runtime.audio_ring.AudioRing`; PortAudio's callback
+thread copies them out with one compiled call (:func:`~flowtex.runtime.audio_ring.fill`)
+and never waits for the tick loop: a tick that is not there in time is played as
+safe silence and counted as an underrun. Safety (docs/live.md, "Audio output"):
+the stream starts with silence (``lead`` frames, PortAudio's own priming is
+zeros); every sample is clipped per channel; on exit, a fault, the watchdog or a
+sensor timeout the output fades to zero in 2 ms; a device that stops calling
+back ends the session with :class:`AudioDeviceError`.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import FlowtexError
+from ..io.audiomap import AudioMap
+from .audio_render import interpolator, lead_frames, samples_per_tick
+from .audio_ring import FADED, LATENCIES, MISSING, PLAYED, RECORDED, STOPPING, UNDERRUNS, AudioRing, fill
+
+PACE_SMOOTHING = 0.02
+"""Weight of the newest tick in the smoothed pacing error (the callback's timing jitters by a block)."""
+PACE_GAIN = 0.05
+"""Fraction of the smoothed pacing error corrected per tick."""
+PACE_MAX_NS = 20_000
+"""Largest shift of one tick's deadline, ns (2 % of a 1 ms period: sound-card clocks are within 0.1 %, JACK's dummy 1.5 %)."""
+STALL_S = 0.5
+"""A running stream whose callback has not run for this long (and at least 8 blocks) has lost its device."""
+
+
+class AudioDeviceError(FlowtexError):
+    """The audio device could not be opened, or stopped during the session."""
+
+
+def _sd() -> Any:
+    try:
+        import sounddevice
+    except OSError as exc:  # the PortAudio library itself is missing
+        raise AudioDeviceError(f"cannot load PortAudio ({exc}); on Debian/Ubuntu: apt-get install libportaudio2") from None
+    return sounddevice
+
+
+def list_audio_devices() -> str:
+    """PortAudio's host APIs and devices, one per line (``flowtex live --list-audio``); ``>`` marks the default output."""
+    sd = _sd()
+    apis = sd.query_hostapis()
+    default_out = sd.default.device[1]
+    lines = []
+    for i, d in enumerate(sd.query_devices()):
+        mark = ">" if i == default_out else " "
+        lines.append(f"{mark} {i:3d} {d['name']} ({apis[d['hostapi']]['name']}, {d['max_output_channels']} out, "
+                     f"{d['default_samplerate']:g} Hz)")
+    if not lines:
+        names = ", ".join(a["name"] for a in apis) or "none"
+        lines.append(f"no audio devices (host APIs: {names}); is the sound server (e.g. jackd, PipeWire) running?")
+    return "\n".join(lines)
+
+
+class AudioOutput:
+    """One live session's audio output for ``amap``'s channels, fed from ``graph`` at the graph's rate."""
+
+    def __init__(self, graph: Any, amap: AudioMap, record: str | Path | None = None, where: str = "map") -> None:
+        self.amap = amap
+        self.ratio = samples_per_tick(amap, float(graph.rate), where)
+        self.lead = lead_frames(amap, self.ratio)
+        self.interp = interpolator(amap, self.ratio)
+        self.views = [graph.output_view(c.output).reshape(-1) for c in amap.channels]
+        self.x = np.zeros((1, len(amap.channels)))
+        self.ring = AudioRing(self.ratio[0], len(amap.channels), self.lead, amap.rate, down=self.ratio[1])
+        self.ahead = self.lead - amap.block
+        """Frames between the callback's position and a tick's first frame at the tick's deadline (tick 0 included)."""
+        self.block_buf = np.zeros((self.interp.max_frames, len(amap.channels)), dtype=np.float32)
+        self.cb_end = 0
+        self.cb_ns = 0
+        self._pace_err = 0.0
+        self.record_path = Path(record) if record is not None else None
+        self.recorded: list[np.ndarray] = []
+        self.stream: Any = None
+        self.device_name = "default output" if amap.device is None else repr(amap.device)
+        self.pa_underflows = 0
+        self.callbacks = 0
+        self.last_callback_ns = 0
+        self.error: str | None = None
+        self.lost = False
+        """The device vanished: PortAudio's stop and terminate calls may then block forever (JACK host API)."""
+        self.first_callback = threading.Event()
+        self._started_ns = 0
+        # compile/load the kernels now, not in the callback or on the first live tick
+        self.interp.render(self.x, self.block_buf)
+        self.interp.reset()
+        self.ring.put(0, self.block_buf, 0, True)
+        self.ring.stamps[:] = -1
+        self._fill_args(np.zeros((amap.block, len(amap.channels)), dtype=np.float32), 0)
+        self.ring.istate[:] = 0
+        self.ring.last[:] = 0.0
+        self.ring.record[:] = 0.0
+
+    def _fill_args(self, out: np.ndarray, dac_ns: int) -> int:
+        r = self.ring
+        return fill(out, r.ring, r.stamps, r.lead, r.last, r.istate, r.fade, r.arrival, r.latency, dac_ns, r.rate, r.record)
+
+    def _callback(self, outdata: np.ndarray, frames: int, time_info: Any, status: Any) -> None:
+        now = time.perf_counter_ns()
+        try:
+            if status.output_underflow:
+                self.pa_underflows += 1
+            ahead = time_info.outputBufferDacTime - time_info.currentTime
+            dac_ns = now + int(ahead * 1e9) if 0.0 <= ahead < 10.0 else now
+            self._fill_args(outdata, dac_ns)
+            self.cb_end = int(self.ring.istate[RECORDED])
+            self.cb_ns = now
+        except Exception as exc:  # never let an exception through PortAudio's thread: silence, then report
+            outdata.fill(0.0)
+            self.error = f"audio callback failed: {type(exc).__name__}: {exc}"
+        self.callbacks += 1
+        self.last_callback_ns = now
+        self.first_callback.set()
+
+    def start(self, timeout_s: float = 2.0) -> None:
+        """Open the device and start the stream (silence until tick 0's samples); returns after its first callback."""
+        sd = _sd()
+        a = self.amap
+        try:
+            self.stream = sd.OutputStream(samplerate=a.rate, blocksize=a.block, device=a.device, channels=len(a.channels),
+                                          dtype="float32", latency="low", callback=self._callback, dither_off=True,
+                                          prime_output_buffers_using_stream_callback=False)
+            self.stream.start()
+        except (sd.PortAudioError, ValueError) as exc:
+            self.close()
+            raise AudioDeviceError(f"audio device {self.device_name}: cannot open {len(a.channels)} channel(s) at {a.rate:g} Hz, "
+                                   f"block {a.block}: {' '.join(str(exc).split())} (flowtex live --list-audio lists the devices)") from None
+        self._started_ns = time.perf_counter_ns()
+        if not self.first_callback.wait(timeout_s):
+            self.close()
+            raise AudioDeviceError(f"audio device {self.device_name}: the stream started but PortAudio never asked for samples "
+                                   f"within {timeout_s:g} s")
+
+    def push(self, k: int, arrival_ns: int, silent: bool) -> None:
+        """Render tick ``k`` from the graph's current outputs and hand it to the callback (``silent``: play safe silence).
+
+        A tick the callback has already passed (after a stall) resyncs the stream: silence is inserted so that
+        this tick plays ``ahead`` frames after the callback's position again."""
+        x = self.x
+        for c, v in enumerate(self.views):
+            x[0, c] = v[0]
+        n = self.interp.render(x, self.block_buf)
+        self.ring.resync(k, self.ahead)
+        self.ring.put(k, self.block_buf[:n], arrival_ns, silent)
+
+    def pace(self, k: int, next_deadline_ns: int) -> int:
+        """How far (ns) to move the next tick's deadline so that the ticks follow the sound card's clock.
+
+        The deadline of tick ``k + 1`` should come ``ahead`` frames before the callback reaches its position
+        (extrapolated from the latest callback at the nominal rate); the error is smoothed over ~50 ticks and
+        corrected by :data:`PACE_GAIN` per tick, at most :data:`PACE_MAX_NS`."""
+        if not self.cb_ns:
+            return 0
+        want = self.cb_ns + (self.ring.position(k + 1) - self.ahead - self.cb_end) * 1e9 / self.amap.rate
+        self._pace_err += PACE_SMOOTHING * ((want - next_deadline_ns) - self._pace_err)
+        return int(max(-PACE_MAX_NS, min(PACE_MAX_NS, PACE_GAIN * self._pace_err)))
+
+    def check(self) -> None:
+        """In the loop's slack: raise :class:`AudioDeviceError` when the device stopped; keep the recording drained."""
+        if self.error is not None:
+            raise AudioDeviceError(self.error)
+        stream = self.stream
+        now = time.perf_counter_ns()
+        stall = max(STALL_S, 8 * self.amap.block / self.amap.rate) * 1e9
+        if stream is not None and (now - self.last_callback_ns > stall or not stream.active):
+            self.lost = True
+            why = (f"no callback for {(now - self.last_callback_ns) / 1e9:.2f} s" if stream.active
+                   else "PortAudio stopped the stream")
+            raise AudioDeviceError(f"audio device {self.device_name} stopped: {why} (device unplugged or sound server gone)")
+        if self.record_path is not None and self.ring.istate[RECORDED] - self.ring.drained > self.ring.record.shape[0] // 4:
+            self.recorded.append(self.ring.drain())
+
+    @property
+    def underruns(self) -> int:
+        """Callbacks that found a tick late, plus PortAudio's own output underflows."""
+        return int(self.ring.istate[UNDERRUNS]) + self.pa_underflows
+
+    def status_text(self) -> str:
+        return f"audio underruns {self.underruns}"
+
+    def stop(self, timeout_s: float = 0.5) -> str | None:
+        """Fade to zero, let the fade play, stop and close the stream, write the recording; returns an error text or None."""
+        problem = None
+        ring = self.ring
+        ring.istate[STOPPING] = 1
+        if self.stream is not None and self.error is None and not self.lost:
+            end = time.monotonic() + timeout_s
+            target = ring.fade + self.amap.block
+            while ring.istate[FADED] < target and time.monotonic() < end and self.stream.active:
+                time.sleep(self.amap.block / self.amap.rate / 4)
+            if ring.istate[FADED] < target:
+                problem = f"audio device {self.device_name}: the fade to silence was not played"
+        self.close()
+        if self.record_path is not None:
+            from ..io.wav import write_wav
+
+            self.recorded.append(ring.drain())
+            write_wav(self.record_path, np.concatenate(self.recorded), self.amap.rate)
+        return problem
+
+    def close(self) -> None:
+        """Stop and close the stream (idempotent). After the device vanished the stream is left alone: PortAudio's
+        JACK host API blocks forever in Pa_StopStream, Pa_AbortStream and Pa_Terminate once the server is gone,
+        so sounddevice's exit handler (which calls them) is unregistered too."""
+        stream, self.stream = self.stream, None
+        if stream is not None and self.lost:
+            import atexit
+
+            self._abandoned = stream  # keep it referenced; the process ends without PortAudio's cleanup
+            handler = getattr(_sd(), "_exit_handler", None)
+            if handler is not None:
+                atexit.unregister(handler)
+        elif stream is not None:
+            try:
+                stream.stop()
+                stream.close()
+            except Exception:  # a vanished device: nothing left to stop
+                pass
+
+    def summary(self) -> dict:
+        """The ``"audio"`` entry of ``--stats``: rate, frames handed to PortAudio, underruns, latency_ms p50/p99/max."""
+        lat = self.ring.latencies_ms()
+        dist = ({"p50": float(np.percentile(lat, 50)), "p99": float(np.percentile(lat, 99)), "max": float(lat.max())}
+                if lat.size else {"p50": None, "p99": None, "max": None})
+        return {"rate": float(self.amap.rate), "frames": int(self.ring.istate[RECORDED]), "underruns": self.underruns,
+                "latency_ms": dist, "played_frames": int(self.ring.istate[PLAYED]), "lead_frames": int(self.lead),
+                "samples_per_tick": self.ratio[0] / self.ratio[1], "ratio": list(self.ratio),
+                "latency_samples": int(self.ring.istate[LATENCIES]),
+                "late_frames": int(self.ring.istate[MISSING]), "fade_frames": int(self.ring.fade),
+                "resyncs": [list(r) for r in self.ring.resyncs]}

@@ -1,0 +1,59 @@
+"""From graph outputs at the tick rate to audio samples, the same way live and offline (docs/live.md, "Audio output").
+
+Each channel of the map's ``audio`` section plays one scalar graph output:
+``up = audio rate / graph rate`` samples per tick from the band-limited
+minimum-phase interpolator (:mod:`flowtex.dsp.audio_interp`), clipped and scaled.
+Live, the first tick plays after :func:`lead_frames` frames of silence; the
+replay of a session puts the same silence first, so its WAV lines up with the
+live ``--record-audio`` sample for sample.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from ..dsp.audio_interp import Interpolator, frames_before
+from ..dsp.resample import rational_ratio
+from ..errors import FlowtexError
+from ..io.audiomap import AudioMap
+
+LEAD_MARGIN_S = 0.001
+"""Slack between a tick's deadline and the callback that needs its samples (tick jitter allowed before an underrun), s."""
+
+
+def samples_per_tick(amap: AudioMap, graph_rate: float, where: str = "map") -> tuple[int, int]:
+    """``audio.rate / graph rate`` as ``(up, down)`` in lowest terms (8000/1000: (8, 1); 44100/1000: (441, 10));
+    raises FlowtexError naming the fix when there is no such ratio with both <= 1000, or it is below 1."""
+    try:
+        up, down = rational_ratio(float(graph_rate), amap.rate)
+    except ValueError as exc:
+        raise FlowtexError(f"{where}: audio.rate {amap.rate:g} Hz: {exc}") from None
+    if up < down:
+        raise FlowtexError(f"{where}: audio.rate {amap.rate:g} Hz is below the graph's rate {graph_rate:g} Hz")
+    return up, down
+
+
+def lead_frames(amap: AudioMap, ratio: tuple[int, int]) -> int:
+    """Frames of silence before tick 0's first sample: one callback block, one tick and :data:`LEAD_MARGIN_S`."""
+    return int(amap.block + -(-ratio[0] // ratio[1]) + math.ceil(LEAD_MARGIN_S * amap.rate))
+
+
+def interpolator(amap: AudioMap, ratio: tuple[int, int]) -> Interpolator:
+    """A fresh interpolator for the map's channels."""
+    scale, lo, hi = amap.arrays()
+    return Interpolator(ratio[0], len(amap.channels), scale, lo, hi, down=ratio[1])
+
+
+def render_outputs(outputs: Mapping[str, np.ndarray], amap: AudioMap, graph_rate: float, lead: int = 0) -> np.ndarray:
+    """Audio samples (lead + n * up, channels) float32 for the graph outputs of ``n`` ticks (``lead`` zero frames first)."""
+    ratio = samples_per_tick(amap, graph_rate)
+    missing = [c.output for c in amap.channels if c.output not in outputs]
+    if missing:
+        raise FlowtexError(f"audio channels play output(s) {', '.join(missing)} that the graph does not produce")
+    x = np.stack([np.asarray(outputs[c.output], dtype=np.float64).reshape(-1) for c in amap.channels], axis=1)
+    out = np.zeros((lead + frames_before(x.shape[0], *ratio), x.shape[1]), dtype=np.float32)
+    interpolator(amap, ratio).render(np.ascontiguousarray(x), out[lead:])
+    return out

@@ -1,0 +1,182 @@
+"""The one writer wired into every verb (issue 17): no verb overwrites an input, writes into a read-only folder after its
+work, or leaves a folder rule of its own. Every case here fails before any work, so none compiles a graph."""
+
+from __future__ import annotations
+
+import os
+import stat
+
+import numpy as np
+import pytest
+
+from flowtex.cli import main
+from flowtex.io.modelset import save_model_set
+from flowtex.io.recordings import save_recording
+from flowtex.models.synthetic import synthetic_model_set
+from tests.cli.gain_graph import GAIN_GRAPH as GRAPH
+from tests.conftest import REPO
+
+SCENE = REPO / "graphs" / "scene_two_surfaces.yaml"
+DBC = REPO / "graphs" / "devices" / "example.dbc"
+MAP = REPO / "graphs" / "devices" / "example_map.yaml"
+
+
+@pytest.fixture
+def files(tmp_path):
+    """A graph, a recording (x, accel, speed, normal_force; 1 kHz), a model set, a scene copy: name -> path."""
+    (tmp_path / "g.yaml").write_text(GRAPH)
+    rng = np.random.default_rng(0)
+    n = 2000
+    save_recording(tmp_path / "in.npz", {"x": rng.normal(size=n), "accel": rng.normal(size=n), "speed": np.full(n, 100.0),
+                                         "normal_force": np.full(n, 1.0)}, rate=1000.0)
+    save_model_set(synthetic_model_set([60.0], [0.5], ar_order=4, ma_order=2), tmp_path / "m.json")
+    return {"graph": tmp_path / "g.yaml", "rec": tmp_path / "in.npz", "models": tmp_path / "m.json"}
+
+
+def _run(capsys, argv):
+    code = main([str(a) for a in argv])
+    err = capsys.readouterr().err.strip().splitlines()
+    return code, err
+
+
+INPUT_CASES = {
+    "run": lambda f: (["run", f["graph"], "--input", f["rec"], "-o", f["rec"]], f["rec"], "-o"),
+    "fit texture": lambda f: (["fit", "texture", f["rec"], "--speed", "speed", "-o", f["rec"]], f["rec"], "-o"),
+    "bench": lambda f: (["bench", f["graph"], "-i", f["rec"], "--knob", "k.k=1,2", "-o", f["rec"]], f["rec"], "-o"),
+    "scene plan": lambda f: (["scene", "plan", f["graph"], "-o", f["graph"]], f["graph"], "-o"),
+    "live --stats": lambda f: (["live", f["graph"], "--dbc", DBC, "--map", MAP, "--stats", f["graph"]], f["graph"], "--stats"),
+    "resample": lambda f: (["resample", f["rec"], "--rate", "500", "-o", f["rec"]], f["rec"], "-o"),
+    "models resample": lambda f: (["models", "resample", f["models"], "--rate", "500", "-o", f["models"]], f["models"], "-o"),
+    "plot": lambda f: (["plot", f["rec"], "-o", f["rec"]], f["rec"], "-o"),
+    "compare --json": lambda f: (["compare", f["models"], f["rec"], "--speed", "speed", "--json", f["models"]], f["models"], "--json"),
+}
+
+
+@pytest.mark.parametrize("verb", list(INPUT_CASES))
+def test_an_output_that_is_an_input_is_refused_and_the_input_kept(files, capsys, verb):
+    argv, victim, option = INPUT_CASES[verb](files)
+    before = victim.read_bytes()
+    code, err = _run(capsys, argv)
+    assert code == 1 and len(err) == 1, err
+    assert err[0].startswith(f"{option} {victim}: that is an input of this command") and "never overwrites an input" in err[0]
+    assert victim.read_bytes() == before
+
+
+def test_the_same_file_spelled_another_way_is_still_an_input(files, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    os.symlink("in.npz", tmp_path / "alias.npz")
+    before = files["rec"].read_bytes()
+    for out in ("./in.npz", "alias.npz", f"{tmp_path}/sub/../in.npz"):
+        (tmp_path / "sub").mkdir(exist_ok=True)
+        code, err = _run(capsys, ["resample", "in.npz", "--rate", "500", "-o", out])
+        assert code == 1 and "that is an input" in err[0], (out, err)
+    assert files["rec"].read_bytes() == before
+
+
+def test_every_writer_refuses_a_read_only_folder_before_its_work(files, capsys, tmp_path, monkeypatch):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    if os.geteuid() == 0:  # root may write anywhere: make check_output's os.access see the folder as read-only
+        real = os.access
+        monkeypatch.setattr(os, "access", lambda p, mode, **kw: False if os.fspath(p) == os.fspath(ro) else real(p, mode, **kw))
+    _read_only_cases(files, capsys, tmp_path)
+
+
+def _read_only_cases(files, capsys, tmp_path):
+    ro = tmp_path / "ro"
+    f = files
+    cases = [
+        ["run", f["graph"], "--input", f["rec"], "-o", ro / "o.npz"],
+        ["fit", "texture", f["rec"], "--speed", "speed", "-o", ro / "s.json"],
+        ["fit", "texture", f["rec"], "--speed", "speed", "-o", tmp_path / "s.json", "--xml", ro / "s.xml"],
+        ["fit", "friction", f["rec"], "--force", "normal_force", "--friction-force", "x", "-o", ro / "mu.json"],
+        ["fit", "taps", f["rec"], "--accel", "accel", "--force", "normal_force", "--speed", "speed", "-o", ro / "t.json"],
+        ["fit", "pattern", f["rec"], "--accel", "accel", "--position", "x", "-o", ro / "p.json"],
+        ["fit", "compliance", f["rec"], "--force", "normal_force", "--accel", "accel", "-o", ro / "c.json"],
+        ["bench", f["graph"], "-i", f["rec"], "--knob", "k.k=1,2", "-o", ro / "b.csv"],
+        ["bench", f["graph"], "-i", f["rec"], "--knob", "k.k=1,2", "--plot", ro / "b.png"],
+        ["scene", "plan", SCENE, "-o", ro / "plan.yaml"],
+        ["scene", "plan", SCENE, "-o", tmp_path / "plan.yaml", "--json", ro / "plan.json"],
+        ["scene", "run", SCENE, "-i", f["rec"], "-o", ro / "o.npz"],
+        ["live", f["graph"], "--dbc", DBC, "--map", MAP, "--stats", ro / "stats.json"],
+        ["live", f["graph"], "--dbc", DBC, "--map", MAP, "--record", ro / "s.blf"],
+        ["resample", f["rec"], "--rate", "500", "-o", ro / "r.npz"],
+        ["models", "resample", f["models"], "--rate", "500", "-o", ro / "m.json"],
+        ["plot", f["rec"], "-o", ro / "p.png"],
+        ["compare", f["models"], f["rec"], "--speed", "speed", "--json", ro / "c.json"],
+    ]
+    for argv in cases:
+        code, err = _run(capsys, argv)
+        assert code == 1 and len(err) == 1, (argv, err)
+        assert f"folder {ro} is not writable" in err[0], (argv, err)
+    assert list(ro.iterdir()) == []
+    assert not (tmp_path / "s.json").exists() and not (tmp_path / "plan.yaml").exists()
+
+
+def test_missing_folders_are_created_the_same_way_by_every_verb(files, capsys, tmp_path):
+    out = tmp_path / "a" / "b" / "r.npz"
+    assert main(["resample", str(files["rec"]), "--rate", "500", "-o", str(out)]) == 0
+    assert out.exists()
+    rng = np.random.default_rng(1)
+    n_force = rng.uniform(0.5, 2.0, 500)
+    save_recording(tmp_path / "fr.npz", {"fn": n_force, "ft": 0.4 * n_force + 0.01 * rng.normal(size=500)}, rate=1000.0)
+    mu = tmp_path / "c" / "d" / "mu.json"
+    assert main(["fit", "friction", str(tmp_path / "fr.npz"), "--force", "fn", "--friction-force", "ft", "-o", str(mu)]) == 0
+    assert mu.exists()
+    capsys.readouterr()
+
+
+def test_plot_onto_its_own_input_is_refused(files, capsys):
+    before = files["rec"].read_bytes()
+    code, err = _run(capsys, ["plot", files["rec"], "-o", files["rec"]])
+    assert code == 1 and "that is an input" in err[0] and files["rec"].read_bytes() == before
+
+
+def test_fit_texture_xml_onto_a_folder_and_report_onto_a_file_fail_before_the_fit(files, capsys, tmp_path):
+    out = tmp_path / "s.json"
+    (tmp_path / "xmldir").mkdir()
+    code, err = _run(capsys, ["fit", "texture", files["rec"], "--speed", "speed", "-o", out, "--xml", tmp_path / "xmldir"])
+    assert code == 1 and err == [f"--xml {tmp_path / 'xmldir'}: is a folder; give a file name inside it"]
+    (tmp_path / "report.txt").write_text("mine\n")
+    code, err = _run(capsys, ["fit", "texture", files["rec"], "--speed", "speed", "-o", out, "--report", tmp_path / "report.txt"])
+    assert code == 1 and len(err) == 1 and err[0].startswith(f"--report {tmp_path / 'report.txt'}: is a file")
+    assert not out.exists() and (tmp_path / "report.txt").read_text() == "mine\n"
+
+
+def test_fit_friction_into_a_missing_model_set_fails_before_writing_o(files, capsys, tmp_path):
+    rng = np.random.default_rng(1)
+    n_force = rng.uniform(0.5, 2.0, 500)
+    save_recording(tmp_path / "fr.npz", {"fn": n_force, "ft": 0.4 * n_force + 0.01 * rng.normal(size=500)}, rate=1000.0)
+    out = tmp_path / "mu.json"
+    code, err = _run(capsys, ["fit", "friction", tmp_path / "fr.npz", "--force", "fn", "--friction-force", "ft", "-o", out,
+                              "--into", tmp_path / "missing.json"])
+    assert code == 1 and len(err) == 1 and "missing.json" in err[0] and not out.exists()
+
+
+def test_into_keeps_the_model_sets_mode_and_new_files_follow_the_umask(files, capsys, tmp_path):
+    rng = np.random.default_rng(1)
+    n_force = rng.uniform(0.5, 2.0, 500)
+    save_recording(tmp_path / "fr.npz", {"fn": n_force, "ft": 0.4 * n_force + 0.01 * rng.normal(size=500)}, rate=1000.0)
+    files["models"].chmod(0o640)
+    old = os.umask(0o027)
+    try:
+        assert main(["fit", "friction", str(tmp_path / "fr.npz"), "--force", "fn", "--friction-force", "ft",
+                     "-o", str(tmp_path / "mu.json"), "--into", str(files["models"])]) == 0
+        assert main(["resample", str(files["rec"]), "--rate", "500", "-o", str(tmp_path / "r.csv")]) == 0
+    finally:
+        os.umask(old)
+    capsys.readouterr()
+    assert stat.S_IMODE(files["models"].stat().st_mode) == 0o640  # --into: the file's own mode
+    assert stat.S_IMODE((tmp_path / "mu.json").stat().st_mode) == 0o640  # 0666 & ~0027
+    assert stat.S_IMODE((tmp_path / "r.csv").stat().st_mode) == 0o640
+    assert not [p for p in tmp_path.iterdir() if ".part" in p.name]  # no temporary file left behind
+
+
+def test_an_unknown_output_format_is_refused_before_the_work(files, capsys, tmp_path):
+    for argv in (["run", files["graph"], "--input", files["rec"], "-o", tmp_path / "o.xyz"],
+                 ["resample", files["rec"], "--rate", "500", "-o", tmp_path / "o.xyz"],
+                 ["scene", "run", SCENE, "-i", files["rec"], "-o", tmp_path / "o.xyz"]):
+        code, err = _run(capsys, argv)
+        assert code == 1 and len(err) == 1, err  # run and resample also write .wav (audio-rate outputs)
+        assert err[0].startswith(f"-o {tmp_path / 'o.xyz'}: unknown output format '.xyz'; use .npz, .csv, .h5, .hdf5"), err

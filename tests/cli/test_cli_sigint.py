@@ -1,0 +1,46 @@
+"""Ctrl-C while ``flowtex run`` writes its output leaves the old output intact and no temporary file (issue 17)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from flowtex.io.recordings import WRITE_HOOK_ENV, load_recording, save_recording
+from tests.cli.gain_graph import GAIN_GRAPH as GRAPH
+
+
+def test_sigint_during_the_write_keeps_the_old_output(tmp_path):
+    (tmp_path / "g.yaml").write_text(GRAPH)
+    x = np.arange(5000, dtype=np.float64)
+    save_recording(tmp_path / "in.npz", {"x": x}, rate=1000.0)
+    out = tmp_path / "out.npz"
+    save_recording(out, {"y": np.full(3, 7.0)}, rate=1000.0)  # the old output, which must survive
+    before = out.read_bytes()
+    marker = tmp_path / "writing"
+    env = {**os.environ, WRITE_HOOK_ENV: str(marker)}
+    cmd = [sys.executable, "-m", "flowtex", "run", str(tmp_path / "g.yaml"), "-i", str(tmp_path / "in.npz"), "-o", str(out),
+           "--no-plugins"]
+    proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 240  # a cold numba compile under load comes first
+        while not marker.exists():
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, "the writer never reached its write phase"
+            time.sleep(0.05)
+        # the new data are in the temporary file now, not yet renamed: interrupt here
+        assert [p.name for p in tmp_path.iterdir() if ".part" in p.name]
+        proc.send_signal(signal.SIGINT)
+        _stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130 and stderr.strip().splitlines()[-1] == "interrupted", stderr
+    assert out.read_bytes() == before
+    assert load_recording(out).arrays["y"].tolist() == [7.0, 7.0, 7.0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.yaml", "in.npz", "out.npz", "writing"]  # no temporary file
+

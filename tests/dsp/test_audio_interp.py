@@ -1,0 +1,84 @@
+"""Band-limited interpolation of tick-rate outputs to the audio rate (flowtex.dsp.audio_interp)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from flowtex.dsp.audio_interp import Interpolator, frames_before, interpolation_filter, low_frequency_delay
+
+
+def _texture_like(n: int, rate: float = 1000.0, seed: int = 3) -> np.ndarray:
+    """White noise through an 8th-order Butterworth low-pass at 0.4 x rate: power up to the band edge, like a texture."""
+    rng = np.random.default_rng(seed)
+    sos = signal.butter(8, 0.4 * rate, fs=rate, output="sos")
+    return signal.sosfilt(sos, rng.standard_normal(n))
+
+
+def _power_above(y: np.ndarray, rate: float, f0: float) -> float:
+    f, p = signal.welch(y, rate, nperseg=4096)
+    return float(p[f > f0].sum() / p.sum())
+
+
+@pytest.mark.parametrize("up", [5, 8, 48])
+def test_render_equals_scipy_upfirdn_clipped_and_scaled(up):
+    x = 0.3 * _texture_like(400)
+    x[50] = 5.0  # clipped to hi
+    x[60] = np.nan  # a NaN output enters the filter as 0
+    scale, lo, hi = 1.5, -0.5, 0.4
+    it = Interpolator(up, 1, [scale], [lo], [hi])
+    out = np.zeros((x.size * up, 1), dtype=np.float32)
+    it.render(x.reshape(-1, 1), out)
+    ref_in = np.where(np.isnan(x), 0.0, x)
+    ref = np.clip(signal.upfirdn(up * it.h, ref_in, up)[:x.size * up], lo, hi) / scale
+    # float64 sums in another order, then one float32 rounding: a few float32 ulps of full scale
+    np.testing.assert_allclose(out[:, 0], ref, rtol=0, atol=4 * np.finfo(np.float32).eps)
+    assert out.max() <= np.float32(hi / scale) and out.min() >= np.float32(lo / scale)
+
+
+def test_44_1_khz_from_1_khz_is_scipy_upfirdn_by_441_over_10():
+    """A rational ratio: every 10th sample of the 441x up-sampled signal; ticks give 44 or 45 frames."""
+    x = _texture_like(200).reshape(-1, 1)
+    it = Interpolator(441, 1, [1.0], [-10.0], [10.0], down=10)
+    n = it.frames(200)
+    assert n == frames_before(200, 441, 10) == 8820
+    out = np.zeros((n, 1), dtype=np.float32)
+    assert it.render(x[:77], out) == frames_before(77, 441, 10)  # in two pieces: the state carries the phase
+    it.render(x[77:], out[frames_before(77, 441, 10):])
+    ref = signal.upfirdn(441 * it.h, x[:, 0], 441, 10)[:n]
+    np.testing.assert_allclose(out[:, 0], ref, rtol=0, atol=4 * np.finfo(np.float32).eps)
+
+
+def test_blocks_of_any_size_give_the_same_samples():
+    x = _texture_like(300).reshape(-1, 1)
+    whole = np.zeros((300 * 8, 1), dtype=np.float32)
+    Interpolator(8, 1, [1.0], [-10.0], [10.0]).render(x, whole)
+    it = Interpolator(8, 1, [1.0], [-10.0], [10.0])
+    parts = np.zeros_like(whole)
+    for a, b in [(0, 1), (1, 2), (2, 50), (50, 51), (51, 300)]:
+        it.render(x[a:b], parts[a * 8:b * 8])
+    np.testing.assert_array_equal(parts, whole)
+
+
+def test_images_stay_below_minus_40_db_where_hold_and_linear_do_not():
+    x = _texture_like(16000)
+    up, rate = 8, 8000.0
+    out = np.zeros((x.size * up, 1), dtype=np.float32)
+    Interpolator(up, 1, [1.0], [-100.0], [100.0]).render(x.reshape(-1, 1), out)
+    assert _power_above(out[:, 0].astype(float), rate, 550.0) < 1e-4  # the issue's requirement (0.55 x the 1 kHz rate)
+    hold = np.repeat(x, up)
+    linear = np.interp(np.arange(x.size * up) / up, np.arange(x.size), x)
+    assert _power_above(hold, rate, 550.0) > 1e-3  # the images this filter removes
+    assert _power_above(linear, rate, 550.0) > 1e-4
+
+
+def test_minimum_phase_delay_is_a_fraction_of_the_linear_phase_delay():
+    h = interpolation_filter(8)
+    assert abs(h.sum() - 1.0) < 1e-12
+    linear_delay = (h.size - 1) / 2 / 8000.0
+    assert low_frequency_delay(h, 8000.0, 50.0) < linear_delay / 4
+    w, resp = signal.freqz(h, worN=[100.0, 300.0, 500.0, 600.0], fs=8000.0)
+    db = 20 * np.log10(np.abs(resp))
+    assert np.all(np.abs(db[:2]) < 0.01)  # passband flat to 400 Hz (Kaiser ripple at 60 dB: 0.0087 dB)
+    assert np.all(db[2:] < -59.0)  # images (from 500 Hz up) 60 dB down

@@ -1,0 +1,266 @@
+"""flowtex live's audio output against a real JACK server (dummy backend: paced in real time, no sound hardware).
+
+Each test starts its own named jackd (JACK_DEFAULT_SERVER), a capture client
+(tests/runtime/jack_capture.py, PortAudio's JACK host API) and ``flowtex live``
+as a subprocess, connects flowtex's output port to the capture port with
+``jack_connect`` as soon as it appears, and compares what JACK delivered with
+``--record-audio``, JACK cycle by cycle: every cycle the capture got must be the
+next block flowtex handed to PortAudio, except cycles jackd itself reports as an
+XRun (a client not finished in time, on a loaded machine without real-time
+scheduling). No timing asserts: latencies are checked for presence only.
+Skipped only when jackd is not installed (.ci/run installs jackd2).
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from scipy.io import wavfile
+
+from flowtex.runtime.audio_check import compare_audio
+
+REPO = Path(__file__).resolve().parents[2]
+DBC = REPO / "graphs" / "devices" / "example.dbc"
+CAPTURE = Path(__file__).with_name("jack_capture.py")
+JACKD = shutil.which("jackd")
+pytestmark = pytest.mark.skipif(JACKD is None, reason="jackd is not installed (Debian: apt-get install jackd2 libportaudio2)")
+RATE = 8000
+_names = itertools.count()
+
+GRAPH = """
+flowtex: 1
+name: audio-passthrough
+rate: 1000
+inputs:
+  position: {shape: [3], unit: mm}
+  normal_force: {unit: N}
+nodes:
+  k: {type: gain, params: {k: 0.01}}
+  v: {type: gain, params: {k: 0.25}}
+edges:
+  - position -> k.x
+  - normal_force -> v.x
+outputs:
+  force: k.y
+  vibration: v.y
+"""
+
+MAP = """
+flowtex_map: 1
+overrun_limit_ms: 100000    # a loaded test machine must not trip the overrun watchdog
+inputs:
+  position: {signals: [ToolPosition.PosX, ToolPosition.PosY, ToolPosition.PosZ], timeout_ms: 100000}
+  normal_force: {signal: ToolForce.NormalForce, timeout_ms: 100000}
+outputs:
+  force: {signals: [ForceCmd.Fx, ForceCmd.Fy, ForceCmd.Fz], clamp: [-4, 4], safe: [0, 0, 0]}
+audio:
+  rate: 8000
+  block: BLOCK
+  channels:
+    - {output: vibration, scale: 1.5, clip: 1.0}
+"""
+
+
+@pytest.fixture
+def setup(tmp_path):
+    (tmp_path / "g.yaml").write_text(textwrap.dedent(GRAPH))
+    rng = np.random.default_rng(7)
+    n = 4000
+    pos = np.zeros((n, 3))
+    force = rng.uniform(0.5, 3.5, n)  # vibration 0.125..0.875 A: never zero, so the capture lines up unambiguously
+    np.savez(tmp_path / "rec.npz", position=pos, normal_force=force, rate=np.float64(1000))
+    return tmp_path
+
+
+def _map(path: Path, block: int) -> Path:
+    m = path / f"m{block}.yaml"
+    m.write_text(textwrap.dedent(MAP).replace("BLOCK", str(block)))
+    return m
+
+
+def _ports(env: dict) -> set[str]:
+    out = subprocess.run(["jack_lsp"], capture_output=True, text=True, env=env, timeout=10)
+    return set(out.stdout.split()) if out.returncode == 0 else set()
+
+
+@contextmanager
+def jack_server(period: int, log: Path):
+    """A private jackd (dummy backend, RATE Hz, ``period`` frames) logging to ``log``; yields the environment that selects it."""
+    name = f"flowtex-test-{os.getpid()}-{next(_names)}"
+    env = {**os.environ, "JACK_DEFAULT_SERVER": name, "JACK_NO_START_SERVER": "1"}
+    with open(log, "w") as out:
+        proc = subprocess.Popen([JACKD, "--no-realtime", "-n", name, "-d", "dummy", "-r", str(RATE), "-p", str(period)],
+                                stdout=out, stderr=subprocess.STDOUT, env=env, start_new_session=True)
+    try:
+        end = time.monotonic() + 20
+        while "system:playback_1" not in _ports(env):
+            assert proc.poll() is None and time.monotonic() < end, "jackd did not come up"
+            time.sleep(0.05)
+        yield env, proc
+    finally:
+        if proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+        for left in Path("/dev/shm").glob(f"jack*{name}*"):  # what this server's clients left behind
+            left.unlink(missing_ok=True)
+
+
+def _session(setup: Path, env: dict, block: int, duration: float, sigint_after: float | None = None,
+             kill_server: Any = None) -> dict:
+    """Run flowtex live with its output connected to a capture client; returns what happened."""
+    cap_path = setup / f"cap{block}.npy"
+    before = _ports(env)
+    cap = subprocess.Popen([sys.executable, str(CAPTURE), str(cap_path), str(RATE), str(block)], stdout=subprocess.PIPE,
+                           text=True, env=env)
+    try:
+        assert cap.stdout.readline().strip() == "ready"
+        cap_in = sorted(p for p in _ports(env) - before if ":in" in p)[0]
+        base = _ports(env)
+        wav, blf, stats = setup / f"live{block}.wav", setup / f"s{block}.blf", setup / f"stats{block}.json"
+        cmd = [sys.executable, "-m", "flowtex", "live", str(setup / "g.yaml"), "--bus", "virtual", "--dbc", str(DBC),
+               "--map", str(_map(setup, block)), "--simulate", str(setup / "rec.npz"), "--duration", str(duration),
+               "--record-audio", str(wav), "--record", str(blf), "--stats", str(stats), "--quiet"]
+        live = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, env=env)
+        end = time.monotonic() + 60
+        while True:
+            outs = sorted(p for p in _ports(env) - base if ":out" in p)
+            if outs:
+                subprocess.run(["jack_connect", outs[0], cap_in], check=True, env=env, timeout=10)
+                break
+            assert live.poll() is None and time.monotonic() < end, f"flowtex never opened its JACK port: {live.stderr.read()}"
+            time.sleep(0.01)
+        if sigint_after is not None:
+            time.sleep(sigint_after)
+            live.send_signal(signal.SIGINT)
+        if kill_server is not None:
+            time.sleep(1.0)
+            kill_server()
+        _, err = live.communicate(timeout=120)
+        time.sleep(0.3)  # let the capture run past the end of flowtex's stream
+    finally:
+        cap.terminate()
+        try:
+            cap.wait(20)
+        except subprocess.TimeoutExpired:
+            cap.kill()
+            cap.wait()
+    result = {"rc": live.returncode, "stderr": err, "wav": wav, "blf": blf}
+    if cap_path.exists():
+        result["captured"] = np.load(cap_path)
+    if wav.exists():
+        result["recorded"] = wavfile.read(wav)[1]
+    if stats.exists():
+        result["stats"] = json.loads(stats.read_text())
+    return result
+
+
+def _xruns(log: Path) -> int:
+    """Cycles jackd reported as XRuns (its own timing, or a client not finished in time)."""
+    return sum("XRun" in line for line in log.read_text(errors="replace").splitlines())
+
+
+def _compare_cycles(captured: np.ndarray, recorded: np.ndarray, period: int) -> tuple[int, int]:
+    """(cycles equal to the next recorded block, cycles that are not); after the recording ends the capture must be silent."""
+    c0, off, skipped = _line_up(captured, recorded, period)
+    i = c0
+    pos = i + off
+    good, bad = 0, skipped
+    while i + period <= captured.size and pos + period <= recorded.size:
+        block = captured[i:i + period]
+        skip = next((j for j in range(0, 64) if np.array_equal(block, recorded[pos + j * period:pos + (j + 1) * period])), None)
+        if skip == 0:
+            good += 1
+        else:  # jackd dropped (skip > 0) or tore (None) a block
+            bad += 1
+            pos += (skip or 0) * period
+        i += period
+        pos += period
+    assert not captured[i + period:].any(), "sound after flowtex's last recorded block"
+    return good, bad
+
+
+def _line_up(captured: np.ndarray, recorded: np.ndarray, period: int) -> tuple[int, int, int]:
+    """(captured cycle start, its offset into the recording, sounding cycles before it that matched nowhere): the
+    first captured cycle with sound that appears in the recording (an XRun may tear the first ones)."""
+    first = int(np.flatnonzero(captured)[0])
+    skipped = 0
+    for c0 in range(first - first % period, captured.size - period, period):
+        window = captured[c0:c0 + period]
+        if not window.any():
+            continue
+        for r0 in np.flatnonzero(recorded == window[np.flatnonzero(window)[0]]):
+            r0 -= int(np.flatnonzero(window)[0])
+            if r0 >= 0 and np.array_equal(recorded[r0:r0 + period], window):
+                return c0, int(r0) - c0, skipped
+        skipped += 1
+        assert skipped < 50, "the captured samples appear nowhere in --record-audio"
+    raise AssertionError("the captured samples appear nowhere in --record-audio")
+
+
+def test_captured_equals_record_audio_and_replay_at_period_64(setup):
+    log = setup / "jackd.log"
+    with jack_server(64, log) as (env, _):
+        r = _session(setup, env, 64, duration=2.0)
+    assert r["rc"] == 0, r["stderr"]
+    good, bad = _compare_cycles(r["captured"], r["recorded"], 64)  # bit for bit: float32 through JACK
+    assert bad <= _xruns(log), (good, bad)
+    assert good * 64 > 0.5 * RATE * 2.0  # the capture saw most of the session
+    rec = r["recorded"]
+
+    audio = r["stats"]["audio"]
+    assert set(audio) >= {"rate", "frames", "underruns", "latency_ms"}
+    assert audio["rate"] == RATE and audio["frames"] == rec.size
+    lat = audio["latency_ms"]
+    assert 0 < lat["p50"] <= lat["p99"] <= lat["max"]
+
+    replay = setup / "replay.wav"
+    done = subprocess.run([sys.executable, "-m", "flowtex", "run", str(setup / "g.yaml"), "--input", str(r["blf"]), "--dbc", str(DBC),
+                           "--map", str(setup / "m64.yaml"), "--output", str(replay)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    up, down = audio["ratio"]
+    cmp = compare_audio(rec, wavfile.read(replay)[1], audio["lead_frames"], up, audio["resyncs"], audio["fade_frames"], down)
+    assert cmp.ok, cmp
+    assert cmp.equal > 0.5 * cmp.compared  # most of the session played the graph's samples, not safe silence
+
+
+def test_sigint_ends_in_silence_and_latency_at_period_256(setup):
+    log = setup / "jackd.log"
+    with jack_server(256, log) as (env, _):
+        r = _session(setup, env, 256, duration=30.0, sigint_after=1.5)
+    assert r["rc"] == 0, r["stderr"]  # SIGINT is a clean stop
+    cap, rec = r["captured"], r["recorded"]
+    good, bad = _compare_cycles(cap, rec, 256)
+    assert good > 0 and bad <= _xruns(log), (good, bad)
+    fade = r["stats"]["audio"]["fade_frames"]
+    last = int(np.flatnonzero(cap)[-1])
+    assert not cap[last + 1:].any() and cap.size - last > RATE // 10  # silence to the end of the capture
+    tail = np.abs(cap[last - fade + 1:last + 1])
+    assert np.all(np.diff(tail) < 0)  # the last sound is the fade, falling to zero within fade_frames (2 ms)
+    assert tail[0] < np.abs(rec).max()
+    lat = r["stats"]["audio"]["latency_ms"]
+    assert 0 < lat["p50"] <= lat["p99"] <= lat["max"]
+
+
+def test_vanished_device_ends_session_with_one_line(setup):
+    with jack_server(64, setup / "jackd.log") as (env, server):
+        r = _session(setup, env, 64, duration=30.0, kill_server=lambda: server.send_signal(signal.SIGTERM))
+    assert r["rc"] == 1, r["stderr"]
+    lines = [x for x in r["stderr"].strip().splitlines() if not x.startswith("flowtex: ")]  # notes: compiling, plugins
+    assert len(lines) == 1 and "audio device" in lines[0] and "stopped" in lines[0], r["stderr"]

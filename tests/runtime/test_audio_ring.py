@@ -1,0 +1,88 @@
+"""The tick loop -> audio callback hand-over (flowtex.runtime.audio_ring) and the live/replay check, without a device."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from flowtex.runtime.audio_check import compare_audio, fade_from
+from flowtex.runtime.audio_ring import LATENCIES, MISSING, PLAYED, RECORDED, STOPPING, UNDERRUNS, AudioRing, fill
+
+UP, LEAD, RATE = 8, 80, 8000
+
+
+def _ring() -> AudioRing:
+    return AudioRing(UP, 1, LEAD, RATE, record_s=1.0)
+
+
+def _callback(ring: AudioRing, frames: int, dac_ns: int = 0) -> np.ndarray:
+    out = np.zeros((frames, 1), dtype=np.float32)
+    fill(out, ring.ring, ring.stamps, ring.lead, ring.last, ring.istate, ring.fade, ring.arrival, ring.latency, dac_ns,
+         ring.rate, ring.record)
+    return out[:, 0]
+
+
+def _block(k: int) -> np.ndarray:
+    return np.full((UP, 1), 0.1 + 0.01 * k, dtype=np.float32)
+
+
+def test_ticks_play_at_their_positions_after_the_lead():
+    ring = _ring()
+    for k in range(20):
+        ring.put(k, _block(k), arrival_ns=1000 + k, silent=False)
+    out = _callback(ring, 64)
+    out = np.concatenate([out, _callback(ring, 64)])
+    assert not out[:LEAD].any()  # silence at stream start
+    np.testing.assert_array_equal(out[LEAD:LEAD + UP], np.float32(0.1))
+    np.testing.assert_array_equal(out[LEAD + UP:LEAD + 2 * UP], np.float32(0.11))
+    assert ring.istate[PLAYED] == 128 - LEAD and ring.istate[MISSING] == 0 and ring.istate[UNDERRUNS] == 0
+    assert ring.istate[LATENCIES] == (128 - LEAD) // UP  # one latency sample per tick that started here
+    np.testing.assert_array_equal(ring.drain()[:, 0], out)  # the recording is exactly what was handed over
+
+
+def test_missing_and_silent_ticks_fade_to_zero_within_the_fade_and_only_late_ones_count():
+    ring = _ring()
+    for k in range(4):
+        ring.put(k, _block(k), 0, silent=False)
+    ring.put(4, _block(4), 0, silent=True)  # the watchdog held tick 4: safe silence, not an underrun
+    out = _callback(ring, LEAD + 5 * UP)
+    tail = np.abs(out[LEAD + 4 * UP:])
+    assert np.all(np.diff(tail) <= 0) and tail[0] < np.float32(0.13)
+    assert ring.istate[MISSING] == 0
+    out = _callback(ring, 2 * ring.fade)  # tick 5 never came: late
+    assert not out[ring.fade:].any()  # zero once the fade is over (2 ms)
+    assert ring.istate[MISSING] == 2 * ring.fade and ring.istate[UNDERRUNS] == 1
+
+
+def test_resync_inserts_silence_and_stopping_fades_out():
+    ring = _ring()
+    _callback(ring, 200)  # the callback ran ahead of the tick loop (a stall before tick 0)
+    assert ring.resync(0, 16) == 200 + 16 - LEAD and ring.position(0) == 216
+    assert ring.resync(0, 16) == 0  # in time now
+    ring.put(0, _block(0), 0, silent=False)
+    out = _callback(ring, 64)
+    np.testing.assert_array_equal(out[16:24], np.float32(0.1))
+    ring.put(1, _block(1), 0, silent=False)
+    ring.istate[STOPPING] = 1
+    out = _callback(ring, 64)
+    assert np.all(np.abs(out) < np.float32(0.1)) and not out[ring.fade:].any()  # stopping: fade, then zeros
+    assert ring.istate[RECORDED] == 328
+
+
+def test_compare_audio_accepts_silence_and_finds_a_real_difference():
+    rng = np.random.default_rng(0)
+    ticks = 50
+    replay = np.concatenate([np.zeros(LEAD), rng.uniform(0.2, 0.8, ticks * UP)]).astype(np.float32)
+    live = np.zeros(LEAD + ticks * UP + 40, dtype=np.float32)
+    live[:replay.size] = replay
+    # ticks 10-11 late: a fade over 16 frames then zeros; then a resync inserting 40 frames before tick 30
+    p = LEAD + 10 * UP
+    live[p:p + 16] = replay[p - 1] * (1 - np.arange(1, 17) / 16)
+    q = LEAD + 30 * UP
+    live[q:q + 40] = fade_from(live[q - 1:q], 40, 16)[:, 0]
+    live[q + 40:] = replay[q:q + live.size - q - 40]
+    cmp = compare_audio(live, replay, LEAD, UP, [[30, 40]], 16)
+    assert cmp.ok and cmp.compared == ticks * UP and cmp.equal == ticks * UP - 16  # every tick frame but the fade
+    assert cmp.silence == LEAD + 16 + 40  # the lead, the fade, the resync
+    live[LEAD + 5 * UP] += np.float32(1e-6)  # one sample off by one part in a million
+    cmp = compare_audio(live, replay, LEAD, UP, [[30, 40]], 16)
+    assert not cmp.ok and cmp.first_unexplained == LEAD + 5 * UP
