@@ -69,7 +69,7 @@ def cmd_fit_friction(args: argparse.Namespace) -> int:
     if with_offset and args.into:
         raise DataError(f"--into {args.into}: a model set stores mu only, so the offset of --offset yes would be dropped and "
                         "the rendered friction would be wrong; fit without --offset (HaTT's line through the origin) to store mu")
-    check_output(args.output, inputs=[args.recording, args.into], option="-o")
+    check_output(args.output, inputs=[args.recording, args.into], option="-o", suffixes=(".json",))
     if args.into is not None:
         load_model_set(args.into)  # refuse a missing or broken model set before any work
         check_output(args.into, inputs=[args.recording], option="--into", create_folders=False)
@@ -111,7 +111,7 @@ def cmd_fit_taps(args: argparse.Namespace) -> int:
     from ..fit.taps import fit_tap_recording, tap_table, write_taps
     from ..io.atomic import check_output
 
-    check_output(args.output, inputs=[args.recording], option="-o")
+    check_output(args.output, inputs=[args.recording], option="-o", suffixes=(".json",))
     lib, taps, notes, rate = fit_tap_recording(args.recording, args.accel, args.force, args.from_rate, args.position, args.normal,
                                                args.speed, args.length, args.highpass, args.name, args.quiet)
     for line in tap_table(taps, notes, lib, rate):
@@ -139,7 +139,7 @@ def cmd_fit_pattern(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output
     from ..io.patternfile import write_pattern
 
-    check_output(args.output, inputs=[args.recording], option="-o")
+    check_output(args.output, inputs=[args.recording], option="-o", suffixes=(".json",))
     pat = fit_pattern_recording(args.recording, args.accel, args.position, args.from_rate, args.speed, args.max_order)
     write_pattern(args.output, pat)
     say(f"{args.output}: {pattern_summary(pat)}")
@@ -169,7 +169,7 @@ def cmd_fit_compliance(args: argparse.Namespace) -> int:
     from ..fit.compliance import compliance_recording, compliance_summary
     from ..io.atomic import check_output, write_json_atomic
 
-    check_output(args.output, inputs=[args.recording], option="-o")
+    check_output(args.output, inputs=[args.recording], option="-o", suffixes=(".json",))
     result = compliance_recording(args.recording, args.force, args.accel, args.from_rate, args.contact,
                                   tuple(args.force_range) if args.force_range else None, k_g=args.kg,
                                   force_threshold=args.force_threshold, smooth_floor=args.smooth_floor, r2_min=args.r2_min)

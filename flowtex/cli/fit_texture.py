@@ -39,7 +39,7 @@ def register_fit(kinds: Any) -> None:
     p.add_argument("--xml", type=Path, help="also write HaTT XML (with --out-dir: one .xml beside each .json)", nargs="?",
                    const=Path("-"))
     p.add_argument("--report", metavar="DIR", help="write a markdown report with plots into this folder")
-    p.add_argument("--holdout", type=lambda t: number_in_range(t, 0.0, 1.0, low_open=True), metavar="FRACTION",
+    p.add_argument("--holdout", type=lambda t: number_in_range(t, 0.0, 1.0, low_open=True, high_open=True), metavar="FRACTION",
                    help="fit on all but the last FRACTION of the recording and compare the fit with that part "
                         "(as flowtex compare does)")
     p.add_argument("--grid", metavar="INDEX.csv", help="Romano-2012 grid: CSV of file, speed, force (one stationary recording each)")
@@ -76,6 +76,11 @@ def _check_outputs(args: argparse.Namespace, inputs: list) -> None:
 
     check_output(args.output, inputs=inputs, option="-o")
     check_output(args.xml, inputs=inputs + [args.output], option="--xml")
+    if args.output is not None and Path(args.output).suffix.lower() == ".xml":
+        raise DataError(f"-o {args.output}: -o writes flowtex's JSON model set; name it .json and give --xml "
+                        f"{args.output} for HaTT's XML")
+    if args.xml is not None and Path(args.xml).suffix.lower() == ".json":
+        raise DataError(f"--xml {args.xml}: --xml writes HaTT's XML; name it .xml (-o writes the JSON)")
     check_report_folder(args.report, inputs)
 
 

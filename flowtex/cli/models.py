@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from ..errors import DataError
 from .options import int_at_least, positive_hz
 from .output import say
 
@@ -13,7 +14,7 @@ def register(sub: Any) -> None:
     """Add ``flowtex models`` with its ``resample`` action."""
     from ..fit.resample import MAX_EXTRA_ORDER
 
-    p = sub.add_parser("models", help="operate on texture model sets (resample)",
+    p = sub.add_parser("models", help="operate on texture model sets and tap libraries (resample)",
                        description="Transform texture model sets (HaTT XML or native JSON).")
     actions = p.add_subparsers(dest="models_action", required=True, metavar="ACTION", parser_class=type(p))
     r = actions.add_parser("resample", help="resample every model to another sample rate",
@@ -22,7 +23,8 @@ def register(sub: Any) -> None:
     r.add_argument("input", metavar="IN", help="model set: HaTT .xml or native flowtex .json")
     r.add_argument("--rate", type=positive_hz, required=True, metavar="HZ",
                    help="target sample rate in Hz (the rate it produces; at most 16x up or down)")
-    r.add_argument("-o", "--output", required=True, metavar="OUT", help="native model-set JSON to write")
+    r.add_argument("-o", "--output", required=True, metavar="OUT",
+                   help="model set to write: .json (native, with the resampling record) or .xml (HaTT)")
     r.add_argument("--keep-order", action="store_true",
                    help="keep the models' (p, q) when upsampling by more than 2x (cheaper to render, less exact)")
     r.add_argument("--extra-order", type=int_at_least(0, MAX_EXTRA_ORDER), metavar="N",
@@ -37,9 +39,15 @@ def register(sub: Any) -> None:
 def cmd_models_resample(args: argparse.Namespace) -> int:
     from ..fit.resample import check_misses, resample_model_set, resample_summary, tqdm_progress
     from ..io.atomic import atomic_output, check_output
+    from ..io.hatt import write_hatt_xml
     from ..io.modelset import load_model_set, save_model_set
 
     target = check_output(args.output, inputs=[args.input], option="-o")
+    if _resample_taps(args, target):
+        return 0
+    if target.suffix.lower() not in (".json", ".xml"):
+        raise DataError(f"-o {args.output}: write the resampled set as .json (flowtex's format, with the resampling "
+                        "record) or .xml (HaTT's format)")
     ms = load_model_set(args.input)
     progress, close = tqdm_progress(ms.num_models, "resample")
     try:
@@ -48,9 +56,32 @@ def cmd_models_resample(args: argparse.Namespace) -> int:
         close()
     check_misses(out, args.allow_misses, str(args.input))  # refuses (FlowtexError naming the models) unless --allow-misses
     with atomic_output(target) as tmp:
-        save_model_set(out, tmp)
+        if target.suffix.lower() == ".xml":
+            write_hatt_xml(out, tmp, texture=int(out.metadata.get("texture") or 0))
+        else:
+            save_model_set(out, tmp)
     line, warning = resample_summary(args.input, ms, out, str(target), args.keep_order)
     say(line)
     if warning:
         say(warning)
     return 0
+
+
+def _resample_taps(args: argparse.Namespace, target: Any) -> bool:
+    """A tap library (``flowtex fit taps``) as input: resample its transients to ``--rate``, write it; False for a model set."""
+    from ..errors import FlowtexError
+    from ..io.atomic import atomic_output
+    from ..io.taplib import read_tap_library, write_tap_library
+    from ..models.taps import resample_tap_library
+
+    try:
+        lib = read_tap_library(args.input)
+    except FlowtexError:
+        return False                     # not a tap library: the model-set reader gives the error, if any
+    if target.suffix.lower() != ".json":
+        raise DataError(f"-o {args.output}: a tap library is written as .json")
+    out = resample_tap_library(lib, args.rate)
+    with atomic_output(target) as tmp:
+        write_tap_library(tmp, out, notes=f"resampled by flowtex models resample from {lib.sample_rate_hz:g} Hz")
+    say(f"{args.input}: tap library ({len(lib.speeds)} taps) {lib.sample_rate_hz:g} Hz -> {args.rate:g} Hz, written to {target}")
+    return True

@@ -1,7 +1,7 @@
 """Option builders shared by every verb: one spelling and one meaning per flag (docs/cli.md lists them all).
 
 - ``--plugins DIR`` / ``--no-plugins``: extra plugin folders; skip the automatic ./plugins and graph-folder plugins.
-- ``--set NODE.PARAM=VALUE``: override a node parameter.
+- ``--set NODE.PARAM=VALUE``: override a node parameter (``--set rate=HZ``: the graph's rate).
 - ``--seed N``: noise seed.
 - ``--from-rate HZ``: the rate of a recording that states none (old spelling ``--rate`` in the fit verbs, with a notice).
 - the live options (``--bus``, ``--dbc``, ``--map``, ``--record``, ``--stats``, ...), shared by ``live`` and ``scene live``.
@@ -32,7 +32,8 @@ def add_plugin_options(p: argparse.ArgumentParser, no_plugins: bool = True) -> N
 def add_set_option(p: argparse.ArgumentParser) -> None:
     """``--set NODE.PARAM=VALUE`` (repeatable), stored in ``args.overrides``."""
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="NODE.PARAM=VALUE",
-                   help="override a node parameter (repeatable), e.g. --set lookup.models=Models_Cork.xml")
+                   help="override a node parameter (repeatable), e.g. --set lookup.models=Models_Cork.xml; "
+                        "--set rate=HZ sets the graph's rate")
 
 
 def add_graph_options(p: argparse.ArgumentParser, no_plugins: bool = True) -> None:
@@ -67,16 +68,18 @@ def positive_hz(text: str) -> float:
     return number_in_range(text, 0.0, MAX_RATE_HZ, low_open=True, unit="Hz")
 
 
-def number_in_range(text: str, low: float, high: float, *, low_open: bool = False, unit: str = "") -> float:
-    """A finite float in [low, high] (or (low, high] with ``low_open``); argparse turns the ValueError into a usage line."""
+def number_in_range(text: str, low: float, high: float, *, low_open: bool = False, high_open: bool = False,
+                    unit: str = "") -> float:
+    """A finite float in [low, high] (open at either end with ``low_open`` / ``high_open``); argparse turns the error into a usage line."""
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
     below = value <= low if low_open else value < low
-    if not math.isfinite(value) or below or value > high:
+    above = value >= high if high_open else value > high
+    if not math.isfinite(value) or below or above:
         lo = "(" if low_open else "["
-        hi = "inf)" if high == math.inf else f"{high:g}]"
+        hi = "inf)" if high == math.inf else f"{high:g}" + (")" if high_open else "]")
         raise argparse.ArgumentTypeError(f"{text} is out of range: valid {lo}{low:g}, {hi}{' ' + unit if unit else ''}")
     return value
 

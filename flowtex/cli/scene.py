@@ -54,8 +54,8 @@ def cmd_scene_plan(args: argparse.Namespace) -> int:
     from ..scene.build import plan_to_graph
     from ..scene.plan import explain, plan_json
 
-    check_output(args.output, inputs=[args.scene], option="-o")
-    check_output(args.json, inputs=[args.scene, args.output], option="--json")
+    check_output(args.output, inputs=[args.scene], option="-o", suffixes=(".yaml", ".yml"))
+    check_output(args.json, inputs=[args.scene, args.output], option="--json", suffixes=(".json",))
     plan = plan_to_graph(args.scene, args.output, tuple(args.plugins), auto_plugins=not args.no_plugins)
     if args.json:
         write_text_atomic(Path(args.json), json.dumps(plan_json(plan), indent=2) + "\n")

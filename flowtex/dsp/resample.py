@@ -23,6 +23,10 @@ DEFAULT_ATTEN_DB = 80.0
 """Default stopband attenuation (images and aliases), dB."""
 
 
+PASSBAND = 0.8
+"""Default passband of :func:`resample_signal`: frequencies up to this times the lower Nyquist pass unchanged."""
+
+
 def rational_ratio(rate_in: float, rate_out: float) -> tuple[int, int]:
     """(up, down) in lowest terms with up/down == rate_out/rate_in, both <= MAX_FACTOR.
 
@@ -45,7 +49,7 @@ def resampled_length(n: int, up: int, down: int) -> int:
 
 
 def resample_signal(x: np.ndarray, rate_in: float, rate_out: float, atten_db: float = DEFAULT_ATTEN_DB,
-                    passband: float = 0.8) -> np.ndarray:
+                    passband: float = PASSBAND) -> np.ndarray:
     """Resample ``x`` (samples along axis 0, any trailing shape, any unit) from ``rate_in`` to ``rate_out`` Hz.
 
     Returns float64 of length round(n * rate_out / rate_in) along axis 0, same

@@ -30,15 +30,17 @@ Welch PSDs use 256-sample Hann segments (0.26 s at 1 kHz; a 1-s window then has
 
 from __future__ import annotations
 
+import math
 import tempfile
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..dsp.filter_design import butterworth_sos
+from ..dsp.resample import PASSBAND as RESAMPLE_PASSBAND
 from ..dsp.spectral import gfc, lsd_db, welch_psd
 from ..errors import DataError
 from ..models.texture import TextureModelSet
@@ -56,6 +58,8 @@ class CompareOptions:
     skip_s: float = 0.5
     min_freq_hz: float = 12.0
     window_s: float = 1.0
+    max_freq_hz: float = math.inf
+    """Top of the band of the LSD, GFC and centroids (Hz); :func:`compare_surface` lowers it for a resampled set."""
     lookup: dict[str, Any] = field(default_factory=dict)
     """Extra ``texture_lookup`` parameters for the render (e.g. ``{"outside": "fade"}``)."""
 
@@ -77,6 +81,8 @@ class Comparison:
     seconds: float
     seeds: int
     windows: list[dict[str, float]]
+    max_freq_hz: float = math.inf
+    """Top of the shape band (Hz; inf: the Nyquist frequency)."""
     freqs: np.ndarray | None = field(default=None, repr=False)
     """Welch frequencies (Hz) of the two PSDs below (not in the JSON)."""
     recorded_psd: np.ndarray | None = field(default=None, repr=False)
@@ -131,19 +137,21 @@ def _band_power(freqs: np.ndarray, psd: np.ndarray, min_freq: float) -> float:
     return float(np.sum(psd[band]) * (freqs[1] - freqs[0]))
 
 
-def _centroid(freqs: np.ndarray, psd: np.ndarray, min_freq: float) -> float:
-    band = freqs >= min_freq
+def _centroid(freqs: np.ndarray, psd: np.ndarray, min_freq: float, max_freq: float = math.inf) -> float:
+    band = (freqs >= min_freq) & (freqs <= max_freq)
     total = np.sum(psd[band])
     return float(np.sum(freqs[band] * psd[band]) / total) if total > 0 else float("nan")
 
 
-def _shape(freqs: np.ndarray, rec: np.ndarray, ren: np.ndarray, min_freq: float) -> tuple[float, float, float, float]:
-    """(LSD dB, GFC, recorded centroid Hz, rendered centroid Hz) of two PSDs on ``freqs``."""
-    band = freqs >= min_freq
+def _shape(freqs: np.ndarray, rec: np.ndarray, ren: np.ndarray, min_freq: float,
+           max_freq: float = math.inf) -> tuple[float, float, float, float]:
+    """(LSD dB, GFC, recorded centroid Hz, rendered centroid Hz) of two PSDs on ``freqs``, ``min_freq`` to ``max_freq`` Hz."""
+    band = (freqs >= min_freq) & (freqs <= max_freq)
     if not np.any(rec[band] > 0):
-        return float("nan"), float("nan"), float("nan"), _centroid(freqs, ren, min_freq)
-    lsd = lsd_db(ren, rec, freqs)
-    return lsd, gfc(np.sqrt(ren[band]), np.sqrt(rec[band])), _centroid(freqs, rec, min_freq), _centroid(freqs, ren, min_freq)
+        return float("nan"), float("nan"), float("nan"), _centroid(freqs, ren, min_freq, max_freq)
+    lsd = lsd_db(ren, rec, freqs, max_freq_hz=max_freq)
+    return (lsd, gfc(np.sqrt(ren[band]), np.sqrt(rec[band])), _centroid(freqs, rec, min_freq, max_freq),
+            _centroid(freqs, ren, min_freq, max_freq))
 
 
 def compare_signals(recorded: np.ndarray, renders: list[np.ndarray], rate: float, opt: CompareOptions | None = None) -> Comparison:
@@ -164,7 +172,7 @@ def compare_signals(recorded: np.ndarray, renders: list[np.ndarray], rate: float
         raise DataError(f"the recorded vibration has no power above {opt.min_freq_hz:g} Hz: nothing to compare")
     ratios = [10 * np.log10(max(_band_power(freqs, s, opt.min_freq_hz), 1e-300) / p_rec) for s in s_each]
     p_ren = float(np.mean([_band_power(freqs, s, opt.min_freq_hz) for s in s_each]))
-    lsd, g, c_rec, c_ren = _shape(freqs, s_rec, s_ren, opt.min_freq_hz)
+    lsd, g, c_rec, c_ren = _shape(freqs, s_rec, s_ren, opt.min_freq_hz, opt.max_freq_hz)
     windows = _windows(x, ys, rate, opt)
     rms_rec = np.array([w["recorded_rms"] for w in windows])
     rms_ren = np.array([w["rendered_rms"] for w in windows])
@@ -174,7 +182,8 @@ def compare_signals(recorded: np.ndarray, renders: list[np.ndarray], rate: float
                       power_ratio_db=float(10 * np.log10(max(p_ren, 1e-300) / p_rec)),
                       power_ratio_spread_db=float(np.std(ratios)) if len(ratios) > 1 else float("nan"),
                       rms_correlation=corr, recorded_rms=float(np.sqrt(p_rec)), rendered_rms=float(np.sqrt(p_ren)),
-                      seconds=n / rate, seeds=len(renders), windows=windows, freqs=freqs, recorded_psd=s_rec, rendered_psd=s_ren)
+                      seconds=n / rate, seeds=len(renders), windows=windows, max_freq_hz=opt.max_freq_hz,
+                      freqs=freqs, recorded_psd=s_rec, rendered_psd=s_ren)
 
 
 def _windows(x: np.ndarray, ys: list[np.ndarray], rate: float, opt: CompareOptions) -> list[dict[str, float]]:
@@ -187,7 +196,7 @@ def _windows(x: np.ndarray, ys: list[np.ndarray], rate: float, opt: CompareOptio
             break
         freqs, s_rec = welch_psd(x[a:b], rate, NPERSEG)
         s_ren = np.mean([welch_psd(y[a:b], rate, NPERSEG)[1] for y in ys], axis=0)
-        lsd, g, c_rec, c_ren = _shape(freqs, s_rec, s_ren, opt.min_freq_hz)
+        lsd, g, c_rec, c_ren = _shape(freqs, s_rec, s_ren, opt.min_freq_hz, opt.max_freq_hz)
         out.append({"start_s": opt.skip_s + a / rate, "seconds": (b - a) / rate,
                     "recorded_rms": float(np.sqrt(_band_power(freqs, s_rec, opt.min_freq_hz))),
                     "rendered_rms": float(np.sqrt(_band_power(freqs, s_ren, opt.min_freq_hz))),
@@ -204,6 +213,9 @@ def compare_surface(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, f
     if abs(ms.sample_rate - rate) > 1e-9 * rate:
         raise DataError(f"{where} is at {rate:g} Hz but the surface's models are for {ms.sample_rate:g} Hz; "
                         f"resample the surface with `flowtex models resample SURFACE --rate {rate:g}`")
+    top = resampled_band_hz(ms)
+    if top < opt.max_freq_hz:
+        opt = replace(opt, max_freq_hz=top)
     renders = render_along(ms, speed, force, range(opt.seeds), opt.lookup)
     try:
         return compare_signals(accel, renders, rate, opt)
@@ -211,10 +223,24 @@ def compare_surface(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, f
         raise DataError(f"{where}: {exc}") from None
 
 
+def resampled_band_hz(ms: TextureModelSet) -> float:
+    """The band (Hz) a set resampled up from a lower rate knows: ``RESAMPLE_PASSBAND`` x the old Nyquist (inf otherwise).
+
+    Above it the models hold only a stopband ceiling, and a recording resampled up from that rate with
+    ``flowtex resample`` holds only the resampler's transition band, so comparing shapes there measures
+    neither the fit nor the recording (issue 18: a resampled twin is compared in the common band).
+    """
+    from_hz = (ms.metadata.get("resample") or {}).get("from_hz") if isinstance(ms.metadata, dict) else None
+    if isinstance(from_hz, (int, float)) and 0 < from_hz < ms.sample_rate:
+        return RESAMPLE_PASSBAND * from_hz / 2.0
+    return math.inf
+
+
 def summary_lines(c: Comparison) -> list[str]:
     """The comparison in a few printable lines."""
     return [f"rendered along the recorded path ({c.seconds:.1f} s, {c.seeds} render(s)):",
             f"  power ratio {c.power_ratio_db:+.2f} dB (rendered over recorded, > 12 Hz; one render scatters by "
             f"{c.power_ratio_spread_db:.2f} dB); RMS {c.rendered_rms:.3g} vs {c.recorded_rms:.3g} m/s^2",
-            f"  LSD {c.lsd_db:.2f} dB, GFC {c.gfc:.3f}, centroid {c.rendered_centroid_hz:.0f} vs {c.centroid_hz:.0f} Hz",
+            f"  LSD {c.lsd_db:.2f} dB, GFC {c.gfc:.3f}, centroid {c.rendered_centroid_hz:.0f} vs {c.centroid_hz:.0f} Hz"
+            + (f" (up to {c.max_freq_hz:g} Hz: the set was resampled from a lower rate)" if math.isfinite(c.max_freq_hz) else ""),
             f"  1-s window RMS correlation {c.rms_correlation:.2f} over {len(c.windows)} windows"]

@@ -101,7 +101,7 @@ def fit_friction(normal: np.ndarray, tangential: np.ndarray, min_force: float = 
     r2 = explained_share(n, t, line.weights)
     warning = None
     if r2 < LOW_R2:
-        ratio = float(line.weights @ t) / max(float(line.weights @ n), 1e-300)
+        ratio = float(np.sum(t)) / max(float(np.sum(n)), 1e-300)   # mean T / mean N in contact: one figure for either fit
         warning = (f"the normal force explains only {100 * r2:.1f} % of the tangential force's variance (r2 = {r2:.3f}, "
                    f"below {LOW_R2:g}): the friction force barely depends on the normal force here (force ratio "
                    f"{ratio:.3f}); " + ("mu is the slope of HaTT's line through the origin, i.e. about that ratio; "

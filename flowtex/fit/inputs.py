@@ -65,6 +65,10 @@ PLAUSIBLE = {
     "position": ("mm", 0.0, 1e6),
 }
 """Quantity -> (unit, least nonzero peak, largest peak): a signal outside is in another unit or corrupt (0 means no floor)."""
+NEGATIVE_SPEED_TOLERANCE = 0.01
+"""A speed sample below -this x the peak speed is negative (filtered or resampled magnitudes dip a little below 0)."""
+NEGATIVE_SPEED_SHARE = 0.05
+"""More than this share of negative speed samples: a signed velocity was given where a magnitude is due."""
 QUANTITY_OF_OPTION = {"--accel": "acceleration", "--force": "force", "--normal-force": "force",
                       "--friction-force": "force", "--speed": "speed", "--position": "position"}
 """The quantity each signal option of the fit verbs names (checked against :data:`PLAUSIBLE`)."""
@@ -87,6 +91,15 @@ def check_plausible(a: np.ndarray, label: str, option: str) -> None:
     if 0.0 < peak < least:
         raise DataError(f"{label}: peak {quantity} {peak:.3g} {unit} is below any sensor's resolution (at least {least:g} {unit}); "
                         f"is the signal in {unit}? Rescale it")
+
+
+def check_speed_magnitude(a: np.ndarray, label: str, option: str = "--speed") -> None:
+    """Refuse a signed velocity (mm/s) where the speed magnitude is due: more than NEGATIVE_SPEED_SHARE of it is negative."""
+    peak = float(np.max(np.abs(a))) if a.size else 0.0
+    negative = float(np.mean(a < -NEGATIVE_SPEED_TOLERANCE * peak)) if a.size else 0.0
+    if negative > NEGATIVE_SPEED_SHARE:
+        raise DataError(f"{label}: the speed is negative in {100 * negative:.0f} % of the samples; {option} takes the "
+                        "speed magnitude (mm/s, >= 0), not a signed velocity: give its absolute value")
 
 
 def check_finite(a: np.ndarray, label: str) -> None:

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError
-from .inputs import atomic_output, check_highpass, check_not_constant, load, signal
+from .inputs import atomic_output, check_highpass, check_not_constant, check_speed_magnitude, load, signal
 from .texture import TextureFit, TextureOptions, fit_grid, fit_texture
 
 
@@ -73,6 +73,7 @@ def read_signals(path: Path, job: TextureJob, need_speed: bool = True) -> tuple[
     speed = None
     if job.speed is not None:
         speed = signal(rec, job.speed, "--speed")
+        check_speed_magnitude(speed, f"{rec.path}: signal {job.speed!r} (--speed)")
     elif job.position is not None:
         pos = signal(rec, job.position, "--position", (3,))
         nrm = signal(rec, job.normal, "--normal", (3,)) if job.normal is not None else None

@@ -3,7 +3,8 @@
 Rules (the same in every verb; documented in docs/cli.md, "Output files"):
 
 - **Atomic.** The data go to a temporary file in the target folder, which is flushed, fsynced and renamed over the
-  target. A failure, an exception or Ctrl-C leaves the old file intact and no partial file behind.
+  target. A failure, an exception or Ctrl-C leaves the old file intact and no partial file behind. A target that
+  exists and is not a regular file (``-o /dev/null``, a FIFO) is written into, never renamed over.
 - **Permissions** come from the umask, like any other program (``0666 & ~umask``); ``keep_mode=True`` (``--into``
   updates of an existing file) keeps the mode the file had.
 - **Inputs are never overwritten.** :func:`check_output` refuses, before any work starts, an output that is the same
@@ -17,6 +18,8 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import shutil
+import stat
 import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -54,7 +57,8 @@ def check_output(path: str | Path | None, *, inputs: Iterable[str | Path | None]
     if path is None:
         return None
     out = Path(path).expanduser()
-    if suffixes and out.suffix.lower() not in suffixes:
+    if suffixes and out.suffix.lower() not in suffixes and not (len(suffixes) == 1 and _is_special(out)):
+        # -o /dev/null (no suffix) is accepted where one format is written; where the suffix picks it, it is refused
         raise OutputError(f"{option} {path}: unknown output format {out.suffix!r}; use {', '.join(suffixes)}")
     for item in inputs:
         if item is not None and _same_file(out, Path(item).expanduser()):
@@ -73,11 +77,27 @@ def check_output(path: str | Path | None, *, inputs: Iterable[str | Path | None]
                               "create it or choose another output") from None
     if not folder.is_dir():
         raise OutputError(f"{option} {path}: {folder} is not a folder")
+    if _is_special(out) and os.access(out, os.W_OK):
+        return out
     if not os.access(folder, os.W_OK | os.X_OK):
         raise OutputError(f"{option} {path}: folder {folder} is not writable; choose another output folder")
     if out.exists() and not os.access(out, os.W_OK) and not os.access(folder, os.W_OK):
         raise OutputError(f"{option} {path}: file is read-only")
     return out
+
+
+def _is_special(path: Path) -> bool:
+    """True for an existing target that is not a regular file (``/dev/null``, a FIFO, ``/dev/stdout``)."""
+    try:
+        return not stat.S_ISREG(os.stat(path).st_mode)
+    except OSError:
+        return False
+
+
+def _copy_into(tmp: Path, path: Path) -> None:
+    """Stream ``tmp`` into the special file ``path``: renaming over ``/dev/null`` would replace the device."""
+    with open(tmp, "rb") as src, open(path, "wb") as dst:
+        shutil.copyfileobj(src, dst)
 
 
 @contextlib.contextmanager
@@ -92,8 +112,9 @@ def atomic_output(path: str | Path, *, keep_mode: bool = False) -> Iterator[Path
     mode = None
     if keep_mode and path.exists():
         mode = path.stat().st_mode & 0o7777
+    special = _is_special(path)
     try:
-        fd, tmp_name = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".part" + path.suffix)
+        fd, tmp_name = tempfile.mkstemp(dir=tempfile.gettempdir() if special else folder, prefix=f".{path.name}.", suffix=".part" + path.suffix)
     except OSError as exc:
         raise OutputError(f"{path}: cannot write in {folder} ({exc.strerror}); choose another output folder") from None
     os.close(fd)
@@ -103,6 +124,9 @@ def atomic_output(path: str | Path, *, keep_mode: bool = False) -> Iterator[Path
         os.chmod(tmp, mode if mode is not None else 0o666 & ~_umask())
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
+        if special:
+            _copy_into(tmp, path)
+            return
         os.replace(tmp, path)
         with contextlib.suppress(OSError):
             dir_fd = os.open(folder, os.O_RDONLY)

@@ -52,7 +52,7 @@ class TapPlayer(Node):
         rate = self.context.node_rate
         if abs(lib.sample_rate_hz - rate) > 1e-9 * rate:
             raise ParamError("library", f"{path}: tap library is sampled at {lib.sample_rate_hz:g} Hz but this node runs at {rate:g} Hz; "
-                             f"resample it (flowtex.models.taps.resample_tap_library, then flowtex.io.taplib.write_tap_library) "
+                             f"run 'flowtex models resample {path} --rate {rate:g} -o OUT.json' and load OUT.json, "
                              f"or run the node at the library's rate")
         s, si = initial_tap_state(lib.length)
         return NodeState(params=tap_params(self.p["mass"], lib.speeds, lib.transients), state=s, istate=si)

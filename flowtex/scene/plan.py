@@ -102,6 +102,14 @@ def _decide(component: str, salience: float, threshold: float, spec: SurfaceSpec
     return Decision(False, salience, threshold, f"dropped: {figure} < threshold {threshold:g}")
 
 
+def _check_rate(spec: SurfaceSpec, field: str, key: str, file_rate: float, scene_rate: float) -> None:
+    """Refuse, at the surface's line, a model set or tap library sampled at another rate than the scene runs at."""
+    if abs(file_rate - scene_rate) > 1e-9 * scene_rate:
+        path = getattr(spec, field)
+        raise _fail(spec, field, f"surface {key!r}: {path} is sampled at {file_rate:g} Hz but the scene runs at {scene_rate:g} Hz; "
+                                 f"run 'flowtex models resample {path} --rate {scene_rate:g} -o OUT.json' and name OUT.json here")
+
+
 def plan_scene(scene: Scene, node_types: set[str] | frozenset[str] = frozenset()) -> dict[str, SurfaceData]:
     """Load every surface's models and decide each component; ``node_types`` are the registered node type names."""
     from ..dsp.salience import mean_texture_power
@@ -117,6 +125,7 @@ def plan_scene(scene: Scene, node_types: set[str] | frozenset[str] = frozenset()
             ms = load_model_set(spec.models)
         except FlowtexError as exc:
             raise _fail(spec, "models", f"surface {key!r}: {exc}") from None
+        _check_rate(spec, "models", key, ms.sample_rate, scene.rate)
         decisions: dict[str, Decision] = {}
         power = mean_texture_power(ms, speed_range, force_range)
         decisions["texture"] = _decide("texture", power, th["texture"], spec)
@@ -132,6 +141,7 @@ def plan_scene(scene: Scene, node_types: set[str] | frozenset[str] = frozenset()
                 lib = read_tap_library(spec.taps)
             except FlowtexError as exc:
                 raise _fail(spec, "taps", f"surface {key!r}: {exc}") from None
+            _check_rate(spec, "taps", key, lib.sample_rate_hz, scene.rate)
             decisions["taps"] = _decide("taps", spectral_centroid(lib), th["taps"], spec)
         elif "taps" in spec.keep:
             raise _fail(spec, "keep", f"surface {key!r}: keep: taps, but the surface has no tap library; add taps: FILE")
