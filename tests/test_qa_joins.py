@@ -75,8 +75,8 @@ def test_compare_of_a_resampled_set_measures_shape_below_the_old_nyquist() -> No
     import numpy as np
     from scipy.signal import butter, sosfiltfilt
 
+    from flowtex.datasets.model_sets import synthetic_model_set
     from flowtex.fit.compare import CompareOptions, compare_signals, resampled_band_hz
-    from flowtex.models.synthetic import synthetic_model_set
 
     rate = 2000.0
     rng = np.random.default_rng(0)
@@ -147,8 +147,8 @@ def test_models_resample_writes_the_format_its_output_suffix_names(tmp_path: Pat
 
     import numpy as np
 
+    from flowtex.datasets.model_sets import synthetic_model_set
     from flowtex.io.modelset import load_model_set, save_model_set
-    from flowtex.models.synthetic import synthetic_model_set
 
     src = save_model_set(synthetic_model_set(np.array([50.0, 150.0]), np.array([1.0, 3.0]), 4, 2, grid=True), tmp_path / "in.json")
     outs = {}
