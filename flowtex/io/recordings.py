@@ -20,9 +20,7 @@ from __future__ import annotations
 
 import csv
 import json
-import os
 import re
-import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -285,7 +283,6 @@ def save_recording(path: str | Path, arrays: Mapping[str, np.ndarray], rate: flo
                 extra[UNITS_KEY] = np.array(json.dumps(units))
             with open(tmp, "wb") as fh:
                 np.savez(fh, **arrays, **extra)
-                _write_hook(fh)
         elif suffix == ".csv":
             _save_csv(tmp, arrays, rate, units)
         else:
@@ -297,20 +294,6 @@ def save_recording(path: str | Path, arrays: Mapping[str, np.ndarray], rate: flo
                         ds.attrs["unit"] = units[name]
                 if rate is not None:
                     fh.attrs["rate"] = float(rate)
-
-
-WRITE_HOOK_ENV = "FLOWTEX_TEST_WRITE_HOOK"
-"""Test hook: when set to a file name, a recording writer creates that file once its data are written and then
-waits (up to 60 s) before finishing, so a test can interrupt a write in progress (tests/cli/test_atomic_cli.py)."""
-
-
-def _write_hook(fh) -> None:
-    marker = os.environ.get(WRITE_HOOK_ENV)
-    if not marker:
-        return
-    fh.flush()
-    Path(marker).write_text("writing\n")
-    time.sleep(60.0)
 
 
 def _save_csv(path: Path, arrays: Mapping[str, np.ndarray], rate: float | None, units: Mapping[str, str]) -> None:

@@ -10,8 +10,31 @@ import time
 
 import numpy as np
 
-from flowtex.io.recordings import WRITE_HOOK_ENV, load_recording, save_recording
+from flowtex.io.recordings import load_recording, save_recording
 from tests.cli.gain_graph import GAIN_GRAPH as GRAPH
+
+SLOW_WRITER = """
+import sys, time
+from pathlib import Path
+import numpy
+
+marker = Path(sys.argv.pop(1))
+savez = numpy.savez
+
+
+def savez_then_wait(file, *args, **kwds):  # the data are written into the temporary file; hold before the rename
+    savez(file, *args, **kwds)
+    file.flush()
+    marker.write_text("writing\\n")
+    time.sleep(60.0)
+
+
+numpy.savez = savez_then_wait
+from flowtex.cli import main
+
+sys.exit(main(sys.argv[1:]))
+"""
+"""``flowtex`` with numpy.savez slowed down in this process only: the test interrupts a write in progress."""
 
 
 def test_sigint_during_the_write_keeps_the_old_output(tmp_path):
@@ -22,9 +45,9 @@ def test_sigint_during_the_write_keeps_the_old_output(tmp_path):
     save_recording(out, {"y": np.full(3, 7.0)}, rate=1000.0)  # the old output, which must survive
     before = out.read_bytes()
     marker = tmp_path / "writing"
-    env = {**os.environ, WRITE_HOOK_ENV: str(marker)}
-    cmd = [sys.executable, "-m", "flowtex", "run", str(tmp_path / "g.yaml"), "-i", str(tmp_path / "in.npz"), "-o", str(out),
+    cmd = [sys.executable, "-c", SLOW_WRITER, str(marker), "run", str(tmp_path / "g.yaml"), "-i", str(tmp_path / "in.npz"), "-o", str(out),
            "--no-plugins"]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}  # the flowtex under test, whatever the cwd
     proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 240  # a cold numba compile under load comes first
