@@ -38,6 +38,9 @@ MAX_SIGNAL_WIDTH = 16
 """A recording signal may have more components per sample than samples only up to this width (else it looks transposed)."""
 TIME_GAP_TOLERANCE = 1.5
 """A ``time`` column step longer than this many median steps is a gap (a sample or more is missing)."""
+MAX_RATE_HZ = 1_000_000.0
+"""Largest rate flowtex takes, from an option or a graph's ``rate``: 1 MHz, above any haptic or audio recording
+(filters designed at absurd rates fail)."""
 MAX_EVERY = 1_000_000
 """Largest ``every:`` of a graph node (ticks between runs)."""
 MAX_INT_PARAM = 2**31 - 1

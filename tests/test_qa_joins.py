@@ -34,10 +34,18 @@ def test_set_rate_sets_the_graph_rate(tmp_path: Path) -> None:
     assert spec.rate == 2000.0
 
 
-@pytest.mark.parametrize("bad", [0, -5, float("nan"), "fast", True])
+@pytest.mark.parametrize("bad", [0, -5, float("nan"), "fast", True, 1e12, 1_000_001])
 def test_set_rate_refuses_a_rate_that_is_not_positive(tmp_path: Path, bad: object) -> None:
-    with pytest.raises(GraphError, match="rate must be a positive number of Hz"):
+    with pytest.raises(GraphError, match=r"rate must be a number of Hz in \(0, 1e\+06\]"):
         parse_spec(GRAPH, tmp_path / "g.yaml", {"rate": bad})
+
+
+def test_a_graph_file_rate_beyond_1_mhz_is_refused_at_its_line(tmp_path: Path) -> None:
+    # a rate of 1e12 Hz used to pass validation and then suggest 'models resample --rate 1e+12', which refuses it
+    path = tmp_path / "g.yaml"
+    path.write_text(GRAPH.replace("rate: 1000", "rate: 1000000000000"))
+    with pytest.raises(GraphError, match=r"g\.yaml:\d+:\d+: rate must be a number of Hz in \(0, 1e\+06\], got 1000000000000"):
+        parse_spec(path.read_text(), path, {})
 
 
 def test_output_into_a_fifo_writes_into_it_and_keeps_it(tmp_path: Path) -> None:

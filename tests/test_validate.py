@@ -170,7 +170,7 @@ def test_several_problems_reported_together(write_graph):
 
 def test_rate_must_be_positive(write_graph):
     msgs, path = problems(write_graph, GOOD.replace("rate: 1000", "rate: -5"))
-    assert msgs[0].startswith(f"{path}:3:7:") and "rate must be a positive number" in msgs[0]
+    assert msgs[0].startswith(f"{path}:3:7:") and "rate must be a number of Hz in (0, 1e+06]" in msgs[0]
 
 
 def test_non_integer_rate_is_fine(write_graph):

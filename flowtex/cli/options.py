@@ -17,6 +17,8 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
+from ..limits import MAX_RATE_HZ
+
 
 def add_plugin_options(p: argparse.ArgumentParser, no_plugins: bool = True) -> None:
     """``--plugins DIR`` (repeatable) and (``no_plugins``) ``--no-plugins``."""
@@ -59,8 +61,6 @@ def add_seed_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=None, help="noise seed (default: the graph's)")
 
 
-MAX_RATE_HZ = 1_000_000.0
-"""Largest rate any option takes: 1 MHz, above any haptic or audio recording (filters designed at absurd rates fail)."""
 
 
 def positive_hz(text: str) -> float:

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import Diagnostic, GraphError, Location
-from ..limits import MAX_EVERY, excerpt
+from ..limits import MAX_EVERY, MAX_RATE_HZ, excerpt
 from ..node_api import suggest
 from ..yamlsource import LocDict, LocList, load_yaml, parse_value, read_source
 
@@ -136,10 +136,15 @@ def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -
     return spec
 
 
+def _valid_rate(rate: Any) -> bool:
+    """A graph rate: a number of Hz in (0, MAX_RATE_HZ]."""
+    return not isinstance(rate, bool) and isinstance(rate, (int, float)) and math.isfinite(rate) and 0 < rate <= MAX_RATE_HZ
+
+
 def _rate(c: Collector, data: LocDict) -> float:
     rate = data.get("rate", 1000.0)
-    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not math.isfinite(rate) or rate <= 0:
-        c.error(data.value_pos.get("rate"), f"rate must be a positive number of Hz, got {excerpt(rate)}")
+    if not _valid_rate(rate):
+        c.error(data.value_pos.get("rate"), f"rate must be a number of Hz in (0, {MAX_RATE_HZ:g}], got {excerpt(rate)}")
         return 1000.0
     return float(rate)
 
@@ -252,8 +257,8 @@ def _apply_overrides(c: Collector, spec: GraphSpec, overrides: dict[str, Any]) -
     for key, value in overrides.items():
         where = Location(f"--set {key}")
         if key == "rate":
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-                c.error(where, f"rate must be a positive number of Hz, got {value!r}")
+            if not _valid_rate(value):
+                c.error(where, f"rate must be a number of Hz in (0, {MAX_RATE_HZ:g}], got {excerpt(value)}")
             else:
                 spec.rate = float(value)
             continue
