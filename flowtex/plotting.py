@@ -41,13 +41,10 @@ def signal_units(arrays: dict[str, np.ndarray]) -> dict[str, str]:
 def plot_recording(file: str | Path, signals: list[str] | None, output: str | Path) -> int:
     """Draw ``signals`` (default: all) of the recording ``file`` into the PNG ``output`` (atomically); returns how many."""
     from .errors import FlowtexError
+    from .io.figures import agg_pyplot
     from .io.recordings import load_recording
 
-    try:
-        import matplotlib
-    except ImportError:
-        raise FlowtexError("flowtex plot needs matplotlib: pip install 'flowtex[plot]'") from None
-    matplotlib.use("Agg")
+    agg_pyplot("flowtex plot needs matplotlib: pip install 'flowtex[plot]'")
     rec = load_recording(file)
     arrays = dict(rec.arrays)
     units = signal_units(arrays)
@@ -107,9 +104,6 @@ def plot_signals(signals: dict[str, np.ndarray], units: dict[str, str], rate: fl
         ax.grid(alpha=0.3)
     if title:
         fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    from .io.atomic import atomic_output
+    from .io.figures import save_png
 
-    with atomic_output(path) as tmp:
-        fig.savefig(tmp, dpi=100, format="png")
-    plt.close(fig)
+    save_png(fig, path, dpi=100)

@@ -150,8 +150,11 @@ def check_golden(graph_path: str | Path, input_path: str | Path, golden_path: st
     outputs = run_graph_on_file(graph_path, input_path, seed, overrides, plugins)
     golden_path = Path(golden_path)
     if update:
+        from .io.atomic import atomic_output
+
         golden_path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez_compressed(golden_path, **outputs)
+        with atomic_output(golden_path) as tmp:  # an interrupted --update-golden keeps the reviewed file
+            np.savez_compressed(tmp, **outputs)
         return outputs
     if not golden_path.exists():
         raise GoldenMismatch(f"{golden_path}: no golden file yet; run pytest {UPDATE_OPTION} to create it, review it, commit it")

@@ -27,14 +27,14 @@ def dask_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
         yield client
 
 
+NEED_MATPLOTLIB = "plots need matplotlib: pip install 'flowtex[plot]'"
+
+
 def need_matplotlib() -> None:
     """Raise FlowtexError saying how to install matplotlib when it is missing (before any work)."""
-    from ..errors import FlowtexError
+    from ..io.figures import agg_pyplot
 
-    try:
-        import matplotlib  # noqa: F401
-    except ImportError:
-        raise FlowtexError("plots need matplotlib: pip install 'flowtex[plot]'") from None
+    agg_pyplot(NEED_MATPLOTLIB)
 
 
 def write_csv(path: str | Path, rows: list[list[str]]) -> None:
@@ -47,11 +47,9 @@ def write_csv(path: str | Path, rows: list[list[str]]) -> None:
 
 def pareto_plot(configs: list, output: str, metric: str, path: Path) -> None:
     """ns/tick against error, Pareto front joined and labelled."""
-    import matplotlib
+    from ..io.figures import agg_pyplot, save_png
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = agg_pyplot(NEED_MATPLOTLIB)
     fig, ax = plt.subplots(figsize=(7, 4.5))
     x = [c.ns_per_tick for c in configs]
     y = [c.errors[output] for c in configs]
@@ -65,10 +63,5 @@ def pareto_plot(configs: list, output: str, metric: str, path: Path) -> None:
     ax.set_ylabel(f"{output} error ({ {'lsd': 'LSD, dB', 'gfc': '1 - GFC'}.get(metric, metric.upper())})")
     ax.grid(alpha=0.3)
     ax.legend()
-    fig.tight_layout()
-    from ..io.atomic import atomic_output
-
-    with atomic_output(path) as tmp:
-        fig.savefig(tmp, dpi=120, format="png")
-    plt.close(fig)
+    save_png(fig, path, dpi=120)
     print(f"Pareto plot -> {path}", file=sys.stderr)

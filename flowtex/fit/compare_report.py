@@ -12,7 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import DataError
+from ..io.atomic import write_text_atomic
+from ..io.figures import agg_pyplot, save_png
 from .compare import Comparison, summary_lines
 
 PLOT_ERROR = "--report needs matplotlib for its plots: pip install 'flowtex[plot]' (or leave out --report)"
@@ -20,14 +21,7 @@ PLOT_ERROR = "--report needs matplotlib for its plots: pip install 'flowtex[plot
 
 def pyplot() -> Any:
     """matplotlib.pyplot on the Agg backend; DataError naming the ``plot`` extra when matplotlib is missing."""
-    try:
-        import matplotlib
-    except ImportError:
-        raise DataError(PLOT_ERROR) from None
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return agg_pyplot(PLOT_ERROR)
 
 
 def write_compare_report(c: Comparison, folder: Path, title: str) -> Path:
@@ -43,9 +37,7 @@ def write_compare_report(c: Comparison, folder: Path, title: str) -> Path:
     for w in c.windows:
         md.append(f"| {w['start_s']:.1f} | {w['recorded_rms']:.3g} | {w['rendered_rms']:.3g} | {w['lsd_db']:.2f} | {w['gfc']:.3f} | "
                   f"{w['centroid_hz']:.0f} / {w['rendered_centroid_hz']:.0f} |")
-    path = folder / "report.md"
-    path.write_text("\n".join(md) + "\n", encoding="utf-8")
-    return path
+    return write_text_atomic(folder / "report.md", "\n".join(md) + "\n")
 
 
 def _spectrum(c: Comparison, path: Path, plt: Any) -> None:
@@ -57,9 +49,7 @@ def _spectrum(c: Comparison, path: Path, plt: Any) -> None:
     ax.set_ylabel("(m/s^2)^2/Hz")
     ax.set_title(f"power ratio {c.power_ratio_db:+.2f} dB, LSD {c.lsd_db:.2f} dB, GFC {c.gfc:.3f}", fontsize=9)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
+    save_png(fig, path)
 
 
 def _loudness(c: Comparison, path: Path, plt: Any) -> None:
@@ -71,9 +61,7 @@ def _loudness(c: Comparison, path: Path, plt: Any) -> None:
     ax.set_ylabel("window RMS (m/s^2)")
     ax.set_title(f"window RMS correlation {c.rms_correlation:.2f}", fontsize=9)
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
+    save_png(fig, path)
 
 
 def _windows(c: Comparison, path: Path, plt: Any) -> None:
@@ -86,6 +74,4 @@ def _windows(c: Comparison, path: Path, plt: Any) -> None:
     a2.set_ylabel("centroid (Hz)")
     a2.set_xlabel("s")
     a2.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
+    save_png(fig, path)

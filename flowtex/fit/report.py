@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from ..dsp.spectral import welch_psd
-from ..io.atomic import atomic_output, write_text_atomic
+from ..io.atomic import write_text_atomic
+from ..io.figures import agg_pyplot, save_png
 from .texture import TextureFit
 
 PLOT_HINT = "plots need matplotlib: pip install 'flowtex[plot]'"
@@ -55,12 +56,8 @@ def write_report(fit: TextureFit, folder: Path) -> Path:
     """Write ``folder/report.md`` and, with matplotlib, ``spectra.png`` and ``plane.png``; returns the markdown path."""
     folder.mkdir(parents=True, exist_ok=True)
     md = [f"# Texture fit: {fit.model_set.material}", "", summary_line(fit), "", "```", *table_lines(fit), "```", ""]
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
+    plt = agg_pyplot(None)
+    if plt is None:
         print(PLOT_HINT)
         md.append(f"(no plots: {PLOT_HINT})")
     else:
@@ -88,10 +85,7 @@ def _plot_spectra(fit: TextureFit, path: Path, plt) -> None:
         axes[k // cols][k % cols].axis("off")
     fig.supxlabel("Hz")
     fig.supylabel("(m/s^2)^2/Hz")
-    fig.tight_layout()
-    with atomic_output(path) as tmp:
-        fig.savefig(tmp, dpi=80, format="png")
-    plt.close(fig)
+    save_png(fig, path)
 
 
 def _plot_plane(fit: TextureFit, path: Path, plt) -> None:
@@ -107,7 +101,4 @@ def _plot_plane(fit: TextureFit, path: Path, plt) -> None:
     ax.set_xlabel("speed (mm/s)")
     ax.set_ylabel("force (N)")
     ax.legend(fontsize=7, loc="upper left")
-    fig.tight_layout()
-    with atomic_output(path) as tmp:
-        fig.savefig(tmp, dpi=80, format="png")
-    plt.close(fig)
+    save_png(fig, path)

@@ -19,6 +19,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..io.atomic import write_text_atomic
+
 SPEED_RANGE = (50.0, 250.0)
 FORCE_RANGE = (0.5, 2.5)
 
@@ -90,9 +92,7 @@ def write_study_scene(folder: str | Path, keys: tuple[str, ...] | None = None, n
         save_model_set(study_model_set(s), folder / f"{s.key}.json")
         write_tap_library(folder / f"{s.key}_taps.json", study_tap_library(s))
         lines.append(f"  {s.key}: {{models: {s.key}.json, taps: {s.key}_taps.json}}")
-    path = folder / "scene.yaml"
-    path.write_text("\n".join(lines) + "\n")
-    return path
+    return write_text_atomic(folder / "scene.yaml", "\n".join(lines) + "\n")
 
 
 __all__ = ["STUDY_SURFACES", "StudySurface", "study_model_set", "study_tap_library", "write_study_scene"]

@@ -1,0 +1,41 @@
+"""matplotlib for flowtex's plots: the optional ``plot`` extra loaded on the Agg backend, and PNGs written atomically.
+
+One place for the three things every plot writer did on its own: import matplotlib (absent unless the ``plot``
+extra is installed), select the file-only Agg backend, and write the figure through the one writer.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from ..errors import DataError
+from .atomic import atomic_output
+
+
+def agg_pyplot(missing: str | None) -> Any:
+    """``matplotlib.pyplot`` on the Agg backend.
+
+    When matplotlib is not installed: raise :class:`DataError` with the message ``missing`` (naming the ``plot``
+    extra), or return None when ``missing`` is None (the caller goes on without plots).
+    """
+    try:
+        import matplotlib
+    except ImportError:
+        if missing is None:
+            return None
+        raise DataError(missing) from None
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save_png(fig: Any, path: str | Path, dpi: int = 80) -> None:
+    """Lay out ``fig``, write it as a PNG to ``path`` through the one writer (no partial file), and close it."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp, dpi=dpi, format="png")
+    plt.close(fig)
