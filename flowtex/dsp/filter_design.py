@@ -31,6 +31,19 @@ def butterworth_sos(kind: str, order: int, cutoff_hz: Sequence[float], rate_hz: 
     return signal.butter(order, wn, btype=kind, fs=rate_hz, output="sos")
 
 
+def zero_phase_highpass(x: np.ndarray, rate_hz: float, cutoff_hz: float, order: int = 4) -> np.ndarray:
+    """``x`` (along its last axis) through an ``order``-th order Butterworth high-pass at ``cutoff_hz``, forward and
+    backward (scipy ``sosfiltfilt``: zero phase, twice the order's attenuation); ``x`` as float when ``cutoff_hz`` <= 0.
+
+    The preprocessing HaTT applies before fitting (10 Hz, 4th order) and the one comparisons apply to both signals.
+    """
+    if cutoff_hz <= 0:
+        return np.asarray(x, float)
+    from scipy.signal import sosfiltfilt
+
+    return sosfiltfilt(butterworth_sos("highpass", order, [cutoff_hz], rate_hz), x)
+
+
 def resampling_fir(up: int, down: int, atten_db: float, passband: float = 0.8) -> np.ndarray:
     """Linear-phase low-pass FIR for rational resampling by up/down (Kaiser window, scipy ``firwin``).
 

@@ -47,6 +47,19 @@ def welch_psd(x: np.ndarray, rate_hz: float, nperseg: int = 1024) -> tuple[np.nd
     return freqs, psd
 
 
+def psd_band_power(freqs_hz: np.ndarray, psd: np.ndarray, min_freq_hz: float) -> float:
+    """Power (units^2) of a one-sided PSD from ``min_freq_hz`` up (rectangle rule on its uniform grid)."""
+    band = freqs_hz >= min_freq_hz
+    return float(np.sum(psd[band]) * (freqs_hz[1] - freqs_hz[0]))
+
+
+def psd_centroid(freqs_hz: np.ndarray, psd: np.ndarray, min_freq_hz: float = 0.0, max_freq_hz: float = math.inf) -> float:
+    """Spectral centroid (Hz) of a PSD between ``min_freq_hz`` and ``max_freq_hz``; NaN when the band holds no power."""
+    band = (freqs_hz >= min_freq_hz) & (freqs_hz <= max_freq_hz)
+    total = np.sum(psd[band])
+    return float(np.sum(freqs_hz[band] * psd[band]) / total) if total > 0 else float("nan")
+
+
 def lsd_db(s_fit: np.ndarray, s_true: np.ndarray, freqs_hz: np.ndarray, min_freq_hz: float = 15.0,
            range_db: float | None = 40.0, max_freq_hz: float = math.inf, floor: float = 0.0) -> float:
     """Log-spectral distance in dB: RMS over a band of 10 log10(S_fit / S_true) -- the project's one LSD.

@@ -39,9 +39,9 @@ from typing import Any
 
 import numpy as np
 
-from ..dsp.filter_design import butterworth_sos
+from ..dsp.filter_design import zero_phase_highpass
 from ..dsp.resample import PASSBAND as RESAMPLE_PASSBAND
-from ..dsp.spectral import gfc, lsd_db, welch_psd
+from ..dsp.spectral import gfc, lsd_db, psd_band_power, psd_centroid, welch_psd
 from ..errors import DataError
 from ..models.texture import TextureModelSet
 
@@ -125,41 +125,23 @@ def render_along(ms: TextureModelSet, speed: np.ndarray, force: np.ndarray, seed
         return [np.asarray(graph.run(inputs, seed=int(s))["accel"], float).reshape(-1) for s in seeds]
 
 
-def _highpass(x: np.ndarray, rate: float, hz: float) -> np.ndarray:
-    from scipy.signal import sosfiltfilt
-
-    return sosfiltfilt(butterworth_sos("highpass", 4, [hz], rate), x) if hz > 0 else np.asarray(x, float)
-
-
-def _band_power(freqs: np.ndarray, psd: np.ndarray, min_freq: float) -> float:
-    """Power (units^2) of a one-sided PSD from ``min_freq`` up (rectangle rule on the Welch grid)."""
-    band = freqs >= min_freq
-    return float(np.sum(psd[band]) * (freqs[1] - freqs[0]))
-
-
-def _centroid(freqs: np.ndarray, psd: np.ndarray, min_freq: float, max_freq: float = math.inf) -> float:
-    band = (freqs >= min_freq) & (freqs <= max_freq)
-    total = np.sum(psd[band])
-    return float(np.sum(freqs[band] * psd[band]) / total) if total > 0 else float("nan")
-
-
 def _shape(freqs: np.ndarray, rec: np.ndarray, ren: np.ndarray, min_freq: float,
            max_freq: float = math.inf) -> tuple[float, float, float, float]:
     """(LSD dB, GFC, recorded centroid Hz, rendered centroid Hz) of two PSDs on ``freqs``, ``min_freq`` to ``max_freq`` Hz."""
     band = (freqs >= min_freq) & (freqs <= max_freq)
     if not np.any(rec[band] > 0):
-        return float("nan"), float("nan"), float("nan"), _centroid(freqs, ren, min_freq, max_freq)
+        return float("nan"), float("nan"), float("nan"), psd_centroid(freqs, ren, min_freq, max_freq)
     lsd = lsd_db(ren, rec, freqs, max_freq_hz=max_freq)
-    return (lsd, gfc(np.sqrt(ren[band]), np.sqrt(rec[band])), _centroid(freqs, rec, min_freq, max_freq),
-            _centroid(freqs, ren, min_freq, max_freq))
+    return (lsd, gfc(np.sqrt(ren[band]), np.sqrt(rec[band])), psd_centroid(freqs, rec, min_freq, max_freq),
+            psd_centroid(freqs, ren, min_freq, max_freq))
 
 
 def compare_signals(recorded: np.ndarray, renders: list[np.ndarray], rate: float, opt: CompareOptions | None = None) -> Comparison:
     """Compare a recorded vibration with renders of the same path (module docstring); all 1-D, same length, m/s^2."""
     opt = opt or CompareOptions()
     skip = int(round(opt.skip_s * rate))
-    x = _highpass(np.asarray(recorded, float), rate, opt.highpass_hz)[skip:]
-    ys = [_highpass(np.asarray(r, float), rate, opt.highpass_hz)[skip:] for r in renders]
+    x = zero_phase_highpass(np.asarray(recorded, float), rate, opt.highpass_hz)[skip:]
+    ys = [zero_phase_highpass(np.asarray(r, float), rate, opt.highpass_hz)[skip:] for r in renders]
     n = x.shape[0]
     if n < NPERSEG:
         raise DataError(f"recording too short to compare: {n} samples after skipping {opt.skip_s:g} s; "
@@ -167,11 +149,11 @@ def compare_signals(recorded: np.ndarray, renders: list[np.ndarray], rate: float
     freqs, s_rec = welch_psd(x, rate, NPERSEG)
     s_each = [welch_psd(y, rate, NPERSEG)[1] for y in ys]
     s_ren = np.mean(s_each, axis=0)
-    p_rec = _band_power(freqs, s_rec, opt.min_freq_hz)
+    p_rec = psd_band_power(freqs, s_rec, opt.min_freq_hz)
     if p_rec <= 0:
         raise DataError(f"the recorded vibration has no power above {opt.min_freq_hz:g} Hz: nothing to compare")
-    ratios = [10 * np.log10(max(_band_power(freqs, s, opt.min_freq_hz), 1e-300) / p_rec) for s in s_each]
-    p_ren = float(np.mean([_band_power(freqs, s, opt.min_freq_hz) for s in s_each]))
+    ratios = [10 * np.log10(max(psd_band_power(freqs, s, opt.min_freq_hz), 1e-300) / p_rec) for s in s_each]
+    p_ren = float(np.mean([psd_band_power(freqs, s, opt.min_freq_hz) for s in s_each]))
     lsd, g, c_rec, c_ren = _shape(freqs, s_rec, s_ren, opt.min_freq_hz, opt.max_freq_hz)
     windows = _windows(x, ys, rate, opt)
     rms_rec = np.array([w["recorded_rms"] for w in windows])
@@ -198,8 +180,8 @@ def _windows(x: np.ndarray, ys: list[np.ndarray], rate: float, opt: CompareOptio
         s_ren = np.mean([welch_psd(y[a:b], rate, NPERSEG)[1] for y in ys], axis=0)
         lsd, g, c_rec, c_ren = _shape(freqs, s_rec, s_ren, opt.min_freq_hz, opt.max_freq_hz)
         out.append({"start_s": opt.skip_s + a / rate, "seconds": (b - a) / rate,
-                    "recorded_rms": float(np.sqrt(_band_power(freqs, s_rec, opt.min_freq_hz))),
-                    "rendered_rms": float(np.sqrt(_band_power(freqs, s_ren, opt.min_freq_hz))),
+                    "recorded_rms": float(np.sqrt(psd_band_power(freqs, s_rec, opt.min_freq_hz))),
+                    "rendered_rms": float(np.sqrt(psd_band_power(freqs, s_ren, opt.min_freq_hz))),
                     "lsd_db": lsd, "gfc": g, "centroid_hz": c_rec, "rendered_centroid_hz": c_ren})
     return out
 

@@ -149,9 +149,7 @@ def fit_tap_recording(recording: str | Path, accel: str, force: str, from_rate: 
     ``length_s`` (s) is cut after each onset; ``highpass_hz`` (0: none) is a zero-phase high-pass of the acceleration;
     an onset counts only after ``quiet_s`` seconds without contact.
     """
-    from scipy.signal import sosfiltfilt
-
-    from ..dsp.filter_design import butterworth_sos
+    from ..dsp.filter_design import zero_phase_highpass
 
     rec, rate = load(recording, from_rate)
     if not (np.isfinite(length_s) and 0.0 < length_s):
@@ -172,8 +170,7 @@ def fit_tap_recording(recording: str | Path, accel: str, force: str, from_rate: 
         spd = signal(rec, speed, "--speed")
     else:
         raise DataError(f"{recording}: give --position P (mm, 3 axes) or --speed S (approach speed, mm/s) to label taps")
-    if highpass_hz > 0:
-        acc = sosfiltfilt(butterworth_sos("highpass", 4, [highpass_hz], rate), acc)
+    acc = zero_phase_highpass(acc, rate, highpass_hz)
     taps, notes = fit_taps(acc, f, rate, pos, nrm, spd, length_s, where=str(recording), quiet_s=quiet_s)
     return library_from_taps(taps, rate, name or Path(recording).stem), taps, notes, rate
 

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..dsp.filter_design import butterworth_sos
+from ..dsp.filter_design import zero_phase_highpass
 from ..dsp.lsf import poly_to_lsf
 from ..dsp.robust import clamp_outliers
 from ..dsp.segment import segment
@@ -96,11 +96,7 @@ class TextureFit:
 
 def preprocess(accel: np.ndarray, rate: float, highpass_hz: float = 10.0, outlier_sigma: float = 8.0) -> tuple[np.ndarray, int]:
     """Zero-phase high-pass (sosfiltfilt, 4th-order Butterworth) and outlier clipping; returns (signal, clipped count)."""
-    x = np.asarray(accel, float)
-    if highpass_hz > 0:
-        from scipy.signal import sosfiltfilt
-
-        x = sosfiltfilt(butterworth_sos("highpass", 4, [highpass_hz], rate), x)
+    x = zero_phase_highpass(accel, rate, highpass_hz)
     if outlier_sigma > 0:
         x, bad = clamp_outliers(x, outlier_sigma)
         return x, int(bad.size)
