@@ -23,3 +23,24 @@ def write_graph(tmp_path):
         return path
 
     return _write
+
+
+HATT_ENV = "FLOWTEX_HATT_DIR"
+"""Folder holding HaTT's published ``Models_*.xml`` files (research licence: never committed)."""
+
+
+def hatt_xml_files() -> list[Path]:
+    """HaTT's published model sets, from ``$FLOWTEX_HATT_DIR``; empty when the variable is unset or the folder holds none."""
+    folder = os.environ.get(HATT_ENV)
+    if not folder or not Path(folder).is_dir():
+        return []
+    return sorted(Path(folder).glob("Models_*.xml"))
+
+
+@pytest.fixture(scope="session")
+def hatt_files() -> list[Path]:
+    """The HaTT XML model sets; skips the test when they are not on this machine (set FLOWTEX_HATT_DIR)."""
+    files = hatt_xml_files()
+    if not files:
+        pytest.skip(f"HaTT's published model sets are not here (set {HATT_ENV} to the folder holding Models_*.xml)")
+    return files
