@@ -15,7 +15,7 @@ from ..errors import Diagnostic, GraphError, Location
 from ..graph.spec import NAME_RE
 from ..limits import excerpt
 from ..node_api import suggest
-from ..schema.core import INVALID, Collector, Record, check_keys, check_value, value_of
+from ..schema.core import INVALID, Collector, Record, check_keys, check_unknown, check_value, value_of
 from ..schema.scene import COMPONENT_LIST, COMPONENTS, SCENE, SECTIONS, SURFACE, THRESHOLDS, nonneg
 from ..yamlsource import LocDict, LocList, load_yaml, read_source
 
@@ -101,7 +101,7 @@ def _mapping(c: Collector, data: LocDict, key: str) -> LocDict | None:
         c.error(data.value_pos.get(key), SCENE.keys[key].message)
         return None
     record: Record = SECTIONS[key][0]
-    check_keys(c, raw, Record(keys=record.keys, unknown=record.unknown))  # required keys: reported by the section's reader
+    check_unknown(c, raw, record)  # required keys: reported by the section's reader
     return raw
 
 
@@ -214,7 +214,7 @@ def _surfaces(c: Collector, data: LocDict, base: Path) -> dict[str, SurfaceSpec]
         if not isinstance(s, LocDict):
             c.error(raw.value_pos[key], f"surface {key!r}: expected a mapping with at least 'models' (a HaTT XML or native model set)")
             continue
-        check_keys(c, s, Record(keys=SURFACE.keys, unknown=SURFACE.unknown), surface=key)
+        check_unknown(c, s, SURFACE, surface=key)
         if not isinstance(s.get("models"), str):
             c.error(s.value_pos.get("models", pos), SURFACE.keys["models"].message.format(surface=key))
             continue

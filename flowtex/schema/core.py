@@ -105,6 +105,8 @@ class Record:
     missing: str = "missing key {name!r}"
     legacy: Mapping[str, str] = field(default_factory=dict)
     open: bool = False
+    json: Mapping[str, Any] | None = None
+    """Extra JSON Schema keywords for the mapping (e.g. ``oneOf`` of required keys that code checks)."""
     suggest: str = "close"
     """How a did-you-mean reads: ``close`` (only close names) or ``close_or_known`` (else the known names)."""
 
@@ -186,7 +188,13 @@ def _hint(record: Record, name: str) -> str:
     return hint
 
 
-def check_keys(c: Collector, data: Mapping[Any, Any], record: Record, pos: Pos | None = None, **fmt: Any) -> bool:
+def check_unknown(c: Collector, data: Mapping[Any, Any], record: Record, **fmt: Any) -> bool:
+    """Report every undeclared key of ``data`` (required keys are left to the caller's reader); True if none."""
+    return check_keys(c, data, record, required=False, **fmt)
+
+
+def check_keys(c: Collector, data: Mapping[Any, Any], record: Record, pos: Pos | None = None, required: bool = True,
+               **fmt: Any) -> bool:
     """Report every undeclared key of ``data`` and every missing required key; True if none.
 
     ``fmt`` fills the record's templates (e.g. ``what=f"node {name!r}"``). Positions come from ``data.key_pos``
@@ -201,7 +209,7 @@ def check_keys(c: Collector, data: Mapping[Any, Any], record: Record, pos: Pos |
                 c.error(key_pos.get(key), record.unknown.format(key=excerpt(key), name=name, hint=_hint(record, name),
                                                                 allowed=", ".join(record.keys), **fmt))
                 ok = False
-    for key in record.required:
+    for key in record.required if required else ():
         if key not in data and not any(old in data for old, new in record.legacy.items() if new == key):
             c.error(pos if pos is not None else getattr(data, "pos", None),
                     (record.keys[key].missing or record.missing).format(name=key, **fmt))
