@@ -209,6 +209,10 @@ def check_keys(c: Collector, data: Mapping[Any, Any], record: Record, pos: Pos |
                 c.error(key_pos.get(key), record.unknown.format(key=excerpt(key), name=name, hint=_hint(record, name),
                                                                 allowed=", ".join(record.keys), **fmt))
                 ok = False
+    for old, new in record.legacy.items():
+        if old in data and new in data:
+            c.error(key_pos.get(old), f"{old!r} is the old spelling of {new!r}; give only {new!r}")
+            ok = False
     for key in record.required if required else ():
         if key not in data and not any(old in data for old, new in record.legacy.items() if new == key):
             c.error(pos if pos is not None else getattr(data, "pos", None),
