@@ -130,6 +130,8 @@ def test_cli_compare_json_report_and_from_rate(recordings, tmp_path, capsys):
     assert {"lsd_db", "power_ratio_db", "rms_correlation", "gfc", "centroid_hz", "windows"} <= set(data)
     assert data["seeds"] == 2 and len(data["windows"]) == 5 and abs(data["power_ratio_db"]) < 0.5
     assert (tmp_path / "rep" / "report.md").exists() and (tmp_path / "rep" / "spectrum.png").exists()
+    assert (tmp_path / "rep" / "octaves.png").exists() and "octaves.png" in (tmp_path / "rep" / "report.md").read_text()
+    assert data["band_hz"] == [12.0, 500.0] and [b["centre_hz"] for b in data["octave_bands"]][-1] == 500.0
 
 
 def test_cli_report_without_matplotlib_is_a_clear_error(recordings, tmp_path, capsys, monkeypatch):
