@@ -40,6 +40,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "scene": ("flowtex.cli.scene", "plan a multi-surface scene into a graph that renders only what matters"),
     "bench": ("flowtex.cli.bench", "sweep knobs: ns/tick against output error, Pareto front"),
     "plot": ("flowtex.cli.plot", "plot a run's outputs: time series, vibration spectrograms, force-speed trace"),
+    "schema": ("flowtex.cli.schema", "print the JSON Schema of a file kind for editors (graph, scene, map)"),
 }
 """The lazy command table (as pip's ``commands_dict``): command -> (module adding it, one-line summary).
 
