@@ -30,6 +30,9 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("compile", ("flowtex.compile", "flowtex.graph.compiled", "flowtex.graph.describe")),
     ("graph", ("flowtex.graph",)),
     ("nodes", ("flowtex.nodes",)),
+    # The declarative schema of every file kind (keys, kinds, bounds, units, docs) sits under graph, io and scene, which
+    # declare their files with it; it uses the node API's parameter kinds.
+    ("schema", ("flowtex.schema",)),
     ("node API", ("flowtex.node_api", "flowtex.nodecheck", "flowtex.registry")),
     ("models", ("flowtex.models",)),
     ("dsp", ("flowtex.dsp",)),
