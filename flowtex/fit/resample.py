@@ -99,11 +99,11 @@ def _resample_one(ms: TextureModelSet, m: int, rate_to: float, keep_order: bool,
     a = lsf_to_poly_new(ms.ar_lsf[m])
     c = lsf_to_poly_new(ms.ma_lsf[m])
     v1 = float(ms.variance[m])
-    # a silent model (variance 0) is resampled at unit variance and stays silent: its shape still matters once
-    # texture_lookup interpolates it with its neighbours
-    v_fit = v1 if v1 > 0.0 else 1.0
-    a2, c2, lsf_a, lsf_c, g2, v2 = resample_arma_lsf(a, c, float(ms.gain[m]), v_fit, rate_from, rate_to,
-                                                     keep_order=keep_order, extra=extra)
+    # fitted at unit gain and variance (the shape; the resampled variance is linear in the original's and the gain
+    # is kept, so both scale out): a model's level never enters the arithmetic, whatever its size. A silent model
+    # (variance 0) stays silent: its shape still matters once texture_lookup interpolates it with its neighbours.
+    a2, c2, lsf_a, lsf_c, _, v_unit = resample_arma_lsf(a, c, 1.0, 1.0, rate_from, rate_to, keep_order=keep_order,
+                                                        extra=extra)
     if lsf_a is None:  # downsampling: LSFs from the (well-conditioned) polynomials
         a2 = min_phase_for_lsf(a2)
         c2 = min_phase_for_lsf(c2)
@@ -111,9 +111,28 @@ def _resample_one(ms: TextureModelSet, m: int, rate_to: float, keep_order: bool,
         lsf_c = poly_to_lsf(c2) if c2.shape[0] > 1 else np.zeros(0)
     # quality of the model as texture_lookup renders it: rebuilt from the stored LSFs
     a_r, c_r = lsf_to_poly_new(lsf_a), lsf_to_poly_new(lsf_c)
-    lsd, band = resample_quality(a, c, float(ms.gain[m]), v_fit, rate_from, a_r, c_r, g2, v2, rate_to)
+    lsd, band = resample_quality(a, c, 1.0, 1.0, rate_from, a_r, c_r, 1.0, v_unit, rate_to)
     above = power_above(a_r, c_r, rate_to, 0.5 * rate_from) if rate_to > rate_from else 0.0
-    return _Model(lsf_a, lsf_c, a2, c2, g2, v2 if v1 > 0.0 else 0.0, lsd, band, above)
+    return _Model(lsf_a, lsf_c, a2, c2, float(ms.gain[m]), v1 * v_unit, lsd, band, above)
+
+
+def check_power(ms: TextureModelSet) -> None:
+    """Raise FlowtexError naming the set's file and model unless every model's power gain^2 x variance is a float64.
+
+    A model whose power overflows (a gain of 1e300, say) cannot be rendered or resampled; before this check
+    `models resample` ended in an internal OverflowError.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        square = np.asarray(ms.gain, dtype=np.float64) ** 2
+        power = square * np.asarray(ms.variance, dtype=np.float64)
+    bad = np.flatnonzero(~(np.isfinite(square) & np.isfinite(power)))
+    if bad.size:
+        m = int(bad[0])
+        where = str(ms.source) if ms.source is not None else f"model set {ms.material!r}"
+        raise FlowtexError(f"{where}: model {m} ({float(ms.speeds[m]):g} mm/s, {float(ms.forces[m]):g} N): gain "
+                           f"{float(ms.gain[m]):g} and variance {float(ms.variance[m]):g}: gain^2 or the vibration power "
+                           "gain^2 x variance is beyond the largest float64 number; fix the model's gain or variance"
+                           + (f" ({bad.size} models affected)" if bad.size > 1 else ""))
 
 
 class _Progress:
@@ -196,6 +215,7 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
         raise FlowtexError(f"--extra-order must be an even number from 0 to {MAX_EXTRA_ORDER}, got {extra_order}")
     rate_from = float(ms.sample_rate)
     check_rate_ratio(rate_from, rate_hz, option, "model set")
+    check_power(ms)
     rate_to = float(rate_hz)
     upsampling = rate_to > rate_from
     tries = (0,) if not upsampling or keep_order else EXTRA_ORDERS if extra_order is None else (extra_order,)
