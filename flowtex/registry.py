@@ -6,10 +6,11 @@ subclass with a ``type_name`` defined in it is registered.
 * Built-in nodes and installed packages: entry points of group ``flowtex.nodes``
   (an entry point may name a module, a package -- all its public submodules --
   or a single Node class). flowtex's own entry point names ``flowtex.nodes``.
-* Plugin folders: every ``*.py`` file in ``./plugins`` (searched automatically),
-  in each folder of ``FLOWTEX_PLUGINS`` (``os.pathsep``-separated), in each
-  ``--plugins DIR``, and (added by the graph loader) in the graph file's own
-  ``plugins/`` folder.
+* Plugin folders: every ``*.py`` file in each folder of ``FLOWTEX_PLUGINS``
+  (``os.pathsep``-separated), in each ``--plugins DIR``, and (added by the graph
+  loader) in the graph file's own ``plugins/`` folder and the folders its
+  ``plugins:`` key names. The current working directory is never searched: a
+  folder a user happens to run flowtex in is not code they chose to run.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from types import ModuleType
 
 from .errors import FlowtexError
 from .node_api import Node
-from .nodecheck import check_node_class
+from .nodecheck import check_node_class, error_line, shown_path
 
 ENTRY_POINT_GROUP = "flowtex.nodes"
 PLUGIN_ENV = "FLOWTEX_PLUGINS"
@@ -73,12 +74,9 @@ class Registry:
         return sorted(self.types)
 
 
-def plugin_dirs(extra: Iterable[str | Path] = (), auto: bool = True) -> list[Path]:
-    """Plugin folders in search order: ``./plugins`` (unless ``auto`` is False), ``$FLOWTEX_PLUGINS``, then ``extra``."""
+def plugin_dirs(extra: Iterable[str | Path] = ()) -> list[Path]:
+    """Plugin folders in search order: ``$FLOWTEX_PLUGINS``, then ``extra``."""
     dirs: list[Path] = []
-    local = Path.cwd() / "plugins"
-    if auto and local.is_dir():
-        dirs.append(local)
     for item in os.environ.get(PLUGIN_ENV, "").split(os.pathsep):
         if item:
             dirs.append(Path(item))
@@ -107,23 +105,16 @@ def load_plugin_file(path: Path) -> ModuleType:
     except FlowtexError:
         del sys.modules[mod_name]
         raise
+    except SystemExit as exc:  # sys.exit() in a plugin would end any command "successfully" with nothing done
+        del sys.modules[mod_name]
+        line = error_line(exc, path)
+        raise FlowtexError(f"{shown_path(path)}:{line}: plugin called sys.exit({exc.code!r}) while being imported; a plugin file "
+                           "must only define node types (flowtex stopped, nothing done)") from None
     except Exception as exc:  # a plugin's own bug: report it as the plugin's error
         del sys.modules[mod_name]
-        line = _error_line(exc, path)
-        raise FlowtexError(f"{path}:{line}: plugin failed to load: {type(exc).__name__}: {exc}") from exc
+        line = error_line(exc, path)
+        raise FlowtexError(f"{shown_path(path)}:{line}: plugin failed to load: {type(exc).__name__}: {exc}") from exc
     return module
-
-
-def _error_line(exc: BaseException, path: Path) -> int:
-    if isinstance(exc, SyntaxError) and exc.lineno:
-        return exc.lineno
-    tb = exc.__traceback__
-    line = 0
-    while tb is not None:
-        if Path(tb.tb_frame.f_code.co_filename).resolve() == path.resolve():
-            line = tb.tb_lineno
-        tb = tb.tb_next
-    return line
 
 
 def _with_submodules(module: ModuleType) -> list[ModuleType]:
@@ -139,9 +130,9 @@ def _with_submodules(module: ModuleType) -> list[ModuleType]:
 _CACHE: dict[tuple[Path, ...], Registry] = {}
 
 
-def load_registry(plugins: Iterable[str | Path] = (), auto: bool = True) -> Registry:
-    """Registry with built-ins, installed entry points and plugin folders (``auto=False``: not ``./plugins``)."""
-    dirs = tuple(plugin_dirs(plugins, auto))
+def load_registry(plugins: Iterable[str | Path] = ()) -> Registry:
+    """Registry with built-ins, installed entry points, ``$FLOWTEX_PLUGINS`` and the plugin folders ``plugins``."""
+    dirs = tuple(plugin_dirs(plugins))
     if dirs in _CACHE:
         return _CACHE[dirs]
     reg = Registry()

@@ -31,7 +31,7 @@ def register(sub: Any) -> None:
 
     p = sub.add_parser("nodes", help="list node types with ports, parameters and docs")
     p.add_argument("type", nargs="?", help="show only this node type")
-    add_plugin_options(p)
+    add_plugin_options(p, no_plugins=False)
     p.set_defaults(func=cmd_nodes)
 
 
@@ -96,7 +96,7 @@ def cmd_nodes(args: argparse.Namespace) -> int:
     from ..node_api import suggest
     from ..registry import load_registry
 
-    registry = load_registry(tuple(args.plugins), auto=not args.no_plugins)
+    registry = load_registry(tuple(args.plugins))
     if args.type:
         cls = registry.get(args.type)
         if cls is None:

@@ -56,7 +56,7 @@ def cmd_scene_plan(args: argparse.Namespace) -> int:
 
     check_output(args.output, inputs=[args.scene], option="-o", suffixes=(".yaml", ".yml"))
     check_output(args.json, inputs=[args.scene, args.output], option="--json", suffixes=(".json",))
-    plan = plan_to_graph(args.scene, args.output, tuple(args.plugins), auto_plugins=not args.no_plugins)
+    plan = plan_to_graph(args.scene, args.output, tuple(args.plugins))
     if args.json:
         write_text_atomic(Path(args.json), json.dumps(plan_json(plan), indent=2) + "\n")
     if args.explain:
@@ -76,8 +76,7 @@ def cmd_scene_run(args: argparse.Namespace) -> int:
     check_output(args.output, inputs=[args.scene, args.input], option="-o", suffixes=RECORDING_SUFFIXES)
     with tempfile.TemporaryDirectory(prefix="flowtex-scene-") as tmp:
         graph_path = Path(tmp) / "scene.yaml"
-        plan = plan_to_graph(args.scene, graph_path, tuple(args.plugins), fixed=args.surface, relative=False,
-                             auto_plugins=not args.no_plugins)
+        plan = plan_to_graph(args.scene, graph_path, tuple(args.plugins), fixed=args.surface, relative=False)
         if args.explain:
             say(explain(plan))
         graph = load_graph_from_args(args, graph_path)
@@ -99,7 +98,6 @@ def cmd_scene_live(args: argparse.Namespace) -> int:
     check_live_outputs(args, args.scene, dbc, map_)
     with tempfile.TemporaryDirectory(prefix="flowtex-scene-") as tmp:
         graph_path = Path(tmp) / "scene.yaml"
-        plan_to_graph(args.scene, graph_path, tuple(args.plugins), fixed=args.surface, relative=False,
-                      auto_plugins=not args.no_plugins)
+        plan_to_graph(args.scene, graph_path, tuple(args.plugins), fixed=args.surface, relative=False)
         graph = load_graph_from_args(args, graph_path, tier="fused")  # live keeps the fused tick
         return run_live_session(graph, args, dbc, map_)

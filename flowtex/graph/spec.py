@@ -18,7 +18,7 @@ from ..node_api import suggest
 from ..yamlsource import LocDict, LocList, load_yaml, parse_value, read_source
 
 FORMAT_VERSION = 1
-TOP_KEYS = ("flowtex", "name", "rate", "seed", "inputs", "nodes", "edges", "outputs", "description")
+TOP_KEYS = ("flowtex", "name", "rate", "seed", "plugins", "inputs", "nodes", "edges", "outputs", "description")
 NODE_KEYS = ("type", "params", "every", "doc")
 INPUT_KEYS = ("shape", "unit", "doc")
 NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
@@ -78,6 +78,8 @@ class GraphSpec:
     edges: list[EdgeSpec] = field(default_factory=list)
     outputs: dict[str, OutputSpec] = field(default_factory=dict)
     description: str = ""
+    plugins: tuple[Path, ...] = ()
+    """Plugin folders named by the ``plugins:`` key, resolved against the graph file's folder."""
 
 
 class Collector:
@@ -125,6 +127,7 @@ def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -
     rate = _rate(c, data)
     seed = _seed(c, data)
     spec = GraphSpec(path=path, name=name, rate=rate, seed=seed, description=str(data.get("description", "")))
+    spec.plugins = plugin_folders(c, data, path)
     spec.inputs = _inputs(c, data)
     spec.nodes = _nodes(c, data, spec.inputs)
     if overrides:
@@ -134,6 +137,41 @@ def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -
     if c.diagnostics:
         raise GraphError(c.diagnostics)
     return spec
+
+
+def plugin_folders(c: Collector, data: LocDict, path: Path) -> tuple[Path, ...]:
+    """The ``plugins:`` key: a list of folders (relative to the graph file's folder) whose ``*.py`` files define node types."""
+    raw = data.get("plugins")
+    if raw is None:
+        return ()
+    if not isinstance(raw, LocList):
+        c.error(data.value_pos.get("plugins"), "plugins must be a list of folders relative to the graph file, e.g. [../plugins]")
+        return ()
+    folders = []
+    for item, pos in zip(raw, raw.item_pos, strict=False):
+        if not isinstance(item, str) or not item.strip():
+            c.error(pos, f"plugins: expected a folder name, got {excerpt(item)}")
+            continue
+        folder = Path(item).expanduser()
+        folder = folder if folder.is_absolute() else path.parent / folder
+        if not folder.is_dir():
+            c.error(pos, f"plugins: folder {item!r} does not exist (looked for {folder}); folders are relative to the graph file")
+            continue
+        folders.append(folder)
+    return tuple(folders)
+
+
+def read_plugin_folders(path: str | Path) -> tuple[Path, ...]:
+    """Only the ``plugins:`` key of the graph file at ``path`` (checked as :func:`load_spec` checks it)."""
+    path = Path(path)
+    data = load_yaml(read_source(path, "graph file"), str(path))
+    if not isinstance(data, LocDict):
+        return ()
+    c = Collector(str(path))
+    folders = plugin_folders(c, data, path)
+    if c.diagnostics:
+        raise GraphError(c.diagnostics)
+    return folders
 
 
 def _valid_rate(rate: Any) -> bool:
