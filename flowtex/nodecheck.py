@@ -80,7 +80,7 @@ def error_line(exc: BaseException, path: str | Path) -> int:
     return line
 
 
-def _attr_line(cls: type[Node], attr: str) -> int | None:
+def attr_line(cls: type[Node], attr: str) -> int | None:
     """Line of ``attr = ...`` in the class body (where a declaration mistake is), or None."""
     try:
         lines, start = inspect.getsourcelines(cls)
@@ -90,7 +90,7 @@ def _attr_line(cls: type[Node], attr: str) -> int | None:
     return next((start + k for k, text in enumerate(lines) if pattern.match(text)), None)
 
 
-def _where(cls: type[Node], func: Callable | None = None, line: int | None = None) -> str:
+def node_where(cls: type[Node], func: Callable | None = None, line: int | None = None) -> str:
     target: object = func if func is not None else cls
     try:
         path = inspect.getsourcefile(target)  # type: ignore[arg-type]
@@ -171,7 +171,7 @@ def check_declarations(cls: type[Node]) -> None:
     """Raise :class:`FlowtexError` at the declaring line for a port or parameter declaration flowtex cannot use."""
     for attr, kind in (("params", Param), ("inputs", Port), ("outputs", Port)):
         table = getattr(cls, attr)
-        where = _where(cls, line=_attr_line(cls, attr))
+        where = node_where(cls, line=attr_line(cls, attr))
         if not isinstance(table, dict):
             raise FlowtexError(f"{where}: {attr} is {excerpt(table)}, not a dict of name: {kind.__name__}(...)")
         for name, decl in table.items():
@@ -188,7 +188,7 @@ def check_declarations(cls: type[Node]) -> None:
                     raise FlowtexError(f"{where}: output {name!r}: optional is for inputs only")
     ports = len(cls.inputs) + len(cls.outputs)
     if ports > MAX_NODE_PORTS:
-        raise FlowtexError(f"{_where(cls, line=_attr_line(cls, 'inputs'))}: {len(cls.inputs)} inputs and {len(cls.outputs)} "
+        raise FlowtexError(f"{node_where(cls, line=attr_line(cls, 'inputs'))}: {len(cls.inputs)} inputs and {len(cls.outputs)} "
                            f"outputs are {ports} ports, more than the limit of {MAX_NODE_PORTS}; take a vector input "
                            "(Port((n,))) instead of many scalar ones")
 
@@ -200,13 +200,13 @@ def check_node_class(cls: type[Node]) -> None:
     for attr in attrs:
         kernel = _kernel_attr(cls, attr)
         if kernel is None:
-            raise FlowtexError(f"{_where(cls)}: defines no {attr}; set {attr} = a numba @njit function "
+            raise FlowtexError(f"{node_where(cls)}: defines no {attr}; set {attr} = a numba @njit function "
                                f"with arguments {CONTRACT}")
         func = _python_function(kernel)
         if not callable(func) or not hasattr(func, "__code__"):
-            raise FlowtexError(f"{_where(cls)}: {attr} is {kernel!r}, not a function; set {attr} = a numba @njit function")
+            raise FlowtexError(f"{node_where(cls)}: {attr} is {kernel!r}, not a function; set {attr} = a numba @njit function")
         if not _is_numba_dispatcher(kernel):
-            raise FlowtexError(f"{_where(cls, func)}: {attr} {func.__name__} is a plain Python function; decorate it "
+            raise FlowtexError(f"{node_where(cls, func)}: {attr} {func.__name__} is a plain Python function; decorate it "
                                "with @njit(cache=True) (from numba import njit): kernels run inside the compiled graph")
         if attr != "kernel":
             continue
@@ -219,7 +219,7 @@ def check_node_class(cls: type[Node]) -> None:
             ins = ", ".join(cls.inputs) or "none"
             outs = ", ".join(cls.outputs) or "none"
             raise FlowtexError(
-                f"{_where(cls, func)}: kernel {func.__name__}({have}) takes {len(params)} arguments but the node's ports need "
+                f"{node_where(cls, func)}: kernel {func.__name__}({have}) takes {len(params)} arguments but the node's ports need "
                 f"{len(want)}: {func.__name__}({', '.join(want)}) -- p (params), s (float state), si (int state), "
                 f"then the inputs ({ins}) and the outputs ({outs}) in declaration order")
 
@@ -250,10 +250,10 @@ def checked_state(cls: type[Node], node_name: str, state: object, build: Callabl
             except (TypeError, ValueError, OverflowError):
                 arr = None
             if arr is None or arr.ndim > 1:
-                raise FlowtexError(f"{_where(cls, build)}: build() of graph node {node_name!r} returned NodeState({field}="
+                raise FlowtexError(f"{node_where(cls, build)}: build() of graph node {node_name!r} returned NodeState({field}="
                                    f"{excerpt(getattr(state, field))}); {field} must be a 1-D array of numbers")
         return state
-    raise FlowtexError(f"{_where(cls, build)}: build() of graph node {node_name!r} returned {excerpt(state)}, not a "
+    raise FlowtexError(f"{node_where(cls, build)}: build() of graph node {node_name!r} returned {excerpt(state)}, not a "
                        "NodeState; end build() with return NodeState(params=..., state=..., istate=...)")
 
 
@@ -265,14 +265,14 @@ def plugin_raised(cls: type[Node], node_name: str, method: str, exc: Exception) 
     except TypeError:
         path = ""
     line = error_line(exc, path) if path else 0
-    where = _where(cls, func, line or None)
+    where = node_where(cls, func, line or None)
     return FlowtexError(f"{where}: {method}() of graph node {node_name!r} raised {type(exc).__name__}: {exc}")
 
 
 def _compile_message(cls: type[Node], kernel: Callable, text: str) -> str:
     func = _python_function(kernel)
     text = _ANSI.sub("", text)
-    where = _where(cls, func)
+    where = node_where(cls, func)
     source = inspect.getsourcefile(func)
     for path, line in _NUMBA_FILE_LINE.findall(text):
         if source and Path(path).name == Path(source).name:

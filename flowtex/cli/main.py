@@ -36,6 +36,7 @@ COMMAND_MODULES = (
     "flowtex.cli.scene",
     "flowtex.cli.bench",
     "flowtex.cli.plot",
+    "flowtex.cli.plugin",
 )
 """Modules that add subcommands: each has ``register(subparsers)`` (one command group per module, one line here)."""
 
