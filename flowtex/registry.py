@@ -92,7 +92,7 @@ def plugin_dirs(extra: Iterable[str | Path] = ()) -> list[Path]:
 def load_plugin_file(path: Path) -> ModuleType:
     """Import one plugin file under a stable private module name."""
     digest = hashlib.sha1(str(path.resolve()).encode()).hexdigest()[:10]
-    mod_name = f"flowtex_plugin_{path.stem}_{digest}"
+    mod_name = f"{_PLUGIN_MODULE_PREFIX}{path.stem}_{digest}"
     if mod_name in sys.modules:
         return sys.modules[mod_name]
     spec = importlib.util.spec_from_file_location(mod_name, path)
@@ -128,6 +128,14 @@ def _with_submodules(module: ModuleType) -> list[ModuleType]:
 
 
 _CACHE: dict[tuple[Path, ...], Registry] = {}
+_PLUGIN_MODULE_PREFIX = "flowtex_plugin_"
+
+
+def forget_plugin_code() -> None:
+    """Forget every loaded plugin file and registry, so the next :func:`load_registry` imports edited plugins afresh."""
+    _CACHE.clear()
+    for name in [n for n in sys.modules if n.startswith(_PLUGIN_MODULE_PREFIX)]:
+        del sys.modules[name]
 
 
 def load_registry(plugins: Iterable[str | Path] = ()) -> Registry:

@@ -37,6 +37,7 @@ COMMAND_MODULES = (
     "flowtex.cli.bench",
     "flowtex.cli.plot",
     "flowtex.cli.plugin",
+    "flowtex.cli.watch",
 )
 """Modules that add subcommands: each has ``register(subparsers)`` (one command group per module, one line here)."""
 
