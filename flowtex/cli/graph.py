@@ -97,6 +97,8 @@ def cmd_nodes(args: argparse.Namespace) -> int:
     from ..registry import load_registry
 
     registry = load_registry(tuple(args.plugins))
+    if registry.plugin_files:
+        note(f"flowtex: loaded plugin code: {', '.join(str(f) for f in registry.plugin_files)}")
     if args.type:
         cls = registry.get(args.type)
         if cls is None:

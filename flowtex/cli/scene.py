@@ -28,7 +28,7 @@ def register(sub: Any) -> None:
     p.add_argument("-o", "--output", required=True, help="graph YAML file to write")
     p.add_argument("--json", help="also write the decisions as JSON {surface: {component: {keep, salience, threshold, reason}}}")
     p.add_argument("--explain", action="store_true", help="print salience, threshold and decision per surface and component")
-    add_plugin_options(p)
+    add_plugin_options(p, no_plugins=False)  # a scene has no plugin folders of its own: only --plugins and $FLOWTEX_PLUGINS
     p.set_defaults(func=cmd_scene_plan)
 
     p = actions.add_parser("run", help="plan and run offline over a recording in one step")
