@@ -87,3 +87,7 @@ def test_step_raises_and_the_graph_is_reset(project, tier):
     assert graph.step({"x": 1.0})["y"] == 2.0
     ok = graph.run({"x": np.arange(50.0)})["y"]
     np.testing.assert_array_equal(ok, 2.0 * np.arange(50.0))
+    graph.input_view("x")[:] = 100.0  # the live path: input views, then step_block
+    with pytest.raises(KernelError, match="node 'b' \\(boom_fault\\)"):
+        graph.step_block(1)
+    assert graph.i[FAULT] == 0

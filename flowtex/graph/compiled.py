@@ -57,6 +57,7 @@ class Graph:
                 compile_dispatch(resolved, self.layout, self._step_in, self._step_out)
         self.tier = code.tier
         """The tier that runs: ``fused`` or ``dispatch``."""
+        self._dispatch = code.tier == "dispatch"
         self.layout.i = code.ints
         self.source = code.source
         self.rebuilt_cache_entries = code.rebuilt
@@ -319,9 +320,9 @@ class Graph:
         """Advance ``n`` ticks using whatever is in the input views (no Python mapping)."""
         try:
             self._block_entry(self.f, self.i, n)
-        except Exception as exc:
+        except Exception as exc:  # fused tier: the kernel's exception (costs nothing when none is raised)
             self._kernel_raised(exc)
-        if self.i[FAULT] != 0:
+        if self._dispatch and self.i.item(FAULT):  # dispatch tier: a wrapper recorded one
             self._check_fault()
 
     def check_inputs(self, inputs: Mapping[str, Any]) -> None:
