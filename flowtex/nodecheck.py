@@ -249,9 +249,9 @@ def checked_state(cls: type[Node], node_name: str, state: object, build: Callabl
                 arr = np.asarray(getattr(state, field), dtype=np.int64 if field == "istate" else np.float64)
             except (TypeError, ValueError, OverflowError):
                 arr = None
-            if arr is None or arr.ndim > 1:
+            if arr is None:  # any shape is packed flat (row-major) into the arena
                 raise FlowtexError(f"{node_where(cls, build)}: build() of graph node {node_name!r} returned NodeState({field}="
-                                   f"{excerpt(getattr(state, field))}); {field} must be a 1-D array of numbers")
+                                   f"{excerpt(getattr(state, field))}); {field} must be an array of numbers")
         return state
     raise FlowtexError(f"{node_where(cls, build)}: build() of graph node {node_name!r} returned {excerpt(state)}, not a "
                        "NodeState; end build() with return NodeState(params=..., state=..., istate=...)")
