@@ -15,7 +15,7 @@ from __future__ import annotations
 import inspect
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 import numpy as np
@@ -239,6 +239,12 @@ def check_kernel_compiles(cls: type[Node]) -> None:
         kernel.compile(sig)
     except NumbaError as exc:
         raise FlowtexError(_compile_message(cls, kernel, str(exc))) from None
+
+
+def check_plugin_kernels(classes: Iterable[type[Node]]) -> None:
+    """:func:`check_kernel_compiles` for each plugin node type among ``classes`` (flowtex's own are compiled by its tests)."""
+    for cls in {cls for cls in classes if is_plugin(cls)}:
+        check_kernel_compiles(cls)
 
 
 def checked_state(cls: type[Node], node_name: str, state: object, build: Callable) -> NodeState:
