@@ -13,28 +13,9 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-TEXTURE_GRAPH = """
-flowtex: 1
-name: dataset-texture
-rate: {rate}
-seed: 1
-inputs:
-  speed: {{unit: mm/s}}
-  force: {{unit: N}}
-nodes:
-  lookup: {{type: texture_lookup, params: {{models: set.json}}}}
-  synth: {{type: arma_synth}}
-edges:
-  - speed -> lookup.speed
-  - force -> lookup.force
-  - lookup.ar -> synth.ar
-  - lookup.ma -> synth.ma
-  - lookup.gain -> synth.gain
-  - lookup.variance -> synth.variance
-outputs:
-  accel: synth.y
-"""
-"""Vibration (m/s^2) of a model set along a (speed, force) trajectory."""
+from ..fit.texture_graph import TEXTURE_GRAPH
+
+__all__ = ["FRICTION_GRAPH", "TAP_GRAPH", "TEXTURE_GRAPH", "run_graph"]
 
 SCALED_TEXTURE_GRAPH = """
 flowtex: 1

@@ -75,6 +75,14 @@ def psd_centroid(freqs_hz: np.ndarray, psd: np.ndarray, min_freq_hz: float = 0.0
     return float(np.sum(freqs_hz[band] * psd[band]) / total) if total > 0 else float("nan")
 
 
+def signal_centroid(x: np.ndarray, rate_hz: float) -> float:
+    """Spectral centroid (Hz) of a whole signal ``x`` sampled at ``rate_hz``: sum X(f)^2 f / sum X(f)^2, X its DFT
+    magnitude (Culbertson & Kuchenbecker 2017 eq. 4, the tap hardness predictor); NaN for a silent signal, like
+    :func:`psd_centroid` (callers choose what silence means for them)."""
+    x = np.asarray(x, dtype=np.float64)
+    return psd_centroid(np.fft.rfftfreq(x.size, 1.0 / rate_hz), np.abs(np.fft.rfft(x)) ** 2)
+
+
 def lsd_db(s_fit: np.ndarray, s_true: np.ndarray, freqs_hz: np.ndarray, min_freq_hz: float = 15.0,
            range_db: float | None = 40.0, max_freq_hz: float = math.inf, floor: float = 0.0,
            shape_only: bool = False) -> float:

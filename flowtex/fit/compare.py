@@ -1,7 +1,7 @@
 """How faithful a surface is: render it along a recording's own speed and force, and compare with the recording.
 
 :func:`compare_surface` (``flowtex compare``, ``fit texture --holdout``) renders
-the model set with ``texture_lookup`` + ``arma_synth`` (flowtex.datasets.graphs,
+the model set with ``texture_lookup`` + ``arma_synth`` (flowtex.fit.texture_graph,
 the nodes every graph renders with) along the recorded speed (mm/s) and normal
 force (N), ``seeds`` times with different excitation seeds, and measures, on the
 recording and on the renders alike:
@@ -145,12 +145,12 @@ class Comparison:
 def render_along(ms: TextureModelSet, speed: np.ndarray, force: np.ndarray, seeds: list[int] | range,
                  lookup: Mapping[str, Any] | None = None) -> list[np.ndarray]:
     """Vibrations (m/s^2) of ``ms`` along (speed mm/s, force N), one per excitation seed; the graph is compiled once."""
-    from ..datasets.graphs import TEXTURE_GRAPH
     from ..graph.compiled import Graph
     from ..graph.resolve import resolve_graph
     from ..graph.spec import parse_spec
     from ..io.modelset import save_model_set
     from ..registry import load_registry
+    from .texture_graph import TEXTURE_GRAPH
 
     with tempfile.TemporaryDirectory() as tmp:
         path = save_model_set(ms, Path(tmp) / "surface.json")

@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..dsp.contact import CONTACT_ON_N
 from ..dsp.filter_design import zero_phase_highpass
 from ..dsp.lsf import poly_to_lsf
 from ..dsp.robust import clamp_outliers
@@ -65,7 +66,7 @@ class TextureOptions:
     frame_s: float = 0.05
     min_piece_s: float = 0.3
     trim_s: float = 0.05
-    min_force: float = 0.1
+    min_force: float = CONTACT_ON_N
     min_speed: float = 5.0
     penalty_scale: float = 1.0
     order_pieces: int = 8
