@@ -89,6 +89,7 @@ def load_spec(path: str | Path, overrides: dict[str, Any] | None = None) -> Grap
 
 
 def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -> GraphSpec:
+    """Check ``text`` (graph file ``path``) against :data:`flowtex.schema.graph.GRAPH`; every problem in one GraphError."""
     c = Collector(str(path))
     data = load_yaml(text, str(path))
     if not isinstance(data, LocDict):
@@ -104,7 +105,7 @@ def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -
     spec = GraphSpec(path=path, name=name, rate=1000.0 if rate is INVALID else float(rate), seed=0 if seed is INVALID else seed,
                      description=str(data.get("description", "")))
     plugins = value_of(c, data, GRAPH, "plugins")
-    if plugins not in (INVALID, GRAPH.keys["plugins"].default):
+    if "plugins" in data and plugins is not INVALID:
         spec.plugins = [path.parent / p for p in plugins]
     spec.inputs = _inputs(c, data)
     spec.nodes = _nodes(c, data, spec.inputs)

@@ -62,3 +62,11 @@ def test_scene_version_must_be_the_integer_1(tmp_path):
         parse_scene(body, tmp_path / "s.yaml")
     scene = parse_scene(body.replace("true", "1").replace("250", "2.5e2"), tmp_path / "s.yaml")
     assert scene.speed_range == (50.0, 250.0)
+
+
+def test_plugins_key_lists_folders_relative_to_the_graph(tmp_path):
+    text = GRAPH.format(rate=1000, cutoff=50) + "plugins: [nodes, ../shared]\n"
+    spec = parse_spec(text, tmp_path / "g.yaml")
+    assert spec.plugins == [tmp_path / "nodes", tmp_path / "../shared"]
+    with pytest.raises(GraphError, match="plugins must be a list of folders"):
+        parse_spec(GRAPH.format(rate=1000, cutoff=50) + "plugins: nodes\n", tmp_path / "g.yaml")
