@@ -106,13 +106,13 @@ def _device_map(path: Path, dbc: str | Path | None, *_: object) -> str:
     return f"{len(m.inputs)} inputs, {len(m.outputs)} outputs on {Path(dbc).name}"
 
 
-def _scene(path: Path, _dbc: object, plugins: tuple[str | Path, ...], auto_plugins: bool) -> str:
+def _scene(path: Path, _dbc: object, plugins: tuple[str | Path, ...], _auto_plugins: bool) -> str:
     from .registry import load_registry
     from .scene.file import load_scene
     from .scene.plan import plan_scene
 
     scene = load_scene(path)
-    plan = plan_scene(scene, frozenset(load_registry(plugins, auto=auto_plugins).names()))
+    plan = plan_scene(scene, frozenset(load_registry(plugins).names()))
     kept = sum(d.keep for data in plan.values() for d in data.decisions.values())
     total = sum(len(data.decisions) for data in plan.values())
     return f"{len(plan)} surfaces, {kept} of {total} components kept"

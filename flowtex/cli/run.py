@@ -10,7 +10,7 @@ from ..errors import FlowtexError
 from ..io.formats import AUDIO, CAN_LOG, RECORDING, kind_of, suffixes
 from .graph import load_graph_from_args
 from .options import add_compile_option, add_graph_options, add_seed_option
-from .output import say
+from .output import note, say
 
 REPLAY_SUFFIXES = suffixes(CAN_LOG)
 RECORDING_SUFFIXES = suffixes(RECORDING)
@@ -28,6 +28,9 @@ def register(sub: Any) -> None:
     p.add_argument("--nonfinite", choices=("error", "hold", "zero", "pass"), default="error",
                    help="NaN/inf in the recording: error (default; names signal, count, first index), "
                         "hold (last finite value), zero, or pass (unchanged)")
+    p.add_argument("--nonfinite-outputs", choices=("warn", "error"), default="warn",
+                   help="NaN/inf in the graph's outputs: warn (default; one line per output: NaN and inf counts, first tick) "
+                        "or error (refuse; nothing written)")
     add_compile_option(p, "auto")
     add_graph_options(p)
     p.set_defaults(func=cmd_run)
@@ -54,10 +57,12 @@ def cmd_run(args: argparse.Namespace) -> int:
                                                progress=sys.stderr.isatty(), nonfinite=args.nonfinite)
         say(f"{graph.name}: {samples.shape[0]} frames x {samples.shape[1]} channel(s) at {rate:g} Hz -> {args.output}")
         return 0
-    from ..runtime.offline import run_recording
+    from ..runtime.offline import nonfinite_outputs, run_recording
 
     outputs = run_recording(graph, args.input, args.output, seed=args.seed, progress=sys.stderr.isatty(),
-                            nonfinite=args.nonfinite)
+                            nonfinite=args.nonfinite, nonfinite_out=args.nonfinite_outputs)
+    for line in nonfinite_outputs(outputs):
+        note(f"warning: {line} (--nonfinite-outputs error refuses instead)")
     say(run_summary(graph, outputs, args.output))
     return 0
 

@@ -65,8 +65,9 @@ def test_scene_version_must_be_the_integer_1(tmp_path):
 
 
 def test_plugins_key_lists_folders_relative_to_the_graph(tmp_path):
-    text = GRAPH.format(rate=1000, cutoff=50) + "plugins: [nodes, ../shared]\n"
-    spec = parse_spec(text, tmp_path / "g.yaml")
-    assert spec.plugins == [tmp_path / "nodes", tmp_path / "../shared"]
+    (tmp_path / "nodes").mkdir()
+    (tmp_path / "g").mkdir()
+    text = GRAPH.format(rate=1000, cutoff=50) + "plugins: [nodes, g/../nodes]\n"
+    assert parse_spec(text, tmp_path / "g.yaml").plugins == [tmp_path / "nodes", tmp_path / "g/../nodes"]
     with pytest.raises(GraphError, match="plugins must be a list of folders"):
         parse_spec(GRAPH.format(rate=1000, cutoff=50) + "plugins: nodes\n", tmp_path / "g.yaml")

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from flowtex.registry import load_registry
 from flowtex.schema.jsonschema import param_schema
 
-PARAMS = [(f"{t}.{n}", p) for t, cls in sorted(load_registry(auto=False).types.items()) for n, p in cls.params.items()]
+PARAMS = [(f"{t}.{n}", p) for t, cls in sorted(load_registry().types.items()) for n, p in cls.params.items()]
 VALIDATORS = {name: jsonschema.Draft202012Validator(param_schema(p)) for name, p in PARAMS}
 
 scalars = st.one_of(
