@@ -351,9 +351,10 @@ def check_value(c: Collector, value: Any, pos: Pos | Location | None, f: Field, 
     problem = _problem(value, f)
     if problem is None:
         return _normalized(value, f)
+    got = ("true" if value else "false") if isinstance(value, bool) else excerpt(value)  # as the file spells it
     if f.message:
-        c.error(pos, f.message.format(got=excerpt(value), **fmt))
+        c.error(pos, f.message.format(got=got, **fmt))
     else:
         what = fmt.get("key", "value")
-        c.error(pos, f"{what}: {problem}, got {excerpt(value)}")
+        c.error(pos, f"{what}: {problem}, got {got}")
     return INVALID

@@ -58,7 +58,7 @@ def test_graph_version_must_be_the_integer_1(tmp_path, version):
 
 def test_scene_version_must_be_the_integer_1(tmp_path):
     body = "flowtex: true\ntrajectory: {speed: [50, 250], force: [0.5, 2.5]}\nsurfaces:\n  a: {models: m.json}\n"
-    with pytest.raises(GraphError, match=r"s.yaml:1:10: unsupported format version True"):
+    with pytest.raises(GraphError, match=r"s.yaml:1:10: unsupported format version true"):
         parse_scene(body, tmp_path / "s.yaml")
     scene = parse_scene(body.replace("true", "1").replace("250", "2.5e2"), tmp_path / "s.yaml")
     assert scene.speed_range == (50.0, 250.0)
