@@ -154,7 +154,10 @@ class Param:
             if not isinstance(value, str) or not value:
                 raise ValueError(f"expected a non-empty string, got {excerpt(value)}")
             if kind == "path":
-                path = Path(value).expanduser()
+                try:
+                    path = Path(value).expanduser()
+                except RuntimeError:  # '~user/...' of a user that does not exist (or no home folder)
+                    raise ValueError(f"cannot expand the '~' of {excerpt(value)}: no such user's home folder; give the full path") from None
                 if not path.is_absolute() and base_dir is not None:
                     path = base_dir / path
                 return path
