@@ -6,6 +6,7 @@
       device: null             # optional: PortAudio device name (substring) or index; absent = default output
       rate: 8000               # Hz, p/q times the graph's rate (p, q <= 1000: 8000, 44100, 48000 for a 1 kHz graph)
       block: 64                # frames per PortAudio callback
+      margin_ms: 10            # optional: how far ahead of the sound card the ticks run (robustness vs latency)
       channels:                # one entry per audio channel, in channel order
         - output: vibration    # a scalar graph output
           scale: 1.5           # graph units per full-scale sample (sample = value / scale)
@@ -28,10 +29,14 @@ import numpy as np
 from ..yamlsource import LocDict, LocList
 from .dbc import suggest
 
-AUDIO_KEYS = ("device", "rate", "block", "channels", "doc")
+AUDIO_KEYS = ("device", "rate", "block", "margin_ms", "channels", "doc")
 CHANNEL_KEYS = ("output", "scale", "clip", "doc")
 MIN_RATE = 5000.0
 """Lowest audio rate accepted, Hz (the issue's and Culbertson 2012's floor)."""
+DEFAULT_MARGIN_MS = 10.0
+"""Default ``margin_ms``: a stall of the tick loop shorter than this costs no sample (docs/live.md, "Audio output")."""
+MAX_MARGIN_MS = 250.0
+"""Largest ``margin_ms``: every millisecond of margin is a millisecond of sensor-to-sound latency."""
 
 
 @dataclass(frozen=True)
@@ -52,6 +57,10 @@ class AudioMap:
     block: int
     channels: tuple[AudioChannel, ...]
     device: str | int | None = None
+    margin_ms: float = DEFAULT_MARGIN_MS
+    """Time, ms, by which each tick's samples are ready before the sound card's callback can need them: a stall of
+    the tick loop shorter than this is absorbed (the loop catches up), a longer one inserts silence (a resync).
+    Sensor-to-DAC latency grows by the same amount."""
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(scale, lo, hi) per channel as float64 arrays."""
@@ -86,13 +95,18 @@ def parse_audio(raw: Any, pos: Any, add: Add, graph_outputs: dict[str, int] | No
     block = raw.get("block", 64)
     if isinstance(block, bool) or not isinstance(block, int) or not 1 <= block <= 65536:
         bad(raw.value_pos.get("block"), f"audio.block must be a whole number of frames per callback (e.g. 64), got {block!r}")
+    margin = raw.get("margin_ms", DEFAULT_MARGIN_MS)
+    if not _number(margin) or not 0 < margin <= MAX_MARGIN_MS:
+        bad(raw.value_pos.get("margin_ms"), f"audio.margin_ms must be a number of ms in (0, {MAX_MARGIN_MS:g}] (default "
+                                            f"{DEFAULT_MARGIN_MS:g}: robust without --rt; e.g. 0.5 with --rt for low latency), "
+                                            f"got {margin!r}")
     device = raw.get("device")
     if device is not None and (isinstance(device, bool) or not isinstance(device, (str, int))):
         bad(raw.value_pos.get("device"), f"audio.device must be a device name or index (flowtex live --list-audio), got {device!r}")
     channels = _channels(raw, bad, graph_outputs)
     if before[0]:
         return None
-    return AudioMap(rate=float(rate), block=int(block), channels=tuple(channels), device=device)
+    return AudioMap(rate=float(rate), block=int(block), channels=tuple(channels), device=device, margin_ms=float(margin))
 
 
 def _channels(raw: LocDict, bad: Add, graph_outputs: dict[str, int] | None) -> list[AudioChannel]:
