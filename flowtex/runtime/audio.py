@@ -228,7 +228,8 @@ class AudioOutput:
 
     @property
     def underruns(self) -> int:
-        """Callbacks that found a tick late, plus PortAudio's own output underflows."""
+        """Callbacks that found a tick late (``late_callbacks``: the tick loop's stall outlasted the margin), plus
+        PortAudio's own output underflows (``device_underflows``: the sound server's xruns, e.g. JACK's)."""
         return int(self.ring.istate[UNDERRUNS]) + self.pa_underflows
 
     def status_text(self) -> str:
@@ -285,5 +286,7 @@ class AudioOutput:
                 "latency_ms": dist, "played_frames": int(self.ring.istate[PLAYED]), "lead_frames": int(self.lead),
                 "samples_per_tick": self.ratio[0] / self.ratio[1], "ratio": list(self.ratio),
                 "latency_samples": int(self.ring.istate[LATENCIES]),
+                "late_callbacks": int(self.ring.istate[UNDERRUNS]), "device_underflows": self.pa_underflows,
+                "margin_ms": self.amap.margin_ms,
                 "late_frames": int(self.ring.istate[MISSING]), "fade_frames": int(self.ring.fade),
                 "resyncs": [list(r) for r in self.ring.resyncs]}
