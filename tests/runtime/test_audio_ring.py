@@ -128,21 +128,21 @@ def _live_and_rebuilt(schedule, up, down, seed):
     timeline = AudioTimeline(lead=lead, fade=ring.fade, margin=ahead, resyncs=resyncs, silences=silences,
                              total=int(ring.istate[RECORDED]))
     rebuilt, klass = rebuild_live(samples, n_ticks, up, down, timeline)
-    return live, rebuilt, klass, ring
+    return live, rebuilt, klass, ring, timeline
 
 
 def test_rebuilt_stream_equals_what_was_handed_over_through_stalls_holds_and_the_stop():
     # ticks in time, then a stall (the callback runs 300 frames with no tick: late, then a resync), held ticks, more
     schedule = [(10, 64, False), (8, 64, False), (0, 300, False), (5, 32, False), (4, 16, True), (12, 64, False),
                 (0, 7, False), (6, 128, False)]
-    live, rebuilt, klass, ring = _live_and_rebuilt(schedule, UP, 1, 3)
+    live, rebuilt, klass, ring, _ = _live_and_rebuilt(schedule, UP, 1, 3)
     assert ring.istate[MISSING] > 0 and (klass == 2).any() and (klass == 3).any() and (klass == 4).any()
     np.testing.assert_array_equal(rebuilt, live)
 
 
 def test_rebuilt_stream_at_441_over_10():
     schedule = [(3, 100, False), (0, 500, False), (4, 90, True), (6, 200, False)]
-    live, rebuilt, _, _ = _live_and_rebuilt(schedule, 441, 10, 4)
+    live, rebuilt, _, _, _ = _live_and_rebuilt(schedule, 441, 10, 4)
     np.testing.assert_array_equal(rebuilt, live)
 
 
@@ -155,7 +155,32 @@ def test_rebuilt_stream_any_interleaving():
     @settings(max_examples=60, deadline=None)
     @given(st.lists(step, min_size=1, max_size=12), st.integers(0, 2**31))
     def check(schedule, seed):
-        live, rebuilt, _, _ = _live_and_rebuilt(schedule, UP, 1, seed)
+        live, rebuilt, _, _, _ = _live_and_rebuilt(schedule, UP, 1, seed)
         np.testing.assert_array_equal(rebuilt, live)
 
     check()
+
+
+def test_check_audio_one_line_per_class_and_unexplained_differences():
+    from dataclasses import replace
+
+    from flowtex.runtime.audio_check import check_audio
+
+    schedule = [(10, 64, False), (0, 300, False), (5, 32, False), (4, 16, True), (6, 128, False)]
+    live, rebuilt, klass, _, timeline = _live_and_rebuilt(schedule, UP, 1, 5)
+    ok = check_audio(live, rebuilt, klass, timeline, "live.wav", RATE)
+    assert ok.unexplained == 0 and not any("DIFFER" in x for x in ok.lines)
+    played = int((klass == 0).sum())
+    assert f"{played} frames: the ticks' samples, equal to live.wav sample for sample" in ok.lines[1]
+    assert any(x.endswith("the lead before tick 0") for x in ok.lines)
+    assert any(x.endswith("ticks held by the input watchdog (a stale sensor)") for x in ok.lines)
+    bad = live.copy()
+    i = int(np.flatnonzero(klass == 0)[7])
+    bad[i, 1] = np.nextafter(bad[i, 1], np.float32(2))  # one sample, one float32 step
+    c = check_audio(bad, rebuilt, klass, timeline, "live.wav", RATE)
+    assert c.unexplained == 1 and any(x.startswith(f"1 frames DIFFER (the ticks' samples), first at frame {i} ") for x in c.lines)
+    longer = np.concatenate([live, np.zeros((5, 2), dtype=np.float32)])
+    assert check_audio(longer, rebuilt, klass, timeline, "live.wav", RATE).unexplained == 5  # the log says how long
+    cut = check_audio(longer, rebuilt, klass, replace(timeline, total=None), "live.wav", RATE)
+    assert cut.unexplained == 0 and "the session log ends before them" in cut.lines[-1]  # a log without its END
+
