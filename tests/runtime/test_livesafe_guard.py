@@ -100,6 +100,7 @@ def test_peak_limited_output_is_called_peak_limited_in_status_and_warning(setup)
     peaked = r.summary["peak_limited"]["force"]
     assert peaked > 0.01 * TICKS and r.summary["clamped"]["force"] == 0
     text = status.getvalue()
-    assert f"| peak-limited force {peaked}" in text and "| clamped" not in text and f"guard     peak-limited force {peaked}" in text
+    assert f"| peak-limited force {peaked}" in text and "clamped force" not in text
+    assert f"guard     peak-limited vibration 0, force {peaked}" in text
     assert [w for w in r.warnings if "'force'" in w][0].startswith("output 'force' was peak-limited on ")
     assert not any("'force' was clamped" in w for w in r.warnings)
