@@ -34,8 +34,12 @@ PACE_SMOOTHING = 0.02
 """Weight of the newest tick in the smoothed pacing error (the callback's timing jitters by a block)."""
 PACE_GAIN = 0.05
 """Fraction of the smoothed pacing error corrected per tick."""
-PACE_MAX_NS = 20_000
-"""Largest shift of one tick's deadline, ns (2 % of a 1 ms period: sound-card clocks are within 0.1 %, JACK's dummy 1.5 %)."""
+PACE_MAX_NS = 100_000
+"""Largest shift of one tick's deadline, ns (10 % of a 1 ms period: sound-card clocks are within 0.1 %, JACK's dummy
+1.5 %, but a sound server starved of CPU on a loaded machine falls further behind, and a loop that cannot follow it
+runs ahead without bound: measured, 1 s ahead at 2 %)."""
+PACE_FAR_S = 0.05
+"""A loop this far ahead of where the sound card needs it (or two blocks, if more) waits for the card at once."""
 STALL_S = 0.5
 """A running stream whose callback has not run for this long (and at least 8 blocks) has lost its device."""
 
@@ -190,7 +194,11 @@ class AudioOutput:
         if not self.cb_ns:
             return 0
         want = self.cb_ns + (self.ring.position(k + 1) - self.ahead - self.cb_end) * 1e9 / self.amap.rate
-        self._pace_err += PACE_SMOOTHING * ((want - next_deadline_ns) - self._pace_err)
+        err = want - next_deadline_ns
+        if err > max(PACE_FAR_S, 2 * self.amap.block / self.amap.rate) * 1e9:  # far ahead of a stalled sound card
+            self._pace_err = 0.0
+            return int(err)
+        self._pace_err += PACE_SMOOTHING * (err - self._pace_err)
         return int(max(-PACE_MAX_NS, min(PACE_MAX_NS, PACE_GAIN * self._pace_err)))
 
     def check(self) -> None:
