@@ -71,7 +71,7 @@ def file_kind(path: str | Path) -> str:
             raise DataError(f"{path}: not valid JSON (nested too deep or broken); flowtex's JSON files are objects with a "
                             f"'format' key: {', '.join(JSON_FORMATS)}") from None
         fmt = doc.get("format") if isinstance(doc, dict) else None
-        if fmt not in JSON_FORMATS:
+        if not isinstance(fmt, str) or fmt not in JSON_FORMATS:  # a list or an object is no format name (nor hashable)
             from .limits import excerpt
 
             shown = excerpt(fmt)

@@ -35,8 +35,11 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from .cache import configure_numba_cache
 from .errors import ParamError
 from .limits import MAX_INT_PARAM, excerpt, short_number
+
+configure_numba_cache()  # numba binds a kernel's cache folder when it is decorated: choose it first (flowtex.cache)
 
 
 class _Required:

@@ -18,7 +18,6 @@ import hashlib
 import importlib
 import importlib.util
 import inspect
-import os
 import pkgutil
 import sys
 from collections.abc import Iterable
@@ -26,12 +25,13 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from types import ModuleType
 
+from .config import PLUGIN_ENV, plugin_folders
 from .errors import FlowtexError
 from .node_api import Node
 from .nodecheck import check_node_class
 
 ENTRY_POINT_GROUP = "flowtex.nodes"
-PLUGIN_ENV = "FLOWTEX_PLUGINS"
+__all__ = ["BUILTIN_PACKAGE", "ENTRY_POINT_GROUP", "PLUGIN_ENV", "Registry", "load_plugin_file", "load_registry", "plugin_dirs"]
 
 # The built-in package, used when flowtex runs from a source tree without
 # installed metadata; the installed entry point names the same package.
@@ -79,9 +79,7 @@ def plugin_dirs(extra: Iterable[str | Path] = (), auto: bool = True) -> list[Pat
     local = Path.cwd() / "plugins"
     if auto and local.is_dir():
         dirs.append(local)
-    for item in os.environ.get(PLUGIN_ENV, "").split(os.pathsep):
-        if item:
-            dirs.append(Path(item))
+    dirs.extend(plugin_folders())
     dirs.extend(Path(d) for d in extra)
     unique: list[Path] = []
     for d in dirs:

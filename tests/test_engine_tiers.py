@@ -81,16 +81,13 @@ def test_dispatch_step_by_step_and_chunked_equal_one_pass():
 
 AUTO_SCRIPT = """
 import sys, time
-from pathlib import Path
 from flowtex.cache import cache_dir
+from flowtex.compile.service import PID_FILE, background_running
 from flowtex.graph.compiled import load_graph
 first = load_graph(sys.argv[1], tier="auto").tier
-pid_file = cache_dir() / "background.pid"
+pid_file = cache_dir() / PID_FILE
 for _ in range(1200):  # the background compile: started by the call above, at nice 19
-    try:
-        running = b"flowtex.graph.background" in Path(f"/proc/{int(pid_file.read_text())}/cmdline").read_bytes()
-    except (OSError, ValueError):
-        running = not pid_file.exists()  # not started yet, or already gone
+    running = background_running() or not pid_file.exists()  # running, or not started yet
     if not running:
         break
     time.sleep(0.5)

@@ -1,5 +1,9 @@
 """A built, compiled graph: ``run`` on whole arrays, ``step`` one tick, ``reset``.
 
+The compile service's product: :class:`Graph` lays out a resolved graph and asks
+:mod:`flowtex.compile.service` for its tick; this module belongs to the compile
+layer (docs/engine.md) and keeps the import path users and plugins know.
+
 Time is the first axis everywhere: a scalar port gives shape ``(n,)``, a
 vector port ``(n, *shape)``.
 """
@@ -13,17 +17,15 @@ from typing import Any
 
 import numpy as np
 
-from ..cache import cache_dir
+from ..compile.service import check_tier, compile_in_background, compile_tick, default_tier
 from ..dsp.nonfinite import NONFINITE_POLICIES, fill_nonfinite, find_nonfinite
 from ..errors import DataError, FlowtexError
 from ..node_api import PortSpec, suggest
-from ..nodecheck import check_kernel_compiles
 from ..registry import Registry, load_registry
 from .arena import OUT_WIDTH, TICK, Layout, plan_layout
-from .notice import compile_notice
+from .fused import FusedPlan, entry
 from .resolve import ResolvedGraph, resolve_graph
 from .spec import GraphSpec, load_spec
-from .tiers import FusedPlan, check_tier, compile_dispatch, default_tier, entry
 
 DEFAULT_BLOCK_ROWS = 1024
 PROGRESS_CHUNK = 1 << 17
@@ -44,17 +46,8 @@ class Graph:
         self.requested_tier = check_tier(tier or default_tier())
         plan = FusedPlan(resolved, self.layout, self._step_in, self._step_out)
         self.fused_plan = plan
-        use = self.requested_tier
-        if use == "auto":
-            use = "fused" if plan.cached() else "dispatch"
-        types = sorted({rn.cls.type_name for rn in resolved.nodes.values()})
-        what = f"graph {self.spec.name!r} ({len(resolved.nodes)} nodes: {', '.join(types)})"
-        with compile_notice(what if use == "fused" else f"node kernels of {what}", str(cache_dir())):
-            for cls in {rn.cls for rn in resolved.nodes.values() if not rn.cls.__module__.startswith("flowtex.")}:
-                check_kernel_compiles(cls)  # a plugin's typing error is reported as the plugin's, at its line
-            # Compile (or load from the disk cache) now, not on the first live tick.
-            code = plan.compile(self.layout.i) if use == "fused" else \
-                compile_dispatch(resolved, self.layout, self._step_in, self._step_out)
+        # Compile (or load from the disk cache) now, not on the first live tick.
+        code = compile_tick(resolved, self.layout, plan, self.requested_tier, self._step_in, self._step_out)
         self.tier = code.tier
         """The tier that runs: ``fused`` or ``dispatch``."""
         self.layout.i = code.ints
@@ -375,8 +368,6 @@ def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
     resolved = resolve_graph(spec, graph_registry(path, plugins, auto_plugins))
     graph = Graph(resolved, block_rows, tier)
     if graph.requested_tier == "auto" and graph.tier == "dispatch":
-        from .background import compile_in_background
-
         compile_in_background(path, dict(overrides or {}), plugins, block_rows, auto_plugins)
     return graph
 

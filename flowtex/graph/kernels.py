@@ -14,6 +14,10 @@ import numpy as np
 from numba import carray, njit, types
 from numba.extending import intrinsic
 
+from ..cache import configure_numba_cache
+
+configure_numba_cache()  # numba binds a kernel's cache folder when it is decorated: choose it first (flowtex.cache)
+
 ITEM = 8  # bytes per float64 / int64 arena element
 
 

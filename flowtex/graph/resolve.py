@@ -12,9 +12,10 @@ from typing import Any
 
 import networkx as nx
 
-from ..errors import DataError, Diagnostic, FlowtexError, GraphError, Location, ParamError
+from ..errors import DataError, FlowtexError, Location, ParamError
 from ..node_api import BuildContext, Node, NodeState, Port, PortSpec, simplify_unit, suggest
 from ..registry import Registry
+from ..schema.core import Collector
 from .spec import EdgeSpec, Endpoint, GraphSpec, NodeSpec
 
 
@@ -47,18 +48,15 @@ class ResolvedGraph:
         return list(self.nodes)
 
 
-class _Checker:
+class _Checker(Collector):
+    """The schema layer's one diagnostic collector, with the spec and the node types being checked against."""
+
     def __init__(self, spec: GraphSpec, registry: Registry):
+        super().__init__(str(spec.path))
         self.spec = spec
         self.registry = registry
-        self.diagnostics: list[Diagnostic] = []
 
-    def error(self, loc: Location, message: str) -> None:
-        self.diagnostics.append(Diagnostic(loc, message))
-
-    def fail_if_any(self) -> None:
-        if self.diagnostics:
-            raise GraphError(self.diagnostics)
+    fail_if_any = Collector.raise_if_any
 
 
 def resolve_graph(spec: GraphSpec, registry: Registry) -> ResolvedGraph:

@@ -27,7 +27,7 @@ import numba
 from numba.core import types
 from numba.core.ccallback import CFunc
 
-from ..cache import cache_dir
+from ..cache import cache_dir, source_fingerprint
 from ..dsp.fastmath import CONTRACT
 from .jit import import_source, kernel_fingerprint
 from .kcache import sealed_compile
@@ -71,12 +71,12 @@ REBUILT: list[str] = []
 
 def wrapper_digest(source: str, kernel: Callable) -> str:
     """Cache key of one wrapper (see the module docstring)."""
-    from .. import SOURCE_FINGERPRINT, __version__
+    from .. import __version__
 
     h = hashlib.sha256()
     h.update(source.encode())
     h.update(kernel_fingerprint(kernel).encode())
-    h.update(f"{machine_key()};flowtex={__version__};tree={SOURCE_FINGERPRINT}".encode())
+    h.update(f"{machine_key()};flowtex={__version__};tree={source_fingerprint()}".encode())
     return h.hexdigest()[:24]
 
 

@@ -7,7 +7,7 @@ Between the slowest measured model and speed 0 (and between the lightest one
 and force 0) the lookup's rule decides the loudness (``texture_lookup``'s
 ``outside`` parameter, docs/texture.md):
 
-* ``trend`` (default): the spectral shape of the nearest measured models, with
+* ``trend``: the spectral shape of the nearest measured models, with
   the power following the set's own power law in speed and force,
   P ~ speed^ks force^kf, fitted by least squares to the measured models'
   output powers (log P on log speed and log force). Below the slowest speed
@@ -19,7 +19,7 @@ and force 0) the lookup's rule decides the loudness (``texture_lookup``'s
 * ``hold``: the nearest measured models as they are (no fade, no growth):
   silence when the tool stops must then come from elsewhere (the example
   graphs multiply by the contact state, and the speed estimator's gate);
-* ``fade``: HaTT's renderer: silent corners blended like any model, so the
+* ``fade`` (default: HaTT's renderer, so HaTT files render as HaTT does): silent corners blended like any model, so the
   variance falls linearly from the slowest measured model to 0 at speed 0;
   above the fastest speed (heaviest force) the edge models are held.
 
@@ -32,7 +32,7 @@ import numpy as np
 
 from .texture import TextureModelSet
 
-OUTSIDE_CHOICES = ("trend", "hold", "fade")
+OUTSIDE_CHOICES = ("fade", "hold", "trend")
 """Values of ``texture_lookup``'s ``outside`` parameter; the first is the default."""
 TREND_CAP = 4.0
 """``trend`` extrapolates the power law up to this many times the speed (force) of the models blended."""
