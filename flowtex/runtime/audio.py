@@ -38,8 +38,9 @@ PACE_MAX_NS = 100_000
 """Largest shift of one tick's deadline, ns (10 % of a 1 ms period: sound-card clocks are within 0.1 %, JACK's dummy
 1.5 %, but a sound server starved of CPU on a loaded machine falls further behind, and a loop that cannot follow it
 runs ahead without bound: measured, 1 s ahead at 2 %)."""
-PACE_FAR_S = 0.05
-"""A loop this far ahead of where the sound card needs it (or two blocks, if more) waits for the card at once."""
+PACE_FAR_BLOCKS = 2
+"""A loop further ahead of where the sound card needs it than the margin and this many blocks waits for the card at
+once (a sound server that stopped or fell behind; the callback's own jitter stays within a block or two)."""
 STALL_S = 0.5
 """A running stream whose callback has not run for this long (and at least 8 blocks) has lost its device."""
 
@@ -195,7 +196,7 @@ class AudioOutput:
             return 0
         want = self.cb_ns + (self.ring.position(k + 1) - self.ahead - self.cb_end) * 1e9 / self.amap.rate
         err = want - next_deadline_ns
-        if err > max(PACE_FAR_S, 2 * self.amap.block / self.amap.rate) * 1e9:  # far ahead of a stalled sound card
+        if err > (self.ahead + PACE_FAR_BLOCKS * self.amap.block) * 1e9 / self.amap.rate:  # far ahead of a stalled card
             self._pace_err = 0.0
             return int(err)
         self._pace_err += PACE_SMOOTHING * (err - self._pace_err)
