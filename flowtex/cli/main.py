@@ -41,6 +41,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("flowtex.cli.bench", "sweep knobs: ns/tick against output error, Pareto front"),
     "plot": ("flowtex.cli.plot", "plot a run's outputs: time series, vibration spectrograms, force-speed trace"),
     "schema": ("flowtex.cli.schema", "print the JSON Schema of a file kind for editors (graph, scene, map)"),
+    "plugin": ("flowtex.cli.plugin", "write a plugin package for a new node type, or check a plugin's node types"),
+    "watch": ("flowtex.cli.watch", "rerun a graph over a recording whenever the graph, its model files or its plugins change"),
 }
 """The lazy command table (as pip's ``commands_dict``): command -> (module adding it, one-line summary).
 
@@ -66,7 +68,7 @@ def build_parser(command: str | None = "") -> argparse.ArgumentParser:
     ``command`` ``""`` (the default): every command's full parser (docs and tests walk it). Otherwise only the module of
     ``command`` is imported (``None``: none); the other commands are listed with their summaries and parse nothing.
     """
-    from .. import __version__
+    from ..version import __version__
 
     parser = Parser(prog="flowtex", description="Dataflow graphs for haptic signal processing (every flag: docs/cli.md).",
                     epilog="Exit codes: 0 ok, 1 user error (one line), 2 internal error, 3 live without sensor frames, "
