@@ -153,7 +153,7 @@ def _session(setup: Path, env: dict, block: int, duration: float, sigint_after: 
                "--map", str(_map(setup, block, margin_ms)), "--simulate", str(setup / "rec.npz"), "--duration", str(duration),
                "--record-audio", str(wav), "--record", str(blf), "--stats", str(stats), "--quiet"]
         live = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, env=env)
-        end = time.monotonic() + 60
+        end = time.monotonic() + 180  # the first run compiles the graph: minutes on a cold cache and a loaded machine
         while True:
             outs = sorted(p for p in _ports(env) - base if ":out" in p)
             if outs:
