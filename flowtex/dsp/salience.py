@@ -2,7 +2,8 @@
 
 * texture: mean vibration power, (m/s^2)^2, of the interpolated texture model
   over a grid of (speed, force) points -- the model the ``texture_lookup`` node
-  would render at each point (same packed table, same clamping and LSF
+  would render at each point (the caller passes the node's packed table,
+  flowtex.models.rendering.texture_table, so the same rule, clamping and LSF
   blending), its stationary output variance from
   :func:`flowtex.dsp.arma.arma_output_variance`;
 * friction: the kinetic friction coefficient itself (no computation);
@@ -15,19 +16,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..models.texture import TextureModelSet
 from .arma import arma_output_variance
-from .interp import S_AR, S_GAIN, S_VAR, initial_state, lookup_model, pack_texture_table
+from .interp import S_AR, S_GAIN, S_VAR, T_P, T_Q, initial_state, lookup_model
 
 GRID_POINTS = 9
 """Grid size per axis for texture salience (issue 13: 9 x 9)."""
 
 
-def texture_power_grid(ms: TextureModelSet, speeds_mm_s: np.ndarray, forces_n: np.ndarray) -> np.ndarray:
-    """Vibration power (m/s^2)^2 of the looked-up model at every (speed, force) pair: shape (len(speeds), len(forces))."""
-    tab = pack_texture_table(ms.speeds, ms.forces, ms.triangles, ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain,
-                             ms.max_speed, ms.max_force)
-    p, q = ms.ar_order, ms.ma_order
+def texture_power_grid(tab: np.ndarray, speeds_mm_s: np.ndarray, forces_n: np.ndarray) -> np.ndarray:
+    """Vibration power (m/s^2)^2 of the model looked up in the packed table ``tab`` at every (speed, force) pair.
+
+    Shape (len(speeds), len(forces)).
+    """
+    p, q = int(tab[T_P]), int(tab[T_Q])
     s, si = initial_state(p, q)
     out = np.empty((len(speeds_mm_s), len(forces_n)))
     for i, v in enumerate(np.asarray(speeds_mm_s, dtype=np.float64)):
@@ -39,12 +40,12 @@ def texture_power_grid(ms: TextureModelSet, speeds_mm_s: np.ndarray, forces_n: n
     return out
 
 
-def mean_texture_power(ms: TextureModelSet, speed_range_mm_s: tuple[float, float], force_range_n: tuple[float, float],
+def mean_texture_power(tab: np.ndarray, speed_range_mm_s: tuple[float, float], force_range_n: tuple[float, float],
                        points: int = GRID_POINTS) -> float:
     """Mean of :func:`texture_power_grid` over a ``points`` x ``points`` grid spanning the ranges, in (m/s^2)^2."""
     speeds = np.linspace(speed_range_mm_s[0], speed_range_mm_s[1], points)
     forces = np.linspace(force_range_n[0], force_range_n[1], points)
-    return float(texture_power_grid(ms, speeds, forces).mean())
+    return float(texture_power_grid(tab, speeds, forces).mean())
 
 
 def trajectory_ranges(position_mm: np.ndarray, normal_force_n: np.ndarray, rate_hz: float, normal: np.ndarray | None = None,

@@ -24,11 +24,14 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..errors import DataError
+
+if TYPE_CHECKING:
+    from .rendering import RenderRule
 
 FIELD_NAMES = {
     "speeds": "speeds",
@@ -96,6 +99,8 @@ class TextureModelSet:
     """File the set was read from (None when built in memory)."""
     metadata: dict[str, Any] = field(default_factory=dict)
     """Free-form JSON-compatible facts (units, texture index, fitting settings, ...)."""
+    rule: RenderRule | None = None
+    """How the set renders (flowtex.models.rendering), as its file states it; None: the file states none (HaTT's rule)."""
 
     @property
     def num_models(self) -> int:

@@ -58,9 +58,10 @@ def study_model_set(surface: StudySurface, ar_order: int = 6, ma_order: int = 4)
     """A synthetic model set with the surface's mu, scaled to its target texture power."""
     from ..datasets.model_sets import synthetic_model_set
     from ..dsp.salience import mean_texture_power
+    from ..models.rendering import texture_table
 
     ms = synthetic_model_set([50.0, 150.0, 250.0], [0.5, 1.5, 2.5], ar_order, ma_order, mu=surface.mu, material=surface.key)
-    ms.variance = ms.variance * (surface.power / mean_texture_power(ms, SPEED_RANGE, FORCE_RANGE))
+    ms.variance = ms.variance * (surface.power / mean_texture_power(texture_table(ms), SPEED_RANGE, FORCE_RANGE))
     return ms
 
 
