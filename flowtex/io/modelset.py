@@ -31,10 +31,11 @@ import numpy as np
 
 from ..errors import DataError
 from ..limits import excerpt
-from ..models.outside import OUTSIDE_CHOICES
-from ..models.rendering import HATT_RULE, INTERPOLATION_CHOICES, RenderRule
+from ..models.rendering import HATT_RULE, RenderRule
 from ..models.texture import TextureModelSet
 from ..node_api import suggest
+from ..schema.core import Collector, check_unknown, get
+from ..schema.datafiles import MODEL, MODEL_SET, RATE_KEY
 from .hatt import read_hatt_xml
 from .jsondoc import read_json_document
 
@@ -50,10 +51,9 @@ NATIVE_NAMES = {  # only what differs from TextureModelSet's default names
 }
 
 
-TOP_KEYS = ("format", "version", "material", "sample_rate", "mu", "max_speed", "max_force", "interpolation", "outside",
-            "ar_order", "ma_order", "triangles", "models", "metadata")
+TOP_KEYS = tuple(MODEL_SET.keys)
 """Keys a native model set may have at its top level (anything else is a typo, refused with a suggestion)."""
-MAX_ORDER = 1000
+MAX_ORDER = int(MODEL_SET.keys["ar_order"].max)
 """Largest AR or MA order a model set may declare (fitted sets use tens)."""
 
 
@@ -108,7 +108,7 @@ def save_model_set(ms: TextureModelSet, path: str | Path) -> Path:
         "format": FORMAT_NAME,
         "version": FORMAT_VERSION,
         "material": ms.material,
-        "sample_rate": float(ms.sample_rate),
+        RATE_KEY: float(ms.sample_rate),
         "mu": None if ms.mu is None else float(ms.mu),
         "max_speed": float(ms.max_speed),
         "max_force": float(ms.max_force),
@@ -133,10 +133,9 @@ def read_native(path: str | Path) -> TextureModelSet:
     path = Path(path)
     name = str(path)
     doc = read_json_document(path, "model-set", FORMAT_NAME, SUPPORTED_VERSIONS)
-    for key in doc:
-        if key not in TOP_KEYS:
-            raise DataError(f"{name}: unknown top-level key {excerpt(key)}{suggest(key, TOP_KEYS)}; "
-                            f"a model set has {', '.join(TOP_KEYS)}")
+    c = Collector(name)
+    check_unknown(c, doc, MODEL_SET)
+    c.raise_first_as_data_error()
 
     def need(key: str, kind: type | tuple[type, ...], where: dict = doc, label: str = "") -> Any:
         if key not in where:
@@ -147,7 +146,8 @@ def read_native(path: str | Path) -> TextureModelSet:
         return value
 
     material = need("material", str)
-    sample_rate = float(need("sample_rate", (int, float)))
+    spelling = get(doc, MODEL_SET, RATE_KEY)[1] or RATE_KEY
+    sample_rate = float(need(spelling, (int, float)))
     models = need("models", list)
     if not models:
         raise DataError(f"{name}: key 'models' is empty")
@@ -174,7 +174,7 @@ def read_native(path: str | Path) -> TextureModelSet:
         label = f"models[{m}]: "
         if not isinstance(entry, dict):
             raise DataError(f"{name}: {label}expected an object")
-        unknown = set(entry) - {"speed", "force", "ar_lsf", "ma_lsf", "variance", "gain", "ar_coeff", "ma_coeff"}
+        unknown = set(entry) - set(MODEL.keys)
         if unknown:
             raise DataError(f"{name}: {label}unknown key(s) {', '.join(sorted(map(excerpt, unknown)))}")
         speeds[m] = need("speed", (int, float), entry, label)
@@ -217,8 +217,9 @@ def _read_rule(doc: dict, name: str) -> RenderRule | None:
     if "interpolation" not in doc and "outside" not in doc:
         return None
     parts = {}
-    for key, choices in (("interpolation", INTERPOLATION_CHOICES), ("outside", OUTSIDE_CHOICES)):
+    for key in ("interpolation", "outside"):
         value = doc.get(key, getattr(HATT_RULE, key))
+        choices = MODEL_SET.keys[key].choices
         if value not in choices:
             raise DataError(f"{name}: key {key!r} is {excerpt(value)}{suggest(str(value), choices)}; "
                             f"expected one of {', '.join(choices)} (or leave it out for HaTT's rule)")

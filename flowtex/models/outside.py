@@ -29,15 +29,12 @@ Inside the triangles of measured models the three rules agree exactly.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-if TYPE_CHECKING:
-    from .texture import TextureModelSet
+from .texture import OUTSIDE_CHOICES, TextureModelSet
 
-OUTSIDE_CHOICES = ("fade", "hold", "trend")
-"""Values of the ``outside`` rule (flowtex.models.rendering resolves which one a set renders with)."""
+__all__ = ["MAX_EXPONENT", "OUTSIDE_CHOICES", "TREND_CAP", "model_powers", "nearest_measured", "power_trend"]
+
 TREND_CAP = 4.0
 """``trend`` extrapolates the power law up to this many times the speed (force) of the models blended."""
 MAX_EXPONENT = 3.0

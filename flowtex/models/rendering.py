@@ -22,38 +22,12 @@ figures, scene salience and the planner's graphs all go through them.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-from .outside import OUTSIDE_CHOICES
+from .texture import HATT_RULE, INTERPOLATION_CHOICES, RenderRule, TextureModelSet
 
-if TYPE_CHECKING:
-    from .texture import TextureModelSet
+__all__ = ["FITTED_RULE", "HATT_RULE", "INTERPOLATION_CHOICES", "RenderRule", "resolve_rule", "texture_table"]
 
-INTERPOLATION_CHOICES = ("variance", "power", "log_power")
-"""Values of the ``interpolation`` rule (node parameter and model-set key)."""
-
-
-@dataclass(frozen=True)
-class RenderRule:
-    """One set's rendering rule (module docstring); the defaults are HaTT's."""
-
-    interpolation: str = "variance"
-    """How loudness is blended between models: one of :data:`INTERPOLATION_CHOICES`."""
-    outside: str = "fade"
-    """What the set renders beyond its measured models: one of :data:`~flowtex.models.outside.OUTSIDE_CHOICES`."""
-
-    def __post_init__(self) -> None:
-        if self.interpolation not in INTERPOLATION_CHOICES:
-            raise ValueError(f"interpolation must be one of {', '.join(INTERPOLATION_CHOICES)}, got {self.interpolation!r}")
-        if self.outside not in OUTSIDE_CHOICES:
-            raise ValueError(f"outside must be one of {', '.join(OUTSIDE_CHOICES)}, got {self.outside!r}")
-
-
-HATT_RULE = RenderRule()
-"""HaTT's renderer: LSFs and excitation variance blended linearly, silent corners, saturation at the maximum."""
 FITTED_RULE = RenderRule("power", "trend")
 """The rule ``fit texture`` records in the sets it writes (docs/fitting.md: why power and trend)."""
 

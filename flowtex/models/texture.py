@@ -24,14 +24,11 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from ..errors import DataError
-
-if TYPE_CHECKING:
-    from .rendering import RenderRule
 
 FIELD_NAMES = {
     "speeds": "speeds",
@@ -55,6 +52,32 @@ FIELD_NAMES = {
 ``model`` labels one model (``"{}"`` in it is replaced by the model number); ``index_base``
 is the number of the first model (and of model indices in triangles) in messages.
 """
+
+
+INTERPOLATION_CHOICES = ("variance", "power", "log_power")
+"""How loudness is blended between models (flowtex.models.rendering): HaTT's excitation variance, output power, log power."""
+OUTSIDE_CHOICES = ("fade", "hold", "trend")
+"""What a set renders beyond its measured models (flowtex.models.outside): HaTT's fade, hold, trend."""
+
+
+@dataclass(frozen=True)
+class RenderRule:
+    """How a model set renders between and beyond its models (flowtex.models.rendering); the defaults are HaTT's."""
+
+    interpolation: str = "variance"
+    """How loudness is blended between models: one of :data:`INTERPOLATION_CHOICES`."""
+    outside: str = "fade"
+    """What the set renders beyond its measured models: one of :data:`OUTSIDE_CHOICES`."""
+
+    def __post_init__(self) -> None:
+        if self.interpolation not in INTERPOLATION_CHOICES:
+            raise ValueError(f"interpolation must be one of {', '.join(INTERPOLATION_CHOICES)}, got {self.interpolation!r}")
+        if self.outside not in OUTSIDE_CHOICES:
+            raise ValueError(f"outside must be one of {', '.join(OUTSIDE_CHOICES)}, got {self.outside!r}")
+
+
+HATT_RULE = RenderRule()
+"""HaTT's renderer: LSFs and excitation variance blended linearly, silent corners, saturation at the maximum."""
 
 
 @dataclass

@@ -10,13 +10,13 @@ import pytest
 from flowtex.cli import main
 from flowtex.datasets.model_sets import hard_model_set, synthetic_model_set
 from flowtex.dsp.arma import arma_output_variance
-from flowtex.dsp.salience import mean_texture_power
 from flowtex.errors import DataError
 from flowtex.fit.quality import models_at
 from flowtex.graph.compiled import load_graph
 from flowtex.io.hatt import write_hatt_xml
 from flowtex.io.modelset import load_model_set, save_model_set
-from flowtex.models.rendering import FITTED_RULE, HATT_RULE, RenderRule, resolve_rule, texture_table
+from flowtex.models.rendering import FITTED_RULE, HATT_RULE, RenderRule, resolve_rule
+from flowtex.scene.salience import mean_texture_power
 from tests.nodes.test_texture_lookup import graph_file
 
 
@@ -108,9 +108,10 @@ def test_scene_salience_uses_the_sets_rule():
         for f in forces:
             a, c, g, v = models_at(ms, [s], [f])[0]
             want.append(arma_output_variance(a, c, g, v) if v > 0 else 0.0)
-    got = mean_texture_power(texture_table(ms), (5.0, 300.0), (0.1, 3.0))
+    got = mean_texture_power(ms, (5.0, 300.0), (0.1, 3.0))
     assert got == pytest.approx(np.mean(want), rel=1e-12)
-    hatt = mean_texture_power(texture_table(ms, "variance", "fade"), (5.0, 300.0), (0.1, 3.0))
+    ms.rule = None
+    hatt = mean_texture_power(ms, (5.0, 300.0), (0.1, 3.0))
     assert abs(got / hatt - 1) > 1e-3                                             # the rule matters to the figure
 
 
@@ -128,7 +129,7 @@ def test_planner_weighs_and_plans_with_the_sets_rule(tmp_path):
     out, plan = tmp_path / "planned.yaml", tmp_path / "plan.json"
     assert main(["scene", "plan", str(tmp_path / "scene.yaml"), "-o", str(out), "--json", str(plan)]) == 0
     salience = json.loads(plan.read_text())["s"]["texture"]["salience"]
-    assert salience == pytest.approx(mean_texture_power(texture_table(ms), (5.0, 300.0), (0.1, 3.0)), rel=1e-12)
+    assert salience == pytest.approx(mean_texture_power(ms, (5.0, 300.0), (0.1, 3.0)), rel=1e-12)
     nodes = yaml.safe_load(out.read_text())["nodes"]
     lookups = [n for n in nodes.values() if n["type"] == "texture_lookup"]
     assert len(lookups) == 1 and set(lookups[0]["params"]) == {"models"}

@@ -10,13 +10,12 @@ import scipy.signal
 
 from flowtex.cli import main
 from flowtex.datasets.model_sets import synthetic_model_set
-from flowtex.dsp.salience import texture_power_grid, trajectory_ranges
+from flowtex.datasets.study import STUDY_SURFACES, study_tap_library, write_study_scene
 from flowtex.errors import GraphError
-from flowtex.models.rendering import texture_table
 from flowtex.models.taps import spectral_centroid
 from flowtex.scene.file import parse_scene
 from flowtex.scene.plan import plan_scene
-from flowtex.scene.study import STUDY_SURFACES, study_tap_library, write_study_scene
+from flowtex.scene.salience import texture_power_grid, trajectory_ranges
 
 CHECKED = ("EPDM_Foam", "Whiteboard", "MDF", "Silk_1", "Brick_1", "Nylon_Mesh", "Sandpaper_100", "ABS_Plastic", "Carpet_3")
 
@@ -35,7 +34,7 @@ def test_texture_power_at_model_points_matches_impulse_energy():
     # At a model's own (speed, force) the lookup returns that model; its power is var * g^2 * sum h^2,
     # with h from scipy's lfilter of the stored coefficients (independent of the Lyapunov solution and of the LSF path).
     ms = synthetic_model_set([50.0, 150.0, 250.0], [0.5, 1.5, 2.5], 6, 4)
-    grid = texture_power_grid(texture_table(ms), np.array([150.0, 250.0]), np.array([1.5, 0.5]))
+    grid = texture_power_grid(ms, np.array([150.0, 250.0]), np.array([1.5, 0.5]))
     for i, s in enumerate((150.0, 250.0)):
         for j, f in enumerate((1.5, 0.5)):
             m = int(np.flatnonzero((ms.speeds == s) & (ms.forces == f))[0])

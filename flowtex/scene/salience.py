@@ -2,8 +2,8 @@
 
 * texture: mean vibration power, (m/s^2)^2, of the interpolated texture model
   over a grid of (speed, force) points -- the model the ``texture_lookup`` node
-  would render at each point (the caller passes the node's packed table,
-  flowtex.models.rendering.texture_table, so the same rule, clamping and LSF
+  would render at each point (the same packed table,
+  flowtex.models.rendering.texture_table: the set's own rule, clamping and LSF
   blending), its stationary output variance from
   :func:`flowtex.dsp.arma.arma_output_variance`;
 * friction: the kinetic friction coefficient itself (no computation);
@@ -16,19 +16,23 @@ from __future__ import annotations
 
 import numpy as np
 
-from .arma import arma_output_variance
-from .interp import S_AR, S_GAIN, S_VAR, T_P, T_Q, initial_state, lookup_model
+from ..dsp.arma import arma_output_variance
+from ..dsp.contact import CONTACT_ON_N
+from ..dsp.interp import S_AR, S_GAIN, S_VAR, initial_state, lookup_model
+from ..models.rendering import texture_table
+from ..models.texture import TextureModelSet
 
 GRID_POINTS = 9
 """Grid size per axis for texture salience (issue 13: 9 x 9)."""
 
 
-def texture_power_grid(tab: np.ndarray, speeds_mm_s: np.ndarray, forces_n: np.ndarray) -> np.ndarray:
-    """Vibration power (m/s^2)^2 of the model looked up in the packed table ``tab`` at every (speed, force) pair.
+def texture_power_grid(ms: TextureModelSet, speeds_mm_s: np.ndarray, forces_n: np.ndarray) -> np.ndarray:
+    """Vibration power (m/s^2)^2 of the looked-up model at every (speed, force) pair: shape (len(speeds), len(forces)).
 
-    Shape (len(speeds), len(forces)).
+    The set renders with its own rule, as the planner's graphs (which give ``texture_lookup`` only the file) render it.
     """
-    p, q = int(tab[T_P]), int(tab[T_Q])
+    tab = texture_table(ms)
+    p, q = ms.ar_order, ms.ma_order
     s, si = initial_state(p, q)
     out = np.empty((len(speeds_mm_s), len(forces_n)))
     for i, v in enumerate(np.asarray(speeds_mm_s, dtype=np.float64)):
@@ -40,16 +44,17 @@ def texture_power_grid(tab: np.ndarray, speeds_mm_s: np.ndarray, forces_n: np.nd
     return out
 
 
-def mean_texture_power(tab: np.ndarray, speed_range_mm_s: tuple[float, float], force_range_n: tuple[float, float],
+def mean_texture_power(ms: TextureModelSet, speed_range_mm_s: tuple[float, float], force_range_n: tuple[float, float],
                        points: int = GRID_POINTS) -> float:
     """Mean of :func:`texture_power_grid` over a ``points`` x ``points`` grid spanning the ranges, in (m/s^2)^2."""
     speeds = np.linspace(speed_range_mm_s[0], speed_range_mm_s[1], points)
     forces = np.linspace(force_range_n[0], force_range_n[1], points)
-    return float(texture_power_grid(tab, speeds, forces).mean())
+    return float(texture_power_grid(ms, speeds, forces).mean())
 
 
 def trajectory_ranges(position_mm: np.ndarray, normal_force_n: np.ndarray, rate_hz: float, normal: np.ndarray | None = None,
-                      contact_n: float = 0.1, quantiles: tuple[float, float] = (0.05, 0.95)) -> tuple[tuple[float, float], tuple[float, float]]:
+                      contact_n: float = CONTACT_ON_N,
+                      quantiles: tuple[float, float] = (0.05, 0.95)) -> tuple[tuple[float, float], tuple[float, float]]:
     """(speed range mm/s, force range N) of a recorded stroke: the 5th-95th percentiles while in contact.
 
     Speed is the finite-difference speed of ``position_mm`` (n, 3) with the
