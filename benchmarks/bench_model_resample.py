@@ -118,7 +118,14 @@ def cork(rates) -> None:
 
 def corpus_sets(names):
     """The model sets the test suite resamples (tests/fit/test_arma_resample.py, test_resample_bounded.py, test_resample_render.py)."""
-    from flowtex.datasets.model_sets import cork_like_model_set, hard_model_set, narrow_peak_model_set, synthetic_model_set
+    from flowtex.datasets.model_sets import (
+        cork_like_model_set,
+        edge_resonance_model_set,
+        hard_model_set,
+        narrow_peak_model_set,
+        rough_model_set,
+        synthetic_model_set,
+    )
 
     makers = {
         "grid8/6": lambda: synthetic_model_set([60.0, 150.0, 240.0], [0.5, 1.5, 2.5], ar_order=8, ma_order=6),
@@ -127,12 +134,17 @@ def corpus_sets(names):
         "narrow6/6": lambda: narrow_peak_model_set(count=20, ar_order=6, ma_order=6, max_pole_radius=0.9995),
         "narrow20/20": lambda: narrow_peak_model_set(count=24, ar_order=20, ma_order=20, max_pole_radius=0.9995),
         "cork19/17": cork_like_model_set,
+        "rough14/12": rough_model_set,
+        "edge10/8": edge_resonance_model_set,
     }
     return [(n, makers[n]()) for n in names]
 
 
 BASELINE_ATTEMPTS = tuple((e, False) for e in (0, 2, 4, 6, 8))
 """The previous rule up to 2x (before the elliptic edge): more free poles and zeros, 0 to 8, for the whole set."""
+
+BASELINE_GRID = (2000, 1000)
+"""The previous fit grid (BAND_POINTS, STOP_POINTS of flowtex.dsp.arma_resample)."""
 
 
 def hatt_sets(folder: str, every: int = 1, start: int = 0):
@@ -149,11 +161,13 @@ def hatt_sets(folder: str, every: int = 1, start: int = 0):
 def corpus(sets, rates, baseline_every: int, table: str | None) -> None:
     """Seconds per model fit (median, worst; wall and CPU) of resample_model_set on each set, against the previous rule.
 
-    ``baseline_every`` > 0: every that many sets, also the previous attempt ladder (:data:`BASELINE_ATTEMPTS`),
-    side by side in this process. ``table``: a CSV of every model's figures (set, rate, rule, model, LSD dB,
-    band-power error, power above the old Nyquist). "path LSD": flowtex.fit.quality.path_lsd_db along
+    ``baseline_every`` > 0: every that many sets, also the previous method when upsampling (the attempt ladder
+    :data:`BASELINE_ATTEMPTS` on the fit grid :data:`BASELINE_GRID`), side by side in this process.
+    ``table``: a CSV of every model's figures (set, rate, rule, model, LSD dB, band-power error, power above
+    the old Nyquist). "path LSD": flowtex.fit.quality.path_lsd_db along
     lissajous_path, the resampled set against the original (expected spectra as rendered, no noise).
     """
+    import flowtex.dsp.arma_resample as arma_resample
     import flowtex.fit.resample as resample
     from flowtex.datasets.model_sets import synthetic_model_set
     from flowtex.fit.quality import lissajous_path, path_lsd_db
@@ -169,12 +183,14 @@ def corpus(sets, rates, baseline_every: int, table: str | None) -> None:
     for k, (name, ms) in enumerate(sets):
         for rate in rates:
             base = None
-            rules = [("new", resample.EDGE_ATTEMPTS)]
+            grid = (arma_resample.BAND_POINTS, arma_resample.STOP_POINTS)
+            rules = [("new", resample.EDGE_ATTEMPTS, grid)]
             if baseline_every and k % baseline_every == 0 and rate > ms.sample_rate:
-                rules.append(("old", BASELINE_ATTEMPTS))
-            for rule, attempts in rules:
+                rules.append(("old", BASELINE_ATTEMPTS, BASELINE_GRID))
+            for rule, attempts, (band_points, stop_points) in rules:
                 saved = resample.EDGE_ATTEMPTS
                 resample.EDGE_ATTEMPTS = attempts
+                arma_resample.BAND_POINTS, arma_resample.STOP_POINTS = band_points, stop_points
                 wall, cpu = [time.perf_counter()], [time.process_time()]
 
                 def tick(done, total, wall=wall, cpu=cpu):
@@ -184,6 +200,7 @@ def corpus(sets, rates, baseline_every: int, table: str | None) -> None:
                     out = resample.resample_model_set(ms, rate, progress=tick)
                 finally:
                     resample.EDGE_ATTEMPTS = saved
+                    arma_resample.BAND_POINTS, arma_resample.STOP_POINTS = grid
                 per, per_cpu = np.diff(wall), np.diff(cpu)
                 total = wall[-1] - wall[0]
                 base = base or total
@@ -242,7 +259,7 @@ def main() -> None:
     ap.add_argument("--cork", action="store_true")
     ap.add_argument("--render", action="store_true")
     ap.add_argument("--corpus", metavar="SETS", help="comma-separated corpus sets (grid8/6, ar2, hard12/10, narrow6/6, narrow20/20, "
-                                                       "cork19/17) or 'all': seconds per model at --corpus-rates, then exit")
+                                                       "cork19/17, rough14/12, edge10/8) or 'all': seconds per model at --corpus-rates, then exit")
     ap.add_argument("--corpus-rates", default="2000,500")
     ap.add_argument("--hatt", metavar="DIR", help="with --corpus: HaTT's Models_*.xml in DIR instead of (or, with --corpus SETS, "
                                                   "after) the generated sets; never committed")
@@ -254,7 +271,8 @@ def main() -> None:
     ap.add_argument("--table", metavar="OUT.csv", help="with --corpus: every model's LSD, band-power error and power above")
     args = ap.parse_args()
     if args.corpus or args.hatt:
-        names = ["grid8/6", "ar2", "hard12/10", "narrow6/6", "narrow20/20", "cork19/17"] if args.corpus == "all" \
+        names = ["grid8/6", "ar2", "hard12/10", "narrow6/6", "narrow20/20", "cork19/17", "rough14/12", "edge10/8"] \
+            if args.corpus == "all" \
             else args.corpus.split(",") if args.corpus else []
         sets = corpus_sets(names) + (hatt_sets(args.hatt, args.hatt_every, args.hatt_start)[::-1 if args.hatt_reverse else 1] if args.hatt else [])
         corpus(sets, [float(r) for r in args.corpus_rates.split(",")], args.baseline_every, args.table)
