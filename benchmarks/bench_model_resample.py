@@ -1,7 +1,7 @@
 """Texture-model upsampling (flowtex.dsp.arma_resample): accuracy, orders and time, against the previous method.
 
     python benchmarks/bench_model_resample.py [--seeds 30] [--ratios 2,2.5,4] [--cork] [--render]
-    python benchmarks/bench_model_resample.py --corpus all [--corpus-rates 2000,4000] [--baseline]
+    python benchmarks/bench_model_resample.py --corpus all [--hatt DIR] [--corpus-rates 2000,500] [--baseline-every N] [--table OUT.csv] [--between]
 
 For HaTT-like 19/17 models (flowtex.datasets.model_sets.hatt_like_model: poles to
 r = 0.985, an MA zero pair at 0.9999 near z = -1) at 1 kHz, side by side in one
@@ -21,11 +21,13 @@ band-power error, worst fraction of the power above the old Nyquist, mean / max
 seconds per model. ``--cork``: resample_model_set on cork_like_model_set (45
 models) 1 kHz -> 2 and 4 kHz. ``--render``: arma_lattice_block ns per tick at
 the orders produced (the rendering cost of a higher order). ``--corpus``: the
-test suite's model sets (the narrow-peak copper-like ones included), seconds per
-model fit (median and worst, from the progress callback), fits done, extra order,
-worst LSD and misses; ``--baseline`` runs the previous stopping rule of the
-log-spectral fit (1e-6 relative, 1e-3 dB, no evaluation budget) beside it. The
-machine is shared: quote ``uptime`` with the numbers.
+test suite's model sets (the narrow-peak copper-like, rough and edge-resonance ones included) and, with
+``--hatt DIR``, HaTT's published sets (never in the repository): seconds per model fit, wall and CPU (median
+and worst, from the progress callback), fits done, orders, worst LSD, band-power error, power above the old
+Nyquist, misses, and the LSD of the expected spectra along a path; ``--baseline-every N`` runs the previous
+method beside it on every N-th set; ``--table`` writes every model's figures; ``--between`` measures the LSD at
+vertices, edge midpoints and centroids. The machine is shared: quote ``uptime`` with the numbers, and prefer
+the CPU seconds under load.
 """
 
 from __future__ import annotations
@@ -227,6 +229,33 @@ def corpus(sets, rates, baseline_every: int, table: str | None) -> None:
               f"path LSD worst {max(i[4] for i in items):.3f} dB", flush=True)
 
 
+def between(sets, rate: float) -> None:
+    """LSD (dB) between the original and the resampled set's models at the vertices, edge midpoints and centroids.
+
+    The models texture_lookup builds there (flowtex.fit.quality.models_at), over triangles whose three models
+    sound: at a vertex each resampled model is fitted to its original; between vertices both sets blend LSFs,
+    and resampling need not commute with that blend. Up to 0.9 x the lower Nyquist.
+    """
+    from flowtex.dsp.spectral import lsd_db
+    from flowtex.fit.quality import models_at
+    from flowtex.fit.resample import resample_model_set
+
+    f = np.linspace(15.0, 0.45 * min(1000.0, rate), 3000)
+    for name, ms in sets:
+        out = resample_model_set(ms, rate)
+        live = ms.variance > 0
+        tri = ms.triangles[np.all(live[ms.triangles], axis=1)]
+        pts = np.column_stack([ms.speeds, ms.forces])
+        places = {"vertices": pts[live], "edge midpoints": 0.5 * (pts[tri[:, 0]] + pts[tri[:, 1]]),
+                  "centroids": pts[tri].mean(axis=1)}
+        for label, p in places.items():
+            lsd = np.array([lsd_db(arma_psd(a2, c2, g2, v2, f, rate), arma_psd(a1, c1, g1, v1, f, ms.sample_rate), f)
+                            for (a1, c1, g1, v1), (a2, c2, g2, v2)
+                            in zip(models_at(ms, p[:, 0], p[:, 1]), models_at(out, p[:, 0], p[:, 1]), strict=True)])
+            print(f"{name:<22} {rate:6g} {label:<15} {lsd.size:4d} points: LSD median {np.median(lsd):.3f} "
+                  f"worst {lsd.max():.3f} dB", flush=True)
+
+
 def render(orders) -> None:
     from flowtex.dsp.arma import arma_lattice_block, new_state
     from flowtex.dsp.rng import seed_rng
@@ -269,12 +298,17 @@ def main() -> None:
     ap.add_argument("--baseline-every", type=int, default=0, metavar="N",
                     help="with --corpus: the previous attempt ladder too, on every N-th set (ratio column)")
     ap.add_argument("--table", metavar="OUT.csv", help="with --corpus: every model's LSD, band-power error and power above")
+    ap.add_argument("--between", action="store_true",
+                    help="with --corpus/--hatt: LSD at vertices, edge midpoints and centroids instead (first --corpus-rates)")
     args = ap.parse_args()
     if args.corpus or args.hatt:
         names = ["grid8/6", "ar2", "hard12/10", "narrow6/6", "narrow20/20", "cork19/17", "rough14/12", "edge10/8"] \
             if args.corpus == "all" \
             else args.corpus.split(",") if args.corpus else []
         sets = corpus_sets(names) + (hatt_sets(args.hatt, args.hatt_every, args.hatt_start)[::-1 if args.hatt_reverse else 1] if args.hatt else [])
+        if args.between:
+            between(sets, float(args.corpus_rates.split(",")[0]))
+            return
         corpus(sets, [float(r) for r in args.corpus_rates.split(",")], args.baseline_every, args.table)
         return
     print(f"hatt_like_model seeds 0..{args.seeds - 1}, 19/17 at 1 kHz; LSD and powers of the model rebuilt from its LSFs")
