@@ -6,68 +6,83 @@ defines a function, not of the functions it calls: edit a kernel in
 would keep the old machine code. flowtex therefore keys numba's cache folder
 by a fingerprint of its whole source tree (every ``.py`` file's path, size and
 modification time): any edit to flowtex gives a fresh folder, and unchanged
-sources load instantly. Older folders are pruned (the newest few, and any used in the last hour, are kept). Setting ``NUMBA_CACHE_DIR``
-yourself turns this off.
+sources load instantly. Setting ``NUMBA_CACHE_DIR`` yourself turns this off.
+
+numba binds a function's cache folder when the function is decorated, so
+:func:`configure_numba_cache` runs just before the first module holding
+kernels is imported (the packages and modules with ``@njit(cache=True)`` call
+it first), never at ``import flowtex``. Older folders are pruned by
+:func:`prune_numba_cache`, which the compile service calls once, at the first
+compile of a process (the newest few, and any used in the last hour, are kept).
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import shutil
 import time
 from pathlib import Path
 
-from .dsp.fastmath import CONTRACT
+from .config import CACHE_ENV, cache_dir, contract_enabled
 
-CACHE_ENV = "FLOWTEX_CACHE_DIR"
+__all__ = ["CACHE_ENV", "cache_dir", "configure_numba_cache", "prune_numba_cache", "source_fingerprint"]
+
 KEEP_OLD = 3
 IN_USE_S = 3600.0
 """A folder used this recently is never pruned: another checkout of flowtex (another source tree) may be compiling into it."""
 
 
-def cache_dir() -> Path:
-    """Root of flowtex's on-disk cache (``$FLOWTEX_CACHE_DIR`` or ``~/.cache/flowtex``)."""
-    root = os.environ.get(CACHE_ENV)
-    if root:
-        return Path(root)
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg) if xdg else Path.home() / ".cache") / "flowtex"
-
-
+@functools.lru_cache(maxsize=1)
 def source_fingerprint() -> str:
-    """Hash of the path, size and modification time of every flowtex source file, and of the FMA-contraction setting."""
+    """Hash of the path, size and modification time of every flowtex source file, and of the FMA-contraction setting.
+
+    Computed once per process (the tree a process runs is the one it imported).
+    """
     package = Path(__file__).resolve().parent
     h = hashlib.sha256()
     for path in sorted(package.rglob("*.py")):
         st = path.stat()
         h.update(f"{path.relative_to(package)}:{st.st_size}:{st.st_mtime_ns};".encode())
-    h.update(f"contract={CONTRACT};".encode())  # flowtex.dsp.fastmath's setting changes the machine code
+    h.update(f"contract={contract_enabled()};".encode())  # flowtex.dsp.fastmath's setting changes the machine code
     return h.hexdigest()[:16]
 
 
-def configure_numba_cache() -> str:
-    """Point numba's cache at a folder for this source tree; returns the fingerprint.
+_CONFIGURED: list[Path] = []
+"""The numba cache folder this process chose (empty until configured, or when the user's NUMBA_CACHE_DIR rules)."""
+_DONE: list[bool] = []
 
-    Must run before any module with ``@njit(cache=True)`` is imported.
+
+def configure_numba_cache() -> str:
+    """Point numba's cache at a folder for this source tree (once per process); returns the fingerprint.
+
+    Runs before any flowtex module with ``@njit(cache=True)`` decorates its kernels.
     """
     fingerprint = source_fingerprint()
+    if _DONE:
+        return fingerprint
+    _DONE.append(True)
     if os.environ.get("NUMBA_CACHE_DIR"):
         return fingerprint
     import numba
 
-    root = cache_dir() / "numba"
-    folder = root / fingerprint
+    folder = cache_dir() / "numba" / fingerprint
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError:
         return fingerprint  # read-only home: numba falls back to its own default
     numba.config.CACHE_DIR = str(folder)
-    _prune(root, folder)
+    _CONFIGURED.append(folder)
     return fingerprint
 
 
-def _prune(root: Path, current: Path) -> None:
+def prune_numba_cache() -> None:
+    """Delete numba cache folders of older source trees (kept: the newest few, and any used in the last hour)."""
+    if not _CONFIGURED:
+        return
+    current = _CONFIGURED[0]
+    root = current.parent
     try:
         others = sorted((p for p in root.iterdir() if p.is_dir() and p != current), key=lambda p: p.stat().st_mtime)
     except OSError:
