@@ -33,7 +33,7 @@ def register(sub: Any) -> None:
     p.add_argument("type", nargs="?", help="show only this node type")
     p.add_argument("--json", action="store_true", help="print the node types as JSON (ports, parameters with kind, bounds, "
                                                       "choices, default, unit, doc) for other tools")
-    add_plugin_options(p)
+    add_plugin_options(p, no_plugins=False)
     p.set_defaults(func=cmd_nodes)
 
 
@@ -98,7 +98,9 @@ def cmd_nodes(args: argparse.Namespace) -> int:
     from ..node_api import suggest
     from ..registry import load_registry
 
-    registry = load_registry(tuple(args.plugins), auto=not args.no_plugins)
+    registry = load_registry(tuple(args.plugins))
+    if registry.plugin_files:
+        note(f"flowtex: loaded plugin code: {', '.join(str(f) for f in registry.plugin_files)}")
     if args.type and registry.get(args.type) is None:
         raise FlowtexError(f"unknown node type {args.type!r}{suggest(args.type, registry.names())}")
     if args.json:

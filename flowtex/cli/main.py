@@ -41,6 +41,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("flowtex.cli.bench", "sweep knobs: ns/tick against output error, Pareto front"),
     "plot": ("flowtex.cli.plot", "plot a run's outputs: time series, vibration spectrograms, force-speed trace"),
     "schema": ("flowtex.cli.schema", "print the JSON Schema of a file kind for editors (graph, scene, map)"),
+    "plugin": ("flowtex.cli.plugin", "write a plugin package for a new node type, or check a plugin's node types"),
+    "watch": ("flowtex.cli.watch", "rerun a graph over a recording whenever the graph, its model files or its plugins change"),
 }
 """The lazy command table (as pip's ``commands_dict``): command -> (module adding it, one-line summary).
 

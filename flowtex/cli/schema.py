@@ -16,18 +16,18 @@ def register(sub: Any) -> None:
     p = sub.add_parser("schema", help="print the JSON Schema of a file kind for editors (graph, scene, map)")
     p.add_argument("kind", choices=KINDS, help="graph (with every loaded node type), scene, or map (a device map with its audio section)")
     p.add_argument("-o", "--output", metavar="FILE.json", help="write the schema to FILE.json instead of stdout")
-    add_plugin_options(p)
+    add_plugin_options(p, no_plugins=False)  # a schema reads no graph: no graph folders to skip
     p.set_defaults(func=cmd_schema)
 
 
-def schema_text(kind: str, plugins: tuple[str, ...] = (), auto_plugins: bool = True) -> str:
+def schema_text(kind: str, plugins: tuple[str, ...] = ()) -> str:
     """The schema of ``kind`` as indented JSON text (what ``flowtex schema KIND`` prints and docs/schema/ holds)."""
     from ..schema import jsonschema
 
     if kind == "graph":
         from ..registry import load_registry
 
-        doc = jsonschema.graph_schema(load_registry(plugins, auto=auto_plugins).types)
+        doc = jsonschema.graph_schema(load_registry(plugins).types)
     else:
         doc = jsonschema.scene_schema() if kind == "scene" else jsonschema.map_schema()
     return json.dumps(doc, indent=1, ensure_ascii=False) + "\n"
@@ -37,7 +37,7 @@ def cmd_schema(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output, write_text_atomic
 
     out = check_output(args.output, option="-o", suffixes=(".json",))
-    text = schema_text(args.kind, tuple(args.plugins), not args.no_plugins)
+    text = schema_text(args.kind, tuple(args.plugins))
     if out is None:
         say(text.rstrip("\n"))
     else:

@@ -86,7 +86,7 @@ def compile_tick(resolved: ResolvedGraph, layout: Layout, plan: Any, tier: str, 
     :class:`~flowtex.graph.fused.Compiled`. Says so on stderr when compiling takes long.
     """
     from ..graph.dispatch import compile_dispatch, needed_wrappers
-    from ..nodecheck import check_kernel_compiles
+    from ..nodecheck import check_plugin_kernels
 
     if not _FIRST_COMPILE:
         _FIRST_COMPILE.append(True)
@@ -95,8 +95,7 @@ def compile_tick(resolved: ResolvedGraph, layout: Layout, plan: Any, tier: str, 
     types = sorted({rn.cls.type_name for rn in resolved.nodes.values()})
     what = f"graph {resolved.spec.name!r} ({len(resolved.nodes)} nodes: {', '.join(types)})"
     with compile_notice(what if use == "fused" else f"node kernels of {what}", str(cache_dir())):
-        for cls in {rn.cls for rn in resolved.nodes.values() if not rn.cls.__module__.startswith("flowtex.")}:
-            check_kernel_compiles(cls)  # a plugin's typing error is reported as the plugin's, at its line
+        check_plugin_kernels(rn.cls for rn in resolved.nodes.values())  # a typing error is the plugin's, at its line
         if use == "fused":
             return plan.compile(layout.i)
         helper = start_prewarm(needed_wrappers(resolved))  # a cold cache: compile on two cores

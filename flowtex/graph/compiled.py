@@ -11,7 +11,7 @@ vector port ``(n, *shape)``.
 from __future__ import annotations
 
 import zlib
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -21,8 +21,10 @@ from ..compile.service import check_tier, compile_in_background, compile_tick, d
 from ..dsp.nonfinite import NONFINITE_POLICIES, fill_nonfinite, find_nonfinite
 from ..errors import DataError, FlowtexError
 from ..node_api import PortSpec, suggest
+from ..nodecheck import check_plugin_kernels
 from ..registry import Registry, load_registry
-from .arena import OUT_WIDTH, TICK, Layout, plan_layout
+from .arena import FAULT, OUT_WIDTH, TICK, Layout, plan_layout
+from .faults import dispatch_fault, raised_fault
 from .fused import FusedPlan, entry
 from .resolve import ResolvedGraph, resolve_graph
 from .spec import GraphSpec, load_spec
@@ -50,6 +52,7 @@ class Graph:
         code = compile_tick(resolved, self.layout, plan, self.requested_tier, self._step_in, self._step_out)
         self.tier = code.tier
         """The tier that runs: ``fused`` or ``dispatch``."""
+        self._dispatch = code.tier == "dispatch"
         self.layout.i = code.ints
         self.source = code.source
         self.rebuilt_cache_entries = code.rebuilt
@@ -149,8 +152,27 @@ class Graph:
             X = np.concatenate([np.ascontiguousarray(arrays[name]).reshape(-1) for name in self.layout.in_columns]) \
                 if arrays else np.empty(0)
         Y = np.empty(total * int(self.i[OUT_WIDTH]))
-        self._run(self.f, self.i, X, Y)
+        try:
+            self._run(self.f, self.i, X, Y)
+        except Exception as exc:  # a kernel raised (fused tier): the arena still points into X and Y
+            self._kernel_raised(exc)
+        self._check_fault()
         return self._split_outputs(Y, total)
+
+    def _kernel_raised(self, exc: Exception) -> None:
+        """Raise the :class:`~flowtex.graph.faults.KernelError` for ``exc``; reset first (the state is spoilt)."""
+        error = raised_fault(self.resolved, exc, self.i)
+        self.reset()
+        raise error from None
+
+    def _check_fault(self) -> None:
+        """Raise the error a dispatch-tier kernel recorded (see :mod:`flowtex.graph.faults`), after a reset."""
+        if self.i[FAULT] != 0:
+            from .dispatch import STRIDE
+
+            error = dispatch_fault(self.resolved, self.i, STRIDE)
+            self.reset()
+            raise error
 
     def _split_outputs(self, Y: np.ndarray, total: int) -> dict[str, np.ndarray]:
         """Per-output arrays: contiguous views into ``Y`` (no copy)."""
@@ -197,6 +219,11 @@ class Graph:
         lines.append(f"        r = STEP(f, i{args})")
         lines.append("    except TypeError:")
         lines.append("        bad_scalar(values)")
+        lines.append("    except Exception as exc:")
+        lines.append("        kernel_raised(exc)")
+        if self.tier == "dispatch":
+            lines.append(f"    if i[{FAULT}] != 0:")
+            lines.append("        check_fault()")
         items = [f"{name!r}: r[{k}]" for k, name in enumerate(self._step_out)]
         items += [f"{name!r}: OUT_VIEWS[{name!r}].reshape({self.resolved.output_specs[name].shape!r}).copy()"
                   for name in self._vector_out]
@@ -205,7 +232,8 @@ class Graph:
         namespace = {"EMPTY": {}, "MISSING": object(), "f": self.f, "i": self.i, "np": np, "STEP": entry,
                      "bad_scalar": self._bad_scalar, "bad_vector": self._bad_vector,
                      "IN_VIEWS": self._in_views, "OUT_VIEWS": self._out_views, "KNOWN": frozenset(self._in_views),
-                     "unknown_input": self._unknown_input}
+                     "unknown_input": self._unknown_input, "kernel_raised": self._kernel_raised,
+                     "check_fault": self._check_fault}
         exec("\n".join(lines), namespace)  # generated from port names validated as identifiers
         return namespace["py_step"]
 
@@ -285,7 +313,12 @@ class Graph:
 
     def step_block(self, n: int = 1) -> None:
         """Advance ``n`` ticks using whatever is in the input views (no Python mapping)."""
-        self._block_entry(self.f, self.i, n)
+        try:
+            self._block_entry(self.f, self.i, n)
+        except Exception as exc:  # fused tier: the kernel's exception (costs nothing when none is raised)
+            self._kernel_raised(exc)
+        if self._dispatch and self.i.item(FAULT):  # dispatch tier: a wrapper recorded one
+            self._check_fault()
 
     def check_inputs(self, inputs: Mapping[str, Any]) -> None:
         """Raise :class:`FlowtexError` unless ``inputs`` has every graph input, time first, in the right shape."""
@@ -359,13 +392,13 @@ def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
     code is compiled for next time in a low-priority background process.
 
     ``overrides`` maps ``"node.param"`` to a value (as ``--set`` does);
-    ``plugins`` adds plugin folders to ``./plugins``, ``$FLOWTEX_PLUGINS`` and
-    the graph file's own ``plugins/`` folder (``auto_plugins=False``: neither
-    ``./plugins`` nor the graph's folder, as ``--no-plugins``).
+    ``plugins`` adds plugin folders to ``$FLOWTEX_PLUGINS`` and the graph's own
+    (its folder's ``plugins/`` and its ``plugins:`` key; ``auto_plugins=False``
+    skips the graph's own, as ``--no-plugins``).
     Raises :class:`flowtex.errors.GraphError` listing every problem.
     """
     spec = load_spec(path, dict(overrides or {}))
-    resolved = resolve_graph(spec, graph_registry(path, plugins, auto_plugins))
+    resolved = resolve_graph(spec, graph_registry(path, plugins, auto_plugins, spec.plugins))
     graph = Graph(resolved, block_rows, tier)
     if graph.requested_tier == "auto" and graph.tier == "dispatch":
         compile_in_background(path, dict(overrides or {}), plugins, block_rows, auto_plugins)
@@ -374,14 +407,22 @@ def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
 
 def check_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
                 plugins: tuple[str | Path, ...] = (), auto_plugins: bool = True) -> ResolvedGraph:
-    """Validate without compiling (what ``flowtex validate`` does)."""
+    """Validate without running: what ``flowtex validate`` does (plugin kernels are compiled for their actual ports)."""
     spec = load_spec(path, dict(overrides or {}))
-    return resolve_graph(spec, graph_registry(path, plugins, auto_plugins))
+    resolved = resolve_graph(spec, graph_registry(path, plugins, auto_plugins, spec.plugins))
+    check_plugin_kernels(rn.cls for rn in resolved.nodes.values())  # validate compiles what it validates
+    return resolved
 
 
-def graph_registry(path: str | Path, plugins: tuple[str | Path, ...] = (), auto_plugins: bool = True) -> Registry:
-    """The node registry a graph file is resolved with: ``plugins`` plus, with ``auto_plugins``, ./plugins and the
-    graph file's own ``plugins/`` folder (found wherever flowtex runs from). ``.plugin_files`` lists the code it ran."""
-    own = Path(path).parent / "plugins"
-    folders = (*plugins, own) if auto_plugins and own.is_dir() else tuple(plugins)
-    return load_registry(folders, auto=auto_plugins)
+def graph_registry(path: str | Path, plugins: tuple[str | Path, ...] = (), auto_plugins: bool = True,
+                   own: Sequence[Path] | None = None) -> Registry:
+    """The node registry a graph file is resolved with: ``plugins`` plus, with ``auto_plugins``, the graph's own plugin
+    folders: its folder's ``plugins/`` (found wherever flowtex runs from) and ``own``, the folders of its ``plugins:``
+    key (read from the file when None). ``.plugin_files`` lists the code it ran."""
+    if not auto_plugins:
+        return load_registry(plugins)
+    from .spec import read_plugin_folders
+
+    beside = Path(path).parent / "plugins"
+    folders = (*plugins, *(own if own is not None else read_plugin_folders(path)), *((beside,) if beside.is_dir() else ()))
+    return load_registry(folders)

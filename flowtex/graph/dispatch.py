@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from .arena import DISPATCH, TICK, Layout, NodeSlots, PortSlot
+from .arena import DISPATCH, FAULT, TICK, Layout, NodeSlots, PortSlot
 from .codegen import RUN_SOURCE
 from .fused import BLOCK_SIG, RUN_SIG, Compiled, entry
 from .jit import load_generated
@@ -79,6 +79,8 @@ def block(f, i, n):  # pragma: no cover - compiled
             else:
                 for r in range(n):
                     _guarded(i, e, i[e], i[e + 3], fb, ib, t0 + r, r, every)
+            if i[FAULT] != 0:  # the kernel raised: stop here (Graph reports the node)
+                return
     else:  # a feedback loop: tick by tick, delays emit first and absorb last
         for r in range(n):
             for k in range(count):
@@ -91,10 +93,14 @@ def block(f, i, n):  # pragma: no cover - compiled
                     call_pointer(fn, fb, ib, d, r, 1)
                 else:
                     _guarded(i, e, fn, d, fb, ib, t0 + r, r, every)
+                if i[FAULT] != 0:
+                    return
             for k in range(count):
                 e = tab + 2 + STRIDE * k
                 if i[e + 7]:
                     call_pointer(i[e + 2], fb, ib, i[e + 3], r, 1)
+            if i[FAULT] != 0:
+                return
     i[TICK] = t0 + n
 
 

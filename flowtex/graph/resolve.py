@@ -14,6 +14,7 @@ import networkx as nx
 
 from ..errors import DataError, FlowtexError, Location, ParamError
 from ..node_api import BuildContext, Node, NodeState, Port, PortSpec, simplify_unit, suggest
+from ..nodecheck import checked_state, is_plugin, plugin_raised
 from ..registry import Registry
 from ..schema.core import Collector
 from .spec import EdgeSpec, Endpoint, GraphSpec, NodeSpec
@@ -117,8 +118,8 @@ def _typed_nodes(ck: _Checker) -> dict[str, ResolvedNode]:
         if cls is None:
             hint = suggest(ns.type, ck.registry.names())
             ck.error(ns.type_loc, f"node {name!r}: unknown node type {ns.type!r}{hint}; run 'flowtex nodes' to list them "
-                                  "(plugin nodes are found in ./plugins, the graph file's plugins/ folder, $FLOWTEX_PLUGINS "
-                                  "and --plugins DIR)")
+                                  "(plugin nodes are found in the graph file's plugins/ folder, the folders of its plugins: key, "
+                                  "$FLOWTEX_PLUGINS and --plugins DIR)")
             continue
         params = _check_params(ck, ns, cls)
         if params is not None:
@@ -324,8 +325,10 @@ def _resolve_pass(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[str
             failed.add(name)
             continue
         ctx = BuildContext(rate=ck.spec.rate, base_dir=ck.spec.path.parent, every=rn.spec.every, input_every=input_every)
+        method = "__init__"
         try:
             rn.node = rn.cls(name, rn.params, ctx)
+            method = "resolve"
             rn.out_specs = rn.node.resolve(specs)
         except ParamError as exc:
             failed.add(name)
@@ -333,6 +336,10 @@ def _resolve_pass(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[str
         except (DataError, FlowtexError) as exc:
             failed.add(name)
             ck.error(rn.spec.loc, f"node {name!r} ({rn.cls.type_name}): {exc}")
+        except Exception as exc:
+            if not is_plugin(rn.cls):
+                raise  # flowtex's own bug: an internal error
+            raise plugin_raised(rn.cls, name, method, exc) from None
     for name, took in provisional.items():
         rn = nodes[name]
         for port_name, src in rn.sources.items():
@@ -389,8 +396,15 @@ def _build_nodes(ck: _Checker, nodes: dict[str, ResolvedNode]) -> None:
         if rn.node is None:
             continue
         try:
-            rn.state = rn.node.build(rn.in_specs, rn.out_specs)
+            state = rn.node.build(rn.in_specs, rn.out_specs)
         except ParamError as exc:
             ck.error(_param_loc(rn, exc.param), f"node {name!r} ({rn.cls.type_name}): {exc}")
+            continue
         except (DataError, FlowtexError) as exc:
             ck.error(rn.spec.loc, f"node {name!r} ({rn.cls.type_name}): {exc}")
+            continue
+        except Exception as exc:
+            if not is_plugin(rn.cls):
+                raise  # flowtex's own bug: an internal error
+            raise plugin_raised(rn.cls, name, "build", exc) from None
+        rn.state = checked_state(rn.cls, name, state, rn.cls.build)

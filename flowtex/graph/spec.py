@@ -105,7 +105,7 @@ def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -
                      description=str(data.get("description", "")))
     plugins = value_of(c, data, GRAPH, "plugins")
     if plugins not in (INVALID, GRAPH.keys["plugins"].default):
-        spec.plugins = [path.parent / p for p in plugins]
+        spec.plugins = existing_plugin_folders(c, data, path)
     spec.inputs = _inputs(c, data)
     spec.nodes = _nodes(c, data, spec.inputs)
     if overrides:
@@ -114,6 +114,34 @@ def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -
     spec.outputs = _outputs(c, data)
     c.raise_if_any()
     return spec
+
+
+def existing_plugin_folders(c: Collector, data: LocDict, path: Path) -> list[Path]:
+    """The folders of the ``plugins:`` key (its type checked by the schema) resolved against the graph file's folder;
+    a folder that does not exist is an error at its line."""
+    raw = data["plugins"]
+    folders = []
+    for item, pos in zip(raw, raw.item_pos, strict=False):
+        folder = Path(item).expanduser()
+        folder = folder if folder.is_absolute() else path.parent / folder
+        if folder.is_dir():
+            folders.append(folder)
+        else:
+            c.error(pos, f"plugins: folder {item!r} does not exist (looked for {folder}); folders are relative to the graph file")
+    return folders
+
+
+def read_plugin_folders(path: str | Path) -> list[Path]:
+    """Only the ``plugins:`` key of the graph file at ``path``, checked as :func:`load_spec` checks it."""
+    path = Path(path)
+    data = load_yaml(read_source(path, "graph file"), str(path))
+    if not isinstance(data, LocDict) or "plugins" not in data:
+        return []
+    c = Collector(str(path))
+    plugins = value_of(c, data, GRAPH, "plugins")
+    folders = [] if plugins in (INVALID, GRAPH.keys["plugins"].default) else existing_plugin_folders(c, data, path)
+    c.raise_if_any()
+    return folders
 
 
 def _check_name(c: Collector, name: Any, pos: tuple[int, int], what: str) -> bool:

@@ -110,7 +110,7 @@ def test_scene_and_map_errors_are_schema_errors(schemas):
 
 
 def test_parameter_facts_reach_the_schema():
-    schema = graph_schema(load_registry(auto=False).types)
+    schema = graph_schema(load_registry().types)
     rule = next(r for r in schema["properties"]["nodes"]["additionalProperties"]["allOf"]
                 if r["if"]["properties"]["type"]["const"] == "butterworth")
     params = rule["then"]["properties"]["params"]
@@ -121,19 +121,19 @@ def test_parameter_facts_reach_the_schema():
 
 
 def test_plugin_node_types_are_in_the_schema_when_loaded(tmp_path, capsys):
-    assert main(["schema", "graph", "--no-plugins"]) == 0
+    assert main(["schema", "graph"]) == 0
     assert "soft_clip" not in capsys.readouterr().out
     out = tmp_path / "g.schema.json"
-    assert main(["schema", "graph", "--no-plugins", "--plugins", str(REPO / "plugins"), "-o", str(out)]) == 0
+    assert main(["schema", "graph", "--plugins", str(REPO / "plugins"), "-o", str(out)]) == 0
     assert out.read_text(encoding="utf-8") == (REPO / "docs" / "schema" / "graph.schema.json").read_text(encoding="utf-8")
     types = json.loads(out.read_text())["properties"]["nodes"]["additionalProperties"]["properties"]["type"]["enum"]
     assert "soft_clip" in types and "gain" in types
 
 
 def test_nodes_json_gives_the_same_facts(capsys):
-    assert main(["nodes", "--json", "--no-plugins"]) == 0
+    assert main(["nodes", "--json"]) == 0
     facts = {n["type"]: n for n in json.loads(capsys.readouterr().out)}
-    assert set(facts) == set(load_registry(auto=False).types)
+    assert set(facts) == set(load_registry().types)
     order = facts["butterworth"]["params"]["order"]
     assert order["kind"] == "int" and order["min"] == 1 and order["required"]
     assert [p["name"] for p in facts["butterworth"]["outputs"]] == ["y"]
@@ -142,8 +142,8 @@ def test_nodes_json_gives_the_same_facts(capsys):
 @pytest.mark.parametrize("kind", ["graph", "scene", "map"])
 def test_committed_schema_files_are_up_to_date(kind):
     committed = (REPO / "docs" / "schema" / f"{kind}.schema.json").read_text(encoding="utf-8")
-    assert committed == schema_text(kind, PLUGINS if kind == "graph" else (), auto_plugins=False), (
-        f"docs/schema/{kind}.schema.json is stale: run 'python3 -m flowtex schema {kind} --no-plugins --plugins plugins "
+    assert committed == schema_text(kind, PLUGINS if kind == "graph" else ()), (
+        f"docs/schema/{kind}.schema.json is stale: run 'python3 -m flowtex schema {kind} --plugins plugins "
         f"-o docs/schema/{kind}.schema.json'")
 
 
