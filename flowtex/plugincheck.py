@@ -29,6 +29,7 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .config import BACKGROUND_ENV
 from .errors import FlowtexError
 from .node_api import Node, suggest
 from .nodecheck import attr_line, check_kernel_compiles, check_node_class, node_where
@@ -99,12 +100,11 @@ def runtime_problems(target: str, cls: type[Node]) -> list[tuple[int, str]]:
     The child compiles into its own numba cache folder (bounds-checked machine code must not
     replace the normal one); a crash or a timeout there is reported, not suffered here.
     """
-    from . import __file__ as package_init
     from .cache import cache_dir
 
-    root = str(Path(package_init).resolve().parents[1])
+    root = str(Path(__file__).resolve().parents[1])  # the folder holding this flowtex package
     env = {**os.environ, "NUMBA_BOUNDSCHECK": "1", "NUMBA_CACHE_DIR": str(cache_dir() / "boundscheck"),
-           "PYTHONPATH": os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]), "FLOWTEX_BACKGROUND": "0"}
+           "PYTHONPATH": os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]), BACKGROUND_ENV: "0"}
     try:
         done = subprocess.run([sys.executable, "-m", "flowtex.kernelprobe", str(target), cls.type_name], env=env,
                               capture_output=True, text=True, timeout=PROBE_TIMEOUT_S, stdin=subprocess.DEVNULL)
