@@ -270,7 +270,7 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
                               ma_lsf=np.array([r.ma_lsf for r in models]).reshape(len(models), q),
                               variance=np.array([r.variance for r in models]), gain=np.array([r.gain for r in models]),
                               ar_coeff=np.array([r.ar_coeff for r in models]), ma_coeff=np.array([r.ma_coeff for r in models]),
-                              source=None, metadata=metadata,
+                              source=None, metadata=metadata, rule=ms.rule,  # the set's rendering rule carries over
                               speeds=np.array(ms.speeds, dtype=np.float64), forces=np.array(ms.forces, dtype=np.float64),
                               triangles=np.array(ms.triangles, dtype=np.int64))
     return out.validate()
