@@ -74,10 +74,11 @@ EXTRA_ORDERS = (0, 2, 4, 6, 8)
 """Order increases tried, in turn, when upsampling by more than 2x leaves some model off (the first that keeps every
 model wins)."""
 
-EDGE_ATTEMPTS = ((0, False), (0, True), (2, True), (4, True))
+EDGE_ATTEMPTS = ((0, False), (0, True), (2, False), (2, True), (4, False), (4, True), (6, False), (8, False))
 """(extra order, elliptic edge) tried, in turn, when upsampling by up to 2x: the models' own order first, then
 cascaded with the elliptic lowpass at the old Nyquist (flowtex.dsp.anti_imaging.elliptic_lowpass), which the
-models whose spectrum is still high there need (HaTT's rough surfaces), then more poles and zeros as well."""
+models whose spectrum is still high there need (HaTT's rough surfaces), then more poles and zeros without and
+with it: low-order sets (an ARMA(4,2) set: 2 more) fit worse with the edge than with free roots."""
 
 DOWN_ATTEMPTS = ((0, False), (2, False), (4, False))
 """(extra order, edge) tried, in turn, when downsampling: the own order holds HaTT's sets; an AR(2) set's band at

@@ -22,8 +22,8 @@ from flowtex.fit.quality import lissajous_path, path_lsd_db
 from flowtex.fit.resample import resample_model_set
 from flowtex.io.modelset import load_model_set
 
-# HaTT sets covered by the test (the benchmark runs all 100): "Brick 1" is the case; the others needed the
-# elliptic edge or had the worst LSD or path figure in benchmarks/bench_model_resample.py --hatt (docs/fitting.md).
+# HaTT sets covered by the test (benchmarks/bench_model_resample.py --hatt runs all 100, docs/fitting.md): "Brick 1"
+# is the case and needs the elliptic edge; "Wood" and "Sandpaper 100" keep their own order at both rates.
 HATT_SETS = ("Brick 1", "Wood", "Sandpaper 100")
 
 
