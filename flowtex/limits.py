@@ -47,8 +47,10 @@ MAX_INT_PARAM = 2**31 - 1
 """Upper bound of an integer node parameter that declares none (kernels hold parameters as float64)."""
 MAX_PORT_VALUES = 65_536
 """Values per tick of one declared node port (a ``Port`` shape's product): 512 KiB per buffer row of 1,024 ticks."""
-MAX_NODE_PORTS = 64
-"""Inputs and outputs of one node type together (each is an argument of its kernel and of the graph's generated code)."""
+MAX_NODE_PORTS = 27
+"""Inputs and outputs of one node type together. Each is an argument of the kernel call in the graph's generated code,
+after p, s and si; CPython compiles a call with more than 30 positional arguments into a form (list_to_tuple) numba
+cannot compile."""
 EXCERPT_CHARS = 60
 """Longest quote of a user value in an error message."""
 

@@ -36,6 +36,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .cache import configure_numba_cache
+from .dsp.layout import Field, Layout  # noqa: F401  (re-exported: plugins declare their memory with it)
 from .errors import ParamError
 from .limits import MAX_INT_PARAM, excerpt, short_number
 
@@ -154,7 +155,10 @@ class Param:
             if not isinstance(value, str) or not value:
                 raise ValueError(f"expected a non-empty string, got {excerpt(value)}")
             if kind == "path":
-                path = Path(value).expanduser()
+                try:
+                    path = Path(value).expanduser()
+                except RuntimeError:  # '~user/...' of a user that does not exist (or no home folder)
+                    raise ValueError(f"cannot expand the '~' of {excerpt(value)}: no such user's home folder; give the full path") from None
                 if not path.is_absolute() and base_dir is not None:
                     path = base_dir / path
                 return path
@@ -353,6 +357,18 @@ class Node:
     def seed_state(self, state: np.ndarray, istate: np.ndarray, seed: np.random.SeedSequence) -> None:
         """Re-seed random state in place (only for ``uses_seed`` nodes)."""
         raise NotImplementedError
+
+    @classmethod
+    def processor(cls, rate: float = 1000.0, seed: int = 0, name: str | None = None, base_dir: str | Path = ".",
+                  **params: Any) -> Any:
+        """This node's build and kernel on plain arrays, state kept between calls (flowtex.node_processor).
+
+        ``rate`` (Hz) and ``seed`` are the graph's; ``name`` the node's name in a graph (it seeds random
+        nodes, so a processor named like a graph's node reproduces it); ``params`` as in a graph file.
+        """
+        from .node_processor import Processor
+
+        return Processor(cls, params, rate=rate, seed=seed, name=name, base_dir=base_dir)
 
 
 def resolve_declared(port: Port, inputs: dict[str, PortSpec]) -> PortSpec:
