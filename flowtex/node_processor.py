@@ -12,18 +12,15 @@ from __future__ import annotations
 
 import zlib
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from .errors import ParamError
-from .node_api import BuildContext, PortSpec, suggest
-
-if TYPE_CHECKING:
-    from .node_api import Node
+from .node_decl import BuildContext, PortSpec, suggest
 
 
-def coerce_params(cls: type[Node], given: dict[str, Any], base_dir: Path) -> dict[str, Any]:
+def coerce_params(cls: type, given: dict[str, Any], base_dir: Path) -> dict[str, Any]:
     """Validated parameter values of node type ``cls`` (defaults filled in); ParamError names a wrong one."""
     values: dict[str, Any] = {}
     for key, value in given.items():
@@ -58,7 +55,7 @@ class Processor:
     """A built node on plain arrays. Call it with one array per input (keyword = port name); it returns a dict
     of output arrays (ticks, width). Unconnected optional inputs read their declared default."""
 
-    def __init__(self, cls: type[Node], params: dict[str, Any], rate: float = 1000.0, seed: int = 0,
+    def __init__(self, cls: type, params: dict[str, Any], rate: float = 1000.0, seed: int = 0,
                  name: str | None = None, base_dir: str | Path = "."):
         self.cls = cls
         self.name = name or cls.type_name

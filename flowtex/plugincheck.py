@@ -82,11 +82,9 @@ def _unbounded(cls: type[Node]) -> list[tuple[str, str]]:
 
 def _child(target: str, cls: type[Node], mode: str, env: dict[str, str]) -> tuple[list[dict], str | None]:
     """Run ``python -m flowtex.kernelprobe MODE TARGET TYPE``; its JSON lines, or None and why it failed."""
-    from . import __file__ as package_init
-
-    root = str(Path(package_init).resolve().parents[1])
+    root = str(Path(__file__).resolve().parents[1])  # the folder holding this flowtex package
     env = {**os.environ, **env, "PYTHONPATH": os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]),
-           "FLOWTEX_BACKGROUND": "0"}
+           BACKGROUND_ENV: "0"}
     try:
         done = subprocess.run([sys.executable, "-m", "flowtex.kernelprobe", mode, str(target), cls.type_name], env=env,
                               capture_output=True, text=True, timeout=PROBE_TIMEOUT_S, stdin=subprocess.DEVNULL)
@@ -118,32 +116,10 @@ def runtime_problems(target: str, cls: type[Node]) -> list[tuple[int, str]]:
     """
     from .cache import cache_dir
 
-<<<<<<< HEAD
-    root = str(Path(__file__).resolve().parents[1])  # the folder holding this flowtex package
-    env = {**os.environ, "NUMBA_BOUNDSCHECK": "1", "NUMBA_CACHE_DIR": str(cache_dir() / "boundscheck"),
-           "PYTHONPATH": os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]), BACKGROUND_ENV: "0"}
-    try:
-        done = subprocess.run([sys.executable, "-m", "flowtex.kernelprobe", str(target), cls.type_name], env=env,
-                              capture_output=True, text=True, timeout=PROBE_TIMEOUT_S, stdin=subprocess.DEVNULL)
-    except subprocess.TimeoutExpired:
-        return [(0, f"the runtime checks did not finish in {PROBE_TIMEOUT_S:g} s (does the kernel loop forever?)")]
-    if done.returncode != 0:
-        how = f"signal {signal.Signals(-done.returncode).name}" if done.returncode < 0 else f"exit code {done.returncode}"
-        last = (done.stderr.strip().splitlines() or [""])[-1]
-        return [(0, f"running the kernel crashed the checking process ({how}{': ' + last if last else ''}); "
-                    "look for reads or writes outside the ports, p, s and si")]
-    found = []
-    for line in done.stdout.splitlines():
-        if line.startswith("{"):
-            item = json.loads(line)
-            found.append((int(item["line"]), str(item["message"])))
-    return found
-=======
     items, failed = _child(target, cls, "runtime", {"NUMBA_BOUNDSCHECK": "1", "NUMBA_CACHE_DIR": str(cache_dir() / "boundscheck")})
     if failed:
         return [(0, failed + "; look for reads or writes outside the ports, p, s and si")]
     return [(int(item["line"]), str(item["message"])) for item in items]
->>>>>>> authoring
 
 
 def check_type(target: str, cls: type[Node], report: Report) -> None:

@@ -35,7 +35,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     # The declarative schema of every file kind (keys, kinds, bounds, units, docs) sits under graph, io and scene, which
     # declare their files with it; it uses the node API's parameter kinds.
     ("schema", ("flowtex.schema",)),
-    ("node API", ("flowtex.node_api", "flowtex.nodecheck", "flowtex.registry")),
+    ("node API", ("flowtex.node_api", "flowtex.node_decl", "flowtex.node_processor", "flowtex.nodecheck", "flowtex.registry")),
     ("models", ("flowtex.models",)),
     ("dsp", ("flowtex.dsp",)),
     # config, and what every layer uses: error classes, input limits, the YAML reader with positions, cache folders
