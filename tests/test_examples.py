@@ -27,6 +27,7 @@ EXAMPLES: dict[str, tuple[str, dict]] = {
     "live_texture.yaml": ("data/exploration.npz", {}),
     "live_audio.yaml": ("data/exploration.npz", {}),
     "pattern_compliance.yaml": ("data/pattern_demo.npz", {}),
+    "speed_force_texture.yaml": ("data/speed_force.npz", {}),
 }
 
 # scene file (docs/scenes.md) -> recording its planned graph runs on; the golden pins the planned graph's outputs

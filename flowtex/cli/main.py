@@ -68,7 +68,7 @@ def build_parser(command: str | None = "") -> argparse.ArgumentParser:
     ``command`` ``""`` (the default): every command's full parser (docs and tests walk it). Otherwise only the module of
     ``command`` is imported (``None``: none); the other commands are listed with their summaries and parse nothing.
     """
-    from .. import __version__
+    from ..version import __version__
 
     parser = Parser(prog="flowtex", description="Dataflow graphs for haptic signal processing (every flag: docs/cli.md).",
                     epilog="Exit codes: 0 ok, 1 user error (one line), 2 internal error, 3 live without sensor frames, "

@@ -4,16 +4,16 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 from typing import Any
 
 from ..errors import FlowtexError
+from ..io.formats import AUDIO, CAN_LOG, RECORDING, kind_of, suffixes
 from .graph import load_graph_from_args
 from .options import add_compile_option, add_graph_options, add_seed_option
 from .output import note, say
 
-REPLAY_SUFFIXES = (".blf", ".log", ".asc")
-RECORDING_SUFFIXES = (".npz", ".csv", ".h5", ".hdf5")
+REPLAY_SUFFIXES = suffixes(CAN_LOG)
+RECORDING_SUFFIXES = suffixes(RECORDING)
 
 
 def register(sub: Any) -> None:
@@ -39,9 +39,9 @@ def register(sub: Any) -> None:
 def cmd_run(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output
 
-    replay = Path(args.input).suffix.lower() in REPLAY_SUFFIXES
+    replay = kind_of(args.input) == CAN_LOG
     check_output(args.output, inputs=[args.graph, args.input, args.dbc, args.map], option="-o",
-                 suffixes=(".npz", ".wav", *REPLAY_SUFFIXES) if replay else (*RECORDING_SUFFIXES, ".wav"))
+                 suffixes=(".npz", *suffixes(AUDIO), *REPLAY_SUFFIXES) if replay else (*RECORDING_SUFFIXES, *suffixes(AUDIO)))
     graph = load_graph_from_args(args)
     if replay:
         if not (args.dbc and args.map):
@@ -50,7 +50,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         say(str(replay_session(graph, args.input, args.dbc, args.map, args.output, seed=args.seed)))
         return 0
-    if args.output and Path(args.output).suffix.lower() == ".wav":
+    if args.output and kind_of(args.output) == AUDIO:
         from ..runtime.offline import render_recording_audio
 
         samples, rate = render_recording_audio(graph, args.input, args.output, args.map, seed=args.seed,

@@ -41,7 +41,7 @@ _LOADED: dict[str, ModuleType] = {}
 
 def generated_digest(source: str, kernels: dict[str, Callable], extra_key: str = "") -> tuple[str, Path]:
     """Cache key of generated ``source`` calling ``kernels``, and the folder its files go to."""
-    from .. import __version__
+    from ..version import __version__
 
     h = hashlib.sha256()
     h.update(source.encode())

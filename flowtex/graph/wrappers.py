@@ -76,7 +76,7 @@ REBUILT: list[str] = []
 
 def wrapper_digest(source: str, kernel: Callable) -> str:
     """Cache key of one wrapper (see the module docstring)."""
-    from .. import __version__
+    from ..version import __version__
 
     h = hashlib.sha256()
     h.update(source.encode())

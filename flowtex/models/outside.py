@@ -42,21 +42,15 @@ POWER_GRID = 1 << 14
 """Points on the unit circle for a model's output power (mean of |C/A|^2; exact to rounding for poles inside 0.9995)."""
 
 
-def _poly(lsf: np.ndarray) -> np.ndarray:
-    from ..dsp.lsf import lsf_to_poly
-
-    out = np.empty(lsf.shape[0] + 1)
-    lsf_to_poly(np.ascontiguousarray(lsf, dtype=np.float64), out)
-    return out
-
-
 def model_powers(ms: TextureModelSet) -> np.ndarray:
     """(M,) output power g^2 sigma^2 ||C/A||^2 of each model ((m/s^2)^2), from its LSFs as the lookup renders them."""
+    from ..dsp.lsf import lsf_to_poly_new
+
     out = np.zeros(ms.num_models)
     for m in range(ms.num_models):
         if ms.variance[m] <= 0.0:
             continue
-        h2 = np.abs(np.fft.rfft(_poly(ms.ma_lsf[m]), POWER_GRID) / np.fft.rfft(_poly(ms.ar_lsf[m]), POWER_GRID)) ** 2
+        h2 = np.abs(np.fft.rfft(lsf_to_poly_new(ms.ma_lsf[m]), POWER_GRID) / np.fft.rfft(lsf_to_poly_new(ms.ar_lsf[m]), POWER_GRID)) ** 2
         unit = (h2[0] + h2[-1] + 2.0 * np.sum(h2[1:-1])) / POWER_GRID     # mean over the whole circle
         out[m] = ms.gain[m] ** 2 * ms.variance[m] * unit
     return out

@@ -9,6 +9,7 @@ import numpy as np
 from ..dsp.nonfinite import count_nonfinite
 from ..errors import DataError, FlowtexError
 from ..graph.compiled import Graph, apply_nonfinite_policy
+from ..io.formats import format_of
 from ..io.recordings import load_recording, save_recording
 
 TIME_COLUMN = "time"
@@ -38,12 +39,13 @@ def _vector_hint(name: str, shape: tuple[int, ...], have: list[str], path: Path)
         return ""
     width = int(np.prod(shape))
     similar = [h for h in have if h.lower().startswith(name.lower()) and h != name]
-    if not similar and path.suffix.lower() != ".csv":
+    csv = getattr(format_of(path), "name", None) == "csv"
+    if not similar and not csv:
         return ""
     cols = ", ".join(f"{name}[{i}]" for i in range(width))
-    where = "CSV columns" if path.suffix.lower() == ".csv" else "an array of shape (n, " + ", ".join(map(str, shape)) + ")"
+    where = "CSV columns" if csv else "an array of shape (n, " + ", ".join(map(str, shape)) + ")"
     found = f" (not {', '.join(similar)})" if similar else ""
-    if path.suffix.lower() == ".csv":
+    if csv:
         return f"; input {name!r} has shape ({', '.join(map(str, shape))},): name its {where} {cols}{found}"
     return f"; input {name!r} has shape ({', '.join(map(str, shape))},): store it as one entry {name!r}, {where}{found}"
 

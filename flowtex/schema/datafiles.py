@@ -124,8 +124,11 @@ FRICTION = Record(
     keys={
         "format": _format("flowtex-friction"),
         "version": _version(),
-        "mu": Field("number", min=0.0, doc="Kinetic friction coefficient."),
-        "mu_ci": Field("list", items=_NUM, length=(2, 2), doc="95 % interval of mu."),
+        "mu": Field("number", min=0.0, doc="Kinetic friction coefficient.", message="key 'mu' must be a number from 0 to inf, got {got}",
+                    missing="key 'mu' must be a number from 0 to inf, got None"),
+        "mu_ci": Field("list", items=_NUM, length=(2, 2), doc="95 % interval of mu.",
+                       message="key 'mu_ci' must be [low, high] (the 95 % interval of mu)",
+                       missing="key 'mu_ci' must be [low, high] (the 95 % interval of mu)"),
     },
     required=("format", "version", "mu", "mu_ci"),
     open=True,  # fit friction also records its inputs and fit statistics

@@ -22,15 +22,20 @@ _SIGNALS = {
     "signals": Field("list", items=Field("str", pattern=SIGNAL_PATTERN), length=(1, None),
                      doc="One DBC signal per component, MESSAGE.SIGNAL, in C order over the port's shape."),
 }
+
+
+def _linear(doc: str) -> dict[str, Field]:
+    """``scale`` and ``offset`` of a binding (per component or one for all), documented by ``doc``."""
+    return {key: Field("any_of", of=PER_COMPONENT.of, default=default, doc=doc, message=PER_COMPONENT.message)
+            for key, default in (("scale", 1.0), ("offset", 0.0))}
+
+
 _ONE_SIGNAL_KEY = {"oneOf": [{"required": ["signal"]}, {"required": ["signals"]}]}
 
 INPUT_BINDING = Record(
     keys={
         **_SIGNALS,
-        "scale": Field("any_of", of=PER_COMPONENT.of, default=1.0, doc="graph value = DBC physical value * scale + offset.",
-                       message=PER_COMPONENT.message),
-        "offset": Field("any_of", of=PER_COMPONENT.of, default=0.0, doc="graph value = DBC physical value * scale + offset.",
-                        message=PER_COMPONENT.message),
+        **_linear("graph value = DBC physical value * scale + offset."),
         "timeout_ms": Field("number", unit="ms", min=0.0, min_exclusive=True,
                             doc="How old a sensor value may get before the watchdog sends safe outputs.",
                             message="{what}: timeout_ms must be a positive number of milliseconds, got {got}",
@@ -57,10 +62,7 @@ PEAK = Record(
 OUTPUT_BINDING = Record(
     keys={
         **_SIGNALS,
-        "scale": Field("any_of", of=PER_COMPONENT.of, default=1.0, doc="DBC physical value = graph value * scale + offset.",
-                       message=PER_COMPONENT.message),
-        "offset": Field("any_of", of=PER_COMPONENT.of, default=0.0, doc="DBC physical value = graph value * scale + offset.",
-                        message=PER_COMPONENT.message),
+        **_linear("DBC physical value = graph value * scale + offset."),
         "clamp": Field("any_of", of=(_PAIR, Field("list", items=_PAIR, length=(1, None))),
                        doc="[LOW, HIGH] in graph units the actuator may be commanded (or one pair per component).",
                        missing="{what}: missing 'clamp: [LOW, HIGH]' (the range, in graph units, the actuator may be commanded)"),
