@@ -81,9 +81,7 @@ def _unbounded(cls: type[Node]) -> list[tuple[str, str]]:
 
 def _child(target: str, cls: type[Node], mode: str, env: dict[str, str]) -> tuple[list[dict], str | None]:
     """Run ``python -m flowtex.kernelprobe MODE TARGET TYPE``; its JSON lines, or None and why it failed."""
-    from . import __file__ as package_init
-
-    root = str(Path(package_init).resolve().parents[1])
+    root = str(Path(__file__).resolve().parents[1])  # the folder holding this flowtex package: the child imports the same
     env = {**os.environ, **env, "PYTHONPATH": os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]),
            "FLOWTEX_BACKGROUND": "0"}
     try:

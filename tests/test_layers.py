@@ -20,7 +20,8 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("cli", ("flowtex.cli",)),
     # Not in DESIGN.md's list: what only the CLI and the tests use. Generators and oracles users want too
     # (datasets), the golden fixture (testing), the any-file checker behind `flowtex validate` (it reads scenes) and plots.
-    ("tools", ("flowtex.datasets", "flowtex.testing", "flowtex.filecheck", "flowtex.plotting")),
+    ("tools", ("flowtex.datasets", "flowtex.testing", "flowtex.filecheck", "flowtex.plotting", "flowtex.plugincheck",
+               "flowtex.kernelprobe", "flowtex.scaffold")),
     ("scene, bench", ("flowtex.scene", "flowtex.bench")),
     ("fit", ("flowtex.fit",)),
     ("runtime", ("flowtex.runtime",)),
