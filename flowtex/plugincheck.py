@@ -30,6 +30,7 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .config import BACKGROUND_ENV
 from .errors import FlowtexError
 from .node_api import Node, suggest
 from .nodecheck import attr_line, check_kernel_compiles, check_node_class, node_where
@@ -81,9 +82,9 @@ def _unbounded(cls: type[Node]) -> list[tuple[str, str]]:
 
 def _child(target: str, cls: type[Node], mode: str, env: dict[str, str]) -> tuple[list[dict], str | None]:
     """Run ``python -m flowtex.kernelprobe MODE TARGET TYPE``; its JSON lines, or None and why it failed."""
-    root = str(Path(__file__).resolve().parents[1])  # the folder holding this flowtex package: the child imports the same
+    root = str(Path(__file__).resolve().parents[1])  # the folder holding this flowtex package
     env = {**os.environ, **env, "PYTHONPATH": os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]),
-           "FLOWTEX_BACKGROUND": "0"}
+           BACKGROUND_ENV: "0"}
     try:
         done = subprocess.run([sys.executable, "-m", "flowtex.kernelprobe", mode, str(target), cls.type_name], env=env,
                               capture_output=True, text=True, timeout=PROBE_TIMEOUT_S, stdin=subprocess.DEVNULL)

@@ -14,6 +14,7 @@ from .output import say
 def register(sub: Any) -> None:
     """Add ``flowtex compare``."""
     from ..models.outside import OUTSIDE_CHOICES
+    from ..models.rendering import INTERPOLATION_CHOICES
 
     p = sub.add_parser("compare", help="render a surface along a recording's speed and force and compare (power, LSD, ...)",
                        description="Render SURFACE along REC's own speed and normal force and compare it with REC's "
@@ -28,7 +29,10 @@ def register(sub: Any) -> None:
     p.add_argument("--normal", metavar="N", help="surface normal signal (3 axes) for --position (default +z)")
     add_from_rate(p)
     p.add_argument("--seeds", type=int_at_least(1), default=4, metavar="N", help="renders averaged (different excitation seeds)")
-    p.add_argument("--outside", choices=OUTSIDE_CHOICES, help="texture_lookup's rule beyond the measured models (default: its own)")
+    p.add_argument("--outside", choices=OUTSIDE_CHOICES,
+                   help="texture_lookup's rule beyond the measured models (default: the set's own, docs/texture.md)")
+    p.add_argument("--interpolation", choices=INTERPOLATION_CHOICES,
+                   help="texture_lookup's loudness interpolation (default: the set's own, docs/texture.md)")
     p.add_argument("--json", type=Path, metavar="OUT.json", help="write every figure, per window too, as JSON")
     p.add_argument("--report", metavar="DIR", help="write report.md with plots into this folder (needs matplotlib)")
     p.set_defaults(func=cmd_compare)
@@ -50,7 +54,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
         pyplot()                     # fail before the work when matplotlib is missing
     job = TextureJob(accel=args.accel, speed=args.speed, force=args.force, position=args.position, normal=args.normal,
                      rate=args.from_rate)
-    opt = CompareOptions(seeds=args.seeds, lookup={"outside": args.outside} if args.outside else {})
+    rule = {"outside": args.outside, "interpolation": args.interpolation}
+    opt = CompareOptions(seeds=args.seeds, lookup={k: v for k, v in rule.items() if v})
     cmp = compare_files(Path(args.surface), Path(args.recording), job, opt)
     for line in summary_lines(cmp):
         say(line)
