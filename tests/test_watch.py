@@ -76,3 +76,15 @@ def test_two_edits_give_two_reruns_with_the_right_outputs(tmp_path):
 def test_output_stats_ignore_non_finite_values():
     rms, peak, bad = output_stats(np.array([[3.0, np.nan], [-4.0, np.inf]]))
     assert (rms, peak, bad) == (np.sqrt(12.5), 4.0, 2)
+
+
+def test_plot_writes_a_png_and_max_runs_ends_the_watch(tmp_path, capsys):
+    from flowtex.cli import main
+
+    np.savez(tmp_path / "r.npz", x=np.sin(np.arange(200) / 5.0), rate=1000.0)
+    (tmp_path / "g.yaml").write_text(GRAPH.format(k=2.0))
+    png = tmp_path / "o.png"
+    assert main(["watch", str(tmp_path / "g.yaml"), "-i", str(tmp_path / "r.npz"), "--plot", str(png), "--max-runs", "1"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("run 1 (start): ") and out[1].startswith("  y: RMS ")
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

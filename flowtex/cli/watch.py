@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +33,19 @@ def _say_now(line: str) -> None:
     sys.stdout.flush()
 
 
+def _png_writer(path: Path) -> Callable[[dict, Any, int], None]:
+    """A ``Watcher.plot`` that rewrites the PNG ``path`` (atomically) with the run's outputs."""
+    from ..io.atomic import atomic_output
+    from ..plotting import plot_signals
+
+    def plot(outputs: dict, graph: Any, run: int) -> None:
+        units = {name: spec.unit for name, spec in graph.outputs.items()}
+        with atomic_output(path) as tmp:
+            plot_signals(outputs, units, graph.rate, Path(tmp), title=f"{graph.name}: run {run}")
+
+    return plot
+
+
 def cmd_watch(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output
     from ..runtime.watch import Watcher
@@ -41,6 +55,6 @@ def cmd_watch(args: argparse.Namespace) -> int:
     check_output(args.plot, inputs=[args.graph, args.input, args.output], option="--plot", suffixes=(".png",))
     watcher = Watcher(Path(args.graph), Path(args.input), Path(args.output) if args.output else None,
                       emit=_say_now, overrides=overrides(args.overrides), plugins=tuple(args.plugins),
-                      auto_plugins=not args.no_plugins, tier=args.compile, plot_path=Path(args.plot) if args.plot else None)
+                      auto_plugins=not args.no_plugins, tier=args.compile, plot=_png_writer(Path(args.plot)) if args.plot else None)
     watcher.loop(args.interval, args.max_runs)
     return 0

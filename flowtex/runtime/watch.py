@@ -97,7 +97,8 @@ class Watcher:
     plugins: tuple[str | Path, ...] = ()
     auto_plugins: bool = True
     tier: str = "auto"
-    plot_path: Path | None = None
+    plot: Callable[[dict[str, np.ndarray], Any, int], None] | None = None
+    """Called after each good run with (outputs, graph, run number), e.g. to refresh a PNG (``watch --plot``)."""
     watched: set[Path] = field(default_factory=set)
     plugin_files: list[Path] = field(default_factory=list)
     last: WatchResult | None = None
@@ -127,8 +128,8 @@ class Watcher:
             outputs = run_recording(graph, self.input_path, self.output_path, progress=False)
             result.stats = {name: output_stats(values) for name, values in outputs.items()}
             tier = graph.tier
-            if self.plot_path is not None:
-                self._plot(outputs, graph)
+            if self.plot is not None:
+                self.plot(outputs, graph, self.runs)
         except FlowtexError as exc:
             result.error = str(exc)
             tier = "-"
@@ -146,15 +147,6 @@ class Watcher:
                 self.emit(line)
             self.last = result
         return result
-
-    def _plot(self, outputs: dict[str, np.ndarray], graph: Any) -> None:
-        from ..io.atomic import atomic_output
-        from ..plotting import plot_signals
-
-        assert self.plot_path is not None
-        units = {name: spec.unit for name, spec in graph.outputs.items()}
-        with atomic_output(self.plot_path) as tmp:
-            plot_signals(outputs, units, graph.rate, Path(tmp), title=f"{graph.name}: run {self.runs}")
 
     def loop(self, interval: float, max_runs: int | None = None) -> int:
         """Run, then poll every ``interval`` s and rerun on a change, until ``max_runs`` runs (or Ctrl-C); returns runs.
