@@ -2,8 +2,11 @@
 
 fit renders a surface with it (:func:`flowtex.fit.compare.render_along`) and
 :mod:`flowtex.datasets` makes ground-truth recordings with it, so a fitted
-surface is judged by exactly the nodes that render it. The model file is given
-as an override (``lookup.models=...``); the rate is formatted in.
+surface is judged by exactly the nodes that render it. Both build it in Python
+with the loaded model set (:func:`texture_builder`, nothing written to disk);
+:data:`TEXTURE_GRAPH` is the same graph as YAML text (the model file given as an
+override ``lookup.models=...``, the rate formatted in), kept equal to it by
+tests/fit/test_texture_graph_builder.py.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The texture graph fit renders through, built in Python, is the YAML TEXTURE_GRAPH datasets render through."""
+"""The texture graph fit and datasets render through, built in Python, is the YAML TEXTURE_GRAPH."""
 
 from __future__ import annotations
 
