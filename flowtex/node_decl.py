@@ -41,6 +41,9 @@ class Param:
         ``length``).
     min, max:
         Inclusive bounds unless ``min_exclusive`` / ``max_exclusive``.
+    objects:
+        For ``path``: types of an already loaded object the parameter takes instead of a file (the in-memory API,
+        e.g. a ``TextureModelSet`` for ``models``); such a value is passed to the node as it is.
     """
 
     kind: str
@@ -53,6 +56,7 @@ class Param:
     max_exclusive: bool = False
     choices: tuple[str, ...] = ()
     length: tuple[int, int] | None = None
+    objects: tuple[type, ...] = ()
 
     def __post_init__(self) -> None:
         """Refuse a declaration no value could satisfy (raised where the plugin declares it: its file and line)."""
@@ -127,6 +131,8 @@ class Param:
             if not isinstance(value, str) or value not in self.choices:
                 hint = suggest(value, self.choices) if isinstance(value, str) else ""
                 raise ValueError(f"expected one of {', '.join(self.choices)}, got {excerpt(value)}{hint}")
+            return value
+        if kind == "path" and self.objects and isinstance(value, self.objects):
             return value
         if kind in ("str", "path"):
             if not isinstance(value, str) or not value:

@@ -28,8 +28,9 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("runtime", ("flowtex.runtime",)),
     ("io", ("flowtex.io", "flowtex.plotting")),  # plotting: a recording's figures, written through io.figures
     # The compile service, and the compiled Graph it produces (kept at its historical import path flowtex.graph.compiled,
-    # which users and plugins import; describe prints a compiled Graph).
-    ("compile", ("flowtex.compile", "flowtex.graph.compiled", "flowtex.graph.describe")),
+    # which users and plugins import; describe prints a compiled Graph; builder compiles a graph built in Python, as
+    # load_graph does a file).
+    ("compile", ("flowtex.compile", "flowtex.graph.compiled", "flowtex.graph.describe", "flowtex.graph.builder")),
     ("graph", ("flowtex.graph",)),
     ("nodes", ("flowtex.nodes",)),
     # The declarative schema of every file kind (keys, kinds, bounds, units, docs) sits under graph, io and scene, which
@@ -44,10 +45,10 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
 ]
 """Top to bottom. A module belongs to the layer of its longest matching prefix."""
 
-NODES_OPEN_FILES = ("Nodes open their model files (a path parameter is read in the node's constructor). The fix: nodes "
-                    "receive loaded objects (the in-memory API's 'nodes accept loaded model objects', issue 24 item 2) and "
-                    "a loader table at the io boundary (the format registry, item 5) turns a path parameter into the "
-                    "object before build; both are other branches' work, so the reads stay here until they land.")
+NODES_OPEN_FILES = ("Nodes open their model files (a path parameter is read in the node's constructor). texture_lookup and "
+                    "the friction nodes already take the loaded object instead (Param(objects=...), the in-memory API); "
+                    "what remains is a loader table at the io boundary (the format registry, issue 24 item 5) that turns a "
+                    "path parameter into the object before build, so the reads stay here until it lands.")
 ALLOWED: dict[tuple[str, str], str] = {
     ("flowtex.nodes.texture", "flowtex.io.modelset"): NODES_OPEN_FILES,
     ("flowtex.nodes.friction", "flowtex.io.modelset"): NODES_OPEN_FILES,

@@ -27,12 +27,11 @@ from typing import Any
 
 import numpy as np
 
-from ..io.modelset import save_model_set
 from ..io.recordings import save_recording
 from ..io.taplib import write_tap_library
 from ..models.taps import TapLibrary
 from ..models.texture import TextureModelSet
-from .graphs import FRICTION_GRAPH, TAP_GRAPH, TEXTURE_GRAPH, run_graph
+from .graphs import FRICTION_GRAPH, TAP_GRAPH, run_graph
 from .model_sets import synthetic_model_set
 from .taps import synthetic_tap_library
 from .trajectories import Plateau, circle_path, plateau_trajectory, sweep_trajectory
@@ -69,10 +68,9 @@ def default_surface(ar_order: int = 6, ma_order: int = 4, sample_rate: float = 1
 
 def render_texture(ms: TextureModelSet, speed: np.ndarray, force: np.ndarray, rate: float, seed: int = 0) -> np.ndarray:
     """Vibration (m/s^2) of ``ms`` along a (speed mm/s, force N) trajectory: texture_lookup + arma_synth."""
-    with tempfile.TemporaryDirectory() as tmp:
-        path = save_model_set(ms, Path(tmp) / "truth.json")
-        out = run_graph(TEXTURE_GRAPH, rate, {"lookup.models": str(path)},
-                        {"speed": np.asarray(speed, float), "force": np.asarray(force, float)}, seed)
+    from ..fit.texture_graph import texture_builder
+
+    out = texture_builder(ms, rate).build().run({"speed": np.asarray(speed, float), "force": np.asarray(force, float)}, seed=seed)
     return np.asarray(out["accel"], dtype=np.float64).reshape(-1)
 
 

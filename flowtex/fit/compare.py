@@ -50,10 +50,8 @@ power (m/s^2)^2, frequencies Hz.
 from __future__ import annotations
 
 import math
-import tempfile
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -145,20 +143,11 @@ class Comparison:
 def render_along(ms: TextureModelSet, speed: np.ndarray, force: np.ndarray, seeds: list[int] | range,
                  lookup: Mapping[str, Any] | None = None) -> list[np.ndarray]:
     """Vibrations (m/s^2) of ``ms`` along (speed mm/s, force N), one per excitation seed; the graph is compiled once."""
-    from ..graph.compiled import Graph
-    from ..graph.resolve import resolve_graph
-    from ..graph.spec import parse_spec
-    from ..io.modelset import save_model_set
-    from ..registry import load_registry
-    from .texture_graph import TEXTURE_GRAPH
+    from .texture_graph import texture_builder
 
-    with tempfile.TemporaryDirectory() as tmp:
-        path = save_model_set(ms, Path(tmp) / "surface.json")
-        overrides = {"lookup.models": str(path)} | {f"lookup.{k}": v for k, v in (lookup or {}).items()}
-        spec = parse_spec(TEXTURE_GRAPH.format(rate=float(ms.sample_rate)), Path("<flowtex compare>"), overrides)
-        graph = Graph(resolve_graph(spec, load_registry(())))
-        inputs = {"speed": np.asarray(speed, float), "force": np.asarray(force, float)}
-        return [np.asarray(graph.run(inputs, seed=int(s))["accel"], float).reshape(-1) for s in seeds]
+    graph = texture_builder(ms, float(ms.sample_rate), lookup).build()
+    inputs = {"speed": np.asarray(speed, float), "force": np.asarray(force, float)}
+    return [np.asarray(graph.run(inputs, seed=int(s))["accel"], float).reshape(-1) for s in seeds]
 
 
 def _shape(freqs: np.ndarray, rec: np.ndarray, ren: np.ndarray, min_freq: float,

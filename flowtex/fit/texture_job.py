@@ -13,7 +13,6 @@ from typing import Any
 
 import numpy as np
 
-from ..dsp.contact import HATT_CORNER_RAD_S, STATIONARY_MM
 from ..errors import DataError
 from .inputs import atomic_output, check_highpass, check_not_constant, check_speed_magnitude, load, signal
 from .texture import TextureFit, TextureOptions, fit_grid, fit_texture
@@ -36,18 +35,13 @@ class TextureJob:
 
 
 def speed_from_position(position: np.ndarray, normal: np.ndarray | None, rate: float) -> np.ndarray:
-    """Tangential speed (mm/s) from position (mm) with the speed_estimator's math (hatt method, its stationary gate)."""
-    from ..dsp.motion import SPEED_ISTATE, SPEED_STATE, SS_NORMAL, butter2_biquad, initial_normal_state, speed_block, speed_params
+    """Tangential speed (mm/s) from position (mm): the speed_estimator node itself (hatt method, its stationary gate),
+    run on the arrays through ``Node.processor``; no normal means the node's default normal, +z."""
+    from ..nodes.motion import SpeedEstimator
 
-    n = position.shape[0]
-    nrm = np.ascontiguousarray(normal if normal is not None else np.tile([0.0, 0.0, 1.0], (n, 1)), dtype=np.float64)
-    p = speed_params(butter2_biquad(HATT_CORNER_RAD_S, rate), rate, STATIONARY_MM)
-    s = initial_normal_state(SPEED_STATE, SS_NORMAL, (0.0, 0.0, 1.0))
-    si = np.zeros(SPEED_ISTATE, np.int64)
-    speed = np.empty((n, 1))
-    vel = np.empty((n, 3))
-    speed_block(p, s, si, np.ascontiguousarray(position, dtype=np.float64), nrm, speed, vel)
-    return speed[:, 0]
+    proc = SpeedEstimator.processor(rate=rate, method="hatt")
+    inputs = {"position": position} if normal is None else {"position": position, "normal": normal}
+    return proc(**inputs)["speed"][:, 0]
 
 
 def read_signals(path: Path, job: TextureJob, need_speed: bool = True) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, float]:

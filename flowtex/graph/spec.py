@@ -18,7 +18,7 @@ from ..schema.core import INVALID, Collector, check_keys, check_value, fits, val
 from ..schema.graph import EDGE_PATTERN, FORMAT_VERSION, GRAPH, INPUT, NAME_PATTERN, NODE, RATE
 from ..yamlsource import LocDict, LocList, load_yaml, parse_value, read_source
 
-__all__ = ["FORMAT_VERSION", "Collector", "GraphSpec", "load_spec", "parse_spec", "parse_override"]
+__all__ = ["FORMAT_VERSION", "Collector", "GraphSpec", "load_spec", "parse_spec", "parse_override", "spec_from_data"]
 
 NAME_RE = re.compile(NAME_PATTERN)
 EDGE_RE = re.compile(EDGE_PATTERN)
@@ -90,11 +90,17 @@ def load_spec(path: str | Path, overrides: dict[str, Any] | None = None) -> Grap
 
 def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -> GraphSpec:
     """Check ``text`` (graph file ``path``) against :data:`flowtex.schema.graph.GRAPH`; every problem in one GraphError."""
-    c = Collector(str(path))
     data = load_yaml(text, str(path))
     if not isinstance(data, LocDict):
         message = "a graph file must be a mapping with keys flowtex, name, rate, nodes, edges, outputs"
         raise GraphError([Diagnostic(Location(str(path), 1, 1), message)])
+    return spec_from_data(data, path, overrides)
+
+
+def spec_from_data(data: LocDict, path: Path, overrides: dict[str, Any] | None = None) -> GraphSpec:
+    """The checks of :func:`parse_spec` on an already-read mapping: from YAML (positions are (line, column)) or from
+    :class:`flowtex.graph.builder.GraphBuilder` (positions are Locations naming the builder call)."""
+    c = Collector(str(path))
     check_keys(c, data, GRAPH)
     value_of(c, data, GRAPH, "flowtex")
     name = value_of(c, data, GRAPH, "name")

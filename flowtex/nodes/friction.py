@@ -25,6 +25,7 @@ from ..dsp.friction import (
 )
 from ..dsp.motion import initial_normal_state
 from ..errors import FlowtexError, ParamError
+from ..models.texture import TextureModelSet
 from ..node_api import Node, NodeState, Param, Port, check
 
 DAHL_ZMAX_PER_MU_MM = 4.0
@@ -36,7 +37,9 @@ def _mu(node: Node) -> float:
     mu, models = node.p["mu"], node.p.get("models")
     if mu is not None and models is not None:
         raise ParamError("models", "give either mu or models, not both")
-    if models is not None:
+    if isinstance(models, TextureModelSet):
+        mu, models = models.mu, f"the model set {models.material!r} given in memory"
+    elif models is not None:
         try:
             from ..io.modelset import load_model_set
         except ImportError:
@@ -45,6 +48,7 @@ def _mu(node: Node) -> float:
             mu = load_model_set(models).mu
         except FlowtexError as exc:
             raise ParamError("models", str(exc)) from None
+    if models is not None:
         if mu is None or not math.isfinite(mu) or mu < 0:
             raise ParamError("models", f"{models}: the model set has no usable friction coefficient (mu = {mu!r}); give mu instead")
         return float(mu)
@@ -69,7 +73,8 @@ class CoulombFriction(Node):
     type_name = "coulomb_friction"
     params = {
         "mu": Param("float", default=None, min=0.0, doc="kinetic friction coefficient mu_k (or give models)"),
-        "models": Param("path", default=None, doc="model set file whose friction coefficient is used instead of mu"),
+        "models": Param("path", default=None, objects=(TextureModelSet,),
+                        doc="model set file whose friction coefficient is used instead of mu"),
         "mode": Param("choice", default="continuous", choices=("continuous", "hatt"), doc="threshold rule (see summary)"),
     }
     inputs = {"velocity": Port((3,), "mm/s", "tangential velocity"), "normal_force": Port((), "N", "normal force (< 0 counts as 0)")}
@@ -97,7 +102,8 @@ class DahlFriction(Node):
     type_name = "dahl_friction"
     params = {
         "mu": Param("float", default=None, min=0.0, doc="kinetic friction coefficient mu_k (or give models)"),
-        "models": Param("path", default=None, doc="model set file whose friction coefficient is used instead of mu"),
+        "models": Param("path", default=None, objects=(TextureModelSet,),
+                        doc="model set file whose friction coefficient is used instead of mu"),
         "z_max": Param("float", default=None, unit="mm", min=0.0, min_exclusive=True,
                        doc="largest spring stretch; default 4 mm * mu (Culbertson & Kuchenbecker 2017)"),
         "normal": Param("floats", default=(0.0, 0.0, 1.0), length=(3, 3), doc="surface normal when the normal input is not connected"),

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from numba import njit
 
 from ..dsp.interp import initial_state, texture_lookup_block
@@ -16,6 +18,23 @@ from ..node_api import Node, NodeState, Param, Port, PortSpec
 @njit(cache=True)
 def _texture_lookup(p, s, si, speed, force, ar, ma, gain, variance):
     texture_lookup_block(p, s, si, speed, force, ar, ma, gain, variance)
+
+
+def loaded_models(models: str | Path | TextureModelSet) -> TextureModelSet:
+    """The model set a ``models`` parameter gives: the object itself, or the file it names read (ParamError if unreadable)."""
+    if isinstance(models, TextureModelSet):
+        return models
+    try:
+        return load_model_set(models)
+    except DataError as exc:
+        raise ParamError("models", str(exc)) from None
+
+
+def model_source(models: str | Path | TextureModelSet) -> str:
+    """How messages name a ``models`` parameter: its file, or the in-memory set's name."""
+    if isinstance(models, TextureModelSet):
+        return f"the model set {models.material!r} given in memory"
+    return str(models)
 
 
 def rate_mismatch_message(path: str, ms: TextureModelSet, graph_rate: float) -> str:
@@ -45,7 +64,8 @@ class TextureLookup(Node):
 
     type_name = "texture_lookup"
     params = {
-        "models": Param("path", doc="texture model set: a HaTT Models_<name>.xml file or a flowtex JSON model set"),
+        "models": Param("path", objects=(TextureModelSet,),
+                        doc="texture model set: a HaTT Models_<name>.xml file or a flowtex JSON model set"),
         "low_speed": Param("float", default=0.05, unit="mm/s", min=0.0, doc="speeds below this are replaced by low_speed_value (HaTT: 0.05)"),
         "low_speed_value": Param("float", default=0.0001, unit="mm/s", min=0.0, doc="speed used below low_speed (HaTT: 0.0001)"),
         "speed_margin": Param("float", default=0.01, unit="mm/s", min=0.0,
@@ -84,14 +104,15 @@ class TextureLookup(Node):
     def __init__(self, name, params, context):
         super().__init__(name, params, context)
         path = params["models"]
-        try:
-            self.model_set: TextureModelSet = load_model_set(path)
-        except DataError as exc:
-            raise ParamError("models", str(exc)) from None
+        self.model_set: TextureModelSet = loaded_models(path)
+        self.source = model_source(path)
         if p_order := params.get("order"):
             self.model_set = self._truncated(p_order)
         ms = self.model_set
         if ms.sample_rate != context.rate:
+            if isinstance(path, TextureModelSet):
+                raise ParamError("models", f"{self.source} is for {ms.sample_rate:g} Hz but the graph runs at {context.rate:g} Hz; "
+                                           "resample it (flowtex.fit.resample.resample_model_set) or build the graph at its rate")
             raise ParamError("models", rate_mismatch_message(str(path), ms, context.rate))
         p = self.p
         for low, value in (("low_speed", "low_speed_value"), ("low_force", "low_force_value")):
@@ -117,7 +138,7 @@ class TextureLookup(Node):
         try:
             ar, ma, var = truncate_models(ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain, p, q)
         except ValueError as exc:
-            raise ParamError("order", f"{self.p['models']}: cannot reduce the order: {exc}") from None
+            raise ParamError("order", f"{self.source}: cannot reduce the order: {exc}") from None
         return dataclasses.replace(ms, ar_lsf=ar, ma_lsf=ma, variance=var, ar_coeff=None, ma_coeff=None)
 
     def resolve(self, inputs):
@@ -137,7 +158,7 @@ class TextureLookup(Node):
                                   speed_margin=p["speed_margin"], low_speed=p["low_speed"], low_speed_value=p["low_speed_value"],
                                   force_margin=p["force_margin"], low_force=p["low_force"], low_force_value=p["low_force_value"])
         except ValueError as exc:
-            raise ParamError("models", f"{p['models']}: {exc}") from None
+            raise ParamError("models", f"{self.source}: {exc}") from None
         s, si = initial_state(ms.ar_order, ms.ma_order)
         return NodeState(params=table, state=s, istate=si)
 

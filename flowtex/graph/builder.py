@@ -1,0 +1,117 @@
+"""Graphs built in Python: the same checked :class:`GraphSpec` a YAML graph file gives, without a file.
+
+:class:`GraphBuilder` records its calls as the mapping a graph file reads to (inputs, nodes, edges, outputs) and runs
+it through the same checks (:func:`flowtex.graph.spec.spec_from_data`, then :func:`flowtex.graph.resolve.resolve_graph`),
+so a mistake gives the message a graph file would, placed at the builder call instead of a file:line.
+Parameter values may be loaded objects where a node type accepts them (e.g. a ``TextureModelSet`` as
+``texture_lookup``'s ``models``), so nothing is written to disk to render a model held in memory.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from ..errors import Location
+from ..schema.graph import FORMAT_VERSION
+from ..yamlsource import LocDict, LocList
+from .spec import GraphSpec, spec_from_data
+
+__all__ = ["GraphBuilder"]
+
+
+def _mapping(where: Location) -> LocDict:
+    d = LocDict()
+    d.pos = where  # type: ignore[assignment]  # Collector.loc takes a Location as a position
+    return d
+
+
+def _put(d: LocDict, key: str, value: Any, where: Location) -> None:
+    d[key] = value
+    d.key_pos[key] = where  # type: ignore[assignment]
+    d.value_pos[key] = where  # type: ignore[assignment]
+
+
+class GraphBuilder:
+    """Build a graph in Python: ``GraphBuilder("g", rate=1000.0).input("x", unit="N").node("f", "gain", k=2.0)
+    .edge("x -> f.x").output("y", "f.y").build()``.
+
+    ``rate`` is the base tick rate (Hz), ``seed`` the default noise seed. ``base_dir`` is the folder relative path
+    parameters are read from (default: the current folder), as a graph file's own folder is for a file.
+    Each method returns the builder, so calls chain.
+    """
+
+    def __init__(self, name: str, rate: float = 1000.0, seed: int = 0, base_dir: str | Path | None = None,
+                 description: str = ""):
+        self.name = name
+        self._where = Location(f"GraphBuilder({name!r})")
+        self._path = Path(base_dir if base_dir is not None else ".") / f"<GraphBuilder {name}>"
+        self._data = _mapping(self._where)
+        for key, value in (("flowtex", FORMAT_VERSION), ("name", name), ("rate", rate), ("seed", seed)):
+            _put(self._data, key, value, self._where)
+        if description:
+            _put(self._data, "description", description, self._where)
+        self._inputs = _mapping(self._where)
+        self._nodes = _mapping(self._where)
+        self._edges = LocList()
+        self._outputs = _mapping(self._where)
+
+    def input(self, name: str, shape: int | Sequence[int] = (), unit: str = "") -> GraphBuilder:
+        """A graph input: ``shape`` of one tick's value (``()`` a scalar, ``(3,)`` a 3-vector), ``unit`` such as ``"mm"``."""
+        where = Location(f"GraphBuilder.input({name!r})")
+        value = _mapping(where)
+        _put(value, "shape", shape if isinstance(shape, int) else list(shape), where)
+        _put(value, "unit", unit, where)
+        _put(self._inputs, name, value, where)
+        return self
+
+    def node(self, name: str, type: str, every: int = 1, **params: Any) -> GraphBuilder:
+        """A node of ``type`` (``flowtex nodes`` lists them) run every ``every`` ticks, with its parameters."""
+        where = Location(f"GraphBuilder.node({name!r}, {type!r})")
+        value = _mapping(where)
+        _put(value, "type", type, where)
+        _put(value, "every", every, where)
+        p = _mapping(where)
+        for key, v in params.items():
+            _put(p, key, v, Location(f"GraphBuilder.node({name!r}, {type!r}, {key}=...)"))
+        _put(value, "params", p, where)
+        _put(self._nodes, name, value, where)
+        return self
+
+    def edge(self, text: str) -> GraphBuilder:
+        """An edge ``"producer.port -> consumer.port"`` (a graph input by its bare name), as in a graph file."""
+        self._edges.append(text)
+        self._edges.item_pos.append(Location(f"GraphBuilder.edge({text!r})"))  # type: ignore[arg-type]
+        return self
+
+    def output(self, name: str, source: str) -> GraphBuilder:
+        """A graph output ``name`` read from ``source`` (``"node.port"``, or a graph input's name)."""
+        _put(self._outputs, name, source, Location(f"GraphBuilder.output({name!r}, {source!r})"))
+        return self
+
+    def spec(self, overrides: dict[str, Any] | None = None) -> GraphSpec:
+        """The checked spec (shape checks only, as :func:`flowtex.graph.spec.parse_spec`). Raises ``GraphError``."""
+        data = _mapping(self._where)
+        data.update(self._data)
+        data.key_pos.update(self._data.key_pos)
+        data.value_pos.update(self._data.value_pos)
+        for key, part in (("inputs", self._inputs), ("nodes", self._nodes), ("edges", self._edges), ("outputs", self._outputs)):
+            if part or key != "inputs":
+                _put(data, key, part, self._where)
+        return spec_from_data(data, self._path, overrides)
+
+    def resolve(self, overrides: dict[str, Any] | None = None, plugins: tuple[str | Path, ...] = ()) -> Any:
+        """The checked, built :class:`flowtex.graph.resolve.ResolvedGraph` (what ``check_graph`` gives for a file)."""
+        from ..registry import load_registry
+        from .resolve import resolve_graph
+
+        return resolve_graph(self.spec(overrides), load_registry(plugins))
+
+    def build(self, overrides: dict[str, Any] | None = None, plugins: tuple[str | Path, ...] = (),
+              tier: str | None = None, block_rows: int | None = None) -> Any:
+        """The compiled :class:`flowtex.Graph`, as :func:`flowtex.load_graph` gives for a file (``plugins``: plugin
+        folders; ``$FLOWTEX_PLUGINS`` is read as for a file; ``tier``: fused, dispatch or auto)."""
+        from .compiled import DEFAULT_BLOCK_ROWS, Graph
+
+        return Graph(self.resolve(overrides, plugins), block_rows or DEFAULT_BLOCK_ROWS, tier)
