@@ -16,7 +16,7 @@ from .output import note, say
 def register(sub: Any) -> None:
     p = sub.add_parser("live", help="run a graph live against a CAN device at the graph's rate",
                        description="Run GRAPH live: CAN sensor frames -> graph inputs, graph outputs -> guarded actuator frames.",
-                       epilog="Exit codes: 0 clean stop (duration, Ctrl-C, SIGTERM); 1 error (safe values sent); "
+                       epilog="Exit codes: 0 clean stop (duration, Ctrl-C, SIGTERM); 1 error (the line says whether the safe values were sent); "
                               "3 no sensor frame arrived during the whole session (outputs stayed safe).")
     p.add_argument("graph", nargs="?", help="graph YAML file")
     p.add_argument("--list-audio", action="store_true", help="list the audio devices PortAudio sees (for a map's audio.device), and exit")
@@ -78,7 +78,7 @@ def run_live_session(graph: Any, args: argparse.Namespace, dbc: str | None = Non
     for line in report.warnings:
         note(f"flowtex live: warning: {line}")
     if report.error:
-        raise FlowtexError(report.error + " (safe values sent)")
+        raise FlowtexError(report.error + (" (safe values sent)" if report.safe_sent else ""))
     if report.no_sensor_frames:
         note(report.silence)
         return EXIT_NO_SENSOR_FRAMES

@@ -98,6 +98,17 @@ def int_at_least(low: int, high: int | None = None) -> Any:
     return parse
 
 
+def cpu_index(text: str) -> int:
+    """argparse type: a CPU this process may run on (``os.sched_getaffinity``; where unknown, below ``os.cpu_count()``)."""
+    import os
+
+    value = int_at_least(0)(text)
+    allowed = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else list(range(os.cpu_count() or 1))
+    if value not in allowed:
+        raise argparse.ArgumentTypeError(f"{text}: no such CPU for this process (it may use CPU {', '.join(map(str, allowed))})")
+    return value
+
+
 class Renamed(argparse.Action):
     """An old spelling of a flag: stores into the new one's ``dest`` and prints a one-line notice on stderr."""
 
@@ -135,7 +146,7 @@ def add_live_options(p: argparse.ArgumentParser, device_required: bool = True) -
                    help="seconds to run (default: until Ctrl-C / SIGTERM)")
     p.add_argument("--rt", action="store_true", help="ask for SCHED_FIFO real-time scheduling and pin the loop to a CPU")
     p.add_argument("--rt-priority", type=int_at_least(1, 99), default=80, help="SCHED_FIFO priority with --rt (1..99, default 80)")
-    p.add_argument("--cpu", type=int_at_least(0), help="CPU to pin the loop to with --rt")
+    p.add_argument("--cpu", type=cpu_index, help="CPU to pin the loop to with --rt (one this process may use)")
     p.add_argument("--stats", help="write the end-of-run statistics as JSON to this file")
     p.add_argument("--simulate", metavar="RECORDING", help="run a simulated device in this process playing RECORDING (.npz/.csv/.h5)")
     p.add_argument("--quiet", action="store_true", help="no status line")
