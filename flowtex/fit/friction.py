@@ -26,6 +26,7 @@ flowtex/cli/fit.py.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -178,10 +179,15 @@ def friction_table(fit: FrictionFit) -> list[str]:
 
 
 def store_mu(surface: str | Path, mu: float) -> None:
-    """Write ``mu`` into a model set file (native JSON or HaTT XML, kept in its own format), atomically."""
+    """Write ``mu`` into a model set file (native JSON or HaTT XML, kept in its own format), atomically.
+
+    A symbolic link is followed: the file it points to is updated (renamed over, keeping its mode) and the link
+    stays a link, so every other user of the model set sees the new mu.
+    """
     from ..io.hatt import write_hatt_xml
     from ..io.modelset import load_model_set, save_model_set
 
+    surface = Path(os.path.realpath(surface))
     ms = load_model_set(surface)
     ms.mu = float(mu)
     with atomic_output(surface, keep_mode=True) as tmp:
