@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 from typing import Any
 
 from ..errors import DataError, FlowtexError
+from ..limits import MAX_CONFIGURATIONS
 from .options import add_compile_option, add_graph_options, add_seed_option, int_at_least, overrides
 from .output import say
 
@@ -49,6 +51,11 @@ def cmd_bench(args: argparse.Namespace) -> int:
         if key in knobs:
             raise FlowtexError(f"--set {key}: that parameter is also a --knob; give it once")
         knobs[key] = [value]
+    count = math.prod(len(v) for v in knobs.values())
+    if count > MAX_CONFIGURATIONS:
+        sizes = " x ".join(f"{len(v)} ({k})" for k, v in knobs.items())
+        raise FlowtexError(f"--knob: {sizes} = {count:,} configurations; bench runs at most {MAX_CONFIGURATIONS} "
+                           "(docs/bench.md): give fewer values")
     reference = dict(parse_override(r) for r in args.reference)
     inputs = [args.graph, args.input]
     check_output(args.output, inputs=inputs, option="-o")

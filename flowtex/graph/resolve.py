@@ -13,6 +13,7 @@ from typing import Any
 import networkx as nx
 
 from ..errors import DataError, Diagnostic, FlowtexError, GraphError, Location, ParamError
+from ..limits import port_values_problem
 from ..node_api import BuildContext, Node, NodeState, Port, PortSpec, simplify_unit, suggest
 from ..registry import Registry
 from .spec import EdgeSpec, Endpoint, GraphSpec, NodeSpec
@@ -322,13 +323,16 @@ def _resolve_pass(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[str
             failed.add(name)
             continue
         rn.in_specs = specs
-        if not _own_schedule(ck, rn, input_every):
+        if _too_wide(ck, rn, specs, "input") or not _own_schedule(ck, rn, input_every):
             failed.add(name)
             continue
         ctx = BuildContext(rate=ck.spec.rate, base_dir=ck.spec.path.parent, every=rn.spec.every, input_every=input_every)
         try:
             rn.node = rn.cls(name, rn.params, ctx)
             rn.out_specs = rn.node.resolve(specs)
+            if _too_wide(ck, rn, rn.out_specs, "output"):
+                rn.out_specs = {}
+                failed.add(name)
         except ParamError as exc:
             failed.add(name)
             ck.error(_param_loc(rn, exc.param), f"node {name!r} ({rn.cls.type_name}): {exc}")
@@ -346,6 +350,14 @@ def _resolve_pass(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[str
                              f"feedback into delay {name!r} carries {actual.describe()}, but the loop needs "
                              f"{took.describe()} at the delay's output; make both sides of the loop agree")
     return hints
+
+
+def _too_wide(ck: _Checker, rn: ResolvedNode, specs: dict[str, PortSpec], kind: str) -> bool:
+    """Report (at the node's line) every port of ``specs`` carrying more than the per-tick limit; True if any."""
+    wide = [(port, problem) for port, spec in specs.items() if (problem := port_values_problem(spec.shape)) is not None]
+    for port, problem in wide:
+        ck.error(rn.spec.loc, f"node {rn.spec.name!r} ({rn.cls.type_name}): {kind} {port!r}: {problem}")
+    return bool(wide)
 
 
 def _hint_from_mismatch(rn: ResolvedNode, port: Port, port_name: str, got: PortSpec, specs: dict[str, PortSpec],

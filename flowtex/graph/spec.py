@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import Diagnostic, GraphError, Location
-from ..limits import MAX_EVERY, MAX_RATE_HZ, excerpt
+from ..limits import MAX_EVERY, MAX_RATE_HZ, excerpt, port_values_problem
 from ..node_api import suggest
 from ..yamlsource import LocDict, LocList, load_yaml, parse_value, read_source
 
@@ -193,6 +193,8 @@ def _inputs(c: Collector, data: LocDict) -> dict[str, InputSpec]:
                 isinstance(s, int) and not isinstance(s, bool) and s > 0 for s in shape_raw
             ):
                 c.error(value.value_pos["shape"], f"input {name!r}: shape must be a list of positive integers such as [3], or [] for a scalar")
+            elif (problem := port_values_problem(shape_raw)) is not None:
+                c.error(value.value_pos["shape"], f"input {name!r}: {problem}")
             else:
                 shape = tuple(shape_raw)
         if "unit" in value:

@@ -27,9 +27,9 @@ def load_dbc(path: str | Path) -> Database:
     reports one) for a missing, unreadable or malformed file.
     """
     path = Path(path)
+    check_file_size(path, "DBC file", MAX_DBC_BYTES)  # first: a FIFO or device is refused as such, not "not found"
     if not path.is_file():
         raise DataError(f"{path}: DBC file not found")
-    check_file_size(path, "DBC file", MAX_DBC_BYTES)
     try:
         text = path.read_text(encoding="utf-8", errors="replace")
     except OSError as exc:

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError
-from ..limits import excerpt
+from ..limits import check_regular, excerpt
 from ..models.texture import TextureModelSet
 from ..node_api import suggest
 from .hatt import read_hatt_xml
@@ -63,6 +63,7 @@ def load_model_set(path: str | Path) -> TextureModelSet:
     element or key) for a missing, unreadable or malformed file.
     """
     path = Path(path).expanduser()
+    check_regular(path, "model file")
     try:
         with path.open("rb") as fh:
             head = fh.read(256).lstrip()

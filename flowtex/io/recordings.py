@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError
-from ..limits import MAX_RECORDING_VALUES, check_values, excerpt
+from ..limits import MAX_RECORDING_VALUES, check_regular, check_values, excerpt
 from .npzread import read_npz_arrays
 from .recording_rules import check_signals, numeric_signal
 
@@ -58,6 +58,7 @@ def load_recording(path: str | Path) -> Recording:
     path = Path(path)
     if not path.exists():
         raise DataError(f"{path}: recording not found")
+    check_regular(path, "recording")
     suffix = path.suffix.lower()
     if suffix == ".npz":
         rec = _load_npz(path)
