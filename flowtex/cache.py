@@ -12,13 +12,16 @@ yourself turns this off.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import shutil
+import tempfile
 import time
 from pathlib import Path
 
 from .dsp.fastmath import CONTRACT
+from .errors import FlowtexError
 
 CACHE_ENV = "FLOWTEX_CACHE_DIR"
 KEEP_OLD = 3
@@ -27,12 +30,46 @@ IN_USE_S = 3600.0
 
 
 def cache_dir() -> Path:
-    """Root of flowtex's on-disk cache (``$FLOWTEX_CACHE_DIR`` or ``~/.cache/flowtex``)."""
+    """Root of flowtex's on-disk cache (``$FLOWTEX_CACHE_DIR`` or ``~/.cache/flowtex``), created if missing.
+
+    Raises :class:`~flowtex.errors.FlowtexError`, one line naming the variable, when no file can be created there.
+    """
     root = os.environ.get(CACHE_ENV)
     if root:
-        return Path(root)
+        folder = Path(root)
+        problem = _unusable(folder)
+        if problem:
+            raise FlowtexError(f"{CACHE_ENV}={root}: {problem}; point {CACHE_ENV} at a folder flowtex can write, or unset it "
+                               "(the cache then lives in ~/.cache/flowtex)")
+        return folder
     xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg) if xdg else Path.home() / ".cache") / "flowtex"
+    folder = (Path(xdg) if xdg else Path.home() / ".cache") / "flowtex"
+    problem = _unusable(folder)
+    if problem:
+        raise FlowtexError(f"{folder}: the cache folder {problem}; set {CACHE_ENV} to a folder flowtex can write")
+    return folder
+
+
+def _unusable(folder: Path) -> str | None:
+    """Why no cache can be kept in ``folder`` (a file, below a file, a dangling link, not creatable, read-only), or None.
+
+    Checked by creating the folder (``mkdir -p``) and a file in it, as the cache will, not by asking ``os.access``.
+    """
+    if folder.is_symlink() and not folder.exists():
+        return f"is a symbolic link to {os.readlink(folder)}, which does not exist"
+    if folder.exists() and not folder.is_dir():
+        return "is a file, not a folder"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        return f"cannot be created ({exc.strerror or exc}{' at ' + exc.filename if exc.filename else ''})"
+    try:
+        fd, name = tempfile.mkstemp(dir=folder, prefix=".probe.")
+    except OSError as exc:
+        return f"is not writable ({exc.strerror or exc})"
+    os.close(fd)
+    os.unlink(name)
+    return None
 
 
 def source_fingerprint() -> str:
@@ -56,15 +93,108 @@ def configure_numba_cache() -> str:
         return fingerprint
     import numba
 
-    root = cache_dir() / "numba"
-    folder = root / fingerprint
+    guard_numba_cache()
     try:
+        root = cache_dir() / "numba"
+        folder = root / fingerprint
         folder.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return fingerprint  # read-only home: numba falls back to its own default
+    except (OSError, FlowtexError):
+        return fingerprint  # no usable cache folder: numba falls back to its own default; the verbs say why (cache_dir)
     numba.config.CACHE_DIR = str(folder)
     _prune(root, folder)
     return fingerprint
+
+
+SEAL_SUFFIX = ".sha256"
+"""Beside each numba index (``.nbi``) and data (``.nbc``) file: the sha256 of its bytes, written after numba wrote it."""
+
+
+def guard_numba_cache() -> None:
+    """Make numba's per-function cache (the node and dsp kernels' ``cache=True``) detect damaged entries and rebuild them.
+
+    numba trusts its files: an empty (disk full), truncated (crash) or flipped-byte ``.nbi``/``.nbc`` file raises
+    ``EOFError``/``UnpicklingError``/``UnicodeDecodeError`` on every later load, or loads damaged machine code. Each
+    file numba saves gets a seal (:data:`SEAL_SUFFIX`); a file whose bytes differ from its seal, or that has none,
+    is not loaded: the entry's files are deleted and numba compiles the kernel again. Any other failure while loading
+    an entry is handled the same way (a cache is never worth an error).
+    """
+    from numba.core import caching
+
+    if getattr(caching.Cache, "_flowtex_guarded", False):
+        return
+    files = caching.IndexDataCacheFile
+    load_overload, load_index, save_index = caching.Cache.load_overload, files._load_index, files._save_index
+    load_data, save_data = files._load_data, files._save_data
+
+    def guarded_load_overload(self, sig, target_context):  # type: ignore[no-untyped-def]
+        try:
+            return load_overload(self, sig, target_context)
+        except Exception:  # damaged entry: forget it, numba compiles and saves it again
+            _discard(self._cache_file)
+            return None
+
+    def sealed_load_index(self):  # type: ignore[no-untyped-def]
+        if os.path.exists(self._index_path) and not _sealed(self._index_path):
+            _discard(self)
+            return {}
+        return load_index(self)
+
+    def sealed_save_index(self, overloads):  # type: ignore[no-untyped-def]
+        save_index(self, overloads)
+        _seal(self._index_path)
+
+    def sealed_load_data(self, name):  # type: ignore[no-untyped-def]
+        if not _sealed(self._data_path(name)):
+            raise ValueError(f"numba cache file {self._data_path(name)} does not match its seal")
+        return load_data(self, name)
+
+    def sealed_save_data(self, name, data):  # type: ignore[no-untyped-def]
+        save_data(self, name, data)
+        _seal(self._data_path(name))
+
+    caching.Cache.load_overload = guarded_load_overload
+    files._load_index, files._save_index = sealed_load_index, sealed_save_index
+    files._load_data, files._save_data = sealed_load_data, sealed_save_data
+    caching.Cache._flowtex_guarded = True
+
+
+def _digest(path: str) -> str:
+    with open(path, "rb") as fh:
+        return hashlib.sha256(fh.read()).hexdigest()
+
+
+def _seal(path: str) -> None:
+    tmp = f"{path}{SEAL_SUFFIX}.{os.getpid()}"
+    try:
+        with open(tmp, "w") as fh:
+            fh.write(_digest(path))
+        os.replace(tmp, path + SEAL_SUFFIX)
+    except OSError:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+
+
+def _sealed(path: str) -> bool:
+    try:
+        with open(path + SEAL_SUFFIX) as fh:
+            return fh.read().strip() == _digest(path)
+    except OSError:
+        return False
+
+
+def _discard(cache_file: object) -> None:
+    """Delete an entry's index, its data files and their seals (another process may be doing the same)."""
+    index = getattr(cache_file, "_index_path", None)
+    if not index:
+        return
+    folder, stem = os.path.split(index[: -len(".nbi")])
+    try:
+        names = [n for n in os.listdir(folder) if n.startswith(stem + ".")]
+    except OSError:
+        return
+    for n in names:
+        with contextlib.suppress(OSError):
+            os.unlink(os.path.join(folder, n))
 
 
 def _prune(root: Path, current: Path) -> None:
