@@ -9,7 +9,7 @@ from typing import Any
 
 from ..errors import DataError, FlowtexError
 from ..limits import MAX_CONFIGURATIONS
-from .options import add_compile_option, add_graph_options, add_seed_option, int_at_least, overrides
+from .options import add_compile_option, add_graph_options, add_seed_option, int_at_least, overrides, scheduler_address
 from .output import say
 
 
@@ -31,7 +31,7 @@ def register(sub: Any) -> None:
     p.add_argument("--plot", help="draw the Pareto plot to this PNG (needs matplotlib: pip install 'flowtex[plot]')")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int_at_least(1), help="run the configurations on a local Dask cluster of N worker processes")
-    where.add_argument("--scheduler", help="run the configurations on an existing Dask cluster (scheduler address, e.g. tcp://host:8786)")
+    where.add_argument("--scheduler", type=scheduler_address, help="run the configurations on an existing Dask cluster (scheduler address, e.g. tcp://host:8786)")
     add_compile_option(p, "dispatch", ("dispatch", "fused"))
     add_graph_options(p, no_plugins=False)
     p.set_defaults(func=cmd_bench)

@@ -9,7 +9,7 @@ from typing import Any
 from ..errors import FlowtexError
 from .graph import load_graph_from_args
 from .main import EXIT_NO_SENSOR_FRAMES
-from .options import add_live_options, int_at_least, positive_hz
+from .options import add_live_options, int_at_least, positive_hz, positive_seconds
 from .output import note, say
 
 
@@ -34,7 +34,7 @@ def register(sub: Any) -> None:
     s.add_argument("--dbc", required=True, help="DBC file")
     s.add_argument("--map", required=True, help="map YAML (its inputs say which signals to publish)")
     s.add_argument("--rate", type=positive_hz, help="ticks per second it produces (default: the recording's rate, else 1000)")
-    s.add_argument("--duration", type=float, help="seconds to run (default: until Ctrl-C / SIGTERM)")
+    s.add_argument("--duration", type=positive_seconds(), help="seconds to run (> 0; default: until Ctrl-C / SIGTERM)")
     s.add_argument("--exit-on-close", action="store_true", help="stop when the runtime closes the channel (slcan: after its 'C' command)")
     s.set_defaults(func=cmd_simulate_device)
 

@@ -199,10 +199,27 @@ def compare_surface(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, f
     if top < opt.max_freq_hz:
         opt = replace(opt, max_freq_hz=top)
     renders = render_along(ms, speed, force, range(opt.seeds), opt.lookup)
+    _check_rendered(renders, accel, speed, force, where)
     try:
         return compare_signals(accel, renders, rate, opt)
     except DataError as exc:
         raise DataError(f"{where}: {exc}") from None
+
+
+SILENT_RATIO = 1e-6
+"""A render whose RMS is below this fraction of the recording's (-120 dB) rendered nothing: the figures would be noise."""
+
+
+def _check_rendered(renders: list[np.ndarray], accel: np.ndarray, speed: np.ndarray, force: np.ndarray, where: str) -> None:
+    """Refuse to compare a render that is silent (the recording never reaches contact, or rests): say so instead of -3000 dB."""
+    recorded = float(np.sqrt(np.mean(np.square(accel)))) if accel.size else 0.0
+    rendered = max((float(np.sqrt(np.mean(np.square(r)))) for r in renders if r.size), default=0.0)
+    if rendered > SILENT_RATIO * recorded and rendered > 0.0:
+        return
+    raise DataError(f"{where}: nothing was rendered along this recording (rendered RMS {rendered:.3g} m/s^2 against "
+                    f"{recorded:.3g} recorded): its normal force reaches at most {float(np.max(force, initial=0.0)):g} N and "
+                    f"its speed {float(np.max(np.abs(speed), initial=0.0)):g} mm/s, where the surface is silent; compare on a "
+                    "recording of the tool moving in contact")
 
 
 def resampled_band_hz(ms: TextureModelSet) -> float:

@@ -36,6 +36,9 @@ def split_holdout(n: int, rate: float, fraction: float, where: str) -> int:
     if not (np.isfinite(fraction) and 0.0 < fraction < 1.0):
         raise DataError(f"--holdout must be a fraction between 0 and 1 (e.g. 0.25), got {fraction!r}")
     cut = int(round(n * (1.0 - fraction)))
+    if cut / rate < MIN_HOLDOUT_S:
+        raise DataError(f"{where}: --holdout {fraction:g} leaves {cut / rate:.2f} s to fit, fewer than {MIN_HOLDOUT_S:g} s; "
+                        f"hold out at most {1 - MIN_HOLDOUT_S * rate / n:.2f} of this {n / rate:.1f}-s recording")
     held = (n - cut) / rate
     if held < MIN_HOLDOUT_S:
         raise DataError(f"{where}: --holdout {fraction:g} holds out {held:.2f} s, fewer than {MIN_HOLDOUT_S:g} s to compare; "

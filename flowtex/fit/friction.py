@@ -131,10 +131,15 @@ def friction_forces(rec: Any, normal_force: str | None = None, friction_force: s
             nv = signal(rec, normal, "--normal", (3,))
         else:
             try:
-                nv = np.broadcast_to(np.array([float(v) for v in normal.split(",")]), (f3.shape[0], 3))
+                vector = np.array([float(v) for v in normal.split(",")])
+                nv = np.broadcast_to(vector, (f3.shape[0], 3))
             except ValueError:
                 raise DataError(f"{where}: no signal {normal!r} (--normal); give a signal name or a vector x,y,z") from None
+            if not np.all(np.isfinite(vector)):
+                raise DataError(f"--normal {normal}: the normal vector must be three finite numbers x,y,z")
         length = np.linalg.norm(nv, axis=1)
+        if not np.all(np.isfinite(length)):
+            raise DataError(f"{where}: signal {normal!r} (--normal) has non-finite normals; fix the normal")
         if np.any(length < 1e-9):
             raise DataError(f"{where}: signal {normal!r} (--normal) has zero-length normals; fix the normal")
         unit = nv / length[:, None]

@@ -304,6 +304,11 @@ def _resolve_pass(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[str
                     shape = specs[port.shape[1:]].shape
                 specs[port_name] = PortSpec(tuple(shape), unit)
                 continue
+            if src.node == name:  # a node (a delay: others are cycles without one) wired to itself
+                ck.error(edge_of[(name, port_name)].loc, f"edge {edge_of[(name, port_name)].text!r}: node {name!r} feeds "
+                         "itself, so its output would hold its initial value forever; feed it from another node")
+                bad = True
+                continue
             if src.node is None:
                 got = inputs[src.port]
                 input_every[port_name] = 1

@@ -187,6 +187,11 @@ def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, m
         raise DataError(f"{map_path}: the map binds no outputs, so the session has no actuator blocks to mark ticks")
     frames, completeness = read_session_checked(session_path)
     ticks, exit_block = _split_ticks(frames, io.tx_ids, session_path, completeness.problem is None)
+    if not ticks:
+        ids = ", ".join(f"{fid:#x}" for fid, _ in io.tx_ids)
+        what = "no frame at all" if not frames else f"{len(frames)} frame(s) but no complete tick"
+        raise DataError(f"{session_path}: nothing to replay: the log holds {what} (a tick ends with one frame of each actuator "
+                        f"message of {map_path}: {ids}); is it a session recorded with this map and DBC?")
     suffix = Path(output_path).suffix.lower() if output_path is not None else ""
     if output_path is not None and suffix not in (".npz", ".blf", ".log", ".asc", ".wav"):
         raise DataError(f"{output_path}: replay output must end in .npz (graph outputs), .blf/.log/.asc (actuator frames) "
