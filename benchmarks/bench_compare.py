@@ -1,6 +1,16 @@
 """``flowtex compare`` time for a 60 s recording, beside its baseline: one render of the same path.
 
     python benchmarks/bench_compare.py [--seconds 60] [--repeats 3]
+    python benchmarks/bench_compare.py --surfaces 6 [--surface-seconds 20] [--order 4,2]
+
+``--surfaces N`` prints, instead of times, issue 23's power and LSD table on N
+generated recordings that behave like real ones (flowtex.datasets.resonant:
+moving resonances, heavy tails, loudness that wanders from second to second),
+seeds 0..N-1: in-sample (fit and compare on the whole recording, and the true
+surface's own render for reference) and under two-fold cross-validation over
+interleaved one-second blocks (flowtex.fit.crossval; the mean over the folds).
+Targets: in-sample power within +-1 dB and LSD within 0.5 dB of the truth's;
+held out, mean power within +-1 dB and LSD within 1 dB of in-sample.
 
 A 60-s person-like recording of the 15-dB surface (flowtex.datasets.realistic)
 is fitted once (``fit texture`` defaults; its time is printed for scale), then,
@@ -38,11 +48,44 @@ def _median_time(fn, repeats: int) -> float:
     return statistics.median(times)
 
 
+def surfaces_table(count: int, seconds: float, order: tuple[int, int]) -> None:
+    """Issue 23's power and LSD table on ``count`` generated recordings (module docstring)."""
+    from flowtex.datasets.resonant import textured_exploration
+    from flowtex.fit.crossval import evaluate_splits, fold_splits, holdout_doc
+    from flowtex.fit.texture import TextureOptions
+
+    rate = 1000.0
+    opt = TextureOptions(order=order)
+    print(f"{count} generated recordings of {seconds:g} s at 1 kHz, fitted at order {order[0]},{order[1]}")
+    print(f"{'seed':>4} | {'in-sample P dB':>14} {'LSD dB':>7} {'truth LSD':>9} {'ok':>3} | "
+          f"{'2-fold P dB':>11} {'LSD dB':>7} {'- in-sample':>11} {'ok':>3}")
+    for seed in range(count):
+        rec = textured_exploration(seconds, rate, seed=seed)
+        a = rec.arrays
+        fit = fit_texture(a["accel"], a["speed"], a["normal_force"], rate, opt)
+        got = compare_surface(fit.model_set, a["accel"], a["speed"], a["normal_force"], rate)
+        truth = compare_surface(rec.truth["surface"], a["accel"], a["speed"], a["normal_force"], rate)
+        done = evaluate_splits(a["accel"], a["speed"], a["normal_force"], rate, fold_splits(a["accel"].shape[0], rate, 2), opt)
+        mean = holdout_doc("blocks", "folds", 2, [c for _, c in done])["mean"]
+        ok_in = abs(got.power_ratio_db) <= 1.0 and got.lsd_db <= truth.lsd_db + 0.5
+        ok_cv = abs(mean["power_ratio_db"]) <= 1.0 and mean["lsd_db"] <= got.lsd_db + 1.0
+        print(f"{seed:4d} | {got.power_ratio_db:+14.2f} {got.lsd_db:7.2f} {truth.lsd_db:9.2f} {'yes' if ok_in else 'NO':>3} | "
+              f"{mean['power_ratio_db']:+11.2f} {mean['lsd_db']:7.2f} {mean['lsd_db'] - got.lsd_db:+11.2f} "
+              f"{'yes' if ok_cv else 'NO':>3}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--surfaces", type=int, default=0, metavar="N", help="print the power and LSD table on N generated recordings")
+    ap.add_argument("--surface-seconds", type=float, default=20.0)
+    ap.add_argument("--order", default="4,2", help="P,Q of the fits in the --surfaces table")
     opts = ap.parse_args()
+    if opts.surfaces:
+        p, q = (int(v) for v in opts.order.split(","))
+        surfaces_table(opts.surfaces, opts.surface_seconds, (p, q))
+        return
     rate = 1000.0
     rec = human_exploration(opts.seconds, rate, seed=0)
     a = rec.arrays

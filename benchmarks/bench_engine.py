@@ -28,6 +28,7 @@ from numba import njit
 from scipy import signal
 
 import flowtex
+from flowtex.compile.service import background_running
 
 RATE = 10_000.0
 CUTOFFS = [3000, 2800, 2600, 2400, 2200, 2000, 1800, 1600, 1400, 1200]  # Hz, one 2nd-order lowpass each
@@ -182,13 +183,7 @@ def _timed(cmd: list[str], env: dict) -> tuple[float, str]:
 def _wait_background(cache: Path) -> float:
     """Seconds until the background fused compile (docs/engine.md) of this cache has finished."""
     t0 = time.perf_counter()
-    pid_file = cache / "background.pid"
-    while pid_file.exists():
-        try:
-            if b"flowtex.graph.background" not in Path(f"/proc/{int(pid_file.read_text())}/cmdline").read_bytes():
-                break
-        except (OSError, ValueError):
-            break
+    while background_running(cache):
         time.sleep(0.2)
     return time.perf_counter() - t0
 

@@ -131,36 +131,83 @@ def corpus_sets(names):
     return [(n, makers[n]()) for n in names]
 
 
-def corpus(names, rates, baseline: bool) -> None:
-    """Seconds per model fit (median, worst) of resample_model_set on each corpus set, new stopping rule vs the old one."""
-    import flowtex.dsp.arma_logfit as logfit
-    from flowtex.datasets.model_sets import synthetic_model_set
-    from flowtex.fit.resample import resample_model_set
+BASELINE_ATTEMPTS = tuple((e, False) for e in (0, 2, 4, 6, 8))
+"""The previous rule up to 2x (before the elliptic edge): more free poles and zeros, 0 to 8, for the whole set."""
 
-    resample_model_set(synthetic_model_set([60.0], [0.5], ar_order=4, ma_order=2), 2000.0)  # warm-up: numba compiles, imports
-    rules = [("new", {})] + ([("old", {"EVALUATIONS": 10**9, "REL_TOL": 1e-6, "GOOD_DB": 1e-3})] if baseline else [])
-    print(f"{'set':<12} {'to Hz':>6} {'rule':<4} {'models':>6} {'fits':>5} {'extra':>5} {'LSD max':>8} {'misses':>6} "
-          f"{'s/model med':>11} {'worst':>6} {'total s':>8} {'ratio':>6}")
-    for name, ms in corpus_sets(names):
+
+def hatt_sets(folder: str, every: int = 1, start: int = 0):
+    """(name, set) of HaTT's published sets in ``folder`` (Models_*.xml; never in the repository), every ``every``-th from ``start``."""
+    import glob
+    import os
+
+    from flowtex.io.modelset import load_model_set
+
+    files = sorted(glob.glob(os.path.join(folder, "Models_*.xml")))[start::every]
+    return [(os.path.basename(f)[7:-4], load_model_set(f)) for f in files]
+
+
+def corpus(sets, rates, baseline_every: int, table: str | None) -> None:
+    """Seconds per model fit (median, worst; wall and CPU) of resample_model_set on each set, against the previous rule.
+
+    ``baseline_every`` > 0: every that many sets, also the previous attempt ladder (:data:`BASELINE_ATTEMPTS`),
+    side by side in this process. ``table``: a CSV of every model's figures (set, rate, rule, model, LSD dB,
+    band-power error, power above the old Nyquist). "path LSD": flowtex.fit.quality.path_lsd_db along
+    lissajous_path, the resampled set against the original (expected spectra as rendered, no noise).
+    """
+    import flowtex.fit.resample as resample
+    from flowtex.datasets.model_sets import synthetic_model_set
+    from flowtex.fit.quality import lissajous_path, path_lsd_db
+
+    resample.resample_model_set(synthetic_model_set([60.0], [0.5], ar_order=4, ma_order=2), 2000.0)  # warm-up: imports
+    print(f"{'set':<22} {'to Hz':>6} {'rule':<4} {'models':>6} {'fits':>5} {'orders':>11} {'LSD max':>8} {'band %':>7} "
+          f"{'above %':>7} {'misses':>6} {'wall s/fit med':>14} {'worst':>6} {'cpu s/fit med':>13} {'worst':>6} "
+          f"{'set s/model':>11} {'ratio':>6} {'path LSD':>8}", flush=True)
+    summary = {}
+    if table:
+        with open(table, "w") as fh:
+            fh.write("set,to_hz,rule,model,lsd_db,band_power_error,power_above_old_nyquist\n")
+    for k, (name, ms) in enumerate(sets):
         for rate in rates:
             base = None
-            for rule, params in rules:
-                saved = {k: getattr(logfit, k) for k in params}
-                for k, v in params.items():
-                    setattr(logfit, k, v)
-                stamps = [time.perf_counter()]
+            rules = [("new", resample.EDGE_ATTEMPTS)]
+            if baseline_every and k % baseline_every == 0 and rate > ms.sample_rate:
+                rules.append(("old", BASELINE_ATTEMPTS))
+            for rule, attempts in rules:
+                saved = resample.EDGE_ATTEMPTS
+                resample.EDGE_ATTEMPTS = attempts
+                wall, cpu = [time.perf_counter()], [time.process_time()]
+
+                def tick(done, total, wall=wall, cpu=cpu):
+                    wall.append(time.perf_counter())
+                    cpu.append(time.process_time())
                 try:
-                    out = resample_model_set(ms, rate, progress=lambda d, t, st=stamps: st.append(time.perf_counter()))
+                    out = resample.resample_model_set(ms, rate, progress=tick)
                 finally:
-                    for k, v in saved.items():
-                        setattr(logfit, k, v)
-                per = np.diff(stamps)
-                total = stamps[-1] - stamps[0]
+                    resample.EDGE_ATTEMPTS = saved
+                per, per_cpu = np.diff(wall), np.diff(cpu)
+                total = wall[-1] - wall[0]
                 base = base or total
                 info = out.metadata["resample"]
-                print(f"{name:<12} {rate:6g} {rule:<4} {ms.num_models:6d} {per.size:5d} {info['extra_order']:5d} "
-                      f"{info['worst_lsd_db']:8.3f} {len(info['misses']):6d} {np.median(per):11.3f} {per.max():6.2f} "
-                      f"{total:8.1f} {total / base:6.2f}", flush=True)
+                q = info["quality"]
+                path = path_lsd_db(ms, out, *lissajous_path(ms))
+                summary.setdefault((rule, rate), []).append((per, per_cpu, total / ms.num_models, len(info["misses"]), path))
+                orders = f"{info['from_order'][0]}/{info['from_order'][1]}->{info['to_order'][0]}/{info['to_order'][1]}"
+                print(f"{name[:22]:<22} {rate:6g} {rule:<4} {ms.num_models:6d} {per.size:5d} {orders:>11} "
+                      f"{info['worst_lsd_db']:8.3f} {100 * info['worst_band_power_error']:7.3f} "
+                      f"{100 * info['worst_power_above_old_nyquist']:7.3f} {len(info['misses']):6d} {np.median(per):14.3f} "
+                      f"{per.max():6.2f} {np.median(per_cpu):13.3f} {per_cpu.max():6.2f} {total / ms.num_models:11.3f} "
+                      f"{total / base:6.2f} {path:8.3f}", flush=True)
+                if table:  # appended set by set: a run stopped early keeps what it measured
+                    with open(table, "a") as fh:
+                        fh.writelines(",".join(str(x) for x in (name, rate, rule, m, *q[m])) + "\n" for m in range(ms.num_models))
+    for (rule, rate), items in sorted(summary.items()):
+        per = np.concatenate([i[0] for i in items])
+        per_cpu = np.concatenate([i[1] for i in items])
+        set_avg = np.array([i[2] for i in items])
+        print(f"all {rule} -> {rate:g} Hz: {len(items)} sets, {per.size} fits, {sum(i[3] for i in items)} models missing; "
+              f"s per fit median {np.median(per):.3f} worst {per.max():.2f} (CPU {np.median(per_cpu):.3f} / {per_cpu.max():.2f}); "
+              f"set seconds per model median {np.median(set_avg):.3f} worst {set_avg.max():.2f}; "
+              f"path LSD worst {max(i[4] for i in items):.3f} dB", flush=True)
 
 
 def render(orders) -> None:
@@ -196,13 +243,21 @@ def main() -> None:
     ap.add_argument("--render", action="store_true")
     ap.add_argument("--corpus", metavar="SETS", help="comma-separated corpus sets (grid8/6, ar2, hard12/10, narrow6/6, narrow20/20, "
                                                        "cork19/17) or 'all': seconds per model at --corpus-rates, then exit")
-    ap.add_argument("--corpus-rates", default="2000,4000")
-    ap.add_argument("--baseline", action="store_true", help="with --corpus: also the previous stopping rule (ratio column)")
+    ap.add_argument("--corpus-rates", default="2000,500")
+    ap.add_argument("--hatt", metavar="DIR", help="with --corpus: HaTT's Models_*.xml in DIR instead of (or, with --corpus SETS, "
+                                                  "after) the generated sets; never committed")
+    ap.add_argument("--hatt-every", type=int, default=1, help="every N-th HaTT set only")
+    ap.add_argument("--hatt-start", type=int, default=0, help="from the K-th (0-based; with --hatt-every: run parts in parallel)")
+    ap.add_argument("--hatt-reverse", action="store_true", help="the HaTT sets in reverse order (a second worker from the end)")
+    ap.add_argument("--baseline-every", type=int, default=0, metavar="N",
+                    help="with --corpus: the previous attempt ladder too, on every N-th set (ratio column)")
+    ap.add_argument("--table", metavar="OUT.csv", help="with --corpus: every model's LSD, band-power error and power above")
     args = ap.parse_args()
-    if args.corpus:
+    if args.corpus or args.hatt:
         names = ["grid8/6", "ar2", "hard12/10", "narrow6/6", "narrow20/20", "cork19/17"] if args.corpus == "all" \
-            else args.corpus.split(",")
-        corpus(names, [float(r) for r in args.corpus_rates.split(",")], args.baseline)
+            else args.corpus.split(",") if args.corpus else []
+        sets = corpus_sets(names) + (hatt_sets(args.hatt, args.hatt_every, args.hatt_start)[::-1 if args.hatt_reverse else 1] if args.hatt else [])
+        corpus(sets, [float(r) for r in args.corpus_rates.split(",")], args.baseline_every, args.table)
         return
     print(f"hatt_like_model seeds 0..{args.seeds - 1}, 19/17 at 1 kHz; LSD and powers of the model rebuilt from its LSFs")
     print(f"{'to Hz':>7} {'meth':<5} {'orders':>6} {'LSD max':>8} {'LSD med':>8} {'band %':>8} {'above %':>9} {'LSF ok':>7} "

@@ -19,10 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
+from flowtex.datasets.study import write_study_scene
 from flowtex.dsp.errors import signal_error
 from flowtex.graph.compiled import load_graph
 from flowtex.scene.build import plan_to_graph
-from flowtex.scene.study import write_study_scene
 
 REPO = Path(__file__).resolve().parents[1]
 SURFACES = ("EPDM_Foam", "Whiteboard", "MDF", "Silk_1", "Brick_1", "Carpet_3")

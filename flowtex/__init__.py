@@ -1,23 +1,39 @@
-"""flowtex: a dataflow framework for haptic signal processing."""
+"""flowtex: a dataflow framework for haptic signal processing.
 
-__version__ = "0.1.0"
+``import flowtex`` is cheap and has no side effects: :class:`Graph`,
+:func:`load_graph` and :func:`check_graph` are imported on first use (numba,
+the kernels and the numba cache configuration come with them, not before).
+"""
 
-import os as _os
-import sys as _sys
+from __future__ import annotations
 
-try:
-    from .cache import configure_numba_cache
+from typing import TYPE_CHECKING, Any
 
-    # Before any kernel module is imported: numba's cache folder follows the source tree.
-    SOURCE_FINGERPRINT = configure_numba_cache()
-
-    from .graph.compiled import Graph, check_graph, load_graph
-except KeyboardInterrupt:
-    # Ctrl-C while the command line starts (numba and the kernels load for a second or two): the command's
-    # "interrupted" and exit code 130 (docs/cli.md), not a traceback. Elsewhere (a REPL) the interrupt stays one.
-    if _sys.argv[:1] == ["-m"] or _os.path.basename(_sys.argv[0] if _sys.argv else "") == "flowtex":
-        print("interrupted", file=_sys.stderr)
-        raise SystemExit(130) from None
-    raise
+from .version import __version__
 
 __all__ = ["Graph", "check_graph", "load_graph", "__version__"]
+
+_LAZY = {"Graph": "flowtex.graph.compiled", "check_graph": "flowtex.graph.compiled", "load_graph": "flowtex.graph.compiled"}
+"""Public name -> module that defines it, imported when the name is first used."""
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .graph.compiled import Graph, check_graph, load_graph
+
+
+def __getattr__(name: str) -> Any:
+    if name == "SOURCE_FINGERPRINT":  # the older spelling of flowtex.cache.source_fingerprint()
+        from .cache import source_fingerprint
+
+        return source_fingerprint()
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'flowtex' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

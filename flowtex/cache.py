@@ -6,103 +6,98 @@ defines a function, not of the functions it calls: edit a kernel in
 would keep the old machine code. flowtex therefore keys numba's cache folder
 by a fingerprint of its whole source tree (every ``.py`` file's path, size and
 modification time): any edit to flowtex gives a fresh folder, and unchanged
-sources load instantly. Older folders are pruned (the newest few, and any used in the last hour, are kept). Setting ``NUMBA_CACHE_DIR``
-yourself turns this off.
+sources load instantly. Setting ``NUMBA_CACHE_DIR`` yourself turns this off.
+
+numba binds a function's cache folder when the function is decorated, so
+:func:`configure_numba_cache` runs just before the first module holding
+kernels is imported (the packages and modules with ``@njit(cache=True)`` call
+it first), never at ``import flowtex``. Older folders are pruned by
+:func:`prune_numba_cache`, which the compile service calls once, at the first
+compile of a process (the newest few, and any used in the last hour, are kept).
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
 import os
 import shutil
-import tempfile
 import time
 from pathlib import Path
 
-from .dsp.fastmath import CONTRACT
+from .config import CACHE_ENV, cache_dir, contract_enabled
 from .errors import FlowtexError
 
-CACHE_ENV = "FLOWTEX_CACHE_DIR"
+__all__ = ["CACHE_ENV", "cache_dir", "configure_numba_cache", "guard_numba_cache", "prune_numba_cache", "source_fingerprint"]
+
 KEEP_OLD = 3
 IN_USE_S = 3600.0
 """A folder used this recently is never pruned: another checkout of flowtex (another source tree) may be compiling into it."""
 
 
-def cache_dir() -> Path:
-    """Root of flowtex's on-disk cache (``$FLOWTEX_CACHE_DIR`` or ``~/.cache/flowtex``), created if missing.
-
-    Raises :class:`~flowtex.errors.FlowtexError`, one line naming the variable, when no file can be created there.
-    """
-    root = os.environ.get(CACHE_ENV)
-    if root:
-        folder = Path(root)
-        problem = _unusable(folder)
-        if problem:
-            raise FlowtexError(f"{CACHE_ENV}={root}: {problem}; point {CACHE_ENV} at a folder flowtex can write, or unset it "
-                               "(the cache then lives in ~/.cache/flowtex)")
-        return folder
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    folder = (Path(xdg) if xdg else Path.home() / ".cache") / "flowtex"
-    problem = _unusable(folder)
-    if problem:
-        raise FlowtexError(f"{folder}: the cache folder {problem}; set {CACHE_ENV} to a folder flowtex can write")
-    return folder
-
-
-def _unusable(folder: Path) -> str | None:
-    """Why no cache can be kept in ``folder`` (a file, below a file, a dangling link, not creatable, read-only), or None.
-
-    Checked by creating the folder (``mkdir -p``) and a file in it, as the cache will, not by asking ``os.access``.
-    """
-    if folder.is_symlink() and not folder.exists():
-        return f"is a symbolic link to {os.readlink(folder)}, which does not exist"
-    if folder.exists() and not folder.is_dir():
-        return "is a file, not a folder"
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        return f"cannot be created ({exc.strerror or exc}{' at ' + exc.filename if exc.filename else ''})"
-    try:
-        fd, name = tempfile.mkstemp(dir=folder, prefix=".probe.")
-    except OSError as exc:
-        return f"is not writable ({exc.strerror or exc})"
-    os.close(fd)
-    os.unlink(name)
-    return None
-
-
+@functools.lru_cache(maxsize=1)
 def source_fingerprint() -> str:
-    """Hash of the path, size and modification time of every flowtex source file, and of the FMA-contraction setting."""
+    """Hash of the path, size and modification time of every flowtex source file, and of the FMA-contraction setting.
+
+    Computed once per process (the tree a process runs is the one it imported).
+    """
     package = Path(__file__).resolve().parent
     h = hashlib.sha256()
     for path in sorted(package.rglob("*.py")):
         st = path.stat()
         h.update(f"{path.relative_to(package)}:{st.st_size}:{st.st_mtime_ns};".encode())
-    h.update(f"contract={CONTRACT};".encode())  # flowtex.dsp.fastmath's setting changes the machine code
+    h.update(f"contract={contract_enabled()};".encode())  # flowtex.dsp.fastmath's setting changes the machine code
     return h.hexdigest()[:16]
 
 
-def configure_numba_cache() -> str:
-    """Point numba's cache at a folder for this source tree; returns the fingerprint.
+_CONFIGURED: list[Path] = []
+"""The numba cache folder this process chose (empty until configured, or when the user's NUMBA_CACHE_DIR rules)."""
+_DONE: list[bool] = []
 
-    Must run before any module with ``@njit(cache=True)`` is imported.
+
+def configure_numba_cache() -> str:
+    """Point numba's cache at a folder for this source tree (once per process); returns the fingerprint.
+
+    Runs before any flowtex module with ``@njit(cache=True)`` decorates its kernels.
     """
     fingerprint = source_fingerprint()
+    if _DONE:
+        return fingerprint
+    _DONE.append(True)
     if os.environ.get("NUMBA_CACHE_DIR"):
         return fingerprint
     import numba
 
     guard_numba_cache()
     try:
-        root = cache_dir() / "numba"
-        folder = root / fingerprint
+        folder = cache_dir() / "numba" / fingerprint
         folder.mkdir(parents=True, exist_ok=True)
     except (OSError, FlowtexError):
         return fingerprint  # no usable cache folder: numba falls back to its own default; the verbs say why (cache_dir)
     numba.config.CACHE_DIR = str(folder)
-    _prune(root, folder)
+    _CONFIGURED.append(folder)
     return fingerprint
+
+
+def prune_numba_cache() -> None:
+    """Delete numba cache folders of older source trees (kept: the newest few, and any used in the last hour)."""
+    if not _CONFIGURED:
+        return
+    current = _CONFIGURED[0]
+    root = current.parent
+    try:
+        others = sorted((p for p in root.iterdir() if p.is_dir() and p != current), key=lambda p: p.stat().st_mtime)
+    except OSError:
+        return
+    now = time.time()
+    for old in others[:-KEEP_OLD] if len(others) > KEEP_OLD else []:
+        try:
+            if now - max([old.stat().st_mtime] + [c.stat().st_mtime for c in old.iterdir()]) < IN_USE_S:
+                continue
+        except OSError:
+            continue
+        shutil.rmtree(old, ignore_errors=True)
 
 
 SEAL_SUFFIX = ".sha256"

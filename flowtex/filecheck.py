@@ -2,90 +2,23 @@
 
 Kinds: graph, scene and device map (YAML; a map has ``flowtex_map:``, a scene ``surfaces:``, anything else is read as a
 graph), texture model set (native JSON or HaTT XML), pattern file, tap library, friction and compliance estimates
-(JSON, by their ``format`` key), DBC files and recordings (.npz/.csv/.h5). Each is checked by the same reader the
+(JSON, by their ``format`` key), DBC files and recordings (.npz/.csv/.h5); the kind comes from the format registry
+(:mod:`flowtex.io.formats`). Each is checked by the same reader the
 verbs use, so a file that passes here loads there. Layer: beside flowtex.scene and flowtex.bench, below flowtex.cli.
 Graphs are checked by flowtex.graph.compiled.check_graph (the command line adds its plugin report).
 """
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 from .errors import DataError, FlowtexError
+from .io.formats import COMPLIANCE, DBC, DEVICE_MAP, FRICTION, GRAPH, JSON_FORMATS, MODEL_SET, PATTERN, RECORDING, SCENE, TAP_LIBRARY, file_kind
 
-GRAPH = "graph"
-SCENE = "scene"
-DEVICE_MAP = "device map"
-MODEL_SET = "texture model set"
-PATTERN = "pattern"
-TAP_LIBRARY = "tap library"
-FRICTION = "friction estimate"
-COMPLIANCE = "compliance estimate"
-DBC = "DBC"
-RECORDING = "recording"
-
-JSON_FORMATS = {"flowtex-texture-models": MODEL_SET, "flowtex-pattern": PATTERN, "flowtex-tap-library": TAP_LIBRARY,
-                "flowtex-friction": FRICTION, "flowtex-compliance": COMPLIANCE}
-"""The ``format`` key of each flowtex JSON document."""
-
-
-def _read_text(path: Path) -> str:
-    from .limits import check_file_size
-
-    try:
-        check_file_size(path, "flowtex file")
-        return path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise DataError(f"{path}: file not found") from None
-    except IsADirectoryError:
-        raise DataError(f"{path}: is a folder; give a file") from None
-    except UnicodeDecodeError:
-        raise DataError(f"{path}: not a text file (and not a recording: .npz, .csv, .h5)") from None
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read ({exc.strerror or exc})") from None
-
-
-def file_kind(path: str | Path) -> str:
-    """The kind of flowtex file at ``path``, from its suffix for binary formats, else from its content."""
-    from .io.recordings import SUFFIXES
-
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix in SUFFIXES:
-        return RECORDING
-    if suffix == ".dbc":
-        return DBC
-    from .limits import MAX_YAML_BYTES, check_file_size
-
-    if suffix in (".yaml", ".yml") and (not path.exists() or path.stat().st_size > MAX_YAML_BYTES):
-        return GRAPH  # the graph loader says what is missing or too large, as validate always did
-    text = _read_text(path).lstrip("\ufeff \t\r\n")
-    if suffix == ".xml" or text.startswith("<"):
-        return MODEL_SET
-    if suffix == ".json" or text.startswith("{"):
-        try:
-            doc = json.loads(text)
-        except (ValueError, RecursionError):
-            raise DataError(f"{path}: not valid JSON (nested too deep or broken); flowtex's JSON files are objects with a "
-                            f"'format' key: {', '.join(JSON_FORMATS)}") from None
-        fmt = doc.get("format") if isinstance(doc, dict) else None
-        if fmt not in JSON_FORMATS:
-            from .limits import excerpt
-
-            shown = excerpt(fmt)
-            raise DataError(f"{path}: key 'format' is {shown}, not a flowtex file format ({', '.join(JSON_FORMATS)})")
-        return JSON_FORMATS[fmt]
-    from .yamlsource import load_yaml
-
-    check_file_size(path, "YAML file", MAX_YAML_BYTES)  # the YAML parser is slow: bounded before it starts
-    data = load_yaml(text, str(path))
-    if isinstance(data, dict) and "flowtex_map" in data:
-        return DEVICE_MAP
-    if isinstance(data, dict) and "surfaces" in data:
-        return SCENE
-    return GRAPH
+__all__ = ["COMPLIANCE", "DBC", "DEVICE_MAP", "FRICTION", "GRAPH", "JSON_FORMATS", "MODEL_SET", "PATTERN", "RECORDING", "SCENE",
+           "TAP_LIBRARY", "check_file", "file_kind"]
+"""The kinds and :func:`file_kind` live in the one format registry, :mod:`flowtex.io.formats`."""
 
 
 def check_file(path: str | Path, kind: str, dbc: str | Path | None = None, plugins: tuple[str | Path, ...] = (),
@@ -132,12 +65,16 @@ def _number(doc: dict, key: str, path: Path, low: float, high: float, optional: 
 
 def _friction(path: Path, *_: object) -> str:
     from .io.jsondoc import read_json_document
+    from .schema.core import INVALID, Collector, check_keys, value_of
+    from .schema.datafiles import FRICTION as DECLARED
 
     doc = read_json_document(path, FRICTION, "flowtex-friction", (1,))
-    mu = _number(doc, "mu", path, 0.0, math.inf)
-    ci = doc.get("mu_ci")
-    if not (isinstance(ci, list) and len(ci) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in ci)):
-        raise DataError(f"{path}: key 'mu_ci' must be [low, high] (the 95 % interval of mu)")
+    c = Collector(str(path))
+    if check_keys(c, doc, DECLARED):
+        mu = value_of(c, doc, DECLARED, "mu")
+        value_of(c, doc, DECLARED, "mu_ci")
+    c.raise_first_as_data_error()
+    assert mu is not INVALID
     return f"mu {mu:.4g}"
 
 
@@ -169,13 +106,13 @@ def _device_map(path: Path, dbc: str | Path | None, *_: object) -> str:
     return f"{len(m.inputs)} inputs, {len(m.outputs)} outputs on {Path(dbc).name}"
 
 
-def _scene(path: Path, _dbc: object, plugins: tuple[str | Path, ...], auto_plugins: bool) -> str:
+def _scene(path: Path, _dbc: object, plugins: tuple[str | Path, ...], _auto_plugins: bool) -> str:
     from .registry import load_registry
     from .scene.file import load_scene
     from .scene.plan import plan_scene
 
     scene = load_scene(path)
-    plan = plan_scene(scene, frozenset(load_registry(plugins, auto=auto_plugins).names()))
+    plan = plan_scene(scene, frozenset(load_registry(plugins).names()))
     kept = sum(d.keep for data in plan.values() for d in data.decisions.values())
     total = sum(len(data.decisions) for data in plan.values())
     return f"{len(plan)} surfaces, {kept} of {total} components kept"

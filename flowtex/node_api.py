@@ -35,8 +35,11 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from .cache import configure_numba_cache
 from .errors import ParamError
 from .limits import MAX_INT_PARAM, excerpt, short_number
+
+configure_numba_cache()  # numba binds a kernel's cache folder when it is decorated: choose it first (flowtex.cache)
 
 
 class _Required:
@@ -74,8 +77,23 @@ class Param:
     length: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
+        """Refuse a declaration no value could satisfy (raised where the plugin declares it: its file and line)."""
         if self.kind not in PARAM_KINDS:
-            raise ValueError(f"unknown parameter kind {self.kind!r}; use one of {PARAM_KINDS}")
+            raise ValueError(f"unknown parameter kind {self.kind!r}; use one of {', '.join(PARAM_KINDS)}")
+        for bound in ("min", "max"):
+            value = getattr(self, bound)
+            if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float)) or math.isnan(value)):
+                raise ValueError(f"Param {bound}={excerpt(value)} is not a number")
+        if self.min is not None and self.max is not None and (
+                self.min > self.max or (self.min == self.max and (self.min_exclusive or self.max_exclusive))):
+            raise ValueError(f"Param min={self.min:g} and max={self.max:g} leave no allowed value; swap them")
+        if self.kind == "choice" and not self.choices:
+            raise ValueError("Param kind 'choice' needs choices=('a', 'b', ...)")
+        if not self.required and self.default is not None and self.kind not in ("path",):
+            try:
+                self.coerce(self.default)
+            except ValueError as exc:
+                raise ValueError(f"Param default {excerpt(self.default)}: {exc}") from None
 
     @property
     def required(self) -> bool:

@@ -15,11 +15,14 @@ from __future__ import annotations
 import inspect
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
+import numpy as np
+
 from .errors import FlowtexError
-from .node_api import Node
+from .limits import MAX_NODE_PORTS, MAX_PORT_VALUES, excerpt
+from .node_api import Node, NodeState, Param, Port
 
 CONTRACT = "kernel(p, s, si, inputs..., outputs...)"
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
@@ -37,7 +40,7 @@ def _python_function(kernel: Callable) -> Callable:
     return getattr(kernel, "py_func", kernel)
 
 
-def _shown(path: str | Path) -> str:
+def shown_path(path: str | Path) -> str:
     """A path as the user would type it: relative to the working directory when inside it."""
     try:
         rel = os.path.relpath(path)
@@ -58,7 +61,36 @@ def _def_line(func: Callable) -> int:
     return start
 
 
-def _where(cls: type[Node], func: Callable | None = None) -> str:
+def is_plugin(cls: type[Node]) -> bool:
+    """True for node types defined outside flowtex (plugin files and installed packages): their mistakes are theirs."""
+    return not cls.__module__.startswith("flowtex.")
+
+
+def error_line(exc: BaseException, path: str | Path) -> int:
+    """Line of the last traceback frame of ``exc`` inside the file ``path`` (0 if none; a SyntaxError's own line)."""
+    if isinstance(exc, SyntaxError) and exc.lineno:
+        return exc.lineno
+    target = Path(path).resolve()
+    tb = exc.__traceback__
+    line = 0
+    while tb is not None:
+        if Path(tb.tb_frame.f_code.co_filename).resolve() == target:
+            line = tb.tb_lineno
+        tb = tb.tb_next
+    return line
+
+
+def attr_line(cls: type[Node], attr: str) -> int | None:
+    """Line of ``attr = ...`` in the class body (where a declaration mistake is), or None."""
+    try:
+        lines, start = inspect.getsourcelines(cls)
+    except (OSError, TypeError):
+        return None
+    pattern = re.compile(rf"^\s*{re.escape(attr)}\s*(:[^=]*)?=")
+    return next((start + k for k, text in enumerate(lines) if pattern.match(text)), None)
+
+
+def node_where(cls: type[Node], func: Callable | None = None, line: int | None = None) -> str:
     target: object = func if func is not None else cls
     try:
         path = inspect.getsourcefile(target)  # type: ignore[arg-type]
@@ -66,14 +98,28 @@ def _where(cls: type[Node], func: Callable | None = None) -> str:
         path = None
     if path is None:
         return f"{cls.__module__}: node {cls.type_name!r}"
-    if func is not None:
+    if line is not None:
+        pass
+    elif func is not None:
         line = _def_line(func)
     else:
         try:
             line = inspect.getsourcelines(cls)[1]
         except (OSError, TypeError):
             line = 0
-    return f"{_shown(path)}:{line}: node {cls.type_name!r}"
+    return f"{shown_path(path)}:{line}: node {cls.type_name!r}"
+
+
+def kernel_location(cls: type[Node], line: int | None = None, attr: str = "kernel") -> str:
+    """``FILE:LINE`` of a node type's kernel (its ``def`` line unless ``line`` is given), or its module's name."""
+    func = _python_function(_kernel_attr(cls, attr) or cls)
+    try:
+        path = inspect.getsourcefile(func)
+    except TypeError:
+        path = None
+    if path is None:
+        return cls.__module__
+    return f"{shown_path(path)}:{line if line is not None else _def_line(func)}"
 
 
 def _is_numba_dispatcher(kernel: Callable) -> bool:
@@ -87,19 +133,80 @@ def expected_arguments(cls: type[Node]) -> list[str]:
     return ["p", "s", "si", *cls.inputs, *cls.outputs]
 
 
+def _shape_problem(port: Port, inputs: dict, output: bool) -> str | None:
+    """What is wrong with a declared shape, or None."""
+    shape = port.shape
+    if shape is None:
+        return "shape None (any shape) is for inputs only; declare the output's shape, e.g. () or '=x'" if output else None
+    if isinstance(shape, str):
+        if not shape.startswith("=") or not shape[1:]:
+            return f"shape {shape!r} is not a shape; use a tuple such as () or (3,), None (any; inputs only) or '=x' (as input x)"
+        if shape[1:] not in inputs:
+            return f"shape {shape!r} names no input; inputs are: {', '.join(inputs) or 'none'}"
+        return None
+    if not isinstance(shape, tuple) or not all(isinstance(n, int) and not isinstance(n, bool) for n in shape):
+        return f"shape {excerpt(shape)} is not a shape; use a tuple of positive integers such as () or (3,)"
+    if any(n < 1 for n in shape):
+        return f"shape {shape!r} has a size below 1; every size is a positive integer"
+    values = 1
+    for n in shape:
+        values *= n
+    if values > MAX_PORT_VALUES:
+        return f"shape {shape!r} holds {values:,} values per tick, more than the limit of {MAX_PORT_VALUES:,}"
+    return None
+
+
+def _unit_problem(port: Port, inputs: dict, output: bool) -> str | None:
+    unit = port.unit
+    if not isinstance(unit, str):
+        return f"unit {excerpt(unit)} is not a string; use e.g. 'N', '' (dimensionless), '*' (any; inputs only) or '=x'"
+    if unit == "*" and output:
+        return "unit '*' (any unit) is for inputs only; declare the output's unit, e.g. '' or '=x'"
+    if unit.startswith("=") and unit[1:] not in inputs:
+        return f"unit {unit!r} names no input; inputs are: {', '.join(inputs) or 'none'}"
+    return None
+
+
+def check_declarations(cls: type[Node]) -> None:
+    """Raise :class:`FlowtexError` at the declaring line for a port or parameter declaration flowtex cannot use."""
+    for attr, kind in (("params", Param), ("inputs", Port), ("outputs", Port)):
+        table = getattr(cls, attr)
+        where = node_where(cls, line=attr_line(cls, attr))
+        if not isinstance(table, dict):
+            raise FlowtexError(f"{where}: {attr} is {excerpt(table)}, not a dict of name: {kind.__name__}(...)")
+        for name, decl in table.items():
+            if not isinstance(name, str) or not name.isidentifier():
+                raise FlowtexError(f"{where}: {attr[:-1]} name {excerpt(name)} is not a Python identifier")
+            if not isinstance(decl, kind):
+                raise FlowtexError(f"{where}: {attr[:-1]} {name!r} is {excerpt(decl)}, not a {kind.__name__}(...)")
+            if kind is Port:
+                output = attr == "outputs"
+                problem = _shape_problem(decl, cls.inputs, output) or _unit_problem(decl, cls.inputs, output)
+                if problem:
+                    raise FlowtexError(f"{where}: {attr[:-1]} {name!r}: {problem}")
+                if output and decl.optional:
+                    raise FlowtexError(f"{where}: output {name!r}: optional is for inputs only")
+    ports = len(cls.inputs) + len(cls.outputs)
+    if ports > MAX_NODE_PORTS:
+        raise FlowtexError(f"{node_where(cls, line=attr_line(cls, 'inputs'))}: {len(cls.inputs)} inputs and {len(cls.outputs)} "
+                           f"outputs are {ports} ports, more than the limit of {MAX_NODE_PORTS}; take a vector input "
+                           "(Port((n,))) instead of many scalar ones")
+
+
 def check_node_class(cls: type[Node]) -> None:
-    """Raise :class:`FlowtexError` (``file:line: node 'name': ...`` and the fix) if the kernel breaks the contract."""
+    """Raise :class:`FlowtexError` (``file:line: node 'name': ...`` and the fix) if the declarations or kernel break the contract."""
+    check_declarations(cls)
     attrs = ["kernel"] + (["emit_kernel", "absorb_kernel"] if cls.breaks_cycles else [])
     for attr in attrs:
         kernel = _kernel_attr(cls, attr)
         if kernel is None:
-            raise FlowtexError(f"{_where(cls)}: defines no {attr}; set {attr} = a numba @njit function "
+            raise FlowtexError(f"{node_where(cls)}: defines no {attr}; set {attr} = a numba @njit function "
                                f"with arguments {CONTRACT}")
         func = _python_function(kernel)
         if not callable(func) or not hasattr(func, "__code__"):
-            raise FlowtexError(f"{_where(cls)}: {attr} is {kernel!r}, not a function; set {attr} = a numba @njit function")
+            raise FlowtexError(f"{node_where(cls)}: {attr} is {kernel!r}, not a function; set {attr} = a numba @njit function")
         if not _is_numba_dispatcher(kernel):
-            raise FlowtexError(f"{_where(cls, func)}: {attr} {func.__name__} is a plain Python function; decorate it "
+            raise FlowtexError(f"{node_where(cls, func)}: {attr} {func.__name__} is a plain Python function; decorate it "
                                "with @njit(cache=True) (from numba import njit): kernels run inside the compiled graph")
         if attr != "kernel":
             continue
@@ -112,7 +219,7 @@ def check_node_class(cls: type[Node]) -> None:
             ins = ", ".join(cls.inputs) or "none"
             outs = ", ".join(cls.outputs) or "none"
             raise FlowtexError(
-                f"{_where(cls, func)}: kernel {func.__name__}({have}) takes {len(params)} arguments but the node's ports need "
+                f"{node_where(cls, func)}: kernel {func.__name__}({have}) takes {len(params)} arguments but the node's ports need "
                 f"{len(want)}: {func.__name__}({', '.join(want)}) -- p (params), s (float state), si (int state), "
                 f"then the inputs ({ins}) and the outputs ({outs}) in declaration order")
 
@@ -134,14 +241,48 @@ def check_kernel_compiles(cls: type[Node]) -> None:
         raise FlowtexError(_compile_message(cls, kernel, str(exc))) from None
 
 
+def check_plugin_kernels(classes: Iterable[type[Node]]) -> None:
+    """:func:`check_kernel_compiles` for each plugin node type among ``classes`` (flowtex's own are compiled by its tests)."""
+    for cls in {cls for cls in classes if is_plugin(cls)}:
+        check_kernel_compiles(cls)
+
+
+def checked_state(cls: type[Node], node_name: str, state: object, build: Callable) -> NodeState:
+    """``state`` if :meth:`Node.build` returned a usable :class:`NodeState`, else the plugin's error at its ``build`` line."""
+    if isinstance(state, NodeState):
+        for field in ("params", "state", "istate"):
+            try:
+                arr = np.asarray(getattr(state, field), dtype=np.int64 if field == "istate" else np.float64)
+            except (TypeError, ValueError, OverflowError):
+                arr = None
+            if arr is None:  # any shape is packed flat (row-major) into the arena
+                raise FlowtexError(f"{node_where(cls, build)}: build() of graph node {node_name!r} returned NodeState({field}="
+                                   f"{excerpt(getattr(state, field))}); {field} must be an array of numbers")
+        return state
+    raise FlowtexError(f"{node_where(cls, build)}: build() of graph node {node_name!r} returned {excerpt(state)}, not a "
+                       "NodeState; end build() with return NodeState(params=..., state=..., istate=...)")
+
+
+def plugin_raised(cls: type[Node], node_name: str, method: str, exc: Exception) -> FlowtexError:
+    """The plugin's error for an exception its ``method`` (``__init__``, ``resolve``, ``build``) raised, at the raising line."""
+    func = getattr(cls, method)
+    try:
+        path = inspect.getsourcefile(func) or ""
+    except TypeError:
+        path = ""
+    line = error_line(exc, path) if path else 0
+    where = node_where(cls, func, line or None)
+    return FlowtexError(f"{where}: {method}() of graph node {node_name!r} raised {type(exc).__name__}: {exc}")
+
+
 def _compile_message(cls: type[Node], kernel: Callable, text: str) -> str:
     func = _python_function(kernel)
     text = _ANSI.sub("", text)
-    where = _where(cls, func)
+    where = node_where(cls, func)
     source = inspect.getsourcefile(func)
     for path, line in _NUMBA_FILE_LINE.findall(text):
         if source and Path(path).name == Path(source).name:
-            where = f"{_shown(source)}:{line}: node {cls.type_name!r}"
+            where = f"{shown_path(source)}:{line}: node {cls.type_name!r}"
             break
     lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
     useful = [ln for ln in lines if not ln.startswith(("Failed in", "During:", "File ", "<source"))] or lines or [""]

@@ -1,7 +1,8 @@
 """``flowtex plot OUT.npz``: a quick look at a run's outputs (time series, spectrograms of vibrations, force-speed trace).
 
-Units come from the file's unit metadata when it has some (a ``units`` entry
-holding a JSON object {signal: unit}, or ``<signal>__unit`` entries), else
+Units come from the units the recording stores (an npz ``units`` entry
+holding a JSON object {signal: unit}, a CSV ``# units:`` line, HDF5 ``unit``
+attributes, or ``<signal>__unit`` entries), else
 they are guessed from the signal's name. Needs matplotlib (the ``plot``
 extra); without it the command says how to install it.
 """
@@ -17,14 +18,15 @@ GUESSES = (("vibration", "m/s^2"), ("accel", "m/s^2"), ("force", "N"), ("velocit
            ("position", "mm"), ("in_contact", ""))
 
 
-def signal_units(arrays: dict[str, np.ndarray]) -> dict[str, str]:
-    """Unit of every signal: from the file's metadata when present, else guessed by name ('' if unknown)."""
-    meta: dict[str, str] = {}
+def signal_units(arrays: dict[str, np.ndarray], stored: dict[str, str] | None = None) -> dict[str, str]:
+    """Unit of every signal: the units the recording stores (``stored``: Recording.units, or the file's metadata
+    entries), else guessed by name ('' if unknown)."""
+    meta: dict[str, str] = dict(stored or {})
     if "units" in arrays:
         try:
-            meta = dict(json.loads(str(np.asarray(arrays["units"]).item())))
+            meta = dict(json.loads(str(np.asarray(arrays["units"]).item()))) | meta
         except (ValueError, TypeError):
-            meta = {}
+            pass
     out = {}
     for name in arrays:
         if name in ("units", "rate") or name.endswith("__unit"):
@@ -47,7 +49,7 @@ def plot_recording(file: str | Path, signals: list[str] | None, output: str | Pa
     agg_pyplot("flowtex plot needs matplotlib: pip install 'flowtex[plot]'")
     rec = load_recording(file)
     arrays = dict(rec.arrays)
-    units = signal_units(arrays)
+    units = signal_units(arrays, rec.units)
     names = signals or list(units)
     unknown = [n for n in names if n not in units]
     if unknown:

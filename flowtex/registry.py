@@ -6,10 +6,11 @@ subclass with a ``type_name`` defined in it is registered.
 * Built-in nodes and installed packages: entry points of group ``flowtex.nodes``
   (an entry point may name a module, a package -- all its public submodules --
   or a single Node class). flowtex's own entry point names ``flowtex.nodes``.
-* Plugin folders: every ``*.py`` file in ``./plugins`` (searched automatically),
-  in each folder of ``FLOWTEX_PLUGINS`` (``os.pathsep``-separated), in each
-  ``--plugins DIR``, and (added by the graph loader) in the graph file's own
-  ``plugins/`` folder.
+* Plugin folders: every ``*.py`` file in each folder of ``FLOWTEX_PLUGINS``
+  (``os.pathsep``-separated), in each ``--plugins DIR``, and (added by the graph
+  loader) in the graph file's own ``plugins/`` folder and the folders its
+  ``plugins:`` key names. The current working directory is never searched: a
+  folder a user happens to run flowtex in is not code they chose to run.
 """
 
 from __future__ import annotations
@@ -18,7 +19,6 @@ import hashlib
 import importlib
 import importlib.util
 import inspect
-import os
 import pkgutil
 import sys
 from collections.abc import Iterable
@@ -26,12 +26,13 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from types import ModuleType
 
+from .config import PLUGIN_ENV, plugin_folders
 from .errors import FlowtexError
 from .node_api import Node
-from .nodecheck import check_node_class
+from .nodecheck import check_node_class, error_line, shown_path
 
 ENTRY_POINT_GROUP = "flowtex.nodes"
-PLUGIN_ENV = "FLOWTEX_PLUGINS"
+__all__ = ["BUILTIN_PACKAGE", "ENTRY_POINT_GROUP", "PLUGIN_ENV", "Registry", "load_plugin_file", "load_registry", "plugin_dirs"]
 
 # The built-in package, used when flowtex runs from a source tree without
 # installed metadata; the installed entry point names the same package.
@@ -73,15 +74,10 @@ class Registry:
         return sorted(self.types)
 
 
-def plugin_dirs(extra: Iterable[str | Path] = (), auto: bool = True) -> list[Path]:
-    """Plugin folders in search order: ``./plugins`` (unless ``auto`` is False), ``$FLOWTEX_PLUGINS``, then ``extra``."""
+def plugin_dirs(extra: Iterable[str | Path] = ()) -> list[Path]:
+    """Plugin folders in search order: ``$FLOWTEX_PLUGINS``, then ``extra``."""
     dirs: list[Path] = []
-    local = Path.cwd() / "plugins"
-    if auto and local.is_dir():
-        dirs.append(local)
-    for item in os.environ.get(PLUGIN_ENV, "").split(os.pathsep):
-        if item:
-            dirs.append(Path(item))
+    dirs.extend(plugin_folders())
     dirs.extend(Path(d) for d in extra)
     unique: list[Path] = []
     for d in dirs:
@@ -94,7 +90,7 @@ def plugin_dirs(extra: Iterable[str | Path] = (), auto: bool = True) -> list[Pat
 def load_plugin_file(path: Path) -> ModuleType:
     """Import one plugin file under a stable private module name."""
     digest = hashlib.sha1(str(path.resolve()).encode()).hexdigest()[:10]
-    mod_name = f"flowtex_plugin_{path.stem}_{digest}"
+    mod_name = f"{_PLUGIN_MODULE_PREFIX}{path.stem}_{digest}"
     if mod_name in sys.modules:
         return sys.modules[mod_name]
     spec = importlib.util.spec_from_file_location(mod_name, path)
@@ -107,23 +103,16 @@ def load_plugin_file(path: Path) -> ModuleType:
     except FlowtexError:
         del sys.modules[mod_name]
         raise
+    except SystemExit as exc:  # sys.exit() in a plugin would end any command "successfully" with nothing done
+        del sys.modules[mod_name]
+        line = error_line(exc, path)
+        raise FlowtexError(f"{shown_path(path)}:{line}: plugin called sys.exit({exc.code!r}) while being imported; a plugin file "
+                           "must only define node types (flowtex stopped, nothing done)") from None
     except Exception as exc:  # a plugin's own bug: report it as the plugin's error
         del sys.modules[mod_name]
-        line = _error_line(exc, path)
-        raise FlowtexError(f"{path}:{line}: plugin failed to load: {type(exc).__name__}: {exc}") from exc
+        line = error_line(exc, path)
+        raise FlowtexError(f"{shown_path(path)}:{line}: plugin failed to load: {type(exc).__name__}: {exc}") from exc
     return module
-
-
-def _error_line(exc: BaseException, path: Path) -> int:
-    if isinstance(exc, SyntaxError) and exc.lineno:
-        return exc.lineno
-    tb = exc.__traceback__
-    line = 0
-    while tb is not None:
-        if Path(tb.tb_frame.f_code.co_filename).resolve() == path.resolve():
-            line = tb.tb_lineno
-        tb = tb.tb_next
-    return line
 
 
 def _with_submodules(module: ModuleType) -> list[ModuleType]:
@@ -137,11 +126,19 @@ def _with_submodules(module: ModuleType) -> list[ModuleType]:
 
 
 _CACHE: dict[tuple[Path, ...], Registry] = {}
+_PLUGIN_MODULE_PREFIX = "flowtex_plugin_"
 
 
-def load_registry(plugins: Iterable[str | Path] = (), auto: bool = True) -> Registry:
-    """Registry with built-ins, installed entry points and plugin folders (``auto=False``: not ``./plugins``)."""
-    dirs = tuple(plugin_dirs(plugins, auto))
+def forget_plugin_code() -> None:
+    """Forget every loaded plugin file and registry, so the next :func:`load_registry` imports edited plugins afresh."""
+    _CACHE.clear()
+    for name in [n for n in sys.modules if n.startswith(_PLUGIN_MODULE_PREFIX)]:
+        del sys.modules[name]
+
+
+def load_registry(plugins: Iterable[str | Path] = ()) -> Registry:
+    """Registry with built-ins, installed entry points, ``$FLOWTEX_PLUGINS`` and the plugin folders ``plugins``."""
+    dirs = tuple(plugin_dirs(plugins))
     if dirs in _CACHE:
         return _CACHE[dirs]
     reg = Registry()

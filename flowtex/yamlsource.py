@@ -14,6 +14,7 @@ a recursive alias (``&a [*a]``) too. Messages quote values with :func:`flowtex.l
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +24,8 @@ from .errors import Diagnostic, GraphError, Location
 from .limits import MAX_DEPTH, MAX_YAML_BYTES, MAX_YAML_INT, MAX_YAML_NODES, excerpt, not_regular
 
 Pos = tuple[int, int]
+FLOAT_12 = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$")
+"""A float with an exponent as YAML 1.2's core schema and JSON write it (``1e6``, ``-3.5E2``, ``.5e-3``)."""
 
 
 class LocDict(dict):
@@ -169,6 +172,9 @@ class _Loader(yaml.SafeLoader):
         return value
 
 _Loader.add_constructor("tag:yaml.org,2002:int", _Loader.construct_bounded_int)
+# Numbers as YAML 1.2 and JSON write them: PyYAML's YAML 1.1 float needs a dot and a signed exponent, so ``1e6``,
+# ``3e2`` and ``3.0e2`` would be strings. (Ints, ``.inf`` and the 1.1 forms resolve as before.)
+_Loader.add_implicit_resolver("tag:yaml.org,2002:float", FLOAT_12, list("-+0123456789."))
 _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _Loader.construct_loc_mapping)
 _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_SEQUENCE_TAG, _Loader.construct_loc_sequence)
 

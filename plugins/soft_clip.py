@@ -1,7 +1,8 @@
 """Example plugin: a smooth saturation for actuator commands.
 
-Drop a file like this into ./plugins (or a folder given with --plugins or
-$FLOWTEX_PLUGINS) and its node types appear in `flowtex nodes` and in graphs.
+Put a file like this in a folder a graph names (its own plugins/ folder, its
+`plugins:` key, --plugins DIR or $FLOWTEX_PLUGINS) and its node types appear in
+graphs and in `flowtex nodes --plugins DIR`.
 It uses exactly the API the built-in nodes use: declared params and ports,
 build-time Python, and a numba kernel that loops over a block of ticks.
 """

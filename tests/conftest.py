@@ -11,6 +11,23 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 
 os.environ.setdefault("FLOWTEX_BACKGROUND", "0")  # no background fused compiles (docs/engine.md) competing with the tests
+# The suite runs on the dispatch tier: a structure costs no numba compile once its node types are cached, and both tiers
+# give bit-identical outputs (tests/test_engine_tiers.py). The files below keep the fused tier: tier equivalence and goldens.
+SUITE_SETS_TIER = "FLOWTEX_COMPILE" not in os.environ
+os.environ.setdefault("FLOWTEX_COMPILE", "dispatch")
+
+FUSED_TIER_FILES = frozenset({"test_engine_tiers.py", "test_examples.py", "test_texture_examples.py",
+                              "test_golden_portability.py"})
+"""Test files that run on the fused tier (what library callers get by default), whatever the suite's default."""
+
+
+@pytest.fixture(autouse=True)
+def _compile_tier(request, monkeypatch):
+    """The fused tier for the files of :data:`FUSED_TIER_FILES`; the suite's default (dispatch) elsewhere.
+
+    A tier set in the environment before the run (``FLOWTEX_COMPILE=fused pytest``) applies to every file."""
+    if SUITE_SETS_TIER and request.path.name in FUSED_TIER_FILES:
+        monkeypatch.setenv("FLOWTEX_COMPILE", "fused")
 
 
 @pytest.fixture

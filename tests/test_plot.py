@@ -24,3 +24,21 @@ def test_plot_writes_a_png(tmp_path):
     assert main(["plot", str(tmp_path / "out.npz"), "-o", str(tmp_path / "p.png")]) == 0
     assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert main(["plot", str(tmp_path / "out.npz"), "--signals", "nothing"]) == 1
+
+
+def test_plot_uses_the_units_a_recording_stores(tmp_path, monkeypatch):
+    """A friction force stored in N is labelled [N], whatever its name (it was labelled [-]: load_recording moves the
+    stored units out of the arrays)."""
+    import flowtex.plotting as plotting
+    from flowtex.io.recordings import save_recording
+
+    seen = {}
+    monkeypatch.setattr(plotting, "plot_signals", lambda signals, units, *a, **k: seen.update(units))
+    n = 500
+    for suffix in (".npz", ".csv", ".h5"):
+        path = tmp_path / f"rec{suffix}"
+        save_recording(path, {"friction": np.zeros(n), "accel": np.zeros(n), "tool": np.zeros(n)}, rate=1000.0,
+                       units={"friction": "N", "accel": "g", "tool": "mm/s"})
+        seen.clear()
+        plotting.plot_recording(path, None, tmp_path / "p.png")
+        assert seen == {"friction": "N", "accel": "g", "tool": "mm/s"}, suffix

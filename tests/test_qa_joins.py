@@ -201,8 +201,8 @@ def test_models_resample_takes_a_tap_library(tmp_path: Path, capsys) -> None:
     from scipy.signal import resample_poly
 
     from flowtex.cli.main import main
+    from flowtex.datasets.taps import synthetic_tap_library
     from flowtex.io.taplib import read_tap_library, write_tap_library
-    from flowtex.models.taps import synthetic_tap_library
 
     lib = synthetic_tap_library()
     src = write_tap_library(tmp_path / "taps.json", lib)

@@ -61,8 +61,8 @@ def test_python_object_tags_are_refused(write_graph):
 def test_unknown_node_type_suggests_close_names(write_graph):
     msgs, path = problems(write_graph, GOOD.replace("type: butterworth", "type: buterworth"))
     assert msgs == [f"{path}:7:14: node 'lp': unknown node type 'buterworth' (did you mean 'butterworth'?); "
-                    "run 'flowtex nodes' to list them (plugin nodes are found in ./plugins, the graph file's plugins/ "
-                    "folder, $FLOWTEX_PLUGINS and --plugins DIR)"]
+                    "run 'flowtex nodes' to list them (plugin nodes are found in the graph file's plugins/ "
+                    "folder, the folders of its plugins: key, $FLOWTEX_PLUGINS and --plugins DIR)"]
 
 
 def test_unknown_parameter_suggests(write_graph):

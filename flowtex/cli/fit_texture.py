@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -40,8 +41,15 @@ def register_fit(kinds: Any) -> None:
                    const=Path("-"))
     p.add_argument("--report", metavar="DIR", help="write a markdown report with plots into this folder")
     p.add_argument("--holdout", type=lambda t: number_in_range(t, 0.0, 1.0, low_open=True, high_open=True), metavar="FRACTION",
-                   help="fit on all but the last FRACTION of the recording and compare the fit with that part "
-                        "(as flowtex compare does)")
+                   help="hold out FRACTION of the recording (see --holdout-split), fit the rest and compare the fit with "
+                        "the held-out part (as flowtex compare does)")
+    p.add_argument("--holdout-split", choices=("tail", "blocks"), default="tail",
+                   help="with --holdout: hold out the last FRACTION (tail) or interleaved one-second blocks (blocks)")
+    p.add_argument("--folds", type=int_at_least(2), metavar="K",
+                   help="K-fold cross-validation over interleaved one-second blocks (block k held out by fold k mod K); "
+                        "-o gets the fit of the whole recording")
+    p.add_argument("--holdout-json", type=Path, metavar="OUT.json",
+                   help="with --holdout or --folds: write {split, fraction or folds, results (one per fold), mean}")
     p.add_argument("--grid", metavar="INDEX.csv", help="Romano-2012 grid: CSV of file, speed, force (one stationary recording each)")
     p.add_argument("--out-dir", metavar="OUT", help="fit every recording given into OUT/<name>.json")
     p.add_argument("--workers", type=int_at_least(0), help="Dask workers on this machine for --out-dir (default: one per core)")
@@ -93,9 +101,7 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
         raise DataError(f"-o {args.output} and --out-dir {args.out_dir}: give one (-o for one recording's surface, --out-dir for "
                         "one surface per recording), not both")
     job = _job(args)
-    if args.holdout is not None and (args.grid is not None or args.out_dir is not None):
-        raise DataError("--holdout compares one free-exploration recording with its own held-out end; "
-                        "give one REC with -o (not --grid or --out-dir)")
+    _check_holdout_options(args)
     if args.xml == Path("-") and args.output is not None:
         args.xml = args.output.with_suffix(".xml")
     if args.grid is not None:
@@ -124,29 +130,75 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
     if args.output is None:
         raise DataError("give -o SURFACE.json (or --out-dir OUT for many recordings)")
     _check_outputs(args, list(paths))
-    if args.holdout is not None:
-        fit = _fit_holdout(paths[0], job, args.holdout)
+    from ..io.atomic import check_output
+
+    check_output(args.holdout_json, inputs=list(paths) + [args.output], option="--holdout-json")
+    held = None
+    if args.holdout is not None or args.folds is not None:
+        fit, held = _fit_holdout(paths[0], job, args)
     else:
         fit = fit_recording(paths[0], job)
         print_table(fit)
     write_outputs(fit, args.output, args.xml, job.render_rate, job.allow_misses)
+    if held is not None and args.holdout_json is not None:
+        from ..io.atomic import write_text_atomic
+
+        write_text_atomic(args.holdout_json, json.dumps(held.doc, indent=1) + "\n")
+        say(f"-> {args.holdout_json}")
     if args.report:
-        write_report(fit, Path(args.report))
+        write_report(fit, Path(args.report), held)
     say(f"-> {args.output}" + (f", {args.xml}" if args.xml else ""))
     return 0
 
 
-def _fit_holdout(path: Path, job: Any, fraction: float) -> Any:
-    """Fit on all but the last ``fraction`` of ``path``; print the fit table and the comparison on the held-out part."""
+def _check_holdout_options(args: argparse.Namespace) -> None:
+    """--holdout, --folds and their companions: one recording, one kind of split, each option where it means something."""
+    if args.holdout is not None and args.folds is not None:
+        raise DataError("give --holdout FRACTION (one split) or --folds K (K-fold cross-validation), not both")
+    held = args.holdout is not None or args.folds is not None
+    if held and (args.grid is not None or args.out_dir is not None):
+        raise DataError("--holdout/--folds compare one free-exploration recording with its own held-out part; "
+                        "give one REC with -o (not --grid or --out-dir)")
+    if args.holdout_json is not None and not held:
+        raise DataError("--holdout-json writes the held-out comparison: give --holdout FRACTION or --folds K with it")
+    if args.holdout_split != "tail" and args.holdout is None:
+        raise DataError("--holdout-split chooses how --holdout FRACTION is held out; give --holdout with it "
+                        "(--folds always uses interleaved one-second blocks)")
+
+
+def _fit_holdout(path: Path, job: Any, args: argparse.Namespace) -> tuple[Any, Any]:
+    """Fit the held-out split(s), print each comparison and the mean; returns (fit for -o, HeldOut)."""
     from ..fit.compare import summary_lines
-    from ..fit.evaluate import fit_holdout
-    from ..fit.report import print_table
+    from ..fit.crossval import describe_split, evaluate_splits, fold_splits, holdout_doc, holdout_split
+    from ..fit.report import HeldOut, print_table
     from ..fit.texture_job import read_signals
 
     acc, speed, force, rate = read_signals(path, job)
-    fit, cmp = fit_holdout(acc, speed, force, rate, fraction, job.options, job.material or path.stem, str(path))
+    material, where, n = job.material or path.stem, str(path), acc.shape[0]
+    if args.folds is not None:
+        split, key, value = "blocks", "folds", args.folds
+        splits = fold_splits(n, rate, args.folds, where)
+    else:
+        split, key, value = args.holdout_split, "fraction", args.holdout
+        splits = [holdout_split(n, rate, args.holdout, split, where)]
+    done = evaluate_splits(acc, speed, force, rate, splits, job.options, material, where)
+    if args.folds is not None:
+        from ..fit.texture import fit_texture
+
+        fit = fit_texture(acc, speed, force, rate, job.options, material, where)
+    else:
+        fit = done[0][0]
     print_table(fit)
-    say(f"held out: the last {fraction:g} of the recording ({fraction * acc.shape[0] / rate:.1f} s), not used by the fit")
-    for line in summary_lines(cmp):
-        say(line)
-    return fit
+    line = describe_split(split, key, value, n, rate)
+    say(line)
+    cmps = [c for _, c in done]
+    for k, c in enumerate(cmps):
+        if len(cmps) > 1:
+            say(f"fold {k}:")
+        for text in summary_lines(c):
+            say(text)
+    doc = holdout_doc(split, key, value, cmps)
+    if len(cmps) > 1:
+        m = doc["mean"]
+        say(f"mean over {len(cmps)} folds: power ratio {m['power_ratio_db']:+.2f} dB, LSD {m['lsd_db']:.2f} dB, GFC {m['gfc']:.3f}")
+    return fit, HeldOut(line, cmps, doc)

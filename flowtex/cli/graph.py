@@ -31,7 +31,9 @@ def register(sub: Any) -> None:
 
     p = sub.add_parser("nodes", help="list node types with ports, parameters and docs")
     p.add_argument("type", nargs="?", help="show only this node type")
-    add_plugin_options(p)
+    p.add_argument("--json", action="store_true", help="print the node types as JSON (ports, parameters with kind, bounds, "
+                                                      "choices, default, unit, doc) for other tools")
+    add_plugin_options(p, no_plugins=False)
     p.set_defaults(func=cmd_nodes)
 
 
@@ -96,12 +98,20 @@ def cmd_nodes(args: argparse.Namespace) -> int:
     from ..node_api import suggest
     from ..registry import load_registry
 
-    registry = load_registry(tuple(args.plugins), auto=not args.no_plugins)
-    if args.type:
-        cls = registry.get(args.type)
-        if cls is None:
-            raise FlowtexError(f"unknown node type {args.type!r}{suggest(args.type, registry.names())}")
-        say(describe_node_type(cls, registry.origins[args.type]))
+    registry = load_registry(tuple(args.plugins))
+    if registry.plugin_files:
+        note(f"flowtex: loaded plugin code: {', '.join(str(f) for f in registry.plugin_files)}")
+    if args.type and registry.get(args.type) is None:
+        raise FlowtexError(f"unknown node type {args.type!r}{suggest(args.type, registry.names())}")
+    if args.json:
+        import json
+
+        from ..schema.jsonschema import node_facts
+
+        types = {args.type: registry.types[args.type]} if args.type else registry.types
+        say(json.dumps(node_facts(types, registry.origins), indent=1, ensure_ascii=False))
+    elif args.type:
+        say(describe_node_type(registry.types[args.type], registry.origins[args.type]))
     else:
         say(describe_registry(registry))
     return 0

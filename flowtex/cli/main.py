@@ -13,13 +13,13 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
-import os
 import signal
 import sys
 import threading
 from collections.abc import Iterator, Sequence
 from typing import Any
 
+from .. import config
 from ..errors import FlowtexError
 from .output import clean
 
@@ -35,19 +35,33 @@ EXIT_TERMINATED = 143
 class Terminated(KeyboardInterrupt):
     """SIGTERM, raised where Ctrl-C would raise KeyboardInterrupt: the same clean-up runs (no ``.part`` file left)."""
 
-COMMAND_MODULES = (
-    "flowtex.cli.graph",
-    "flowtex.cli.run",
-    "flowtex.cli.live",
-    "flowtex.cli.fit",
-    "flowtex.cli.compare",
-    "flowtex.cli.models",
-    "flowtex.cli.resample",
-    "flowtex.cli.scene",
-    "flowtex.cli.bench",
-    "flowtex.cli.plot",
-)
-"""Modules that add subcommands: each has ``register(subparsers)`` (one command group per module, one line here)."""
+COMMANDS: dict[str, tuple[str, str]] = {
+    "validate": ("flowtex.cli.graph", "check any flowtex file (graph, scene, device map, model set, pattern, tap library, "
+                                      "friction, compliance); one line per problem"),
+    "graph": ("flowtex.cli.graph", "show execution order, buffers and dropped nodes"),
+    "nodes": ("flowtex.cli.graph", "list node types with ports, parameters and docs"),
+    "run": ("flowtex.cli.run", "run a graph offline over a recording (or replay a CAN session)"),
+    "live": ("flowtex.cli.live", "run a graph live against a CAN device at the graph's rate"),
+    "simulate-device": ("flowtex.cli.live", "run the simulated CAN device as its own process"),
+    "fit": ("flowtex.cli.fit", "fit models (texture, friction, taps, pattern, compliance) to recordings"),
+    "compare": ("flowtex.cli.compare", "render a surface along a recording's speed and force and compare (power, LSD, ...)"),
+    "models": ("flowtex.cli.models", "operate on texture model sets and tap libraries (resample)"),
+    "resample": ("flowtex.cli.resample", "resample every signal of a recording to another rate (zero delay)"),
+    "scene": ("flowtex.cli.scene", "plan a multi-surface scene into a graph that renders only what matters"),
+    "bench": ("flowtex.cli.bench", "sweep knobs: ns/tick against output error, Pareto front"),
+    "plot": ("flowtex.cli.plot", "plot a run's outputs: time series, vibration spectrograms, force-speed trace"),
+    "schema": ("flowtex.cli.schema", "print the JSON Schema of a file kind for editors (graph, scene, map)"),
+    "plugin": ("flowtex.cli.plugin", "write a plugin package for a new node type, or check a plugin's node types"),
+    "watch": ("flowtex.cli.watch", "rerun a graph over a recording whenever the graph, its model files or its plugins change"),
+}
+"""The lazy command table (as pip's ``commands_dict``): command -> (module adding it, one-line summary).
+
+A module's ``register(subparsers)`` adds its commands; only the module of the command being run is imported, so
+``flowtex --help`` and ``--version`` import none (tests/cli/test_cli_lazy.py checks the summaries equal the
+parsers' help)."""
+
+COMMAND_MODULES = tuple(dict.fromkeys(module for module, _ in COMMANDS.values()))
+"""Modules that add subcommands, in table order."""
 
 
 class Parser(argparse.ArgumentParser):
@@ -58,16 +72,28 @@ class Parser(argparse.ArgumentParser):
         sys.exit(EXIT_USER_ERROR)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from .. import __version__
+def build_parser(command: str | None = "") -> argparse.ArgumentParser:
+    """The ``flowtex`` parser.
+
+    ``command`` ``""`` (the default): every command's full parser (docs and tests walk it). Otherwise only the module of
+    ``command`` is imported (``None``: none); the other commands are listed with their summaries and parse nothing.
+    """
+    from ..version import __version__
 
     parser = Parser(prog="flowtex", description="Dataflow graphs for haptic signal processing (every flag: docs/cli.md).",
                     epilog="Exit codes: 0 ok, 1 user error (one line), 2 internal error, 3 live without sensor frames, "
                            "130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
     parser.add_argument("--version", action="version", version=f"flowtex {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
-    for module_name in COMMAND_MODULES:
-        importlib.import_module(module_name).register(sub)
+    chosen = COMMANDS[command][0] if command else None
+    registered: set[str] = set()
+    for name, (module_name, summary) in COMMANDS.items():
+        if command == "" or module_name == chosen:
+            if module_name not in registered:
+                registered.add(module_name)
+                importlib.import_module(module_name).register(sub)
+        else:
+            sub.add_parser(name, help=summary)
     return parser
 
 
@@ -104,10 +130,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_INTERRUPTED
 
 
+def _command_of(argv: Sequence[str]) -> str | None:
+    """The command named on the command line (its first word that is not an option), or None."""
+    for word in argv:
+        if not word.startswith("-"):
+            return word if word in COMMANDS else None
+    return None
+
+
 def _main(argv: Sequence[str] | None) -> int:
+    words = list(sys.argv[1:] if argv is None else argv)
     try:
-        parser = build_parser()
-        args = parser.parse_args(argv)
+        parser = build_parser(_command_of(words))
+        args = parser.parse_args(words)
     except SystemExit as exc:  # --help, --version (0) or a bad command line (1, one line already printed)
         return int(exc.code or 0)
     try:
@@ -125,7 +160,7 @@ def _main(argv: Sequence[str] | None) -> int:
     except BrokenPipeError:
         return EXIT_OK
     except Exception as exc:
-        if os.environ.get("FLOWTEX_DEBUG"):
+        if config.debug():
             raise
         print(clean(f"flowtex: internal error: {type(exc).__name__}: {exc} (set FLOWTEX_DEBUG=1 for a traceback; please report it)"),
               file=sys.stderr)

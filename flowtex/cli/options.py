@@ -1,6 +1,6 @@
 """Option builders shared by every verb: one spelling and one meaning per flag (docs/cli.md lists them all).
 
-- ``--plugins DIR`` / ``--no-plugins``: extra plugin folders; skip the automatic ./plugins and graph-folder plugins.
+- ``--plugins DIR`` / ``--no-plugins``: extra plugin folders; skip the graph's own (its ``plugins/`` and ``plugins:`` key).
 - ``--set NODE.PARAM=VALUE``: override a node parameter (``--set rate=HZ``: the graph's rate).
 - ``--seed N``: noise seed.
 - ``--from-rate HZ``: the rate of a recording that states none (old spelling ``--rate`` in the fit verbs, with a notice).
@@ -32,7 +32,8 @@ def add_plugin_options(p: argparse.ArgumentParser, no_plugins: bool = True) -> N
         p.set_defaults(no_plugins=False)
         return
     p.add_argument("--no-plugins", action="store_true",
-                   help="do not load ./plugins nor the graph folder's plugins/ (only --plugins DIR and $FLOWTEX_PLUGINS)")
+                   help="do not load the graph's own plugin folders (its folder's plugins/ and its plugins: key); "
+                        "only --plugins DIR and $FLOWTEX_PLUGINS")
 
 
 def add_set_option(p: argparse.ArgumentParser) -> None:

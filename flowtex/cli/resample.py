@@ -5,9 +5,12 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from ..io.formats import AUDIO, suffixes
 from .options import add_from_rate, number_in_range, positive_hz
 from .output import say
 from .run import RECORDING_SUFFIXES
+
+AUDIO_SUFFIXES = suffixes(AUDIO)
 
 
 def register(sub: Any) -> None:
@@ -30,6 +33,6 @@ def cmd_resample(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output
     from ..io.recording_resample import resample_recording
 
-    check_output(args.output, inputs=[args.input], option="-o", suffixes=(*RECORDING_SUFFIXES, ".wav"))
+    check_output(args.output, inputs=[args.input], option="-o", suffixes=(*RECORDING_SUFFIXES, *AUDIO_SUFFIXES))
     say(resample_recording(args.input, args.output, args.rate, args.from_rate, args.atten_db))
     return 0

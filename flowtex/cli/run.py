@@ -4,16 +4,16 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 from typing import Any
 
 from ..errors import FlowtexError
+from ..io.formats import AUDIO, CAN_LOG, RECORDING, kind_of, suffixes
 from .graph import load_graph_from_args
 from .options import add_compile_option, add_graph_options, add_seed_option
-from .output import say
+from .output import note, say
 
-REPLAY_SUFFIXES = (".blf", ".log", ".asc")
-RECORDING_SUFFIXES = (".npz", ".csv", ".h5", ".hdf5")
+REPLAY_SUFFIXES = suffixes(CAN_LOG)
+RECORDING_SUFFIXES = suffixes(RECORDING)
 
 
 def register(sub: Any) -> None:
@@ -28,6 +28,9 @@ def register(sub: Any) -> None:
     p.add_argument("--nonfinite", choices=("error", "hold", "zero", "pass"), default="error",
                    help="NaN/inf in the recording: error (default; names signal, count, first index), "
                         "hold (last finite value), zero, or pass (unchanged)")
+    p.add_argument("--nonfinite-outputs", choices=("warn", "error"), default="warn",
+                   help="NaN/inf in the graph's outputs: warn (default; one line per output: NaN and inf counts, first tick) "
+                        "or error (refuse; nothing written)")
     add_compile_option(p, "auto")
     add_graph_options(p)
     p.set_defaults(func=cmd_run)
@@ -36,9 +39,9 @@ def register(sub: Any) -> None:
 def cmd_run(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output
 
-    replay = Path(args.input).suffix.lower() in REPLAY_SUFFIXES
+    replay = kind_of(args.input) == CAN_LOG
     check_output(args.output, inputs=[args.graph, args.input, args.dbc, args.map], option="-o",
-                 suffixes=(".npz", ".wav", *REPLAY_SUFFIXES) if replay else (*RECORDING_SUFFIXES, ".wav"))
+                 suffixes=(".npz", *suffixes(AUDIO), *REPLAY_SUFFIXES) if replay else (*RECORDING_SUFFIXES, *suffixes(AUDIO)))
     graph = load_graph_from_args(args)
     if replay:
         if not (args.dbc and args.map):
@@ -47,17 +50,19 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         say(str(replay_session(graph, args.input, args.dbc, args.map, args.output, seed=args.seed)))
         return 0
-    if args.output and Path(args.output).suffix.lower() == ".wav":
+    if args.output and kind_of(args.output) == AUDIO:
         from ..runtime.offline import render_recording_audio
 
         samples, rate = render_recording_audio(graph, args.input, args.output, args.map, seed=args.seed,
                                                progress=sys.stderr.isatty(), nonfinite=args.nonfinite)
         say(f"{graph.name}: {samples.shape[0]} frames x {samples.shape[1]} channel(s) at {rate:g} Hz -> {args.output}")
         return 0
-    from ..runtime.offline import run_recording
+    from ..runtime.offline import nonfinite_outputs, run_recording
 
     outputs = run_recording(graph, args.input, args.output, seed=args.seed, progress=sys.stderr.isatty(),
-                            nonfinite=args.nonfinite)
+                            nonfinite=args.nonfinite, nonfinite_out=args.nonfinite_outputs)
+    for line in nonfinite_outputs(outputs):
+        note(f"warning: {line} (--nonfinite-outputs error refuses instead)")
     say(run_summary(graph, outputs, args.output))
     return 0
 

@@ -28,7 +28,7 @@ def register(sub: Any) -> None:
     p.add_argument("-o", "--output", required=True, help="graph YAML file to write")
     p.add_argument("--json", help="also write the decisions as JSON {surface: {component: {keep, salience, threshold, reason}}}")
     p.add_argument("--explain", action="store_true", help="print salience, threshold and decision per surface and component")
-    add_plugin_options(p)
+    add_plugin_options(p, no_plugins=False)  # a scene has no plugin folders of its own: only --plugins and $FLOWTEX_PLUGINS
     p.set_defaults(func=cmd_scene_plan)
 
     p = actions.add_parser("run", help="plan and run offline over a recording in one step")
@@ -56,7 +56,7 @@ def cmd_scene_plan(args: argparse.Namespace) -> int:
 
     check_output(args.output, inputs=[args.scene], option="-o", suffixes=(".yaml", ".yml"))
     check_output(args.json, inputs=[args.scene, args.output], option="--json", suffixes=(".json",))
-    plan = plan_to_graph(args.scene, args.output, tuple(args.plugins), auto_plugins=not args.no_plugins)
+    plan = plan_to_graph(args.scene, args.output, tuple(args.plugins))
     if args.json:
         write_text_atomic(Path(args.json), json.dumps(plan_json(plan), indent=2) + "\n")
     if args.explain:
@@ -78,8 +78,7 @@ def cmd_scene_run(args: argparse.Namespace) -> int:
     check_output(args.output, inputs=[args.scene, args.input], option="-o", suffixes=RECORDING_SUFFIXES)
     with tempfile.TemporaryDirectory(prefix="flowtex-scene-") as tmp:
         graph_path = Path(tmp) / "scene.yaml"
-        plan = plan_to_graph(args.scene, graph_path, tuple(args.plugins), fixed=args.surface, relative=False,
-                             auto_plugins=not args.no_plugins)
+        plan = plan_to_graph(args.scene, graph_path, tuple(args.plugins), fixed=args.surface, relative=False)
         if args.explain:
             say(explain(plan))
         graph = load_graph_from_args(args, graph_path)
@@ -101,7 +100,6 @@ def cmd_scene_live(args: argparse.Namespace) -> int:
     check_live_outputs(args, args.scene, dbc, map_)
     with tempfile.TemporaryDirectory(prefix="flowtex-scene-") as tmp:
         graph_path = Path(tmp) / "scene.yaml"
-        plan_to_graph(args.scene, graph_path, tuple(args.plugins), fixed=args.surface, relative=False,
-                      auto_plugins=not args.no_plugins)
+        plan_to_graph(args.scene, graph_path, tuple(args.plugins), fixed=args.surface, relative=False)
         graph = load_graph_from_args(args, graph_path, tier="fused")  # live keeps the fused tick
         return run_live_session(graph, args, dbc, map_)

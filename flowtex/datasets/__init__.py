@@ -30,10 +30,11 @@ import numpy as np
 from ..io.modelset import save_model_set
 from ..io.recordings import save_recording
 from ..io.taplib import write_tap_library
-from ..models.taps import TapLibrary, synthetic_tap_library
+from ..models.taps import TapLibrary
 from ..models.texture import TextureModelSet
 from .graphs import FRICTION_GRAPH, TAP_GRAPH, TEXTURE_GRAPH, run_graph
 from .model_sets import synthetic_model_set
+from .taps import synthetic_tap_library
 from .trajectories import Plateau, circle_path, plateau_trajectory, sweep_trajectory
 
 __all__ = ["Plateau", "SyntheticRecording", "default_surface", "free_exploration", "friction_session", "render_texture",

@@ -13,16 +13,22 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-TEXTURE_GRAPH = """
+from ..fit.texture_graph import TEXTURE_GRAPH
+
+__all__ = ["FRICTION_GRAPH", "TAP_GRAPH", "TEXTURE_GRAPH", "run_graph"]
+
+SCALED_TEXTURE_GRAPH = """
 flowtex: 1
-name: dataset-texture
+name: dataset-scaled-texture
 rate: {rate}
 seed: 1
 inputs:
   speed: {{unit: mm/s}}
   force: {{unit: N}}
+  power_factor: {{}}
 nodes:
   lookup: {{type: texture_lookup, params: {{models: set.json}}}}
+  scale: {{type: multiply}}
   synth: {{type: arma_synth}}
 edges:
   - speed -> lookup.speed
@@ -30,11 +36,13 @@ edges:
   - lookup.ar -> synth.ar
   - lookup.ma -> synth.ma
   - lookup.gain -> synth.gain
-  - lookup.variance -> synth.variance
+  - lookup.variance -> scale.a
+  - power_factor -> scale.b
+  - scale.y -> synth.variance
 outputs:
   accel: synth.y
 """
-"""Vibration (m/s^2) of a model set along a (speed, force) trajectory."""
+"""The texture graph with the excitation variance multiplied by ``power_factor`` (>= 0) tick by tick (flowtex.datasets.resonant)."""
 
 TAP_GRAPH = """
 flowtex: 1

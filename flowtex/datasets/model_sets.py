@@ -272,19 +272,69 @@ def narrow_peak_model_set(count: int = 24, ar_order: int = 20, ma_order: int = 2
     (300, 0). Variances span 15 dB, as real surfaces' do.
     """
     rng = np.random.default_rng(seed)
-    pts = np.vstack([np.column_stack([rng.uniform(20.0, 300.0, count), rng.uniform(0.2, 3.0, count)]),
-                     [[0.0, 0.0], [0.0, 3.0], [300.0, 0.0]]])
-    total = pts.shape[0]
-    ar_lsf, ma_lsf = np.empty((total, ar_order)), np.empty((total, ma_order))
-    ar_coeff, ma_coeff = np.empty((total, ar_order + 1)), np.empty((total, ma_order + 1))
-    for m in range(total):
-        a, c = hatt_like_model(seed * 1000 + min(m, count - 1), ar_order, ma_order, max_pole_radius, notch_radius=0.5)
-        ar_coeff[m], ma_coeff[m] = a, c
-        ar_lsf[m], ma_lsf[m] = poly_to_lsf_reference(a), poly_to_lsf_reference(c)
-    variance = np.r_[1e-3 * 10.0 ** (rng.uniform(0.0, 1.5, count)), np.zeros(3)]
-    ms = TextureModelSet(material="narrow peaks", sample_rate=1000.0, speeds=pts[:, 0].copy(), forces=pts[:, 1].copy(),
-                         triangles=Delaunay(pts).simplices.astype(np.int64), ar_lsf=ar_lsf, ma_lsf=ma_lsf,
-                         variance=variance, gain=np.ones(total), max_speed=300.0, max_force=3.0, mu=0.3,
-                         ar_coeff=ar_coeff, ma_coeff=ma_coeff,
-                         metadata={"generator": "flowtex.datasets.model_sets.narrow_peak_model_set"})
+    pts = np.column_stack([rng.uniform(20.0, 300.0, count), rng.uniform(0.2, 3.0, count)])
+    pairs = [hatt_like_model(seed * 1000 + m, ar_order, ma_order, max_pole_radius, notch_radius=0.5) for m in range(count)]
+    variance = 1e-3 * 10.0 ** (rng.uniform(0.0, 1.5, count))
+    return scattered_model_set("narrow peaks", pts, pairs, variance, "narrow_peak_model_set")
+
+
+def scattered_model_set(material: str, points: np.ndarray, pairs: list[tuple[np.ndarray, np.ndarray]],
+                        variance: np.ndarray, generator: str, max_speed: float = 300.0, max_force: float = 3.0) -> TextureModelSet:
+    """A 1 kHz set of the models ``pairs`` [(A, C)] at ``points`` (speed mm/s, force N), plus 3 silent corners.
+
+    The corners (variance 0) at (0, 0), (0, max_force) and (max_speed, 0) copy the last model's shape; the
+    points are Delaunay-triangulated; every gain is 1 and mu 0.3.
+    """
+    pts = np.vstack([points, [[0.0, 0.0], [0.0, max_force], [max_speed, 0.0]]])
+    pairs = list(pairs) + [pairs[-1]] * 3
+    ar_order, ma_order = pairs[0][0].shape[0] - 1, pairs[0][1].shape[0] - 1
+    ms = TextureModelSet(material=material, sample_rate=1000.0, speeds=pts[:, 0].copy(), forces=pts[:, 1].copy(),
+                         triangles=Delaunay(pts).simplices.astype(np.int64),
+                         ar_lsf=np.array([poly_to_lsf_reference(a) for a, _ in pairs]).reshape(len(pairs), ar_order),
+                         ma_lsf=np.array([poly_to_lsf_reference(c) for _, c in pairs]).reshape(len(pairs), ma_order),
+                         variance=np.r_[variance, np.zeros(3)], gain=np.ones(len(pairs)), max_speed=max_speed,
+                         max_force=max_force, mu=0.3, ar_coeff=np.array([a for a, _ in pairs]),
+                         ma_coeff=np.array([c for _, c in pairs]), metadata={"generator": f"flowtex.datasets.model_sets.{generator}"})
     return ms.validate()
+
+
+def rough_model_set(count: int = 16, ar_order: int = 14, ma_order: int = 12, seed: int = 0) -> TextureModelSet:
+    """``count`` models (plus 3 silent corners) whose spectra stay within a few dB of flat up to the Nyquist frequency.
+
+    Like HaTT's rough surfaces (its bricks): every pole and zero at radius 0.2..0.45, angles spread over
+    (0, pi), so nothing falls off before the Nyquist frequency. Upsampled, such a model must drop by tens of dB
+    within the last few percent of the old band, which its own roots cannot do while following the band.
+    """
+    rng = np.random.default_rng(seed)
+    pts = np.column_stack([rng.uniform(20.0, 300.0, count), rng.uniform(0.2, 3.0, count)])
+    pairs = []
+    for _ in range(count):
+        a = poly_from_roots(rng.uniform(0.2, 0.45, ar_order // 2), np.sort(rng.uniform(0.05, 3.1, ar_order // 2)),
+                            [rng.uniform(-0.4, 0.4)] if ar_order % 2 else [])
+        c = poly_from_roots(rng.uniform(0.2, 0.45, ma_order // 2), np.sort(rng.uniform(0.05, 3.1, ma_order // 2)),
+                            [rng.uniform(-0.4, 0.4)] if ma_order % 2 else [])
+        pairs.append((a, c))
+    return scattered_model_set("rough", pts, pairs, 1e-2 * 10.0 ** rng.uniform(0.0, 1.5, count), "rough_model_set")
+
+
+def edge_resonance_model_set(count: int = 16, ar_order: int = 10, ma_order: int = 8, seed: int = 0) -> TextureModelSet:
+    """``count`` models (plus 3 silent corners), each with a sharp resonance between 0.85 and 0.99 x the Nyquist frequency.
+
+    The hard case for resampling at both ends: upsampled, the peak sits at the old Nyquist's edge, inside or
+    just above the band a resampled model must keep (0.9 x the old Nyquist); downsampled by 2, it lies above the
+    new Nyquist and must not fold in. One pole pair at radius 0.97..0.995 there, the others as
+    :func:`hatt_like_model`'s (radii 0.8..0.95), zeros at 0.5..0.9 with no notch at z = -1.
+    """
+    rng = np.random.default_rng(seed)
+    pts = np.column_stack([rng.uniform(20.0, 300.0, count), rng.uniform(0.2, 3.0, count)])
+    pairs = []
+    for k in range(count):
+        npair = ar_order // 2
+        ang = np.r_[math.pi * (0.85 + 0.14 * k / max(count - 1, 1)), np.sort(rng.uniform(0.2, 2.4, npair - 1))]
+        rad = np.r_[rng.uniform(0.97, 0.995), rng.uniform(0.8, 0.95, npair - 1)]
+        a = poly_from_roots(rad, ang, [rng.uniform(-0.5, 0.5)] if ar_order % 2 else [])
+        c = poly_from_roots(rng.uniform(0.5, 0.9, ma_order // 2), np.sort(rng.uniform(0.3, 2.8, ma_order // 2)),
+                            [rng.uniform(-0.5, 0.5)] if ma_order % 2 else [])
+        pairs.append((a, c))
+    return scattered_model_set("edge resonances", pts, pairs, 1e-3 * 10.0 ** rng.uniform(0.0, 1.5, count),
+                               "edge_resonance_model_set")

@@ -68,6 +68,7 @@ import math
 
 import numpy as np
 
+from .anti_imaging import elliptic_lowpass, fir_lowpass
 from .arma_estimate import whittle_refine
 from .arma_logfit import fit_log_spectrum, real_poly
 from .lsf import is_valid_lsf, lsf_to_poly_new, roots_to_lsf
@@ -79,11 +80,13 @@ START_RADIUS = 0.999
 """Mapped roots (the fit's start) are pulled to at most this radius; the fit then moves them up to the radius policy's
 bound (flowtex.dsp.poly.MAX_RADIUS, and at most twice as sharp as the sharpest original pole)."""
 
-FIR_ZERO_RADIUS = 0.9999
-"""The anti-imaging FIR's zeros (designed on the unit circle) are pulled to this radius: valid, resolvable LSFs."""
-
 STOPBAND_FLOOR = 1e-4
 """Downsampling: target level above the new Nyquist, relative to the band's mean (-40 dB)."""
+
+DOWN_REFIT_DB = 0.2
+"""Downsampling: a prediction-error (Whittle) fit further than this (dB, level fitted out) from the band is refitted
+on its log spectrum (:func:`_fit_band`) and the closer of the two kept. Measured: rough, flat-to-Nyquist models
+(flowtex.datasets.model_sets.rough_model_set) whose spectra rise towards the new Nyquist left Whittle 42 dB off."""
 
 DIRECT_MAX_RATIO = 2.0
 """Largest upsampling ratio fitted at the original order; beyond it the model is fitted at rate_to / M, M = ceil(ratio / it),
@@ -92,10 +95,6 @@ of band power off, its float64 coefficients missing its spectrum; see docs/fitti
 
 STOPBAND_CEILING = 0.005
 """Upsampling: ceiling above the old Nyquist, relative to the band's mean power and divided by (ratio - 1)."""
-
-IMAGE_ATTENUATION_DB = 40.0
-"""Least stopband attenuation of the anti-imaging lowpass of stretched models (the band's images then carry
-<= ~0.01 % of its power; measured above the old Nyquist, all of it: <= 0.06 %)."""
 
 BAND_EDGE = 0.92
 """Band fitted two-sided: up to this fraction of the old Nyquist (the requirement's 0.9, plus a margin)."""
@@ -108,8 +107,10 @@ RANGE_MARGIN_DB = 6.0
 band; a peak above it, up to BAND_EDGE, does not set the range: measured, a 46 dB resonance at 0.908 x the old
 Nyquist left the lower band one-sided and 5-10 dB off there); the margin covers a peak sampled off its top."""
 
-BAND_POINTS, EDGE_POINTS, STOP_POINTS = 2000, 40, 1000
-"""Frequencies of the upsampling fit: uniform in the band (plus some around sharp poles), from BAND_EDGE to the old Nyquist, and above it."""
+BAND_POINTS, EDGE_POINTS, STOP_POINTS = 500, 40, 250
+"""Frequencies of the upsampling fit: uniform in the band (plus some around sharp poles), from BAND_EDGE to the old Nyquist, and above it.
+Measured on HaTT's sets at 2 kHz: 500 / 250 fit as well as 2000 / 1000 (same worst LSD) at a third of the CPU time
+(benchmarks/bench_model_resample.py, docs/fitting.md)."""
 
 PEAK_WIDTHS, PEAK_POINTS = 12.0, 97
 """Around a resonance narrower than the band's step: frequencies over +-PEAK_WIDTHS half-bandwidths, PEAK_POINTS of them
@@ -144,11 +145,14 @@ def _map_roots(poly: np.ndarray, ratio: float) -> np.ndarray:
     return stabilize(new / new[0])
 
 
-def upsampled_order(p: int, q: int, rate_from: float, rate_to: float, keep_order: bool = False, extra: int = 0) -> tuple[int, int]:
+def upsampled_order(p: int, q: int, rate_from: float, rate_to: float, keep_order: bool = False, extra: int = 0,
+                    lowpass: bool = False) -> tuple[int, int]:
     """(P, Q) of the models :func:`resample_arma` returns: (p + extra, q + extra) unless upsampling by more than :data:`DIRECT_MAX_RATIO`.
 
-    Then (M (p + extra), M (q + extra) + n) with M = :func:`_stretch` and n the order of the
-    anti-imaging FIR lowpass (:func:`_anti_imaging`); the same for every model of a set,
+    ``lowpass`` (up to DIRECT_MAX_RATIO): plus the order n of the elliptic edge
+    (:func:`flowtex.dsp.anti_imaging.elliptic_lowpass`), (p + extra + n, q + extra + n).
+    Beyond it (M (p + extra), M (q + extra) + n) with M = :func:`_stretch` and n the order of the
+    anti-imaging FIR lowpass (:func:`flowtex.dsp.anti_imaging.fir_lowpass`); the same for every model of a set,
     so LSFs stay interpolable. ``keep_order`` forces (p, q). ``extra`` (even): see :func:`_extra_roots`.
     """
     if keep_order:
@@ -156,8 +160,11 @@ def upsampled_order(p: int, q: int, rate_from: float, rate_to: float, keep_order
     p, q = p + extra, q + extra
     m = _stretch(rate_from, rate_to)
     if m == 1:
-        return p, q
-    poles, zeros = _anti_imaging(rate_from, rate_to, m)
+        if not lowpass or rate_to <= rate_from:
+            return p, q
+        poles, zeros = elliptic_lowpass(rate_from, rate_to, BAND_EDGE)
+        return p + poles.shape[0], q + zeros.shape[0]
+    poles, zeros = fir_lowpass(rate_from, rate_to, m, BAND_EDGE)
     return m * p + poles.shape[0], m * q + zeros.shape[0]
 
 
@@ -187,41 +194,13 @@ def _stretch(rate_from: float, rate_to: float) -> int:
     return 1 if ratio <= DIRECT_MAX_RATIO * (1.0 + 1e-12) else math.ceil(ratio / DIRECT_MAX_RATIO - 1e-12)
 
 
-def _anti_imaging(rate_from: float, rate_to: float, m: int) -> tuple[np.ndarray, np.ndarray]:
-    """(poles, zeros) at ``rate_to`` of the lowpass that removes the images of a model stretched by z -> z^m.
-
-    An all-zero (FIR) equiripple lowpass (scipy.signal.remez, stopband weighted
-    30x), made minimum phase by reflecting its zeros into the unit circle (same
-    magnitude) and pulling them to radius <= FIR_ZERO_RADIUS (valid LSFs): passband up to
-    the old Nyquist, stopband from its first image (rate_to / m - rate_from / 2),
-    the fewest taps (odd, >= 9) that reach :data:`IMAGE_ATTENUATION_DB`. Its
-    passband ripple is compensated inside the fit. Why no poles: an elliptic
-    lowpass puts high-Q poles at the band edge, among the model's own crowded
-    poles, and its coefficients then miss the spectrum (measured: 0.80 dB for
-    one of 30 HaTT-like models at 4x, 0.08 dB with this FIR).
-    """
-    import scipy.signal
-
-    wp = rate_from / rate_to  # old Nyquist over new Nyquist
-    ws = 2.0 / m - wp  # first image of the old Nyquist
-    if ws < 1.2 * wp:  # stretched by (nearly) the whole ratio: images start at the old Nyquist; pass only the fitted band
-        wp, ws = BAND_EDGE * wp, 2.0 / m - BAND_EDGE * wp
-    f = np.linspace(0.0, 1.0, 4097)
-    for taps in range(9, 202, 2):
-        h = scipy.signal.remez(taps, [0.0, 0.5 * wp, 0.5 * ws, 0.5], [1.0, 0.0], weight=[1.0, 30.0])
-        mag = np.sqrt(_model_power_spectrum(np.array([1.0]), h, math.pi * f))
-        if 20.0 * math.log10(np.max(mag[f <= wp]) / np.max(mag[f >= ws])) >= IMAGE_ATTENUATION_DB:
-            break
-    z = np.roots(h)
-    z = np.where(np.abs(z) > 1.0, 1.0 / np.conj(z), z)
-    return np.zeros(0, dtype=np.complex128), z * np.minimum(1.0, FIR_ZERO_RADIUS / np.abs(z))
-
-
 def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre: tuple[np.ndarray, np.ndarray] | None,
               rate_pre: float, extra: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """(poles, zeros) at ``rate`` Hz, same orders, whose spectrum times |pre|^2 is the original's below its Nyquist.
 
-    ``pre``: (poles, zeros) of a filter at ``rate_pre`` Hz (the anti-imaging lowpass) or None.
+    ``pre``: (poles, zeros) of a filter at ``rate_pre`` Hz (the anti-imaging lowpass) or None. When it runs at
+    the fitted rate itself (``rate_pre == rate``: the elliptic edge) the stopband ceiling applies to the cascade
+    and the level is set so that the fitted roots need not fall above the old Nyquist themselves: the lowpass does.
 
     Residuals (flowtex.dsp.arma_logfit): 10 log10(model / original) on
     BAND_POINTS frequencies up to BAND_EDGE x the old Nyquist where the original
@@ -229,9 +208,11 @@ def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre
     the peak - 40 dB in the band's valleys, the band's peak from BAND_EDGE to the
     old Nyquist, and STOPBAND_CEILING x the band's mean power / (ratio - 1)
     above it (then the power above the old Nyquist is <= ~STOPBAND_CEILING of the band's).
-    Start: the original's roots mapped by z -> z^(rate_from / rate).
+    Start: the original's roots mapped by z -> z^(rate_from / rate). Downsampling (``rate`` < ``rate_from``):
+    the band ends at the new Nyquist, there is no stopband and the level is free (the new band is only part of
+    the old circle, so Jensen fixes nothing).
     """
-    f_lim = 0.5 * rate_from
+    f_lim = 0.5 * min(rate_from, rate)
     a0, c0 = _extra_roots(_map_roots(ar, rate_from / rate), _map_roots(ma, rate_from / rate), extra, math.pi * rate_from / rate)
     # poles at most twice as sharp as the sharpest mapped original pole ((1 - r) halved)
     r_max = float(np.max(np.abs(np.roots(ar)))) ** (rate_from / rate) if ar.shape[0] > 1 else 0.0
@@ -241,7 +222,7 @@ def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre
     peak = float(np.max(t_db[f_in <= 0.9 * f_lim]))
     inside = t_db >= peak - LSD_RANGE_DB - RANGE_MARGIN_DB
     f_tr = np.linspace(BAND_EDGE * f_lim, f_lim, EDGE_POINTS)
-    f_st = np.linspace(f_lim, 0.5 * rate, STOP_POINTS)
+    f_st = np.linspace(f_lim, 0.5 * rate, STOP_POINTS) if rate > rate_from else np.zeros(0)
     ratio = rate / rate_from
     mean_power = float(np.sum(w_in ** 2 * 10.0 ** (t_db / 10.0)) / np.sum(w_in ** 2))  # per Hz, as on a uniform grid
     ceiling = 10.0 * math.log10(STOPBAND_CEILING / max(ratio - 1.0, 1e-3) * mean_power)
@@ -249,7 +230,14 @@ def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre
     top = max(peak, float(np.max(t_db)))
     level = np.r_[np.where(inside, t_db, peak - LSD_RANGE_DB - RANGE_MARGIN_DB), np.full(f_tr.shape[0], top),
                   np.full(f_st.shape[0], ceiling)]
-    if pre is not None:  # compensate the lowpass in the band and at its edge; the stopband ceiling stays the model's own
+    # the monic model's level fixed (see STOP_DEPTH_DB): the same level convention, so the same v2 / v1, for every model
+    offset = -STOP_DEPTH_DB * (ratio - 1.0) / ratio
+    if pre is not None and rate_pre == rate:  # the elliptic edge: the cascade is what the ceilings bound
+        pre_db = 10.0 * np.log10(_root_power_spectrum(pre[0], pre[1], 2.0 * math.pi * f / rate_pre))
+        level -= pre_db
+        # the roots' own level neutral (their log-mean the same in band and stopband): the edge does the falling
+        offset = -float(np.mean(pre_db[:f_in.shape[0]]))
+    elif pre is not None:  # compensate the lowpass in the band and at its edge; the stopband ceiling stays the model's own
         n_pre = f_in.shape[0] + f_tr.shape[0]
         pre_db = 10.0 * np.log10(_root_power_spectrum(pre[0], pre[1], 2.0 * math.pi * f[:n_pre] / rate_pre))
         level[:n_pre] -= pre_db
@@ -257,12 +245,11 @@ def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre
         # sits that much higher relative to the band (measured before this line: low-order sets at 4x left 9-11 %
         # of their power above the old Nyquist)
         level[n_pre:] -= float(np.mean(pre_db[:f_in.shape[0]]))
+        offset -= float(np.mean(pre_db[:f_in.shape[0]]))
     one_sided = np.r_[~inside, np.ones(f_tr.shape[0], dtype=bool), np.ones(f_st.shape[0], dtype=bool)]
-    # the monic model's level fixed (see STOP_DEPTH_DB): the same level convention, so the same v2 / v1, for every model
-    offset = -STOP_DEPTH_DB * (ratio - 1.0) / ratio - (float(np.mean(pre_db[:f_in.shape[0]])) if pre is not None else 0.0)
     weight = np.r_[w_in, np.ones(f_tr.shape[0] + f_st.shape[0])]
     poles, zeros, _, _ = fit_log_spectrum(2.0 * math.pi * f / rate, level, weight, one_sided, a0, c0,
-                                          pole_radius, MAX_RADIUS, offset_db=offset)
+                                          pole_radius, MAX_RADIUS, offset_db=offset if rate > rate_from else None)
     return poles, zeros
 
 
@@ -298,12 +285,19 @@ def _stretched_roots(roots: np.ndarray, m: int) -> np.ndarray:
 
 
 def _upsample(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate_to: float, keep_order: bool,
-              extra: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """(poles, zeros) at ``rate_to`` > ``rate_from``: a band fit at rate_to / M, stretched by z -> z^M and cascaded with the anti-imaging lowpass."""
+              extra: int = 0, lowpass: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """(poles, zeros) at ``rate_to`` > ``rate_from``: a band fit at rate_to / M, stretched by z -> z^M and cascaded with the anti-imaging lowpass.
+
+    Up to DIRECT_MAX_RATIO (M = 1) the band is fitted at ``rate_to`` itself, cascaded with the elliptic edge if ``lowpass``.
+    """
     m = 1 if keep_order else _stretch(rate_from, rate_to)
+    if m == 1 and lowpass and not keep_order:
+        lp_poles, lp_zeros = elliptic_lowpass(rate_from, rate_to, BAND_EDGE)
+        poles, zeros = _fit_band(ar, ma, rate_from, rate_to, (lp_poles, lp_zeros), rate_to, extra)
+        return np.r_[poles, lp_poles], np.r_[zeros, lp_zeros]
     if m == 1:
         return _fit_band(ar, ma, rate_from, rate_to, None, rate_to, 0 if keep_order else extra)
-    lp_poles, lp_zeros = _anti_imaging(rate_from, rate_to, m)
+    lp_poles, lp_zeros = fir_lowpass(rate_from, rate_to, m, BAND_EDGE)
     poles, zeros = _fit_band(ar, ma, rate_from, rate_to / m, (lp_poles, lp_zeros), rate_to, extra)
     return np.r_[_stretched_roots(poles, m), lp_poles], np.r_[_stretched_roots(zeros, m), lp_zeros]
 
@@ -322,7 +316,7 @@ def _band_variance(spectrum_new: np.ndarray, ar: np.ndarray, ma: np.ndarray, var
 
 
 def resample_arma_lsf(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, rate_from: float, rate_to: float,
-                      keep_order: bool = False, grid: int = GRID, iterations: int = 40, extra: int = 0
+                      keep_order: bool = False, grid: int = GRID, iterations: int = 40, extra: int = 0, lowpass: bool = False
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, float, float]:
     """:func:`resample_arma` plus the new model's LSFs: (ar, ma, ar_lsf, ma_lsf, gain, variance).
 
@@ -335,7 +329,7 @@ def resample_arma_lsf(ar: np.ndarray, ma: np.ndarray, gain: float, variance: flo
     if rate_to <= rate_from:
         a1, c1, g, v = resample_arma(ar, ma, gain, variance, rate_from, rate_to, grid=grid, iterations=iterations)
         return a1, c1, None, None, g, v
-    poles, zeros = _upsample(ar, ma, rate_from, rate_to, keep_order, extra)
+    poles, zeros = _upsample(ar, ma, rate_from, rate_to, keep_order, extra, lowpass)
     lsf_a = lsf_c = None
     try:
         lsf_a, lsf_c = roots_to_lsf(poles), roots_to_lsf(zeros)
@@ -380,5 +374,22 @@ def resample_arma(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, 
     shape = _model_power_spectrum(ar, ma, 2.0 * math.pi * np.minimum(f, f_lim) / rate_from)
     T = np.where(f < f_lim, shape, STOPBAND_FLOOR * np.mean(shape[f < f_lim]))
     a1, c1, _ = whittle_refine(T, grid, _map_roots(ar, ratio), _map_roots(ma, ratio), iterations=iterations, tol=1e-10)
-    wb = w[f < 0.9 * f_lim]
+    band = f < 0.9 * f_lim
+    wb = w[band]
+    if _band_lsd(a1, c1, shape[band], wb) > DOWN_REFIT_DB:  # Whittle's criterion let the band go: fit its log spectrum
+        poles, zeros = _fit_band(ar, ma, rate_from, rate_to, None, rate_to)
+        a2, c2 = real_poly(poles), real_poly(zeros)
+        if _band_lsd(a2, c2, shape[band], wb) < _band_lsd(a1, c1, shape[band], wb):
+            a1, c1 = a2, c2
     return a1, c1, float(gain), _band_variance(_model_power_spectrum(a1, c1, wb), ar, ma, variance, rate_from, rate_to, wb)
+
+
+def _band_lsd(a: np.ndarray, c: np.ndarray, target: np.ndarray, w: np.ndarray) -> float:
+    """LSD (dB) of the monic model (a, c) at ``w`` (rad/sample) against ``target``, its level fitted out.
+
+    The level does not count: the variance sets it afterwards. Frequencies within LSD_RANGE_DB of the target's peak.
+    """
+    d = 10.0 * np.log10(_model_power_spectrum(a, c, w) / target)
+    t_db = 10.0 * np.log10(target)
+    d = d[t_db >= np.max(t_db) - LSD_RANGE_DB]
+    return float(np.sqrt(np.mean((d - np.mean(d)) ** 2)))

@@ -14,10 +14,11 @@ contraction buys; the decision is in docs/graph-format.md ("What is identical wh
 
 from __future__ import annotations
 
-import os
+from ..config import CONTRACT_ENV, contract_enabled
 
-CONTRACT_ENV = "FLOWTEX_CONTRACT"
-CONTRACT = os.environ.get(CONTRACT_ENV, "1").strip() not in ("0", "false", "no", "off")
+__all__ = ["CONTRACT", "CONTRACT_ENV", "FASTMATH"]
+
+CONTRACT = contract_enabled()
 """Whether kernels are compiled with FMA contraction (the default)."""
 
 FASTMATH: set[str] = {"contract"} if CONTRACT else set()

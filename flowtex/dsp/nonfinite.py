@@ -50,6 +50,29 @@ def find_nonfinite(a: np.ndarray) -> NonFinite | None:
     return NonFinite(int(rows.sum()), first, value)
 
 
+@dataclass(frozen=True)
+class NonFiniteCount:
+    """NaN and inf values of one signal (every component counted) and the first time step holding either."""
+
+    nan: int
+    inf: int
+    first_index: int
+
+    def describe(self) -> str:
+        return f"{self.nan} NaN and {self.inf} inf value(s), the first at tick {self.first_index}"
+
+
+def count_nonfinite(a: np.ndarray) -> NonFiniteCount | None:
+    """NaN and inf values of ``a`` (time first), or None when every value is finite."""
+    flat = np.asarray(a, dtype=np.float64).reshape(a.shape[0], -1)
+    nan = np.isnan(flat)
+    inf = np.isinf(flat)
+    rows = (nan | inf).any(axis=1)
+    if not rows.any():
+        return None
+    return NonFiniteCount(int(nan.sum()), int(inf.sum()), int(np.argmax(rows)))
+
+
 def fill_nonfinite(a: np.ndarray, policy: str) -> np.ndarray:
     """A copy of ``a`` (time first) with non-finite samples replaced by ``policy`` (``hold`` or ``zero``)."""
     if policy not in ("hold", "zero"):

@@ -47,10 +47,25 @@ def welch_psd(x: np.ndarray, rate_hz: float, nperseg: int = 1024) -> tuple[np.nd
     return freqs, psd
 
 
-def psd_band_power(freqs_hz: np.ndarray, psd: np.ndarray, min_freq_hz: float) -> float:
-    """Power (units^2) of a one-sided PSD from ``min_freq_hz`` up (rectangle rule on its uniform grid)."""
-    band = freqs_hz >= min_freq_hz
+def psd_band_power(freqs_hz: np.ndarray, psd: np.ndarray, min_freq_hz: float, max_freq_hz: float = math.inf) -> float:
+    """Power (units^2) of a one-sided PSD from ``min_freq_hz`` (included) to ``max_freq_hz`` (excluded; rectangle rule)."""
+    band = (freqs_hz >= min_freq_hz) & (freqs_hz < max_freq_hz)
     return float(np.sum(psd[band]) * (freqs_hz[1] - freqs_hz[0]))
+
+
+def octave_bands(min_freq_hz: float, max_freq_hz: float) -> list[tuple[float, float, float]]:
+    """(centre, low, high) Hz of the octave bands (centres 1000 x 2^k Hz, edges centre / sqrt 2 and centre x sqrt 2).
+
+    Clipped to [``min_freq_hz``, ``max_freq_hz``]; a band is kept when at least half of it (in octaves) lies inside.
+    """
+    out = []
+    for k in range(-10, 6):
+        centre = 1000.0 * 2.0 ** k
+        lo, hi = centre / math.sqrt(2.0), centre * math.sqrt(2.0)
+        a, b = max(lo, min_freq_hz), min(hi, max_freq_hz)
+        if b > a and math.log2(b / a) >= 0.5:
+            out.append((centre, a, b))
+    return out
 
 
 def psd_centroid(freqs_hz: np.ndarray, psd: np.ndarray, min_freq_hz: float = 0.0, max_freq_hz: float = math.inf) -> float:
@@ -58,6 +73,14 @@ def psd_centroid(freqs_hz: np.ndarray, psd: np.ndarray, min_freq_hz: float = 0.0
     band = (freqs_hz >= min_freq_hz) & (freqs_hz <= max_freq_hz)
     total = np.sum(psd[band])
     return float(np.sum(freqs_hz[band] * psd[band]) / total) if total > 0 else float("nan")
+
+
+def signal_centroid(x: np.ndarray, rate_hz: float) -> float:
+    """Spectral centroid (Hz) of a whole signal ``x`` sampled at ``rate_hz``: sum X(f)^2 f / sum X(f)^2, X its DFT
+    magnitude (Culbertson & Kuchenbecker 2017 eq. 4, the tap hardness predictor); NaN for a silent signal, like
+    :func:`psd_centroid` (callers choose what silence means for them)."""
+    x = np.asarray(x, dtype=np.float64)
+    return psd_centroid(np.fft.rfftfreq(x.size, 1.0 / rate_hz), np.abs(np.fft.rfft(x)) ** 2)
 
 
 def lsd_db(s_fit: np.ndarray, s_true: np.ndarray, freqs_hz: np.ndarray, min_freq_hz: float = 15.0,

@@ -1,7 +1,7 @@
 """How faithful a surface is: render it along a recording's own speed and force, and compare with the recording.
 
 :func:`compare_surface` (``flowtex compare``, ``fit texture --holdout``) renders
-the model set with ``texture_lookup`` + ``arma_synth`` (flowtex.datasets.graphs,
+the model set with ``texture_lookup`` + ``arma_synth`` (flowtex.fit.texture_graph,
 the nodes every graph renders with) along the recorded speed (mm/s) and normal
 force (N), ``seeds`` times with different excitation seeds, and measures, on the
 recording and on the renders alike:
@@ -17,15 +17,31 @@ recording and on the renders alike:
   40 dB of its peak); ``gfc``: Culbertson et al. 2012's GFC of the two
   amplitude spectra (square roots of the PSDs) from ``min_freq_hz`` up;
   ``centroid_hz`` / ``rendered_centroid_hz``: the spectral centroids;
+* ``band_hz``: the band [``min_freq_hz``, top] of the LSD, GFC, centroids and
+  octave bands (top: ``max_freq_hz`` or the Nyquist frequency), stated in the
+  output;
+* ``octave_bands``: the rendered over recorded power (``error_db``) in every
+  octave band of ``band_hz`` (flowtex.dsp.spectral.octave_bands): where in
+  the spectrum the power is missing;
 * ``rms_correlation``: the Pearson correlation between the recorded and the
   rendered RMS of consecutive ``window_s`` (1 s) windows (the rendered RMS is
   the root of the seeds' mean power): does the render get louder where the
-  recording does? NaN (null in the JSON) with fewer than 3 windows or a
-  constant RMS;
+  recording does? With fewer than :data:`MIN_WINDOWS` windows (or a constant
+  RMS) a correlation means nothing: NaN (null in the JSON), and a warning says
+  why (``warnings``);
 * the same figures per window (``windows``).
 
-Welch PSDs use 256-sample Hann segments (0.26 s at 1 kHz; a 1-s window then has
-7 segments). Units: acceleration m/s^2, power (m/s^2)^2, frequencies Hz.
+Welch PSDs use Hann segments of ``rate / resolution_hz`` samples (50 %
+overlap), so the spectral resolution is the same at every sample rate (4 Hz:
+250 samples at 1 kHz, 1000 at 4 kHz) and so is the LSD's scatter: with a
+segment fixed in samples, the 1, 2 and 4 kHz versions of one surface scored
+LSD 2.38, 1.45 and 1.03 dB (issue 23).
+
+``ranges`` (held-out one-second blocks, flowtex.fit.crossval) restricts every
+figure to those sample ranges of a render along the whole path: the PSDs are
+the segment-weighted mean of each range's Welch PSD, windows never straddle
+two ranges, so no splice ever enters a spectrum. Units: acceleration m/s^2,
+power (m/s^2)^2, frequencies Hz.
 """
 
 from __future__ import annotations
@@ -41,12 +57,17 @@ import numpy as np
 
 from ..dsp.filter_design import zero_phase_highpass
 from ..dsp.resample import PASSBAND as RESAMPLE_PASSBAND
-from ..dsp.spectral import gfc, lsd_db, psd_band_power, psd_centroid, welch_psd
+from ..dsp.spectral import gfc, lsd_db, octave_bands, psd_band_power, psd_centroid, welch_psd
 from ..errors import DataError
 from ..models.texture import TextureModelSet
 
-NPERSEG = 256
-"""Welch segment length (samples) of every PSD here."""
+MIN_WINDOWS = 10
+"""Fewest windows a window-RMS correlation is computed over (with 4-5, one recording scored +-1.00)."""
+
+
+def welch_length(rate: float, resolution_hz: float) -> int:
+    """Welch segment length (samples) for a spectral resolution of ``resolution_hz`` at ``rate`` Hz (at least 16)."""
+    return max(16, int(round(rate / resolution_hz)))
 
 
 @dataclass
@@ -58,6 +79,8 @@ class CompareOptions:
     skip_s: float = 0.5
     min_freq_hz: float = 12.0
     window_s: float = 1.0
+    resolution_hz: float = 4.0
+    """Welch segment length in Hz (the segment is rate / resolution_hz samples)."""
     max_freq_hz: float = math.inf
     """Top of the band of the LSD, GFC and centroids (Hz); :func:`compare_surface` lowers it for a resampled set."""
     lookup: dict[str, Any] = field(default_factory=dict)
@@ -83,6 +106,14 @@ class Comparison:
     windows: list[dict[str, float]]
     max_freq_hz: float = math.inf
     """Top of the shape band (Hz; inf: the Nyquist frequency)."""
+    band_hz: list[float] = field(default_factory=list)
+    """[low, high] Hz of the LSD, GFC, centroids and octave bands."""
+    resolution_hz: float = 4.0
+    """Spectral resolution of the Welch PSDs (Hz)."""
+    octave_bands: list[dict[str, float]] = field(default_factory=list)
+    """Per octave band: centre_hz, low_hz, high_hz, recorded_power, rendered_power ((m/s^2)^2), error_db."""
+    warnings: list[str] = field(default_factory=list)
+    """Why a figure is null (e.g. too few windows for rms_correlation)."""
     freqs: np.ndarray | None = field(default=None, repr=False)
     """Welch frequencies (Hz) of the two PSDs below (not in the JSON)."""
     recorded_psd: np.ndarray | None = field(default=None, repr=False)
@@ -109,12 +140,12 @@ class Comparison:
 def render_along(ms: TextureModelSet, speed: np.ndarray, force: np.ndarray, seeds: list[int] | range,
                  lookup: Mapping[str, Any] | None = None) -> list[np.ndarray]:
     """Vibrations (m/s^2) of ``ms`` along (speed mm/s, force N), one per excitation seed; the graph is compiled once."""
-    from ..datasets.graphs import TEXTURE_GRAPH
     from ..graph.compiled import Graph
     from ..graph.resolve import resolve_graph
     from ..graph.spec import parse_spec
     from ..io.modelset import save_model_set
     from ..registry import load_registry
+    from .texture_graph import TEXTURE_GRAPH
 
     with tempfile.TemporaryDirectory() as tmp:
         path = save_model_set(ms, Path(tmp) / "surface.json")
@@ -131,64 +162,111 @@ def _shape(freqs: np.ndarray, rec: np.ndarray, ren: np.ndarray, min_freq: float,
     band = (freqs >= min_freq) & (freqs <= max_freq)
     if not np.any(rec[band] > 0):
         return float("nan"), float("nan"), float("nan"), psd_centroid(freqs, ren, min_freq, max_freq)
-    lsd = lsd_db(ren, rec, freqs, max_freq_hz=max_freq)
+    lsd = lsd_db(ren, rec, freqs, min_freq_hz=min_freq, max_freq_hz=max_freq)
     return (lsd, gfc(np.sqrt(ren[band]), np.sqrt(rec[band])), psd_centroid(freqs, rec, min_freq, max_freq),
             psd_centroid(freqs, ren, min_freq, max_freq))
 
 
-def compare_signals(recorded: np.ndarray, renders: list[np.ndarray], rate: float, opt: CompareOptions | None = None) -> Comparison:
-    """Compare a recorded vibration with renders of the same path (module docstring); all 1-D, same length, m/s^2."""
+def _mean_psd(x: np.ndarray, ranges: list[tuple[int, int]], rate: float, nperseg: int) -> tuple[np.ndarray, np.ndarray]:
+    """Segment-weighted mean of the Welch PSDs of ``x[a:b]`` over ``ranges`` (ranges shorter than a segment are left out)."""
+    total, weight, freqs = None, 0, None
+    for a, b in ranges:
+        if b - a < nperseg:
+            continue
+        freqs, psd = welch_psd(x[a:b], rate, nperseg)
+        segs = 1 + (b - a - nperseg) // (nperseg // 2)
+        total = psd * segs if total is None else total + psd * segs
+        weight += segs
+    assert total is not None and freqs is not None
+    return freqs, total / weight
+
+
+def _octaves(freqs: np.ndarray, rec: np.ndarray, ren: np.ndarray, low: float, high: float) -> list[dict[str, float]]:
+    out = []
+    for centre, a, b in octave_bands(low, high):
+        p_rec = psd_band_power(freqs, rec, a, b)
+        p_ren = psd_band_power(freqs, ren, a, b)
+        err = 10 * np.log10(p_ren / p_rec) if p_rec > 0 and p_ren > 0 else float("nan")
+        out.append({"centre_hz": centre, "low_hz": a, "high_hz": b, "recorded_power": p_rec, "rendered_power": p_ren,
+                    "error_db": float(err)})
+    return out
+
+
+def compare_signals(recorded: np.ndarray, renders: list[np.ndarray], rate: float, opt: CompareOptions | None = None,
+                    ranges: list[tuple[int, int]] | None = None) -> Comparison:
+    """Compare a recorded vibration with renders of the same path (module docstring); all 1-D, same length, m/s^2.
+
+    ``ranges``: (start, stop) sample ranges to compare (default: all); the first ``skip_s`` are left out either way.
+    """
     opt = opt or CompareOptions()
     skip = int(round(opt.skip_s * rate))
-    x = zero_phase_highpass(np.asarray(recorded, float), rate, opt.highpass_hz)[skip:]
-    ys = [zero_phase_highpass(np.asarray(r, float), rate, opt.highpass_hz)[skip:] for r in renders]
-    n = x.shape[0]
-    if n < NPERSEG:
+    n_all = np.asarray(recorded).shape[0]
+    x = zero_phase_highpass(np.asarray(recorded, float), rate, opt.highpass_hz)
+    ys = [zero_phase_highpass(np.asarray(r, float), rate, opt.highpass_hz) for r in renders]
+    keep = [(max(a, skip), min(b, n_all)) for a, b in (ranges if ranges is not None else [(0, n_all)])]
+    keep = [(a, b) for a, b in keep if b > a]
+    nperseg = welch_length(rate, opt.resolution_hz)
+    n = sum(b - a for a, b in keep)
+    if not any(b - a >= nperseg for a, b in keep):
         raise DataError(f"recording too short to compare: {n} samples after skipping {opt.skip_s:g} s; "
-                        f"it needs at least {NPERSEG / rate + opt.skip_s:.2f} s")
-    freqs, s_rec = welch_psd(x, rate, NPERSEG)
-    s_each = [welch_psd(y, rate, NPERSEG)[1] for y in ys]
+                        f"it needs a stretch of at least {nperseg / rate:.2f} s ({opt.resolution_hz:g} Hz resolution)")
+    freqs, s_rec = _mean_psd(x, keep, rate, nperseg)
+    s_each = [_mean_psd(y, keep, rate, nperseg)[1] for y in ys]
     s_ren = np.mean(s_each, axis=0)
     p_rec = psd_band_power(freqs, s_rec, opt.min_freq_hz)
     if p_rec <= 0:
         raise DataError(f"the recorded vibration has no power above {opt.min_freq_hz:g} Hz: nothing to compare")
     ratios = [10 * np.log10(max(psd_band_power(freqs, s, opt.min_freq_hz), 1e-300) / p_rec) for s in s_each]
     p_ren = float(np.mean([psd_band_power(freqs, s, opt.min_freq_hz) for s in s_each]))
-    lsd, g, c_rec, c_ren = _shape(freqs, s_rec, s_ren, opt.min_freq_hz, opt.max_freq_hz)
-    windows = _windows(x, ys, rate, opt)
+    top = min(opt.max_freq_hz, rate / 2.0)
+    lsd, g, c_rec, c_ren = _shape(freqs, s_rec, s_ren, opt.min_freq_hz, top)
+    windows = _windows(x, ys, rate, opt, keep, nperseg)
     rms_rec = np.array([w["recorded_rms"] for w in windows])
     rms_ren = np.array([w["rendered_rms"] for w in windows])
-    corr = float(np.corrcoef(rms_rec, rms_ren)[0, 1]) if len(windows) >= 3 and np.std(rms_rec) > 0 and np.std(rms_ren) > 0 \
-        else float("nan")
+    warnings = []
+    corr = float("nan")
+    if len(windows) < MIN_WINDOWS:
+        warnings.append(f"rms_correlation is null: {len(windows)} windows of {opt.window_s:g} s, fewer than {MIN_WINDOWS} "
+                        f"(compare a longer recording)")
+    elif np.std(rms_rec) > 0 and np.std(rms_ren) > 0:
+        corr = float(np.corrcoef(rms_rec, rms_ren)[0, 1])
+    else:
+        warnings.append("rms_correlation is null: the window RMS is constant")
     return Comparison(lsd_db=lsd, gfc=g, centroid_hz=c_rec, rendered_centroid_hz=c_ren,
                       power_ratio_db=float(10 * np.log10(max(p_ren, 1e-300) / p_rec)),
                       power_ratio_spread_db=float(np.std(ratios)) if len(ratios) > 1 else float("nan"),
                       rms_correlation=corr, recorded_rms=float(np.sqrt(p_rec)), rendered_rms=float(np.sqrt(p_ren)),
                       seconds=n / rate, seeds=len(renders), windows=windows, max_freq_hz=opt.max_freq_hz,
+                      band_hz=[float(opt.min_freq_hz), float(top)], resolution_hz=float(rate / nperseg),
+                      octave_bands=_octaves(freqs, s_rec, s_ren, opt.min_freq_hz, top), warnings=warnings,
                       freqs=freqs, recorded_psd=s_rec, rendered_psd=s_ren)
 
 
-def _windows(x: np.ndarray, ys: list[np.ndarray], rate: float, opt: CompareOptions) -> list[dict[str, float]]:
-    """Per-window figures over consecutive whole ``window_s`` windows (a last partial window is left out)."""
-    size = max(NPERSEG, int(round(opt.window_s * rate)))
+def _windows(x: np.ndarray, ys: list[np.ndarray], rate: float, opt: CompareOptions, keep: list[tuple[int, int]],
+             nperseg: int) -> list[dict[str, float]]:
+    """Per-window figures over consecutive whole ``window_s`` windows inside each range (a last partial window is left out)."""
+    size = max(nperseg, int(round(opt.window_s * rate)))
     out = []
-    for a in range(0, x.shape[0], size):
-        b = min(a + size, x.shape[0])
-        if b - a < size:
-            break
-        freqs, s_rec = welch_psd(x[a:b], rate, NPERSEG)
-        s_ren = np.mean([welch_psd(y[a:b], rate, NPERSEG)[1] for y in ys], axis=0)
-        lsd, g, c_rec, c_ren = _shape(freqs, s_rec, s_ren, opt.min_freq_hz, opt.max_freq_hz)
-        out.append({"start_s": opt.skip_s + a / rate, "seconds": (b - a) / rate,
-                    "recorded_rms": float(np.sqrt(psd_band_power(freqs, s_rec, opt.min_freq_hz))),
-                    "rendered_rms": float(np.sqrt(psd_band_power(freqs, s_ren, opt.min_freq_hz))),
-                    "lsd_db": lsd, "gfc": g, "centroid_hz": c_rec, "rendered_centroid_hz": c_ren})
+    for lo, hi in keep:
+        for a in range(lo, hi - size + 1, size):
+            b = a + size
+            freqs, s_rec = welch_psd(x[a:b], rate, nperseg)
+            s_ren = np.mean([welch_psd(y[a:b], rate, nperseg)[1] for y in ys], axis=0)
+            lsd, g, c_rec, c_ren = _shape(freqs, s_rec, s_ren, opt.min_freq_hz, opt.max_freq_hz)
+            out.append({"start_s": a / rate, "seconds": (b - a) / rate,
+                        "recorded_rms": float(np.sqrt(psd_band_power(freqs, s_rec, opt.min_freq_hz))),
+                        "rendered_rms": float(np.sqrt(psd_band_power(freqs, s_ren, opt.min_freq_hz))),
+                        "lsd_db": lsd, "gfc": g, "centroid_hz": c_rec, "rendered_centroid_hz": c_ren})
     return out
 
 
 def compare_surface(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, force: np.ndarray, rate: float,
-                    opt: CompareOptions | None = None, where: str = "recording") -> Comparison:
-    """Render ``ms`` along the recording's (speed mm/s, force N) and compare with its acceleration (module docstring)."""
+                    opt: CompareOptions | None = None, where: str = "recording",
+                    ranges: list[tuple[int, int]] | None = None) -> Comparison:
+    """Render ``ms`` along the recording's (speed mm/s, force N) and compare with its acceleration (module docstring).
+
+    ``ranges``: compare only these (start, stop) sample ranges of the whole path's render (held-out blocks).
+    """
     opt = opt or CompareOptions()
     if opt.seeds < 1:
         raise DataError(f"--seeds must be at least 1, got {opt.seeds}")
@@ -201,7 +279,7 @@ def compare_surface(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, f
     renders = render_along(ms, speed, force, range(opt.seeds), opt.lookup)
     _check_rendered(renders, accel, speed, force, where)
     try:
-        return compare_signals(accel, renders, rate, opt)
+        return compare_signals(accel, renders, rate, opt, ranges)
     except DataError as exc:
         raise DataError(f"{where}: {exc}") from None
 
@@ -240,6 +318,10 @@ def summary_lines(c: Comparison) -> list[str]:
     return [f"rendered along the recorded path ({c.seconds:.1f} s, {c.seeds} render(s)):",
             f"  power ratio {c.power_ratio_db:+.2f} dB (rendered over recorded, > 12 Hz; one render scatters by "
             f"{c.power_ratio_spread_db:.2f} dB); RMS {c.rendered_rms:.3g} vs {c.recorded_rms:.3g} m/s^2",
-            f"  LSD {c.lsd_db:.2f} dB, GFC {c.gfc:.3f}, centroid {c.rendered_centroid_hz:.0f} vs {c.centroid_hz:.0f} Hz"
-            + (f" (up to {c.max_freq_hz:g} Hz: the set was resampled from a lower rate)" if math.isfinite(c.max_freq_hz) else ""),
-            f"  1-s window RMS correlation {c.rms_correlation:.2f} over {len(c.windows)} windows"]
+            f"  LSD {c.lsd_db:.2f} dB, GFC {c.gfc:.3f}, centroid {c.rendered_centroid_hz:.0f} vs {c.centroid_hz:.0f} Hz "
+            f"(band {c.band_hz[0]:g}-{c.band_hz[1]:g} Hz, {c.resolution_hz:.3g} Hz resolution"
+            + ("; the set was resampled from a lower rate)" if math.isfinite(c.max_freq_hz) else ")"),
+            "  octave-band power error (dB): " + ", ".join(f"{b['centre_hz']:g} Hz {b['error_db']:+.1f}" for b in c.octave_bands),
+            f"  {c.windows[0]['seconds'] if c.windows else 0:g}-s window RMS correlation {c.rms_correlation:.2f} "
+            f"over {len(c.windows)} windows",
+            *(f"  warning: {w}" for w in c.warnings)]

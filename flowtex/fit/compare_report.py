@@ -2,7 +2,8 @@
 
 Plots: ``spectrum.png`` (recorded and rendered Welch PSDs, high-passed, start
 skipped), ``loudness.png`` (recorded and rendered RMS of each window over
-time) and ``windows.png`` (LSD and spectral centroids per window).
+time), ``windows.png`` (LSD and spectral centroids per window) and
+``octaves.png`` (rendered over recorded power per octave band, dB).
 """
 
 from __future__ import annotations
@@ -31,8 +32,10 @@ def write_compare_report(c: Comparison, folder: Path, title: str) -> Path:
     _spectrum(c, folder / "spectrum.png", plt)
     _loudness(c, folder / "loudness.png", plt)
     _windows(c, folder / "windows.png", plt)
+    _octaves(c, folder / "octaves.png", plt)
     md = [f"# {title}", "", "```", *summary_lines(c), "```", "",
           "![spectrum](spectrum.png)", "", "![loudness](loudness.png)", "", "![windows](windows.png)", "",
+          "![octaves](octaves.png)", "",
           "| start s | recorded RMS | rendered RMS | LSD dB | GFC | centroid Hz (rec / ren) |", "|---|---|---|---|---|---|"]
     for w in c.windows:
         md.append(f"| {w['start_s']:.1f} | {w['recorded_rms']:.3g} | {w['rendered_rms']:.3g} | {w['lsd_db']:.2f} | {w['gfc']:.3f} | "
@@ -74,4 +77,17 @@ def _windows(c: Comparison, path: Path, plt: Any) -> None:
     a2.set_ylabel("centroid (Hz)")
     a2.set_xlabel("s")
     a2.legend(fontsize=8)
+    save_png(fig, path)
+
+
+def _octaves(c: Comparison, path: Path, plt: Any) -> None:
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    bands = [b for b in c.octave_bands if np.isfinite(b["error_db"])]
+    labels = [f"{b['centre_hz']:g}" for b in bands]
+    errors = [b["error_db"] for b in bands]
+    ax.bar(labels, errors, color=["C3" if e < 0 else "C0" for e in errors])
+    ax.axhline(0.0, color="0.3", lw=0.8)
+    ax.set_xlabel("octave band centre (Hz)")
+    ax.set_ylabel("rendered / recorded power (dB)")
+    ax.set_title(f"power error per octave band ({c.band_hz[0]:g}-{c.band_hz[1]:g} Hz)", fontsize=9)
     save_png(fig, path)

@@ -33,11 +33,12 @@ from typing import Any
 
 import numpy as np
 
+from ..dsp.contact import CONTACT_ON_N
 from ..dsp.robust import irls_line
 from ..errors import DataError
 from .inputs import atomic_output, check_not_constant, load, signal
 
-DEFAULT_MIN_FORCE_N = 0.1
+DEFAULT_MIN_FORCE_N = CONTACT_ON_N
 """Samples below this normal force are out of contact (the contact node's on threshold)."""
 
 

@@ -54,3 +54,25 @@ def model_lsd_db(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, t
     """LSD (dB) of one model (ar, ma, gain, variance) against ``truth`` = (ar, ma, gain, variance) at ``rate`` Hz."""
     freqs = np.linspace(0.0, rate / 2, nfreq + 1)[1:-1]
     return lsd_db(arma_psd(ar, ma, gain, variance, freqs, rate), arma_psd(*truth, freqs, rate), freqs)
+
+
+def path_lsd_db(original: TextureModelSet, other: TextureModelSet, speeds: np.ndarray, forces: np.ndarray,
+                nfreq: int = 1500) -> float:
+    """LSD (dB, 15 Hz to 0.9 x the lower Nyquist) between two sets' expected spectra along a (speed, force) path.
+
+    At each point the model texture_lookup builds (:func:`models_at`), its PSD at its set's rate; the PSDs
+    averaged over the path are what a long render along it shows, without the noise of a render.
+    """
+    f = np.linspace(15.0, 0.45 * min(original.sample_rate, other.sample_rate), nfreq)
+
+    def mean_psd(ms: TextureModelSet) -> np.ndarray:
+        return np.mean([arma_psd(a, c, g, v, f, ms.sample_rate) for a, c, g, v in models_at(ms, speeds, forces)], axis=0)
+
+    return lsd_db(mean_psd(other), mean_psd(original), f)
+
+
+def lissajous_path(ms: TextureModelSet, points: int = 300) -> tuple[np.ndarray, np.ndarray]:
+    """(speeds mm/s, forces N): a Lissajous figure over 5 %..95 % of the set's speed and force range, ``points`` long."""
+    t = np.linspace(0.0, 1.0, points)
+    return (ms.max_speed * (0.5 + 0.45 * np.sin(2 * np.pi * 7.3 * t)),
+            ms.max_force * (0.5 + 0.45 * np.sin(2 * np.pi * 11.1 * t + 1.0)))

@@ -1,6 +1,7 @@
 """Fit reports: the table every texture fit prints, and ``--report DIR`` (markdown + PNG plots).
 
-Per model: speed (mm/s), force (N), samples, order (p, q), GFC (Culbertson et al. 2012's
+Model numbers are the models' indices in the written set (the JSON's arrays,
+0-based), in the table, the plots and the report alike. Per model: speed (mm/s), force (N), samples, order (p, q), GFC (Culbertson et al. 2012's
 definition, 1 = same spectral shape), LSD in dB (model PSD against the
 piece's Welch PSD, 256-point segments: > 15 Hz, 40 dB range) and the power
 error (model output power / data variance - 1). The LSD against the data
@@ -8,13 +9,22 @@ includes the Welch estimate's own scatter (about 4.3 / sqrt(segments) dB),
 so short pieces score worse than their models are; accuracy against a known
 truth is measured in tests/fit.
 
+``spectra.png``: one panel per model, its PSD (model) over its piece's Welch
+PSD (data), with a legend and the panel's LSD and GFC. ``plane.png``: the
+models in the (speed, force) plane over the recorded path, near-duplicate
+models (closer than :data:`NEAR_DUPLICATE` of the set's range on both axes)
+circled: their triangles are thin and the surface can jump between them. With
+``--holdout``/``--folds`` the report adds the held-out comparison.
+
 Plots need matplotlib (the ``plot`` extra); without it the report is written
 without them and a one-line hint says how to get them.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -24,15 +34,33 @@ from ..io.figures import agg_pyplot, save_png
 from .texture import TextureFit
 
 PLOT_HINT = "plots need matplotlib: pip install 'flowtex[plot]'"
+NEAR_DUPLICATE = 0.02
+"""Two models are near-duplicates when they lie closer than this fraction of the set's max speed and max force."""
+FONT = 9
+"""Smallest font size (points) of the report's plots."""
+
+
+@dataclass
+class HeldOut:
+    """A held-out comparison for the report: the line naming the split, one Comparison per fold, the JSON document."""
+
+    line: str
+    comparisons: list[Any]
+    doc: dict[str, Any]
+
+
+def _by_model(fit: TextureFit) -> list[Any]:
+    """The pieces in model order (the set's indices), the longest piece first where two share a model."""
+    return sorted(fit.pieces, key=lambda pc: (pc.model, -pc.samples))
 
 
 def table_lines(fit: TextureFit) -> list[str]:
     """The fit table, one line per model (header first)."""
     lines = [f"{'model':>5} {'speed':>8} {'force':>6} {'samples':>7} {'order':>7} {'GFC':>6} {'LSD dB':>7} {'power err':>9}"]
-    for k, pc in enumerate(fit.pieces):
+    for pc in _by_model(fit):
         f = pc.fit
         assert f is not None
-        lines.append(f"{k:5d} {pc.speed:8.1f} {pc.force:6.2f} {pc.samples:7d} {f.order[0]:3d},{f.order[1]:<3d} {f.gfc:6.3f} "
+        lines.append(f"{pc.model:5d} {pc.speed:8.1f} {pc.force:6.2f} {pc.samples:7d} {f.order[0]:3d},{f.order[1]:<3d} {f.gfc:6.3f} "
                      f"{pc.lsd_db:7.2f} {100 * f.power_error:8.2f}%")
     return lines
 
@@ -52,53 +80,110 @@ def print_table(fit: TextureFit) -> None:
     print(summary_line(fit))
 
 
-def write_report(fit: TextureFit, folder: Path) -> Path:
+def near_duplicates(ms: Any) -> list[tuple[int, int]]:
+    """Pairs (i, j) of measured models closer than NEAR_DUPLICATE x (max speed, max force) on both axes."""
+    idx = np.flatnonzero(ms.variance > 0)
+    out = []
+    for a, i in enumerate(idx):
+        for j in idx[a + 1:]:
+            if abs(ms.speeds[i] - ms.speeds[j]) < NEAR_DUPLICATE * ms.max_speed and \
+                    abs(ms.forces[i] - ms.forces[j]) < NEAR_DUPLICATE * ms.max_force:
+                out.append((int(i), int(j)))
+    return out
+
+
+def held_out_lines(held: HeldOut) -> list[str]:
+    """The held-out section of the report: the split, one row per fold, the mean."""
+    def row(name: str, r: dict) -> str:
+        def f(v: Any, fmt: str) -> str:
+            return "null" if v is None else format(v, fmt)
+        return (f"| {name} | {f(r['seconds'], '.1f')} | {f(r['power_ratio_db'], '+.2f')} | {f(r['lsd_db'], '.2f')} | "
+                f"{f(r['gfc'], '.3f')} | {f(r['rms_correlation'], '.2f')} |")
+    md = ["## Held out", "", held.line, "", "| fold | seconds | power ratio dB | LSD dB | GFC | window-RMS correlation |",
+          "|---|---|---|---|---|---|"]
+    md += [row(str(k), r) for k, r in enumerate(held.doc["results"])]
+    if len(held.doc["results"]) > 1:
+        md.append(row("mean", held.doc["mean"]))
+    bands = held.doc["mean"].get("octave_bands") or []
+    if bands:
+        md += ["", "Octave-band power error (rendered over recorded, dB, mean over folds): "
+               + ", ".join(f"{b['centre_hz']:g} Hz {b['error_db']:+.1f}" for b in bands if b.get("error_db") is not None)]
+    warnings = sorted({w for c in held.comparisons for w in c.warnings})
+    md += [f"- warning: {w}" for w in warnings]
+    return md + [""]
+
+
+def write_report(fit: TextureFit, folder: Path, held: HeldOut | None = None) -> Path:
     """Write ``folder/report.md`` and, with matplotlib, ``spectra.png`` and ``plane.png``; returns the markdown path."""
     folder.mkdir(parents=True, exist_ok=True)
     md = [f"# Texture fit: {fit.model_set.material}", "", summary_line(fit), "", "```", *table_lines(fit), "```", ""]
+    dups = near_duplicates(fit.model_set)
+    if dups:
+        md += ["Near-duplicate models (closer than 2 % of the range on both axes): "
+               + ", ".join(f"{i} and {j}" for i, j in dups), ""]
+    if held is not None:
+        md += held_out_lines(held)
     plt = agg_pyplot(None)
     if plt is None:
         print(PLOT_HINT)
         md.append(f"(no plots: {PLOT_HINT})")
     else:
         _plot_spectra(fit, folder / "spectra.png", plt)
-        _plot_plane(fit, folder / "plane.png", plt)
+        _plot_plane(fit, folder / "plane.png", plt, dups)
         md += ["## Each model's spectrum over its data's", "", "![spectra](spectra.png)", "",
                "## Models in the (speed, force) plane", "", "![plane](plane.png)", ""]
     return write_text_atomic(folder / "report.md", "\n".join(md) + "\n")
 
 
-def _plot_spectra(fit: TextureFit, path: Path, plt) -> None:
-    n = len(fit.pieces)
-    cols = min(6, n)
+def _plot_spectra(fit: TextureFit, path: Path, plt: Any) -> None:
+    pieces = _by_model(fit)
+    n = len(pieces)
+    cols = min(4, n)
     rows = (n + cols - 1) // cols
-    fig, axes = plt.subplots(rows, cols, figsize=(3 * cols, 2.2 * rows), squeeze=False, sharex=True)
-    for k, pc in enumerate(fit.pieces):
+    fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 2.9 * rows), squeeze=False, sharex=True)
+    for k, pc in enumerate(pieces):
         ax = axes[k // cols][k % cols]
         x = fit.signal[pc.start:pc.stop]
         freqs, s = welch_psd(x, fit.rate, min(256, x.size))
-        ax.semilogy(freqs, s, color="0.6", lw=0.8)
-        ax.semilogy(freqs, pc.fit.psd(freqs, fit.rate), color="C0", lw=1.0)
-        ax.set_title(f"{k}: {pc.speed:.0f} mm/s, {pc.force:.2f} N", fontsize=7)
-        ax.tick_params(labelsize=6)
+        ax.semilogy(freqs, s, color="0.55", lw=0.9, label="data")
+        ax.semilogy(freqs, pc.fit.psd(freqs, fit.rate), color="C0", lw=1.3, label="model")
+        ax.set_title(f"model {pc.model}: {pc.speed:.0f} mm/s, {pc.force:.2f} N", fontsize=FONT)
+        ax.text(0.97, 0.95, f"LSD {pc.lsd_db:.2f} dB\nGFC {pc.fit.gfc:.3f}", transform=ax.transAxes, ha="right", va="top",
+                fontsize=FONT)
+        ax.tick_params(labelsize=FONT)
+        if k == 0:
+            ax.legend(fontsize=FONT, loc="lower left")
     for k in range(n, rows * cols):
         axes[k // cols][k % cols].axis("off")
-    fig.supxlabel("Hz")
-    fig.supylabel("(m/s^2)^2/Hz")
+    fig.supxlabel("frequency (Hz)", fontsize=FONT + 1)
+    fig.supylabel("PSD ((m/s^2)^2/Hz)", fontsize=FONT + 1)
+    fig.tight_layout()
     save_png(fig, path)
 
 
-def _plot_plane(fit: TextureFit, path: Path, plt) -> None:
+def _plot_plane(fit: TextureFit, path: Path, plt: Any, dups: list[tuple[int, int]]) -> None:
     ms = fit.model_set
-    fig, ax = plt.subplots(figsize=(6, 4.5))
-    ax.triplot(ms.speeds, ms.forces, ms.triangles, color="0.7", lw=0.6)
+    fig, ax = plt.subplots(figsize=(7, 5.2))
+    if fit.path is not None:
+        ax.plot(fit.path[:, 0], fit.path[:, 1], color="0.8", lw=0.6, zorder=1, label="recorded path")
+    ax.triplot(ms.speeds, ms.forces, ms.triangles, color="0.55", lw=0.6, zorder=2)
     measured = ms.variance > 0
-    power = np.array([pc.fit.output_variance for pc in fit.pieces])
-    pts = np.array([[pc.speed, pc.force] for pc in fit.pieces])
-    sc = ax.scatter(pts[:, 0], pts[:, 1], c=10 * np.log10(power), cmap="viridis", s=30, zorder=3)
+    pieces = _by_model(fit)
+    power = np.array([pc.fit.output_variance for pc in pieces])
+    pts = np.array([[pc.speed, pc.force] for pc in pieces])
+    sc = ax.scatter(pts[:, 0], pts[:, 1], c=10 * np.log10(power), cmap="viridis", s=36, zorder=3)
+    for pc in pieces:
+        ax.annotate(str(pc.model), (pc.speed, pc.force), fontsize=FONT - 1, xytext=(3, 3), textcoords="offset points")
     ax.scatter(ms.speeds[~measured], ms.forces[~measured], marker="x", color="k", s=20, label="silent corner (variance 0)")
-    fig.colorbar(sc, label="model power (dB re 1 (m/s^2)^2)")
-    ax.set_xlabel("speed (mm/s)")
-    ax.set_ylabel("force (N)")
-    ax.legend(fontsize=7, loc="upper left")
+    if dups:
+        idx = sorted({i for pair in dups for i in pair})
+        ax.scatter(ms.speeds[idx], ms.forces[idx], s=160, facecolors="none", edgecolors="C3", lw=1.5, zorder=4,
+                   label=f"near-duplicate models (< {100 * NEAR_DUPLICATE:g} % apart)")
+    cb = fig.colorbar(sc)
+    cb.set_label("model power (dB re 1 (m/s^2)^2)", fontsize=FONT + 1)
+    cb.ax.tick_params(labelsize=FONT)
+    ax.set_xlabel("speed (mm/s)", fontsize=FONT + 1)
+    ax.set_ylabel("normal force (N)", fontsize=FONT + 1)
+    ax.tick_params(labelsize=FONT)
+    ax.legend(fontsize=FONT, loc="upper left")
     save_png(fig, path)

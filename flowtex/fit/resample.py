@@ -14,7 +14,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..dsp.arma import arma_psd
-from ..dsp.arma_resample import resample_arma_lsf
+from ..dsp.arma_resample import DIRECT_MAX_RATIO, resample_arma_lsf
 from ..dsp.lsf import lsf_to_poly_new, poly_to_lsf
 from ..dsp.spectral import lsd_db
 from ..errors import FlowtexError
@@ -71,7 +71,16 @@ MAX_EXTRA_ORDER = 20
 """Largest ``extra_order``: more poles and zeros than this only slow the fit down."""
 
 EXTRA_ORDERS = (0, 2, 4, 6, 8)
-"""Order increases tried, in turn, when upsampling leaves some model off (the first that keeps every model wins)."""
+"""Order increases tried, in turn, when upsampling by more than 2x leaves some model off (the first that keeps every
+model wins)."""
+
+EDGE_ATTEMPTS = ((0, False), (0, True), (2, True), (4, True))
+"""(extra order, elliptic edge) tried, in turn, when upsampling by up to 2x: the models' own order first, then
+cascaded with the elliptic lowpass at the old Nyquist (flowtex.dsp.anti_imaging.elliptic_lowpass), which the
+models whose spectrum is still high there need (HaTT's rough surfaces), then more poles and zeros as well."""
+
+Attempt = tuple[int, bool]
+"""(extra order, elliptic edge) of one attempt at a whole set."""
 
 
 @dataclasses.dataclass
@@ -93,17 +102,17 @@ class _Model:
         return max(self.lsd / MAX_LSD_DB, abs(self.band) / MAX_BAND_ERROR, self.above / MAX_POWER_ABOVE)
 
 
-def _resample_one(ms: TextureModelSet, m: int, rate_to: float, keep_order: bool, extra: int) -> _Model:
+def _resample_one(ms: TextureModelSet, m: int, rate_to: float, keep_order: bool, extra: int, lowpass: bool = False) -> _Model:
     """Model ``m`` of ``ms`` at ``rate_to`` Hz with ``extra`` more poles and zeros; quality measured as rendered (from the LSFs)."""
     rate_from = float(ms.sample_rate)
     a = lsf_to_poly_new(ms.ar_lsf[m])
     c = lsf_to_poly_new(ms.ma_lsf[m])
     v1 = float(ms.variance[m])
-    # a silent model (variance 0) is resampled at unit variance and stays silent: its shape still matters once
-    # texture_lookup interpolates it with its neighbours
-    v_fit = v1 if v1 > 0.0 else 1.0
-    a2, c2, lsf_a, lsf_c, g2, v2 = resample_arma_lsf(a, c, float(ms.gain[m]), v_fit, rate_from, rate_to,
-                                                     keep_order=keep_order, extra=extra)
+    # fitted at unit gain and variance (the shape; the resampled variance is linear in the original's and the gain
+    # is kept, so both scale out): a model's level never enters the arithmetic, whatever its size. A silent model
+    # (variance 0) stays silent: its shape still matters once texture_lookup interpolates it with its neighbours.
+    a2, c2, lsf_a, lsf_c, _, v_unit = resample_arma_lsf(a, c, 1.0, 1.0, rate_from, rate_to, keep_order=keep_order,
+                                                        extra=extra, lowpass=lowpass)
     if lsf_a is None:  # downsampling: LSFs from the (well-conditioned) polynomials
         a2 = min_phase_for_lsf(a2)
         c2 = min_phase_for_lsf(c2)
@@ -111,9 +120,28 @@ def _resample_one(ms: TextureModelSet, m: int, rate_to: float, keep_order: bool,
         lsf_c = poly_to_lsf(c2) if c2.shape[0] > 1 else np.zeros(0)
     # quality of the model as texture_lookup renders it: rebuilt from the stored LSFs
     a_r, c_r = lsf_to_poly_new(lsf_a), lsf_to_poly_new(lsf_c)
-    lsd, band = resample_quality(a, c, float(ms.gain[m]), v_fit, rate_from, a_r, c_r, g2, v2, rate_to)
+    lsd, band = resample_quality(a, c, 1.0, 1.0, rate_from, a_r, c_r, 1.0, v_unit, rate_to)
     above = power_above(a_r, c_r, rate_to, 0.5 * rate_from) if rate_to > rate_from else 0.0
-    return _Model(lsf_a, lsf_c, a2, c2, g2, v2 if v1 > 0.0 else 0.0, lsd, band, above)
+    return _Model(lsf_a, lsf_c, a2, c2, float(ms.gain[m]), v1 * v_unit, lsd, band, above)
+
+
+def check_power(ms: TextureModelSet) -> None:
+    """Raise FlowtexError naming the set's file and model unless every model's power gain^2 x variance is a float64.
+
+    A model whose power overflows (a gain of 1e300, say) cannot be rendered or resampled; before this check
+    `models resample` ended in an internal OverflowError.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        square = np.asarray(ms.gain, dtype=np.float64) ** 2
+        power = square * np.asarray(ms.variance, dtype=np.float64)
+    bad = np.flatnonzero(~(np.isfinite(square) & np.isfinite(power)))
+    if bad.size:
+        m = int(bad[0])
+        where = str(ms.source) if ms.source is not None else f"model set {ms.material!r}"
+        raise FlowtexError(f"{where}: model {m} ({float(ms.speeds[m]):g} mm/s, {float(ms.forces[m]):g} N): gain "
+                           f"{float(ms.gain[m]):g} and variance {float(ms.variance[m]):g}: gain^2 or the vibration power "
+                           "gain^2 x variance is beyond the largest float64 number; fix the model's gain or variance"
+                           + (f" ({bad.size} models affected)" if bad.size > 1 else ""))
 
 
 class _Progress:
@@ -129,34 +157,34 @@ class _Progress:
             self.callback(self.done, self.total)
 
 
-def _resample_models(ms: TextureModelSet, rate_to: float, keep_order: bool, tries: tuple[int, ...],
-                     progress: _Progress) -> tuple[int, list[_Model]]:
-    """(extra order, every model) for the first of ``tries`` with which every model keeps its spectrum (else the last).
+def _resample_models(ms: TextureModelSet, rate_to: float, keep_order: bool, tries: tuple[Attempt, ...],
+                     progress: _Progress) -> tuple[Attempt, list[_Model]]:
+    """(attempt, every model) for the first of ``tries`` with which every model keeps its spectrum (else the last).
 
     Stopping rule (bounded: at most len(tries) x models fits, each itself bounded, see
     :func:`flowtex.dsp.arma_logfit.fit_log_spectrum`): the models are fitted in turn, those that missed at a
-    smaller extra order first. An attempt stops at its first miss unless it is the last; the model that missed is
-    then tried alone at the next extra orders until it keeps its spectrum, and the set is attempted at that order.
-    Results are cached per (extra, model): nothing is fitted twice.
+    earlier attempt first. An attempt stops at its first miss unless it is the last; the model that missed is
+    then tried alone at the next attempts until it keeps its spectrum, and the set is attempted there.
+    Results are cached per (attempt, model): nothing is fitted twice.
     """
     m_count = ms.num_models
-    cache: dict[tuple[int, int], _Model] = {}
+    cache: dict[tuple[Attempt, int], _Model] = {}
 
-    def get(extra: int, m: int) -> _Model:
-        if (extra, m) not in cache:
-            cache[(extra, m)] = _resample_one(ms, m, rate_to, keep_order, extra)
+    def get(attempt: Attempt, m: int) -> _Model:
+        if (attempt, m) not in cache:
+            cache[(attempt, m)] = _resample_one(ms, m, rate_to, keep_order, *attempt)
             progress.step()
-        return cache[(extra, m)]
+        return cache[(attempt, m)]
 
     hard: list[int] = []
     i = 0
     while True:
-        extra = tries[i]
+        attempt = tries[i]
         last = i == len(tries) - 1
         order = hard + [m for m in range(m_count) if m not in hard]
-        missed = next((m for m in order if get(extra, m).violation() > 1.0 and not last), None)
+        missed = next((m for m in order if get(attempt, m).violation() > 1.0 and not last), None)
         if missed is None:
-            return extra, [get(extra, m) for m in range(m_count)]
+            return attempt, [get(attempt, m) for m in range(m_count)]
         if missed not in hard:
             hard.insert(0, missed)
         progress.total += m_count  # another attempt
@@ -178,15 +206,17 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
 
     Upsampling by more than 2x raises every model's order alike
     (:func:`flowtex.dsp.arma_resample.upsampled_order`) unless ``keep_order``.
-    When upsampling, ``extra_order`` (even, 0..:data:`MAX_EXTRA_ORDER`) adds that many poles and zeros to
-    every model; None tries :data:`EXTRA_ORDERS` in turn and keeps the first
-    with which every model keeps its spectrum (LSD <= 0.5 dB, band power within 2 %, <= 2 % of its
-    power above the old Nyquist) -- sets of HaTT's size need none, an AR(2) set
-    needs 2 -- or the last (see :func:`_resample_models` for the stopping rule: the call always ends).
+    When upsampling, ``extra_order`` (even, 0..:data:`MAX_EXTRA_ORDER`) adds exactly that many poles and zeros to
+    every model (and no elliptic edge); None tries :data:`EDGE_ATTEMPTS` (up to 2x) or :data:`EXTRA_ORDERS`
+    (beyond) in turn and keeps the first with which every model keeps its spectrum (LSD <= 0.5 dB, band power
+    within 2 %, <= 2 % of its power above the old Nyquist) -- most of HaTT's sets need nothing added, those
+    whose spectra are still high at the old Nyquist the edge -- or the last (see :func:`_resample_models` for
+    the stopping rule: the call always ends).
     ``metadata["resample"]`` records the source rate, the orders, the method,
     the worst LSD (dB), band-power error and power above the old Nyquist
     of the models as rendered, i.e. rebuilt from the stored LSFs (see :func:`resample_quality`), and
-    ``misses``: the models that still miss those limits (index, speed, force and figures; see :func:`misses_text`).
+    ``misses``: the models that still miss those limits (index, speed, force and figures; see :func:`misses_text`),
+    ``quality``: every model's [LSD dB, band-power error, power above the old Nyquist], and ``edge_lowpass``.
     ``progress(done, total)`` is called after each model fit (the total grows if an extra order is tried).
     ``option`` names the rate in errors. The rate may change by at most :data:`MAX_RATE_RATIO` either way.
     """
@@ -196,10 +226,17 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
         raise FlowtexError(f"--extra-order must be an even number from 0 to {MAX_EXTRA_ORDER}, got {extra_order}")
     rate_from = float(ms.sample_rate)
     check_rate_ratio(rate_from, rate_hz, option, "model set")
+    check_power(ms)
     rate_to = float(rate_hz)
     upsampling = rate_to > rate_from
-    tries = (0,) if not upsampling or keep_order else EXTRA_ORDERS if extra_order is None else (extra_order,)
-    best_extra, models = _resample_models(ms, rate_to, keep_order, tries, _Progress(progress, ms.num_models))
+    direct = rate_to <= DIRECT_MAX_RATIO * (1.0 + 1e-12) * rate_from
+    if not upsampling or keep_order:
+        tries: tuple[Attempt, ...] = ((0, False),)
+    elif extra_order is not None:
+        tries = ((extra_order, False),)
+    else:
+        tries = EDGE_ATTEMPTS if direct else tuple((e, False) for e in EXTRA_ORDERS)
+    (best_extra, edge), models = _resample_models(ms, rate_to, keep_order, tries, _Progress(progress, ms.num_models))
     p0, q0 = ms.ar_order, ms.ma_order
     p, q = models[0].ar_lsf.shape[0], models[0].ma_lsf.shape[0]
     metadata = dict(ms.metadata)
@@ -209,16 +246,20 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
         method = "log-spectral fit of the PSD below the old Nyquist, stopband ceiling above"
         if best_extra:
             method += f"; {best_extra} more poles and zeros"
-        if (p, q) != (p0 + best_extra, q0 + best_extra) and not keep_order:
+        if edge:
+            method += f"; cascaded with an order-{p - p0 - best_extra} elliptic lowpass edge at the old Nyquist"
+        elif (p, q) != (p0 + best_extra, q0 + best_extra) and not keep_order:
             method += "; fitted at 1/M of the rate, stretched z -> z^M and cascaded with an FIR anti-imaging lowpass"
     misses = [{"model": m, "speed": float(ms.speeds[m]), "force": float(ms.forces[m]), "lsd_db": r.lsd,
                "band_power_error": r.band, "power_above_old_nyquist": r.above}
               for m, r in enumerate(models) if r.violation() > 1.0]
     metadata["resample"] = {"from_hz": rate_from, "to_hz": rate_to, "method": method,
                             "from_order": [p0, q0], "to_order": [p, q], "extra_order": best_extra,
+                            "edge_lowpass": edge,
                             "worst_lsd_db": max(r.lsd for r in models),
                             "worst_band_power_error": max(abs(r.band) for r in models),
-                            "worst_power_above_old_nyquist": max(r.above for r in models), "misses": misses}
+                            "worst_power_above_old_nyquist": max(r.above for r in models), "misses": misses,
+                            "quality": [[r.lsd, r.band, r.above] for r in models]}
     out = dataclasses.replace(ms, sample_rate=rate_to, ar_lsf=np.array([r.ar_lsf for r in models]).reshape(len(models), p),
                               ma_lsf=np.array([r.ma_lsf for r in models]).reshape(len(models), q),
                               variance=np.array([r.variance for r in models]), gain=np.array([r.gain for r in models]),
@@ -263,6 +304,8 @@ def resample_summary(source: str, ms: TextureModelSet, out: TextureModelSet, tar
     orders = f"orders {p0}/{q0}" + (f" -> {p}/{q}" if (p, q) != (p0, q0) else "")
     if info["extra_order"]:
         orders += f" ({info['extra_order']} more poles and zeros)"
+    if info.get("edge_lowpass"):
+        orders += " (elliptic lowpass edge at the old Nyquist)"
     line = (f"{source}: {ms.num_models} models {info['from_hz']:g} Hz -> {info['to_hz']:g} Hz, {orders}, written to {target}; "
             f"worst LSD {info['worst_lsd_db']:.2f} dB, worst band-power error {100 * info['worst_band_power_error']:.2f} % "
             f"(up to 0.9 x the lower Nyquist)"

@@ -26,12 +26,15 @@ tap and averaged over the library played at 50, 60, ..., 100 mm/s
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..dsp.contact import CONTACT_OFF_N, CONTACT_ON_N
 from ..dsp.robust import robust_scale
+from ..dsp.spectral import signal_centroid
 from ..errors import DataError
 from ..io.taplib import write_tap_library
 from ..models.taps import TapLibrary, spectral_centroid
@@ -54,7 +57,7 @@ MAX_TAP_S = 10.0
 """Seconds without contact (force below ``off``) before an onset counts as a tap."""
 
 
-def contact_onsets(force: np.ndarray, on: float = 0.1, off: float = 0.05, quiet: int = 50) -> np.ndarray:
+def contact_onsets(force: np.ndarray, on: float = CONTACT_ON_N, off: float = CONTACT_OFF_N, quiet: int = 50) -> np.ndarray:
     """Sample indices of contact onsets (hysteresis ``on``/``off`` in N, moved back to the force's floor).
 
     An onset counts only after at least ``quiet`` consecutive samples below
@@ -95,14 +98,13 @@ def approach_speed(position: np.ndarray, normal: np.ndarray, onset: int, rate: f
 
 
 def centroid(x: np.ndarray, rate: float) -> float:
-    """Spectral centroid (Hz) of one transient, Culbertson & Kuchenbecker 2017 eq. 4."""
-    power = np.abs(np.fft.rfft(x)) ** 2
-    total = float(power.sum())
-    return float((power * np.fft.rfftfreq(x.size, 1.0 / rate)).sum() / total) if total > 0 else 0.0
+    """Spectral centroid (Hz) of one transient (:func:`flowtex.dsp.spectral.signal_centroid`); 0.0 for a silent one."""
+    value = signal_centroid(x, rate)
+    return 0.0 if math.isnan(value) else value
 
 
 def fit_taps(accel: np.ndarray, force: np.ndarray, rate: float, position: np.ndarray | None = None, normal: np.ndarray | None = None,
-             speed: np.ndarray | None = None, length_s: float = 0.1, approach_s: float = 0.01, on: float = 0.1, off: float = 0.05,
+             speed: np.ndarray | None = None, length_s: float = 0.1, approach_s: float = 0.01, on: float = CONTACT_ON_N, off: float = CONTACT_OFF_N,
              where: str = "recording", quiet_s: float = DEFAULT_QUIET_S) -> tuple[list[Tap], list[str]]:
     """Detected taps (sorted by onset) and notes on dropped ones; see the module docstring."""
     length = int(round(length_s * rate))

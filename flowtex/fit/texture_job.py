@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from ..dsp.contact import HATT_CORNER_RAD_S, STATIONARY_MM
 from ..errors import DataError
 from ..limits import check_file_size
 from .inputs import atomic_output, check_highpass, check_not_constant, check_speed_magnitude, load, signal
@@ -36,12 +37,12 @@ class TextureJob:
 
 
 def speed_from_position(position: np.ndarray, normal: np.ndarray | None, rate: float) -> np.ndarray:
-    """Tangential speed (mm/s) from position (mm) with the speed_estimator's math (hatt method, 0.06 mm gate)."""
+    """Tangential speed (mm/s) from position (mm) with the speed_estimator's math (hatt method, its stationary gate)."""
     from ..dsp.motion import SPEED_ISTATE, SPEED_STATE, SS_NORMAL, butter2_biquad, initial_normal_state, speed_block, speed_params
 
     n = position.shape[0]
     nrm = np.ascontiguousarray(normal if normal is not None else np.tile([0.0, 0.0, 1.0], (n, 1)), dtype=np.float64)
-    p = speed_params(butter2_biquad(125.0, rate), rate, 0.06)
+    p = speed_params(butter2_biquad(HATT_CORNER_RAD_S, rate), rate, STATIONARY_MM)
     s = initial_normal_state(SPEED_STATE, SS_NORMAL, (0.0, 0.0, 1.0))
     si = np.zeros(SPEED_ISTATE, np.int64)
     speed = np.empty((n, 1))

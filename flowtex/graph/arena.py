@@ -39,7 +39,11 @@ IN_WIDTH = 6
 OUT_WIDTH = 7
 DISPATCH = 8
 """Position of the dispatch tier's table (:mod:`flowtex.graph.dispatch`); 0 for the fused tier."""
-HEADER = 9
+FAULT = 9
+"""Dispatch tier: the descriptor position of a node whose kernel raised (0: none); the driver and ``run`` stop on it.
+
+``FAULT + 1`` holds the first row and ``FAULT + 2`` the number of rows of that call (:mod:`flowtex.graph.wrappers`)."""
+HEADER = 12
 
 
 @dataclass

@@ -138,6 +138,8 @@ def run(f, i, X, Y):
             if i[e + 4] != 0:
                 i[i[e]] = yd + total * i[e + 2] + t * i[e + 1]
         block(f, i, n)
+        if i[9] != 0:  # arena.FAULT: a kernel raised on the dispatch tier; the Graph reports it
+            break
         for k in range(i[3]):
             e = tab + 5 * k
             if i[e + 4] == 0:

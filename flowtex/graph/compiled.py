@@ -1,5 +1,9 @@
 """A built, compiled graph: ``run`` on whole arrays, ``step`` one tick, ``reset``.
 
+The compile service's product: :class:`Graph` lays out a resolved graph and asks
+:mod:`flowtex.compile.service` for its tick; this module belongs to the compile
+layer (docs/engine.md) and keeps the import path users and plugins know.
+
 Time is the first axis everywhere: a scalar port gives shape ``(n,)``, a
 vector port ``(n, *shape)``.
 """
@@ -7,23 +11,23 @@ vector port ``(n, *shape)``.
 from __future__ import annotations
 
 import zlib
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..cache import cache_dir
+from ..compile.service import check_tier, compile_in_background, compile_tick, default_tier
 from ..dsp.nonfinite import NONFINITE_POLICIES, fill_nonfinite, find_nonfinite
 from ..errors import DataError, FlowtexError
 from ..node_api import PortSpec, suggest
-from ..nodecheck import check_kernel_compiles
+from ..nodecheck import check_plugin_kernels
 from ..registry import Registry, load_registry
-from .arena import OUT_WIDTH, TICK, Layout, plan_layout
-from .notice import compile_notice
+from .arena import FAULT, OUT_WIDTH, TICK, Layout, plan_layout
+from .faults import dispatch_fault, raised_fault
+from .fused import FusedPlan, entry
 from .resolve import ResolvedGraph, resolve_graph
 from .spec import GraphSpec, load_spec
-from .tiers import FusedPlan, check_tier, compile_dispatch, default_tier, entry
 
 DEFAULT_BLOCK_ROWS = 1024
 PROGRESS_CHUNK = 1 << 17
@@ -44,19 +48,11 @@ class Graph:
         self.requested_tier = check_tier(tier or default_tier())
         plan = FusedPlan(resolved, self.layout, self._step_in, self._step_out)
         self.fused_plan = plan
-        use = self.requested_tier
-        if use == "auto":
-            use = "fused" if plan.cached() else "dispatch"
-        types = sorted({rn.cls.type_name for rn in resolved.nodes.values()})
-        what = f"graph {self.spec.name!r} ({len(resolved.nodes)} nodes: {', '.join(types)})"
-        with compile_notice(what if use == "fused" else f"node kernels of {what}", str(cache_dir())):
-            for cls in {rn.cls for rn in resolved.nodes.values() if not rn.cls.__module__.startswith("flowtex.")}:
-                check_kernel_compiles(cls)  # a plugin's typing error is reported as the plugin's, at its line
-            # Compile (or load from the disk cache) now, not on the first live tick.
-            code = plan.compile(self.layout.i) if use == "fused" else \
-                compile_dispatch(resolved, self.layout, self._step_in, self._step_out)
+        # Compile (or load from the disk cache) now, not on the first live tick.
+        code = compile_tick(resolved, self.layout, plan, self.requested_tier, self._step_in, self._step_out)
         self.tier = code.tier
         """The tier that runs: ``fused`` or ``dispatch``."""
+        self._dispatch = code.tier == "dispatch"
         self.layout.i = code.ints
         self.source = code.source
         self.rebuilt_cache_entries = code.rebuilt
@@ -156,8 +152,27 @@ class Graph:
             X = np.concatenate([np.ascontiguousarray(arrays[name]).reshape(-1) for name in self.layout.in_columns]) \
                 if arrays else np.empty(0)
         Y = np.empty(total * int(self.i[OUT_WIDTH]))
-        self._run(self.f, self.i, X, Y)
+        try:
+            self._run(self.f, self.i, X, Y)
+        except Exception as exc:  # a kernel raised (fused tier): the arena still points into X and Y
+            self._kernel_raised(exc)
+        self._check_fault()
         return self._split_outputs(Y, total)
+
+    def _kernel_raised(self, exc: Exception) -> None:
+        """Raise the :class:`~flowtex.graph.faults.KernelError` for ``exc``; reset first (the state is spoilt)."""
+        error = raised_fault(self.resolved, exc, self.i)
+        self.reset()
+        raise error from None
+
+    def _check_fault(self) -> None:
+        """Raise the error a dispatch-tier kernel recorded (see :mod:`flowtex.graph.faults`), after a reset."""
+        if self.i[FAULT] != 0:
+            from .dispatch import STRIDE
+
+            error = dispatch_fault(self.resolved, self.i, STRIDE)
+            self.reset()
+            raise error
 
     def _split_outputs(self, Y: np.ndarray, total: int) -> dict[str, np.ndarray]:
         """Per-output arrays: contiguous views into ``Y`` (no copy)."""
@@ -204,6 +219,11 @@ class Graph:
         lines.append(f"        r = STEP(f, i{args})")
         lines.append("    except TypeError:")
         lines.append("        bad_scalar(values)")
+        lines.append("    except Exception as exc:")
+        lines.append("        kernel_raised(exc)")
+        if self.tier == "dispatch":
+            lines.append(f"    if i[{FAULT}] != 0:")
+            lines.append("        check_fault()")
         items = [f"{name!r}: r[{k}]" for k, name in enumerate(self._step_out)]
         items += [f"{name!r}: OUT_VIEWS[{name!r}].reshape({self.resolved.output_specs[name].shape!r}).copy()"
                   for name in self._vector_out]
@@ -212,7 +232,8 @@ class Graph:
         namespace = {"EMPTY": {}, "MISSING": object(), "f": self.f, "i": self.i, "np": np, "STEP": entry,
                      "bad_scalar": self._bad_scalar, "bad_vector": self._bad_vector,
                      "IN_VIEWS": self._in_views, "OUT_VIEWS": self._out_views, "KNOWN": frozenset(self._in_views),
-                     "unknown_input": self._unknown_input}
+                     "unknown_input": self._unknown_input, "kernel_raised": self._kernel_raised,
+                     "check_fault": self._check_fault}
         exec("\n".join(lines), namespace)  # generated from port names validated as identifiers
         return namespace["py_step"]
 
@@ -292,7 +313,12 @@ class Graph:
 
     def step_block(self, n: int = 1) -> None:
         """Advance ``n`` ticks using whatever is in the input views (no Python mapping)."""
-        self._block_entry(self.f, self.i, n)
+        try:
+            self._block_entry(self.f, self.i, n)
+        except Exception as exc:  # fused tier: the kernel's exception (costs nothing when none is raised)
+            self._kernel_raised(exc)
+        if self._dispatch and self.i.item(FAULT):  # dispatch tier: a wrapper recorded one
+            self._check_fault()
 
     def check_inputs(self, inputs: Mapping[str, Any]) -> None:
         """Raise :class:`FlowtexError` unless ``inputs`` has every graph input, time first, in the right shape."""
@@ -366,31 +392,37 @@ def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
     code is compiled for next time in a low-priority background process.
 
     ``overrides`` maps ``"node.param"`` to a value (as ``--set`` does);
-    ``plugins`` adds plugin folders to ``./plugins``, ``$FLOWTEX_PLUGINS`` and
-    the graph file's own ``plugins/`` folder (``auto_plugins=False``: neither
-    ``./plugins`` nor the graph's folder, as ``--no-plugins``).
+    ``plugins`` adds plugin folders to ``$FLOWTEX_PLUGINS`` and the graph's own
+    (its folder's ``plugins/`` and its ``plugins:`` key; ``auto_plugins=False``
+    skips the graph's own, as ``--no-plugins``).
     Raises :class:`flowtex.errors.GraphError` listing every problem.
     """
     spec = load_spec(path, dict(overrides or {}))
-    resolved = resolve_graph(spec, graph_registry(path, plugins, auto_plugins))
+    resolved = resolve_graph(spec, graph_registry(path, plugins, auto_plugins, spec.plugins))
     graph = Graph(resolved, block_rows, tier)
     if graph.requested_tier == "auto" and graph.tier == "dispatch":
-        from .background import compile_in_background
-
         compile_in_background(path, dict(overrides or {}), plugins, block_rows, auto_plugins)
     return graph
 
 
 def check_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
                 plugins: tuple[str | Path, ...] = (), auto_plugins: bool = True) -> ResolvedGraph:
-    """Validate without compiling (what ``flowtex validate`` does)."""
+    """Validate without running: what ``flowtex validate`` does (plugin kernels are compiled for their actual ports)."""
     spec = load_spec(path, dict(overrides or {}))
-    return resolve_graph(spec, graph_registry(path, plugins, auto_plugins))
+    resolved = resolve_graph(spec, graph_registry(path, plugins, auto_plugins, spec.plugins))
+    check_plugin_kernels(rn.cls for rn in resolved.nodes.values())  # validate compiles what it validates
+    return resolved
 
 
-def graph_registry(path: str | Path, plugins: tuple[str | Path, ...] = (), auto_plugins: bool = True) -> Registry:
-    """The node registry a graph file is resolved with: ``plugins`` plus, with ``auto_plugins``, ./plugins and the
-    graph file's own ``plugins/`` folder (found wherever flowtex runs from). ``.plugin_files`` lists the code it ran."""
-    own = Path(path).parent / "plugins"
-    folders = (*plugins, own) if auto_plugins and own.is_dir() else tuple(plugins)
-    return load_registry(folders, auto=auto_plugins)
+def graph_registry(path: str | Path, plugins: tuple[str | Path, ...] = (), auto_plugins: bool = True,
+                   own: Sequence[Path] | None = None) -> Registry:
+    """The node registry a graph file is resolved with: ``plugins`` plus, with ``auto_plugins``, the graph's own plugin
+    folders: its folder's ``plugins/`` (found wherever flowtex runs from) and ``own``, the folders of its ``plugins:``
+    key (read from the file when None). ``.plugin_files`` lists the code it ran."""
+    if not auto_plugins:
+        return load_registry(plugins)
+    from .spec import read_plugin_folders
+
+    beside = Path(path).parent / "plugins"
+    folders = (*plugins, *(own if own is not None else read_plugin_folders(path)), *((beside,) if beside.is_dir() else ()))
+    return load_registry(folders)

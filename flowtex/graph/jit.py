@@ -23,7 +23,7 @@ from typing import Any
 
 import numba
 
-from ..cache import cache_dir
+from ..cache import cache_dir, source_fingerprint
 
 
 def kernel_fingerprint(kernel: Callable) -> str:
@@ -41,13 +41,13 @@ _LOADED: dict[str, ModuleType] = {}
 
 def generated_digest(source: str, kernels: dict[str, Callable], extra_key: str = "") -> tuple[str, Path]:
     """Cache key of generated ``source`` calling ``kernels``, and the folder its files go to."""
-    from .. import SOURCE_FINGERPRINT, __version__
+    from ..version import __version__
 
     h = hashlib.sha256()
     h.update(source.encode())
     for name in sorted(kernels):
         h.update(f"{name}={kernel_fingerprint(kernels[name])}".encode())
-    h.update(f"numba={numba.__version__};flowtex={__version__};tree={SOURCE_FINGERPRINT};{extra_key}".encode())
+    h.update(f"numba={numba.__version__};flowtex={__version__};tree={source_fingerprint()};{extra_key}".encode())
     return h.hexdigest()[:24], cache_dir() / "codegen"
 
 

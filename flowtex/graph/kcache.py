@@ -9,15 +9,15 @@ files are hashed again; an entry whose files do not match its seal (or that
 has files but no seal, e.g. after a crash) is deleted and compiled afresh.
 
 Two processes compiling the same entry at the same time take turns on an
-exclusive ``flock`` on ``<stem>.lock``: the second one waits, then loads the
-entry the first one sealed. One good entry is left, never two half-written
-ones.
+exclusive lock on ``<stem>.lock`` (``flock`` on POSIX, ``msvcrt.locking`` on
+Windows, chosen when a lock is first taken, not at import): the second one
+waits, then loads the entry the first one sealed. One good entry is left,
+never two half-written ones.
 """
 
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import hashlib
 import json
 import os
@@ -33,10 +33,26 @@ def locked(path: Path) -> Iterator[None]:
     """Hold an exclusive lock on the file ``path`` (created if missing) for the ``with`` block."""
     fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
+        _lock(fd)
         yield
     finally:
         os.close(fd)  # closing releases the lock
+
+
+def _lock(fd: int) -> None:
+    """Block until this process holds the exclusive lock on the open file ``fd`` (released when ``fd`` is closed)."""
+    try:
+        import fcntl
+    except ImportError:  # Windows: lock the file's first byte; LK_LOCK retries for 10 s, so retry until it is ours
+        import msvcrt
+
+        while True:
+            try:
+                msvcrt.locking(fd, msvcrt.LK_LOCK, 1)  # type: ignore[attr-defined]
+                return
+            except OSError:
+                continue
+    fcntl.flock(fd, fcntl.LOCK_EX)
 
 
 def _digest(path: Path) -> str:

@@ -14,7 +14,13 @@ import numpy as np
 from numba import carray, njit, types
 from numba.extending import intrinsic
 
+from ..cache import configure_numba_cache
+from .arena import FAULT  # (its imports decorate no numba function: the cache folder below is still chosen in time)
+
+configure_numba_cache()  # numba binds a kernel's cache folder when it is decorated: choose it first (flowtex.cache)
+
 ITEM = 8  # bytes per float64 / int64 arena element
+
 
 
 def _pointer_to(item: types.Type):
@@ -78,6 +84,15 @@ def copy_row(base: int, dst: int, src: int, width: int) -> None:
 def at(base: int, k: int) -> int:
     """Item ``k`` of the int arena at data address ``base`` (the dispatch tier's table reads)."""
     return carray(_int_ptr(base + k * ITEM), 1)[0]
+
+
+@njit(inline="always", cache=True)
+def record_fault(ib: int, d: int, r: int, n: int) -> None:
+    """Note in the int arena (data address ``ib``) that the kernel of descriptor ``d`` raised on rows ``r .. r+n-1``."""
+    slots = carray(_int_ptr(ib + FAULT * ITEM), 3)
+    slots[0] = d
+    slots[1] = r
+    slots[2] = n
 
 
 @intrinsic

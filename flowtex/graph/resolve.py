@@ -12,10 +12,12 @@ from typing import Any
 
 import networkx as nx
 
-from ..errors import DataError, Diagnostic, FlowtexError, GraphError, Location, ParamError
+from ..errors import DataError, FlowtexError, Location, ParamError
 from ..limits import port_values_problem
 from ..node_api import BuildContext, Node, NodeState, Port, PortSpec, simplify_unit, suggest
+from ..nodecheck import checked_state, is_plugin, plugin_raised
 from ..registry import Registry
+from ..schema.core import Collector
 from .spec import EdgeSpec, Endpoint, GraphSpec, NodeSpec
 
 
@@ -48,18 +50,15 @@ class ResolvedGraph:
         return list(self.nodes)
 
 
-class _Checker:
+class _Checker(Collector):
+    """The schema layer's one diagnostic collector, with the spec and the node types being checked against."""
+
     def __init__(self, spec: GraphSpec, registry: Registry):
+        super().__init__(str(spec.path))
         self.spec = spec
         self.registry = registry
-        self.diagnostics: list[Diagnostic] = []
 
-    def error(self, loc: Location, message: str) -> None:
-        self.diagnostics.append(Diagnostic(loc, message))
-
-    def fail_if_any(self) -> None:
-        if self.diagnostics:
-            raise GraphError(self.diagnostics)
+    fail_if_any = Collector.raise_if_any
 
 
 def resolve_graph(spec: GraphSpec, registry: Registry) -> ResolvedGraph:
@@ -120,8 +119,8 @@ def _typed_nodes(ck: _Checker) -> dict[str, ResolvedNode]:
         if cls is None:
             hint = suggest(ns.type, ck.registry.names())
             ck.error(ns.type_loc, f"node {name!r}: unknown node type {ns.type!r}{hint}; run 'flowtex nodes' to list them "
-                                  "(plugin nodes are found in ./plugins, the graph file's plugins/ folder, $FLOWTEX_PLUGINS "
-                                  "and --plugins DIR)")
+                                  "(plugin nodes are found in the graph file's plugins/ folder, the folders of its plugins: key, "
+                                  "$FLOWTEX_PLUGINS and --plugins DIR)")
             continue
         params = _check_params(ck, ns, cls)
         if params is not None:
@@ -332,8 +331,10 @@ def _resolve_pass(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[str
             failed.add(name)
             continue
         ctx = BuildContext(rate=ck.spec.rate, base_dir=ck.spec.path.parent, every=rn.spec.every, input_every=input_every)
+        method = "__init__"
         try:
             rn.node = rn.cls(name, rn.params, ctx)
+            method = "resolve"
             rn.out_specs = rn.node.resolve(specs)
             if _too_wide(ck, rn, rn.out_specs, "output"):
                 rn.out_specs = {}
@@ -344,6 +345,10 @@ def _resolve_pass(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[str
         except (DataError, FlowtexError) as exc:
             failed.add(name)
             ck.error(rn.spec.loc, f"node {name!r} ({rn.cls.type_name}): {exc}")
+        except Exception as exc:
+            if not is_plugin(rn.cls):
+                raise  # flowtex's own bug: an internal error
+            raise plugin_raised(rn.cls, name, method, exc) from None
     for name, took in provisional.items():
         rn = nodes[name]
         for port_name, src in rn.sources.items():
@@ -408,8 +413,15 @@ def _build_nodes(ck: _Checker, nodes: dict[str, ResolvedNode]) -> None:
         if rn.node is None:
             continue
         try:
-            rn.state = rn.node.build(rn.in_specs, rn.out_specs)
+            state = rn.node.build(rn.in_specs, rn.out_specs)
         except ParamError as exc:
             ck.error(_param_loc(rn, exc.param), f"node {name!r} ({rn.cls.type_name}): {exc}")
+            continue
         except (DataError, FlowtexError) as exc:
             ck.error(rn.spec.loc, f"node {name!r} ({rn.cls.type_name}): {exc}")
+            continue
+        except Exception as exc:
+            if not is_plugin(rn.cls):
+                raise  # flowtex's own bug: an internal error
+            raise plugin_raised(rn.cls, name, "build", exc) from None
+        rn.state = checked_state(rn.cls, name, state, rn.cls.build)

@@ -6,23 +6,23 @@ that need node types (parameters, ports, units) live in ``resolve.py``.
 
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ..errors import Diagnostic, GraphError, Location
-from ..limits import MAX_EVERY, MAX_RATE_HZ, excerpt, port_values_problem
+from ..limits import excerpt, port_values_problem
 from ..node_api import suggest
+from ..schema.core import INVALID, Collector, check_keys, check_value, fits, value_of
+from ..schema.graph import EDGE_PATTERN, FORMAT_VERSION, GRAPH, INPUT, NAME_PATTERN, NODE, RATE
 from ..yamlsource import LocDict, LocList, load_yaml, parse_value, read_source
 
-FORMAT_VERSION = 1
-TOP_KEYS = ("flowtex", "name", "rate", "seed", "inputs", "nodes", "edges", "outputs", "description")
-NODE_KEYS = ("type", "params", "every", "doc")
-INPUT_KEYS = ("shape", "unit", "doc")
-NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-EDGE_RE = re.compile(r"^\s*(?P<src>[^\s>-][^\s]*)\s*->\s*(?P<dst>[^\s]+)\s*$")
+__all__ = ["FORMAT_VERSION", "Collector", "GraphSpec", "load_spec", "parse_spec", "parse_override"]
+
+NAME_RE = re.compile(NAME_PATTERN)
+EDGE_RE = re.compile(EDGE_PATTERN)
+TOP_KEYS = tuple(GRAPH.keys)
 
 
 @dataclass
@@ -78,23 +78,8 @@ class GraphSpec:
     edges: list[EdgeSpec] = field(default_factory=list)
     outputs: dict[str, OutputSpec] = field(default_factory=dict)
     description: str = ""
-
-
-class Collector:
-    """Gathers :class:`Diagnostic` lines (file:line:col) while checking a YAML document; raise them all at the end."""
-
-    def __init__(self, path: str):
-        self.path = path
-        self.diagnostics: list[Diagnostic] = []
-
-    def loc(self, pos: tuple[int, int] | None) -> Location:
-        if pos is None:
-            return Location(self.path)
-        return Location(self.path, pos[0], pos[1])
-
-    def error(self, pos: tuple[int, int] | Location | None, message: str) -> None:
-        loc = pos if isinstance(pos, Location) else self.loc(pos)
-        self.diagnostics.append(Diagnostic(loc, message))
+    plugins: list[Path] = field(default_factory=list)
+    """Folders of plugin node files named by the top-level ``plugins:`` key, resolved against the graph file's folder."""
 
 
 def load_spec(path: str | Path, overrides: dict[str, Any] | None = None) -> GraphSpec:
@@ -109,52 +94,54 @@ def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -
     if not isinstance(data, LocDict):
         message = "a graph file must be a mapping with keys flowtex, name, rate, nodes, edges, outputs"
         raise GraphError([Diagnostic(Location(str(path), 1, 1), message)])
-    for key in data:
-        if key not in TOP_KEYS:
-            c.error(data.key_pos[key], f"unknown top-level key {excerpt(key)}{suggest(str(key), TOP_KEYS)}")
-    for key in ("flowtex", "rate", "nodes", "outputs"):
-        if key not in data:
-            c.error(data.pos, f"missing top-level key {key!r}" + (" (the format version; write 'flowtex: 1')" if key == "flowtex" else ""))
-    version = data.get("flowtex", FORMAT_VERSION)
-    if "flowtex" in data and version != FORMAT_VERSION:
-        c.error(data.value_pos["flowtex"], f"unsupported format version {excerpt(version)}; this flowtex reads version {FORMAT_VERSION}")
-    name = data.get("name", path.stem)
-    if not isinstance(name, str):
-        c.error(data.value_pos.get("name"), "name must be a string")
+    check_keys(c, data, GRAPH)
+    value_of(c, data, GRAPH, "flowtex")
+    name = value_of(c, data, GRAPH, "name")
+    if name is INVALID or "name" not in data:
         name = path.stem
-    rate = _rate(c, data)
-    seed = _seed(c, data)
-    spec = GraphSpec(path=path, name=name, rate=rate, seed=seed, description=str(data.get("description", "")))
+    rate = value_of(c, data, GRAPH, "rate")
+    seed = value_of(c, data, GRAPH, "seed")
+    spec = GraphSpec(path=path, name=name, rate=1000.0 if rate is INVALID else float(rate), seed=0 if seed is INVALID else seed,
+                     description=str(data.get("description", "")))
+    plugins = value_of(c, data, GRAPH, "plugins")
+    if plugins not in (INVALID, GRAPH.keys["plugins"].default):
+        spec.plugins = existing_plugin_folders(c, data, path)
     spec.inputs = _inputs(c, data)
     spec.nodes = _nodes(c, data, spec.inputs)
     if overrides:
         _apply_overrides(c, spec, overrides)
     spec.edges = _edges(c, data)
     spec.outputs = _outputs(c, data)
-    if c.diagnostics:
-        raise GraphError(c.diagnostics)
+    c.raise_if_any()
     return spec
 
 
-def _valid_rate(rate: Any) -> bool:
-    """A graph rate: a number of Hz in (0, MAX_RATE_HZ]."""
-    return not isinstance(rate, bool) and isinstance(rate, (int, float)) and math.isfinite(rate) and 0 < rate <= MAX_RATE_HZ
+def existing_plugin_folders(c: Collector, data: LocDict, path: Path) -> list[Path]:
+    """The folders of the ``plugins:`` key (its type checked by the schema) resolved against the graph file's folder;
+    a folder that does not exist is an error at its line."""
+    raw = data["plugins"]
+    folders = []
+    for item, pos in zip(raw, raw.item_pos, strict=False):
+        folder = Path(item).expanduser()
+        folder = folder if folder.is_absolute() else path.parent / folder
+        if folder.is_dir():
+            folders.append(folder)
+        else:
+            c.error(pos, f"plugins: folder {item!r} does not exist (looked for {folder}); folders are relative to the graph file")
+    return folders
 
 
-def _rate(c: Collector, data: LocDict) -> float:
-    rate = data.get("rate", 1000.0)
-    if not _valid_rate(rate):
-        c.error(data.value_pos.get("rate"), f"rate must be a number of Hz in (0, {MAX_RATE_HZ:g}], got {excerpt(rate)}")
-        return 1000.0
-    return float(rate)
-
-
-def _seed(c: Collector, data: LocDict) -> int:
-    seed = data.get("seed", 0)
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        c.error(data.value_pos.get("seed"), f"seed must be a non-negative integer, got {excerpt(seed)}")
-        return 0
-    return seed
+def read_plugin_folders(path: str | Path) -> list[Path]:
+    """Only the ``plugins:`` key of the graph file at ``path``, checked as :func:`load_spec` checks it."""
+    path = Path(path)
+    data = load_yaml(read_source(path, "graph file"), str(path))
+    if not isinstance(data, LocDict) or "plugins" not in data:
+        return []
+    c = Collector(str(path))
+    plugins = value_of(c, data, GRAPH, "plugins")
+    folders = [] if plugins in (INVALID, GRAPH.keys["plugins"].default) else existing_plugin_folders(c, data, path)
+    c.raise_if_any()
+    return folders
 
 
 def _check_name(c: Collector, name: Any, pos: tuple[int, int], what: str) -> bool:
@@ -169,39 +156,25 @@ def _inputs(c: Collector, data: LocDict) -> dict[str, InputSpec]:
     if raw is None:
         return {}
     if not isinstance(raw, LocDict):
-        c.error(data.value_pos.get("inputs"), "inputs must be a mapping of name: {shape, unit}")
+        value_of(c, data, GRAPH, "inputs")
         return {}
     out: dict[str, InputSpec] = {}
     for name, value in raw.items():
         if not _check_name(c, name, raw.key_pos[name], "input"):
             continue
-        shape: tuple[int, ...] = ()
-        unit = ""
         if value is None:
             value = LocDict()
         if not isinstance(value, LocDict):
             c.error(raw.value_pos[name], f"input {name!r}: expected a mapping like {{shape: [3], unit: mm}} or nothing")
             continue
-        for key in value:
-            if key not in INPUT_KEYS:
-                c.error(value.key_pos[key], f"input {name!r}: unknown key {excerpt(key)}{suggest(str(key), INPUT_KEYS)}")
-        if "shape" in value:
-            shape_raw = value["shape"]
-            if isinstance(shape_raw, int) and not isinstance(shape_raw, bool):
-                shape_raw = [shape_raw]
-            if not isinstance(shape_raw, list) or not all(
-                isinstance(s, int) and not isinstance(s, bool) and s > 0 for s in shape_raw
-            ):
-                c.error(value.value_pos["shape"], f"input {name!r}: shape must be a list of positive integers such as [3], or [] for a scalar")
-            elif (problem := port_values_problem(shape_raw)) is not None:
-                c.error(value.value_pos["shape"], f"input {name!r}: {problem}")
-            else:
-                shape = tuple(shape_raw)
-        if "unit" in value:
-            if not isinstance(value["unit"], str):
-                c.error(value.value_pos["unit"], f"input {name!r}: unit must be a string such as 'mm' or 'N'")
-            else:
-                unit = "" if value["unit"] == "-" else value["unit"]  # '-' means dimensionless, as in node params
+        check_keys(c, value, INPUT, what=name)
+        shape = value_of(c, value, INPUT, "shape", name=name)
+        unit = value_of(c, value, INPUT, "unit", name=name)
+        shape = () if shape is INVALID else (shape,) if isinstance(shape, int) else tuple(shape)
+        if (problem := port_values_problem(shape)) is not None:  # before anything allocates the port's buffers
+            c.error(value.value_pos.get("shape"), f"input {name!r}: {problem}")
+            shape = ()
+        unit = "" if unit in (INVALID, "-") else unit  # '-' means dimensionless, as in node params
         out[name] = InputSpec(name, shape, unit, c.loc(raw.key_pos[name]))
     return out
 
@@ -211,7 +184,7 @@ def _nodes(c: Collector, data: LocDict, inputs: dict[str, InputSpec]) -> dict[st
     if raw is None:
         return {}
     if not isinstance(raw, LocDict):
-        c.error(data.value_pos.get("nodes"), "nodes must be a mapping of name: {type, params}")
+        value_of(c, data, GRAPH, "nodes")
         return {}
     out: dict[str, NodeSpec] = {}
     for name, value in raw.items():
@@ -223,30 +196,25 @@ def _nodes(c: Collector, data: LocDict, inputs: dict[str, InputSpec]) -> dict[st
         if not isinstance(value, LocDict):
             c.error(raw.value_pos[name], f"node {name!r}: expected a mapping with at least 'type'")
             continue
-        for key in value:
-            if key not in NODE_KEYS:
-                c.error(value.key_pos[key], f"node {name!r}: unknown key {excerpt(key)}{suggest(str(key), NODE_KEYS)}")
-        if "type" not in value or not isinstance(value["type"], str):
-            c.error(value.value_pos.get("type", pos), f"node {name!r}: missing 'type' (run 'flowtex nodes' to list node types)")
+        if not check_keys(c, value, NODE, pos=pos, what=name) and "type" not in value:
+            continue
+        if not fits(value["type"], NODE.keys["type"]):
+            c.error(value.value_pos["type"], NODE.missing.format(what=name))
             continue
         params = value.get("params")
         if params is None:
             params = LocDict()
             params.pos = value.value_pos.get("params", pos)
         if not isinstance(params, LocDict):
-            c.error(value.value_pos.get("params"), f"node {name!r}: params must be a mapping of name: value")
+            check_value(c, params, value.value_pos.get("params"), NODE.keys["params"], name=name)
             continue
-        every = value.get("every", 1)
-        if isinstance(every, bool) or not isinstance(every, int) or not 1 <= every <= MAX_EVERY:
-            c.error(value.value_pos.get("every"), f"node {name!r}: every must be a positive integer up to {MAX_EVERY:,} "
-                                                  f"(run every k ticks), got {excerpt(every)}")
-            every = 1
+        every = value_of(c, value, NODE, "every", name=name)
         out[name] = NodeSpec(
             name=name,
             type=value["type"],
             params=dict(params),
             param_locs={k: c.loc(params.key_pos[k]) for k in params},
-            every=every,
+            every=1 if every is INVALID else every,
             loc=c.loc(pos),
             type_loc=c.loc(value.value_pos["type"]),
             params_loc=c.loc(value.key_pos.get("params", pos)),
@@ -259,9 +227,7 @@ def _apply_overrides(c: Collector, spec: GraphSpec, overrides: dict[str, Any]) -
     for key, value in overrides.items():
         where = Location(f"--set {key}")
         if key == "rate":
-            if not _valid_rate(value):
-                c.error(where, f"rate must be a number of Hz in (0, {MAX_RATE_HZ:g}], got {excerpt(value)}")
-            else:
+            if check_value(c, value, where, RATE) is not INVALID:
                 spec.rate = float(value)
             continue
         node, _, param = key.partition(".")
@@ -305,12 +271,11 @@ def _edges(c: Collector, data: LocDict) -> list[EdgeSpec]:
     if raw is None:
         return []
     if not isinstance(raw, LocList):
-        c.error(data.value_pos.get("edges"), 'edges must be a list of "producer.port -> consumer.port" strings')
+        value_of(c, data, GRAPH, "edges")
         return []
     out: list[EdgeSpec] = []
     for item, pos in zip(raw, raw.item_pos, strict=False):
-        if not isinstance(item, str):
-            c.error(pos, f'edge must be a string "producer.port -> consumer.port", got {excerpt(item)}')
+        if check_value(c, item, pos, GRAPH.keys["edges"].items) is INVALID:
             continue
         m = EDGE_RE.match(item)
         if not m:
@@ -328,7 +293,7 @@ def _outputs(c: Collector, data: LocDict) -> dict[str, OutputSpec]:
     if raw is None:
         return {}
     if not isinstance(raw, LocDict) or not raw:
-        c.error(data.value_pos.get("outputs"), "outputs must be a non-empty mapping of name: node.port")
+        c.error(data.value_pos.get("outputs"), GRAPH.keys["outputs"].message)
         return {}
     out: dict[str, OutputSpec] = {}
     for name, value in raw.items():

@@ -11,27 +11,25 @@
           scale: 1.5           # graph units per full-scale sample (sample = value / scale)
           clip: 1.0            # graph units: a number C means [-C, C]; or [LOW, HIGH]
 
-:func:`parse_audio` checks the section and appends ``(position, problem)`` pairs
-to a list (the map loader turns them into ``map.yaml:LINE:COL`` lines).
+:func:`parse_audio` checks the section against its declaration (:mod:`flowtex.schema.devmap`) and reports each
+problem to the map loader's :class:`~flowtex.schema.core.Collector` as a ``map.yaml:LINE:COL`` line.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..schema.core import INVALID, Collector, check_unknown, is_number, value_of
+from ..schema.devmap import AUDIO, CHANNEL, MAP
+from ..schema.devmap import MIN_AUDIO_RATE as MIN_RATE
 from ..yamlsource import LocDict, LocList
 from .dbc import suggest
 
-AUDIO_KEYS = ("device", "rate", "block", "channels", "doc")
-CHANNEL_KEYS = ("output", "scale", "clip", "doc")
-MIN_RATE = 5000.0
-"""Lowest audio rate accepted, Hz (the issue's and Culbertson 2012's floor)."""
+__all__ = ["MIN_RATE", "AudioChannel", "AudioMap", "default_audio_map", "load_audio_section", "parse_audio"]
 
 
 @dataclass(frozen=True)
@@ -59,82 +57,64 @@ class AudioMap:
                 np.array([c.hi for c in self.channels]))
 
 
-def _number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(float(v))
+_number = is_number
 
 
-Add = Callable[[Any, str], None]
-
-
-def parse_audio(raw: Any, pos: Any, add: Add, graph_outputs: dict[str, int] | None) -> AudioMap | None:
-    """Check the ``audio`` mapping ``raw`` (at ``pos``); problems go to ``add(pos, text)``; None if any."""
+def parse_audio(raw: Any, pos: Any, c: Collector, graph_outputs: dict[str, int] | None) -> AudioMap | None:
+    """Check the ``audio`` mapping ``raw`` (at ``pos``); problems go to ``c``; None if any."""
     if not isinstance(raw, LocDict):
-        add(pos, "'audio' must be a mapping with keys rate, block, channels (and optional device)")
+        c.error(pos, MAP.keys["audio"].message)
         return None
-    before = [0]
-
-    def bad(p: Any, text: str) -> None:
-        before[0] += 1
-        add(p, text)
-
-    for key in raw:
-        if key not in AUDIO_KEYS:
-            bad(raw.key_pos[key], f"audio: unknown key {key!r}{suggest(str(key), list(AUDIO_KEYS))}")
+    before = len(c)
+    check_unknown(c, raw, AUDIO)
     rate = raw.get("rate")
-    if not _number(rate) or rate < MIN_RATE:
-        bad(raw.value_pos.get("rate", raw.pos), f"audio.rate must be a number of Hz >= {MIN_RATE:g} (e.g. 8000 or 48000), got {rate!r}")
-    block = raw.get("block", 64)
-    if isinstance(block, bool) or not isinstance(block, int) or not 1 <= block <= 65536:
-        bad(raw.value_pos.get("block"), f"audio.block must be a whole number of frames per callback (e.g. 64), got {block!r}")
-    device = raw.get("device")
-    if device is not None and (isinstance(device, bool) or not isinstance(device, (str, int))):
-        bad(raw.value_pos.get("device"), f"audio.device must be a device name or index (flowtex live --list-audio), got {device!r}")
-    channels = _channels(raw, bad, graph_outputs)
-    if before[0]:
+    if "rate" not in raw:
+        c.error(raw.pos, AUDIO.keys["rate"].message.format(got=None))
+    else:
+        rate = value_of(c, raw, AUDIO, "rate")
+    block = value_of(c, raw, AUDIO, "block")
+    device = value_of(c, raw, AUDIO, "device") if "device" in raw else None
+    channels = _channels(raw, c, graph_outputs)
+    if len(c) > before:
         return None
     return AudioMap(rate=float(rate), block=int(block), channels=tuple(channels), device=device)
 
 
-def _channels(raw: LocDict, bad: Add, graph_outputs: dict[str, int] | None) -> list[AudioChannel]:
+def _channels(raw: LocDict, c: Collector, graph_outputs: dict[str, int] | None) -> list[AudioChannel]:
     items = raw.get("channels")
     if not isinstance(items, LocList) or not items:
-        bad(raw.value_pos.get("channels", raw.pos), "audio.channels must be a list of {output: NAME, scale: S, clip: C}, one per channel")
+        c.error(raw.value_pos.get("channels", raw.pos), AUDIO.keys["channels"].message.format())
         return []
     out = []
     for i, entry in enumerate(items):
         pos = items.item_pos[i]
         if not isinstance(entry, LocDict):
-            bad(pos, f"audio.channels[{i}]: expected a mapping with output, scale and clip")
+            c.error(pos, f"audio.channels[{i}]: expected a mapping with output, scale and clip")
             continue
-        for key in entry:
-            if key not in CHANNEL_KEYS:
-                bad(entry.key_pos[key], f"audio.channels[{i}]: unknown key {key!r}{suggest(str(key), list(CHANNEL_KEYS))}")
+        check_unknown(c, entry, CHANNEL, i=i)
         name = entry.get("output")
         if not isinstance(name, str):
-            bad(entry.value_pos.get("output", pos), f"audio.channels[{i}]: 'output' must name a scalar graph output")
+            c.error(entry.value_pos.get("output", pos), CHANNEL.keys["output"].message.format(i=i))
             continue
         if graph_outputs is not None:
             if name not in graph_outputs:
-                bad(entry.value_pos["output"], f"audio.channels[{i}]: the graph has no output {name!r}{suggest(name, list(graph_outputs))}")
+                c.error(entry.value_pos["output"], f"audio.channels[{i}]: the graph has no output {name!r}{suggest(name, list(graph_outputs))}")
                 continue
             if graph_outputs[name] != 1:
-                bad(entry.value_pos["output"], f"audio.channels[{i}]: output {name!r} has {graph_outputs[name]} components; "
-                                               "an audio channel plays one scalar output")
+                c.error(entry.value_pos["output"], f"audio.channels[{i}]: output {name!r} has {graph_outputs[name]} components; "
+                                                   "an audio channel plays one scalar output")
                 continue
-        scale = entry.get("scale", 1.0)
-        if not _number(scale) or scale <= 0:
-            bad(entry.value_pos.get("scale"), f"audio.channels[{i}]: scale must be a positive number of graph units per full-scale sample, "
-                                              f"got {scale!r}")
+        scale = value_of(c, entry, CHANNEL, "scale", i=i)
+        if scale is INVALID:
             continue
         lo_hi = _clip(entry.get("clip"))
         if lo_hi is None:
-            bad(entry.value_pos.get("clip", pos), f"audio.channels[{i}]: clip is required: a number C (clip to [-C, C]) or [LOW, HIGH] "
-                                                  f"in graph units, got {entry.get('clip')!r}")
+            c.error(entry.value_pos.get("clip", pos), CHANNEL.keys["clip"].message.format(i=i, got=repr(entry.get("clip"))))
             continue
         lo, hi = lo_hi
         if max(abs(lo), abs(hi)) > scale * (1 + 1e-12):
-            bad(entry.value_pos["clip"], f"audio.channels[{i}]: clip [{lo:g}, {hi:g}] exceeds full scale +-{scale:g} (scale); "
-                                         f"raise scale to {max(abs(lo), abs(hi)):g} or narrow the clip")
+            c.error(entry.value_pos["clip"], f"audio.channels[{i}]: clip [{lo:g}, {hi:g}] exceeds full scale +-{scale:g} (scale); "
+                                             f"raise scale to {max(abs(lo), abs(hi)):g} or narrow the clip")
             continue
         out.append(AudioChannel(name, float(scale), lo, hi))
     return out
@@ -156,19 +136,15 @@ def default_audio_map(graph_outputs: dict[str, int], rate: float, block: int = 6
 
 def load_audio_section(path: str | Path, graph_outputs: dict[str, int]) -> AudioMap:
     """Only the ``audio`` section of the map file ``path`` (offline rendering needs no DBC); raises GraphError/DataError."""
-    from ..errors import DataError, Diagnostic, GraphError, Location
+    from ..errors import DataError
     from ..yamlsource import load_yaml, read_source
 
     path = Path(path)
     data = load_yaml(read_source(path, "map file"), str(path))
-    problems: list[Diagnostic] = []
-
-    def add(pos: Any, text: str) -> None:
-        problems.append(Diagnostic(Location(str(path), *(pos or (0, 0))), text))
-
+    c = Collector(str(path))
     if not isinstance(data, LocDict) or "audio" not in data:
         raise DataError(f"{path}: the map has no 'audio' section (rate, block, channels); see docs/live.md, \"Audio output\"")
-    amap = parse_audio(data["audio"], data.value_pos["audio"], add, graph_outputs)
-    if problems or amap is None:
-        raise GraphError(problems)
+    amap = parse_audio(data["audio"], data.value_pos["audio"], c, graph_outputs)
+    c.raise_if_any()
+    assert amap is not None
     return amap

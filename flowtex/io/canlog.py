@@ -20,9 +20,10 @@ from can.io.blf import FILE_HEADER_SIZE, FILE_HEADER_STRUCT
 from ..errors import DataError
 from ..limits import check_regular
 from .atomic import atomic_output
+from .formats import CAN_LOG, suffixes
 
-WRITE_SUFFIXES = (".blf", ".log", ".asc")
-READ_SUFFIXES = (".blf", ".log", ".asc")
+WRITE_SUFFIXES = READ_SUFFIXES = suffixes(CAN_LOG)
+"""From the format registry (flowtex.io.formats)."""
 
 
 def check_log_path(path: str | Path, for_writing: bool) -> Path:

@@ -26,27 +26,24 @@ read ``map.yaml:LINE:COL: problem (fix)``.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from cantools.database.can import Database
 
 from ..errors import DataError, Diagnostic, GraphError, Location
 from ..limits import excerpt
+from ..schema import core as schema
+from ..schema.core import INVALID, Collector, check_unknown, value_of
+from ..schema.devmap import DEFAULT_OVERRUN_MS, INPUT_BINDING, MAP, OUTPUT_BINDING, PEAK, PER_COMPONENT
 from ..yamlsource import LocDict, LocList, load_yaml, read_source
 from .audiomap import AudioMap, parse_audio
 from .dbc import find_signal, suggest
 from .dbcrange import check_value, sendable_range
 from .mapsafety import check_transmitters, check_unbound_signals
 
-TOP_KEYS = ("flowtex_map", "description", "overrun_limit_ms", "inputs", "outputs", "audio")
-INPUT_KEYS = ("signal", "signals", "scale", "offset", "timeout_ms", "doc")
-OUTPUT_KEYS = ("signal", "signals", "scale", "offset", "clamp", "safe", "peak", "doc")
-PEAK_KEYS = ("limit", "max_ms")
-DEFAULT_OVERRUN_MS = 2.0
+__all__ = ["DEFAULT_OVERRUN_MS", "CanMap", "InputBinding", "OutputBinding", "load_map"]
 
 
 @dataclass
@@ -96,17 +93,7 @@ class CanMap:
         return list(dict.fromkeys(m for b in self.outputs.values() for m, _ in b.signals))
 
 
-class _Problems:
-    def __init__(self, path: str):
-        self.path = path
-        self.items: list[Diagnostic] = []
-
-    def add(self, pos: tuple[int, int] | None, msg: str) -> None:
-        self.items.append(Diagnostic(Location(self.path, *(pos or (0, 0))), msg))
-
-
-def _number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(float(v))
+_number = schema.is_number
 
 
 def load_map(path: str | Path, db: Database, dbc_path: str | Path = "DBC",
@@ -119,30 +106,23 @@ def load_map(path: str | Path, db: Database, dbc_path: str | Path = "DBC",
     """
     path = Path(path)
     data = load_yaml(read_source(path, "map file"), str(path))
-    p = _Problems(str(path))
+    p = Collector(str(path))
     if not isinstance(data, LocDict):
         raise GraphError([Diagnostic(Location(str(path), 1, 1), "a map file is a mapping with keys 'inputs' and 'outputs'")])
-    for key in data:
-        if key not in TOP_KEYS:
-            p.add(data.key_pos[key], f"unknown key {key!r}{suggest(str(key), list(TOP_KEYS))}")
-    version = data.get("flowtex_map", 1)
-    if version != 1:
-        p.add(data.value_pos.get("flowtex_map"), f"unsupported map format version {excerpt(version)} (this flowtex reads version 1)")
-    overrun = data.get("overrun_limit_ms", DEFAULT_OVERRUN_MS)
-    if not _number(overrun) or overrun <= 0:
-        p.add(data.value_pos.get("overrun_limit_ms"), f"overrun_limit_ms must be a positive number of milliseconds, got {excerpt(overrun)}")
-        overrun = DEFAULT_OVERRUN_MS
+    check_unknown(p, data, MAP)
+    value_of(p, data, MAP, "flowtex_map")
+    overrun = value_of(p, data, MAP, "overrun_limit_ms")
+    overrun = DEFAULT_OVERRUN_MS if overrun is INVALID else overrun
     used: dict[tuple[str, str], str] = {}
     inputs: dict[str, InputBinding] = {}
     outputs: dict[str, OutputBinding] = {}
-    for section, keys, known, dest in (("inputs", INPUT_KEYS, graph_inputs, inputs), ("outputs", OUTPUT_KEYS, graph_outputs, outputs)):
+    for section, keys, known, dest in (("inputs", INPUT_BINDING, graph_inputs, inputs), ("outputs", OUTPUT_BINDING, graph_outputs, outputs)):
         raw = data.get(section)
         if raw is None:
-            p.add(data.pos if section not in data.key_pos else data.key_pos[section],
-                  f"missing '{section}:' section (a mapping from graph {section[:-1]} names to signals)")
+            p.add(data.pos if section not in data.key_pos else data.key_pos[section], MAP.keys[section].missing)
             continue
         if not isinstance(raw, LocDict):
-            p.add(data.value_pos.get(section), f"'{section}' must be a mapping from graph {section[:-1]} names to bindings")
+            p.add(data.value_pos.get(section), MAP.keys[section].message)
             continue
         for name, entry in raw.items():
             pos = raw.key_pos[name]
@@ -168,13 +148,12 @@ def load_map(path: str | Path, db: Database, dbc_path: str | Path = "DBC",
     _one_message_per_id(p, db, [*inputs.values(), *outputs.values()])
     check_transmitters(db, list(inputs.values()), list(outputs.values()), p.add)
     check_unbound_signals(db, list(outputs.values()), p.add)
-    audio = parse_audio(data["audio"], data.value_pos["audio"], p.add, graph_outputs) if "audio" in data else None
-    if p.items:
-        raise GraphError(p.items)
+    audio = parse_audio(data["audio"], data.value_pos["audio"], p, graph_outputs) if "audio" in data else None
+    p.raise_if_any()
     return CanMap(path, inputs, outputs, float(overrun), audio)
 
 
-def _one_message_per_id(p: _Problems, db: Database, bindings: list[Binding]) -> None:
+def _one_message_per_id(p: Collector, db: Database, bindings: list[Binding]) -> None:
     """Two bound messages with one ID number are refused: the runtime, the simulated device and cantools look
     received frames up by ID number, so a standard and an extended frame with one number would be confused."""
     owner: dict[int, str] = {}
@@ -186,25 +165,21 @@ def _one_message_per_id(p: _Problems, db: Database, bindings: list[Binding]) -> 
                       f"{owner[fid]!r} bound in this map; give the two messages different IDs in the DBC")
 
 
-def _per_component(p: _Problems, entry: LocDict, key: str, width: int, default: float, what: str) -> np.ndarray | None:
+def _per_component(p: Collector, entry: LocDict, key: str, width: int, default: float, what: str) -> np.ndarray | None:
     v = entry.get(key, default)
     pos = entry.value_pos.get(key)
     if _number(v):
         return np.full(width, float(v))
     if isinstance(v, LocList) and len(v) == width and all(_number(x) for x in v):
         return np.array([float(x) for x in v])
-    p.add(pos, f"{what}: '{key}' must be a number or a list of {width} numbers, got {excerpt(v)}")
+    p.add(pos, PER_COMPONENT.message.format(what=what, key=key, width=width, got=excerpt(v)))
     return None
 
 
-def _binding(p: _Problems, db: Database, dbc_path: str | Path, section: str, name: str, entry: LocDict,
-             pos: tuple[int, int], width: int | None, keys: tuple[str, ...], used: dict) -> Binding | None:
+def _binding(p: Collector, db: Database, dbc_path: str | Path, section: str, name: str, entry: LocDict,
+             pos: tuple[int, int], width: int | None, keys: schema.Record, used: dict) -> Binding | None:
     what = f"{section[:-1]} {name!r}"
-    ok = True
-    for key in entry:
-        if key not in keys:
-            p.add(entry.key_pos[key], f"{what}: unknown key {key!r}{suggest(str(key), list(keys))}")
-            ok = False
+    ok = check_unknown(p, entry, keys, what=what)
     if ("signal" in entry) == ("signals" in entry):
         p.add(pos, f"{what}: give exactly one of 'signal: MESSAGE.SIGNAL' or 'signals: [MESSAGE.SIGNAL, ...]'")
         return None
@@ -248,12 +223,11 @@ def _binding(p: _Problems, db: Database, dbc_path: str | Path, section: str, nam
         return None
     loc = Location(p.path, *pos)
     if section == "inputs":
-        t = entry.get("timeout_ms")
-        if t is None:
-            p.add(pos, f"{what}: missing 'timeout_ms' (how old, in ms, a sensor value may get before outputs go safe)")
+        if entry.get("timeout_ms") is None:
+            p.add(pos, INPUT_BINDING.keys["timeout_ms"].missing.format(what=what))
             return None
-        if not _number(t) or t <= 0:
-            p.add(entry.value_pos["timeout_ms"], f"{what}: timeout_ms must be a positive number of milliseconds, got {excerpt(t)}")
+        t = value_of(p, entry, INPUT_BINDING, "timeout_ms", what=what)
+        if t is INVALID:
             return None
         return InputBinding(name, width, signals, scale, offset, loc, timeout_ms=float(t))
     safe = _per_component(p, entry, "safe", width, 0.0, what)
@@ -262,7 +236,7 @@ def _binding(p: _Problems, db: Database, dbc_path: str | Path, section: str, nam
     return _output(p, entry, name, width, signals, scale, offset, safe, loc, what)
 
 
-def _safe_sendable(p: _Problems, db: Database, entry: LocDict, signals: list[tuple[str, str]], safe: np.ndarray,
+def _safe_sendable(p: Collector, db: Database, entry: LocDict, signals: list[tuple[str, str]], safe: np.ndarray,
                    scale: np.ndarray, offset: np.ndarray, what: str) -> bool:
     """Every safe value must arrive as itself within half an LSB under the DBC (checked before the clamps): else the
     encoder's DBC clamp or saturation would send another value on every safe frame and at exit."""
@@ -285,12 +259,12 @@ def _safe_sendable(p: _Problems, db: Database, entry: LocDict, signals: list[tup
     return True
 
 
-def _output(p: _Problems, entry: LocDict, name: str, width: int, signals, scale, offset, safe: np.ndarray, loc: Location,
+def _output(p: Collector, entry: LocDict, name: str, width: int, signals, scale, offset, safe: np.ndarray, loc: Location,
             what: str) -> OutputBinding | None:
     clamp = entry.get("clamp")
     cpos = entry.value_pos.get("clamp")
     if clamp is None:
-        p.add((loc.line, loc.column), f"{what}: missing 'clamp: [LOW, HIGH]' (the range, in graph units, the actuator may be commanded)")
+        p.add(loc, OUTPUT_BINDING.keys["clamp"].missing.format(what=what))
         return None
     lo = hi = None
     if isinstance(clamp, LocList) and len(clamp) == 2 and all(_number(x) for x in clamp):
@@ -312,12 +286,11 @@ def _output(p: _Problems, entry: LocDict, name: str, width: int, signals, scale,
     if "peak" in entry:
         peak = entry["peak"]
         ppos = entry.value_pos["peak"]
-        if not isinstance(peak, LocDict) or set(peak) != set(PEAK_KEYS):
-            p.add(ppos, f"{what}: peak must be {{limit: L, max_ms: D}} (allow |value| up to L for at most D ms)")
+        if not isinstance(peak, LocDict) or set(peak) != set(PEAK.keys):
+            p.add(ppos, OUTPUT_BINDING.keys["peak"].message.format(what=what))
             return None
-        dur = peak["max_ms"]
-        if not _number(dur) or dur < 0:
-            p.add(peak.value_pos["max_ms"], f"{what}: peak max_ms must be a non-negative number of milliseconds, got {dur!r}")
+        dur = value_of(p, peak, PEAK, "max_ms", what=what)
+        if dur is INVALID:
             return None
         limit = _per_component(p, peak, "limit", width, 0.0, what + " peak")
         if limit is None:

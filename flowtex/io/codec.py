@@ -42,7 +42,10 @@ import numpy as np
 from cantools.database.can import Message
 from numba import njit
 
+from ..cache import configure_numba_cache
 from ..errors import DataError
+
+configure_numba_cache()  # numba binds a kernel's cache folder when it is decorated: choose it first (flowtex.cache)
 
 _PACK_FORMATS = {1: "B", 2: "H", 4: "I", 8: "Q"}
 

@@ -1,7 +1,7 @@
 """Penn Haptic Texture Toolkit (HaTT) model files: read them, and write files of the same shape.
 
-The format is documented in ``/work/shared/formats/hatt-models.md`` and
-``docs/model-sets.md``: one ``<modelSet>`` root with scalar children
+The format is described in ``docs/hatt-format.md`` (and how flowtex reads it in
+``docs/model-sets.md``): one ``<modelSet>`` root with scalar children
 (``material``, ``SampleRate``, ``mu``, ``numMod``, ``numTri``, ``maxSpeed``,
 ``maxForce``, ``numARCoeff``, ``numMACoeff``, units and picture paths),
 ``<speedList>``/``<forceList>`` arrays of ``<value>`` elements, ``numTri``

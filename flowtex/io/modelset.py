@@ -31,7 +31,8 @@ import numpy as np
 from ..errors import DataError
 from ..limits import check_regular, excerpt
 from ..models.texture import TextureModelSet
-from ..node_api import suggest
+from ..schema.core import Collector, check_unknown, get
+from ..schema.datafiles import MODEL, MODEL_SET, RATE_KEY
 from .hatt import read_hatt_xml
 from .jsondoc import read_json_document
 
@@ -47,10 +48,9 @@ NATIVE_NAMES = {  # only what differs from TextureModelSet's default names
 }
 
 
-TOP_KEYS = ("format", "version", "material", "sample_rate", "mu", "max_speed", "max_force", "ar_order", "ma_order",
-            "triangles", "models", "metadata")
+TOP_KEYS = tuple(MODEL_SET.keys)
 """Keys a native model set may have at its top level (anything else is a typo, refused with a suggestion)."""
-MAX_ORDER = 1000
+MAX_ORDER = int(MODEL_SET.keys["ar_order"].max)
 """Largest AR or MA order a model set may declare (fitted sets use tens)."""
 
 
@@ -106,7 +106,7 @@ def save_model_set(ms: TextureModelSet, path: str | Path) -> Path:
         "format": FORMAT_NAME,
         "version": FORMAT_VERSION,
         "material": ms.material,
-        "sample_rate": float(ms.sample_rate),
+        RATE_KEY: float(ms.sample_rate),
         "mu": None if ms.mu is None else float(ms.mu),
         "max_speed": float(ms.max_speed),
         "max_force": float(ms.max_force),
@@ -130,10 +130,9 @@ def read_native(path: str | Path) -> TextureModelSet:
     path = Path(path)
     name = str(path)
     doc = read_json_document(path, "model-set", FORMAT_NAME, SUPPORTED_VERSIONS)
-    for key in doc:
-        if key not in TOP_KEYS:
-            raise DataError(f"{name}: unknown top-level key {excerpt(key)}{suggest(key, TOP_KEYS)}; "
-                            f"a model set has {', '.join(TOP_KEYS)}")
+    c = Collector(name)
+    check_unknown(c, doc, MODEL_SET)
+    c.raise_first_as_data_error()
 
     def need(key: str, kind: type | tuple[type, ...], where: dict = doc, label: str = "") -> Any:
         if key not in where:
@@ -144,7 +143,8 @@ def read_native(path: str | Path) -> TextureModelSet:
         return value
 
     material = need("material", str)
-    sample_rate = float(need("sample_rate", (int, float)))
+    spelling = get(doc, MODEL_SET, RATE_KEY)[1] or RATE_KEY
+    sample_rate = float(need(spelling, (int, float)))
     models = need("models", list)
     if not models:
         raise DataError(f"{name}: key 'models' is empty")
@@ -171,7 +171,7 @@ def read_native(path: str | Path) -> TextureModelSet:
         label = f"models[{m}]: "
         if not isinstance(entry, dict):
             raise DataError(f"{name}: {label}expected an object")
-        unknown = set(entry) - {"speed", "force", "ar_lsf", "ma_lsf", "variance", "gain", "ar_coeff", "ma_coeff"}
+        unknown = set(entry) - set(MODEL.keys)
         if unknown:
             raise DataError(f"{name}: {label}unknown key(s) {', '.join(sorted(map(excerpt, unknown)))}")
         speeds[m] = need("speed", (int, float), entry, label)

@@ -10,6 +10,8 @@ import numpy as np
 
 from ..errors import DataError
 from ..limits import excerpt
+from ..schema.core import Collector, check_unknown, get
+from ..schema.datafiles import FEATURE, PATTERN, RATE_KEY
 from .atomic import write_json_atomic
 from .jsondoc import read_json_document
 
@@ -45,7 +47,7 @@ class Pattern:
 def write_pattern(path: str | Path, pat: Pattern) -> Path:
     """Write ``pat`` (bit-exact floats) through a temporary file; returns the path."""
     doc = {
-        "format": FORMAT_NAME, "version": FORMAT_VERSION, "sample_rate_hz": float(pat.sample_rate_hz),
+        "format": FORMAT_NAME, "version": FORMAT_VERSION, RATE_KEY: float(pat.sample_rate_hz),
         "axis": [float(v) for v in pat.axis], "origin_mm": [float(v) for v in pat.origin],
         "features": [{"position_mm": float(x), "amplitude": float(amp), "b": [float(v) for v in b], "a": [float(v) for v in a]}
                      for x, amp, b, a in zip(pat.positions_mm, pat.amplitudes, pat.b, pat.a, strict=True)],
@@ -66,9 +68,12 @@ def read_pattern(path: str | Path) -> Pattern:
     """Read and check a pattern file; every problem raises DataError naming the file and the key."""
     path = Path(path).expanduser()
     doc = read_json_document(path, "pattern", FORMAT_NAME, (FORMAT_VERSION,))
-    rate = doc.get("sample_rate_hz")
+    c = Collector(str(path))
+    check_unknown(c, doc, PATTERN)
+    c.raise_first_as_data_error()
+    rate, key = get(doc, PATTERN, RATE_KEY)
     if not isinstance(rate, (int, float)) or isinstance(rate, bool) or not rate > 0:
-        raise DataError(f"{path}: key 'sample_rate_hz' must be a positive number of Hz, got {excerpt(rate)}")
+        raise DataError(f"{path}: key {key or RATE_KEY!r} must be a positive number of Hz, got {excerpt(None if key is None else rate)}")
     axis = _numbers(doc.get("axis"), "key 'axis'", path, 3)
     norm = float(np.linalg.norm(axis))
     if not norm > 0:
@@ -82,6 +87,8 @@ def read_pattern(path: str | Path) -> Pattern:
         where = f"features[{i}]"
         if not isinstance(f, dict):
             raise DataError(f"{path}: {where} must be an object with position_mm, amplitude, b, a")
+        check_unknown(c, f, FEATURE, where=where)
+        c.raise_first_as_data_error()
         for key in ("position_mm", "amplitude"):
             v = f.get(key)
             if not isinstance(v, (int, float)) or isinstance(v, bool):

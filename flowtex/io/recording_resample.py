@@ -12,7 +12,8 @@ import numpy as np
 
 from ..dsp.resample import DEFAULT_ATTEN_DB, rational_ratio, resample_signal
 from ..errors import DataError, FlowtexError
-from .recordings import AUDIO_SUFFIXES, SUFFIXES, load_recording, save_recording
+from .formats import AUDIO, RECORDING, kind_of
+from .recordings import load_recording, save_recording
 
 MAX_RATE_RATIO = 64.0
 """Largest change of rate (up or down) in one call: the polyphase filter's length grows with the ratio."""
@@ -25,7 +26,7 @@ def resample_recording(src: str | Path, out: str | Path, rate_hz: float, from_ra
     ``from_rate`` (Hz) is the rate of a recording that states none; a conflicting one is an error.
     """
     src, out = Path(src), Path(out)
-    if out.suffix.lower() not in SUFFIXES + AUDIO_SUFFIXES:
+    if kind_of(out) not in (RECORDING, AUDIO):
         raise DataError(f"{out}: unknown output format {out.suffix!r}; use .npz, .csv, .h5 or .wav")
     rec = load_recording(src)
     rate_in = rec.rate

@@ -29,12 +29,16 @@ import numpy as np
 
 from ..errors import DataError
 from ..limits import MAX_RECORDING_VALUES, check_regular, check_values, excerpt
+from .formats import AUDIO, RECORDING, format_of, listing, suffixes
 from .npzread import read_npz_arrays
 from .recording_rules import check_signals, numeric_signal
 
-SUFFIXES = (".npz", ".csv", ".h5", ".hdf5")
-AUDIO_SUFFIXES = (".wav",)
+SUFFIXES = suffixes(RECORDING)
+"""Recording suffixes, from the format registry (flowtex.io.formats)."""
+AUDIO_SUFFIXES = suffixes(AUDIO)
 """Also read and written by load_recording/save_recording (channels ch0, ch1, ...; flowtex.io.wav), but not searched for by the fitters."""
+_USE = listing((*(s for s in SUFFIXES if s != ".hdf5"), *AUDIO_SUFFIXES))
+"""``.npz, .csv, .h5 or .wav`` for messages."""
 _COLUMN = re.compile(r"^(?P<name>[^\[\]]+)(?:\[(?P<index>\d+)\])?$")
 
 
@@ -59,20 +63,21 @@ def load_recording(path: str | Path) -> Recording:
     if not path.exists():
         raise DataError(f"{path}: recording not found")
     check_regular(path, "recording")
-    suffix = path.suffix.lower()
-    if suffix == ".npz":
+    fmt = format_of(path)
+    name = fmt.name if fmt is not None and fmt.kind in (RECORDING, AUDIO) else None
+    if name == "npz":
         rec = _load_npz(path)
-    elif suffix == ".csv":
+    elif name == "csv":
         rec = _load_csv(path)
-    elif suffix in (".h5", ".hdf5"):
+    elif name == "hdf5":
         rec = _load_h5(path)
-    elif suffix == ".wav":
+    elif name == "wav":
         from .wav import read_wav
 
         rate, arrays = read_wav(path)
         rec = Recording(arrays, rate)
     else:
-        raise DataError(f"{path}: unknown recording format {suffix!r}; use .npz, .csv, .h5 or .wav")
+        raise DataError(f"{path}: unknown recording format {path.suffix.lower()!r}; use {_USE}")
     check_signals(rec.arrays, path)
     rec.path = path
     return rec
@@ -266,25 +271,26 @@ def save_recording(path: str | Path, arrays: Mapping[str, np.ndarray], rate: flo
     from .atomic import atomic_output
 
     path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix == ".wav":
+    fmt = format_of(path)
+    name = fmt.name if fmt is not None and fmt.kind in (RECORDING, AUDIO) else None
+    if name == "wav":
         from .wav import write_signals_wav
 
         write_signals_wav(path, arrays, rate)
         return
-    if suffix not in (".npz", ".csv", ".h5", ".hdf5"):
-        raise DataError(f"{path}: unknown output format {suffix!r}; use .npz, .csv, .h5 or .wav")
+    if name is None:
+        raise DataError(f"{path}: unknown output format {path.suffix.lower()!r}; use {_USE}")
     path.parent.mkdir(parents=True, exist_ok=True)
     arrays = {name: np.asarray(a, dtype=np.float64) for name, a in arrays.items()}
     units = {name: str(units[name]) for name in arrays if name in units} if units else {}
     with atomic_output(path) as tmp:
-        if suffix == ".npz":
+        if name == "npz":
             extra: dict[str, np.ndarray] = {"rate": np.float64(rate)} if rate is not None else {}
             if units and UNITS_KEY not in arrays:
                 extra[UNITS_KEY] = np.array(json.dumps(units))
             with open(tmp, "wb") as fh:
                 np.savez(fh, **arrays, **extra)
-        elif suffix == ".csv":
+        elif name == "csv":
             _save_csv(tmp, arrays, rate, units)
         else:
             h5py = _h5py()

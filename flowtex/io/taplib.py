@@ -16,15 +16,14 @@ import numpy as np
 from ..errors import DataError
 from ..limits import excerpt
 from ..models.taps import TapLibrary
-from ..node_api import suggest
+from ..schema.core import Collector, check_keys, check_unknown, get
+from ..schema.datafiles import RATE_KEY, TAP, TAP_LIBRARY
 from .jsondoc import read_json_document
 
 FORMAT = "flowtex-tap-library"
 VERSION = 1
 SPEED_UNIT = "mm/s"
 ACCEL_UNIT = "m/s^2"
-_TOP_KEYS = ("format", "version", "name", "notes", "sample_rate_hz", "speed_unit", "acceleration_unit", "taps")
-_TAP_KEYS = ("speed", "acceleration")
 
 
 def _number(path: Path, field: str, value: Any) -> float:
@@ -40,17 +39,18 @@ def read_tap_library(path: str | Path) -> TapLibrary:
     """
     path = Path(path)
     doc = read_json_document(path, "tap library", FORMAT, (VERSION,))
-    for key in doc:
-        if key not in _TOP_KEYS:
-            raise DataError(f"{path}: unknown field {key!r}{suggest(str(key), _TOP_KEYS)}; allowed: {', '.join(_TOP_KEYS)}")
+    c = Collector(str(path))
+    check_unknown(c, doc, TAP_LIBRARY)
+    c.raise_first_as_data_error()
     for key, unit in (("speed_unit", SPEED_UNIT), ("acceleration_unit", ACCEL_UNIT)):
         if key in doc and doc[key] != unit:
             raise DataError(f"{path}: field {key!r}: must be {unit!r}, got {doc[key]!r} (convert the data to {unit})")
-    if "sample_rate_hz" not in doc:
-        raise DataError(f"{path}: missing field 'sample_rate_hz' (the rate the transients were sampled at, Hz)")
-    rate = _number(path, "sample_rate_hz", doc["sample_rate_hz"])
+    value, spelling = get(doc, TAP_LIBRARY, RATE_KEY)
+    if spelling is None:
+        raise DataError(f"{path}: {TAP_LIBRARY.keys[RATE_KEY].missing}")
+    rate = _number(path, spelling, value)
     if rate <= 0:
-        raise DataError(f"{path}: field 'sample_rate_hz': must be > 0, got {rate:g}")
+        raise DataError(f"{path}: field {spelling!r}: must be > 0, got {rate:g}")
     name = doc.get("name", path.stem)
     if not isinstance(name, str):
         raise DataError(f"{path}: field 'name': expected a string, got {name!r}")
@@ -63,12 +63,8 @@ def read_tap_library(path: str | Path) -> TapLibrary:
         where = f"taps[{k}]"
         if not isinstance(tap, dict):
             raise DataError(f"{path}: field {where!r}: expected an object with 'speed' and 'acceleration'")
-        for key in tap:
-            if key not in _TAP_KEYS:
-                raise DataError(f"{path}: field '{where}.{key}' is unknown{suggest(str(key), _TAP_KEYS)}; a tap has 'speed' and 'acceleration'")
-        for key in _TAP_KEYS:
-            if key not in tap:
-                raise DataError(f"{path}: field '{where}.{key}' is missing")
+        check_keys(c, tap, TAP, where=where)
+        c.raise_first_as_data_error()
         speed = _number(path, f"{where}.speed", tap["speed"])
         if speed <= 0:
             raise DataError(f"{path}: field '{where}.speed': incoming speed must be > 0 mm/s, got {speed:g}")
@@ -96,7 +92,7 @@ def write_tap_library(path: str | Path, lib: TapLibrary, notes: str = "") -> Pat
         "format": FORMAT,
         "version": VERSION,
         "name": lib.name,
-        "sample_rate_hz": lib.sample_rate_hz,
+        RATE_KEY: lib.sample_rate_hz,
         "speed_unit": SPEED_UNIT,
         "acceleration_unit": ACCEL_UNIT,
     }

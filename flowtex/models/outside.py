@@ -7,7 +7,7 @@ Between the slowest measured model and speed 0 (and between the lightest one
 and force 0) the lookup's rule decides the loudness (``texture_lookup``'s
 ``outside`` parameter, docs/texture.md):
 
-* ``trend`` (default): the spectral shape of the nearest measured models, with
+* ``trend``: the spectral shape of the nearest measured models, with
   the power following the set's own power law in speed and force,
   P ~ speed^ks force^kf, fitted by least squares to the measured models'
   output powers (log P on log speed and log force). Below the slowest speed
@@ -19,7 +19,7 @@ and force 0) the lookup's rule decides the loudness (``texture_lookup``'s
 * ``hold``: the nearest measured models as they are (no fade, no growth):
   silence when the tool stops must then come from elsewhere (the example
   graphs multiply by the contact state, and the speed estimator's gate);
-* ``fade``: HaTT's renderer: silent corners blended like any model, so the
+* ``fade`` (default: HaTT's renderer, so HaTT files render as HaTT does): silent corners blended like any model, so the
   variance falls linearly from the slowest measured model to 0 at speed 0;
   above the fastest speed (heaviest force) the edge models are held.
 
@@ -32,7 +32,7 @@ import numpy as np
 
 from .texture import TextureModelSet
 
-OUTSIDE_CHOICES = ("trend", "hold", "fade")
+OUTSIDE_CHOICES = ("fade", "hold", "trend")
 """Values of ``texture_lookup``'s ``outside`` parameter; the first is the default."""
 TREND_CAP = 4.0
 """``trend`` extrapolates the power law up to this many times the speed (force) of the models blended."""
@@ -42,21 +42,15 @@ POWER_GRID = 1 << 14
 """Points on the unit circle for a model's output power (mean of |C/A|^2; exact to rounding for poles inside 0.9995)."""
 
 
-def _poly(lsf: np.ndarray) -> np.ndarray:
-    from ..dsp.lsf import lsf_to_poly
-
-    out = np.empty(lsf.shape[0] + 1)
-    lsf_to_poly(np.ascontiguousarray(lsf, dtype=np.float64), out)
-    return out
-
-
 def model_powers(ms: TextureModelSet) -> np.ndarray:
     """(M,) output power g^2 sigma^2 ||C/A||^2 of each model ((m/s^2)^2), from its LSFs as the lookup renders them."""
+    from ..dsp.lsf import lsf_to_poly_new
+
     out = np.zeros(ms.num_models)
     for m in range(ms.num_models):
         if ms.variance[m] <= 0.0:
             continue
-        h2 = np.abs(np.fft.rfft(_poly(ms.ma_lsf[m]), POWER_GRID) / np.fft.rfft(_poly(ms.ar_lsf[m]), POWER_GRID)) ** 2
+        h2 = np.abs(np.fft.rfft(lsf_to_poly_new(ms.ma_lsf[m]), POWER_GRID) / np.fft.rfft(lsf_to_poly_new(ms.ar_lsf[m]), POWER_GRID)) ** 2
         unit = (h2[0] + h2[-1] + 2.0 * np.sum(h2[1:-1])) / POWER_GRID     # mean over the whole circle
         out[m] = ms.gain[m] ** 2 * ms.variance[m] * unit
     return out

@@ -1,4 +1,4 @@
-"""Tap libraries: recorded (or synthetic) tapping transients labelled by incoming speed.
+"""Tap libraries: recorded tapping transients labelled by incoming speed (synthetic ones: :mod:`flowtex.datasets.taps`).
 
 A :class:`TapLibrary` holds K transients (accelerations in m/s^2, all L
 samples long at ``sample_rate_hz``) recorded at K distinct incoming speeds
@@ -69,25 +69,6 @@ class TapLibrary:
         return (1.0 - u) * self.transients[j] + u * self.transients[j + 1]
 
 
-def synthetic_tap_library(speeds: tuple[float, ...] = (20.0, 50.0, 100.0, 200.0), sample_rate_hz: float = 1000.0,
-                          duration_s: float = 0.1, freq_hz: float = 150.0, decay_s: float = 0.015,
-                          gain: float = 0.25, stiffening: float = 0.2, name: str = "synthetic") -> TapLibrary:
-    """Decaying sinusoids a_k(t) = gain v_k exp(-t / decay) sin(2 pi f_k t) (m/s^2), for tests and examples.
-
-    Amplitude grows linearly with the incoming speed v_k (mm/s; ``gain`` in
-    (m/s^2)/(mm/s)) as momentum does (Culbertson & Kuchenbecker 2017); the frequency rises mildly with
-    speed, f_k = freq_hz (1 + stiffening v_k / max v), so that interpolated
-    transients differ from scaled ones. Hard surfaces: high ``freq_hz``,
-    short ``decay_s``.
-    """
-    speeds_arr = np.asarray(sorted(speeds), dtype=np.float64)
-    n = int(round(duration_s * sample_rate_hz))
-    t = np.arange(n) / sample_rate_hz
-    freqs = freq_hz * (1.0 + stiffening * speeds_arr / speeds_arr[-1])
-    tr = gain * speeds_arr[:, None] * np.exp(-t[None, :] / decay_s) * np.sin(2 * np.pi * freqs[:, None] * t[None, :])
-    return TapLibrary(speeds_arr, tr, sample_rate_hz, name)
-
-
 def resample_tap_library(lib: TapLibrary, sample_rate_hz: float) -> TapLibrary:
     """The library at another sample rate (polyphase resampling with scipy, same duration)."""
     from scipy.signal import resample_poly
@@ -109,11 +90,8 @@ def spectral_centroid(lib: TapLibrary, speeds: tuple[float, ...] = (50.0, 60.0, 
     SC = sum X(f)^2 f / sum X(f)^2 with X the DFT magnitude of one transient.
     Silent transients are skipped; returns 0 when all are silent.
     """
-    values = []
-    freqs = np.fft.rfftfreq(lib.length, 1.0 / lib.sample_rate_hz)
-    for v in speeds:
-        power = np.abs(np.fft.rfft(lib.transient(v))) ** 2
-        total = power.sum()
-        if total > 0:
-            values.append(float((power * freqs).sum() / total))
+    from ..dsp.spectral import signal_centroid
+
+    values = [signal_centroid(lib.transient(v), lib.sample_rate_hz) for v in speeds]
+    values = [c for c in values if not np.isnan(c)]  # silent transients
     return float(np.mean(values)) if values else 0.0

@@ -8,6 +8,7 @@ import numpy as np
 from numba import njit
 
 from ..dsp.compliance import STATE_LEN, compliance_fit, compliance_params, compliance_step, new_state
+from ..dsp.contact import CONTACT_ON_N
 from ..errors import ParamError
 from ..node_api import Node, NodeState, Param, Port, PortSpec
 
@@ -42,7 +43,7 @@ class ComplianceEstimator(Node):
         "k_g": Param("float", default=1.0, unit="kg", min=0.0, min_exclusive=True, doc="normalisation k_g (N per m/s^2): k_c = k_g * slope"),
         "force_cutoff_hz": Param("float", default=2.5, unit="Hz", min=0.0, min_exclusive=True, doc="force (and mean-square) low-pass"),
         "highpass_hz": Param("float", default=10.0, unit="Hz", min=0.0, min_exclusive=True, doc="acceleration high-pass (gravity, drift)"),
-        "force_threshold": Param("float", default=0.1, unit="N", min=0.0, doc="contact needs more force than this"),
+        "force_threshold": Param("float", default=CONTACT_ON_N, unit="N", min=0.0, doc="contact needs more force than this"),
         "vibration_threshold": Param("float", default=0.02, unit="m/s^2", min=0.0, doc="ticks with less RMS vibration are not binned"),
         "smooth_floor": Param("float", default=0.1, unit="m/s^2", min=0.0, doc="a surface whose bins all stay below is too smooth"),
         "r2_min": Param("float", default=0.8, min=0.0, max=1.0, doc="least weighted R^2 of a valid fit"),

@@ -7,6 +7,7 @@ import math
 import numpy as np
 from numba import njit
 
+from ..dsp.contact import CONTACT_OFF_N, CONTACT_ON_N, DEFAULT_CUTOFF_HZ, HATT_CORNER_RAD_S, STATIONARY_MM
 from ..dsp.motion import (
     CONTACT_ISTATE,
     CONTACT_STATE,
@@ -23,11 +24,6 @@ from ..dsp.motion import (
 )
 from ..errors import ParamError
 from ..node_api import Node, NodeState, Param, Port, check
-
-HATT_CORNER_RAD_S = 125.0
-"""HaTT's speed filter corner (Penn Haptic Texture Toolkit renderer)."""
-DEFAULT_CUTOFF_HZ = 20.0
-"""Rendering speed filter of Kuchenbecker & Culbertson 2014 and Romano & Kuchenbecker 2012."""
 
 _NORMAL_PARAM = Param("floats", default=(0.0, 0.0, 1.0), length=(3, 3),
                       doc="surface normal used when the normal input is not connected (normalised; need not be unit)")
@@ -58,7 +54,7 @@ class SpeedEstimator(Node):
         "method": Param("choice", default="lowpass", choices=("lowpass", "hatt"), doc="velocity filter"),
         "cutoff_hz": Param("float", default=None, unit="Hz", min=0.0, min_exclusive=True,
                            doc="corner of the lowpass method (default 20 Hz); not used by hatt"),
-        "stationary_mm": Param("float", default=0.06, unit="mm", min=0.0,
+        "stationary_mm": Param("float", default=STATIONARY_MM, unit="mm", min=0.0,
                                doc="stationary threshold on the filtered displacement (Romano & Kuchenbecker 2012); 0 disables it"),
         "normal": _NORMAL_PARAM,
     }
@@ -105,8 +101,8 @@ class Contact(Node):
 
     type_name = "contact"
     params = {
-        "on_n": Param("float", default=0.1, unit="N", min=0.0, doc="force at or above which contact begins"),
-        "off_n": Param("float", default=0.05, unit="N", min=0.0, doc="force below which contact ends (<= on_n)"),
+        "on_n": Param("float", default=CONTACT_ON_N, unit="N", min=0.0, doc="force at or above which contact begins"),
+        "off_n": Param("float", default=CONTACT_OFF_N, unit="N", min=0.0, doc="force below which contact ends (<= on_n)"),
         "normal": _NORMAL_PARAM,
     }
     inputs = {

@@ -53,9 +53,9 @@ class TextureLookup(Node):
         "force_margin": Param("float", default=0.01, unit="N", min=0.0,
                               doc="forces above the set's maxForce become maxForce - force_margin (HaTT: 0.01)"),
         "outside": Param("choice", default=OUTSIDE_CHOICES[0], choices=OUTSIDE_CHOICES,
-                         doc="beyond the measured models: trend (spectrum of the nearest models, power along the set's own "
-                             "power law in speed and force: fades to 0 at rest, grows above the fastest), hold (nearest "
-                             "models as they are) or fade (HaTT: silent corners, linear fade below the slowest speed)"),
+                         doc="beyond the measured models: fade (default, HaTT: silent corners, linear fade below the slowest "
+                             "speed, saturation at the maximum), hold (nearest models as they are) or trend (spectrum of the "
+                             "nearest models, power along the set's own power law in speed and force)"),
         "order": Param("floats", default=None, length=(2, 2),
                        doc="[p, q]: render lower orders (Levinson step-down of each model, output power kept; "
                            "flowtex.dsp.order); default: the set's own"),

@@ -20,11 +20,14 @@ import can
 import numpy as np
 from numba import njit
 
+from ..cache import configure_numba_cache
 from ..errors import DataError
 from ..io.canmap import CanMap, load_map
 from ..io.codec import _NF, _NI, MessageCodec, TableDecoder, TableEncoder, _encode_tables, fast_ok, pack_int64
 from ..io.dbc import load_dbc
 from .safety import OutputGuard, Watchdog, first_stale, guard_kernel
+
+configure_numba_cache()  # numba binds a kernel's cache folder when it is decorated: choose it first (flowtex.cache)
 
 
 class CanIO:

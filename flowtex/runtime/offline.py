@@ -6,8 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..dsp.nonfinite import count_nonfinite
 from ..errors import DataError, FlowtexError
 from ..graph.compiled import Graph, apply_nonfinite_policy
+from ..io.formats import format_of
 from ..io.recordings import load_recording, save_recording
 
 TIME_COLUMN = "time"
@@ -37,25 +39,45 @@ def _vector_hint(name: str, shape: tuple[int, ...], have: list[str], path: Path)
         return ""
     width = int(np.prod(shape))
     similar = [h for h in have if h.lower().startswith(name.lower()) and h != name]
-    if not similar and path.suffix.lower() != ".csv":
+    csv = getattr(format_of(path), "name", None) == "csv"
+    if not similar and not csv:
         return ""
     cols = ", ".join(f"{name}[{i}]" for i in range(width))
-    where = "CSV columns" if path.suffix.lower() == ".csv" else "an array of shape (n, " + ", ".join(map(str, shape)) + ")"
+    where = "CSV columns" if csv else "an array of shape (n, " + ", ".join(map(str, shape)) + ")"
     found = f" (not {', '.join(similar)})" if similar else ""
-    if path.suffix.lower() == ".csv":
+    if csv:
         return f"; input {name!r} has shape ({', '.join(map(str, shape))},): name its {where} {cols}{found}"
     return f"; input {name!r} has shape ({', '.join(map(str, shape))},): store it as one entry {name!r}, {where}{found}"
 
 
+OUTPUT_POLICIES = ("warn", "error")
+"""What ``run_recording`` does with NaN/inf in the graph's outputs: leave it to the caller to warn, or refuse."""
+
+
+def nonfinite_outputs(outputs: dict[str, np.ndarray]) -> list[str]:
+    """One line per output holding NaN or inf: ``output 'y': 3 NaN and 0 inf value(s), the first at tick 17``."""
+    lines = []
+    for name, values in outputs.items():
+        found = count_nonfinite(values) if values.shape[0] else None
+        if found is not None:
+            lines.append(f"output {name!r}: {found.describe()}")
+    return lines
+
+
 def run_recording(graph: Graph, input_path: str | Path, output_path: str | Path | None,
-                  seed: int | None = None, progress: bool = True, nonfinite: str = "error") -> dict[str, np.ndarray]:
+                  seed: int | None = None, progress: bool = True, nonfinite: str = "error",
+                  nonfinite_out: str = "warn") -> dict[str, np.ndarray]:
     """Run ``graph`` over the recording at ``input_path``; write outputs if ``output_path``.
 
     A recording that states a sample rate different from the graph's rate is
     refused (resample it first, or fix ``rate:`` in the graph). Non-finite
     samples are handled by ``nonfinite`` (``error``, ``hold`` or ``zero``, as in
     :meth:`Graph.run`); ``error`` names the file, the signal, the count and the first index.
+    Non-finite *outputs* (a node that blew up) with ``nonfinite_out="error"`` are refused
+    before anything is written; with ``"warn"`` the caller reports :func:`nonfinite_outputs`.
     """
+    if nonfinite_out not in OUTPUT_POLICIES:
+        raise FlowtexError(f"unknown policy for non-finite outputs {nonfinite_out!r}; use one of {', '.join(OUTPUT_POLICIES)}")
     rec = load_recording(input_path)
     if rec.rate is not None and abs(rec.rate - graph.rate) > 1e-9 * graph.rate:
         raise DataError(f"{input_path}: recorded at {rec.rate:g} Hz but graph {graph.name!r} runs at {graph.rate:g} Hz; "
@@ -78,6 +100,11 @@ def run_recording(graph: Graph, input_path: str | Path, output_path: str | Path 
                                     fix="or pass --nonfinite hold (last finite value) or --nonfinite zero")
     # the policy is applied above; 'pass' hands the NaN/inf on unchanged, so the graph must not refuse them again
     outputs = graph.run(arrays, seed=seed, progress=progress, nonfinite="pass" if nonfinite == "pass" else "error")
+    if nonfinite_out == "error":
+        bad = nonfinite_outputs(outputs)
+        if bad:
+            raise DataError(f"graph {graph.name!r} on {input_path}: " + "; ".join(bad) + " (--nonfinite-outputs error: nothing "
+                            "written; bound the parameters or inputs that blow up, or use --nonfinite-outputs warn)")
     if output_path is not None:
         save_recording(output_path, outputs, rate=graph.rate, units={n: spec.unit for n, spec in graph.outputs.items()})
     return outputs

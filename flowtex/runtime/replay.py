@@ -39,6 +39,7 @@ import numpy as np
 from ..errors import DataError
 from ..io.atomic import atomic_output
 from ..io.canlog import SessionWriter, read_session_checked
+from ..io.formats import AUDIO, CAN_LOG, RECORDING, format_of
 from .canio import load_io
 
 
@@ -192,16 +193,17 @@ def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, m
         what = "no frame at all" if not frames else f"{len(frames)} frame(s) but no complete tick"
         raise DataError(f"{session_path}: nothing to replay: the log holds {what} (a tick ends with one frame of each actuator "
                         f"message of {map_path}: {ids}); is it a session recorded with this map and DBC?")
-    suffix = Path(output_path).suffix.lower() if output_path is not None else ""
-    if output_path is not None and suffix not in (".npz", ".blf", ".log", ".asc", ".wav"):
+    fmt = format_of(output_path) if output_path is not None else None
+    out_kind = fmt.kind if fmt is not None and (fmt.name in ("npz", "wav") or fmt.kind == CAN_LOG) else None
+    if output_path is not None and out_kind is None:
         raise DataError(f"{output_path}: replay output must end in .npz (graph outputs), .blf/.log/.asc (actuator frames) "
                         "or .wav (what the map's audio section plays)")
-    if suffix == ".wav" and io.map.audio is None:
+    if out_kind == AUDIO and io.map.audio is None:
         raise DataError(f"{output_path}: {map_path} has no 'audio' section, so the session played no audio")
     with contextlib.ExitStack() as stack:  # outputs go through the one writer: atomic, the old file kept on failure
-        target = stack.enter_context(atomic_output(output_path)) if output_path is not None and suffix != ".wav" else None
-        writer = SessionWriter(target) if suffix in (".blf", ".log", ".asc") else None
-        outputs = {name: np.zeros((len(ticks), *spec.shape)) for name, spec in graph.outputs.items()} if suffix in (".npz", ".wav") else None
+        target = stack.enter_context(atomic_output(output_path)) if output_path is not None and out_kind != AUDIO else None
+        writer = SessionWriter(target) if out_kind == CAN_LOG else None
+        outputs = {name: np.zeros((len(ticks), *spec.shape)) for name, spec in graph.outputs.items()} if out_kind in (RECORDING, AUDIO) else None
         io.encode_safe()
         safe = [bytes(m.data) for m in io.tx]
         """The actuator payloads of the safe values: what live sends while the watchdog holds the outputs."""
@@ -238,7 +240,7 @@ def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, m
         finally:
             if writer is not None:
                 writer.close()
-        if outputs is not None and suffix == ".wav":
+        if outputs is not None and out_kind == AUDIO:
             _write_audio(graph, io.map.audio, outputs, output_path)  # atomic itself (flowtex.io.wav.write_wav)
         elif outputs is not None:
             with open(target, "wb") as fh:

@@ -62,6 +62,10 @@ import logging
 import numpy as np
 from numba import njit
 
+from ..cache import configure_numba_cache
+
+configure_numba_cache()  # numba binds a kernel's cache folder when it is decorated: choose it first (flowtex.cache)
+
 _log = logging.getLogger(__name__)
 
 # Rows of the OutputGuard parameter matrices.

@@ -12,12 +12,12 @@ from .plan import PATTERN_NODE, SurfaceData, plan_scene
 
 
 def plan_to_graph(scene_path: str | Path, out_path: str | Path, plugins: tuple[str | Path, ...] = (),
-                  fixed: str | None = None, relative: bool = True, auto_plugins: bool = True) -> dict[str, SurfaceData]:
+                  fixed: str | None = None, relative: bool = True) -> dict[str, SurfaceData]:
     """Plan ``scene_path`` and write the graph to ``out_path`` atomically; returns the plan.
 
     ``fixed`` renders that surface alone (no surface input); ``relative``
-    writes file paths relative to the graph file's folder (else absolute);
-    ``auto_plugins=False`` does not load ./plugins (``--no-plugins``).
+    writes file paths relative to the graph file's folder (else absolute).
+    ``plugins`` are plugin folders (besides ``$FLOWTEX_PLUGINS`` and entry points).
     """
     scene = load_scene(scene_path)
     if fixed is not None:
@@ -27,7 +27,7 @@ def plan_to_graph(scene_path: str | Path, out_path: str | Path, plugins: tuple[s
         if fixed not in scene.surfaces:
             raise FlowtexError(f"{scene_path}: no surface {fixed!r}{suggest(fixed, list(scene.surfaces))}")
         scene.fixed = fixed
-    registry = load_registry(plugins, auto=auto_plugins)
+    registry = load_registry(plugins)
     plan = plan_scene(scene, frozenset(registry.names()))
     out_path = Path(out_path)
     doc = scene_graph(scene, plan, out_path.parent if relative else None, registry.get(PATTERN_NODE))

@@ -7,25 +7,19 @@ relative to the scene file's folder. The format is documented in docs/scenes.md.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from ..errors import Diagnostic, GraphError, Location
-from ..graph.spec import FORMAT_VERSION, NAME_RE, Collector
+from ..graph.spec import NAME_RE
 from ..limits import excerpt
 from ..node_api import suggest
+from ..schema.core import INVALID, Collector, Record, check_keys, check_unknown, check_value, value_of
+from ..schema.scene import COMPONENT_LIST, COMPONENTS, SCENE, SECTIONS, SURFACE, THRESHOLDS, nonneg
 from ..yamlsource import LocDict, LocList, load_yaml, read_source
 
-TOP_KEYS = ("flowtex", "name", "rate", "surfaces", "trajectory", "select", "device", "thresholds", "description")
-SURFACE_KEYS = ("models", "mu", "taps", "pattern", "compliance", "stiffness", "keep", "drop", "doc")
-COMPONENTS = ("texture", "friction", "taps", "pattern", "stiffness")
-"""Components a surface may keep or drop; ``stiffness`` is the base-surface spring (``stiffness`` x ``compliance``)."""
-THRESHOLD_KEYS = ("texture", "friction", "taps")
-TRAJECTORY_KEYS = ("speed", "force", "recording")
-SELECT_KEYS = ("input", "fade", "fixed")
-DEVICE_KEYS = ("dbc", "map")
+__all__ = ["COMPONENTS", "Scene", "SurfaceSpec", "load_scene", "parse_scene"]
 
 
 @dataclass
@@ -79,16 +73,15 @@ def load_scene(path: str | Path) -> Scene:
 
 
 def _number(c: Collector, value: Any, pos: Any, what: str, positive: bool = False) -> float | None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0 or (positive and value == 0):
-        c.error(pos, f"{what} must be a {'positive' if positive else 'non-negative'} number, got {excerpt(value)}")
-        return None
-    return float(value)
+    got = check_value(c, value, pos, nonneg(what, positive=positive))
+    return None if got is INVALID else float(got)
 
 
 def _range(c: Collector, value: Any, pos: Any, what: str, unit: str) -> tuple[float, float] | None:
+    from ..schema.scene import TRAJECTORY
+
     if not (isinstance(value, LocList) and len(value) == 2):
-        c.error(pos, f"trajectory {what} must be [low, high] in {unit}, e.g. {what}: [50, 250]" if what == "speed"
-                else f"trajectory {what} must be [low, high] in {unit}, e.g. {what}: [0.5, 2.5]")
+        c.error(pos, TRAJECTORY.keys[what].message)
         return None
     lo = _number(c, value[0], value.item_pos[0], f"trajectory {what} low ({unit})")
     hi = _number(c, value[1], value.item_pos[1], f"trajectory {what} high ({unit})")
@@ -100,16 +93,15 @@ def _range(c: Collector, value: Any, pos: Any, what: str, unit: str) -> tuple[fl
     return lo, hi
 
 
-def _mapping(c: Collector, data: LocDict, key: str, allowed: tuple[str, ...], example: str) -> LocDict | None:
+def _mapping(c: Collector, data: LocDict, key: str) -> LocDict | None:
     raw = data.get(key)
     if raw is None:
         return None
     if not isinstance(raw, LocDict):
-        c.error(data.value_pos.get(key), f"{key} must be a mapping, e.g. {key}: {example}")
+        c.error(data.value_pos.get(key), SCENE.keys[key].message)
         return None
-    for k in raw:
-        if k not in allowed:
-            c.error(raw.key_pos[k], f"{key}: unknown key {k!r}{suggest(str(k), allowed)}; allowed: {', '.join(allowed)}")
+    record: Record = SECTIONS[key][0]
+    check_unknown(c, raw, record)  # required keys: reported by the section's reader
     return raw
 
 
@@ -121,58 +113,53 @@ def parse_scene(text: str, path: Path) -> Scene:
     if not isinstance(data, LocDict):
         message = "a scene file must be a mapping with keys flowtex, name, rate, surfaces, trajectory"
         raise GraphError([Diagnostic(Location(str(path), 1, 1), message)])
-    for key in data:
-        if key not in TOP_KEYS:
-            c.error(data.key_pos[key], f"unknown top-level key {key!r}{suggest(str(key), TOP_KEYS)}")
-    for key in ("flowtex", "surfaces", "trajectory"):
-        if key not in data:
-            c.error(data.pos, f"missing top-level key {key!r}" + (" (the format version; write 'flowtex: 1')" if key == "flowtex" else ""))
-    if "flowtex" in data and data["flowtex"] != FORMAT_VERSION:
-        c.error(data.value_pos["flowtex"], f"unsupported format version {excerpt(data['flowtex'])}; this flowtex reads version {FORMAT_VERSION}")
-    name = data.get("name", path.stem)
-    if not isinstance(name, str) or not name:
-        c.error(data.value_pos.get("name"), "name must be a non-empty string")
-        name = path.stem
-    rate = _number(c, data.get("rate", 1000.0), data.value_pos.get("rate"), "rate (Hz)", positive=True) or 1000.0
-    scene = Scene(path=path, name=name, rate=rate, surfaces={}, description=str(data.get("description", "")))
+    check_keys(c, data, SCENE)
+    value_of(c, data, SCENE, "flowtex")
+    name = value_of(c, data, SCENE, "name") if "name" in data else path.stem
+    rate = value_of(c, data, SCENE, "rate") if "rate" in data else 1000.0
+    scene = Scene(path=path, name=path.stem if name is INVALID else name, rate=1000.0 if rate is INVALID else float(rate),
+                  surfaces={}, description=str(data.get("description", "")))
     scene.surfaces = _surfaces(c, data, base)
     _trajectory(c, data, base, scene)
-    th = _mapping(c, data, "thresholds", THRESHOLD_KEYS, "{texture: 1.0, friction: 0.5, taps: 60}")
+    th = _mapping(c, data, "thresholds")
     if th is not None:
         for k in th:
-            if k in THRESHOLD_KEYS:
-                v = _number(c, th[k], th.value_pos[k], f"thresholds.{k}")
-                if v is not None:
-                    scene.thresholds[k] = v
-    sel = _mapping(c, data, "select", SELECT_KEYS, "{input: surface, fade: 0.01}")
+            if k in THRESHOLDS.keys:
+                v = value_of(c, th, THRESHOLDS, k)
+                if v is not INVALID:
+                    scene.thresholds[k] = float(v)
+    sel = _mapping(c, data, "select")
     if sel is not None:
+        from ..schema.scene import SELECT
+
         if "input" in sel:
-            if not isinstance(sel["input"], str) or not NAME_RE.match(sel["input"]):
-                c.error(sel.value_pos["input"], f"select.input must be a graph input name (letters, digits, '_'), got {excerpt(sel['input'])}")
+            if not isinstance(sel["input"], str) or not NAME_RE.match(sel["input"]):  # the name pattern, as editors check it
+                c.error(sel.value_pos["input"], SELECT.keys["input"].message.format(got=excerpt(sel["input"])))
             else:
                 scene.select_input = sel["input"]
         if "fade" in sel:
-            v = _number(c, sel["fade"], sel.value_pos["fade"], "select.fade (s)")
-            scene.fade_s = scene.fade_s if v is None else v
+            v = value_of(c, sel, SELECT, "fade")
+            scene.fade_s = scene.fade_s if v is INVALID else float(v)
         if "fixed" in sel:
             if sel["fixed"] not in scene.surfaces:
                 c.error(sel.value_pos["fixed"], f"select.fixed: no surface {excerpt(sel['fixed'])}{suggest(str(sel['fixed']), list(scene.surfaces))}")
             else:
                 scene.fixed = sel["fixed"]
-    dev = _mapping(c, data, "device", DEVICE_KEYS, "{dbc: device.dbc, map: map.yaml}")
+    dev = _mapping(c, data, "device")
     if dev is not None:
-        for k in DEVICE_KEYS:
+        from ..schema.scene import DEVICE
+
+        for k in DEVICE.keys:
             if k not in dev or not isinstance(dev[k], str):
-                c.error(dev.value_pos.get(k, dev.pos), f"device.{k} must name a file (device: {{dbc: device.dbc, map: map.yaml}})")
+                c.error(dev.value_pos.get(k, dev.pos), DEVICE.keys[k].message)
         scene.dbc = base / dev["dbc"] if isinstance(dev.get("dbc"), str) else None
         scene.map = base / dev["map"] if isinstance(dev.get("map"), str) else None
-    if c.diagnostics:
-        raise GraphError(c.diagnostics)
+    c.raise_if_any()
     return scene
 
 
 def _trajectory(c: Collector, data: LocDict, base: Path, scene: Scene) -> None:
-    tr = _mapping(c, data, "trajectory", TRAJECTORY_KEYS, "{speed: [50, 250], force: [0.5, 2.5]}")
+    tr = _mapping(c, data, "trajectory")
     if tr is None:
         if "trajectory" in data and data["trajectory"] is None:
             c.error(data.value_pos["trajectory"], "trajectory is empty: give {speed: [lo, hi], force: [lo, hi]} or {recording: FILE}")
@@ -180,9 +167,7 @@ def _trajectory(c: Collector, data: LocDict, base: Path, scene: Scene) -> None:
     if "recording" in tr:
         if "speed" in tr or "force" in tr:
             c.error(tr.key_pos["recording"], "trajectory: give either recording or speed and force ranges, not both")
-        elif not isinstance(tr["recording"], str):
-            c.error(tr.value_pos["recording"], "trajectory.recording must name a recording file (.npz, .csv, .h5)")
-        else:
+        elif value_of(c, tr, SECTIONS["trajectory"][0], "recording") is not INVALID:
             scene.recording = base / tr["recording"]
         return
     for k in ("speed", "force"):
@@ -200,7 +185,7 @@ def _components(c: Collector, s: LocDict, key: str, surface: str) -> tuple[str, 
         return ()
     items = [raw] if isinstance(raw, str) else raw
     if not isinstance(items, list):
-        c.error(s.value_pos[key], f"surface {surface!r}: {key} must be a list of components from {', '.join(COMPONENTS)}")
+        c.error(s.value_pos[key], COMPONENT_LIST.message.format(surface=surface, key=key))
         return ()
     out = []
     for i, item in enumerate(items):
@@ -218,7 +203,7 @@ def _surfaces(c: Collector, data: LocDict, base: Path) -> dict[str, SurfaceSpec]
     if raw is None:
         return {}
     if not isinstance(raw, LocDict) or not raw:
-        c.error(data.value_pos.get("surfaces"), "surfaces must be a non-empty mapping of name: {models: FILE, ...}")
+        c.error(data.value_pos.get("surfaces"), SCENE.keys["surfaces"].message.format())
         return {}
     out: dict[str, SurfaceSpec] = {}
     for key, s in raw.items():
@@ -229,23 +214,18 @@ def _surfaces(c: Collector, data: LocDict, base: Path) -> dict[str, SurfaceSpec]
         if not isinstance(s, LocDict):
             c.error(raw.value_pos[key], f"surface {key!r}: expected a mapping with at least 'models' (a HaTT XML or native model set)")
             continue
-        for k in s:
-            if k not in SURFACE_KEYS:
-                c.error(s.key_pos[k], f"surface {key!r}: unknown key {k!r}{suggest(str(k), SURFACE_KEYS)}")
+        check_unknown(c, s, SURFACE, surface=key)
         if not isinstance(s.get("models"), str):
-            c.error(s.value_pos.get("models", pos), f"surface {key!r}: 'models' must name a texture model set file (HaTT XML or flowtex JSON)")
+            c.error(s.value_pos.get("models", pos), SURFACE.keys["models"].message.format(surface=key))
             continue
         spec = SurfaceSpec(key=key, models=base / s["models"], loc=c.loc(pos),
                            locs={k: c.loc(s.value_pos[k]) for k in s})
-        if "mu" in s:
-            spec.mu = _number(c, s["mu"], s.value_pos["mu"], f"surface {key!r}: mu (kinetic friction coefficient)")
-        if "taps" in s:
-            if not isinstance(s["taps"], str):
-                c.error(s.value_pos["taps"], f"surface {key!r}: 'taps' must name a tap library file (docs/tap-library.md)")
-            else:
-                spec.taps = base / s["taps"]
-        if "stiffness" in s:
-            spec.stiffness = _number(c, s["stiffness"], s.value_pos["stiffness"], f"surface {key!r}: stiffness (N/mm)", positive=True)
+        for k in ("mu", "stiffness"):
+            if k in s:
+                got = value_of(c, s, SURFACE, k, surface=key)
+                setattr(spec, k, None if got is INVALID else float(got))
+        if "taps" in s and value_of(c, s, SURFACE, "taps", surface=key) is not INVALID:
+            spec.taps = base / s["taps"]
         spec.pattern = s.get("pattern")
         if "compliance" in s:
             spec.compliance = _compliance(c, s["compliance"], s.value_pos["compliance"], key, base)
@@ -260,10 +240,7 @@ def _surfaces(c: Collector, data: LocDict, base: Path) -> dict[str, SurfaceSpec]
 
 def _compliance(c: Collector, value: Any, pos: Any, surface: str, base: Path) -> float | Path | None:
     """``compliance:`` is k_c (a number in [0, 1]) or the JSON file 'flowtex fit compliance' wrote."""
-    if isinstance(value, str):
-        return base / value
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or not 0.0 <= value <= 1.0:
-        c.error(pos, f"surface {surface!r}: compliance must be k_c between 0 (soft) and 1 (stiff), or the JSON file "
-                     f"'flowtex fit compliance' writes; got {excerpt(value)}")
+    got = check_value(c, value, pos, SURFACE.keys["compliance"], surface=surface)
+    if got is INVALID:
         return None
-    return float(value)
+    return base / got if isinstance(got, str) else float(got)

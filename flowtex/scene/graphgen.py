@@ -23,6 +23,7 @@ from typing import Any
 
 import yaml
 
+from ..dsp.contact import CONTACT_OFF_N, CONTACT_ON_N
 from ..errors import FlowtexError
 from .file import Scene
 from .plan import PATTERN_NODE, SurfaceData
@@ -93,7 +94,7 @@ def scene_graph(scene: Scene, plan: dict[str, SurfaceData], base: Path | None, p
     index = scene.select_input if len(keys) > 1 else None
     b = _Builder()
     b.node("speed", "speed_estimator", method="hatt")
-    b.node("contact", "contact", on_n=0.1, off_n=0.05)
+    b.node("contact", "contact", on_n=CONTACT_ON_N, off_n=CONTACT_OFF_N)
     b.edge("position", "speed.position")
     b.edge("normal", "speed.normal")
     b.edge("normal_force", "contact.normal_force")

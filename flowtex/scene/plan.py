@@ -74,8 +74,8 @@ def scene_ranges(scene: Scene) -> tuple[tuple[float, float], tuple[float, float]
     if scene.recording is None:
         assert scene.speed_range is not None and scene.force_range is not None
         return scene.speed_range, scene.force_range
-    from ..dsp.salience import trajectory_ranges
     from ..io.recordings import load_recording
+    from .salience import trajectory_ranges
 
     rec = load_recording(scene.recording)
     missing = [k for k in ("position", "normal_force") if k not in rec.arrays]
@@ -112,10 +112,10 @@ def _check_rate(spec: SurfaceSpec, field: str, key: str, file_rate: float, scene
 
 def plan_scene(scene: Scene, node_types: set[str] | frozenset[str] = frozenset()) -> dict[str, SurfaceData]:
     """Load every surface's models and decide each component; ``node_types`` are the registered node type names."""
-    from ..dsp.salience import mean_texture_power
     from ..io.modelset import load_model_set
     from ..io.taplib import read_tap_library
     from ..models.taps import spectral_centroid
+    from .salience import mean_texture_power
 
     th = {**DEFAULT_THRESHOLDS, **scene.thresholds}
     speed_range, force_range = scene_ranges(scene)

@@ -12,6 +12,9 @@ Writes (all synthetic; flowtex ships no HaTT file):
 * ``synthetic_taps.json`` -- a tap library (docs/tap-library.md): decaying
   150 Hz sinusoids at incoming speeds 20, 50, 100 and 200 mm/s
   (``flowtex.models.taps.synthetic_tap_library``);
+* ``speed_force.npz`` -- the same exploration as a speed-sensor rig records
+  it: tangential ``speed`` (mm/s) and ``normal_force`` (N) only, with their
+  units, for graphs/speed_force_texture.yaml (:func:`speed_force`);
 * ``exploration.npz`` -- a 16 s free exploration of a flat surface (the plane
   z = 0, normal +z) at 1000 Hz, with the graph inputs of the texture examples:
   ``position`` (n, 3) mm, ``normal_force`` (n,) N, ``normal`` (n, 3) unit
@@ -174,6 +177,23 @@ _HEADING_KEYS = [
 ]
 
 
+def tangential_speed(n: int) -> np.ndarray:
+    """The exploration's tangential speed (mm/s) at each of ``n`` samples: the speed keyframes, linear in between."""
+    ks, vs = zip(*_SPEED_KEYS, strict=True)
+    return np.interp(np.arange(n) / RATE, ks, vs)
+
+
+def speed_force(seconds: float = 16.0) -> dict[str, np.ndarray]:
+    """The exploration as a speed-sensor rig records it: ``speed`` (mm/s, tangential) and ``normal_force`` (N) only.
+
+    The same motion as :func:`exploration` (its force, its keyframed speed, rounded to 0.01 mm/s), with no
+    position: the input of graphs/speed_force_texture.yaml.
+    """
+    rec = exploration(seconds)
+    speed = np.round(tangential_speed(rec["normal_force"].shape[0]) / 0.01) * 0.01
+    return {"speed": speed, "normal_force": rec["normal_force"]}
+
+
 def exploration(seconds: float = 16.0) -> dict[str, np.ndarray]:
     """A synthetic free exploration of the plane z = 0 (normal +z), sampled at 1000 Hz.
 
@@ -193,9 +213,8 @@ def exploration(seconds: float = 16.0) -> dict[str, np.ndarray]:
     n = round(seconds * RATE)
     t = np.arange(n) / RATE
     d = _vertical_plan()[:n]
-    ks, vs = zip(*_SPEED_KEYS, strict=True)
     kh, hs = zip(*_HEADING_KEYS, strict=True)
-    speed = np.interp(t, ks, vs)
+    speed = tangential_speed(n)
     heading = np.interp(t, kh, hs)
     step = np.stack([np.cos(heading), np.sin(heading)], axis=1) * (speed / RATE)[:, None]
     xy = np.cumsum(step, axis=0) - step[0]
@@ -207,7 +226,7 @@ def exploration(seconds: float = 16.0) -> dict[str, np.ndarray]:
 
 
 def main(out_dir: Path = HERE) -> None:
-    """Write the three files into ``out_dir`` (default: this folder)."""
+    """Write the four files into ``out_dir`` (default: this folder)."""
     out_dir = Path(out_dir)
     save_model_set(example_model_set(), out_dir / "synthetic_texture.json")
     write_tap_library(out_dir / "synthetic_taps.json", synthetic_tap_library(name="synthetic taps"),
@@ -215,6 +234,8 @@ def main(out_dir: Path = HERE) -> None:
     rec = exploration()
     # compressed npz: same layout as flowtex.io.recordings.save_recording writes, a quarter of the size
     np.savez_compressed(out_dir / "exploration.npz", **rec, rate=np.float64(RATE))
+    np.savez_compressed(out_dir / "speed_force.npz", **speed_force(), rate=np.float64(RATE),
+                        units=np.array('{"speed": "mm/s", "normal_force": "N"}'))
 
 
 if __name__ == "__main__":

@@ -16,11 +16,11 @@ import pytest
 
 from flowtex.bench.sweep import parse_knob
 from flowtex.cli import main
+from flowtex.datasets.study import write_study_scene
 from flowtex.dsp.errors import signal_error
 from flowtex.errors import FlowtexError
 from flowtex.graph.compiled import load_graph
 from flowtex.scene.build import plan_to_graph
-from flowtex.scene.study import write_study_scene
 
 REPO = Path(__file__).resolve().parents[2]
 SURFACES = ("EPDM_Foam", "Whiteboard")  # EPDM keeps friction (mu 1.39); Whiteboard drops texture and friction

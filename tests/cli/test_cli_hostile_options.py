@@ -79,7 +79,7 @@ def test_a_tap_length_below_one_sample_names_length(rec, capsys, tmp_path):
 
 def test_holdout_leaving_nothing_to_fit(rec, capsys, tmp_path):
     cli_one_line(capsys, ["fit", "texture", str(rec), "--speed", "speed", "--force", "normal_force", "-o", str(tmp_path / "s.json"),
-                          "--holdout", "0.999"], "--holdout 0.999 leaves 0.01 s to fit")
+                          "--holdout", "0.999"], "--holdout 0.999 (--holdout-split tail) leaves 0.01 s to fit")
 
 
 @pytest.mark.parametrize("verb", [["fit", "texture"], ["fit", "taps"]])

@@ -130,7 +130,7 @@ def test_a_graph_name_with_escape_codes_is_printed_escaped(tmp_path, capsys):
 
 def test_plugins_are_announced_and_no_plugins_skips_the_graph_folders(tmp_path, capsys, monkeypatch):
     (tmp_path / "elsewhere").mkdir()
-    monkeypatch.chdir(tmp_path / "elsewhere")  # no ./plugins here: only the graph folder's plugins/
+    monkeypatch.chdir(tmp_path / "elsewhere")  # only the graph folder's plugins/ is loaded
     (tmp_path / "plugins").mkdir()
     shutil.copy(REPO / "plugins" / "soft_clip.py", tmp_path / "plugins" / "soft_clip.py")
     (tmp_path / "g.yaml").write_text(GRAPH.replace("{type: gain, params: {k: 2}}", "{type: soft_clip, params: {limit: 1}}"))

@@ -19,7 +19,8 @@ from flowtex.cli import main
 from flowtex.datasets.realistic import human_exploration
 from flowtex.errors import DataError
 from flowtex.fit.compare import CompareOptions, compare_signals, compare_surface
-from flowtex.fit.evaluate import fit_holdout, split_holdout
+from flowtex.fit.crossval import holdout_split
+from flowtex.fit.evaluate import fit_holdout
 from flowtex.fit.texture import fit_texture
 from flowtex.io.modelset import save_model_set
 from flowtex.io.recordings import save_recording
@@ -29,7 +30,7 @@ RATE = 1000.0
 
 def test_compare_signals_scaled_copy_is_exact():
     """A render that is the recording times sqrt(2): +3.01 dB power, LSD 3.01 dB, GFC 1, window RMS correlation 1 (analytic)."""
-    x = np.random.default_rng(0).standard_normal(8000) * np.repeat(np.linspace(0.5, 2.0, 8), 1000)
+    x = np.random.default_rng(0).standard_normal(12000) * np.repeat(np.linspace(0.5, 2.0, 12), 1000)
     c = compare_signals(x, [np.sqrt(2.0) * x, np.sqrt(2.0) * x], RATE)
     three = 10 * np.log10(2.0)
     assert c.power_ratio_db == pytest.approx(three, abs=1e-9)
@@ -37,7 +38,8 @@ def test_compare_signals_scaled_copy_is_exact():
     assert c.gfc == pytest.approx(1.0, abs=1e-12)
     assert c.rms_correlation == pytest.approx(1.0, abs=1e-12)
     assert c.power_ratio_spread_db == pytest.approx(0.0, abs=1e-12)
-    assert len(c.windows) == 7 and c.seconds == pytest.approx(7.5)      # 8 s minus the 0.5 s skipped; 1-s windows
+    assert len(c.windows) == 11 and c.seconds == pytest.approx(11.5)    # 12 s minus the 0.5 s skipped; 1-s windows
+    assert c.warnings == []
     assert c.centroid_hz == pytest.approx(c.rendered_centroid_hz)
 
 
@@ -92,12 +94,12 @@ def test_holdout_compares_the_unseen_end(recordings):
     a = recordings[0].arrays
     fit, cmp = fit_holdout(a["accel"], a["speed"], a["normal_force"], RATE, 0.25)
     assert max(p.stop for p in fit.pieces) <= 15000                   # fitted on the first 15 s only
-    assert cmp.seconds == pytest.approx(4.5)                          # last 5 s, 0.5 s skipped
+    assert cmp.seconds == pytest.approx(5.0)                          # the last 5 s of a render along the whole path
     assert abs(cmp.power_ratio_db) <= 1.5 and cmp.lsd_db < 3.0
     with pytest.raises(DataError, match="between 0 and 1"):
-        split_holdout(20000, RATE, 1.5, "rec")
+        holdout_split(20000, RATE, 1.5, "tail", "rec")
     with pytest.raises(DataError, match="fewer than 2 s"):
-        split_holdout(20000, RATE, 0.05, "rec")
+        holdout_split(20000, RATE, 0.05, "tail", "rec")
 
 
 def test_compare_refuses_a_surface_at_another_rate(recordings):
@@ -128,6 +130,8 @@ def test_cli_compare_json_report_and_from_rate(recordings, tmp_path, capsys):
     assert {"lsd_db", "power_ratio_db", "rms_correlation", "gfc", "centroid_hz", "windows"} <= set(data)
     assert data["seeds"] == 2 and len(data["windows"]) == 5 and abs(data["power_ratio_db"]) < 0.5
     assert (tmp_path / "rep" / "report.md").exists() and (tmp_path / "rep" / "spectrum.png").exists()
+    assert (tmp_path / "rep" / "octaves.png").exists() and "octaves.png" in (tmp_path / "rep" / "report.md").read_text()
+    assert data["band_hz"] == [12.0, 500.0] and [b["centre_hz"] for b in data["octave_bands"]][-1] == 500.0
 
 
 def test_cli_report_without_matplotlib_is_a_clear_error(recordings, tmp_path, capsys, monkeypatch):

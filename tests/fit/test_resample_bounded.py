@@ -88,3 +88,29 @@ def test_extra_order_range(tmp_path, capsys, bad, message):
     assert main(["models", "resample", str(src), "--rate", "2000", "-o", str(tmp_path / "o.json"), "--extra-order", bad]) == 1
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1  # one line naming the range
+
+
+@pytest.mark.parametrize("rate", ["2000", "500"])
+def test_gain_whose_power_overflows_is_a_one_line_error_naming_file_and_model(tmp_path, capsys, rate):
+    # issue 27: gains of 1e300 ended in "internal error: OverflowError" (gain^2 overflows float64)
+    ms = synthetic_model_set([60.0, 150.0], [0.5, 1.5], ar_order=4, ma_order=2)
+    ms.gain = np.where(np.arange(ms.num_models) == 2, 1e300, ms.gain)
+    src = save_model_set(ms.validate(), tmp_path / "big.json")
+    out = tmp_path / "out.json"
+    assert main(["models", "resample", str(src), "--rate", rate, "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "internal error" not in err
+    speed, force = float(ms.speeds[2]), float(ms.forces[2])
+    assert str(src) in err and f"model 2 ({speed:g} mm/s, {force:g} N)" in err and "gain 1e+300" in err
+    assert not out.exists()
+
+
+def test_huge_but_finite_power_resamples_like_a_unit_one(tmp_path):
+    # the level never enters the fit: a set scaled by 1e150 in gain resamples to the same shapes, variances scaled
+    ms = synthetic_model_set([60.0, 150.0], [0.5, 1.5], ar_order=4, ma_order=2)
+    big = synthetic_model_set([60.0, 150.0], [0.5, 1.5], ar_order=4, ma_order=2)
+    big.gain = big.gain * 1e150
+    a, b = resample_model_set(ms, 2000.0, extra_order=2), resample_model_set(big.validate(), 2000.0, extra_order=2)
+    np.testing.assert_array_equal(a.ar_lsf, b.ar_lsf)
+    np.testing.assert_array_equal(a.variance, b.variance)
+    np.testing.assert_array_equal(b.gain, a.gain * 1e150)

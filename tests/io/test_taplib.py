@@ -8,9 +8,10 @@ import math
 import numpy as np
 import pytest
 
+from flowtex.datasets.taps import synthetic_tap_library
 from flowtex.errors import DataError
 from flowtex.io.taplib import read_tap_library, write_tap_library
-from flowtex.models.taps import TapLibrary, resample_tap_library, spectral_centroid, synthetic_tap_library
+from flowtex.models.taps import TapLibrary, resample_tap_library, spectral_centroid
 
 
 def test_round_trip_is_exact(tmp_path):

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import flowtex
+from flowtex.datasets.taps import synthetic_tap_library
 from flowtex.errors import GraphError
 from flowtex.io.taplib import write_tap_library
-from flowtex.models.taps import synthetic_tap_library
 
 TAPS = {"format": "flowtex-tap-library", "version": 1, "name": "hand", "sample_rate_hz": 1000,
         "taps": [{"speed": 100, "acceleration": [-7, 0, 7, 1, -1]},

@@ -23,8 +23,10 @@ from flowtex.io.hatt import write_hatt_xml
 from flowtex.io.modelset import save_model_set
 
 
-def graph_file(folder: Path, models: str, rate: float = 1000, extra: str = "", outside: str = "fade") -> Path:
-    """A graph speed, force -> texture_lookup -> its four outputs; ``outside: fade`` by default (HaTT's rule, the reference's)."""
+def graph_file(folder: Path, models: str, rate: float = 1000, extra: str = "", outside: str | None = "fade") -> Path:
+    """A graph speed, force -> texture_lookup -> its four outputs; ``outside: fade`` (HaTT's rule, the reference's) unless given;
+    ``outside=None``: no ``outside`` parameter (the node's default)."""
+    rule = "" if outside is None else f", outside: {outside}"
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / "lookup.yaml"
     path.write_text(textwrap.dedent(f"""\
@@ -37,7 +39,7 @@ def graph_file(folder: Path, models: str, rate: float = 1000, extra: str = "", o
         nodes:
           lookup:
             type: texture_lookup
-            params: {{models: {models!r}, outside: {outside}{extra}}}
+            params: {{models: {models!r}{rule}{extra}}}
         edges:
           - speed -> lookup.speed
           - force -> lookup.force

@@ -10,12 +10,12 @@ import scipy.signal
 
 from flowtex.cli import main
 from flowtex.datasets.model_sets import synthetic_model_set
-from flowtex.dsp.salience import texture_power_grid, trajectory_ranges
+from flowtex.datasets.study import STUDY_SURFACES, study_tap_library, write_study_scene
 from flowtex.errors import GraphError
 from flowtex.models.taps import spectral_centroid
 from flowtex.scene.file import parse_scene
 from flowtex.scene.plan import plan_scene
-from flowtex.scene.study import STUDY_SURFACES, study_tap_library, write_study_scene
+from flowtex.scene.salience import texture_power_grid, trajectory_ranges
 
 CHECKED = ("EPDM_Foam", "Whiteboard", "MDF", "Silk_1", "Brick_1", "Nylon_Mesh", "Sandpaper_100", "ABS_Plastic", "Carpet_3")
 

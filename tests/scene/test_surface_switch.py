@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from flowtex.cli import main
+from flowtex.datasets.study import write_study_scene
 from flowtex.dsp.switch import crossfade_block, switch_params
 from flowtex.graph.compiled import load_graph
 from flowtex.scene.build import plan_to_graph
-from flowtex.scene.study import write_study_scene
 from tests.conftest import REPO
 
 

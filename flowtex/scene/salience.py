@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..dsp.arma import arma_output_variance
+from ..dsp.contact import CONTACT_ON_N
+from ..dsp.interp import S_AR, S_GAIN, S_VAR, initial_state, lookup_model, pack_texture_table
 from ..models.texture import TextureModelSet
-from .arma import arma_output_variance
-from .interp import S_AR, S_GAIN, S_VAR, initial_state, lookup_model, pack_texture_table
 
 GRID_POINTS = 9
 """Grid size per axis for texture salience (issue 13: 9 x 9)."""
@@ -48,7 +49,8 @@ def mean_texture_power(ms: TextureModelSet, speed_range_mm_s: tuple[float, float
 
 
 def trajectory_ranges(position_mm: np.ndarray, normal_force_n: np.ndarray, rate_hz: float, normal: np.ndarray | None = None,
-                      contact_n: float = 0.1, quantiles: tuple[float, float] = (0.05, 0.95)) -> tuple[tuple[float, float], tuple[float, float]]:
+                      contact_n: float = CONTACT_ON_N,
+                      quantiles: tuple[float, float] = (0.05, 0.95)) -> tuple[tuple[float, float], tuple[float, float]]:
     """(speed range mm/s, force range N) of a recorded stroke: the 5th-95th percentiles while in contact.
 
     Speed is the finite-difference speed of ``position_mm`` (n, 3) with the

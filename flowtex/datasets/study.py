@@ -56,8 +56,8 @@ STUDY_SURFACES = (
 
 def study_model_set(surface: StudySurface, ar_order: int = 6, ma_order: int = 4):
     """A synthetic model set with the surface's mu, scaled to its target texture power."""
-    from ..datasets.model_sets import synthetic_model_set
-    from ..dsp.salience import mean_texture_power
+    from ..scene.salience import mean_texture_power
+    from .model_sets import synthetic_model_set
 
     ms = synthetic_model_set([50.0, 150.0, 250.0], [0.5, 1.5, 2.5], ar_order, ma_order, mu=surface.mu, material=surface.key)
     ms.variance = ms.variance * (surface.power / mean_texture_power(ms, SPEED_RANGE, FORCE_RANGE))
@@ -68,7 +68,8 @@ def study_tap_library(surface: StudySurface):
     """A synthetic tap library whose mean spectral centroid (50-100 mm/s) is the surface's target."""
     from scipy.optimize import brentq
 
-    from ..models.taps import spectral_centroid, synthetic_tap_library
+    from ..models.taps import spectral_centroid
+    from .taps import synthetic_tap_library
 
     def lib(freq: float):
         return synthetic_tap_library(freq_hz=freq, decay_s=0.02, stiffening=0.0, name=surface.key)

@@ -1,0 +1,220 @@
+"""Run one node type's kernel outside any graph and find the mistakes plugin authors make (``flowtex plugin check``).
+
+Each check runs the node as the graph runs it -- ``build`` at representative
+port shapes, then ``kernel(p, s, si, inputs..., outputs...)`` on C-contiguous
+``(ticks, width)`` float64 arrays -- but on plain numpy arrays, so that what
+went wrong can be named:
+
+* **state**: one pass over :data:`TICKS` ticks, the same split into uneven
+  blocks, and tick by tick must give identical bits; a kernel that keeps a
+  value in a local variable instead of ``s``/``si`` restarts at every block;
+* **unwritten outputs**: two one-pass runs whose output buffers start filled
+  with two different sentinels; an element that keeps its sentinel was never
+  written (the graph would read whatever the buffer held before);
+* **finite**: at the default parameters and inputs uniform in [-1, 1], every
+  output value is finite;
+* **bounds**: this module is run in a child process with ``NUMBA_BOUNDSCHECK=1``
+  (:func:`flowtex.plugincheck.runtime_problems`), so a read or write outside a
+  port, ``p``, ``s`` or ``si`` raises ``IndexError`` there instead of corrupting
+  memory or crashing the caller.
+
+``python -m flowtex.kernelprobe TARGET TYPE`` prints the problems as JSON lines
+``{"line": L, "message": M}`` (``line`` 0: the class's line).
+"""
+
+from __future__ import annotations
+
+import inspect
+import json
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import FlowtexError
+from .node_api import REQUIRED, BuildContext, Node, Param, PortSpec
+from .nodecheck import checked_state, error_line
+
+TICKS = 600
+"""Ticks of every probe run (enough for a block split and for a slow recursion to blow up)."""
+BLOCKS = (1, 7, 64, 1, 200, 13)
+"""Uneven block lengths of the chunked run (the rest of :data:`TICKS` follows as one block)."""
+SENTINELS = (np.nan, -7.25e306)
+"""Output buffer fills of the two unwritten-element runs (a kernel writing either one itself is vanishingly unlikely)."""
+RATE_HZ = 1000.0
+"""Graph rate the probe builds nodes at (flowtex's usual haptic rate)."""
+
+
+@dataclass
+class Probe:
+    """One built instance of a node type: what its kernel receives."""
+
+    label: str
+    """The port shapes it was built for, e.g. ``x: scalar``."""
+    state: Any
+    in_specs: dict[str, PortSpec]
+    out_specs: dict[str, PortSpec]
+
+
+def example_value(name: str, param: Param) -> Any:
+    """A value for a required parameter (inside its bounds), or raise :class:`FlowtexError` when none can be made up."""
+    kind = param.kind
+    if kind in ("path", "str"):
+        raise FlowtexError(f"parameter {name!r} ({kind}) is required and has no default; the runtime checks need a value")
+    if kind == "bool":
+        return False
+    if kind == "choice":
+        return param.choices[0]
+    lo = param.min if param.min is not None else None
+    hi = param.max if param.max is not None else None
+    if lo is not None and hi is not None:
+        value = (lo + hi) / 2
+    elif lo is not None:
+        value = lo + 1.0
+    elif hi is not None:
+        value = hi - 1.0
+    else:
+        value = 1.0
+    if kind == "int":
+        value = float(round(value))
+    if kind == "floats":
+        count = param.length[0] if param.length else 1
+        return [value] * max(count, 1)
+    return value
+
+
+def parameter_values(cls: type[Node]) -> dict[str, Any]:
+    """Validated parameter values: the defaults, and :func:`example_value` for required ones."""
+    values = {}
+    for name, param in cls.params.items():
+        raw = example_value(name, param) if param.default is REQUIRED else param.default
+        values[name] = None if raw is None else param.coerce(raw, Path.cwd())
+    return values
+
+
+def shape_cases(cls: type[Node]) -> list[dict[str, tuple[int, ...]]]:
+    """Input shapes to build at: declared shapes as declared; inputs of any shape as a scalar, then as a 3-vector."""
+    cases = []
+    flexible = [n for n, port in cls.inputs.items() if port.shape is None]
+    for any_shape in ([(), (3,)] if flexible else [()]):
+        shapes: dict[str, tuple[int, ...]] = {}
+        for name, port in cls.inputs.items():
+            shape = port.shape
+            if shape is None:
+                shapes[name] = any_shape
+            elif isinstance(shape, str):
+                shapes[name] = shapes.get(shape[1:], any_shape)
+            else:
+                shapes[name] = tuple(shape)
+        cases.append(shapes)
+    return cases
+
+
+def build_probes(cls: type[Node]) -> list[Probe]:
+    """Build ``cls`` at each of :func:`shape_cases` (FlowtexError / the plugin's own exception on failure)."""
+    params = parameter_values(cls)
+    probes = []
+    for shapes in shape_cases(cls):
+        in_specs = {}
+        for name, port in cls.inputs.items():
+            unit = port.unit if port.unit not in ("*",) and not port.unit.startswith("=") else ""
+            in_specs[name] = PortSpec(shapes[name], unit)
+        node = cls("probe", dict(params), BuildContext(rate=RATE_HZ, base_dir=Path.cwd()))
+        out_specs = node.resolve(in_specs)
+        state = checked_state(cls, "probe", node.build(in_specs, out_specs), cls.build)
+        label = ", ".join(f"{n}: {PortSpec(s).describe().split(' [')[0]}" for n, s in shapes.items()) or "no inputs"
+        probes.append(Probe(label, state, in_specs, out_specs))
+    return probes
+
+
+def _arrays(probe: Probe) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    st = probe.state
+    return (np.array(st.params, dtype=np.float64).ravel(), np.array(st.state, dtype=np.float64).ravel(),
+            np.array(st.istate, dtype=np.int64).ravel())
+
+
+def run_blocks(cls: type[Node], probe: Probe, inputs: list[np.ndarray], blocks: list[int], fill: float) -> list[np.ndarray]:
+    """Outputs of the kernel run from the built state over ``inputs`` split into ``blocks`` (ticks per call)."""
+    kernel = cls.get_kernel()
+    p, s, si = _arrays(probe)
+    outs = [np.full((TICKS, spec.width), fill) for spec in probe.out_specs.values()]
+    start = 0
+    for n in blocks:
+        stop = start + n
+        kernel(p, s, si, *[x[start:stop] for x in inputs], *[y[start:stop] for y in outs])
+        start = stop
+    return outs
+
+
+def _split() -> list[int]:
+    blocks = list(BLOCKS)
+    return blocks + [TICKS - sum(blocks)]
+
+
+def probe_problems(cls: type[Node]) -> list[tuple[int, str]]:
+    """Every runtime problem of ``cls`` as (line in the kernel's file or 0, message), checked at each shape case."""
+    problems: list[tuple[int, str]] = []
+    source = inspect.getsourcefile(getattr(cls.get_kernel(), "py_func", cls)) or ""
+    rng = np.random.default_rng(12345)
+    for probe in build_probes(cls):
+        inputs = [rng.uniform(-1.0, 1.0, (TICKS, spec.width)) for spec in probe.in_specs.values()]
+        names = list(probe.out_specs)
+        at = f" (built with {probe.label})"
+        try:
+            one = run_blocks(cls, probe, inputs, [TICKS], SENTINELS[0])
+            other = run_blocks(cls, probe, inputs, [TICKS], SENTINELS[1])
+            chunked = run_blocks(cls, probe, inputs, _split(), SENTINELS[0])
+            ticked = run_blocks(cls, probe, inputs, [1] * TICKS, SENTINELS[0])
+        except IndexError as exc:
+            problems.append((error_line(exc, source), f"kernel reads or writes outside its arrays{at}: IndexError: {exc}; index "
+                             "only rows < x.shape[0] of each port, columns < its width, and within p, s and si as build() sized them"))
+            continue
+        except Exception as exc:
+            problems.append((error_line(exc, source), f"kernel raised {type(exc).__name__}: {exc}{at}"))
+            continue
+        for name, a, b in zip(names, one, other, strict=True):
+            stuck = np.isnan(a) & (b == SENTINELS[1])  # kept the sentinel of each run: never written
+            if stuck.any():
+                cols = sorted({int(c) for c in np.nonzero(stuck)[1]})
+                problems.append((0, f"output {name!r}: element(s) {cols} of {a.shape[1]} per tick never written{at}; write "
+                                    "every element of every row (the graph reads whatever the buffer held before)"))
+        for k, name in enumerate(names):  # one line per output: the chunked run, else the tick-by-tick one
+            for label, runs in (("chunked (blocks of " + ", ".join(map(str, BLOCKS)) + ", ...)", chunked), ("tick-by-tick", ticked)):
+                a, b = one[k], runs[k]
+                differ = ~((a == b) | (np.isnan(a) & np.isnan(b)))
+                if differ.any():
+                    tick = int(np.nonzero(differ.any(axis=1))[0][0])
+                    problems.append((0, f"output {name!r}: {label} and one-pass runs differ from tick {tick}{at}; keep every "
+                                        "value that lives from one call to the next in s or si (live runs call the kernel tick by tick)"))
+                    break
+        for name, a in zip(names, other, strict=True):  # filled with a finite sentinel: only written values can be non-finite
+            bad = ~np.isfinite(a)
+            if bad.any():
+                tick = int(np.nonzero(bad.any(axis=1))[0][0])
+                problems.append((0, f"output {name!r} is not finite from tick {tick} at the default parameters for inputs "
+                                    f"uniform in [-1, 1]{at} (value {a[bad][0]!r})"))
+    return problems
+
+
+def main(argv: list[str]) -> int:
+    """Child-process entry: ``TARGET TYPE`` -> JSON lines of problems on stdout."""
+    from .plugincheck import node_types
+
+    target, type_name = argv
+    cls = node_types(target)[type_name]
+    found: list[tuple[int, str]]
+    try:
+        found = probe_problems(cls)
+    except FlowtexError as exc:
+        found = [(0, f"note: {exc}")]
+    except Exception as exc:  # __init__, resolve() or build() raised: the plugin's error, at its line
+        found = [(error_line(exc, inspect.getsourcefile(cls) or ""), f"building the node raised {type(exc).__name__}: {exc}")]
+    for line, message in found:
+        print(json.dumps({"line": line, "message": message}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

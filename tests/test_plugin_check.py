@@ -1,0 +1,110 @@
+"""``flowtex plugin check``: each common plugin mistake named at its file and line (issue 25; out-of-bounds writes: 27 §5).
+
+tests/plugin_cases/mistakes.py holds one node type per mistake: a kernel that allocates, one that keeps
+its state in a local variable, one that writes only column 0 of a 3-vector, one that writes far outside
+its state array (which, unchecked, corrupts memory: the check runs it bounds-checked in a child process).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import shutil
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from flowtex.cli import main
+
+CASES = Path(__file__).parent / "plugin_cases"
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _line(path: Path, needle: str) -> int:
+    return next(k for k, line in enumerate(path.read_text().splitlines(), start=1) if needle in line)
+
+
+def _check(capsys, target: str) -> tuple[int, list[str], str]:
+    code = main(["plugin", "check", target])
+    out = capsys.readouterr()
+    return code, out.out.strip().splitlines(), out.err.strip()
+
+
+@pytest.fixture(scope="module")
+def mistakes_report(tmp_path_factory):
+    """One run of plugin check over the mistakes file (it compiles four kernels twice: once plain, once bounds-checked)."""
+    folder = tmp_path_factory.mktemp("pc")
+    shutil.copy(CASES / "mistakes.py", folder / "mistakes.py")
+    cwd = os.getcwd()
+    os.chdir(folder)
+    try:
+        out, err = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main(["plugin", "check", "mistakes.py"])
+    finally:
+        os.chdir(cwd)
+    return code, out.getvalue().strip().splitlines(), err.getvalue().strip(), folder / "mistakes.py"
+
+
+def test_every_mistake_is_one_line_at_its_file_and_line(mistakes_report):
+    code, lines, err, path = mistakes_report
+    assert code == 1
+    assert err == "mistakes.py: 4 problem(s) in node type(s) alloc_pc, forget_pc, col0_pc, oob_pc"
+    at = {name: f"mistakes.py:{_line(path, f'def {name}_kernel')}: node '{name}_pc': "
+          for name in ("alloc", "forget", "col0", "oob")}
+    problems = [line for line in lines if ": note: " not in line]
+    assert len(problems) == 4
+    assert problems[0].startswith(at["alloc"] + "kernel alloc_kernel allocates memory on every call (numba generated NRT_")
+    assert problems[1].startswith(at["forget"] + "output 'y': chunked (blocks of 1, 7, 64, 1, 200, 13, ...) and one-pass runs "
+                                  "differ from tick 1")  # the first block boundary
+    assert problems[2].startswith(at["col0"] + "output 'y': element(s) [1, 2] of 3 per tick never written")
+    assert problems[3].startswith(at["oob"] + "kernel reads or writes outside its arrays")
+
+
+def test_parameters_without_bounds_are_notes(mistakes_report):
+    _, lines, _, path = mistakes_report
+    notes = [line for line in lines if ": note: " in line]
+    params_line = _line(path, 'params = {"k"')
+    assert notes == [f"mistakes.py:{params_line}: node 'alloc_pc': note: parameter 'k' has no min or max; "
+                     "any such value reaches the kernel (declare bounds, e.g. Param('float', min=0.0, max=1.0))"]
+
+
+def test_a_clean_plugin_passes_with_notes_only(capsys):
+    code, lines, err = _check(capsys, str(REPO / "plugins" / "soft_clip.py"))
+    assert code == 0 and err.endswith("ok (node type(s) soft_clip; 1 note(s))")
+    assert len(lines) == 1 and "note: parameter 'limit' has no max" in lines[0]
+
+
+def test_an_installed_node_type_is_checked_by_name(capsys):
+    code, lines, err = _check(capsys, "butterworth")
+    assert code == 0 and "ok (node type(s) butterworth" in err
+    code, _, err = _check(capsys, "buterworth")
+    assert code == 1 and "(did you mean 'butterworth'?)" in err
+
+
+def test_declaration_mistakes_are_reported_by_plugin_check(tmp_path, capsys):
+    text = textwrap.dedent('''\
+        from numba import njit
+
+        from flowtex.node_api import Node, Port
+
+
+        @njit(cache=True)
+        def k(p, s, si, x, y):
+            pass
+
+
+        class Bad(Node):
+            """bad port"""
+
+            type_name = "badport_pc"
+            inputs = {"x": Port((), "*")}
+            outputs = {"y": Port("=nope", "=x")}
+            kernel = k
+        ''')
+    (tmp_path / "badport.py").write_text(text)
+    code, lines, _ = _check(capsys, str(tmp_path / "badport.py"))
+    assert code == 1
+    assert lines == [f"{tmp_path / 'badport.py'}:16: node 'badport_pc': output 'y': shape '=nope' names no input; inputs are: x"]

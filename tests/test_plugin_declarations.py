@@ -1,0 +1,111 @@
+"""Declaration mistakes are the plugin's: one line at its file and line, exit 1, in validate and run (issues 25 and 27 §5)."""
+
+from __future__ import annotations
+
+import textwrap
+
+import numpy as np
+import pytest
+
+from flowtex.cli import main
+
+PLUGIN = textwrap.dedent('''\
+    import numpy as np
+    from numba import njit
+
+    from flowtex.node_api import Node, NodeState, Param, Port
+
+
+    @njit(cache=True)
+    def decl_kernel(p, s, si, x, y):
+        for t in range(x.shape[0]):
+            y[t, 0] = p[0] * x[t, 0]
+
+
+    class Decl(Node):
+        """Gain."""
+
+        type_name = "decl_TAG"
+        params = {"k": Param("float", default=1.0)}
+        inputs = {"x": Port((), "*")}
+        outputs = {"y": Port((), "=x")}
+        kernel = decl_kernel
+
+        def build(self, inputs, outputs):
+            return NodeState(params=np.array([self.p["k"]]))
+    ''')
+
+GRAPH = """\
+flowtex: 1
+name: t
+rate: 1000
+inputs: {x: {}}
+nodes:
+  d: {type: decl_TAG}
+edges: [x -> d.x]
+outputs: {y: d.y}
+"""
+
+# (case, edit of the plugin, text of the line the error must point at, words of the message)
+CASES = [
+    ("missing_ref", ('Port((), "=x")', 'Port("=nope", "=x")'), "outputs = ", "shape '=nope' names no input; inputs are: x"),
+    ("not_a_shape", ('Port((), "=x")', 'Port("abc", "=x")'), "outputs = ", "shape 'abc' is not a shape"),
+    ("negative", ('Port((), "=x")', 'Port((-1,), "=x")'), "outputs = ", "shape (-1,) has a size below 1"),
+    ("huge", ('Port((), "=x")', 'Port((10**9,), "=x")'), "outputs = ", "1,000,000,000 values per tick, more than the limit of 65,536"),
+    ("unit_ref", ('Port((), "=x")', 'Port((), "=z")'), "outputs = ", "unit '=z' names no input"),
+    ("min_max", ('Param("float", default=1.0)', 'Param("float", default=1.0, min=5, max=1)'), "params = ",
+     "plugin failed to load: ValueError: Param min=5 and max=1 leave no allowed value"),
+    ("kind", ('Param("float", default=1.0)', 'Param("floaty", default=1.0)'), "params = ",
+     "plugin failed to load: ValueError: unknown parameter kind 'floaty'"),
+    ("build_none", ('return NodeState(params=np.array([self.p["k"]]))', 'pass'), "def build",
+     "build() of graph node 'd' returned None, not a NodeState"),
+    ("build_raises", ('return NodeState(params=np.array([self.p["k"]]))', 'return NodeState(params=np.array([self.p["k"]]) / {}[0])'),
+     "/ {}[0]", "build() of graph node 'd' raised KeyError: 0"),
+]
+
+
+def _line(text: str, needle: str) -> int:
+    return next(k for k, line in enumerate(text.splitlines(), start=1) if needle in line)
+
+
+def _setup(tmp_path, case: str, edit: tuple[str, str]) -> str:
+    tag = case
+    text = PLUGIN.replace("TAG", tag).replace(*edit)
+    assert text != PLUGIN.replace("TAG", tag)
+    (tmp_path / "plugins").mkdir()
+    (tmp_path / "plugins" / f"decl_{tag}.py").write_text(text)
+    (tmp_path / "g.yaml").write_text(GRAPH.replace("TAG", tag))
+    np.savez(tmp_path / "r.npz", x=np.arange(5.0), rate=1000.0)
+    return text
+
+
+def _errors(capsys) -> list[str]:
+    return [line for line in capsys.readouterr().err.splitlines() if not line.startswith("flowtex: ")]
+
+
+@pytest.mark.parametrize(("case", "edit", "at", "words"), CASES, ids=[c[0] for c in CASES])
+def test_declaration_mistake_is_reported_at_the_plugin_line(tmp_path, monkeypatch, capsys, case, edit, at, words):
+    text = _setup(tmp_path, case, edit)
+    monkeypatch.chdir(tmp_path)
+    for argv in (["validate", "g.yaml"], ["run", "g.yaml", "-i", "r.npz", "-o", "out.npz"]):
+        assert main(argv) == 1
+        err = _errors(capsys)
+        assert len(err) == 1, err
+        assert err[0].startswith(f"plugins/decl_{case}.py:{_line(text, at)}: "), err[0]
+        assert words in err[0] and "internal error" not in err[0]
+    assert not (tmp_path / "out.npz").exists()
+
+
+def test_a_node_with_too_many_ports_is_refused_with_the_limit(tmp_path, monkeypatch, capsys):
+    names = [f"x{k}" for k in range(500)]
+    text = PLUGIN.replace("TAG", "many").replace('inputs = {"x": Port((), "*")}', "inputs = {" + ", ".join(
+        f'"{n}": Port((), "*", optional=True)' for n in ["x", *names]) + "}").replace(
+        "def decl_kernel(p, s, si, x, y)", f"def decl_kernel(p, s, si, x, {', '.join(names)}, y)")
+    (tmp_path / "plugins").mkdir()
+    (tmp_path / "plugins" / "decl_many.py").write_text(text)
+    (tmp_path / "g.yaml").write_text(GRAPH.replace("TAG", "many"))
+    monkeypatch.chdir(tmp_path)
+    assert main(["validate", "g.yaml"]) == 1
+    err = _errors(capsys)
+    assert err == [f"plugins/decl_many.py:{_line(text, 'inputs = ')}: node 'decl_many': 501 inputs and 1 outputs are 502 ports, "
+                   "more than the limit of 64; take a vector input (Port((n,))) instead of many scalar ones"]
