@@ -57,13 +57,13 @@ def check_output(path: str | Path | None, *, inputs: Iterable[str | Path | None]
     if path is None:
         return None
     out = Path(path).expanduser()
-    if suffixes and out.suffix.lower() not in suffixes and not (len(suffixes) == 1 and _is_special(out)):
-        # -o /dev/null (no suffix) is accepted where one format is written; where the suffix picks it, it is refused
-        raise OutputError(f"{option} {path}: unknown output format {out.suffix!r}; use {', '.join(suffixes)}")
-    for item in inputs:
+    for item in inputs:  # first: "that is an input" says more than the suffix would
         if item is not None and _same_file(out, Path(item).expanduser()):
             raise OutputError(f"{option} {path}: that is an input of this command ({item}); "
                               "flowtex never overwrites an input: choose another output file")
+    if suffixes and out.suffix.lower() not in suffixes and not (len(suffixes) == 1 and _is_special(out)):
+        # -o /dev/null (no suffix) is accepted where one format is written; where the suffix picks it, it is refused
+        raise OutputError(f"{option} {path}: unknown output format {out.suffix!r}; use {', '.join(suffixes)}")
     if out.is_dir():
         raise OutputError(f"{option} {path}: is a folder; give a file name inside it")
     folder = out.parent if str(out.parent) else Path(".")

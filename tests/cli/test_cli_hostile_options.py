@@ -7,7 +7,6 @@ from __future__ import annotations
 import textwrap
 import zipfile
 
-import dask
 import numpy as np
 import pytest
 
@@ -180,6 +179,8 @@ def test_bench_on_a_dead_scheduler_is_one_line(tmp_path, capsys):
     save_recording(tmp_path / "in.npz", {"x": np.zeros(10)}, rate=1000.0)
     (tmp_path / "g.yaml").write_text("flowtex: 1\nname: g\nrate: 1000\ninputs: {x: {}}\nnodes: {k: {type: gain, params: {k: 1}}}\n"
                                      "edges: [x -> k.x]\noutputs: {y: k.y}\n")
+    import dask.distributed  # its defaults loaded first, so leaving the context restores them, not nothing
+
     with dask.config.set({"distributed.comm.timeouts.connect": "2s"}):  # a dead address fails fast; 30 s by default
         cli_one_line(capsys, ["bench", str(tmp_path / "g.yaml"), "-i", str(tmp_path / "in.npz"), "--knob", "k.k=1,2",
                               "--scheduler", "tcp://127.0.0.1:9"], "--scheduler tcp://127.0.0.1:9: cannot reach the Dask scheduler")
