@@ -1,7 +1,7 @@
 """Texture-model upsampling (flowtex.dsp.arma_resample): accuracy, orders and time, against the previous method.
 
     python benchmarks/bench_model_resample.py [--seeds 30] [--ratios 2,2.5,4] [--cork] [--render]
-    python benchmarks/bench_model_resample.py --corpus all [--corpus-rates 2000,4000] [--baseline]
+    python benchmarks/bench_model_resample.py --corpus all [--hatt DIR] [--corpus-rates 2000,500] [--baseline-every N] [--table OUT.csv] [--between]
 
 For HaTT-like 19/17 models (flowtex.datasets.model_sets.hatt_like_model: poles to
 r = 0.985, an MA zero pair at 0.9999 near z = -1) at 1 kHz, side by side in one
@@ -21,11 +21,13 @@ band-power error, worst fraction of the power above the old Nyquist, mean / max
 seconds per model. ``--cork``: resample_model_set on cork_like_model_set (45
 models) 1 kHz -> 2 and 4 kHz. ``--render``: arma_lattice_block ns per tick at
 the orders produced (the rendering cost of a higher order). ``--corpus``: the
-test suite's model sets (the narrow-peak copper-like ones included), seconds per
-model fit (median and worst, from the progress callback), fits done, extra order,
-worst LSD and misses; ``--baseline`` runs the previous stopping rule of the
-log-spectral fit (1e-6 relative, 1e-3 dB, no evaluation budget) beside it. The
-machine is shared: quote ``uptime`` with the numbers.
+test suite's model sets (the narrow-peak copper-like, rough and edge-resonance ones included) and, with
+``--hatt DIR``, HaTT's published sets (never in the repository): seconds per model fit, wall and CPU (median
+and worst, from the progress callback), fits done, orders, worst LSD, band-power error, power above the old
+Nyquist, misses, and the LSD of the expected spectra along a path; ``--baseline-every N`` runs the previous
+method beside it on every N-th set; ``--table`` writes every model's figures; ``--between`` measures the LSD at
+vertices, edge midpoints and centroids. The machine is shared: quote ``uptime`` with the numbers, and prefer
+the CPU seconds under load.
 """
 
 from __future__ import annotations
@@ -118,7 +120,14 @@ def cork(rates) -> None:
 
 def corpus_sets(names):
     """The model sets the test suite resamples (tests/fit/test_arma_resample.py, test_resample_bounded.py, test_resample_render.py)."""
-    from flowtex.datasets.model_sets import cork_like_model_set, hard_model_set, narrow_peak_model_set, synthetic_model_set
+    from flowtex.datasets.model_sets import (
+        cork_like_model_set,
+        edge_resonance_model_set,
+        hard_model_set,
+        narrow_peak_model_set,
+        rough_model_set,
+        synthetic_model_set,
+    )
 
     makers = {
         "grid8/6": lambda: synthetic_model_set([60.0, 150.0, 240.0], [0.5, 1.5, 2.5], ar_order=8, ma_order=6),
@@ -127,12 +136,17 @@ def corpus_sets(names):
         "narrow6/6": lambda: narrow_peak_model_set(count=20, ar_order=6, ma_order=6, max_pole_radius=0.9995),
         "narrow20/20": lambda: narrow_peak_model_set(count=24, ar_order=20, ma_order=20, max_pole_radius=0.9995),
         "cork19/17": cork_like_model_set,
+        "rough14/12": rough_model_set,
+        "edge10/8": edge_resonance_model_set,
     }
     return [(n, makers[n]()) for n in names]
 
 
 BASELINE_ATTEMPTS = tuple((e, False) for e in (0, 2, 4, 6, 8))
 """The previous rule up to 2x (before the elliptic edge): more free poles and zeros, 0 to 8, for the whole set."""
+
+BASELINE_GRID = (2000, 1000)
+"""The previous fit grid (BAND_POINTS, STOP_POINTS of flowtex.dsp.arma_resample)."""
 
 
 def hatt_sets(folder: str, every: int = 1, start: int = 0):
@@ -149,11 +163,13 @@ def hatt_sets(folder: str, every: int = 1, start: int = 0):
 def corpus(sets, rates, baseline_every: int, table: str | None) -> None:
     """Seconds per model fit (median, worst; wall and CPU) of resample_model_set on each set, against the previous rule.
 
-    ``baseline_every`` > 0: every that many sets, also the previous attempt ladder (:data:`BASELINE_ATTEMPTS`),
-    side by side in this process. ``table``: a CSV of every model's figures (set, rate, rule, model, LSD dB,
-    band-power error, power above the old Nyquist). "path LSD": flowtex.fit.quality.path_lsd_db along
+    ``baseline_every`` > 0: every that many sets, also the previous method when upsampling (the attempt ladder
+    :data:`BASELINE_ATTEMPTS` on the fit grid :data:`BASELINE_GRID`), side by side in this process.
+    ``table``: a CSV of every model's figures (set, rate, rule, model, LSD dB, band-power error, power above
+    the old Nyquist). "path LSD": flowtex.fit.quality.path_lsd_db along
     lissajous_path, the resampled set against the original (expected spectra as rendered, no noise).
     """
+    import flowtex.dsp.arma_resample as arma_resample
     import flowtex.fit.resample as resample
     from flowtex.datasets.model_sets import synthetic_model_set
     from flowtex.fit.quality import lissajous_path, path_lsd_db
@@ -169,12 +185,14 @@ def corpus(sets, rates, baseline_every: int, table: str | None) -> None:
     for k, (name, ms) in enumerate(sets):
         for rate in rates:
             base = None
-            rules = [("new", resample.EDGE_ATTEMPTS)]
+            grid = (arma_resample.BAND_POINTS, arma_resample.STOP_POINTS)
+            rules = [("new", resample.EDGE_ATTEMPTS, grid)]
             if baseline_every and k % baseline_every == 0 and rate > ms.sample_rate:
-                rules.append(("old", BASELINE_ATTEMPTS))
-            for rule, attempts in rules:
+                rules.append(("old", BASELINE_ATTEMPTS, BASELINE_GRID))
+            for rule, attempts, (band_points, stop_points) in rules:
                 saved = resample.EDGE_ATTEMPTS
                 resample.EDGE_ATTEMPTS = attempts
+                arma_resample.BAND_POINTS, arma_resample.STOP_POINTS = band_points, stop_points
                 wall, cpu = [time.perf_counter()], [time.process_time()]
 
                 def tick(done, total, wall=wall, cpu=cpu):
@@ -184,6 +202,7 @@ def corpus(sets, rates, baseline_every: int, table: str | None) -> None:
                     out = resample.resample_model_set(ms, rate, progress=tick)
                 finally:
                     resample.EDGE_ATTEMPTS = saved
+                    arma_resample.BAND_POINTS, arma_resample.STOP_POINTS = grid
                 per, per_cpu = np.diff(wall), np.diff(cpu)
                 total = wall[-1] - wall[0]
                 base = base or total
@@ -208,6 +227,33 @@ def corpus(sets, rates, baseline_every: int, table: str | None) -> None:
               f"s per fit median {np.median(per):.3f} worst {per.max():.2f} (CPU {np.median(per_cpu):.3f} / {per_cpu.max():.2f}); "
               f"set seconds per model median {np.median(set_avg):.3f} worst {set_avg.max():.2f}; "
               f"path LSD worst {max(i[4] for i in items):.3f} dB", flush=True)
+
+
+def between(sets, rate: float) -> None:
+    """LSD (dB) between the original and the resampled set's models at the vertices, edge midpoints and centroids.
+
+    The models texture_lookup builds there (flowtex.fit.quality.models_at), over triangles whose three models
+    sound: at a vertex each resampled model is fitted to its original; between vertices both sets blend LSFs,
+    and resampling need not commute with that blend. Up to 0.9 x the lower Nyquist.
+    """
+    from flowtex.dsp.spectral import lsd_db
+    from flowtex.fit.quality import models_at
+    from flowtex.fit.resample import resample_model_set
+
+    f = np.linspace(15.0, 0.45 * min(1000.0, rate), 3000)
+    for name, ms in sets:
+        out = resample_model_set(ms, rate)
+        live = ms.variance > 0
+        tri = ms.triangles[np.all(live[ms.triangles], axis=1)]
+        pts = np.column_stack([ms.speeds, ms.forces])
+        places = {"vertices": pts[live], "edge midpoints": 0.5 * (pts[tri[:, 0]] + pts[tri[:, 1]]),
+                  "centroids": pts[tri].mean(axis=1)}
+        for label, p in places.items():
+            lsd = np.array([lsd_db(arma_psd(a2, c2, g2, v2, f, rate), arma_psd(a1, c1, g1, v1, f, ms.sample_rate), f)
+                            for (a1, c1, g1, v1), (a2, c2, g2, v2)
+                            in zip(models_at(ms, p[:, 0], p[:, 1]), models_at(out, p[:, 0], p[:, 1]), strict=True)])
+            print(f"{name:<22} {rate:6g} {label:<15} {lsd.size:4d} points: LSD median {np.median(lsd):.3f} "
+                  f"worst {lsd.max():.3f} dB", flush=True)
 
 
 def render(orders) -> None:
@@ -242,7 +288,7 @@ def main() -> None:
     ap.add_argument("--cork", action="store_true")
     ap.add_argument("--render", action="store_true")
     ap.add_argument("--corpus", metavar="SETS", help="comma-separated corpus sets (grid8/6, ar2, hard12/10, narrow6/6, narrow20/20, "
-                                                       "cork19/17) or 'all': seconds per model at --corpus-rates, then exit")
+                                                       "cork19/17, rough14/12, edge10/8) or 'all': seconds per model at --corpus-rates, then exit")
     ap.add_argument("--corpus-rates", default="2000,500")
     ap.add_argument("--hatt", metavar="DIR", help="with --corpus: HaTT's Models_*.xml in DIR instead of (or, with --corpus SETS, "
                                                   "after) the generated sets; never committed")
@@ -252,11 +298,17 @@ def main() -> None:
     ap.add_argument("--baseline-every", type=int, default=0, metavar="N",
                     help="with --corpus: the previous attempt ladder too, on every N-th set (ratio column)")
     ap.add_argument("--table", metavar="OUT.csv", help="with --corpus: every model's LSD, band-power error and power above")
+    ap.add_argument("--between", action="store_true",
+                    help="with --corpus/--hatt: LSD at vertices, edge midpoints and centroids instead (first --corpus-rates)")
     args = ap.parse_args()
     if args.corpus or args.hatt:
-        names = ["grid8/6", "ar2", "hard12/10", "narrow6/6", "narrow20/20", "cork19/17"] if args.corpus == "all" \
+        names = ["grid8/6", "ar2", "hard12/10", "narrow6/6", "narrow20/20", "cork19/17", "rough14/12", "edge10/8"] \
+            if args.corpus == "all" \
             else args.corpus.split(",") if args.corpus else []
         sets = corpus_sets(names) + (hatt_sets(args.hatt, args.hatt_every, args.hatt_start)[::-1 if args.hatt_reverse else 1] if args.hatt else [])
+        if args.between:
+            between(sets, float(args.corpus_rates.split(",")[0]))
+            return
         corpus(sets, [float(r) for r in args.corpus_rates.split(",")], args.baseline_every, args.table)
         return
     print(f"hatt_like_model seeds 0..{args.seeds - 1}, 19/17 at 1 kHz; LSD and powers of the model rebuilt from its LSFs")

@@ -1,6 +1,6 @@
 """Cost saved by the scene planner: ns/tick of the planned graph against the same scene with every component on.
 
-Six of 002's study surfaces (synthetic stand-ins, flowtex.scene.study),
+Six of 002's study surfaces (synthetic stand-ins, flowtex.datasets.study),
 speed 50-250 mm/s, force 0.5-2.5 N; the graphs run side by side in this
 process on graphs/data/exploration.npz with the active surface cycling every
 2 s. Prints the median ns/tick of each, their ratio, the components kept, and the

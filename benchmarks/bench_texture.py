@@ -309,11 +309,12 @@ def pieces_ns(ms, inputs, repeats: int, n: int = 200_000) -> tuple[float, float,
     return out[0], out[1], out[2]
 
 
-def lookup_kernel_ns(ms, inputs, repeats: int) -> float:
+def lookup_kernel_ns(ms, inputs, repeats: int, interpolation: str = "variance") -> float:
     """texture_lookup_block alone on the trajectory (model changes every tick), median ns/tick."""
     from flowtex.dsp.interp import initial_state, pack_texture_table, texture_lookup_block
 
-    tab = pack_texture_table(ms.speeds, ms.forces, ms.triangles, ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain, ms.max_speed, ms.max_force)
+    tab = pack_texture_table(ms.speeds, ms.forces, ms.triangles, ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain, ms.max_speed, ms.max_force,
+                             interpolation=interpolation)
     n = inputs["speed"].size
     speed = inputs["speed"].reshape(n, 1)
     force = inputs["force"].reshape(n, 1)
@@ -350,6 +351,9 @@ def main() -> None:
     print(f"synthesis kernel alone (arma_lattice_block): {changing:7.1f} ns/tick model changing every tick, {fixed:7.1f} ns/tick fixed model")
     lookup = lookup_kernel_ns(ms, inputs, args.repeats)
     print(f"lookup kernel alone (texture_lookup_block, moving query): {lookup:7.1f} ns/tick")
+    for rule in ("power", "log_power"):   # the output power of each blended filter, per lookup (docs/texture.md)
+        t = lookup_kernel_ns(ms, inputs, args.repeats, rule)
+        print(f"  with interpolation: {rule}: {t:7.1f} ns/tick ({t / lookup:.2f}x variance, same run)")
     l2p, coef, loc = pieces_ns(ms, inputs, args.repeats)
     print(f"pieces: lsf_to_poly AR {ms.ar_order} + MA {ms.ma_order} {l2p:6.1f} ns; reflection + ladder coefficients of one model "
           f"{coef:6.1f} ns; locate (moving query) {loc:5.1f} ns")

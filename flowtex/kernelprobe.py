@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import inspect
 import json
+import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -198,12 +199,37 @@ def probe_problems(cls: type[Node]) -> list[tuple[int, str]]:
     return problems
 
 
+ALLOCATORS = re.compile(r"call [^@\n]*@(NRT_MemInfo_alloc\w*|NRT_MemInfo_new\w*|NRT_Allocate\w*|NRT_MemInfo_varsize_alloc\w*)")
+"""numba runtime functions that allocate heap memory (np.empty, array expressions, slices copied, lists ...)."""
+
+
+def allocations(cls: type[Node]) -> list[str]:
+    """Allocator calls in the kernel's LLVM IR (its Python wrapper excluded), compiled for the graph's argument types.
+
+    Valid only when nothing was loaded from numba's disk cache (run with an empty ``NUMBA_CACHE_DIR``).
+    """
+    from .nodecheck import check_kernel_compiles
+
+    check_kernel_compiles(cls)
+    kernel = cls.get_kernel()
+    found: set[str] = set()
+    for sig in kernel.signatures:
+        for block in re.split(r"\n(?=define )", kernel.inspect_llvm(sig)):
+            head = block.split("(", 1)[0]
+            if block.startswith("define") and "@cpython." not in head and "@cfunc." not in head:
+                found.update(ALLOCATORS.findall(block))
+    return sorted(found)
+
+
 def main(argv: list[str]) -> int:
-    """Child-process entry: ``TARGET TYPE`` -> JSON lines of problems on stdout."""
+    """Child-process entry: ``allocations|runtime TARGET TYPE`` -> JSON lines on stdout."""
     from .plugincheck import node_types
 
-    target, type_name = argv
+    mode, target, type_name = argv
     cls = node_types(target)[type_name]
+    if mode == "allocations":
+        print(json.dumps({"allocations": allocations(cls)}))
+        return 0
     found: list[tuple[int, str]]
     try:
         found = probe_problems(cls)

@@ -51,8 +51,10 @@ MAX_INT_PARAM = 2**31 - 1
 MAX_PORT_VALUES = 65_536
 """Values one port carries per tick (a graph input's shape, a node's declared or resolved input or output): a 256 x
 256 field, far beyond any haptic signal, and 512 KiB per buffer row of 1,024 ticks."""
-MAX_NODE_PORTS = 64
-"""Inputs and outputs of one node type together (each is an argument of its kernel and of the graph's generated code)."""
+MAX_NODE_PORTS = 27
+"""Inputs and outputs of one node type together. Each is an argument of the kernel call in the graph's generated code,
+after p, s and si; CPython compiles a call with more than 30 positional arguments into a form (list_to_tuple) numba
+cannot compile."""
 MAX_BUFFER_VALUES = 1 << 27
 """Values of all port buffers of a graph together (block rows x values per tick): 1 GiB of float64."""
 MAX_SEEDS = 64

@@ -25,250 +25,30 @@ runs once per graph build: load files, design filters, size the state.
 
 from __future__ import annotations
 
-import difflib
-import math
-import re
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
 
 from .cache import configure_numba_cache
-from .errors import ParamError
-from .limits import MAX_INT_PARAM, excerpt, short_number
+from .dsp.layout import Field, Layout  # noqa: F401  (re-exported: plugins declare their memory with it)
+from .node_decl import (  # noqa: F401  (re-exported: the node API is one import for plugins)
+    PARAM_KINDS,
+    REQUIRED,
+    BuildContext,
+    NodeState,
+    Param,
+    Port,
+    PortSpec,
+    check,
+    resolve_declared,
+    simplify_unit,
+    suggest,
+    unit_product,
+)
 
 configure_numba_cache()  # numba binds a kernel's cache folder when it is decorated: choose it first (flowtex.cache)
-
-
-class _Required:
-    def __repr__(self) -> str:
-        return "required"
-
-
-REQUIRED: Any = _Required()
-
-PARAM_KINDS = ("float", "int", "bool", "str", "path", "choice", "floats")
-
-
-@dataclass(frozen=True)
-class Param:
-    """A node parameter, declared once and used for validation, docs and ``flowtex nodes``.
-
-    kind:
-        ``float``, ``int``, ``bool``, ``str``, ``path`` (a file, resolved
-        against the graph file's folder), ``choice`` (one of ``choices``), or
-        ``floats`` (a number or a list of numbers whose length is in
-        ``length``).
-    min, max:
-        Inclusive bounds unless ``min_exclusive`` / ``max_exclusive``.
-    """
-
-    kind: str
-    default: Any = REQUIRED
-    doc: str = ""
-    unit: str = ""
-    min: float | None = None
-    max: float | None = None
-    min_exclusive: bool = False
-    max_exclusive: bool = False
-    choices: tuple[str, ...] = ()
-    length: tuple[int, int] | None = None
-
-    def __post_init__(self) -> None:
-        """Refuse a declaration no value could satisfy (raised where the plugin declares it: its file and line)."""
-        if self.kind not in PARAM_KINDS:
-            raise ValueError(f"unknown parameter kind {self.kind!r}; use one of {', '.join(PARAM_KINDS)}")
-        for bound in ("min", "max"):
-            value = getattr(self, bound)
-            if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float)) or math.isnan(value)):
-                raise ValueError(f"Param {bound}={excerpt(value)} is not a number")
-        if self.min is not None and self.max is not None and (
-                self.min > self.max or (self.min == self.max and (self.min_exclusive or self.max_exclusive))):
-            raise ValueError(f"Param min={self.min:g} and max={self.max:g} leave no allowed value; swap them")
-        if self.kind == "choice" and not self.choices:
-            raise ValueError("Param kind 'choice' needs choices=('a', 'b', ...)")
-        if not self.required and self.default is not None and self.kind not in ("path",):
-            try:
-                self.coerce(self.default)
-            except ValueError as exc:
-                raise ValueError(f"Param default {excerpt(self.default)}: {exc}") from None
-
-    @property
-    def required(self) -> bool:
-        return self.default is REQUIRED
-
-    def describe_type(self) -> str:
-        """A short human description such as ``float > 0`` or ``lowpass|highpass``."""
-        if self.kind == "choice":
-            return "|".join(self.choices)
-        text = self.kind
-        if self.kind == "floats" and self.length is not None:
-            lo, hi = self.length
-            text = "number" if hi == 1 else f"number or list of {lo}..{hi} numbers"
-        bounds = []
-        if self.min is not None:
-            bounds.append(f"{'>' if self.min_exclusive else '>='} {self.min:g}")
-        if self.max is not None:
-            bounds.append(f"{'<' if self.max_exclusive else '<='} {self.max:g}")
-        return text + (" " + ", ".join(bounds) if bounds else "")
-
-    def coerce(self, value: Any, base_dir: Path | None = None) -> Any:
-        """Return ``value`` converted to this parameter's Python type.
-
-        Raises ``ValueError`` with a message fit for a user.
-        """
-        kind = self.kind
-        if kind == "bool":
-            if isinstance(value, bool):
-                return value
-            raise ValueError(f"expected true or false, got {excerpt(value)}")
-        if kind == "int":
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ValueError(f"expected an integer, got {excerpt(value)}")
-            if isinstance(value, float) and not value.is_integer():
-                raise ValueError(f"expected an integer, got {excerpt(value)}")
-            if isinstance(value, float) and abs(value) > 2.0**53:
-                raise ValueError(f"{value:g} is too large for an integer parameter")
-            value = int(value)
-            self._check_bounds(value)
-            return value
-        if kind == "float":
-            return self._coerce_number(value)
-        if kind == "floats":
-            values = value if isinstance(value, (list, tuple)) else [value]
-            out = tuple(self._coerce_number(v) for v in values)
-            if self.length is not None:
-                lo, hi = self.length
-                if not lo <= len(out) <= hi:
-                    want = str(lo) if lo == hi else f"{lo} to {hi}"
-                    raise ValueError(f"expected {want} numbers, got {len(out)}")
-            return out
-        if kind == "choice":
-            if not isinstance(value, str) or value not in self.choices:
-                hint = suggest(value, self.choices) if isinstance(value, str) else ""
-                raise ValueError(f"expected one of {', '.join(self.choices)}, got {excerpt(value)}{hint}")
-            return value
-        if kind in ("str", "path"):
-            if not isinstance(value, str) or not value:
-                raise ValueError(f"expected a non-empty string, got {excerpt(value)}")
-            if kind == "path":
-                path = Path(value).expanduser()
-                if not path.is_absolute() and base_dir is not None:
-                    path = base_dir / path
-                return path
-            return value
-        raise AssertionError(kind)
-
-    def _coerce_number(self, value: Any) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ValueError(f"expected a number, got {excerpt(value)}")
-        try:
-            number = float(value)
-        except OverflowError:  # an integer beyond 1.8e308
-            number = math.inf
-        if not math.isfinite(number):
-            raise ValueError(f"expected a finite number, got {excerpt(value, 24)}")
-        self._check_bounds(number)
-        return number
-
-    def _check_bounds(self, value: float) -> None:
-        if self.kind == "int" and self.max is None and value > MAX_INT_PARAM:
-            raise ValueError(f"must be <= {MAX_INT_PARAM} (the largest integer parameter), got {short_number(value)}")
-        if self.min is not None:
-            if value < self.min or (self.min_exclusive and value == self.min):
-                op = ">" if self.min_exclusive else ">="
-                raise ValueError(f"must be {op} {self.min:g}, got {short_number(value)}")
-        if self.max is not None:
-            if value > self.max or (self.max_exclusive and value == self.max):
-                op = "<" if self.max_exclusive else "<="
-                raise ValueError(f"must be {op} {self.max:g}, got {short_number(value)}")
-
-
-@dataclass(frozen=True)
-class Port:
-    """A declared input or output.
-
-    shape:
-        A tuple (``()`` is a scalar, ``(3,)`` a 3-vector), ``None`` for "any
-        shape" (inputs only), or ``"=name"``: the same shape as input ``name``.
-    unit:
-        A unit string (``""`` is dimensionless), ``"*"`` for "any unit"
-        (inputs only), or ``"=name"``: the same unit as input ``name``.
-    optional:
-        Inputs only: may be left unconnected; then it reads
-        :meth:`Node.input_default`.
-    """
-
-    shape: tuple[int, ...] | str | None = ()
-    unit: str = ""
-    doc: str = ""
-    optional: bool = False
-    default: float = 0.0
-    shape_doc: str = ""
-    """How the shape is set when the node's ``resolve`` computes it (shown by ``flowtex nodes``), e.g. ``"p+1, from the model file"``."""
-    unit_doc: str = ""
-    """How the unit is set when ``resolve`` computes it, e.g. ``"unit of x per second"``."""
-
-    def describe(self) -> str:
-        shape = "any shape" if self.shape is None else (
-            f"shape of {self.shape[1:]}" if isinstance(self.shape, str) else
-            ("scalar" if self.shape == () else "x".join(map(str, self.shape))))
-        shape = self.shape_doc or shape
-        unit = {"*": "any unit", "": "dimensionless"}.get(self.unit, self.unit)
-        if self.unit.startswith("="):
-            unit = f"unit of {self.unit[1:]}"
-        unit = self.unit_doc or unit
-        return f"{shape}, {unit}" + (", optional" if self.optional else "")
-
-
-@dataclass(frozen=True)
-class PortSpec:
-    """A resolved port: concrete shape and unit."""
-
-    shape: tuple[int, ...] = ()
-    unit: str = ""
-
-    @property
-    def width(self) -> int:
-        return int(np.prod(self.shape, dtype=np.int64)) if self.shape else 1
-
-    def describe(self) -> str:
-        shape = "scalar" if not self.shape else "x".join(map(str, self.shape))
-        return f"{shape} [{self.unit or 'dimensionless'}]"
-
-
-@dataclass
-class NodeState:
-    """What :meth:`Node.build` returns: the arrays the kernel receives.
-
-    ``params``, ``state`` are float64; ``istate`` is int64. Their contents are
-    the initial values restored by ``reset()``.
-    """
-
-    params: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    state: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    istate: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-
-
-@dataclass(frozen=True)
-class BuildContext:
-    """Facts about the graph a node is built into."""
-
-    rate: float
-    """Base tick rate of the graph in Hz."""
-    base_dir: Path
-    """Folder of the graph file; relative ``path`` parameters resolve against it."""
-    every: int = 1
-    """This node runs every ``every`` ticks, so its own rate is ``rate / every``."""
-    input_every: dict[str, int] = field(default_factory=dict)
-    """Connected input port -> ``every`` of the node (or 1 for a graph input) that produces it:
-    the input's sample rate is ``rate / input_every[port]``."""
-
-    @property
-    def node_rate(self) -> float:
-        return self.rate / self.every
 
 
 class Node:
@@ -354,73 +134,16 @@ class Node:
         """Re-seed random state in place (only for ``uses_seed`` nodes)."""
         raise NotImplementedError
 
+    @classmethod
+    def processor(cls, rate: float = 1000.0, seed: int = 0, name: str | None = None, base_dir: str | Path = ".",
+                  **params: Any) -> Any:
+        """This node's build and kernel on plain arrays, state kept between calls (flowtex.node_processor).
 
-def resolve_declared(port: Port, inputs: dict[str, PortSpec]) -> PortSpec:
-    """Resolve a declared output port against resolved input specs."""
-    shape = port.shape
-    unit = port.unit
-    if isinstance(shape, str):
-        shape = inputs[shape[1:]].shape
-    if unit.startswith("="):
-        unit = inputs[unit[1:]].unit
-    if shape is None:
-        raise TypeError("output ports must declare a shape")
-    return PortSpec(tuple(shape), unit)
+        ``rate`` (Hz) and ``seed`` are the graph's; ``name`` the node's name in a graph (it seeds random
+        nodes, so a processor named like a graph's node reproduces it); ``params`` as in a graph file.
+        """
+        from .node_processor import Processor
 
-
-def unit_product(a: str, b: str) -> str:
-    """Unit of a product, simplified: dimensionless factors drop out, powers combine (``mm/s``, ``mm/s`` -> ``mm^2/s^2``)."""
-    if not a:
-        return simplify_unit(b)
-    if not b:
-        return simplify_unit(a)
-    return simplify_unit(f"{a}*{b}")
+        return Processor(cls, params, rate=rate, seed=seed, name=name, base_dir=base_dir)
 
 
-_UNIT_FACTOR = re.compile(r"^([A-Za-z_%°µΩ][A-Za-z0-9_%°µΩ]*)(?:\^(-?\d+))?$")
-
-
-def simplify_unit(unit: str) -> str:
-    """Collect powers of a unit written with ``*``, ``/`` and integer ``^n``: ``mm/s*mm/s`` -> ``mm^2/s^2``.
-
-    Read left to right (``a/b*c`` is ``a*c/b``); factors keep the order of their
-    first appearance, cancelled factors drop out, ``1`` and empty factors are
-    dimensionless. The result has the numerator, then each denominator factor
-    after a ``/`` (``N/mm/s``; ``1/s`` when nothing is left above). A unit this
-    grammar cannot read (parentheses, decimals, ``*``/``=`` wildcards) is returned unchanged.
-    """
-    if not unit or unit == "*" or unit.startswith("="):
-        return unit
-    powers: dict[str, int] = {}
-    tokens = re.split(r"([*/])", unit.replace(" ", ""))
-    for k in range(0, len(tokens), 2):
-        part = tokens[k]
-        sign = -1 if k > 0 and tokens[k - 1] == "/" else 1
-        if part == "1":
-            continue
-        m = _UNIT_FACTOR.match(part)
-        if m is None:
-            return unit
-        powers[m.group(1)] = powers.get(m.group(1), 0) + sign * int(m.group(2) or 1)
-
-    def power(name: str, n: int) -> str:
-        return name if n == 1 else f"{name}^{n}"
-    top = "*".join(power(n, e) for n, e in powers.items() if e > 0)
-    bottom = "".join("/" + power(n, -e) for n, e in powers.items() if e < 0)
-    if not top and not bottom:
-        return ""
-    return (top or "1") + bottom
-
-
-def suggest(word: str, candidates: Sequence[str]) -> str:
-    """A ``" (did you mean 'x'?)"`` hint, or ``""`` when nothing is close."""
-    close = difflib.get_close_matches(word, list(candidates), n=3, cutoff=0.6)
-    if not close:
-        return ""
-    return " (did you mean " + " or ".join(repr(c) for c in close) + "?)"
-
-
-def check(condition: bool, param: str | None, message: str) -> None:
-    """Raise :class:`ParamError` for ``param`` unless ``condition`` holds."""
-    if not condition:
-        raise ParamError(param, message)

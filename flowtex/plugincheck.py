@@ -8,7 +8,8 @@ node type, in order (a failed step stops that type's later steps):
 2. the kernel compiles for the argument types the graph passes
    (:func:`flowtex.nodecheck.check_kernel_compiles`; ports are 2-D whatever their shape);
 3. no allocation in the compiled kernel: numba's generated LLVM IR is searched
-   for calls into its runtime's allocator (:data:`ALLOCATORS`);
+   for calls into its runtime's allocator (:data:`flowtex.kernelprobe.ALLOCATORS`), in a child
+   process compiling into an empty numba cache (numba shows no IR for cached code);
 4. runtime checks in a child process compiled with bounds checking
    (:mod:`flowtex.kernelprobe`): out-of-bounds reads and writes, state kept
    between calls, every output element written, finite outputs.
@@ -22,19 +23,18 @@ from __future__ import annotations
 import inspect
 import json
 import os
-import re
 import signal
 import subprocess
 import sys
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .config import BACKGROUND_ENV
 from .errors import FlowtexError
 from .node_api import Node, suggest
 from .nodecheck import attr_line, check_kernel_compiles, check_node_class, node_where
 
-ALLOCATORS = re.compile(r"call [^@\n]*@(NRT_MemInfo_alloc\w*|NRT_MemInfo_new\w*|NRT_Allocate\w*|NRT_MemInfo_varsize_alloc\w*)")
-"""numba runtime functions that allocate heap memory (np.empty, array expressions, slices copied, lists ...)."""
 PROBE_TIMEOUT_S = 600.0
 """Longest the bounds-checked child process may take (it compiles the kernel once, then runs a few thousand ticks)."""
 
@@ -70,19 +70,6 @@ def node_types(target: str) -> dict[str, type[Node]]:
     return {target: cls}
 
 
-def allocations(cls: type[Node]) -> list[str]:
-    """Allocator calls in the kernel's compiled code (its Python wrapper excluded), after :func:`check_kernel_compiles`."""
-    kernel = cls.get_kernel()
-    found: set[str] = set()
-    for sig in kernel.signatures:
-        ir = kernel.inspect_llvm(sig)
-        for block in re.split(r"\n(?=define )", ir):
-            head = block.split("(", 1)[0]
-            if block.startswith("define") and "@cpython." not in head and "@cfunc." not in head:
-                found.update(ALLOCATORS.findall(block))
-    return sorted(found)
-
-
 def _unbounded(cls: type[Node]) -> list[tuple[str, str]]:
     """(parameter, "min", "max" or "min or max") of every numeric parameter missing a bound."""
     found = []
@@ -93,34 +80,46 @@ def _unbounded(cls: type[Node]) -> list[tuple[str, str]]:
     return found
 
 
+def _child(target: str, cls: type[Node], mode: str, env: dict[str, str]) -> tuple[list[dict], str | None]:
+    """Run ``python -m flowtex.kernelprobe MODE TARGET TYPE``; its JSON lines, or None and why it failed."""
+    root = str(Path(__file__).resolve().parents[1])  # the folder holding this flowtex package
+    env = {**os.environ, **env, "PYTHONPATH": os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]),
+           BACKGROUND_ENV: "0"}
+    try:
+        done = subprocess.run([sys.executable, "-m", "flowtex.kernelprobe", mode, str(target), cls.type_name], env=env,
+                              capture_output=True, text=True, timeout=PROBE_TIMEOUT_S, stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired:
+        return [], f"the {mode} check did not finish in {PROBE_TIMEOUT_S:g} s (does the kernel loop forever?)"
+    if done.returncode != 0:
+        how = f"signal {signal.Signals(-done.returncode).name}" if done.returncode < 0 else f"exit code {done.returncode}"
+        last = (done.stderr.strip().splitlines() or [""])[-1]
+        return [], f"running the kernel crashed the checking process ({how}{': ' + last if last else ''})"
+    return [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")], None
+
+
+def allocations(target: str, cls: type[Node]) -> tuple[list[str], str | None]:
+    """Allocator calls in the kernel's compiled code, found in a child process compiling into an empty numba cache.
+
+    numba cannot show the LLVM IR of code it loaded from its disk cache (and a plugin kernel is usually cached), so the
+    child compiles the kernel and every function it calls afresh.
+    """
+    with tempfile.TemporaryDirectory(prefix="flowtex-alloc-") as tmp:
+        items, failed = _child(target, cls, "allocations", {"NUMBA_CACHE_DIR": tmp})
+    return sorted({str(name) for item in items for name in item.get("allocations", [])}), failed
+
+
 def runtime_problems(target: str, cls: type[Node]) -> list[tuple[int, str]]:
     """(line, message) from :mod:`flowtex.kernelprobe` run in a child process with numba's bounds checking on.
 
     The child compiles into its own numba cache folder (bounds-checked machine code must not
     replace the normal one); a crash or a timeout there is reported, not suffered here.
     """
-    from . import __file__ as package_init
     from .cache import cache_dir
 
-    root = str(Path(package_init).resolve().parents[1])
-    env = {**os.environ, "NUMBA_BOUNDSCHECK": "1", "NUMBA_CACHE_DIR": str(cache_dir() / "boundscheck"),
-           "PYTHONPATH": os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]), "FLOWTEX_BACKGROUND": "0"}
-    try:
-        done = subprocess.run([sys.executable, "-m", "flowtex.kernelprobe", str(target), cls.type_name], env=env,
-                              capture_output=True, text=True, timeout=PROBE_TIMEOUT_S, stdin=subprocess.DEVNULL)
-    except subprocess.TimeoutExpired:
-        return [(0, f"the runtime checks did not finish in {PROBE_TIMEOUT_S:g} s (does the kernel loop forever?)")]
-    if done.returncode != 0:
-        how = f"signal {signal.Signals(-done.returncode).name}" if done.returncode < 0 else f"exit code {done.returncode}"
-        last = (done.stderr.strip().splitlines() or [""])[-1]
-        return [(0, f"running the kernel crashed the checking process ({how}{': ' + last if last else ''}); "
-                    "look for reads or writes outside the ports, p, s and si")]
-    found = []
-    for line in done.stdout.splitlines():
-        if line.startswith("{"):
-            item = json.loads(line)
-            found.append((int(item["line"]), str(item["message"])))
-    return found
+    items, failed = _child(target, cls, "runtime", {"NUMBA_BOUNDSCHECK": "1", "NUMBA_CACHE_DIR": str(cache_dir() / "boundscheck")})
+    if failed:
+        return [(0, failed + "; look for reads or writes outside the ports, p, s and si")]
+    return [(int(item["line"]), str(item["message"])) for item in items]
 
 
 def check_type(target: str, cls: type[Node], report: Report) -> None:
@@ -141,7 +140,9 @@ def check_type(target: str, cls: type[Node], report: Report) -> None:
         return
     kernel = cls.get_kernel()
     func = getattr(kernel, "py_func", kernel)
-    calls = allocations(cls)
+    calls, failed = allocations(target, cls)
+    if failed:
+        report.problems.append(f"{node_where(cls, func)}: {failed}")
     if calls:
         report.problems.append(f"{node_where(cls, func)}: kernel {func.__name__} allocates memory on every call (numba "
                                f"generated {', '.join(calls)}): np.empty/zeros, array expressions such as x[t, :] * 2 and "

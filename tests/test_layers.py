@@ -19,12 +19,14 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("package", ("flowtex", "flowtex.__main__")),
     ("cli", ("flowtex.cli",)),
     # Not in DESIGN.md's list: what only the CLI and the tests use. Generators and oracles users want too
-    # (datasets), the golden fixture (testing), the any-file checker behind `flowtex validate` (it reads scenes) and plots.
-    ("tools", ("flowtex.datasets", "flowtex.testing", "flowtex.filecheck", "flowtex.plotting")),
+    # (datasets), the golden fixture (testing), the any-file checker behind `flowtex validate` (it reads scenes), and
+    # the plugin author's tools (scaffold, plugin check and its kernel probe).
+    ("tools", ("flowtex.datasets", "flowtex.testing", "flowtex.filecheck", "flowtex.scaffold", "flowtex.plugincheck",
+               "flowtex.kernelprobe")),
     ("scene, bench", ("flowtex.scene", "flowtex.bench")),
     ("fit", ("flowtex.fit",)),
     ("runtime", ("flowtex.runtime",)),
-    ("io", ("flowtex.io",)),
+    ("io", ("flowtex.io", "flowtex.plotting")),  # plotting: a recording's figures, written through io.figures
     # The compile service, and the compiled Graph it produces (kept at its historical import path flowtex.graph.compiled,
     # which users and plugins import; describe prints a compiled Graph).
     ("compile", ("flowtex.compile", "flowtex.graph.compiled", "flowtex.graph.describe")),
@@ -33,7 +35,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     # The declarative schema of every file kind (keys, kinds, bounds, units, docs) sits under graph, io and scene, which
     # declare their files with it; it uses the node API's parameter kinds.
     ("schema", ("flowtex.schema",)),
-    ("node API", ("flowtex.node_api", "flowtex.nodecheck", "flowtex.registry")),
+    ("node API", ("flowtex.node_api", "flowtex.node_decl", "flowtex.node_processor", "flowtex.nodecheck", "flowtex.registry")),
     ("models", ("flowtex.models",)),
     ("dsp", ("flowtex.dsp",)),
     # config, and what every layer uses: error classes, input limits, the YAML reader with positions, cache folders

@@ -108,3 +108,14 @@ def test_declaration_mistakes_are_reported_by_plugin_check(tmp_path, capsys):
     code, lines, _ = _check(capsys, str(tmp_path / "badport.py"))
     assert code == 1
     assert lines == [f"{tmp_path / 'badport.py'}:16: node 'badport_pc': output 'y': shape '=nope' names no input; inputs are: x"]
+
+
+def test_allocation_is_found_in_a_cached_kernel_too(tmp_path, capsys):
+    # numba shows no LLVM IR for code loaded from its disk cache: the second check (kernel cached by the first) must
+    # still see the allocation
+    source = (CASES / "mistakes.py").read_text()
+    (tmp_path / "alloc_only.py").write_text(source[:source.index("@njit(cache=True)\ndef forget_kernel")])
+    for _ in range(2):
+        code, lines, _ = _check(capsys, str(tmp_path / "alloc_only.py"))
+        assert code == 1
+        assert any("kernel alloc_kernel allocates memory on every call (numba generated NRT_" in line for line in lines)

@@ -108,4 +108,25 @@ def test_a_node_with_too_many_ports_is_refused_with_the_limit(tmp_path, monkeypa
     assert main(["validate", "g.yaml"]) == 1
     err = _errors(capsys)
     assert err == [f"plugins/decl_many.py:{_line(text, 'inputs = ')}: node 'decl_many': 501 inputs and 1 outputs are 502 ports, "
-                   "more than the limit of 64; take a vector input (Port((n,))) instead of many scalar ones"]
+                   "more than the limit of 27; take a vector input (Port((n,))) instead of many scalar ones"]
+
+
+def test_a_node_at_the_port_limit_runs_on_both_tiers(tmp_path):
+    # MAX_NODE_PORTS is a limit flowtex keeps, not one it merely states: 26 optional inputs and one output compile and run
+    from flowtex.graph.compiled import load_graph
+    from flowtex.limits import MAX_NODE_PORTS
+
+    names = [f"x{k}" for k in range(MAX_NODE_PORTS - 1)]
+    text = PLUGIN.replace("TAG", "limit").replace('inputs = {"x": Port((), "*")}', "inputs = {" + ", ".join(
+        f'"{n}": Port((), "*", optional=True, default={k}.0)' for k, n in enumerate(names)) + "}").replace(
+        'outputs = {"y": Port((), "=x")}', 'outputs = {"y": Port((), "")}').replace(
+        "def decl_kernel(p, s, si, x, y)", f"def decl_kernel(p, s, si, {', '.join(names)}, y)").replace(
+        "y[t, 0] = p[0] * x[t, 0]", f"y[t, 0] = p[0] * x0[t, 0] + {names[-1]}[t, 0]").replace(
+        "range(x.shape[0])", "range(y.shape[0])")
+    (tmp_path / "plugins").mkdir()
+    (tmp_path / "plugins" / "decl_limit.py").write_text(text)
+    (tmp_path / "g.yaml").write_text(GRAPH.replace("TAG", "limit").replace("x -> d.x", "x -> d.x0"))
+    x = np.arange(5.0)
+    for tier in ("dispatch", "fused"):
+        y = load_graph(tmp_path / "g.yaml", tier=tier).run({"x": x})["y"]
+        np.testing.assert_array_equal(y, x + (MAX_NODE_PORTS - 2))  # k = 1; the last input reads its default 62.0

@@ -15,6 +15,7 @@ from .output import say
 def register(sub: Any) -> None:
     """Add ``flowtex compare``."""
     from ..models.outside import OUTSIDE_CHOICES
+    from ..models.rendering import INTERPOLATION_CHOICES
 
     p = sub.add_parser("compare", help="render a surface along a recording's speed and force and compare (power, LSD, ...)",
                        description="Render SURFACE along REC's own speed and normal force and compare it with REC's "
@@ -30,7 +31,10 @@ def register(sub: Any) -> None:
     add_from_rate(p)
     p.add_argument("--seeds", type=int_at_least(1, MAX_SEEDS), default=4, metavar="N",
                    help=f"renders averaged (different excitation seeds; 1..{MAX_SEEDS})")
-    p.add_argument("--outside", choices=OUTSIDE_CHOICES, help="texture_lookup's rule beyond the measured models (default: its own)")
+    p.add_argument("--outside", choices=OUTSIDE_CHOICES,
+                   help="texture_lookup's rule beyond the measured models (default: the set's own, docs/texture.md)")
+    p.add_argument("--interpolation", choices=INTERPOLATION_CHOICES,
+                   help="texture_lookup's loudness interpolation (default: the set's own, docs/texture.md)")
     p.add_argument("--json", type=Path, metavar="OUT.json", help="write every figure, per window too, as JSON")
     p.add_argument("--report", metavar="DIR", help="write report.md with plots into this folder (needs matplotlib)")
     p.set_defaults(func=cmd_compare)
@@ -52,7 +56,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
         pyplot()                     # fail before the work when matplotlib is missing
     job = TextureJob(accel=args.accel, speed=args.speed, force=args.force, position=args.position, normal=args.normal,
                      rate=args.from_rate)
-    opt = CompareOptions(seeds=args.seeds, lookup={"outside": args.outside} if args.outside else {})
+    rule = {"outside": args.outside, "interpolation": args.interpolation}
+    opt = CompareOptions(seeds=args.seeds, lookup={k: v for k, v in rule.items() if v})
     cmp = compare_files(Path(args.surface), Path(args.recording), job, opt)
     for line in summary_lines(cmp):
         say(line)

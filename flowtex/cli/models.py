@@ -28,9 +28,9 @@ def register(sub: Any) -> None:
     r.add_argument("--keep-order", action="store_true",
                    help="keep the models' (p, q) when upsampling by more than 2x (cheaper to render, less exact)")
     r.add_argument("--extra-order", type=int_at_least(0, MAX_EXTRA_ORDER), metavar="N",
-                   help=f"when upsampling, give every model exactly N (even, 0..{MAX_EXTRA_ORDER}) more poles and zeros and no "
-                        "elliptic edge (default: the first with which every model keeps its spectrum of: the own order, "
-                        "then up to 2x an elliptic lowpass edge at the old Nyquist with 0, 2, 4 more, beyond 2x 0..8 more)")
+                   help=f"give every model exactly N (even, 0..{MAX_EXTRA_ORDER}) more poles and zeros and no elliptic edge "
+                        "(default: the first with which every model keeps its spectrum of: the own order, then up to 2x "
+                        "up an elliptic lowpass edge at the old Nyquist with 0, 2, 4 more, beyond 2x 0..8 more, down 2, 4 more)")
     r.add_argument("--allow-misses", action="store_true",
                    help="write the set even if some model misses LSD <= 0.5 dB / band power within 2 %% (named in a warning); "
                         "without it such a set is not written and the command fails")

@@ -25,6 +25,9 @@ def register(sub: Any) -> None:
     add_seed_option(p)
     p.add_argument("--dbc", help="DBC file (replay of a CAN session)")
     p.add_argument("--map", help="signal map file (replay of a CAN session; its audio section for --output OUT.wav)")
+    p.add_argument("--expect-audio", metavar="LIVE.wav", help="replay of a CAN session: check the replayed audio against the "
+                                                              "session's --record-audio, frame by frame (exit 1 on any "
+                                                              "unexplained difference)")
     p.add_argument("--nonfinite", choices=("error", "hold", "zero", "pass"), default="error",
                    help="NaN/inf in the recording: error (default; names signal, count, first index), "
                         "hold (last finite value), zero, or pass (unchanged)")
@@ -40,7 +43,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output
 
     replay = kind_of(args.input) == CAN_LOG
-    check_output(args.output, inputs=[args.graph, args.input, args.dbc, args.map], option="-o",
+    check_output(args.output, inputs=[args.graph, args.input, args.dbc, args.map, args.expect_audio], option="-o",
                  suffixes=(".npz", *suffixes(AUDIO), *REPLAY_SUFFIXES) if replay else (*RECORDING_SUFFIXES, *suffixes(AUDIO)))
     graph = load_graph_from_args(args)
     if replay:
@@ -48,8 +51,13 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise FlowtexError(f"{args.input}: replaying a CAN session needs --dbc DEVICE.dbc and --map MAP.yaml")
         from ..runtime.replay import replay_session
 
-        say(str(replay_session(graph, args.input, args.dbc, args.map, args.output, seed=args.seed)))
-        return 0
+        report = replay_session(graph, args.input, args.dbc, args.map, args.output, seed=args.seed,
+                                expect_audio=args.expect_audio)
+        say(str(report))
+        return 1 if report.audio_unexplained else 0
+    if args.expect_audio:
+        raise FlowtexError(f"--expect-audio {args.expect_audio}: only a replay of a CAN session (--input SESSION.blf/.log/.asc) "
+                           "can be checked against a live recording")
     if args.output and kind_of(args.output) == AUDIO:
         from ..runtime.offline import render_recording_audio
 

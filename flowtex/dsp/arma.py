@@ -47,7 +47,8 @@ import numpy as np
 from numba import njit
 
 from .fastmath import FASTMATH
-from .rng import next_normal
+from .layout import Field, Layout
+from .rng import STATE_FLOATS, STATE_INTS, next_normal
 
 _FAST = FASTMATH
 """numba fast-math flags: FMA contraction only, unless FLOWTEX_CONTRACT=0 (flowtex.dsp.fastmath)."""
@@ -60,15 +61,40 @@ K_MAX = 1.0 - 1e-12
 Q ~ 1e12) cannot be told apart from an unstable one after float64 rounding (a root exactly at z = -1
 comes out of the step-down as |k| = 1 - 2e-16), so such models are refused like |k| >= 1."""
 
-HEADER_FLOATS = 1
-"""s[0]: cached normal of the RNG (flowtex.dsp.rng STATE_FLOATS)."""
-RNG_INTS = 5
-"""si[0:5]: RNG words (flowtex.dsp.rng STATE_INTS)."""
-ISTATE_INTS = 9
-"""si[5]: 1 once a valid model is active; si[6]: 1 if the last seen ar/ma/gain were valid (trial
-coefficients usable); si[7]: 1 once those trial coefficients have been made active; si[8]: which of
-the two coefficient sets is active (0: the one at o_k, 1: the one at o_tk; see :func:`_offsets`)."""
+STATE = Layout("float", [
+    Field("rng", STATE_FLOATS, "cached normal of the random generator (flowtex.dsp.rng)"),
+    Field("k", "L", "active set: reflection coefficients k_1..k_L"),
+    Field("c", "L", "active set: sqrt(1 - k_m^2)"),
+    Field("v", "L + 1", "active set: ladder weights v_0..v_L"),
+    Field("var", 1, "active excitation variance"),
+    Field("g", "L", "lattice state g_0..g_{L-1} (previous tick)"),
+    Field("la", "p + 1", "last seen ar"),
+    Field("lm", "q + 1", "last seen ma"),
+    Field("lg", 1, "last seen gain"),
+    Field("tk", "L", "second coefficient set: k"),
+    Field("tc", "L", "second coefficient set: c"),
+    Field("tv", "L + 1", "second coefficient set: v"),
+    Field("wa", "L + 1", "work: step-down polynomial"),
+    Field("wr", "L + 1", "work: ladder remainder"),
+], sizes=("p", "q"), derived={"L": "max(p, q)"})
+"""The synthesizer's float state for AR order p and MA order q. Two coefficient sets (k, c, v) live at
+``k`` and ``tk``: one is active (int field ``which``), the other is the trial set a new model is computed
+into, so making a new model active is a flip of ``which``, not a copy."""
 
+ISTATE = Layout("int", [
+    Field("rng", STATE_INTS, "random generator words (flowtex.dsp.rng)"),
+    Field("active", 1, "1 once a valid model is active"),
+    Field("trial_ok", 1, "1 if the last seen ar/ma/gain were valid (trial coefficients usable)"),
+    Field("trial_active", 1, "1 once those trial coefficients have been made active"),
+    Field("which", 1, "which coefficient set is active (0: the one at k, 1: the one at tk)"),
+])
+"""The synthesizer's int state (fixed length)."""
+
+ISTATE_INTS = ISTATE.size()
+SI_ACTIVE = ISTATE.const("active")
+SI_TRIAL_OK = ISTATE.const("trial_ok")
+SI_TRIAL_ACTIVE = ISTATE.const("trial_active")
+SI_WHICH = ISTATE.const("which")
 
 def lattice_order(p: int, q: int) -> int:
     """Number of lattice sections L = max(p, q) (sections above p have k = 0)."""
@@ -77,30 +103,11 @@ def lattice_order(p: int, q: int) -> int:
 
 def state_size(p: int, q: int) -> int:
     """Length of the float state array for AR order p and MA order q (see :func:`_offsets`)."""
-    L = lattice_order(p, q)
-    return HEADER_FLOATS + 3 * L + (L + 1) + 1 + L + (p + 1) + (q + 1) + 1 + 2 * L + (L + 1) + 2 * (L + 1)
+    return STATE.size(p=p, q=q)
 
 
-@njit(cache=True, inline="always")
-def _offsets(p, q):
-    L = max(p, q)
-    # Two coefficient sets [k_1..k_L, c_1..c_L, v_0..v_L] (k_m at o + m - 1, c_m = sqrt(1 - k_m^2), ladder
-    # weights v), at o_k and o_tk: one active (si[8]), the other the trial set a new model is computed into;
-    # making the trial set active is a flip of si[8], not a copy.
-    o_k = HEADER_FLOATS
-    o_c = o_k + L
-    o_v = o_c + L
-    o_var = o_v + L + 1  # active variance
-    o_g = o_var + 1  # lattice state g_0..g_{L-1} (previous tick)
-    o_la = o_g + L  # last seen ar (p+1)
-    o_lm = o_la + p + 1  # last seen ma (q+1)
-    o_lg = o_lm + q + 1  # last seen gain
-    o_tk = o_lg + 1  # the second coefficient set
-    o_tc = o_tk + L
-    o_tv = o_tc + L
-    o_wa = o_tv + L + 1  # work: step-down polynomial
-    o_wr = o_wa + L + 1  # work: ladder remainder
-    return L, o_k, o_c, o_v, o_var, o_g, o_la, o_lm, o_lg, o_tk, o_tc, o_tv, o_wa, o_wr
+_offsets = STATE.kernel_offsets()
+"""(L, o_rng, o_k, o_c, ...) for orders (p, q): the offsets of :data:`STATE`, generated from it."""
 
 
 @njit(cache=True, fastmath=_FAST)
@@ -193,7 +200,7 @@ def arma_lattice_block(s, si, ar, ma, gain, variance, y) -> None:
     n = y.shape[0]
     p = ar.shape[1] - 1
     q = ma.shape[1] - 1
-    L, o_k, o_c, o_v, o_var, o_g, o_la, o_lm, o_lg, o_tk, o_tc, o_tv, o_wa, o_wr = _offsets(p, q)
+    L, _, o_k, o_c, o_v, o_var, o_g, o_la, o_lm, o_lg, o_tk, o_tc, o_tv, o_wa, o_wr = _offsets(p, q)
     rng_f = s[0:1]
     for t in range(n):
         e = next_normal(si, rng_f)
@@ -216,25 +223,25 @@ def arma_lattice_block(s, si, ar, ma, gain, variance, y) -> None:
             for i in range(q + 1):
                 s[o_lm + i] = ma[t, i]
             s[o_lg] = g
-            o_t = o_tk if si[8] == 0 else o_k  # the coefficient set that is not active
+            o_t = o_tk if si[SI_WHICH] == 0 else o_k  # the coefficient set that is not active
             ok = lattice_ladder_coefficients(
                 ar[t], ma[t], g,
                 s[o_t:o_t + L], s[o_t + L:o_t + 2 * L], s[o_t + 2 * L:o_t + 3 * L + 1], s[o_wa:o_wa + L + 1], s[o_wr:o_wr + L + 1],
             )
-            si[6] = 1 if ok else 0
-            si[7] = 0
+            si[SI_TRIAL_OK] = 1 if ok else 0
+            si[SI_TRIAL_ACTIVE] = 0
         var = variance[t, 0]
-        if si[6] == 1 and math.isfinite(var) and var >= 0.0:
-            if si[7] == 0:  # trial coefficients not active yet: make them the active set (no copy)
-                si[8] = 1 - si[8]
-                si[7] = 1
+        if si[SI_TRIAL_OK] == 1 and math.isfinite(var) and var >= 0.0:
+            if si[SI_TRIAL_ACTIVE] == 0:  # trial coefficients not active yet: make them the active set (no copy)
+                si[SI_WHICH] = 1 - si[SI_WHICH]
+                si[SI_TRIAL_ACTIVE] = 1
             s[o_var] = var
-            si[5] = 1
-        if si[5] == 0:
+            si[SI_ACTIVE] = 1
+        if si[SI_ACTIVE] == 0:
             y[t, 0] = 0.0
             continue
         # --- one tick of the normalized lattice-ladder ---
-        o_a = o_k if si[8] == 0 else o_tk
+        o_a = o_k if si[SI_WHICH] == 0 else o_tk
         y[t, 0] = lattice_step(s, o_a, o_a + L, o_a + 2 * L, o_g, L, math.sqrt(s[o_var]) * e)
 
 
@@ -270,10 +277,10 @@ def lattice_step(s, o_k, o_c, o_v, o_g, L, x) -> float:
 def new_state(p: int, q: int) -> tuple[np.ndarray, np.ndarray]:
     """Zeroed (float state, int state) arrays for orders p, q; seed the RNG with flowtex.dsp.rng.seed_rng."""
     s = np.zeros(state_size(p, q))
-    si = np.zeros(ISTATE_INTS, np.int64)
+    si = ISTATE.zeros()
     # last seen ar/ma/gain start as NaN so that the first model always counts as "changed"
-    _, _, _, _, _, _, o_la, o_lm, o_lg, _, _, _, _, _ = _offsets(p, q)
-    s[o_la:o_lg + 1] = np.nan
+    slots = STATE.bind(p=p, q=q)
+    s[slots["la"].start:slots["lg"].stop] = np.nan
     return s, si
 
 

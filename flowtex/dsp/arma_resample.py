@@ -181,6 +181,11 @@ def _extra_roots(a0: np.ndarray, c0: np.ndarray, extra: int, band_edge: float) -
     if extra % 2 or extra < 0:
         raise ValueError(f"extra order must be even and >= 0, got {extra}")
     pairs = extra // 2
+    if band_edge >= math.pi:  # downsampling: no stopband; neutral pairs (radius 0.2) the fit moves where the band needs them
+        for _ in range(pairs):
+            c0 = np.convolve(c0, [1.0, 0.0, 0.04])
+            a0 = np.convolve(a0, [1.0, 0.0, 0.04])
+        return a0, c0
     for k in range(pairs):
         ang = band_edge + (math.pi - band_edge) * (k + 1) / (pairs + 1)
         c0 = np.convolve(c0, [1.0, -1.8 * math.cos(ang), 0.81])
@@ -327,7 +332,7 @@ def resample_arma_lsf(ar: np.ndarray, ma: np.ndarray, gain: float, variance: flo
     ma = np.asarray(ma, dtype=np.float64)
     _check_rates(rate_from, rate_to)
     if rate_to <= rate_from:
-        a1, c1, g, v = resample_arma(ar, ma, gain, variance, rate_from, rate_to, grid=grid, iterations=iterations)
+        a1, c1, g, v = resample_arma(ar, ma, gain, variance, rate_from, rate_to, grid=grid, iterations=iterations, extra=extra)
         return a1, c1, None, None, g, v
     poles, zeros = _upsample(ar, ma, rate_from, rate_to, keep_order, extra, lowpass)
     lsf_a = lsf_c = None
@@ -351,7 +356,8 @@ def resample_arma(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, 
                   keep_order: bool = False, grid: int = GRID, iterations: int = 40, extra: int = 0) -> tuple[np.ndarray, np.ndarray, float, float]:
     """(ar, ma, gain, variance) at ``rate_to`` Hz with the same physical PSD below min(rate_from, rate_to) / 2.
 
-    Downsampling keeps the orders; upsampling returns the orders of
+    Downsampling keeps the orders (plus ``extra``, even: for sets too small to hold their band at the new
+    rate, e.g. an AR(2)); upsampling returns the orders of
     :func:`upsampled_order` (``keep_order``: the original's, at a cost in
     accuracy beyond DIRECT_MAX_RATIO; ``extra``, even: that many more poles
     and zeros, for models too small to fall off above the old Nyquist). The gain is kept and the variance
@@ -366,18 +372,19 @@ def resample_arma(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, 
     if rate_to > rate_from:
         a1, c1, _, _, g, v = resample_arma_lsf(ar, ma, gain, variance, rate_from, rate_to, keep_order, grid, iterations, extra)
         return a1, c1, g, v
-    # downsampling: prediction-error fit of the band's PSD on the new grid, same order
+    # downsampling: prediction-error fit of the band's PSD on the new grid, same order plus ``extra``
     ratio = rate_from / rate_to
     w = 2.0 * math.pi * np.arange(grid // 2 + 1) / grid  # new rate's grid, rad/sample
     f = w * rate_to / (2.0 * math.pi)
     f_lim = 0.5 * rate_to
     shape = _model_power_spectrum(ar, ma, 2.0 * math.pi * np.minimum(f, f_lim) / rate_from)
     T = np.where(f < f_lim, shape, STOPBAND_FLOOR * np.mean(shape[f < f_lim]))
-    a1, c1, _ = whittle_refine(T, grid, _map_roots(ar, ratio), _map_roots(ma, ratio), iterations=iterations, tol=1e-10)
+    a0, c0 = _extra_roots(_map_roots(ar, ratio), _map_roots(ma, ratio), extra, math.pi)
+    a1, c1, _ = whittle_refine(T, grid, a0, c0, iterations=iterations, tol=1e-10)
     band = f < 0.9 * f_lim
     wb = w[band]
     if _band_lsd(a1, c1, shape[band], wb) > DOWN_REFIT_DB:  # Whittle's criterion let the band go: fit its log spectrum
-        poles, zeros = _fit_band(ar, ma, rate_from, rate_to, None, rate_to)
+        poles, zeros = _fit_band(ar, ma, rate_from, rate_to, None, rate_to, extra)
         a2, c2 = real_poly(poles), real_poly(zeros)
         if _band_lsd(a2, c2, shape[band], wb) < _band_lsd(a1, c1, shape[band], wb):
             a1, c1 = a2, c2

@@ -7,6 +7,16 @@ Per query (Culbertson et al. 2012, section 4.2, HaTT's renderer):
 3. blend the three models' AR LSFs, MA LSFs, excitation variance and MA gain
    with those weights (never raw coefficients: convex combinations of
    increasing LSF vectors stay increasing, so the model stays stable);
+   with ``interpolation`` ``power`` or ``log_power`` the models' OUTPUT powers
+   g^2 var ||C/A||^2 are blended instead (linearly, or geometrically over the
+   non-silent vertices, scaled by their total weight so a silent corner still
+   fades the power linearly), and the excitation variance is set so that the
+   blended filter has that power: var = P / (g^2 ||C/A||^2), where
+   g^2 ||C/A||^2 = sum v_m^2 over the ladder weights of the normalized
+   lattice (:func:`~flowtex.dsp.arma.lattice_ladder_coefficients`): its states
+   are orthonormal under white input, so the identity is exact and costs one
+   O(L^2) step-down in caller-owned scratch, no allocation, no truncated
+   impulse response;
 4. convert the LSFs to A(z) and C(z) in float64 with
    :func:`~flowtex.dsp.lsf.lsf_to_poly`. The blend loop also checks the
    result is a valid LSF vector (as :func:`~flowtex.dsp.lsf.is_valid_lsf`
@@ -40,6 +50,7 @@ import math
 import numpy as np
 from numba import njit
 
+from .arma import lattice_ladder_coefficients
 from .lsf import DEFAULT_MIN_GAP, lsf_to_poly, repair_lsf
 from .triangulation import clamp_query, locate, pack_triangulation
 
@@ -60,10 +71,15 @@ T_LOW_FORCE_VALUE = 12
 T_MIN_GAP = 13
 T_OUTSIDE = 14
 T_OFF_OUT = 15
-T_HEADER = 16
+T_INTERP = 16
+T_HEADER = 17
 
 OUTSIDE_MODES = {"fade": 0, "hold": 1, "trend": 2}
 """Codes of the rules outside the measured models (flowtex.models.outside)."""
+INTERP_MODES = {"variance": 0, "power": 1, "log_power": 2}
+"""Codes of the interpolation rules: HaTT's (excitation variance blended), output power blended linearly, or geometrically."""
+M_EXTRA = 3
+"""Per model, after its p AR and q MA LSFs: excitation variance, MA gain, output power."""
 
 # Float state slots.
 S_X = 0
@@ -71,7 +87,7 @@ S_Y = 1
 S_W = 2  # 3 weights
 S_VAR = 5
 S_GAIN = 6
-S_AR = 7  # p+1 values, then q+1 values of C(z), then max(p, q) scratch
+S_AR = 7  # p+1 values, then q+1 values of C(z), then max(p, q) scratch, then 5 L + 3 lattice scratch (L = max(p, q))
 
 # Int state slots.
 SI_HINT = 0
@@ -85,7 +101,8 @@ def pack_texture_table(speeds: np.ndarray, forces: np.ndarray, triangles: np.nda
                        speed_margin: float = 0.01, low_speed: float = 0.05, low_speed_value: float = 0.0001,
                        force_margin: float = 0.01, low_force: float = 0.05, low_force_value: float = 0.0001,
                        min_gap: float = DEFAULT_MIN_GAP, outside: str = "fade", src: np.ndarray | None = None,
-                       trend: tuple[float, float] = (1.0, 1.0), trend_cap: float = 4.0) -> np.ndarray:
+                       trend: tuple[float, float] = (1.0, 1.0), trend_cap: float = 4.0,
+                       interpolation: str = "variance") -> np.ndarray:
     """One float64 array holding the clamping rule, the triangulation and the models, for :func:`texture_lookup_block`.
 
     Units: speeds, margins and thresholds on speed in mm/s; forces in N. The
@@ -94,14 +111,18 @@ def pack_texture_table(speeds: np.ndarray, forces: np.ndarray, triangles: np.nda
     (max_speed, max_force). ``min_gap`` (rad) is passed to ``repair_lsf``.
     ``outside`` (a key of :data:`OUTSIDE_MODES`), ``src`` (per model, the
     measured model standing in for it; default itself), ``trend`` (ks, kf) and
-    ``trend_cap``: the rule outside the measured models (module docstring).
+    ``trend_cap``: the rule outside the measured models; ``interpolation`` (a
+    key of :data:`INTERP_MODES`): how loudness is blended (module docstring).
+    Defaults: HaTT's rule.
     """
     ar_lsf = np.ascontiguousarray(ar_lsf, dtype=np.float64)
     ma_lsf = np.ascontiguousarray(ma_lsf, dtype=np.float64)
     count, p = ar_lsf.shape
     q = ma_lsf.shape[1]
     tri_tab = pack_triangulation(speeds, forces, triangles, max_speed, max_force)
-    models = np.column_stack([ar_lsf, ma_lsf, np.asarray(variance, np.float64), np.asarray(gain, np.float64)])
+    variance = np.asarray(variance, np.float64)
+    gain = np.asarray(gain, np.float64)
+    models = np.column_stack([ar_lsf, ma_lsf, variance, gain, model_output_powers(ar_lsf, ma_lsf, variance, gain)])
     head = np.zeros(T_HEADER)
     head[T_P] = p
     head[T_Q] = q
@@ -119,15 +140,67 @@ def pack_texture_table(speeds: np.ndarray, forces: np.ndarray, triangles: np.nda
     head[T_MIN_GAP] = min_gap
     head[T_OUTSIDE] = OUTSIDE_MODES[outside]
     head[T_OFF_OUT] = T_HEADER + tri_tab.size + models.size
+    head[T_INTERP] = INTERP_MODES[interpolation]
     src = np.arange(count) if src is None else np.asarray(src)
     out = np.concatenate([[trend[0], trend[1], trend_cap], src.astype(np.float64),
                           np.column_stack([np.asarray(speeds, np.float64), np.asarray(forces, np.float64)]).ravel()])
     return np.concatenate([head, tri_tab, models.ravel(), out])
 
 
+def model_output_powers(ar_lsf: np.ndarray, ma_lsf: np.ndarray, variance: np.ndarray, gain: np.ndarray) -> np.ndarray:
+    """(M,) output power g^2 var ||C/A||^2 of each model, (m/s^2)^2, from its LSFs as the lookup renders them.
+
+    Exact (the normalized lattice's sum of squared ladder weights,
+    :func:`filter_power`); 0 for a silent model (variance 0). A model whose
+    LSFs give no usable filter raises ValueError.
+    """
+    ar_lsf = np.ascontiguousarray(ar_lsf, dtype=np.float64)
+    ma_lsf = np.ascontiguousarray(ma_lsf, dtype=np.float64)
+    count, p = ar_lsf.shape
+    q = ma_lsf.shape[1]
+    L = max(p, q)
+    ar, ma = np.empty(p + 1), np.empty(q + 1)
+    work = np.empty(5 * L + 3)
+    out = np.zeros(count)
+    for m in range(count):
+        if variance[m] <= 0.0:
+            continue
+        lsf_to_poly(ar_lsf[m], ar)
+        lsf_to_poly(ma_lsf[m], ma)
+        unit = filter_power(ar, ma, float(gain[m]), work)
+        if not unit >= 0.0:
+            raise ValueError(f"model {m}: its LSFs give no stable filter, so it has no output power")
+        out[m] = variance[m] * unit
+    return out
+
+
+@njit(cache=True)
+def filter_power(ar: np.ndarray, ma: np.ndarray, gain: float, work: np.ndarray) -> float:
+    """g^2 sum_n h_n^2 of g C(z) / A(z) (its output power for unit-variance white input); -1.0 if not usable.
+
+    The normalized lattice-ladder realisation's backward states are
+    orthonormal for white unit-variance input, so the output power is exactly
+    the sum of the squared ladder weights v_m. ``work`` (>= 5 L + 3 floats,
+    L = max(p, q)) is scratch; nothing is allocated.
+    """
+    L = max(ar.shape[0], ma.shape[0]) - 1
+    k = work[:L]
+    c = work[L:2 * L]
+    v = work[2 * L:3 * L + 1]
+    wa = work[3 * L + 1:4 * L + 2]
+    wr = work[4 * L + 2:5 * L + 3]
+    if not lattice_ladder_coefficients(ar, ma, gain, k, c, v, wa, wr):
+        return -1.0
+    total = 0.0
+    for m in range(L + 1):
+        total += v[m] * v[m]
+    return total
+
+
 def state_sizes(ar_order: int, ma_order: int) -> tuple[int, int]:
     """Lengths of the float and int state arrays for orders p, q."""
-    return S_AR + (ar_order + 1) + (ma_order + 1) + max(ar_order, ma_order), SI_SIZE
+    L = max(ar_order, ma_order)
+    return S_AR + (ar_order + 1) + (ma_order + 1) + L + 5 * L + 3, SI_SIZE
 
 
 def initial_state(ar_order: int, ma_order: int) -> tuple[np.ndarray, np.ndarray]:
@@ -179,7 +252,26 @@ def _trend_factor(tab, o_out, v, w, speed, force):
     cap = tab[o_out + 2]
     rs = min(max(speed, 0.0) / se, cap) if se > 0.0 else 1.0
     rf = min(max(force, 0.0) / fe, cap) if fe > 0.0 else 1.0
+    if rs <= 0.0 or rf <= 0.0:
+        return 0.0  # at rest or without contact: silent for every exponent (0^0 would be 1)
     return rs ** tab[o_out] * rf ** tab[o_out + 1]
+
+
+@njit(cache=True, inline="always")
+def _blend_power(models, width, v, w, log_mode):
+    """Output power at the query: the vertices' powers blended linearly, or geometrically over the non-silent ones
+    scaled by their total weight (a silent vertex then still fades the power linearly, as in HaTT's corners)."""
+    b = width - 1
+    if not log_mode:
+        return w[0] * models[v[0] * width + b] + w[1] * models[v[1] * width + b] + w[2] * models[v[2] * width + b]
+    total = 0.0
+    acc = 0.0
+    for k in range(3):
+        pk = models[v[k] * width + b]
+        if pk > 0.0 and w[k] > 0.0:
+            total += w[k]
+            acc += w[k] * math.log(pk)
+    return total * math.exp(acc / total) if total > 0.0 else 0.0
 
 
 @njit(cache=True)
@@ -192,8 +284,8 @@ def lookup_model(tab: np.ndarray, s: np.ndarray, si: np.ndarray, speed: float, f
     mode = int(tab[T_OUTSIDE])
     x = clamp_query(speed, tab[T_MAX_SPEED], tab[T_SPEED_MARGIN], tab[T_LOW_SPEED], tab[T_LOW_SPEED_VALUE])
     y = clamp_query(force, tab[T_MAX_FORCE], tab[T_FORCE_MARGIN], tab[T_LOW_FORCE], tab[T_LOW_FORCE_VALUE])
-    kx = speed if mode == 2 else x  # trend: the raw query sets the power, so two queries clamped alike differ
-    ky = force if mode == 2 else y
+    kx = speed if mode != 0 else x  # hold, trend: the raw query decides rest and power, so two queries clamped alike differ
+    ky = force if mode != 0 else y
     if kx == s[S_X] and ky == s[S_Y] and si[SI_VALID] != 0:
         return
     o_tri = int(tab[T_OFF_TRI])
@@ -211,9 +303,10 @@ def lookup_model(tab: np.ndarray, s: np.ndarray, si: np.ndarray, speed: float, f
             m = int(tab[o_src + v[k]])
             beyond |= m != v[k]
             v[k] = m
-    width = p + q + 2
+    width = p + q + M_EXTRA
     o_ma = S_AR + p + 1
-    scratch = s[o_ma + q + 1:o_ma + q + 1 + max(p, q)]
+    L = max(p, q)
+    scratch = s[o_ma + q + 1:o_ma + q + 1 + L]
     min_gap = tab[T_MIN_GAP]
     lsf = scratch[:p]
     if not _blend_valid(models, width, 0, p, v, w, min_gap, lsf):
@@ -227,8 +320,15 @@ def lookup_model(tab: np.ndarray, s: np.ndarray, si: np.ndarray, speed: float, f
     s[S_VAR] = w[0] * models[v[0] * width + b] + w[1] * models[v[1] * width + b] + w[2] * models[v[2] * width + b]
     b += 1
     s[S_GAIN] = w[0] * models[v[0] * width + b] + w[1] * models[v[1] * width + b] + w[2] * models[v[2] * width + b]
+    interp = int(tab[T_INTERP])
+    if interp != 0:
+        target = _blend_power(models, width, v, w, interp == 2)
+        unit = filter_power(s[S_AR:S_AR + p + 1], s[o_ma:o_ma + q + 1], s[S_GAIN], s[o_ma + q + 1 + L:o_ma + q + 1 + 6 * L + 3])
+        s[S_VAR] = target / unit if unit > 0.0 and target > 0.0 else 0.0
     if mode == 2 and beyond:
         s[S_VAR] *= _trend_factor(tab, o_out, v, w, speed, force)
+    if mode != 0 and (not speed > 0.0 or speed < tab[T_LOW_SPEED] or not force > 0.0 or force < tab[T_LOW_FORCE]):
+        s[S_VAR] = 0.0  # hold, trend: at rest or without contact, silent
     s[S_X] = kx
     s[S_Y] = ky
     si[SI_VALID] = 1

@@ -88,7 +88,7 @@ def stabilize(poly: np.ndarray, radius: float = MAX_RADIUS) -> np.ndarray:
         return poly.copy()
     roots = np.roots(poly)
     r = np.abs(roots)
-    roots = np.where(r > 1.0, 1.0 / np.conj(roots), roots)
+    roots = np.where(r > 1.0, 1.0 / np.conj(np.where(r > 1.0, roots, 1.0)), roots)  # no 1/0 for a root at the origin
     r = np.abs(roots)
     roots = np.where(r > radius, roots * (radius / np.maximum(r, 1e-300)), roots)
     return np.real(np.poly(roots)) * poly[0]

@@ -84,7 +84,8 @@ def signal_centroid(x: np.ndarray, rate_hz: float) -> float:
 
 
 def lsd_db(s_fit: np.ndarray, s_true: np.ndarray, freqs_hz: np.ndarray, min_freq_hz: float = 15.0,
-           range_db: float | None = 40.0, max_freq_hz: float = math.inf, floor: float = 0.0) -> float:
+           range_db: float | None = 40.0, max_freq_hz: float = math.inf, floor: float = 0.0,
+           shape_only: bool = False) -> float:
     """Log-spectral distance in dB: RMS over a band of 10 log10(S_fit / S_true) -- the project's one LSD.
 
     Band: the frequencies ``freqs_hz`` with ``min_freq_hz`` < f <= ``max_freq_hz``
@@ -93,7 +94,8 @@ def lsd_db(s_fit: np.ndarray, s_true: np.ndarray, freqs_hz: np.ndarray, min_freq
     where a 10 s record says little, do not dominate (issue 11's definition is the
     default: above 15 Hz, 40 dB range). ``floor`` (PSD units, >= 0) raises both
     spectra to at least that before the logs (silent bands of rendered signals;
-    0: none). Both PSDs are sampled at ``freqs_hz`` in the same units. Returns inf
+    0: none). ``shape_only``: the RMS about the mean of 10 log10(S_fit / S_true) (its standard deviation), the
+    distance left once the two levels are matched. Both PSDs are sampled at ``freqs_hz`` in the same units. Returns inf
     if ``s_fit`` is zero or non-finite anywhere in the band (with ``floor`` 0).
     Used for model fits (:mod:`flowtex.fit.arma`), resampling
     (:mod:`flowtex.fit.resample`), bench errors (:mod:`flowtex.dsp.errors`) and
@@ -118,6 +120,8 @@ def lsd_db(s_fit: np.ndarray, s_true: np.ndarray, freqs_hz: np.ndarray, min_freq
         d = 10.0 * np.log10(s_fit[mask] / s_true[mask])
     if not np.all(np.isfinite(d)):
         return float("inf")
+    if shape_only:
+        d = d - np.mean(d)
     return float(np.sqrt(np.mean(d * d)))
 
 

@@ -13,8 +13,11 @@ recording and on the renders alike:
   both from ``min_freq_hz`` (12 Hz) up (integrated Welch PSDs); the rendered
   power is the mean over the seeds (one render scatters by about 0.5 dB);
 * ``lsd_db``: the LSD of the renders' mean Welch PSD against the recording's
-  (flowtex.dsp.spectral.lsd_db: above 15 Hz, where the recording is within
-  40 dB of its peak); ``gfc``: Culbertson et al. 2012's GFC of the two
+  (flowtex.dsp.spectral.lsd_db over ``band_hz``, where the recording is within
+  40 dB of its peak); ``shape_lsd_db`` the same once the levels are matched
+  (the standard deviation of the dB difference: LSD^2 = shape_lsd^2 + mean
+  dB offset^2, so a render 3 dB too loud everywhere has LSD 3 and shape LSD 0);
+  ``gfc``: Culbertson et al. 2012's GFC of the two
   amplitude spectra (square roots of the PSDs) from ``min_freq_hz`` up;
   ``centroid_hz`` / ``rendered_centroid_hz``: the spectral centroids;
 * ``band_hz``: the band [``min_freq_hz``, top] of the LSD, GFC, centroids and
@@ -107,6 +110,8 @@ class Comparison:
     windows: list[dict[str, float]]
     max_freq_hz: float = math.inf
     """Top of the shape band (Hz; inf: the Nyquist frequency)."""
+    shape_lsd_db: float = float("nan")
+    """LSD once the levels are matched (module docstring)."""
     band_hz: list[float] = field(default_factory=list)
     """[low, high] Hz of the LSD, GFC, centroids and octave bands."""
     resolution_hz: float = 4.0
@@ -221,6 +226,8 @@ def compare_signals(recorded: np.ndarray, renders: list[np.ndarray], rate: float
     p_ren = float(np.mean([psd_band_power(freqs, s, opt.min_freq_hz) for s in s_each]))
     top = min(opt.max_freq_hz, rate / 2.0)
     lsd, g, c_rec, c_ren = _shape(freqs, s_rec, s_ren, opt.min_freq_hz, top)
+    shape_lsd = lsd_db(s_ren, s_rec, freqs, min_freq_hz=opt.min_freq_hz, max_freq_hz=top, shape_only=True) \
+        if np.isfinite(lsd) else float("nan")
     windows = _windows(x, ys, rate, opt, keep, nperseg)
     rms_rec = np.array([w["recorded_rms"] for w in windows])
     rms_ren = np.array([w["rendered_rms"] for w in windows])
@@ -238,7 +245,7 @@ def compare_signals(recorded: np.ndarray, renders: list[np.ndarray], rate: float
                       power_ratio_spread_db=float(np.std(ratios)) if len(ratios) > 1 else float("nan"),
                       rms_correlation=corr, recorded_rms=float(np.sqrt(p_rec)), rendered_rms=float(np.sqrt(p_ren)),
                       seconds=n / rate, seeds=len(renders), windows=windows, max_freq_hz=opt.max_freq_hz,
-                      band_hz=[float(opt.min_freq_hz), float(top)], resolution_hz=float(rate / nperseg),
+                      shape_lsd_db=shape_lsd, band_hz=[float(opt.min_freq_hz), float(top)], resolution_hz=float(rate / nperseg),
                       octave_bands=_octaves(freqs, s_rec, s_ren, opt.min_freq_hz, top), warnings=warnings,
                       freqs=freqs, recorded_psd=s_rec, rendered_psd=s_ren)
 
@@ -320,7 +327,8 @@ def summary_lines(c: Comparison) -> list[str]:
     return [f"rendered along the recorded path ({c.seconds:.1f} s, {c.seeds} render(s)):",
             f"  power ratio {c.power_ratio_db:+.2f} dB (rendered over recorded, > 12 Hz; one render scatters by "
             f"{c.power_ratio_spread_db:.2f} dB); RMS {c.rendered_rms:.3g} vs {c.recorded_rms:.3g} m/s^2",
-            f"  LSD {c.lsd_db:.2f} dB, GFC {c.gfc:.3f}, centroid {c.rendered_centroid_hz:.0f} vs {c.centroid_hz:.0f} Hz "
+            f"  LSD {c.lsd_db:.2f} dB ({c.shape_lsd_db:.2f} dB with the levels matched), GFC {c.gfc:.3f}, "
+            f"centroid {c.rendered_centroid_hz:.0f} vs {c.centroid_hz:.0f} Hz "
             f"(band {c.band_hz[0]:g}-{c.band_hz[1]:g} Hz, {c.resolution_hz:.3g} Hz resolution"
             + ("; the set was resampled from a lower rate)" if math.isfinite(c.max_freq_hz) else ")"),
             "  octave-band power error (dB): " + ", ".join(f"{b['centre_hz']:g} Hz {b['error_db']:+.1f}" for b in c.octave_bands),

@@ -20,18 +20,26 @@ from ..io.recordings import Recording, load_recording
 
 
 def load(path: str | Path, rate: float | None) -> tuple[Recording, float]:
-    """Load a recording and decide its rate (Hz): the file's, else ``rate``; a conflict or no rate is an error."""
+    """Load a recording and decide its rate (Hz) with :func:`recording_rate`."""
     rec = load_recording(path)
-    if rec.rate is not None:
-        if rate is not None and abs(rate - rec.rate) > 1e-9 * rec.rate:
-            raise DataError(f"{path}: the file states a rate of {rec.rate:g} Hz but --from-rate is {rate:g}; drop --from-rate "
-                            "(the file's rate wins) or fix the file")
-        return rec, float(rec.rate)
+    return rec, recording_rate(rec, rate)
+
+
+def recording_rate(rec: Recording, from_rate: float | None) -> float:
+    """The rate in Hz: the one the file states, else ``from_rate`` (``--from-rate``); an error if neither or if they differ.
+
+    The one rate rule of every fit (texture, friction, taps, pattern, compliance).
+    """
+    if rec.rate is not None and from_rate is not None and abs(from_rate - rec.rate) > 1e-9 * rec.rate:
+        raise DataError(f"{rec.path}: the file states a rate of {rec.rate:g} Hz but --from-rate is {from_rate:g}; "
+                        "drop --from-rate (the file's rate wins) or fix the file")
+    rate = rec.rate if rec.rate is not None else from_rate
     if rate is None:
-        raise DataError(f"{path}: the recording states no sample rate; give it with --from-rate HZ")
+        raise DataError(f"{rec.path}: the recording states no sample rate; pass --from-rate HZ")
     if not (np.isfinite(rate) and rate > 0):
-        raise DataError(f"{path}: --from-rate must be a positive number of Hz, got {rate!r}")
-    return rec, float(rate)
+        what = "--from-rate" if rec.rate is None else "the file's sample rate"
+        raise DataError(f"{rec.path}: {what} must be a positive number of Hz, got {rate!r}")
+    return float(rate)
 
 
 def signal(rec: Recording, name: str, option: str, width: tuple[int, ...] = (1,), finite: bool = True) -> np.ndarray:

@@ -12,16 +12,19 @@ import numpy as np
 from ..dsp.arma import arma_psd
 from ..dsp.interp import initial_state, texture_lookup_block
 from ..dsp.spectral import lsd_db
-from ..models.outside import OUTSIDE_CHOICES, texture_table
+from ..models.rendering import texture_table
 from ..models.texture import TextureModelSet
 
 
-def models_at(ms: TextureModelSet, speeds: np.ndarray, forces: np.ndarray,
-              outside: str = OUTSIDE_CHOICES[0]) -> list[tuple[np.ndarray, np.ndarray, float, float]]:
-    """(ar, ma, gain, variance) that ``texture_lookup`` (its ``outside`` rule) renders at each (speed mm/s, force N): the same kernel."""
+def models_at(ms: TextureModelSet, speeds: np.ndarray, forces: np.ndarray, outside: str | None = None,
+              interpolation: str | None = None) -> list[tuple[np.ndarray, np.ndarray, float, float]]:
+    """(ar, ma, gain, variance) that ``texture_lookup`` renders at each (speed mm/s, force N): the same kernel and rule.
+
+    ``outside`` / ``interpolation``: as the node's parameters (None: the set's own rule, flowtex.models.rendering).
+    """
     speeds = np.asarray(speeds, float).reshape(-1, 1)
     forces = np.asarray(forces, float).reshape(-1, 1)
-    tab = texture_table(ms, outside)
+    tab = texture_table(ms, interpolation, outside)
     n = speeds.shape[0]
     ar = np.empty((n, ms.ar_order + 1))
     ma = np.empty((n, ms.ma_order + 1))

@@ -7,20 +7,7 @@ import numpy as np
 from ..errors import DataError
 from ..io.atomic import write_json_atomic  # noqa: F401 -- re-exported for the fit modules
 from ..io.recordings import Recording
-from .inputs import check_plausible
-
-
-def recording_rate(rec: Recording, from_rate: float | None) -> float:
-    """The rate in Hz: the one the file states, else ``from_rate`` (``--from-rate``); an error if neither or if they differ."""
-    if rec.rate is not None and from_rate is not None and abs(from_rate - rec.rate) > 1e-9 * rec.rate:
-        raise DataError(f"{rec.path}: the file states a rate of {rec.rate:g} Hz but --from-rate is {from_rate:g}; drop --from-rate "
-                        "(the file's rate wins) or fix the file")
-    rate = rec.rate if rec.rate is not None else from_rate
-    if rate is None:
-        raise DataError(f"{rec.path}: the recording states no sample rate; pass --from-rate HZ")
-    if not np.isfinite(rate) or rate <= 0:
-        raise DataError(f"{rec.path}: sample rate must be a positive number of Hz, got {rate!r}")
-    return float(rate)
+from .inputs import check_plausible, recording_rate  # noqa: F401 -- the one rate rule, re-exported
 
 
 def signal(rec: Recording, name: str, option: str, widths: tuple[int, ...]) -> np.ndarray:

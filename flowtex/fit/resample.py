@@ -79,6 +79,10 @@ EDGE_ATTEMPTS = ((0, False), (0, True), (2, True), (4, True))
 cascaded with the elliptic lowpass at the old Nyquist (flowtex.dsp.anti_imaging.elliptic_lowpass), which the
 models whose spectrum is still high there need (HaTT's rough surfaces), then more poles and zeros as well."""
 
+DOWN_ATTEMPTS = ((0, False), (2, False), (4, False))
+"""(extra order, edge) tried, in turn, when downsampling: the own order holds HaTT's sets; an AR(2) set's band at
+500 Hz needs 2 more poles and zeros (1.3 dB off at its own order)."""
+
 Attempt = tuple[int, bool]
 """(extra order, elliptic edge) of one attempt at a whole set."""
 
@@ -206,9 +210,9 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
 
     Upsampling by more than 2x raises every model's order alike
     (:func:`flowtex.dsp.arma_resample.upsampled_order`) unless ``keep_order``.
-    When upsampling, ``extra_order`` (even, 0..:data:`MAX_EXTRA_ORDER`) adds exactly that many poles and zeros to
-    every model (and no elliptic edge); None tries :data:`EDGE_ATTEMPTS` (up to 2x) or :data:`EXTRA_ORDERS`
-    (beyond) in turn and keeps the first with which every model keeps its spectrum (LSD <= 0.5 dB, band power
+    ``extra_order`` (even, 0..:data:`MAX_EXTRA_ORDER`) adds exactly that many poles and zeros to
+    every model (and no elliptic edge); None tries :data:`EDGE_ATTEMPTS` (up to 2x up), :data:`EXTRA_ORDERS`
+    (beyond) or :data:`DOWN_ATTEMPTS` (down) in turn and keeps the first with which every model keeps its spectrum (LSD <= 0.5 dB, band power
     within 2 %, <= 2 % of its power above the old Nyquist) -- most of HaTT's sets need nothing added, those
     whose spectra are still high at the old Nyquist the edge -- or the last (see :func:`_resample_models` for
     the stopping rule: the call always ends).
@@ -230,18 +234,19 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
     rate_to = float(rate_hz)
     upsampling = rate_to > rate_from
     direct = rate_to <= DIRECT_MAX_RATIO * (1.0 + 1e-12) * rate_from
-    if not upsampling or keep_order:
+    if keep_order and upsampling:
         tries: tuple[Attempt, ...] = ((0, False),)
     elif extra_order is not None:
         tries = ((extra_order, False),)
     else:
-        tries = EDGE_ATTEMPTS if direct else tuple((e, False) for e in EXTRA_ORDERS)
+        tries = DOWN_ATTEMPTS if not upsampling else EDGE_ATTEMPTS if direct else tuple((e, False) for e in EXTRA_ORDERS)
     (best_extra, edge), models = _resample_models(ms, rate_to, keep_order, tries, _Progress(progress, ms.num_models))
     p0, q0 = ms.ar_order, ms.ma_order
     p, q = models[0].ar_lsf.shape[0], models[0].ma_lsf.shape[0]
     metadata = dict(ms.metadata)
     if not upsampling:
-        method = "prediction-error fit of the PSD below the new Nyquist, same order"
+        method = "prediction-error fit of the PSD below the new Nyquist (log-spectral refit where it leaves the band)"
+        method += f"; {best_extra} more poles and zeros" if best_extra else ", same order"
     else:
         method = "log-spectral fit of the PSD below the old Nyquist, stopband ceiling above"
         if best_extra:
@@ -264,7 +269,7 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
                               ma_lsf=np.array([r.ma_lsf for r in models]).reshape(len(models), q),
                               variance=np.array([r.variance for r in models]), gain=np.array([r.gain for r in models]),
                               ar_coeff=np.array([r.ar_coeff for r in models]), ma_coeff=np.array([r.ma_coeff for r in models]),
-                              source=None, metadata=metadata,
+                              source=None, metadata=metadata, rule=ms.rule,  # the set's rendering rule carries over
                               speeds=np.array(ms.speeds, dtype=np.float64), forces=np.array(ms.forces, dtype=np.float64),
                               triangles=np.array(ms.triangles, dtype=np.int64))
     return out.validate()

@@ -49,6 +49,7 @@ from ..dsp.robust import clamp_outliers
 from ..dsp.segment import segment
 from ..errors import DataError
 from ..io.modelset import delaunay_triangles
+from ..models.rendering import FITTED_RULE
 from ..models.texture import TextureModelSet
 from .arma import ArmaFit, fit_arma, select_shared_order
 
@@ -234,7 +235,8 @@ def assemble_set(pieces: Sequence[Piece], rate: float, material: str, metadata: 
     ms = TextureModelSet(material=material, sample_rate=float(rate), speeds=points[:, 0].copy(), forces=points[:, 1].copy(),
                          triangles=delaunay_triangles(points, material), ar_lsf=np.array(ar).reshape(len(pts), p),
                          ma_lsf=np.array(ma).reshape(len(pts), q), variance=np.array(var), gain=np.array(gain),
-                         max_speed=float(max_speed), max_force=float(max_force), metadata=dict(metadata or {}))
+                         max_speed=float(max_speed), max_force=float(max_force), metadata=dict(metadata or {}),
+                         rule=FITTED_RULE)
     return ms.validate()
 
 

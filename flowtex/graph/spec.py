@@ -89,6 +89,7 @@ def load_spec(path: str | Path, overrides: dict[str, Any] | None = None) -> Grap
 
 
 def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -> GraphSpec:
+    """Check ``text`` (graph file ``path``) against :data:`flowtex.schema.graph.GRAPH`; every problem in one GraphError."""
     c = Collector(str(path))
     data = load_yaml(text, str(path))
     if not isinstance(data, LocDict):
@@ -104,7 +105,7 @@ def parse_spec(text: str, path: Path, overrides: dict[str, Any] | None = None) -
     spec = GraphSpec(path=path, name=name, rate=1000.0 if rate is INVALID else float(rate), seed=0 if seed is INVALID else seed,
                      description=str(data.get("description", "")))
     plugins = value_of(c, data, GRAPH, "plugins")
-    if plugins not in (INVALID, GRAPH.keys["plugins"].default):
+    if "plugins" in data and plugins is not INVALID:
         spec.plugins = existing_plugin_folders(c, data, path)
     spec.inputs = _inputs(c, data)
     spec.nodes = _nodes(c, data, spec.inputs)
@@ -139,7 +140,7 @@ def read_plugin_folders(path: str | Path) -> list[Path]:
         return []
     c = Collector(str(path))
     plugins = value_of(c, data, GRAPH, "plugins")
-    folders = [] if plugins in (INVALID, GRAPH.keys["plugins"].default) else existing_plugin_folders(c, data, path)
+    folders = [] if plugins is INVALID else existing_plugin_folders(c, data, path)
     c.raise_if_any()
     return folders
 

@@ -6,6 +6,7 @@
       device: null             # optional: PortAudio device name (substring) or index; absent = default output
       rate: 8000               # Hz, p/q times the graph's rate (p, q <= 1000: 8000, 44100, 48000 for a 1 kHz graph)
       block: 64                # frames per PortAudio callback
+      margin_ms: 10            # optional: how far ahead of the sound card the ticks run (robustness vs latency)
       channels:                # one entry per audio channel, in channel order
         - output: vibration    # a scalar graph output
           scale: 1.5           # graph units per full-scale sample (sample = value / scale)
@@ -24,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..schema.core import INVALID, Collector, check_unknown, is_number, value_of
-from ..schema.devmap import AUDIO, CHANNEL, MAP
+from ..schema.devmap import AUDIO, CHANNEL, DEFAULT_AUDIO_MARGIN_MS, MAP
 from ..schema.devmap import MIN_AUDIO_RATE as MIN_RATE
 from ..yamlsource import LocDict, LocList
 from .dbc import suggest
@@ -50,6 +51,10 @@ class AudioMap:
     block: int
     channels: tuple[AudioChannel, ...]
     device: str | int | None = None
+    margin_ms: float = DEFAULT_AUDIO_MARGIN_MS
+    """Time, ms, by which each tick's samples are ready before the sound card's callback can need them: a stall of
+    the tick loop shorter than this is absorbed (the loop catches up), a longer one inserts silence (a resync).
+    Sensor-to-DAC latency grows by the same amount."""
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(scale, lo, hi) per channel as float64 arrays."""
@@ -73,11 +78,12 @@ def parse_audio(raw: Any, pos: Any, c: Collector, graph_outputs: dict[str, int] 
     else:
         rate = value_of(c, raw, AUDIO, "rate")
     block = value_of(c, raw, AUDIO, "block")
+    margin = value_of(c, raw, AUDIO, "margin_ms")
     device = value_of(c, raw, AUDIO, "device") if "device" in raw else None
     channels = _channels(raw, c, graph_outputs)
     if len(c) > before:
         return None
-    return AudioMap(rate=float(rate), block=int(block), channels=tuple(channels), device=device)
+    return AudioMap(rate=float(rate), block=int(block), channels=tuple(channels), device=device, margin_ms=float(margin))
 
 
 def _channels(raw: LocDict, c: Collector, graph_outputs: dict[str, int] | None) -> list[AudioChannel]:

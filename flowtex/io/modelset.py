@@ -7,6 +7,7 @@ JSON object::
      "material": "cork", "sample_rate": 1000.0,
      "mu": 0.42,                       # optional (null or absent: no friction data)
      "max_speed": 380.0, "max_force": 4.0,   # optional: default to the largest model point
+     "interpolation": "power", "outside": "trend",  # optional rendering rule; absent: HaTT's
      "ar_order": 19, "ma_order": 17,
      "triangles": [[0, 1, 2], ...],    # optional, 0-based; absent: Delaunay at load time
      "models": [{"speed": 12.5, "force": 0.8, "ar_lsf": [...], "ma_lsf": [...],
@@ -30,7 +31,9 @@ import numpy as np
 
 from ..errors import DataError
 from ..limits import check_regular, excerpt
+from ..models.rendering import HATT_RULE, RenderRule
 from ..models.texture import TextureModelSet
+from ..node_api import suggest
 from ..schema.core import Collector, check_unknown, get
 from ..schema.datafiles import MODEL, MODEL_SET, RATE_KEY
 from .hatt import read_hatt_xml
@@ -110,6 +113,7 @@ def save_model_set(ms: TextureModelSet, path: str | Path) -> Path:
         "mu": None if ms.mu is None else float(ms.mu),
         "max_speed": float(ms.max_speed),
         "max_force": float(ms.max_force),
+        **({} if ms.rule is None else {"interpolation": ms.rule.interpolation, "outside": ms.rule.outside}),
         "ar_order": ms.ar_order,
         "ma_order": ms.ma_order,
         "triangles": [[int(v) for v in t] for t in ms.triangles],
@@ -201,11 +205,27 @@ def read_native(path: str | Path) -> TextureModelSet:
     metadata = doc.get("metadata") or {}
     if not isinstance(metadata, dict):
         raise DataError(f"{name}: key 'metadata' must be an object")
+    rule = _read_rule(doc, name)
     ms = TextureModelSet(material=material, sample_rate=sample_rate, speeds=speeds, forces=forces, triangles=triangles,
                          ar_lsf=ar_lsf, ma_lsf=ma_lsf, variance=variance, gain=gain,
                          max_speed=max_speed, max_force=max_force, mu=None if mu is None else float(mu),
-                         ar_coeff=ar_coeff, ma_coeff=ma_coeff, source=path, metadata=metadata)
+                         ar_coeff=ar_coeff, ma_coeff=ma_coeff, source=path, metadata=metadata, rule=rule)
     return ms.validate(NATIVE_NAMES)
+
+
+def _read_rule(doc: dict, name: str) -> RenderRule | None:
+    """The rendering rule the file states (keys ``interpolation``, ``outside``; each optional, HaTT's when absent), or None."""
+    if "interpolation" not in doc and "outside" not in doc:
+        return None
+    parts = {}
+    for key in ("interpolation", "outside"):
+        value = doc.get(key, getattr(HATT_RULE, key))
+        choices = MODEL_SET.keys[key].choices
+        if value not in choices:
+            raise DataError(f"{name}: key {key!r} is {excerpt(value)}{suggest(str(value), choices)}; "
+                            f"expected one of {', '.join(choices)} (or leave it out for HaTT's rule)")
+        parts[key] = value
+    return RenderRule(**parts)
 
 
 def delaunay_triangles(points: np.ndarray, where: str = "model set") -> np.ndarray:

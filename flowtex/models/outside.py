@@ -11,15 +11,16 @@ and force 0) the lookup's rule decides the loudness (``texture_lookup``'s
   the power following the set's own power law in speed and force,
   P ~ speed^ks force^kf, fitted by least squares to the measured models'
   output powers (log P on log speed and log force). Below the slowest speed
-  the vibration still fades to 0 at speed 0 (as speed^ks); above the fastest
+  the vibration still fades towards 0 at speed 0 (as speed^ks) and is silent
+  at rest and without contact (below low_speed / low_force, for every
+  exponent); above the fastest
   it keeps growing, up to ``TREND_CAP`` x the fastest speed (heaviest force).
   Exponents are clipped to [0, ``MAX_EXPONENT``] (a surface never gets louder
   as the tool slows or lightens); an axis without spread (all models at one
   force, say) gets exponent 1, the linear fade of HaTT's corners;
-* ``hold``: the nearest measured models as they are (no fade, no growth):
-  silence when the tool stops must then come from elsewhere (the example
-  graphs multiply by the contact state, and the speed estimator's gate);
-* ``fade`` (default: HaTT's renderer, so HaTT files render as HaTT does): silent corners blended like any model, so the
+* ``hold``: the nearest measured models as they are (no fade, no growth),
+  silent at rest and without contact (below low_speed / low_force);
+* ``fade`` (HaTT's renderer, part of HaTT's rule): silent corners blended like any model, so the
   variance falls linearly from the slowest measured model to 0 at speed 0;
   above the fastest speed (heaviest force) the edge models are held.
 
@@ -30,30 +31,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from .texture import TextureModelSet
+from .texture import OUTSIDE_CHOICES, TextureModelSet
 
-OUTSIDE_CHOICES = ("fade", "hold", "trend")
-"""Values of ``texture_lookup``'s ``outside`` parameter; the first is the default."""
+__all__ = ["MAX_EXPONENT", "OUTSIDE_CHOICES", "TREND_CAP", "model_powers", "nearest_measured", "power_trend"]
+
 TREND_CAP = 4.0
 """``trend`` extrapolates the power law up to this many times the speed (force) of the models blended."""
 MAX_EXPONENT = 3.0
 """Largest power-law exponent ``trend`` uses."""
-POWER_GRID = 1 << 14
-"""Points on the unit circle for a model's output power (mean of |C/A|^2; exact to rounding for poles inside 0.9995)."""
 
 
 def model_powers(ms: TextureModelSet) -> np.ndarray:
     """(M,) output power g^2 sigma^2 ||C/A||^2 of each model ((m/s^2)^2), from its LSFs as the lookup renders them."""
-    from ..dsp.lsf import lsf_to_poly_new
+    from ..dsp.interp import model_output_powers
 
-    out = np.zeros(ms.num_models)
-    for m in range(ms.num_models):
-        if ms.variance[m] <= 0.0:
-            continue
-        h2 = np.abs(np.fft.rfft(lsf_to_poly_new(ms.ma_lsf[m]), POWER_GRID) / np.fft.rfft(lsf_to_poly_new(ms.ar_lsf[m]), POWER_GRID)) ** 2
-        unit = (h2[0] + h2[-1] + 2.0 * np.sum(h2[1:-1])) / POWER_GRID     # mean over the whole circle
-        out[m] = ms.gain[m] ** 2 * ms.variance[m] * unit
-    return out
+    return model_output_powers(ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain)
 
 
 def nearest_measured(ms: TextureModelSet) -> np.ndarray:
@@ -86,18 +78,3 @@ def power_trend(ms: TextureModelSet) -> tuple[float, float]:
         if ok:
             k[axis] = float(np.clip(next(it), 0.0, MAX_EXPONENT))
     return k[0], k[1]
-
-
-def texture_table(ms: TextureModelSet, outside: str = OUTSIDE_CHOICES[0], **clamp: float) -> np.ndarray:
-    """The packed lookup table (flowtex.dsp.interp.pack_texture_table) of ``ms`` with the rule ``outside``.
-
-    ``clamp``: the clamping keywords of ``pack_texture_table`` (speed_margin, low_speed, ...).
-    """
-    from ..dsp.interp import pack_texture_table
-
-    if outside not in OUTSIDE_CHOICES:
-        raise ValueError(f"outside must be one of {', '.join(OUTSIDE_CHOICES)}, got {outside!r}")
-    trend = power_trend(ms) if outside == "trend" else (1.0, 1.0)
-    return pack_texture_table(ms.speeds, ms.forces, ms.triangles, ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain, ms.max_speed,
-                              ms.max_force, outside=outside, src=nearest_measured(ms), trend=trend, trend_cap=TREND_CAP,
-                              **clamp)

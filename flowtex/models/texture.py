@@ -54,6 +54,32 @@ is the number of the first model (and of model indices in triangles) in messages
 """
 
 
+INTERPOLATION_CHOICES = ("variance", "power", "log_power")
+"""How loudness is blended between models (flowtex.models.rendering): HaTT's excitation variance, output power, log power."""
+OUTSIDE_CHOICES = ("fade", "hold", "trend")
+"""What a set renders beyond its measured models (flowtex.models.outside): HaTT's fade, hold, trend."""
+
+
+@dataclass(frozen=True)
+class RenderRule:
+    """How a model set renders between and beyond its models (flowtex.models.rendering); the defaults are HaTT's."""
+
+    interpolation: str = "variance"
+    """How loudness is blended between models: one of :data:`INTERPOLATION_CHOICES`."""
+    outside: str = "fade"
+    """What the set renders beyond its measured models: one of :data:`OUTSIDE_CHOICES`."""
+
+    def __post_init__(self) -> None:
+        if self.interpolation not in INTERPOLATION_CHOICES:
+            raise ValueError(f"interpolation must be one of {', '.join(INTERPOLATION_CHOICES)}, got {self.interpolation!r}")
+        if self.outside not in OUTSIDE_CHOICES:
+            raise ValueError(f"outside must be one of {', '.join(OUTSIDE_CHOICES)}, got {self.outside!r}")
+
+
+HATT_RULE = RenderRule()
+"""HaTT's renderer: LSFs and excitation variance blended linearly, silent corners, saturation at the maximum."""
+
+
 @dataclass
 class TextureModelSet:
     """One surface's texture models (see the module docstring for conventions and units).
@@ -96,6 +122,8 @@ class TextureModelSet:
     """File the set was read from (None when built in memory)."""
     metadata: dict[str, Any] = field(default_factory=dict)
     """Free-form JSON-compatible facts (units, texture index, fitting settings, ...)."""
+    rule: RenderRule | None = None
+    """How the set renders (flowtex.models.rendering), as its file states it; None: the file states none (HaTT's rule)."""
 
     @property
     def num_models(self) -> int:

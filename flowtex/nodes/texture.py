@@ -7,7 +7,8 @@ from numba import njit
 from ..dsp.interp import initial_state, texture_lookup_block
 from ..errors import DataError, ParamError
 from ..io.modelset import load_model_set
-from ..models.outside import OUTSIDE_CHOICES, texture_table
+from ..models.outside import OUTSIDE_CHOICES
+from ..models.rendering import INTERPOLATION_CHOICES, texture_table
 from ..models.texture import TextureModelSet
 from ..node_api import Node, NodeState, Param, Port, PortSpec
 
@@ -36,9 +37,10 @@ class TextureLookup(Node):
     outside the triangulation's hull (after clamping) use the nearest point of
     the hull (distance measured in units of max speed and max force). NaN in
     either input holds the last model; before the first valid input the model
-    is silent (A = C = 1, gain 0, variance 0). ``outside`` says what the surface
-    does below its slowest and above its fastest measured speed and force
-    (flowtex.models.outside, docs/texture.md).
+    is silent (A = C = 1, gain 0, variance 0). The set's rendering rule
+    (``interpolation``, ``outside``) comes from the file, HaTT's when it states
+    none; the node's parameters override it (flowtex.models.rendering,
+    docs/texture.md).
     """
 
     type_name = "texture_lookup"
@@ -52,10 +54,17 @@ class TextureLookup(Node):
         "low_force_value": Param("float", default=0.0001, unit="N", min=0.0, doc="force used below low_force (HaTT: 0.0001)"),
         "force_margin": Param("float", default=0.01, unit="N", min=0.0,
                               doc="forces above the set's maxForce become maxForce - force_margin (HaTT: 0.01)"),
-        "outside": Param("choice", default=OUTSIDE_CHOICES[0], choices=OUTSIDE_CHOICES,
-                         doc="beyond the measured models: fade (default, HaTT: silent corners, linear fade below the slowest "
-                             "speed, saturation at the maximum), hold (nearest models as they are) or trend (spectrum of the "
-                             "nearest models, power along the set's own power law in speed and force)"),
+        "outside": Param("choice", default=None, choices=OUTSIDE_CHOICES,
+                         doc="beyond the measured models (default: the model set's rule, HaTT's fade for a HaTT file or "
+                             "a set that states none): fade (HaTT: silent corners, linear fade below the slowest speed, "
+                             "saturation at the maximum), hold (nearest models as they are) or trend (nearest models' "
+                             "spectrum, power along the set's own power law in speed and force); hold and trend are "
+                             "silent below low_speed / low_force"),
+        "interpolation": Param("choice", default=None, choices=INTERPOLATION_CHOICES,
+                               doc="how loudness is blended between models (default: the model set's rule, HaTT's variance "
+                                   "for a HaTT file or a set that states none): variance (HaTT: excitation variance, "
+                                   "linearly), power (output power, linearly) or log_power (output power, geometrically); "
+                                   "the spectrum is always blended by LSFs"),
         "order": Param("floats", default=None, length=(2, 2),
                        doc="[p, q]: render lower orders (Levinson step-down of each model, output power kept; "
                            "flowtex.dsp.order); default: the set's own"),
@@ -124,7 +133,7 @@ class TextureLookup(Node):
         ms = self.model_set
         p = self.p
         try:
-            table = texture_table(ms, p["outside"],
+            table = texture_table(ms, p["interpolation"], p["outside"],
                                   speed_margin=p["speed_margin"], low_speed=p["low_speed"], low_speed_value=p["low_speed_value"],
                                   force_margin=p["force_margin"], low_force=p["low_force"], low_force_value=p["low_force_value"])
         except ValueError as exc:

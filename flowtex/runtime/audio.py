@@ -6,15 +6,19 @@ thread copies them out with one compiled call (:func:`~flowtex.runtime.audio_rin
 and never waits for the tick loop: a tick that is not there in time is played as
 safe silence and counted as an underrun. Safety (docs/live.md, "Audio output"):
 the stream starts with silence (``lead`` frames, PortAudio's own priming is
-zeros); every sample is clipped per channel; on exit, a fault, the watchdog or a
-sensor timeout the output fades to zero in 2 ms; a device that stops calling
+zeros); every sample is clipped per channel; on exit, a fault, a stale sensor (the
+input watchdog) or a tick later than the margin the output fades to zero in 2 ms (the
+overrun watchdog holds the CAN outputs only: a stall the margin absorbs plays on); a device that stops calling
 back ends the session with :class:`AudioDeviceError`.
 """
 
 from __future__ import annotations
 
+import contextlib
+import sys
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -22,17 +26,43 @@ import numpy as np
 
 from ..errors import FlowtexError
 from ..io.audiomap import AudioMap
-from .audio_render import interpolator, lead_frames, samples_per_tick
-from .audio_ring import FADED, LATENCIES, MISSING, PLAYED, RECORDED, STOPPING, UNDERRUNS, AudioRing, fill
+from .audio_render import interpolator, lead_frames, margin_frames, samples_per_tick
+from .audio_ring import FADED, LATENCIES, MISSING, PLAYED, RECORDED, STOPPING, UNDERRUNS, AudioRing
+from .audio_timeline import END, RESYNC, SILENCE, START, SilenceRuns, event_frame
 
 PACE_SMOOTHING = 0.02
 """Weight of the newest tick in the smoothed pacing error (the callback's timing jitters by a block)."""
 PACE_GAIN = 0.05
 """Fraction of the smoothed pacing error corrected per tick."""
-PACE_MAX_NS = 20_000
-"""Largest shift of one tick's deadline, ns (2 % of a 1 ms period: sound-card clocks are within 0.1 %, JACK's dummy 1.5 %)."""
+PACE_MAX_NS = 100_000
+"""Largest shift of one tick's deadline, ns (10 % of a 1 ms period: sound-card clocks are within 0.1 %, JACK's dummy
+1.5 %, but a sound server starved of CPU on a loaded machine falls further behind, and a loop that cannot follow it
+runs ahead without bound: measured, 1 s ahead at 2 %)."""
+PACE_FAR_BLOCKS = 2
+"""A loop further ahead of where the sound card needs it than the margin and this many blocks waits for the card at
+once (a sound server that stopped or fell behind; the callback's own jitter stays within a block or two)."""
 STALL_S = 0.5
 """A running stream whose callback has not run for this long (and at least 8 blocks) has lost its device."""
+
+
+SWITCH_INTERVAL_S = 0.0005
+"""Python's GIL switch interval during an audio session, s (default 5 ms): the callback runs Python code, and a tick
+loop catching up after a stall holds the GIL between ticks; 0.5 ms keeps the callback's wait within a fifth of the
+shortest period in use (2.7 ms at 48 kHz / 128)."""
+
+
+@contextlib.contextmanager
+def prompt_callbacks(on: bool = True) -> Iterator[None]:
+    """Lower Python's GIL switch interval to :data:`SWITCH_INTERVAL_S` for the block (when ``on``), then restore it."""
+    if not on:
+        yield
+        return
+    old = sys.getswitchinterval()
+    sys.setswitchinterval(SWITCH_INTERVAL_S)
+    try:
+        yield
+    finally:
+        sys.setswitchinterval(old)
 
 
 class AudioDeviceError(FlowtexError):
@@ -69,12 +99,12 @@ class AudioOutput:
     def __init__(self, graph: Any, amap: AudioMap, record: str | Path | None = None, where: str = "map") -> None:
         self.amap = amap
         self.ratio = samples_per_tick(amap, float(graph.rate), where)
-        self.lead = lead_frames(amap, self.ratio)
+        self.lead = lead_frames(amap)
         self.interp = interpolator(amap, self.ratio)
         self.views = [graph.output_view(c.output).reshape(-1) for c in amap.channels]
         self.x = np.zeros((1, len(amap.channels)))
         self.ring = AudioRing(self.ratio[0], len(amap.channels), self.lead, amap.rate, down=self.ratio[1])
-        self.ahead = self.lead - amap.block
+        self.ahead = margin_frames(amap)
         """Frames between the callback's position and a tick's first frame at the tick's deadline (tick 0 included)."""
         self.block_buf = np.zeros((self.interp.max_frames, len(amap.channels)), dtype=np.float32)
         self.cb_end = 0
@@ -82,6 +112,10 @@ class AudioOutput:
         self._pace_err = 0.0
         self.record_path = Path(record) if record is not None else None
         self.recorded: list[np.ndarray] = []
+        self.log_timeline = False
+        """Set by the live loop when the session is recorded: keep the timeline events (:meth:`take_events`)."""
+        self._runs = SilenceRuns()
+        self._events: list[Any] = []
         self.stream: Any = None
         self.device_name = "default output" if amap.device is None else repr(amap.device)
         self.pa_underflows = 0
@@ -97,14 +131,10 @@ class AudioOutput:
         self.interp.reset()
         self.ring.put(0, self.block_buf, 0, True)
         self.ring.stamps[:] = -1
-        self._fill_args(np.zeros((amap.block, len(amap.channels)), dtype=np.float32), 0)
+        self.ring.fill(np.zeros((amap.block, len(amap.channels)), dtype=np.float32), 0)
         self.ring.istate[:] = 0
         self.ring.last[:] = 0.0
         self.ring.record[:] = 0.0
-
-    def _fill_args(self, out: np.ndarray, dac_ns: int) -> int:
-        r = self.ring
-        return fill(out, r.ring, r.stamps, r.lead, r.last, r.istate, r.fade, r.arrival, r.latency, dac_ns, r.rate, r.record)
 
     def _callback(self, outdata: np.ndarray, frames: int, time_info: Any, status: Any) -> None:
         now = time.perf_counter_ns()
@@ -113,7 +143,7 @@ class AudioOutput:
                 self.pa_underflows += 1
             ahead = time_info.outputBufferDacTime - time_info.currentTime
             dac_ns = now + int(ahead * 1e9) if 0.0 <= ahead < 10.0 else now
-            self._fill_args(outdata, dac_ns)
+            self.ring.fill(outdata, dac_ns)
             self.cb_end = int(self.ring.istate[RECORDED])
             self.cb_ns = now
         except Exception as exc:  # never let an exception through PortAudio's thread: silence, then report
@@ -151,7 +181,9 @@ class AudioOutput:
         for c, v in enumerate(self.views):
             x[0, c] = v[0]
         n = self.interp.render(x, self.block_buf)
-        self.ring.resync(k, self.ahead)
+        gap = self.ring.resync(k, self.ahead)
+        if gap and self.log_timeline:
+            self._events.append(event_frame(RESYNC, k, gap, self.ring.position(k)))
         self.ring.put(k, self.block_buf[:n], arrival_ns, silent)
 
     def pace(self, k: int, next_deadline_ns: int) -> int:
@@ -163,7 +195,11 @@ class AudioOutput:
         if not self.cb_ns:
             return 0
         want = self.cb_ns + (self.ring.position(k + 1) - self.ahead - self.cb_end) * 1e9 / self.amap.rate
-        self._pace_err += PACE_SMOOTHING * ((want - next_deadline_ns) - self._pace_err)
+        err = want - next_deadline_ns
+        if err > (self.ahead + PACE_FAR_BLOCKS * self.amap.block) * 1e9 / self.amap.rate:  # far ahead of a stalled card
+            self._pace_err = 0.0
+            return int(err)
+        self._pace_err += PACE_SMOOTHING * (err - self._pace_err)
         return int(max(-PACE_MAX_NS, min(PACE_MAX_NS, PACE_GAIN * self._pace_err)))
 
     def check(self) -> None:
@@ -178,12 +214,31 @@ class AudioOutput:
             why = (f"no callback for {(now - self.last_callback_ns) / 1e9:.2f} s" if stream.active
                    else "PortAudio stopped the stream")
             raise AudioDeviceError(f"audio device {self.device_name} stopped: {why} (device unplugged or sound server gone)")
-        if self.record_path is not None and self.ring.istate[RECORDED] - self.ring.drained > self.ring.record.shape[0] // 4:
-            self.recorded.append(self.ring.drain())
+        if ((self.record_path is not None or self.log_timeline)
+                and self.ring.istate[RECORDED] - self.ring.drained > self.ring.record.shape[0] // 4):
+            self._drain()
+
+    def _drain(self) -> None:
+        """Move the frames handed over since the last drain to the recording, and their runs of silence to the events."""
+        position, frames, classes = self.ring.drain()
+        if self.record_path is not None:
+            self.recorded.append(frames)
+        if self.log_timeline:
+            self._events.extend(event_frame(SILENCE, *run) for run in self._runs.feed(position, classes))
+
+    def start_event(self) -> Any:
+        """The timeline's ``START`` event (lead, fade and margin frames) for the session log."""
+        return event_frame(START, self.lead, self.ring.fade, self.ahead)
+
+    def take_events(self) -> list[Any]:
+        """Timeline events (:mod:`flowtex.runtime.audio_timeline`) since the last call, for the session log."""
+        events, self._events = self._events, []
+        return events
 
     @property
     def underruns(self) -> int:
-        """Callbacks that found a tick late, plus PortAudio's own output underflows."""
+        """Callbacks that found a tick late (``late_callbacks``: the tick loop's stall outlasted the margin), plus
+        PortAudio's own output underflows (``device_underflows``: the sound server's xruns, e.g. JACK's)."""
         return int(self.ring.istate[UNDERRUNS]) + self.pa_underflows
 
     def status_text(self) -> str:
@@ -202,10 +257,13 @@ class AudioOutput:
             if ring.istate[FADED] < target:
                 problem = f"audio device {self.device_name}: the fade to silence was not played"
         self.close()
+        self._drain()
+        if self.log_timeline:
+            self._events.extend(event_frame(SILENCE, *run) for run in self._runs.close())
+            self._events.append(event_frame(END, int(ring.istate[RECORDED]), int(ring.istate[PLAYED])))
         if self.record_path is not None:
             from ..io.wav import write_wav
 
-            self.recorded.append(ring.drain())
             write_wav(self.record_path, np.concatenate(self.recorded), self.amap.rate)
         return problem
 
@@ -237,5 +295,7 @@ class AudioOutput:
                 "latency_ms": dist, "played_frames": int(self.ring.istate[PLAYED]), "lead_frames": int(self.lead),
                 "samples_per_tick": self.ratio[0] / self.ratio[1], "ratio": list(self.ratio),
                 "latency_samples": int(self.ring.istate[LATENCIES]),
+                "late_callbacks": int(self.ring.istate[UNDERRUNS]), "device_underflows": self.pa_underflows,
+                "margin_ms": self.amap.margin_ms,
                 "late_frames": int(self.ring.istate[MISSING]), "fade_frames": int(self.ring.fade),
                 "resyncs": [list(r) for r in self.ring.resyncs]}

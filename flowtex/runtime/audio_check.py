@@ -1,5 +1,11 @@
 """Prove what a live session played: its ``--record-audio`` against the replay of its ``--record`` log.
 
+With the session's audio timeline (:mod:`flowtex.runtime.audio_timeline`, in every log this
+version records), :func:`rebuild_live` rebuilds the whole stream live handed to the sound card,
+silence included, from the replay's tick samples; :func:`check_audio` compares it with the
+live WAV, one line per class of frames (``flowtex run ... --expect-audio LIVE.wav``).
+For a log without a timeline, :func:`compare_audio` is the older, weaker check:
+
 The replay WAV (``flowtex run GRAPH --input SESSION.blf ... --output REPLAY.wav``)
 holds the live lead of silence, then every tick's samples back to back. Live
 played tick ``k`` at ``lead + frames_before(k)`` (``k * up`` for a whole ratio) plus the silence of every resync before
@@ -11,12 +17,14 @@ the frame before it (``last * (1 - (f + 1) / fade)`` in float32, then zeros).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..dsp.audio_interp import frames_before
+from .audio_ring import CLASS_END, CLASS_HELD, CLASS_LATE, CLASS_LEAD, CLASS_PLAYED
+from .audio_timeline import AudioTimeline
 
 
 @dataclass
@@ -89,3 +97,90 @@ def compare_audio(live: np.ndarray, replay: np.ndarray, lead: int, up: int, resy
         i = j
     return AudioComparison(compared=int(known.sum()), equal=int(same.sum()), silence=silence, unexplained=unexplained,
                            first_unexplained=first)
+
+
+UNKNOWN = 255
+"""Class of a rebuilt frame the timeline neither places a tick on nor marks as silence."""
+REASONS = {CLASS_LEAD: "the lead before tick 0", CLASS_HELD: "ticks held by the input watchdog (a stale sensor)",
+           CLASS_LATE: "ticks later than the margin (underruns)", CLASS_END: "the fade at the session's end",
+           UNKNOWN: "frames the session log does not account for"}
+
+
+def rebuild_live(samples: np.ndarray, n_ticks: int, up: int, down: int, timeline: AudioTimeline) -> tuple[np.ndarray, np.ndarray]:
+    """The stream a live session handed to its sound card, from the replay's tick samples and the session's timeline.
+
+    ``samples`` (frames, channels): the ``n_ticks`` ticks' samples back to back, no lead
+    (:func:`~flowtex.runtime.audio_render.render_outputs`). Tick ``k`` goes to ``lead + frames_before(k)`` plus the
+    silence of every resync up to it; every frame of a silence run, and every frame no tick reaches, plays the
+    callback's fade from the sample before it (then zeros). Returns the frames (float32) and each frame's class
+    (``CLASS_PLAYED``, a silence reason, or :data:`UNKNOWN`)."""
+    samples = samples.reshape(samples.shape[0], samples.shape[-1] if samples.ndim > 1 else 1)
+    shift = np.zeros(n_ticks + 1, dtype=np.int64)
+    for k, gap in timeline.resyncs:
+        shift[min(int(k), n_ticks):] += int(gap)
+    n_frames = frames_before(n_ticks, up, down)
+    j = np.arange(n_frames, dtype=np.int64)
+    pos = timeline.lead + j + shift[j * down // up]
+    ends = [int(pos[-1]) + 1 if n_frames else timeline.lead] + [b for _, b, _ in timeline.silences]
+    total = timeline.total if timeline.total is not None else max(ends)
+    keep = pos < total
+    out = np.zeros((total, samples.shape[1]), dtype=np.float32)
+    klass = np.full(total, UNKNOWN, dtype=np.uint8)
+    out[pos[keep]] = samples[:n_frames][keep]
+    klass[pos[keep]] = CLASS_PLAYED
+    for a, b, reason in timeline.silences:
+        klass[a:min(b, total)] = reason
+    silent = np.concatenate(([False], klass != CLASS_PLAYED, [False]))
+    edges = np.flatnonzero(np.diff(silent.astype(np.int8)))
+    for a, b in zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True):
+        before = out[a - 1] if a else np.zeros(out.shape[1], dtype=np.float32)
+        out[a:b] = fade_from(before, b - a, timeline.fade)
+    return out, klass
+
+
+@dataclass
+class AudioCheck:
+    """Outcome of :func:`check_audio`: one line per class of frames, and how many frames differ unexplained."""
+
+    lines: list[str]
+    unexplained: int
+
+
+def check_audio(live: np.ndarray, rebuilt: np.ndarray, klass: np.ndarray, timeline: AudioTimeline, name: str,
+                rate: float) -> AudioCheck:
+    """Compare the live ``--record-audio`` WAV (``name``) with the rebuilt stream (:func:`rebuild_live`), frame by frame."""
+    live = live.reshape(live.shape[0], -1)
+    n = min(live.shape[0], rebuilt.shape[0])
+    same = (live[:n] == rebuilt[:n]).all(axis=1)
+    k = klass[:n]
+    lines = [f"audio: {n} frames compared with {name} ({live.shape[0]} in it, {rebuilt.shape[0]} in the replay)"]
+    unexplained = 0
+    played = k == CLASS_PLAYED
+    lines.append(f"{int((same & played).sum())} frames: the ticks' samples, equal to {name} sample for sample"
+                 + (f" ({len(timeline.resyncs)} resync(s) at tick(s) {_first(t for t, _ in timeline.resyncs)})" if timeline.resyncs else ""))
+    for reason, text in REASONS.items():
+        mask = (k == reason) & same
+        if mask.any():
+            lines.append(f"{int(mask.sum())} frames: safe silence, equal: {text}")
+    for reason in (CLASS_PLAYED, *REASONS):
+        bad = (k == reason) & ~same
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            what = "the ticks' samples" if reason == CLASS_PLAYED else REASONS[reason]
+            unexplained += int(bad.sum())
+            lines.append(f"{int(bad.sum())} frames DIFFER ({what}), first at frame {i} ({i / rate:.4f} s): live {live[i].tolist()}, "
+                         f"replay {rebuilt[i].tolist()}: was the session run with another graph, parameters, --seed or map?")
+    extra = live.shape[0] - rebuilt.shape[0]
+    if extra > 0 and timeline.total is None:
+        lines.append(f"{extra} frames after frame {rebuilt.shape[0]}: the session log ends before them (the session did not end "
+                     "cleanly), not checked")
+    elif extra:
+        unexplained += abs(extra)
+        lines.append(f"{abs(extra)} frames DIFFER in length: {name} has {live.shape[0]}, the session log says "
+                     f"{rebuilt.shape[0]} were handed to the sound card: is {name} this session's --record-audio?")
+    return AudioCheck(lines, unexplained)
+
+
+def _first(items: Iterable[int], n: int = 6) -> str:
+    items = list(items)
+    return ", ".join(str(i) for i in items[:n]) + (", ..." if len(items) > n else "")

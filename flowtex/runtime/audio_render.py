@@ -20,9 +20,6 @@ from ..dsp.resample import rational_ratio
 from ..errors import FlowtexError
 from ..io.audiomap import AudioMap
 
-LEAD_MARGIN_S = 0.001
-"""Slack between a tick's deadline and the callback that needs its samples (tick jitter allowed before an underrun), s."""
-
 
 def samples_per_tick(amap: AudioMap, graph_rate: float, where: str = "map") -> tuple[int, int]:
     """``audio.rate / graph rate`` as ``(up, down)`` in lowest terms (8000/1000: (8, 1); 44100/1000: (441, 10));
@@ -36,9 +33,15 @@ def samples_per_tick(amap: AudioMap, graph_rate: float, where: str = "map") -> t
     return up, down
 
 
-def lead_frames(amap: AudioMap, ratio: tuple[int, int]) -> int:
-    """Frames of silence before tick 0's first sample: one callback block, one tick and :data:`LEAD_MARGIN_S`."""
-    return int(amap.block + -(-ratio[0] // ratio[1]) + math.ceil(LEAD_MARGIN_S * amap.rate))
+def margin_frames(amap: AudioMap) -> int:
+    """The map's ``margin_ms`` in frames (rounded up): how far ahead of the callback's position each tick's first
+    frame lies at the tick's deadline."""
+    return max(1, math.ceil(amap.margin_ms * amap.rate / 1000.0 - 1e-9))
+
+
+def lead_frames(amap: AudioMap) -> int:
+    """Frames of silence before tick 0's first sample: one callback block and the margin (:func:`margin_frames`)."""
+    return int(amap.block + margin_frames(amap))
 
 
 def interpolator(amap: AudioMap, ratio: tuple[int, int]) -> Interpolator:

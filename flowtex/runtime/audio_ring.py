@@ -17,6 +17,11 @@ callback's time is bounded by its frame count: a frame whose stamp is its
 position plays; any other plays *safe silence*: a linear fade from the last
 sample to zero over ``fade`` frames, then zeros. A frame at or after ``lead``
 that is not stamped at all is late (counted in ``MISSING``/``UNDERRUNS``).
+
+Beside each frame handed over, :func:`fill` records why it sounds as it does (``CLASS_*``:
+a tick's sample, or safe silence for the lead, a held tick, a late tick or the stop):
+the runs of silence are the session's audio timeline, which the session log keeps
+(:mod:`flowtex.runtime.audio_timeline`) so that the replay can rebuild the live stream exactly.
 """
 
 from __future__ import annotations
@@ -43,10 +48,23 @@ PLAYED = 6
 """Frames that played a tick's sample."""
 N_ISTATE = 7
 
+# why a frame sounds as it does (``AudioRing.klass``, parallel to the recording)
+CLASS_PLAYED = 0
+"""A tick's sample."""
+CLASS_LEAD = 1
+"""Safe silence before tick 0's first frame (the lead)."""
+CLASS_HELD = 2
+"""Safe silence: the tick was computed while the input watchdog held the outputs safe (a stale sensor)."""
+CLASS_LATE = 3
+"""Safe silence: the tick's samples were not there in time (a stall longer than the margin: an underrun)."""
+CLASS_END = 4
+"""Safe silence: the session is stopping (duration, Ctrl-C, SIGTERM, an error)."""
+
 
 @njit(cache=True, nogil=True)
-def fill(out, ring, stamps, lead, last, istate, fade, arrival, latency, dac_ns, rate, record):
-    """Fill ``out`` (frames, channels) float32 for positions ``istate[RECORDED]`` on; copy them to ``record``.
+def fill(out, ring, stamps, lead, last, istate, fade, arrival, latency, dac_ns, rate, record, klass):
+    """Fill ``out`` (frames, channels) float32 for positions ``istate[RECORDED]`` on; copy them to ``record``
+    and why each sounds as it does (``CLASS_*``) to ``klass``.
 
     ``dac_ns``: the DAC time of ``out[0]`` in the clock of ``arrival`` (ns); for each
     frame that starts a tick with a new sensor frame, ``latency[...]`` gets DAC time minus arrival.
@@ -64,7 +82,9 @@ def fill(out, ring, stamps, lead, last, istate, fade, arrival, latency, dac_ns, 
         slot = q % cap
         st = stamps[slot]
         play = st == q and not stopping
+        r = q % rcap
         if play:
+            klass[r] = CLASS_PLAYED
             for c in range(w):
                 v = ring[slot, c]
                 out[i, c] = v
@@ -75,14 +95,20 @@ def fill(out, ring, stamps, lead, last, istate, fade, arrival, latency, dac_ns, 
                 latency[istate[LATENCIES]] = dac_ns + (i * 1_000_000_000) // rate - arrival[slot]
                 istate[LATENCIES] += 1
         else:
-            if q >= lead and not stopping and st != -(q + 2):
+            if stopping:
+                klass[r] = CLASS_END
+            elif st == -(q + 2):
+                klass[r] = CLASS_HELD
+            elif q < lead:
+                klass[r] = CLASS_LEAD
+            else:
+                klass[r] = CLASS_LATE
                 late += 1
             f = istate[FADED]
             g = 1.0 - (f + 1) / fade if f + 1 < fade else 0.0
             for c in range(w):
                 out[i, c] = np.float32(last[c] * g)
             istate[FADED] = f + 1
-        r = q % rcap
         for c in range(w):
             record[r, c] = out[i, c]
     istate[RECORDED] = pos + n
@@ -124,6 +150,8 @@ class AudioRing:
         self.istate = np.zeros(N_ISTATE, dtype=np.int64)
         self.fade = max(1, int(round(fade_s * rate)))
         self.record = np.zeros((int(2 ** np.ceil(np.log2(record_s * rate))), width), dtype=np.float32)
+        self.klass = np.zeros(self.record.shape[0], dtype=np.uint8)
+        """Per recorded frame, why it sounds as it does (``CLASS_*``)."""
         self.drained = 0
         self.base = self.lead
         """Position of tick 0's first frame; moved forward by :meth:`resync`."""
@@ -133,6 +161,11 @@ class AudioRing:
     def position(self, k: int) -> int:
         """Stream position of tick ``k``'s first frame."""
         return self.base + frames_before(k, self.up, self.down)
+
+    def fill(self, out: np.ndarray, dac_ns: int) -> int:
+        """The callback's body (:func:`fill`): ``out`` (frames, channels) float32, ``dac_ns`` the DAC time of ``out[0]``."""
+        return fill(out, self.ring, self.stamps, self.lead, self.last, self.istate, self.fade, self.arrival, self.latency,
+                    dac_ns, self.rate, self.record, self.klass)
 
     def put(self, k: int, block: np.ndarray, arrival_ns: int, silent: bool) -> None:
         """Tick ``k``'s samples ``block`` (frames, channels): let the callback play them (or play silence if ``silent``).
@@ -152,14 +185,16 @@ class AudioRing:
         self.resyncs.append((int(k), gap))
         return gap
 
-    def drain(self) -> np.ndarray:
-        """The frames handed to PortAudio since the last drain (a copy; call often enough: the record ring holds ``record_s``)."""
+    def drain(self) -> tuple[int, np.ndarray, np.ndarray]:
+        """``(position, frames, classes)``: the frames handed to PortAudio since the last drain from stream position
+        ``position`` on, and why each sounds as it does (copies; call often enough: the record ring holds ``record_s``,
+        and ``position`` is later than the previous drain's end when frames were lost)."""
         end = int(self.istate[RECORDED])
         cap = self.record.shape[0]
         start = max(self.drained, end - cap)
         idx = np.arange(start, end) % cap
         self.drained = end
-        return self.record[idx].copy()
+        return start, self.record[idx].copy(), self.klass[idx].copy()
 
     def latencies_ms(self) -> np.ndarray:
         """Sensor-to-DAC latency of every tick played so far, ms."""

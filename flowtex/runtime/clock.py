@@ -20,6 +20,14 @@ moment it returned relative to the deadline it waited for (sleep overshoot, spin
 granularity, preemption); it can exceed a period only if the thread was descheduled
 during the sleep/spin itself, and that tick is then late, not missed.
 
+Catching up (``catch_up_s``, default 0: off). A loop that feeds a sound card must not
+lose ticks to a short stall: the sound card keeps playing at its own rate, and a
+tick not run is a gap in the audio. With ``catch_up_s > 0``, a next deadline that
+passed less than ``catch_up_s`` ago is not skipped: ``wait()`` returns at once (the
+tick is late, not missed), and the following ticks run back to back until the loop
+is on time again. A stall longer than that is skipped as above. The live loop uses
+the audio map's ``margin_ms`` here: the stall its margin absorbs.
+
 Usage::
 
     clock = DeadlineClock(1000.0)
@@ -68,6 +76,7 @@ class DeadlineClock:
         now: Callable[[], int] = time.perf_counter_ns,
         prepare: Callable[[], object] | None = None,
         prepare_lead_s: float = 50e-6,
+        catch_up_s: float = 0.0,
     ) -> None:
         if not (rate_hz > 0.0) or rate_hz == float("inf"):
             raise ValueError(f"DeadlineClock: rate_hz must be a positive finite number of Hz, got {rate_hz!r}")
@@ -82,6 +91,9 @@ class DeadlineClock:
         self.spin_ns = min(int(round(spin_s * 1e9)), period_ns // 2)
         if not (prepare_lead_s >= 0.0) or prepare_lead_s == float("inf"):
             raise ValueError(f"DeadlineClock: prepare_lead_s must be a finite number of seconds >= 0, got {prepare_lead_s!r}")
+        if not (catch_up_s >= 0.0) or catch_up_s == float("inf"):
+            raise ValueError(f"DeadlineClock: catch_up_s must be a finite number of seconds >= 0, got {catch_up_s!r}")
+        self.catch_up_ns = int(round(catch_up_s * 1e9))
         self._sleep = sleep
         self._now = now
         self._prepare = prepare
@@ -116,7 +128,9 @@ class DeadlineClock:
         target = self.deadline_ns + period
         now = self._now()
         skipped = 0
-        if now > target:
+        if now > target and now - target <= self.catch_up_ns:
+            pass  # behind by less than the catch-up allowance: run this tick now (late, not missed)
+        elif now > target:
             # Overrun: the deadlines target, target+period, ... up to the last one
             # strictly before now have passed. Skip them all but land on the
             # first deadline >= now.

@@ -42,7 +42,8 @@ import numpy as np
 from ..errors import FlowtexError
 from ..io.canlog import SessionWriter
 from ..io.dbc import one_line
-from .audio import AudioOutput
+from .audio import AudioOutput, prompt_callbacks
+from .audio_timeline import check_event_ids
 from .buses import BusError, open_bus, receiver, sender
 from .canio import CanIO, load_io, tick_out
 from .clock import DeadlineClock
@@ -135,8 +136,10 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
 
         record_audio = check_output(record_audio, inputs=[dbc_path, map_path, *inputs, *(p for p in (record, stats_path, simulate)
                                                                                          if isinstance(p, (str, Path)))],
-                                    option="--record-audio")
+                                    option="--record-audio", suffixes=(".wav",))
     io = load_io(graph, dbc_path, map_path)
+    if io.map.audio is not None and record is not None:
+        check_event_ids(io.tx_ids, str(map_path))
     if record_audio is not None and io.map.audio is None:
         raise FlowtexError(f"--record-audio: {map_path} has no 'audio' section, so nothing is played (docs/live.md, \"Audio output\")")
     audio = AudioOutput(graph, io.map.audio, record_audio, str(map_path)) if io.map.audio is not None else None
@@ -193,7 +196,8 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
         if warm_pass is not None:
             warm_pass()
 
-    clock = DeadlineClock(rate, prepare=prepare)
+    # with a sound card, a stall shorter than the audio margin is caught up rather than skipped (docs/live.md, "Audio output")
+    clock = DeadlineClock(rate, prepare=prepare, catch_up_s=audio.amap.margin_ms / 1000.0 if audio is not None else 0.0)
     period = clock.period_ns
     display = StatusDisplay(status, io, watchdog, stats, int(rate / 2), shown) if status is not None else None
     if display is not None and audio is not None:
@@ -207,10 +211,13 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     tx, now = io.tx, time.perf_counter_ns
     if device is not None:
         device.publish(0)
-    with _stop_signals(stop, install_signals), freeze_gc():
+    with _stop_signals(stop, install_signals), freeze_gc(), prompt_callbacks(audio is not None):
         try:
             if audio is not None:
                 audio.start()  # silence until tick 0's samples are due; returns after PortAudio's first callback
+                if writer is not None:
+                    audio.log_timeline = True
+                    writer.write(audio.start_event(), False)
             clock.start()
             while True:
                 receive(rx)  # 2. whatever arrived since prepare() (bus time, not compute)
@@ -224,9 +231,12 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                 stats.frames_in += len(rx)
                 stats.frames_out += len(tx)
                 if audio is not None:
-                    audio.push(k, _arrival_ns(rx, wall_minus_perf), watchdog.tripped)
+                    audio.push(k, _arrival_ns(rx, wall_minus_perf), _audio_held(watchdog, k))
                 if writer is not None:
                     writer.write_tick(rx, tx)
+                    if audio is not None:
+                        for m in audio.take_events():
+                            writer.write(m, False)
                 rx.clear()
                 k += 1
                 if device is not None:
@@ -257,6 +267,9 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                 except Exception as exc:
                     audio_error = f"audio output: {type(exc).__name__}: {one_line(exc)}"
                 safe_error = "; ".join(e for e in (safe_error, audio_error) if e) or None
+                if writer is not None:
+                    for m in audio.take_events():  # the last runs of silence and the END event
+                        writer.write(m, False)
             if device is not None:
                 device.collect(k)
             if rt_status is not None:
@@ -280,6 +293,12 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                       device=device, silent_messages=silent, silence=silence,
                       no_sensor_frames=bool(k) and len(silent) == len(io.map.sensor_messages()) > 0,
                       warnings=clamp_warnings(io, k), audio=audio_summary, safe_sent=safe_sent)
+
+
+def _audio_held(watchdog: Any, k: int) -> bool:
+    """Whether tick ``k`` plays safe silence: while the input watchdog holds the outputs (a stale sensor, or no frame
+    yet). The overrun watchdog holds the CAN outputs only: a late tick whose samples are still in time plays."""
+    return watchdog.tripped and (watchdog.reason != "overrun" or first_stale(watchdog.last, watchdog.timeouts, k) >= 0)
 
 
 def _arrival_ns(rx: list[Any], wall_minus_perf: int) -> int:

@@ -40,6 +40,7 @@ from ..errors import DataError
 from ..io.atomic import atomic_output
 from ..io.canlog import SessionWriter, read_session_checked
 from ..io.formats import AUDIO, CAN_LOG, RECORDING, format_of
+from .audio_timeline import split_events
 from .canio import load_io
 
 
@@ -70,6 +71,10 @@ class ReplayReport:
     session run with another graph, parameters, ``--seed``, DBC or map?"""
     output_path: Path | None = None
     session_path: Path | None = None
+    audio_lines: list[str] = field(default_factory=list)
+    """With ``expect_audio``: one line per class of audio frames (:func:`~flowtex.runtime.audio_check.check_audio`)."""
+    audio_unexplained: int = 0
+    """Audio frames that differ from the live WAV and that the session's audio timeline does not explain."""
     truncated: str | None = None
     """Why the log does not hold the whole session (:func:`~flowtex.io.canlog.read_session_checked`), or None.
     A truncated log has no exit block: its last complete block is replayed as a tick."""
@@ -104,6 +109,7 @@ class ReplayReport:
         if self.unexplained_ticks:
             lines.append(f"{_count(len(self.unexplained_ticks))} ({_ranges(self.unexplained_ticks)}): DIFFER from the live frames and no "
                          "watchdog explains it: was the session run with another graph, parameters, --seed, DBC or map?")
+        lines.extend(self.audio_lines)
         if self.output_path is not None:
             lines.append(f"wrote {self.output_path}")
         return "\n".join(lines)
@@ -174,19 +180,23 @@ def _split_ticks(frames: list[can.Message], tx_ids: list[tuple[int, bool]], path
 
 
 def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, map_path: str | Path,
-                   output_path: str | Path | None = None, seed: int | None = None) -> ReplayReport:
+                   output_path: str | Path | None = None, seed: int | None = None,
+                   expect_audio: str | Path | None = None) -> ReplayReport:
     """Run ``graph`` over the frames a live session received, and compare with what it sent.
 
     ``output_path``: ``.npz`` writes the graph outputs (time first, plus ``rate``);
     ``.blf``/``.log``/``.asc`` writes the actuator frames the graph would have sent
     (timestamps copied from the live frames); None writes nothing.
     ``seed`` must be the live session's (``--seed``; default the graph's).
+    ``expect_audio``: the session's ``--record-audio`` WAV, checked frame by frame against the stream rebuilt from the
+    replay and the log's audio timeline (``report.audio_lines``, ``report.audio_unexplained``).
     """
     session_path = Path(session_path)
     io = load_io(graph, dbc_path, map_path)
     if not io.tx:
         raise DataError(f"{map_path}: the map binds no outputs, so the session has no actuator blocks to mark ticks")
     frames, completeness = read_session_checked(session_path)
+    timeline, frames = split_events(frames)
     ticks, exit_block = _split_ticks(frames, io.tx_ids, session_path, completeness.problem is None)
     if not ticks:
         ids = ", ".join(f"{fid:#x}" for fid, _ in io.tx_ids)
@@ -200,10 +210,15 @@ def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, m
                         "or .wav (what the map's audio section plays)")
     if out_kind == AUDIO and io.map.audio is None:
         raise DataError(f"{output_path}: {map_path} has no 'audio' section, so the session played no audio")
+    live_audio = None
+    if expect_audio is not None:
+        live_audio = _live_wav(expect_audio, io.map.audio, map_path)
+    audio = out_kind == AUDIO or live_audio is not None
     with contextlib.ExitStack() as stack:  # outputs go through the one writer: atomic, the old file kept on failure
         target = stack.enter_context(atomic_output(output_path)) if output_path is not None and out_kind != AUDIO else None
         writer = SessionWriter(target) if out_kind == CAN_LOG else None
-        outputs = {name: np.zeros((len(ticks), *spec.shape)) for name, spec in graph.outputs.items()} if out_kind in (RECORDING, AUDIO) else None
+        outputs = ({name: np.zeros((len(ticks), *spec.shape)) for name, spec in graph.outputs.items()}
+                   if out_kind == RECORDING or audio else None)
         io.encode_safe()
         safe = [bytes(m.data) for m in io.tx]
         """The actuator payloads of the safe values: what live sends while the watchdog holds the outputs."""
@@ -240,9 +255,10 @@ def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, m
         finally:
             if writer is not None:
                 writer.close()
-        if outputs is not None and out_kind == AUDIO:
-            _write_audio(graph, io.map.audio, outputs, output_path)  # atomic itself (flowtex.io.wav.write_wav)
-        elif outputs is not None:
+        if outputs is not None and audio:
+            _replay_audio(graph, io.map.audio, outputs, timeline, output_path if out_kind == AUDIO else None,
+                          live_audio, report)
+        if outputs is not None and out_kind == RECORDING:
             with open(target, "wb") as fh:
                 np.savez(fh, rate=np.float64(graph.rate), **outputs)
     if output_path is not None:
@@ -250,11 +266,52 @@ def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, m
     return report
 
 
-def _write_audio(graph: Any, amap: Any, outputs: dict[str, np.ndarray], path: str | Path) -> None:
-    """The audio the session's ticks play, after the live lead of silence: sample for sample the live ``--record-audio``
-    wherever live did not play safe silence (docs/live.md)."""
+def _live_wav(path: str | Path, amap: Any, map_path: str | Path) -> tuple[np.ndarray, str]:
+    """The live ``--record-audio`` WAV to check the replay against, as (frames, channels) float32."""
+    from ..io.wav import read_wav
+
+    if amap is None:
+        raise DataError(f"--expect-audio {path}: {map_path} has no 'audio' section, so the session played no audio")
+    rate, channels = read_wav(path)
+    data = np.stack(list(channels.values()), axis=1)  # float32 samples, exact in float64
+    if rate != amap.rate or data.shape[1] != len(amap.channels):
+        raise DataError(f"--expect-audio {path}: {data.shape[1]} channel(s) at {rate:g} Hz, but {map_path}'s audio section "
+                        f"plays {len(amap.channels)} at {amap.rate:g} Hz: is this the session's --record-audio?")
+    return data, str(path)
+
+
+def _replay_audio(graph: Any, amap: Any, outputs: dict[str, np.ndarray], timeline: Any, path: str | Path | None,
+                  live: tuple[np.ndarray, str] | None, report: ReplayReport) -> None:
+    """The stream the session handed to the sound card, rebuilt from the replayed ticks and the log's audio timeline
+    (:func:`~flowtex.runtime.audio_check.rebuild_live`): written to ``path`` (a WAV equal to the live ``--record-audio``
+    sample for sample over its whole length) and checked against ``live``. A log without a timeline gives the lead of
+    silence and every tick's samples, and the older check (:func:`~flowtex.runtime.audio_check.compare_audio`)."""
     from ..io.wav import write_wav
+    from .audio_check import check_audio, compare_audio, rebuild_live
     from .audio_render import lead_frames, render_outputs, samples_per_tick
 
-    lead = lead_frames(amap, samples_per_tick(amap, float(graph.rate)))  # the live stream's lead
-    write_wav(path, render_outputs(outputs, amap, float(graph.rate), lead=lead), amap.rate)
+    rate = float(graph.rate)
+    up, down = samples_per_tick(amap, rate)
+    n_ticks = next(iter(outputs.values())).shape[0]
+    if timeline is not None:
+        stream, klass = rebuild_live(render_outputs(outputs, amap, rate), n_ticks, up, down, timeline)
+    else:
+        stream = render_outputs(outputs, amap, rate, lead=lead_frames(amap))
+    if path is not None:
+        write_wav(path, stream, amap.rate)  # atomic itself (flowtex.io.wav.write_wav)
+    if live is None:
+        return
+    data, name = live
+    if timeline is not None:
+        check = check_audio(data, stream, klass, timeline, name, amap.rate)
+        report.audio_lines, report.audio_unexplained = check.lines, check.unexplained
+        return
+    fade = max(1, int(round(0.002 * amap.rate)))
+    cmp = compare_audio(data, stream, lead_frames(amap), up, [], fade, down)
+    report.audio_unexplained = cmp.unexplained
+    report.audio_lines = [f"audio: the session log holds no audio timeline (recorded before flowtex logged it): {name} checked "
+                          "where live played a tick",
+                          f"{cmp.equal} frames: the ticks' samples, equal to {name} sample for sample",
+                          f"{cmp.silence} frames: the callback's fade to silence (where live had no tick to play)"]
+    if cmp.unexplained:
+        report.audio_lines.append(f"{cmp.unexplained} frames DIFFER, first at frame {cmp.first_unexplained}: unexplained")

@@ -54,6 +54,35 @@ def check_finite(canmap: CanMap, arrays: Mapping[str, np.ndarray], source: str) 
                                 "as CAN frames: clean the recording (e.g. fill the gaps) before simulating it")
 
 
+def check_range(canmap: CanMap, codecs: Mapping[str, MessageCodec], arrays: Mapping[str, np.ndarray], source: str) -> None:
+    """Refuse a recording whose sensor signals leave what their DBC signals can carry (``[minimum|maximum]`` and the
+    raw bit width): the codec would clamp every such sample without a word, and the graph would see another path."""
+    for b in canmap.inputs.values():
+        if b.name not in arrays:
+            continue
+        a = np.asarray(arrays[b.name], dtype=np.float64)
+        a = a.reshape(a.shape[0], -1) if a.ndim else a.reshape(1, 1)
+        for j, (m, sig) in enumerate(b.signals):
+            if j >= a.shape[1]:
+                break
+            lay = codecs[m].layouts[codecs[m].index[sig]]
+            lo, hi = -np.inf, np.inf
+            if not lay.is_float:
+                ends = sorted((lay.raw_min * float(lay.scale) + float(lay.offset), lay.raw_max * float(lay.scale) + float(lay.offset)))
+                lo, hi = ends
+            if lay.minimum is not None and lay.maximum is not None and lay.minimum < lay.maximum:
+                lo, hi = max(lo, float(lay.minimum)), min(hi, float(lay.maximum))
+            phys = (a[:, j] - float(b.offset[j])) / float(b.scale[j])
+            out = np.flatnonzero((phys < lo) | (phys > hi))
+            if out.size:
+                i = int(out[0])
+                unit = f" {lay.unit}" if lay.unit else ""
+                raise DataError(f"{source}: signal {b.name!r}" + (f"[{j}]" if b.width > 1 else "") + f" leaves what {m}.{sig} "
+                                f"can carry, [{lo:g}, {hi:g}]{unit} (DBC range and bit width), on {out.size} sample(s), the "
+                                f"first {phys[i]:g}{unit} at index {i}; the device would send the clamped value instead. "
+                                "Scale or cut the recording, or widen the signal in the DBC")
+
+
 class SimulatedDevice:
     """Publish sensor frames from recorded arrays; decode received actuator frames into graph units.
 
@@ -67,6 +96,7 @@ class SimulatedDevice:
                  rate_hz: float = 1000.0, drop: Mapping[str, tuple[int, int | None]] | None = None, history: int = 0,
                  source: str = "recording"):
         check_finite(canmap, arrays, source)
+        check_range(canmap, codecs, arrays, source)
         self.bus = bus
         self.rate_hz = float(rate_hz)
         columns = []
@@ -236,6 +266,7 @@ def run_device(bus_spec: str | None, dbc_path: str, map_path: str, recording: st
     codecs = {m.name: MessageCodec(m) for m in db.messages if m.name in used}
     rec = load_recording(recording)
     check_finite(canmap, rec.arrays, str(recording))  # before the bus or pty opens
+    check_range(canmap, codecs, rec.arrays, str(recording))
     rate = float(rate_hz or rec.rate or 1000.0)
     pty_pair = None
     if pty:

@@ -84,28 +84,40 @@ CLAMP_WARN_FRACTION = 0.01
 """A session warns about an output clamped or peak-limited on more than this fraction of its ticks."""
 
 
+GUARD_WORDS = {"clamped": "clamped", "peak_limited": "peak-limited", "nonfinite": "nonfinite"}
+"""One word per guard event, the same in the status line, the end summary, ``--stats`` (its keys) and the warnings."""
+
+
 def guard_text(io: CanIO) -> str:
-    """`` | clamped NAME N, ...`` for the outputs the guard limited so far (clamp, peak limit or NaN), else ``""``."""
+    """`` | clamped NAME N, ... | peak-limited NAME N | nonfinite NAME N`` for the kinds of guard event that occurred
+    so far (one group per kind, the words of :data:`GUARD_WORDS`), else ``""``."""
     counts = io.guard_counts()
-    parts = []
-    for name in io.out_names:
-        c, p, n = counts["clamped"][name], counts["peak_limited"][name], counts["nonfinite"][name]
-        if c or p or n:
-            parts.append(f"{name} {c}" + (f" peak {p}" if p else "") + (f" nan {n}" if n else ""))
-    return f" | clamped {', '.join(parts)}" if parts else ""
+    groups = []
+    for key, word in GUARD_WORDS.items():
+        parts = [f"{name} {counts[key][name]}" for name in io.out_names if counts[key][name]]
+        if parts:
+            groups.append(f" | {word} {', '.join(parts)}")
+    return "".join(groups)
 
 
 def clamp_warnings(io: CanIO, ticks: int) -> list[str]:
-    """One line per output clamped or peak-limited on more than 1 % of ``ticks`` (its busiest component)."""
+    """One line per output clamped or peak-limited on more than 1 % of ``ticks`` (its busiest component), named by
+    what happened: ``clamped``, ``peak-limited`` or both (:data:`GUARD_WORDS`)."""
     if ticks <= 0:
         return []
+    counts = io.guard_counts()
     lines = []
     for name, n in io.limited_ticks().items():
         if n > CLAMP_WARN_FRACTION * ticks:
             b = io.map.outputs[name]
-            lines.append(f"output {name!r} was clamped on {n} of {ticks} ticks ({100.0 * n / ticks:.1f} %, over the "
-                         f"{100 * CLAMP_WARN_FRACTION:g} % warning level): the graph commands more than clamp "
-                         f"[{b.lo.min():g}, {b.hi.max():g}] in {io.map.path.name} allows; check the graph's gains or the clamp")
+            clamped, peaked = counts["clamped"][name] > 0, counts["peak_limited"][name] > 0
+            word = " or ".join(GUARD_WORDS[k] for k, on in (("clamped", clamped), ("peak_limited", peaked)) if on)
+            limit = f"clamp [{b.lo.min():g}, {b.hi.max():g}]"
+            if peaked:
+                limit = f"{limit} and its peak allowance" if clamped else f"the peak allowance of {limit}"
+            lines.append(f"output {name!r} was {word} on {n} of {ticks} ticks ({100.0 * n / ticks:.1f} %, over the "
+                         f"{100 * CLAMP_WARN_FRACTION:g} % warning level): the graph commands more than {limit} "
+                         f"in {io.map.path.name} allows; check the graph's gains or the clamp")
     return lines
 
 

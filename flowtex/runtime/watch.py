@@ -8,7 +8,7 @@ every ``interval`` seconds. On a change it rebuilds and reruns in this process:
 * the graph is built at the ``auto`` tier by default: a structure whose fused
   code is cached runs fused; a new structure runs on the dispatch tier at once
   while the fused code compiles in a background process at nice 19
-  (:mod:`flowtex.graph.background`), so the next run finds it without the
+  (:mod:`flowtex.compile.service`), so the next run finds it without the
   foreground ever waiting for a compile;
 * edited plugin files are imported afresh (:func:`flowtex.registry.forget_plugin_code`);
 * a run that fails (a typo mid-edit) prints its error and the loop keeps watching.

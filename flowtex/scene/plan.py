@@ -127,7 +127,7 @@ def plan_scene(scene: Scene, node_types: set[str] | frozenset[str] = frozenset()
             raise _fail(spec, "models", f"surface {key!r}: {exc}") from None
         _check_rate(spec, "models", key, ms.sample_rate, scene.rate)
         decisions: dict[str, Decision] = {}
-        power = mean_texture_power(ms, speed_range, force_range)
+        power = mean_texture_power(ms, speed_range, force_range)  # the set's own rule, as the planned graph's lookup
         decisions["texture"] = _decide("texture", power, th["texture"], spec)
         mu = spec.mu if spec.mu is not None else ms.mu
         if mu is not None and math.isfinite(mu) and mu >= 0:

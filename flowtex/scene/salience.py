@@ -2,7 +2,8 @@
 
 * texture: mean vibration power, (m/s^2)^2, of the interpolated texture model
   over a grid of (speed, force) points -- the model the ``texture_lookup`` node
-  would render at each point (same packed table, same clamping and LSF
+  would render at each point (the same packed table,
+  flowtex.models.rendering.texture_table: the set's own rule, clamping and LSF
   blending), its stationary output variance from
   :func:`flowtex.dsp.arma.arma_output_variance`;
 * friction: the kinetic friction coefficient itself (no computation);
@@ -17,7 +18,8 @@ import numpy as np
 
 from ..dsp.arma import arma_output_variance
 from ..dsp.contact import CONTACT_ON_N
-from ..dsp.interp import S_AR, S_GAIN, S_VAR, initial_state, lookup_model, pack_texture_table
+from ..dsp.interp import S_AR, S_GAIN, S_VAR, initial_state, lookup_model
+from ..models.rendering import texture_table
 from ..models.texture import TextureModelSet
 
 GRID_POINTS = 9
@@ -25,9 +27,11 @@ GRID_POINTS = 9
 
 
 def texture_power_grid(ms: TextureModelSet, speeds_mm_s: np.ndarray, forces_n: np.ndarray) -> np.ndarray:
-    """Vibration power (m/s^2)^2 of the looked-up model at every (speed, force) pair: shape (len(speeds), len(forces))."""
-    tab = pack_texture_table(ms.speeds, ms.forces, ms.triangles, ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain,
-                             ms.max_speed, ms.max_force)
+    """Vibration power (m/s^2)^2 of the looked-up model at every (speed, force) pair: shape (len(speeds), len(forces)).
+
+    The set renders with its own rule, as the planner's graphs (which give ``texture_lookup`` only the file) render it.
+    """
+    tab = texture_table(ms)
     p, q = ms.ar_order, ms.ma_order
     s, si = initial_state(p, q)
     out = np.empty((len(speeds_mm_s), len(forces_n)))

@@ -44,9 +44,10 @@ class Field:
 
     kind:
         ``number`` (finite int or float, never a bool), ``int`` (never a bool), ``bool``, ``str``, ``choice`` (one of
-        ``choices``), ``const`` (exactly ``const``, of the same type: ``true`` is not ``1``), ``list`` (of ``items``,
+        ``choices``), ``const`` (``const``, as JSON compares: ``1.0`` is ``1``, ``true`` is not), ``list`` (of ``items``,
         length within ``length``), ``map`` (any keys matching ``names``, values ``values``), ``record`` (``record``),
-        ``any_of`` (the first of ``of`` that fits), ``any`` (not checked).
+        ``any_of`` (the first of ``of`` that fits), ``any`` (not checked). An ``int`` may be written as a float with
+        no fraction (``4.0``, ``1e3``), as JSON Schema's ``integer`` allows; :func:`check_value` returns it as an int.
     message:
         The problem when the value breaks the declaration, a template with ``{got}``; empty: a generic sentence.
     """
@@ -254,7 +255,7 @@ def _problem(value: Any, f: Field) -> str | None:
     if k == "any_of":
         return None if any(fits(value, o) for o in f.of) else f"expected {describe(f)}"
     if k == "const":
-        return None if type(value) is type(f.const) and value == f.const else f"expected {f.const!r}"
+        return None if _same(value, f.const) else f"expected {f.const!r}"
     if k == "choice":
         return None if isinstance(value, str) and value in f.choices else f"expected {describe(f)}"
     if k == "bool":
@@ -266,7 +267,7 @@ def _problem(value: Any, f: Field) -> str | None:
             return "expected a non-empty string"
         return None
     if k in ("number", "int"):
-        if k == "int" and (isinstance(value, bool) or not isinstance(value, int)):
+        if k == "int" and not _integral(value):
             return "expected an integer"
         if not is_number(value):
             return "expected a number"
@@ -306,6 +307,34 @@ def _problem(value: Any, f: Field) -> str | None:
     raise AssertionError(k)
 
 
+def _same(value: Any, const: Any) -> bool:
+    """JSON's equality: numbers by value (``1.0`` is ``1``), but a bool is no number (``true`` is not ``1``)."""
+    if isinstance(value, bool) or isinstance(const, bool):
+        return type(value) is type(const) and value == const
+    if isinstance(const, (int, float)):
+        return isinstance(value, (int, float)) and value == const
+    return type(value) is type(const) and value == const
+
+
+def _integral(value: Any) -> bool:
+    """An int, or a float with no fraction within float's exact integers (``4.0``, ``1e3``), as JSON Schema's
+    ``integer`` and ``Param(kind="int")`` take it; never a bool."""
+    if isinstance(value, bool):
+        return False
+    return isinstance(value, int) or (isinstance(value, float) and value.is_integer() and abs(value) <= 2.0**53)
+
+
+def _normalized(value: Any, f: Field) -> Any:
+    """``value`` (which fits ``f``) with integral floats of ``int`` fields made ints, in lists and alternatives too."""
+    if f.kind == "int":
+        return int(value)
+    if f.kind == "list" and f.items is not None and any(_integral(v) for v in value):
+        return [_normalized(v, f.items) for v in value]
+    if f.kind == "any_of":
+        return _normalized(value, next(o for o in f.of if fits(value, o)))
+    return value
+
+
 def _bounds(value: float, f: Field) -> str | None:
     if f.min is not None and (value < f.min or (f.min_exclusive and value == f.min)):
         return f"must be {'>' if f.min_exclusive else '>='} {f.min:g}"
@@ -321,10 +350,11 @@ def check_value(c: Collector, value: Any, pos: Pos | Location | None, f: Field, 
     """
     problem = _problem(value, f)
     if problem is None:
-        return value
+        return _normalized(value, f)
+    got = ("true" if value else "false") if isinstance(value, bool) else excerpt(value)  # as the file spells it
     if f.message:
-        c.error(pos, f.message.format(got=excerpt(value), **fmt))
+        c.error(pos, f.message.format(got=got, **fmt))
     else:
         what = fmt.get("key", "value")
-        c.error(pos, f"{what}: {problem}, got {excerpt(value)}")
+        c.error(pos, f"{what}: {problem}, got {got}")
     return INVALID

@@ -4,11 +4,13 @@
 Their readers (:mod:`flowtex.io.modelset`, :mod:`flowtex.io.patternfile`, :mod:`flowtex.io.taplib`,
 :mod:`flowtex.filecheck`) check keys and values with these records; numerical checks (stability, triangulation) stay
 in the readers. Every file spells its rate ``sample_rate`` (Hz); ``sample_rate_hz``, which tap libraries and pattern
-files used to write, is still read. To extend a format (e.g. rendering-rule fields of a model set), add keys here.
+files used to write, is still read. To extend a format, add keys here.
 """
 
 from __future__ import annotations
 
+from ..models.outside import OUTSIDE_CHOICES
+from ..models.rendering import INTERPOLATION_CHOICES
 from .core import Field, Record
 
 RATE_KEY = "sample_rate"
@@ -52,6 +54,10 @@ MODEL_SET = Record(
         "mu": Field("any_of", of=(Field("number"), Field("const", const=None)), doc="Kinetic friction coefficient, or null."),
         "max_speed": Field("number", unit="mm/s", doc="Largest speed rendered (default: the largest model speed)."),
         "max_force": Field("number", unit="N", doc="Largest force rendered (default: the largest model force)."),
+        "interpolation": Field("choice", choices=INTERPOLATION_CHOICES,
+                               doc="How loudness is blended between models (docs/texture.md); absent: HaTT's, variance."),
+        "outside": Field("choice", choices=OUTSIDE_CHOICES,
+                         doc="What the set renders beyond its measured models (docs/texture.md); absent: HaTT's, fade."),
         "ar_order": Field("int", min=0, max=1000, doc="AR order."),
         "ma_order": Field("int", min=0, max=1000, doc="MA order."),
         "triangles": Field("list", items=Field("list", items=Field("int", min=0), length=(3, 3)),

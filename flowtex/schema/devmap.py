@@ -9,6 +9,10 @@ from .core import Field, Record
 DEFAULT_OVERRUN_MS = 2.0
 MIN_AUDIO_RATE = 5000.0
 """Lowest audio rate accepted, Hz (the issue's and Culbertson 2012's floor)."""
+DEFAULT_AUDIO_MARGIN_MS = 10.0
+"""Default ``audio.margin_ms``: a stall of the tick loop shorter than this costs no sample (docs/live.md, "Audio output")."""
+MAX_AUDIO_MARGIN_MS = 250.0
+"""Largest ``audio.margin_ms``: every millisecond of margin is a millisecond of sensor-to-sound latency."""
 SIGNAL_PATTERN = r"^[^.\s]+\.[^.\s]+$"
 
 _NUMBER = Field("number")
@@ -105,6 +109,13 @@ AUDIO = Record(
                       message=f"audio.rate must be a number of Hz >= {MIN_AUDIO_RATE:g} (e.g. 8000 or 48000), got {{got}}"),
         "block": Field("int", default=64, min=1, max=65536, doc="Frames per PortAudio callback.",
                        message="audio.block must be a whole number of frames per callback (e.g. 64), got {got}"),
+        "margin_ms": Field("number", unit="ms", default=DEFAULT_AUDIO_MARGIN_MS, min=0.0, min_exclusive=True,
+                           max=MAX_AUDIO_MARGIN_MS,
+                           doc="How far ahead of the sound card the ticks run: a stall of the tick loop shorter than this "
+                               "costs no sample; sensor-to-sound latency grows by as much.",
+                           message=f"audio.margin_ms must be a number of ms in (0, {MAX_AUDIO_MARGIN_MS:g}] (default "
+                                   f"{DEFAULT_AUDIO_MARGIN_MS:g}: robust without --rt; e.g. 0.5 with --rt for low latency), "
+                                   "got {got}"),
         "channels": Field("list", items=Field("record", record=CHANNEL), length=(1, None), doc="One entry per audio channel, in order.",
                           message="audio.channels must be a list of {{output: NAME, scale: S, clip: C}}, one per channel"),
         "doc": Field("str", doc="Free text."),

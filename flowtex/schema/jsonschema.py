@@ -11,6 +11,7 @@ from __future__ import annotations
 import re
 from typing import Any
 
+from ..limits import MAX_INT_PARAM
 from ..node_api import Node, Param, Port
 from .core import NO_DEFAULT, Field, Record
 
@@ -118,6 +119,8 @@ def param_schema(p: Param) -> dict[str, Any]:
     if p.kind in ("float", "int"):
         out = {"type": "number" if p.kind == "float" else "integer"}
         _bounds(out, p.min, p.max, p.min_exclusive, p.max_exclusive)
+        if p.kind == "int" and p.max is None:
+            out["maximum"] = MAX_INT_PARAM  # Param.coerce's ceiling for an unbounded integer
     elif p.kind == "bool":
         out = {"type": "boolean"}
     elif p.kind in ("str", "path"):

@@ -11,7 +11,7 @@ Writes (all synthetic; flowtex ships no HaTT file):
   (:func:`example_model_set`);
 * ``synthetic_taps.json`` -- a tap library (docs/tap-library.md): decaying
   150 Hz sinusoids at incoming speeds 20, 50, 100 and 200 mm/s
-  (``flowtex.models.taps.synthetic_tap_library``);
+  (``flowtex.datasets.taps.synthetic_tap_library``);
 * ``speed_force.npz`` -- the same exploration as a speed-sensor rig records
   it: tangential ``speed`` (mm/s) and ``normal_force`` (N) only, with their
   units, for graphs/speed_force_texture.yaml (:func:`speed_force`);
@@ -33,9 +33,9 @@ import numpy as np
 from scipy.signal import lfilter
 
 from flowtex.datasets.model_sets import cork_like_model_set
+from flowtex.datasets.taps import synthetic_tap_library
 from flowtex.io.modelset import save_model_set
 from flowtex.io.taplib import write_tap_library
-from flowtex.models.taps import synthetic_tap_library
 from flowtex.models.texture import TextureModelSet
 
 HERE = Path(__file__).parent
@@ -230,7 +230,7 @@ def main(out_dir: Path = HERE) -> None:
     out_dir = Path(out_dir)
     save_model_set(example_model_set(), out_dir / "synthetic_texture.json")
     write_tap_library(out_dir / "synthetic_taps.json", synthetic_tap_library(name="synthetic taps"),
-                      notes="synthetic decaying sinusoids (flowtex.models.taps.synthetic_tap_library), not measured data")
+                      notes="synthetic decaying sinusoids (flowtex.datasets.taps.synthetic_tap_library), not measured data")
     rec = exploration()
     # compressed npz: same layout as flowtex.io.recordings.save_recording writes, a quarter of the size
     np.savez_compressed(out_dir / "exploration.npz", **rec, rate=np.float64(RATE))

@@ -61,3 +61,16 @@ def test_step_down_is_the_yule_walker_predictor(order):
     np.testing.assert_allclose(step_down(A, order), yw, rtol=1e-8, atol=1e-10)
     with pytest.raises(ValueError, match="not minimum phase"):
         step_down(_poly([1.1, 0.2]), 0)
+
+
+def test_stabilize_with_a_root_at_the_origin_warns_nothing():
+    # found by benchmarks/bench_model_resample.py --hatt: 1 / conj(0) was computed (and warned about) though unused
+    import warnings
+
+    from flowtex.dsp.poly import stabilize
+
+    poly = np.poly([0.0, 2.0, 0.5])  # roots 0, 2 (reflected to 0.5) and 0.5
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = stabilize(poly)
+    np.testing.assert_allclose(np.sort(np.abs(np.roots(out))), [0.0, 0.5, 0.5], atol=1e-12)

@@ -24,6 +24,7 @@ from flowtex.fit.evaluate import fit_holdout
 from flowtex.fit.texture import fit_texture
 from flowtex.io.modelset import save_model_set
 from flowtex.io.recordings import save_recording
+from flowtex.models.rendering import FITTED_RULE
 
 RATE = 1000.0
 
@@ -80,6 +81,7 @@ def test_fitted_surface_is_as_loud_as_the_recording(recordings):
     for rec in recordings:
         a = rec.arrays
         fit = fit_texture(a["accel"], a["speed"], a["normal_force"], RATE)
+        assert fit.model_set.rule == FITTED_RULE                     # the set states how it renders (power, trend)
         speeds = [p.speed for p in fit.pieces]
         assert np.mean(a["speed"] < min(speeds)) > 0 and np.mean(a["speed"] > max(speeds)) > 0   # the path leaves the fitted range
         got = compare_surface(fit.model_set, a["accel"], a["speed"], a["normal_force"], RATE)

@@ -70,3 +70,14 @@ def test_rms_correlation_needs_ten_windows():
     assert any("warning: rms_correlation is null" in line for line in summary_lines(c))
     c = compare_signals(np.r_[x, x[:1000]], [np.r_[x, x[:1000]]], 1000.0)
     assert len(c.windows) == MIN_WINDOWS and c.rms_correlation == pytest.approx(1.0) and c.warnings == []
+
+
+def test_shape_lsd_matches_the_levels_first():
+    """A render 3.01 dB too loud everywhere: LSD 3.01 dB, shape LSD 0; a tilted one keeps its tilt (analytic)."""
+    rate = 1000.0
+    x = _vibration(rate, 12.0, 3)
+    c = compare_signals(x, [np.sqrt(2.0) * x], rate)
+    assert c.lsd_db == pytest.approx(10 * np.log10(2.0), abs=1e-9) and c.shape_lsd_db == pytest.approx(0.0, abs=1e-9)
+    assert c.to_json()["shape_lsd_db"] == pytest.approx(0.0, abs=1e-9)
+    tilted = compare_signals(x, [np.diff(x, prepend=0.0)], rate)       # a first difference: +6 dB/octave
+    assert 0.5 < tilted.shape_lsd_db < tilted.lsd_db

@@ -63,6 +63,9 @@ def test_device_by_name_and_asymmetric_clip(tmp_path):
     ("audio:\n  rate: 8000\n  channels: [{output: vibration, scale: 1}]\n", 9, "clip is required"),
     ("audio:\n  rate: 8000\n  channels: [{output: vibration, scale: 1.0, clip: 1.5}]\n", 9, "exceeds full scale +-1 (scale)"),
     ("audio:\n  rate: 8000\n  block: 0\n  channels: [{output: vibration, scale: 1, clip: 1}]\n", 9, "audio.block must be a whole number"),
+    ("audio:\n  rate: 8000\n  margin_ms: 0\n  channels: [{output: vibration, scale: 1, clip: 1}]\n", 9, "number of ms in (0, 250]"),
+    ("audio:\n  rate: 8000\n  margin_ms: 300\n  channels: [{output: vibration, scale: 1, clip: 1}]\n", 9, "audio.margin_ms must be"),
+    ("audio:\n  rate: 8000\n  margin_ms: ten\n  channels: [{output: vibration, scale: 1, clip: 1}]\n", 9, "got 'ten'"),
 ])
 def test_errors_name_the_line_and_the_fix(tmp_path, audio, line, text):
     with pytest.raises(GraphError) as err:
@@ -73,7 +76,7 @@ def test_errors_name_the_line_and_the_fix(tmp_path, audio, line, text):
 
 def test_audio_section_alone_needs_no_dbc(tmp_path):
     a = load_audio_section(REPO / "graphs" / "devices" / "example_audio_map.yaml", GOUT)
-    assert a.rate == 8000.0
+    assert a.rate == 8000.0 and a.margin_ms == 10.0
     with pytest.raises(DataError, match="no 'audio' section"):
         load_audio_section(REPO / "graphs" / "devices" / "example_map.yaml", GOUT)
 

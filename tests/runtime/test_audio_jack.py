@@ -30,8 +30,6 @@ import numpy as np
 import pytest
 from scipy.io import wavfile
 
-from flowtex.runtime.audio_check import compare_audio
-
 REPO = Path(__file__).resolve().parents[2]
 DBC = REPO / "graphs" / "devices" / "example.dbc"
 CAPTURE = Path(__file__).with_name("jack_capture.py")
@@ -69,6 +67,7 @@ outputs:
 audio:
   rate: 8000
   block: BLOCK
+  margin_ms: MARGIN
   channels:
     - {output: vibration, scale: 1.5, clip: 1.0}
 """
@@ -85,9 +84,9 @@ def setup(tmp_path):
     return tmp_path
 
 
-def _map(path: Path, block: int) -> Path:
+def _map(path: Path, block: int, margin_ms: float = 10.0) -> Path:
     m = path / f"m{block}.yaml"
-    m.write_text(textwrap.dedent(MAP).replace("BLOCK", str(block)))
+    m.write_text(textwrap.dedent(MAP).replace("BLOCK", str(block)).replace("MARGIN", str(margin_ms)))
     return m
 
 
@@ -122,9 +121,25 @@ def jack_server(period: int, log: Path):
             left.unlink(missing_ok=True)
 
 
+STALL = """
+import sys, time
+from flowtex.runtime import simdevice
+publish = simdevice.SimulatedDevice.publish
+def stalled(self, k):  # the tick loop stops for 50 ms once, in its slack after tick 999 (a real stall of the loop)
+    if k == 1000:
+        time.sleep(0.05)
+    return publish(self, k)
+simdevice.SimulatedDevice.publish = stalled
+from flowtex.cli import main
+sys.exit(main())
+"""
+
+
 def _session(setup: Path, env: dict, block: int, duration: float, sigint_after: float | None = None,
-             kill_server: Any = None) -> dict:
-    """Run flowtex live with its output connected to a capture client; returns what happened."""
+             kill_server: Any = None, stall: bool = False, margin_ms: float = 10.0) -> dict:
+    """Run flowtex live with its output connected to a capture client; returns what happened.
+
+    ``stall``: run it through :data:`STALL` (the tick loop stops for 50 ms at tick 1000)."""
     cap_path = setup / f"cap{block}.npy"
     before = _ports(env)
     cap = subprocess.Popen([sys.executable, str(CAPTURE), str(cap_path), str(RATE), str(block)], stdout=subprocess.PIPE,
@@ -134,11 +149,11 @@ def _session(setup: Path, env: dict, block: int, duration: float, sigint_after: 
         cap_in = sorted(p for p in _ports(env) - before if ":in" in p)[0]
         base = _ports(env)
         wav, blf, stats = setup / f"live{block}.wav", setup / f"s{block}.blf", setup / f"stats{block}.json"
-        cmd = [sys.executable, "-m", "flowtex", "live", str(setup / "g.yaml"), "--bus", "virtual", "--dbc", str(DBC),
-               "--map", str(_map(setup, block)), "--simulate", str(setup / "rec.npz"), "--duration", str(duration),
+        cmd = [sys.executable, *(("-c", STALL) if stall else ("-m", "flowtex")), "live", str(setup / "g.yaml"), "--bus", "virtual", "--dbc", str(DBC),
+               "--map", str(_map(setup, block, margin_ms)), "--simulate", str(setup / "rec.npz"), "--duration", str(duration),
                "--record-audio", str(wav), "--record", str(blf), "--stats", str(stats), "--quiet"]
         live = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, env=env)
-        end = time.monotonic() + 60
+        end = time.monotonic() + 180  # the first run compiles the graph: minutes on a cold cache and a loaded machine
         while True:
             outs = sorted(p for p in _ports(env) - base if ":out" in p)
             if outs:
@@ -230,14 +245,70 @@ def test_captured_equals_record_audio_and_replay_at_period_64(setup):
     lat = audio["latency_ms"]
     assert 0 < lat["p50"] <= lat["p99"] <= lat["max"]
 
+    done, replayed = _replay(setup, r, 64)
+    assert done.returncode == 0, done.stdout + done.stderr
+    np.testing.assert_array_equal(replayed, rec)  # the whole stream, silence included, sample for sample
+    assert audio["played_frames"] > 0.5 * rec.size  # most of the session played the graph's samples, not safe silence
+    assert "DIFFER" not in done.stdout and "the ticks' samples, equal to" in done.stdout
+
+    tampered = setup / "tampered.wav"  # one sample off by one part in a million: --expect-audio finds it
+    bad = rec.copy()
+    i = audio["lead_frames"] + 8 * 500
+    bad[i] = np.float32(bad[i] * (1 + 1e-6))
+    wavfile.write(tampered, RATE, bad)
+    done, _ = _replay(setup, r, 64, expect=tampered)
+    assert done.returncode == 1 and f"1 frames DIFFER (the ticks' samples), first at frame {i} " in done.stdout, done.stdout
+
+
+def _replay(setup: Path, r: dict, block: int, expect: Path | None = None) -> tuple[subprocess.CompletedProcess, np.ndarray]:
+    """``flowtex run`` on the session's log into a WAV, checked with --expect-audio (default: the live WAV)."""
     replay = setup / "replay.wav"
     done = subprocess.run([sys.executable, "-m", "flowtex", "run", str(setup / "g.yaml"), "--input", str(r["blf"]), "--dbc", str(DBC),
-                           "--map", str(setup / "m64.yaml"), "--output", str(replay)], capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr
-    up, down = audio["ratio"]
-    cmp = compare_audio(rec, wavfile.read(replay)[1], audio["lead_frames"], up, audio["resyncs"], audio["fade_frames"], down)
-    assert cmp.ok, cmp
-    assert cmp.equal > 0.5 * cmp.compared  # most of the session played the graph's samples, not safe silence
+                           "--map", str(setup / f"m{block}.yaml"), "--output", str(replay), "--expect-audio",
+                           str(expect or r["wav"])], capture_output=True, text=True, timeout=300)
+    return done, (wavfile.read(replay)[1] if replay.exists() else np.zeros(0, dtype=np.float32))
+
+
+def test_stall_longer_than_the_margin_resyncs_and_the_replay_still_equals_the_capture(setup):
+    log = setup / "jackd.log"
+    with jack_server(64, log) as (env, _):
+        r = _session(setup, env, 64, duration=2.0, stall=True)
+    assert r["rc"] == 0, r["stderr"]
+    audio = r["stats"]["audio"]
+    assert any(k >= 1000 for k, _ in audio["resyncs"]), audio["resyncs"]  # 50 ms > the 10 ms margin: silence inserted
+    good, bad = _compare_cycles(r["captured"], r["recorded"], 64)
+    assert bad <= _xruns(log), (good, bad)
+    done, replayed = _replay(setup, r, 64)
+    assert done.returncode == 0, done.stdout + done.stderr
+    np.testing.assert_array_equal(replayed, r["recorded"])  # over its whole length, the inserted silence included
+    assert "resync(s) at tick(s)" in done.stdout and "ticks later than the margin (underruns)" in done.stdout
+
+
+BUSY_MARGIN_MS = 40.0
+"""The margin of the busy-core test. The default (10 ms) is measured with one core busy by benchmarks/bench_audio.py;
+this test runs on a shared machine whose other load it does not control (load averages of 15 on 2 cores were seen
+while it was written, when the loop's thread waited up to ~20 ms for a core), so it gives the loop more margin and
+checks the mechanism: every stall shorter than the margin is caught up, and not one sample is lost."""
+
+
+def test_cpu_bound_process_beside_the_session_costs_no_sample(setup):
+    # one core kept busy by a process in this test's own process group, for the session only
+    log = setup / "jackd.log"
+    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        with jack_server(64, log) as (env, _):
+            r = _session(setup, env, 64, duration=3.0, margin_ms=BUSY_MARGIN_MS)
+    finally:
+        busy.kill()
+        busy.wait(10)
+    assert r["rc"] == 0, r["stderr"]
+    audio = r["stats"]["audio"]
+    # no tick was late for the sound card: no late frame, no resync (the margin absorbed every stall of the loop);
+    # the sound server's own xruns (jackd runs without real-time scheduling here) are counted apart and each one
+    # is one jackd reports
+    assert (audio["late_callbacks"], audio["late_frames"], audio["resyncs"]) == (0, 0, []), audio
+    assert audio["device_underflows"] <= _xruns(log)
+    assert audio["underruns"] == audio["device_underflows"]
 
 
 def test_sigint_ends_in_silence_and_latency_at_period_256(setup):

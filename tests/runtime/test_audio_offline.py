@@ -109,3 +109,45 @@ def test_no_sensor_frames_with_audio_section_is_still_exit_3_text(tmp_path):
     with pytest.raises(FlowtexError, match="graph input 'normal_force' is not bound"):
         run_live(load_graph(REPO / "graphs" / "live_audio.yaml"), DBC, m, simulate=REPO / "graphs" / "data" / "exploration.npz",
                  max_ticks=1, status=None)
+
+
+def test_record_audio_must_be_a_wav(tmp_path, capsys):
+    from flowtex.io.atomic import OutputError
+
+    with pytest.raises(OutputError, match=r"--record-audio .*out\.txt: unknown output format '\.txt'; use \.wav"):
+        run_live(load_graph(REPO / "graphs" / "live_audio.yaml"), DBC, AUDIO_MAP, simulate=REPO / "graphs" / "data" / "exploration.npz",
+                 max_ticks=1, record_audio=tmp_path / "out.txt", status=None)
+    code = main(["live", str(REPO / "graphs" / "live_audio.yaml"), "--bus", "virtual", "--dbc", str(DBC), "--map", str(AUDIO_MAP),
+                 "--simulate", str(REPO / "graphs" / "data" / "exploration.npz"), "--duration", "1", "--record-audio",
+                 str(tmp_path / "out.txt")])
+    assert code == 1 and "use .wav" in capsys.readouterr().err and not (tmp_path / "out.txt").exists()
+
+
+def test_simulated_recording_beyond_the_dbc_range_is_refused_naming_the_signal(tmp_path):
+    """example.dbc carries PosX in [-500, 500] mm: a path past it would be clamped by the codec without a word."""
+    from flowtex.errors import DataError
+
+    rec = load_recording(REPO / "graphs" / "data" / "exploration.npz")
+    pos = rec.arrays["position"].copy()
+    pos[3021:, 0] = np.linspace(501.0, 700.0, pos.shape[0] - 3021)
+    np.savez(tmp_path / "far.npz", position=pos, normal_force=rec.arrays["normal_force"], rate=np.float64(1000))
+    blf = tmp_path / "s.blf"
+    with pytest.raises(DataError) as err:
+        run_live(load_graph(REPO / "graphs" / "live_texture.yaml"), DBC, REPO / "graphs" / "devices" / "example_map.yaml",
+                 simulate=tmp_path / "far.npz", max_ticks=10, record=blf, status=None)
+    msg = str(err.value)
+    assert "signal 'position'[0] leaves what ToolPosition.PosX can carry, [-500, 500] mm" in msg, msg
+    assert f"on {pos.shape[0] - 3021} sample(s), the first 501 mm at index 3021" in msg and not blf.exists()
+
+
+def test_lead_is_block_plus_margin():
+    from dataclasses import replace
+
+    from flowtex.io.audiomap import load_audio_section
+    from flowtex.runtime.audio_render import lead_frames, margin_frames
+
+    a = load_audio_section(AUDIO_MAP, {"vibration": 1, "force": 3})
+    assert (margin_frames(a), lead_frames(a)) == (80, 64 + 80)  # 10 ms at 8 kHz
+    b = replace(a, rate=48000.0, block=128, margin_ms=0.5)
+    assert (margin_frames(b), lead_frames(b)) == (24, 128 + 24)
+    assert margin_frames(replace(a, rate=44100.0, margin_ms=0.5)) == 23  # 22.05 frames, rounded up

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from flowtex.runtime.audio_check import compare_audio, fade_from
-from flowtex.runtime.audio_ring import LATENCIES, MISSING, PLAYED, RECORDED, STOPPING, UNDERRUNS, AudioRing, fill
+from flowtex.runtime.audio_ring import LATENCIES, MISSING, PLAYED, RECORDED, STOPPING, UNDERRUNS, AudioRing
 
 UP, LEAD, RATE = 8, 80, 8000
 
@@ -16,8 +16,7 @@ def _ring() -> AudioRing:
 
 def _callback(ring: AudioRing, frames: int, dac_ns: int = 0) -> np.ndarray:
     out = np.zeros((frames, 1), dtype=np.float32)
-    fill(out, ring.ring, ring.stamps, ring.lead, ring.last, ring.istate, ring.fade, ring.arrival, ring.latency, dac_ns,
-         ring.rate, ring.record)
+    ring.fill(out, dac_ns)
     return out[:, 0]
 
 
@@ -36,7 +35,7 @@ def test_ticks_play_at_their_positions_after_the_lead():
     np.testing.assert_array_equal(out[LEAD + UP:LEAD + 2 * UP], np.float32(0.11))
     assert ring.istate[PLAYED] == 128 - LEAD and ring.istate[MISSING] == 0 and ring.istate[UNDERRUNS] == 0
     assert ring.istate[LATENCIES] == (128 - LEAD) // UP  # one latency sample per tick that started here
-    np.testing.assert_array_equal(ring.drain()[:, 0], out)  # the recording is exactly what was handed over
+    np.testing.assert_array_equal(ring.drain()[1][:, 0], out)  # the recording is exactly what was handed over
 
 
 def test_missing_and_silent_ticks_fade_to_zero_within_the_fade_and_only_late_ones_count():
@@ -86,3 +85,102 @@ def test_compare_audio_accepts_silence_and_finds_a_real_difference():
     live[LEAD + 5 * UP] += np.float32(1e-6)  # one sample off by one part in a million
     cmp = compare_audio(live, replay, LEAD, UP, [[30, 40]], 16)
     assert not cmp.ok and cmp.first_unexplained == LEAD + 5 * UP
+
+
+# The replay rebuilds the whole live stream from the ticks' samples and the logged timeline. Drive the ring as live
+# does (ticks pushed, callbacks of any size in any interleaving, stalls, held ticks, a stop), log the timeline as live
+# logs it, and rebuild: every frame handed to the "sound card" must come back bit for bit.
+
+
+def _live_and_rebuilt(schedule, up, down, seed):
+    from flowtex.dsp.audio_interp import frames_before
+    from flowtex.runtime.audio_check import rebuild_live
+    from flowtex.runtime.audio_timeline import AudioTimeline, SilenceRuns
+
+    lead, ahead = 48, 24
+    ring = AudioRing(up, 2, lead, RATE, record_s=1.0, down=down)
+    n_ticks = sum(step[0] for step in schedule)
+    rng = np.random.default_rng(seed)
+    samples = rng.uniform(-0.9, 0.9, (frames_before(n_ticks, up, down), 2)).astype(np.float32)
+    runs, silences, resyncs, handed = SilenceRuns(), [], [], []
+    k = 0
+
+    def drain():
+        position, frames, classes = ring.drain()
+        handed.append(frames)
+        silences.extend(runs.feed(position, classes))
+
+    for push, callback, held in schedule:
+        for _ in range(push):
+            gap = ring.resync(k, ahead)
+            if gap:
+                resyncs.append((k, gap))
+            a, b = frames_before(k, up, down), frames_before(k + 1, up, down)
+            ring.put(k, samples[a:b], 0, silent=held)
+            k += 1
+        ring.fill(np.zeros((callback, 2), dtype=np.float32), 0)
+        drain()
+    ring.istate[STOPPING] = 1
+    ring.fill(np.zeros((64, 2), dtype=np.float32), 0)
+    drain()
+    silences.extend(runs.close())
+    live = np.concatenate(handed)
+    timeline = AudioTimeline(lead=lead, fade=ring.fade, margin=ahead, resyncs=resyncs, silences=silences,
+                             total=int(ring.istate[RECORDED]))
+    rebuilt, klass = rebuild_live(samples, n_ticks, up, down, timeline)
+    return live, rebuilt, klass, ring, timeline
+
+
+def test_rebuilt_stream_equals_what_was_handed_over_through_stalls_holds_and_the_stop():
+    # ticks in time, then a stall (the callback runs 300 frames with no tick: late, then a resync), held ticks, more
+    schedule = [(10, 64, False), (8, 64, False), (0, 300, False), (5, 32, False), (4, 16, True), (12, 64, False),
+                (0, 7, False), (6, 128, False)]
+    live, rebuilt, klass, ring, _ = _live_and_rebuilt(schedule, UP, 1, 3)
+    assert ring.istate[MISSING] > 0 and (klass == 2).any() and (klass == 3).any() and (klass == 4).any()
+    np.testing.assert_array_equal(rebuilt, live)
+
+
+def test_rebuilt_stream_at_441_over_10():
+    schedule = [(3, 100, False), (0, 500, False), (4, 90, True), (6, 200, False)]
+    live, rebuilt, _, _, _ = _live_and_rebuilt(schedule, 441, 10, 4)
+    np.testing.assert_array_equal(rebuilt, live)
+
+
+def test_rebuilt_stream_any_interleaving():
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    step = st.tuples(st.integers(0, 12), st.integers(1, 160), st.booleans())
+
+    @settings(max_examples=60, deadline=None)
+    @given(st.lists(step, min_size=1, max_size=12), st.integers(0, 2**31))
+    def check(schedule, seed):
+        live, rebuilt, _, _, _ = _live_and_rebuilt(schedule, UP, 1, seed)
+        np.testing.assert_array_equal(rebuilt, live)
+
+    check()
+
+
+def test_check_audio_one_line_per_class_and_unexplained_differences():
+    from dataclasses import replace
+
+    from flowtex.runtime.audio_check import check_audio
+
+    schedule = [(10, 64, False), (0, 300, False), (5, 32, False), (4, 16, True), (6, 128, False)]
+    live, rebuilt, klass, _, timeline = _live_and_rebuilt(schedule, UP, 1, 5)
+    ok = check_audio(live, rebuilt, klass, timeline, "live.wav", RATE)
+    assert ok.unexplained == 0 and not any("DIFFER" in x for x in ok.lines)
+    played = int((klass == 0).sum())
+    assert f"{played} frames: the ticks' samples, equal to live.wav sample for sample" in ok.lines[1]
+    assert any(x.endswith("the lead before tick 0") for x in ok.lines)
+    assert any(x.endswith("ticks held by the input watchdog (a stale sensor)") for x in ok.lines)
+    bad = live.copy()
+    i = int(np.flatnonzero(klass == 0)[7])
+    bad[i, 1] = np.nextafter(bad[i, 1], np.float32(2))  # one sample, one float32 step
+    c = check_audio(bad, rebuilt, klass, timeline, "live.wav", RATE)
+    assert c.unexplained == 1 and any(x.startswith(f"1 frames DIFFER (the ticks' samples), first at frame {i} ") for x in c.lines)
+    longer = np.concatenate([live, np.zeros((5, 2), dtype=np.float32)])
+    assert check_audio(longer, rebuilt, klass, timeline, "live.wav", RATE).unexplained == 5  # the log says how long
+    cut = check_audio(longer, rebuilt, klass, replace(timeline, total=None), "live.wav", RATE)
+    assert cut.unexplained == 0 and "the session log ends before them" in cut.lines[-1]  # a log without its END
+

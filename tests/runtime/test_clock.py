@@ -330,3 +330,30 @@ def test_freeze_gc_disables_and_restores():
         assert not gc.isenabled()  # restores the previous state, not "enabled"
     finally:
         gc.enable()
+
+
+def test_catch_up_runs_passed_deadlines_back_to_back_then_returns_to_schedule():
+    ft = FakeTime()
+    c = DeadlineClock(1000.0, sleep=ft.sleep, now=ft.now, catch_up_s=0.005)
+    c.start()
+    t0 = 10 * MS
+    ft.work(3_200 * US)  # a 3.2 ms stall in tick 0: deadlines 1, 2 and 3 have passed, within the 5 ms allowance
+    lates = []
+    for _ in range(3):
+        lates.append(c.wait())
+        assert c.skipped == 0
+        ft.work(100 * US)
+    assert c.tick == 3 and c.missed == 0  # every tick ran, none skipped
+    assert lates[0] >= 2_200 * US and lates[0] > lates[1] > lates[2] > 0  # late, less so each tick, back to back
+    assert not ft.sleeps  # no sleep while behind
+    c.wait()  # on time again: tick 4 sleeps until its deadline
+    assert c.deadline_ns == t0 + 4 * MS and ft.sleeps and c.missed == 0
+
+
+def test_catch_up_allowance_exceeded_skips_as_before():
+    ft = FakeTime()
+    c = DeadlineClock(1000.0, sleep=ft.sleep, now=ft.now, catch_up_s=0.002)
+    c.start()
+    ft.work(3_500 * US)  # 2.5 ms past tick 1's deadline: more than the 2 ms allowance
+    c.wait()
+    assert (c.skipped, c.tick, c.deadline_ns) == (3, 4, 10 * MS + 4 * MS)

@@ -88,3 +88,19 @@ def test_clamped_on_exactly_one_percent_of_ticks_is_counted_but_not_warned_about
     r = run_live(load_graph(setup / "g.yaml"), DBC, m, simulate=setup / "rec.npz", max_ticks=TICKS, status=None)
     assert r.summary["clamped"] == {"vibration": 3, "force": 0}
     assert r.warnings == []
+
+
+def test_peak_limited_output_is_called_peak_limited_in_status_and_warning(setup):  # noqa: F811
+    """One word for one thing: an output limited only by its peak allowance is 'peak-limited', never 'clamped'."""
+    m = setup / "peak.yaml"
+    m.write_text(textwrap.dedent(MAP).replace("clamp: [-4, 4]", "clamp: [-0.5, 0.5], peak: {limit: 0.5, max_ms: 1000000}"))
+    status = io.StringIO()
+    r = run_live(load_graph(setup / "g.yaml"), DBC, m, simulate=setup / "rec.npz", max_ticks=TICKS, status=status)
+    assert r.error is None
+    peaked = r.summary["peak_limited"]["force"]
+    assert peaked > 0.01 * TICKS and r.summary["clamped"]["force"] == 0
+    text = status.getvalue()
+    assert f"| peak-limited force {peaked}" in text and "clamped force" not in text
+    assert f"guard     peak-limited vibration 0, force {peaked}" in text
+    assert [w for w in r.warnings if "'force'" in w][0].startswith("output 'force' was peak-limited on ")
+    assert not any("'force' was clamped" in w for w in r.warnings)

@@ -1,0 +1,155 @@
+"""Declared memory layouts: a node's (or a dsp kernel's) state as named fields, declared once.
+
+A :class:`Layout` lists named fields of one array (float64 state, int64 state or
+parameters), each a scalar or a sub-array whose length is a number or an
+expression of build-time sizes (``"L"``, ``"p + 1"``). From that one
+declaration come
+
+* the array size and a zeroed array (:meth:`Layout.size`, :meth:`Layout.zeros`),
+* each field's offset and slice in Python (:meth:`Layout.bind`),
+* constant offsets that kernels use as globals, for the fields that precede every
+  variable-length field (:meth:`Layout.const`), and
+* a generated numba function returning every offset from the sizes
+  (:meth:`Layout.kernel_offsets`), so a kernel never adds lengths by hand.
+
+Nothing here imports numba until :meth:`Layout.kernel_offsets` is called, and
+nothing indexes memory with a literal: a field that grows (say the random
+generator's words) moves every field after it, in Python and in kernels alike.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+_DTYPES = {"float": np.float64, "int": np.int64}
+
+
+@dataclass(frozen=True)
+class Field:
+    """One named field: ``size`` values (an int, or an expression of the layout's sizes such as ``"p + 1"``)."""
+
+    name: str
+    size: int | str = 1
+    doc: str = ""
+
+
+def _check_expression(text: str, names: tuple[str, ...]) -> None:
+    """Refuse a size expression that is not arithmetic on the declared size names (it is evaluated and compiled)."""
+    allowed = (ast.Expression, ast.BinOp, ast.Add, ast.Sub, ast.Mult, ast.FloorDiv, ast.Constant, ast.Name, ast.Load,
+               ast.Call, ast.UnaryOp, ast.USub)
+    for node in ast.walk(ast.parse(text, mode="eval")):
+        if not isinstance(node, allowed):
+            raise ValueError(f"layout size {text!r}: only + - * // max() min() on {', '.join(names)} are allowed")
+        if isinstance(node, ast.Name) and node.id not in names + ("max", "min"):
+            raise ValueError(f"layout size {text!r} names {node.id!r}; declared sizes: {', '.join(names) or 'none'}")
+        if isinstance(node, ast.Call) and not (isinstance(node.func, ast.Name) and node.func.id in ("max", "min")):
+            raise ValueError(f"layout size {text!r}: only max() and min() may be called")
+
+
+class Layout:
+    """The fields of one array, in order. ``sizes`` names the build-time sizes; ``derived`` defines more from them.
+
+    Example (the ARMA synthesizer's int state)::
+
+        ISTATE = Layout("int", [Field("rng", 5), Field("active"), Field("trial_ok")])
+        ISTATE.const("active")   # 5: usable as a global constant inside an @njit kernel
+    """
+
+    def __init__(self, kind: str, fields: list[Field], sizes: tuple[str, ...] = (),
+                 derived: Mapping[str, str] | None = None):
+        if kind not in _DTYPES:
+            raise ValueError(f"layout kind {kind!r}: use 'float' or 'int'")
+        self.kind = kind
+        self.fields = tuple(fields)
+        self.sizes = tuple(sizes)
+        self.derived = dict(derived or {})
+        names = [f.name for f in self.fields]
+        if len(set(names)) != len(names):
+            raise ValueError(f"layout declares a field twice: {sorted({n for n in names if names.count(n) > 1})}")
+        known = self.sizes
+        for name, text in self.derived.items():
+            _check_expression(text, known)
+            known = known + (name,)
+        self._names = known
+        for f in self.fields:
+            if isinstance(f.size, str):
+                _check_expression(f.size, known)
+            elif not isinstance(f.size, int) or isinstance(f.size, bool) or f.size < 0:
+                raise ValueError(f"layout field {f.name!r}: size {f.size!r} is not a count")
+
+    # ----------------------------------------------------------------- Python side
+    def _dims(self, sizes: Mapping[str, int]) -> dict[str, int]:
+        missing = [s for s in self.sizes if s not in sizes]
+        if missing:
+            raise ValueError(f"layout needs the sizes {', '.join(missing)}")
+        dims = {s: int(sizes[s]) for s in self.sizes}
+        for name, text in self.derived.items():
+            dims[name] = int(eval(text, {"max": max, "min": min}, dims))  # checked by _check_expression
+        return dims
+
+    def bind(self, **sizes: int) -> dict[str, slice]:
+        """Each field's slice of the array for these sizes, in declaration order."""
+        dims = self._dims(sizes)
+        out, at = {}, 0
+        for f in self.fields:
+            n = f.size if isinstance(f.size, int) else int(eval(f.size, {"max": max, "min": min}, dims))
+            if n < 0:
+                raise ValueError(f"layout field {f.name!r}: size {f.size!r} is {n} for {sizes}")
+            out[f.name] = slice(at, at + n)
+            at += n
+        return out
+
+    def size(self, **sizes: int) -> int:
+        """Length of the array for these sizes."""
+        slices = self.bind(**sizes)
+        return max((s.stop for s in slices.values()), default=0)
+
+    def zeros(self, **sizes: int) -> np.ndarray:
+        """A zeroed array of this layout for these sizes."""
+        return np.zeros(self.size(**sizes), dtype=_DTYPES[self.kind])
+
+    def const(self, name: str) -> int:
+        """Offset of ``name`` when every field before it has a fixed length (a constant kernels may use)."""
+        at = 0
+        for f in self.fields:
+            if f.name == name:
+                return at
+            if not isinstance(f.size, int):
+                raise ValueError(f"layout field {name!r} follows the variable-length field {f.name!r}: "
+                                 f"use kernel_offsets()")
+            at += f.size
+        raise KeyError(f"layout has no field {name!r}; fields: {', '.join(f.name for f in self.fields)}")
+
+    def describe(self) -> list[str]:
+        """One line per field (name, length, doc) for ``flowtex nodes`` and docs."""
+        return [f"{f.name}[{f.size}]" + (f": {f.doc}" if f.doc else "") for f in self.fields]
+
+    # ----------------------------------------------------------------- kernel side
+    def offsets_source(self, func_name: str = "offsets") -> str:
+        """Python source of ``func_name(*sizes)`` returning (derived sizes..., offset of each field...)."""
+        lines = [f"def {func_name}({', '.join(self.sizes)}):"]
+        for name, text in self.derived.items():
+            lines.append(f"    {name} = {text}")
+        at = "0"
+        names = []
+        for f in self.fields:
+            var = f"o_{f.name}"
+            lines.append(f"    {var} = {at}")
+            names.append(var)
+            at = f"{var} + ({f.size})"
+        lines.append(f"    return ({', '.join(list(self.derived) + names)},)")
+        return "\n".join(lines) + "\n"
+
+    def kernel_offsets(self) -> Callable[..., Any]:
+        """A numba function (inlined into its callers) computing :meth:`offsets_source`'s tuple from the sizes."""
+        from numba import njit
+
+        namespace: dict[str, Any] = {}
+        exec(compile(self.offsets_source(), f"<layout {self.kind}: {', '.join(f.name for f in self.fields)}>", "exec"),
+             {"max": max, "min": min}, namespace)
+        return njit(inline="always")(namespace["offsets"])

@@ -1,0 +1,136 @@
+"""Power-preserving interpolation in the lookup kernel, against independent float64 references.
+
+References: scipy's discrete Lyapunov solution (flowtex.dsp.arma.arma_output_variance)
+for every output power, numpy LSF products (lsf_to_poly_reference) for the
+polynomials, barycentric weights from the file's triangle (tests/hatt_reference.py).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.signal
+
+from flowtex.datasets.model_sets import cork_like_model_set, hard_model_set, lsf_to_poly_reference, poly_from_roots
+from flowtex.dsp.arma import arma_output_variance
+from flowtex.dsp.interp import filter_power, model_output_powers
+from flowtex.fit.quality import models_at
+from tests.hatt_reference import clamp, locate
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _power(a, c, g, v):
+    return arma_output_variance(a, c, g, v) if v > 0 else 0.0
+
+
+@pytest.mark.parametrize("p, q, radius", [(2, 0, 0.9), (6, 4, 0.97), (12, 10, 0.998), (19, 17, 0.995), (4, 9, 0.99)])
+def test_filter_power_is_the_impulse_response_energy(p, q, radius):
+    rng = np.random.default_rng(p * 100 + q)
+    a = poly_from_roots(np.full(p // 2, radius), rng.uniform(0.1, 3.0, p // 2), [0.5] if p % 2 else [])
+    c = poly_from_roots(np.full(q // 2, 0.9), rng.uniform(0.1, 3.0, q // 2), [-0.3] if q % 2 else [])
+    L = max(p, q)
+    got = filter_power(a, c, 1.7, np.empty(5 * L + 3))
+    # reference: the energy of scipy's impulse response, 200 000 samples (the tail beyond: < 0.998^4e5 = e^-800);
+    # an exact identity, so 1e-9 covers the step-down's rounding (it grows as 1 / (1 - |k|^2) near the circle).
+    # (p, q) = (6, 4) has two resonances 0.007 rad apart (2.2e8 gain): the Lyapunov solution is 7e-7 off there.
+    h = scipy.signal.lfilter(1.7 * c, a, np.r_[1.0, np.zeros(200_000)])
+    assert got == pytest.approx(np.sum(h * h), rel=1e-9)
+
+
+def test_unstable_filter_has_no_power():
+    assert filter_power(np.array([1.0, -2.0, 1.0]), np.array([1.0]), 1.0, np.empty(13)) == -1.0
+
+
+@pytest.fixture(scope="module", params=["hard", "cork"])
+def surface(request):
+    return hard_model_set() if request.param == "hard" else cork_like_model_set()
+
+
+def test_model_powers_match_lyapunov(surface):
+    ms = surface
+    want = [_power(lsf_to_poly_reference(ms.ar_lsf[m]), lsf_to_poly_reference(ms.ma_lsf[m]), ms.gain[m], ms.variance[m])
+            for m in range(ms.num_models)]
+    np.testing.assert_allclose(model_output_powers(ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain), want, rtol=1e-9)
+
+
+def _queries(ms, n=60, seed=3):
+    rng = np.random.default_rng(seed)
+    return rng.uniform(0.0, ms.max_speed, n), rng.uniform(0.0, ms.max_force, n)
+
+
+@pytest.mark.parametrize("rule", ["power", "log_power"])
+def test_rendered_power_is_the_blend_of_the_vertex_powers(surface, rule):
+    ms = surface
+    vertex_power = np.array([_power(lsf_to_poly_reference(ms.ar_lsf[m]), lsf_to_poly_reference(ms.ma_lsf[m]), ms.gain[m],
+                                    ms.variance[m]) for m in range(ms.num_models)])
+    speed, force = _queries(ms)
+    got = models_at(ms, speed, force, outside="fade", interpolation=rule)
+    hatt = models_at(ms, speed, force, outside="fade", interpolation="variance")
+    for i in range(len(speed)):
+        t, w, _ = locate(ms, clamp(speed[i], ms.max_speed), clamp(force[i], ms.max_force))
+        P = vertex_power[t]
+        if rule == "power":
+            want = float(w @ P)
+        else:                     # geometric over the non-silent vertices, times their weight (silent corners fade)
+            on = P > 0
+            want = float(w[on].sum() * np.exp(w[on] @ np.log(P[on]) / w[on].sum())) if on.any() else 0.0
+        a, c, g, v = got[i]
+        assert np.array_equal(a, hatt[i][0]) and np.array_equal(c, hatt[i][1]) and g == hatt[i][2]   # shape: LSFs as HaTT
+        assert _power(lsf_to_poly_reference(w @ ms.ar_lsf[t]), lsf_to_poly_reference(w @ ms.ma_lsf[t]), g, v) == \
+            pytest.approx(want, rel=1e-8, abs=1e-300)                                               # its power: the blend
+
+
+def test_at_a_vertex_every_interpolation_gives_that_model(surface):
+    ms = surface
+    inside = [m for m in range(ms.num_models) if 0.05 <= ms.speeds[m] < ms.max_speed and 0.05 <= ms.forces[m] < ms.max_force]
+    for rule in ("power", "log_power"):
+        got = models_at(ms, ms.speeds[inside], ms.forces[inside], interpolation=rule)
+        np.testing.assert_allclose([r[3] for r in got], ms.variance[inside], rtol=1e-9)
+
+
+def test_power_interpolation_keeps_loudness_where_variance_interpolation_loses_it():
+    # two models with resonances far apart: halfway, the LSF blend's filter gain differs from both, so blending the
+    # excitation variance misses the vertices' power; blending the power does not
+    ms = hard_model_set(8, 6)
+    s = np.array([100.0])
+    f = np.array([1.0])
+    (a1, c1, g1, v1), = models_at(ms, s, f, interpolation="variance")
+    (a2, c2, g2, v2), = models_at(ms, s, f, interpolation="power")
+    assert np.array_equal(a1, a2) and v1 != v2
+
+
+def test_lookup_kernel_allocates_nothing_per_tick():
+    script = """
+import numpy as np
+from numba.core.runtime import rtsys
+from flowtex.datasets.model_sets import cork_like_model_set
+from flowtex.dsp.interp import initial_state, pack_texture_table, texture_lookup_block
+ms = cork_like_model_set()
+n = 3000
+rng = np.random.default_rng(0)
+speed = rng.uniform(0, 400, (n, 1)); force = rng.uniform(0, 4.5, (n, 1))
+out = [np.empty((n, 20)), np.empty((n, 18)), np.empty((n, 1)), np.empty((n, 1))]
+for rule in ("power", "log_power"):
+    tab = pack_texture_table(ms.speeds, ms.forces, ms.triangles, ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain,
+                             ms.max_speed, ms.max_force, interpolation=rule, outside="trend")
+    s, si = initial_state(19, 17)
+    texture_lookup_block(tab, s, si, speed[:10], force[:10], *[o[:10] for o in out])
+    counts = []
+    for m in (10, n):
+        a = rtsys.get_allocation_stats().alloc
+        texture_lookup_block(tab, s, si, speed[:m], force[:m], *[o[:m] for o in out])
+        counts.append(rtsys.get_allocation_stats().alloc - a)
+    print(counts[0], counts[1])
+"""
+    env = {**os.environ, "NUMBA_NRT_STATS": "1", "PYTHONPATH": str(REPO)}
+    res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, cwd=REPO, timeout=600)
+    assert res.returncode == 0, res.stderr
+    for line in res.stdout.split("\n")[-3:-1]:
+        short, long = (int(x) for x in line.split())
+        assert short == long, res.stdout                 # 10 ticks and 3000 ticks: the same (boxing) allocations
