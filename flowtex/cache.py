@@ -18,6 +18,7 @@ compile of a process (the newest few, and any used in the last hour, are kept).
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import os
@@ -26,8 +27,9 @@ import time
 from pathlib import Path
 
 from .config import CACHE_ENV, cache_dir, contract_enabled
+from .errors import FlowtexError
 
-__all__ = ["CACHE_ENV", "cache_dir", "configure_numba_cache", "prune_numba_cache", "source_fingerprint"]
+__all__ = ["CACHE_ENV", "cache_dir", "configure_numba_cache", "guard_numba_cache", "prune_numba_cache", "source_fingerprint"]
 
 KEEP_OLD = 3
 IN_USE_S = 3600.0
@@ -67,11 +69,12 @@ def configure_numba_cache() -> str:
         return fingerprint
     import numba
 
-    folder = cache_dir() / "numba" / fingerprint
+    guard_numba_cache()
     try:
+        folder = cache_dir() / "numba" / fingerprint
         folder.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return fingerprint  # read-only home: numba falls back to its own default
+    except (OSError, FlowtexError):
+        return fingerprint  # no usable cache folder: numba falls back to its own default; the verbs say why (cache_dir)
     numba.config.CACHE_DIR = str(folder)
     _CONFIGURED.append(folder)
     return fingerprint
@@ -83,6 +86,113 @@ def prune_numba_cache() -> None:
         return
     current = _CONFIGURED[0]
     root = current.parent
+    try:
+        others = sorted((p for p in root.iterdir() if p.is_dir() and p != current), key=lambda p: p.stat().st_mtime)
+    except OSError:
+        return
+    now = time.time()
+    for old in others[:-KEEP_OLD] if len(others) > KEEP_OLD else []:
+        try:
+            if now - max([old.stat().st_mtime] + [c.stat().st_mtime for c in old.iterdir()]) < IN_USE_S:
+                continue
+        except OSError:
+            continue
+        shutil.rmtree(old, ignore_errors=True)
+
+
+SEAL_SUFFIX = ".sha256"
+"""Beside each numba index (``.nbi``) and data (``.nbc``) file: the sha256 of its bytes, written after numba wrote it."""
+
+
+def guard_numba_cache() -> None:
+    """Make numba's per-function cache (the node and dsp kernels' ``cache=True``) detect damaged entries and rebuild them.
+
+    numba trusts its files: an empty (disk full), truncated (crash) or flipped-byte ``.nbi``/``.nbc`` file raises
+    ``EOFError``/``UnpicklingError``/``UnicodeDecodeError`` on every later load, or loads damaged machine code. Each
+    file numba saves gets a seal (:data:`SEAL_SUFFIX`); a file whose bytes differ from its seal, or that has none,
+    is not loaded: the entry's files are deleted and numba compiles the kernel again. Any other failure while loading
+    an entry is handled the same way (a cache is never worth an error).
+    """
+    from numba.core import caching
+
+    if getattr(caching.Cache, "_flowtex_guarded", False):
+        return
+    files = caching.IndexDataCacheFile
+    load_overload, load_index, save_index = caching.Cache.load_overload, files._load_index, files._save_index
+    load_data, save_data = files._load_data, files._save_data
+
+    def guarded_load_overload(self, sig, target_context):  # type: ignore[no-untyped-def]
+        try:
+            return load_overload(self, sig, target_context)
+        except Exception:  # damaged entry: forget it, numba compiles and saves it again
+            _discard(self._cache_file)
+            return None
+
+    def sealed_load_index(self):  # type: ignore[no-untyped-def]
+        if os.path.exists(self._index_path) and not _sealed(self._index_path):
+            _discard(self)
+            return {}
+        return load_index(self)
+
+    def sealed_save_index(self, overloads):  # type: ignore[no-untyped-def]
+        save_index(self, overloads)
+        _seal(self._index_path)
+
+    def sealed_load_data(self, name):  # type: ignore[no-untyped-def]
+        if not _sealed(self._data_path(name)):
+            raise ValueError(f"numba cache file {self._data_path(name)} does not match its seal")
+        return load_data(self, name)
+
+    def sealed_save_data(self, name, data):  # type: ignore[no-untyped-def]
+        save_data(self, name, data)
+        _seal(self._data_path(name))
+
+    caching.Cache.load_overload = guarded_load_overload
+    files._load_index, files._save_index = sealed_load_index, sealed_save_index
+    files._load_data, files._save_data = sealed_load_data, sealed_save_data
+    caching.Cache._flowtex_guarded = True
+
+
+def _digest(path: str) -> str:
+    with open(path, "rb") as fh:
+        return hashlib.sha256(fh.read()).hexdigest()
+
+
+def _seal(path: str) -> None:
+    tmp = f"{path}{SEAL_SUFFIX}.{os.getpid()}"
+    try:
+        with open(tmp, "w") as fh:
+            fh.write(_digest(path))
+        os.replace(tmp, path + SEAL_SUFFIX)
+    except OSError:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+
+
+def _sealed(path: str) -> bool:
+    try:
+        with open(path + SEAL_SUFFIX) as fh:
+            return fh.read().strip() == _digest(path)
+    except OSError:
+        return False
+
+
+def _discard(cache_file: object) -> None:
+    """Delete an entry's index, its data files and their seals (another process may be doing the same)."""
+    index = getattr(cache_file, "_index_path", None)
+    if not index:
+        return
+    folder, stem = os.path.split(index[: -len(".nbi")])
+    try:
+        names = [n for n in os.listdir(folder) if n.startswith(stem + ".")]
+    except OSError:
+        return
+    for n in names:
+        with contextlib.suppress(OSError):
+            os.unlink(os.path.join(folder, n))
+
+
+def _prune(root: Path, current: Path) -> None:
     try:
         others = sorted((p for p in root.iterdir() if p.is_dir() and p != current), key=lambda p: p.stat().st_mtime)
     except OSError:

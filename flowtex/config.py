@@ -20,7 +20,10 @@ these functions and never read ``os.environ`` for a ``FLOWTEX_*`` name.
 from __future__ import annotations
 
 import os
+import tempfile
 from pathlib import Path
+
+from .errors import FlowtexError
 
 CACHE_ENV = "FLOWTEX_CACHE_DIR"
 COMPILE_ENV = "FLOWTEX_COMPILE"
@@ -41,12 +44,46 @@ def _switch(name: str, default: bool = True) -> bool:
 
 
 def cache_dir() -> Path:
-    """Root of flowtex's on-disk cache (``$FLOWTEX_CACHE_DIR`` or ``~/.cache/flowtex``)."""
+    """Root of flowtex's on-disk cache (``$FLOWTEX_CACHE_DIR`` or ``~/.cache/flowtex``), created if missing.
+
+    Raises :class:`~flowtex.errors.FlowtexError`, one line naming the variable, when no file can be created there.
+    """
     root = os.environ.get(CACHE_ENV)
     if root:
-        return Path(root)
+        folder = Path(root)
+        problem = _unusable(folder)
+        if problem:
+            raise FlowtexError(f"{CACHE_ENV}={root}: {problem}; point {CACHE_ENV} at a folder flowtex can write, or unset it "
+                               "(the cache then lives in ~/.cache/flowtex)")
+        return folder
     xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg) if xdg else Path.home() / ".cache") / "flowtex"
+    folder = (Path(xdg) if xdg else Path.home() / ".cache") / "flowtex"
+    problem = _unusable(folder)
+    if problem:
+        raise FlowtexError(f"{folder}: the cache folder {problem}; set {CACHE_ENV} to a folder flowtex can write")
+    return folder
+
+
+def _unusable(folder: Path) -> str | None:
+    """Why no cache can be kept in ``folder`` (a file, below a file, a dangling link, not creatable, read-only), or None.
+
+    Checked by creating the folder (``mkdir -p``) and a file in it, as the cache will, not by asking ``os.access``.
+    """
+    if folder.is_symlink() and not folder.exists():
+        return f"is a symbolic link to {os.readlink(folder)}, which does not exist"
+    if folder.exists() and not folder.is_dir():
+        return "is a file, not a folder"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        return f"cannot be created ({exc.strerror or exc}{' at ' + exc.filename if exc.filename else ''})"
+    try:
+        fd, name = tempfile.mkstemp(dir=folder, prefix=".probe.")
+    except OSError as exc:
+        return f"is not writable ({exc.strerror or exc})"
+    os.close(fd)
+    os.unlink(name)
+    return None
 
 
 def compile_tier() -> str:

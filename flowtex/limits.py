@@ -13,7 +13,10 @@ YAML loader, the graph checker and every reader in ``flowtex.io`` share it.
 
 from __future__ import annotations
 
+import math
+import os
 import reprlib
+import stat
 from pathlib import Path
 from typing import Any
 
@@ -46,11 +49,20 @@ MAX_EVERY = 1_000_000
 MAX_INT_PARAM = 2**31 - 1
 """Upper bound of an integer node parameter that declares none (kernels hold parameters as float64)."""
 MAX_PORT_VALUES = 65_536
-"""Values per tick of one declared node port (a ``Port`` shape's product): 512 KiB per buffer row of 1,024 ticks."""
+"""Values one port carries per tick (a graph input's shape, a node's declared or resolved input or output): a 256 x
+256 field, far beyond any haptic signal, and 512 KiB per buffer row of 1,024 ticks."""
 MAX_NODE_PORTS = 27
 """Inputs and outputs of one node type together. Each is an argument of the kernel call in the graph's generated code,
 after p, s and si; CPython compiles a call with more than 30 positional arguments into a form (list_to_tuple) numba
 cannot compile."""
+MAX_BUFFER_VALUES = 1 << 27
+"""Values of all port buffers of a graph together (block rows x values per tick): 1 GiB of float64."""
+MAX_SEEDS = 64
+"""Renders ``compare --seeds`` averages at most: the mean power of 64 renders scatters by ~0.06 dB (one render by
+~0.5 dB), below what any figure of the comparison resolves; more only costs time (a full render each)."""
+MAX_CONFIGURATIONS = 256
+"""Knob combinations one ``bench`` runs at most (the product of the ``--knob`` value counts): each is compiled, run
+``--repeats`` times and timed, seconds each, so 256 is already most of an hour."""
 EXCERPT_CHARS = 60
 """Longest quote of a user value in an error message."""
 
@@ -89,8 +101,46 @@ def short_number(value: float) -> str:
         return excerpt(value, 24)
 
 
+def port_values_problem(shape: tuple[int, ...] | list[int]) -> str | None:
+    """Why a port of ``shape`` is refused (more than :data:`MAX_PORT_VALUES` values per tick), or None."""
+    count = math.prod(int(s) for s in shape)
+    if count <= MAX_PORT_VALUES:
+        return None
+    return (f"shape {list(shape)} carries {count:,} values per tick; a port carries at most {MAX_PORT_VALUES:,} "
+            "(flowtex.limits.MAX_PORT_VALUES)")
+
+
+_SPECIAL = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+            (stat.S_ISSOCK, "a socket"))
+
+
+def not_regular(path: Path | str, kind: str) -> str | None:
+    """Why ``path`` cannot be read as a ``kind``: it exists and is neither a regular file nor a folder; else None.
+
+    Opening a FIFO blocks until someone writes; a device such as ``/dev/zero`` reports size 0 and never ends, so the
+    size checks cannot bound it. Checked with ``stat`` (which opens nothing) before any reader opens the file.
+    """
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return None
+    for test, what in _SPECIAL:
+        if test(mode):
+            return f"the {kind} is {what}, not a regular file; flowtex reads {kind}s from regular files only (copy the data into a file first)"
+    return None
+
+
+def check_regular(path: Path | str, kind: str) -> None:
+    """Raise :class:`DataError` naming ``path`` when :func:`not_regular` refuses it."""
+    problem = not_regular(path, kind)
+    if problem is not None:
+        raise DataError(f"{path}: {problem}")
+
+
 def check_file_size(path: Path, kind: str, limit: int = MAX_TEXT_BYTES) -> None:
-    """Refuse the file at ``path`` when it is larger than ``limit`` bytes (a missing file passes: its reader says so)."""
+    """Refuse the file at ``path`` when it is not a regular file (:func:`check_regular`) or is larger than ``limit``
+    bytes (a missing file passes: its reader says so)."""
+    check_regular(path, kind)
     try:
         size = path.stat().st_size
     except OSError:

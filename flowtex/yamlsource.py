@@ -21,7 +21,7 @@ from typing import Any
 import yaml
 
 from .errors import Diagnostic, GraphError, Location
-from .limits import MAX_DEPTH, MAX_YAML_BYTES, MAX_YAML_INT, MAX_YAML_NODES, excerpt
+from .limits import MAX_DEPTH, MAX_YAML_BYTES, MAX_YAML_INT, MAX_YAML_NODES, excerpt, not_regular
 
 Pos = tuple[int, int]
 FLOAT_12 = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$")
@@ -185,6 +185,9 @@ def read_source(path: Path, kind: str) -> str:
     Refuses a missing file, a folder, a file larger than :data:`flowtex.limits.MAX_YAML_BYTES` and text that is not UTF-8.
     """
     where = Location(str(path))
+    special = not_regular(path, kind)
+    if special is not None:
+        raise GraphError([Diagnostic(where, special)])
     try:
         size = path.stat().st_size
         if size > MAX_YAML_BYTES:

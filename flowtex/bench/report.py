@@ -19,7 +19,9 @@ def dask_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
     from dask.distributed import Client, LocalCluster
 
     if scheduler:
-        with Client(scheduler) as client:
+        from ..fit.batch import scheduler_client
+
+        with scheduler_client(scheduler) as client:
             yield client
         return
     with LocalCluster(n_workers=max(1, workers or 1), threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \

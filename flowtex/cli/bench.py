@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 from typing import Any
 
 from ..errors import DataError, FlowtexError
-from .options import add_compile_option, add_graph_options, add_seed_option, int_at_least, overrides
+from ..limits import MAX_CONFIGURATIONS
+from .options import add_compile_option, add_graph_options, add_seed_option, int_at_least, overrides, scheduler_address
 from .output import say
 
 
@@ -29,7 +31,7 @@ def register(sub: Any) -> None:
     p.add_argument("--plot", help="draw the Pareto plot to this PNG (needs matplotlib: pip install 'flowtex[plot]')")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int_at_least(1), help="run the configurations on a local Dask cluster of N worker processes")
-    where.add_argument("--scheduler", help="run the configurations on an existing Dask cluster (scheduler address, e.g. tcp://host:8786)")
+    where.add_argument("--scheduler", type=scheduler_address, help="run the configurations on an existing Dask cluster (scheduler address, e.g. tcp://host:8786)")
     add_compile_option(p, "dispatch", ("dispatch", "fused"))
     add_graph_options(p, no_plugins=False)
     p.set_defaults(func=cmd_bench)
@@ -49,6 +51,11 @@ def cmd_bench(args: argparse.Namespace) -> int:
         if key in knobs:
             raise FlowtexError(f"--set {key}: that parameter is also a --knob; give it once")
         knobs[key] = [value]
+    count = math.prod(len(v) for v in knobs.values())
+    if count > MAX_CONFIGURATIONS:
+        sizes = " x ".join(f"{len(v)} ({k})" for k, v in knobs.items())
+        raise FlowtexError(f"--knob: {sizes} = {count:,} configurations; bench runs at most {MAX_CONFIGURATIONS} "
+                           "(docs/bench.md): give fewer values")
     reference = dict(parse_override(r) for r in args.reference)
     inputs = [args.graph, args.input]
     check_output(args.output, inputs=inputs, option="-o")

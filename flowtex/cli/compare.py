@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from ..limits import MAX_SEEDS
 from .options import add_from_rate, int_at_least
 from .output import say
 
@@ -28,7 +29,8 @@ def register(sub: Any) -> None:
     p.add_argument("--position", metavar="P", help="tool position (mm, 3 axes): speed from it, as speed_estimator does")
     p.add_argument("--normal", metavar="N", help="surface normal signal (3 axes) for --position (default +z)")
     add_from_rate(p)
-    p.add_argument("--seeds", type=int_at_least(1), default=4, metavar="N", help="renders averaged (different excitation seeds)")
+    p.add_argument("--seeds", type=int_at_least(1, MAX_SEEDS), default=4, metavar="N",
+                   help=f"renders averaged (different excitation seeds; 1..{MAX_SEEDS})")
     p.add_argument("--outside", choices=OUTSIDE_CHOICES,
                    help="texture_lookup's rule beyond the measured models (default: the set's own, docs/texture.md)")
     p.add_argument("--interpolation", choices=INTERPOLATION_CHOICES,

@@ -11,9 +11,9 @@ import math
 from pathlib import Path
 from typing import Any
 
-from ..errors import DataError
+from ..errors import DataError, FlowtexError
 from . import fit_texture
-from .options import Renamed, add_from_rate, int_at_least, number_in_range
+from .options import Renamed, add_from_rate, int_at_least, number_in_range, one_motion_source, positive_seconds
 from .output import note, say
 
 
@@ -86,7 +86,7 @@ def cmd_fit_friction(args: argparse.Namespace) -> int:
 
 
 def _taps(kinds: Any) -> None:
-    from ..fit.taps import DEFAULT_QUIET_S
+    from ..fit.taps import DEFAULT_QUIET_S, MAX_TAP_S
 
     p = kinds.add_parser("taps", help="tap library (100 ms transients by incoming speed) from a recording of taps",
                          description="Detect contact onsets, cut 100 ms after each, label by incoming speed (Culbertson & Kuchenbecker 2017).")
@@ -97,11 +97,11 @@ def _taps(kinds: Any) -> None:
     p.add_argument("--normal", metavar="N", help="surface normal signal for --position (default +z)")
     p.add_argument("--speed", metavar="S", help="approach speed signal (mm/s), instead of --position")
     add_from_rate(p, old_rate=True)
-    p.add_argument("--length", type=lambda t: number_in_range(t, 0.0, math.inf, low_open=True, unit="s"), default=0.1,
-                   help="seconds cut after each onset (> 0; Culbertson & Kuchenbecker 2017: 0.1)")
+    p.add_argument("--length", type=positive_seconds(MAX_TAP_S), default=0.1,
+                   help=f"seconds cut after each onset (0 < S <= {MAX_TAP_S:g}, at least one sample; Culbertson & Kuchenbecker 2017: 0.1)")
     highpass_option(p)
-    p.add_argument("--quiet", type=nonneg("s"), default=DEFAULT_QUIET_S, metavar="S",
-                   help="seconds without contact (force < 0.05 N) before an onset counts as a tap (>= 0)")
+    p.add_argument("--quiet", type=lambda t: number_in_range(t, 0.0, MAX_TAP_S, unit="s"), default=DEFAULT_QUIET_S, metavar="S",
+                   help=f"seconds without contact (force < 0.05 N) before an onset counts as a tap (0..{MAX_TAP_S:g})")
     p.add_argument("--name", help="library name (default: the file's stem)")
     p.add_argument("-o", "--output", required=True, type=Path, help="tap library JSON (docs/tap-library.md)")
     p.set_defaults(func=cmd_fit_taps)
@@ -111,6 +111,7 @@ def cmd_fit_taps(args: argparse.Namespace) -> int:
     from ..fit.taps import fit_tap_recording, tap_table, write_taps
     from ..io.atomic import check_output
 
+    one_motion_source(args)
     check_output(args.output, inputs=[args.recording], option="-o", suffixes=(".json",))
     lib, taps, notes, rate = fit_tap_recording(args.recording, args.accel, args.force, args.from_rate, args.position, args.normal,
                                                args.speed, args.length, args.highpass, args.name, args.quiet)
@@ -156,12 +157,14 @@ def _compliance(kinds: Any) -> None:
     p.add_argument("--contact", metavar="C", help="signal name of a 0/1 contact state (default: force above --force-threshold)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.json", help="result file (JSON)")
     add_from_rate(p, old_rate=True)
-    p.add_argument("--kg", type=float, default=1.0, help="k_g normalisation in N per m/s^2 (Guruswamy thesis eq. 6; default 1)")
-    p.add_argument("--force-range", type=float, nargs=2, metavar=("LO", "HI"),
+    p.add_argument("--kg", type=lambda t: number_in_range(t, 0.0, math.inf, low_open=True, unit="N per m/s^2"), default=1.0,
+                   help="k_g normalisation in N per m/s^2 (> 0; Guruswamy thesis eq. 6; default 1)")
+    p.add_argument("--force-range", type=nonneg("N"), nargs=2, metavar=("LO", "HI"),
                    help="force range of the 24 bins in N (default: the range of the contact samples' low-passed force)")
     p.add_argument("--force-threshold", type=nonneg("N"), default=0.1, help="contact when the low-passed force exceeds this (N, default 0.1)")
     p.add_argument("--smooth-floor", type=nonneg("m/s^2"), default=0.1, help="RMS vibration floor of a smooth surface (m/s^2, default 0.1)")
-    p.add_argument("--r2-min", type=float, default=0.8, help="least weighted R^2 of a valid line fit (default 0.8)")
+    p.add_argument("--r2-min", type=lambda t: number_in_range(t, 0.0, 1.0), default=0.8,
+                   help="least weighted R^2 of a valid line fit (0..1, default 0.8)")
     p.set_defaults(func=cmd_fit_compliance)
 
 
@@ -169,6 +172,8 @@ def cmd_fit_compliance(args: argparse.Namespace) -> int:
     from ..fit.compliance import compliance_recording, compliance_summary
     from ..io.atomic import check_output, write_json_atomic
 
+    if args.force_range and not args.force_range[0] < args.force_range[1]:
+        raise FlowtexError(f"--force-range {args.force_range[0]:g} {args.force_range[1]:g}: LO must be below HI (N)")
     check_output(args.output, inputs=[args.recording], option="-o", suffixes=(".json",))
     result = compliance_recording(args.recording, args.force, args.accel, args.from_rate, args.contact,
                                   tuple(args.force_range) if args.force_range else None, k_g=args.kg,

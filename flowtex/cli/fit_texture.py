@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import DataError
-from .options import add_from_rate, int_at_least, number_in_range, positive_hz
+from .options import add_from_rate, int_at_least, number_in_range, one_motion_source, positive_hz, scheduler_address
 from .output import say
 
 
@@ -53,7 +53,7 @@ def register_fit(kinds: Any) -> None:
     p.add_argument("--grid", metavar="INDEX.csv", help="Romano-2012 grid: CSV of file, speed, force (one stationary recording each)")
     p.add_argument("--out-dir", metavar="OUT", help="fit every recording given into OUT/<name>.json")
     p.add_argument("--workers", type=int_at_least(0), help="Dask workers on this machine for --out-dir (default: one per core)")
-    p.add_argument("--scheduler", metavar="tcp://HOST:8786", help="use this running Dask scheduler for --out-dir")
+    p.add_argument("--scheduler", type=scheduler_address, metavar="tcp://HOST:8786", help="use this running Dask scheduler for --out-dir")
     p.set_defaults(func=cmd_fit_texture)
 
 
@@ -96,6 +96,10 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
     from ..fit.report import print_table, write_report
     from ..fit.texture_job import fit_grid_index, fit_recording, write_outputs
 
+    one_motion_source(args)
+    if args.out_dir is not None and args.output is not None:
+        raise DataError(f"-o {args.output} and --out-dir {args.out_dir}: give one (-o for one recording's surface, --out-dir for "
+                        "one surface per recording), not both")
     job = _job(args)
     _check_holdout_options(args)
     if args.xml == Path("-") and args.output is not None:

@@ -9,14 +9,14 @@ from typing import Any
 from ..errors import FlowtexError
 from .graph import load_graph_from_args
 from .main import EXIT_NO_SENSOR_FRAMES
-from .options import add_live_options, int_at_least, positive_hz
+from .options import add_live_options, int_at_least, positive_hz, positive_seconds
 from .output import note, say
 
 
 def register(sub: Any) -> None:
     p = sub.add_parser("live", help="run a graph live against a CAN device at the graph's rate",
                        description="Run GRAPH live: CAN sensor frames -> graph inputs, graph outputs -> guarded actuator frames.",
-                       epilog="Exit codes: 0 clean stop (duration, Ctrl-C, SIGTERM); 1 error (safe values sent); "
+                       epilog="Exit codes: 0 clean stop (duration, Ctrl-C, SIGTERM); 1 error (the line says whether the safe values were sent); "
                               "3 no sensor frame arrived during the whole session (outputs stayed safe).")
     p.add_argument("graph", nargs="?", help="graph YAML file")
     p.add_argument("--list-audio", action="store_true", help="list the audio devices PortAudio sees (for a map's audio.device), and exit")
@@ -34,7 +34,7 @@ def register(sub: Any) -> None:
     s.add_argument("--dbc", required=True, help="DBC file")
     s.add_argument("--map", required=True, help="map YAML (its inputs say which signals to publish)")
     s.add_argument("--rate", type=positive_hz, help="ticks per second it produces (default: the recording's rate, else 1000)")
-    s.add_argument("--duration", type=float, help="seconds to run (default: until Ctrl-C / SIGTERM)")
+    s.add_argument("--duration", type=positive_seconds(), help="seconds to run (> 0; default: until Ctrl-C / SIGTERM)")
     s.add_argument("--exit-on-close", action="store_true", help="stop when the runtime closes the channel (slcan: after its 'C' command)")
     s.set_defaults(func=cmd_simulate_device)
 
@@ -79,7 +79,7 @@ def run_live_session(graph: Any, args: argparse.Namespace, dbc: str | None = Non
     for line in report.warnings:
         note(f"flowtex live: warning: {line}")
     if report.error:
-        raise FlowtexError(report.error + " (safe values sent)")
+        raise FlowtexError(report.error + (" (safe values sent)" if report.safe_sent else ""))
     if report.no_sensor_frames:
         note(report.silence)
         return EXIT_NO_SENSOR_FRAMES

@@ -5,15 +5,19 @@ Every verb lives in one module of this package with ``register(subparsers)`` add
 
 Exit codes: 0 ok; 1 user error (a one-line message naming the file, option or signal and the fix, also for a bad
 command line); 2 internal error (a bug: ``flowtex: internal error: ...``; ``FLOWTEX_DEBUG=1`` shows the traceback);
-3 ``live`` ended without one sensor frame; 130 interrupted (Ctrl-C).
+3 ``live`` ended without one sensor frame; 130 interrupted (Ctrl-C); 143 terminated (SIGTERM) before the verb finished.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import signal
 import sys
-from collections.abc import Sequence
+import threading
+from collections.abc import Iterator, Sequence
+from typing import Any
 
 from .. import config
 from ..errors import FlowtexError
@@ -24,6 +28,12 @@ EXIT_USER_ERROR = 1
 EXIT_INTERNAL_ERROR = 2
 EXIT_NO_SENSOR_FRAMES = 3
 EXIT_INTERRUPTED = 130
+EXIT_TERMINATED = 143
+"""128 + SIGTERM: a verb stopped by SIGTERM before it finished (``live`` stops cleanly with 0 once its loop runs)."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where Ctrl-C would raise KeyboardInterrupt: the same clean-up runs (no ``.part`` file left)."""
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "validate": ("flowtex.cli.graph", "check any flowtex file (graph, scene, device map, model set, pattern, tap library, "
@@ -72,7 +82,7 @@ def build_parser(command: str | None = "") -> argparse.ArgumentParser:
 
     parser = Parser(prog="flowtex", description="Dataflow graphs for haptic signal processing (every flag: docs/cli.md).",
                     epilog="Exit codes: 0 ok, 1 user error (one line), 2 internal error, 3 live without sensor frames, "
-                           "130 interrupted.")
+                           "130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
     parser.add_argument("--version", action="version", version=f"flowtex {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     chosen = COMMANDS[command][0] if command else None
@@ -87,6 +97,39 @@ def build_parser(command: str | None = "") -> argparse.ArgumentParser:
     return parser
 
 
+@contextlib.contextmanager
+def sigterm_interrupts() -> Iterator[None]:
+    """While the ``with`` body runs, SIGTERM raises :class:`Terminated` (main thread only; the old handler comes back).
+
+    Every writer already removes its temporary file on KeyboardInterrupt (:func:`flowtex.io.atomic.atomic_output`),
+    so SIGTERM leaves nothing behind either. ``live`` installs its own handlers for its loop (a clean stop).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        raise Terminated()
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    try:
+        with sigterm_interrupts():
+            return _main(argv)
+    except Terminated:  # between the verb's own handlers (after it returned, or while the parser loads)
+        print("terminated", file=sys.stderr)
+        return EXIT_TERMINATED
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
 def _command_of(argv: Sequence[str]) -> str | None:
     """The command named on the command line (its first word that is not an option), or None."""
     for word in argv:
@@ -95,10 +138,10 @@ def _command_of(argv: Sequence[str]) -> str | None:
     return None
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def _main(argv: Sequence[str] | None) -> int:
     words = list(sys.argv[1:] if argv is None else argv)
-    parser = build_parser(_command_of(words))
     try:
+        parser = build_parser(_command_of(words))
         args = parser.parse_args(words)
     except SystemExit as exc:  # --help, --version (0) or a bad command line (1, one line already printed)
         return int(exc.code or 0)
@@ -108,6 +151,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         for line in str(exc).splitlines() or [type(exc).__name__]:
             print(clean(line), file=sys.stderr)
         return EXIT_USER_ERROR
+    except Terminated:
+        print("terminated", file=sys.stderr)
+        return EXIT_TERMINATED
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED

@@ -17,7 +17,11 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
+from ..errors import FlowtexError
 from ..limits import MAX_RATE_HZ
+
+MAX_SEED = 2**63 - 1
+"""Largest ``--seed``: a seed is a non-negative integer (numpy's SeedSequence), kept within a signed 64-bit word."""
 
 
 def add_plugin_options(p: argparse.ArgumentParser, no_plugins: bool = True) -> None:
@@ -58,8 +62,13 @@ def add_compile_option(p: argparse.ArgumentParser, default: str, choices: tuple[
                    help="; ".join(TIER_HELP[c] for c in choices) + f" (default: {default}; docs/engine.md)")
 
 
+def positive_seconds(high: float = math.inf) -> Any:
+    """argparse type: a duration in (0, ``high``] seconds."""
+    return lambda text: number_in_range(text, 0.0, high, low_open=True, unit="s")
+
+
 def add_seed_option(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--seed", type=int, default=None, help="noise seed (default: the graph's)")
+    p.add_argument("--seed", type=int_at_least(0, MAX_SEED), default=None, help="noise seed (0..2^63-1; default: the graph's)")
 
 
 
@@ -93,10 +102,44 @@ def int_at_least(low: int, high: int | None = None) -> Any:
         except ValueError:
             raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
         if value < low or (high is not None and value > high):
-            raise argparse.ArgumentTypeError(f"{text} is out of range: valid {low}..{high if high is not None else 'inf'}")
+            top = "inf" if high is None else ("2^63-1" if high == 2**63 - 1 else str(high))
+            raise argparse.ArgumentTypeError(f"{text} is out of range: valid {low}..{top}")
         return value
 
     return parse
+
+
+def cpu_index(text: str) -> int:
+    """argparse type: a CPU this process may run on (``os.sched_getaffinity``; where unknown, below ``os.cpu_count()``)."""
+    import os
+
+    value = int_at_least(0)(text)
+    allowed = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else list(range(os.cpu_count() or 1))
+    if value not in allowed:
+        raise argparse.ArgumentTypeError(f"{text}: no such CPU for this process (it may use CPU {', '.join(map(str, allowed))})")
+    return value
+
+
+def one_motion_source(args: argparse.Namespace) -> None:
+    """``--speed`` and ``--position`` both say how fast the tool moves: refuse both rather than silently use one."""
+    if getattr(args, "speed", None) is not None and getattr(args, "position", None) is not None:
+        raise FlowtexError(f"--speed {args.speed} and --position {args.position}: give one (the speed signal, or the position "
+                           "the speed is computed from), not both")
+
+
+_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx", "inproc")
+
+
+def scheduler_address(text: str) -> str:
+    """argparse type: a Dask scheduler address ``[SCHEME://]HOST:PORT`` (port 1..65535), e.g. ``tcp://10.0.0.5:8786``."""
+    scheme, sep, rest = text.partition("://")
+    if not sep:
+        scheme, rest = "tcp", text
+    host, colon, port = rest.rpartition(":")
+    if scheme not in _SCHEMES or not colon or not host or any(c.isspace() for c in text) or not port.isdigit() \
+            or not 0 < int(port) < 65536:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a scheduler address; write tcp://HOST:PORT (e.g. tcp://127.0.0.1:8786)")
+    return text
 
 
 class Renamed(argparse.Action):
@@ -132,11 +175,11 @@ def add_live_options(p: argparse.ArgumentParser, device_required: bool = True) -
     p.add_argument("--record", help="log every frame read and written to SESSION.blf or SESSION.log")
     p.add_argument("--record-audio", metavar="OUT.wav", help="write the samples handed to the sound card (the map's audio "
                                                              "section) as a float32 WAV")
-    p.add_argument("--duration", type=lambda t: number_in_range(t, 0.0, math.inf, low_open=True, unit="s"),
+    p.add_argument("--duration", type=positive_seconds(),
                    help="seconds to run (default: until Ctrl-C / SIGTERM)")
     p.add_argument("--rt", action="store_true", help="ask for SCHED_FIFO real-time scheduling and pin the loop to a CPU")
     p.add_argument("--rt-priority", type=int_at_least(1, 99), default=80, help="SCHED_FIFO priority with --rt (1..99, default 80)")
-    p.add_argument("--cpu", type=int_at_least(0), help="CPU to pin the loop to with --rt")
+    p.add_argument("--cpu", type=cpu_index, help="CPU to pin the loop to with --rt (one this process may use)")
     p.add_argument("--stats", help="write the end-of-run statistics as JSON to this file")
     p.add_argument("--simulate", metavar="RECORDING", help="run a simulated device in this process playing RECORDING (.npz/.csv/.h5)")
     p.add_argument("--quiet", action="store_true", help="no status line")

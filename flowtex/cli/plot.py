@@ -22,7 +22,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
     from ..plotting import plot_recording
 
     out = Path(args.output) if args.output else Path(args.file).with_suffix(".png")
-    check_output(out, inputs=[args.file], option="-o")
+    check_output(out, inputs=[args.file], option="-o", suffixes=(".png",))
     n = plot_recording(args.file, args.signals, out)
     note(f"{args.file}: {n} signals -> {out}")
     return 0

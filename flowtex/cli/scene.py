@@ -12,7 +12,7 @@ from typing import Any
 from ..errors import FlowtexError
 from .graph import load_graph_from_args
 from .options import add_compile_option, add_graph_options, add_live_options, add_plugin_options, add_seed_option
-from .output import say
+from .output import note, say
 from .run import RECORDING_SUFFIXES, run_summary
 
 
@@ -52,7 +52,7 @@ def register(sub: Any) -> None:
 def cmd_scene_plan(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output, write_text_atomic
     from ..scene.build import plan_to_graph
-    from ..scene.plan import explain, plan_json
+    from ..scene.plan import explain, plan_json, silent_surfaces
 
     check_output(args.output, inputs=[args.scene], option="-o", suffixes=(".yaml", ".yml"))
     check_output(args.json, inputs=[args.scene, args.output], option="--json", suffixes=(".json",))
@@ -64,6 +64,8 @@ def cmd_scene_plan(args: argparse.Namespace) -> int:
     kept = sum(d.keep for data in plan.values() for d in data.decisions.values())
     total = sum(len(data.decisions) for data in plan.values())
     say(f"{args.scene}: {len(plan)} surfaces, {kept} of {total} components kept -> {args.output}")
+    for line in silent_surfaces(plan):
+        note(f"warning: {line}")
     return 0
 
 

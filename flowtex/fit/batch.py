@@ -17,6 +17,7 @@ import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from ..errors import DataError, FlowtexError
 from ..io.recordings import SUFFIXES
@@ -58,6 +59,17 @@ def fit_one(path: str, job, out_dir: str, xml: bool, report: bool) -> tuple[str,
         return path, f"error: {exc}"
 
 
+def scheduler_client(address: str) -> Any:
+    """A Dask ``Client`` connected to the running scheduler at ``address``; FlowtexError naming it if none answers."""
+    from dask.distributed import Client
+
+    try:
+        return Client(address)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise FlowtexError(f"--scheduler {address}: cannot reach the Dask scheduler ({' '.join(str(exc).split())[:200]}); "
+                           "start it (dask scheduler) or check the address") from None
+
+
 def fit_many(paths: Sequence[Path], job, out_dir: Path, workers: int | None, scheduler: str | None, xml: bool = False,
              report: bool = False) -> int:
     """Fit every recording (serially, on a local cluster or on ``scheduler``); returns the exit code (1 if any failed)."""
@@ -78,7 +90,7 @@ def fit_many(paths: Sequence[Path], job, out_dir: Path, workers: int | None, sch
             cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
                                    dashboard_address=None, silence_logs=logging.ERROR)
         try:
-            with Client(scheduler if scheduler is not None else cluster) as client:
+            with (scheduler_client(scheduler) if scheduler is not None else Client(cluster)) as client:
                 futures = [client.submit(fit_one, str(p), job, str(out_dir), xml, report, pure=False) for p in paths]
                 for fut in tqdm(as_completed(futures), total=len(futures), disable=not show, unit="surface"):
                     k, line = fut.result()

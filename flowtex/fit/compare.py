@@ -56,6 +56,7 @@ from typing import Any
 
 import numpy as np
 
+from ..dsp.contact import CONTACT_ON_N
 from ..dsp.filter_design import zero_phase_highpass
 from ..dsp.resample import PASSBAND as RESAMPLE_PASSBAND
 from ..dsp.spectral import gfc, lsd_db, octave_bands, psd_band_power, psd_centroid, welch_psd
@@ -273,10 +274,28 @@ def compare_surface(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, f
     if top < opt.max_freq_hz:
         opt = replace(opt, max_freq_hz=top)
     renders = render_along(ms, speed, force, range(opt.seeds), opt.lookup)
+    _check_rendered(renders, accel, speed, force, where)
     try:
         return compare_signals(accel, renders, rate, opt, ranges)
     except DataError as exc:
         raise DataError(f"{where}: {exc}") from None
+
+
+SILENT_RATIO = 1e-6
+"""A render whose RMS is below this fraction of the recording's (-120 dB) rendered nothing: the figures would be noise."""
+
+
+def _check_rendered(renders: list[np.ndarray], accel: np.ndarray, speed: np.ndarray, force: np.ndarray, where: str) -> None:
+    """Refuse to compare a render of nothing: a recording whose force never reaches contact (:data:`CONTACT_ON_N`), or
+    a render that is silent (the tool rests): say so instead of -3000 dB and an infinite LSD."""
+    recorded = float(np.sqrt(np.mean(np.square(accel)))) if accel.size else 0.0
+    rendered = max((float(np.sqrt(np.mean(np.square(r)))) for r in renders if r.size), default=0.0)
+    if float(np.max(force, initial=0.0)) >= CONTACT_ON_N and rendered > SILENT_RATIO * recorded and rendered > 0.0:
+        return
+    raise DataError(f"{where}: nothing was rendered along this recording: its normal force reaches at most "
+                    f"{float(np.max(force, initial=0.0)):g} N (contact from {CONTACT_ON_N:g} N) and its speed "
+                    f"{float(np.max(np.abs(speed), initial=0.0)):g} mm/s (rendered RMS {rendered:.3g} m/s^2 against {recorded:.3g} "
+                    "recorded); compare on a recording of the tool moving in contact")
 
 
 def resampled_band_hz(ms: TextureModelSet) -> float:

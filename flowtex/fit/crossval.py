@@ -61,8 +61,10 @@ def _check_held(test: Ranges, n: int, rate: float, what: str, where: str) -> Non
     if held < MIN_HELD_S:
         raise DataError(f"{where}: {what} holds out {held:.2f} s, fewer than {MIN_HELD_S:g} s to compare "
                         f"(the recording is {n / rate:.1f} s); hold out more or record longer")
-    if sum(b - a for a, b in test) >= n:
-        raise DataError(f"{where}: {what} leaves nothing to fit")
+    fitted = (n - sum(b - a for a, b in test)) / rate
+    if fitted < MIN_HELD_S:  # a fit on less than this fails deep in its filters (or fits nothing)
+        raise DataError(f"{where}: {what} leaves {fitted:.2f} s to fit, fewer than {MIN_HELD_S:g} s "
+                        f"(the recording is {n / rate:.1f} s); hold out less or record longer")
 
 
 def holdout_split(n: int, rate: float, fraction: float, split: str, where: str = "recording") -> tuple[Ranges, Ranges]:

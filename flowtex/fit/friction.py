@@ -26,6 +26,7 @@ flowtex/cli/fit.py.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -131,10 +132,15 @@ def friction_forces(rec: Any, normal_force: str | None = None, friction_force: s
             nv = signal(rec, normal, "--normal", (3,))
         else:
             try:
-                nv = np.broadcast_to(np.array([float(v) for v in normal.split(",")]), (f3.shape[0], 3))
+                vector = np.array([float(v) for v in normal.split(",")])
+                nv = np.broadcast_to(vector, (f3.shape[0], 3))
             except ValueError:
                 raise DataError(f"{where}: no signal {normal!r} (--normal); give a signal name or a vector x,y,z") from None
+            if not np.all(np.isfinite(vector)):
+                raise DataError(f"--normal {normal}: the normal vector must be three finite numbers x,y,z")
         length = np.linalg.norm(nv, axis=1)
+        if not np.all(np.isfinite(length)):
+            raise DataError(f"{where}: signal {normal!r} (--normal) has non-finite normals; fix the normal")
         if np.any(length < 1e-9):
             raise DataError(f"{where}: signal {normal!r} (--normal) has zero-length normals; fix the normal")
         unit = nv / length[:, None]
@@ -179,10 +185,15 @@ def friction_table(fit: FrictionFit) -> list[str]:
 
 
 def store_mu(surface: str | Path, mu: float) -> None:
-    """Write ``mu`` into a model set file (native JSON or HaTT XML, kept in its own format), atomically."""
+    """Write ``mu`` into a model set file (native JSON or HaTT XML, kept in its own format), atomically.
+
+    A symbolic link is followed: the file it points to is updated (renamed over, keeping its mode) and the link
+    stays a link, so every other user of the model set sees the new mu.
+    """
     from ..io.hatt import write_hatt_xml
     from ..io.modelset import load_model_set, save_model_set
 
+    surface = Path(os.path.realpath(surface))
     ms = load_model_set(surface)
     ms.mu = float(mu)
     with atomic_output(surface, keep_mode=True) as tmp:

@@ -52,6 +52,8 @@ class Tap:
 
 
 DEFAULT_QUIET_S = 0.05
+MAX_TAP_S = 10.0
+"""Longest ``--length`` and ``--quiet`` (s): a tap transient lasts ~0.1 s; 10 s is a recording, not a tap."""
 """Seconds without contact (force below ``off``) before an onset counts as a tap."""
 
 
@@ -154,8 +156,12 @@ def fit_tap_recording(recording: str | Path, accel: str, force: str, from_rate: 
     from ..dsp.filter_design import zero_phase_highpass
 
     rec, rate = load(recording, from_rate)
-    if not (np.isfinite(length_s) and 0.0 < length_s):
-        raise DataError(f"--length {length_s:g}: valid range is more than 0 s (Culbertson & Kuchenbecker 2017: 0.1 s)")
+    if not (np.isfinite(length_s) and 0.0 < length_s <= MAX_TAP_S):
+        raise DataError(f"--length {length_s:g}: valid range is (0, {MAX_TAP_S:g}] s (Culbertson & Kuchenbecker 2017: 0.1 s)")
+    if int(round(length_s * rate)) < 1:
+        raise DataError(f"--length {length_s:g}: less than one sample at {rate:g} Hz; cut at least {1 / rate:g} s")
+    if not (np.isfinite(quiet_s) and 0.0 <= quiet_s <= MAX_TAP_S):
+        raise DataError(f"--quiet {quiet_s:g}: valid range is [0, {MAX_TAP_S:g}] s")
     check_highpass(highpass_hz, rate)
     acc = signal(rec, accel, "--accel", (1, 3))
     if acc.ndim == 2:

@@ -36,6 +36,7 @@ Pipeline of :func:`fit_texture` (units: acceleration m/s^2, speed mm/s, force N)
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -181,19 +182,31 @@ def fit_pieces(x: np.ndarray, pieces: Sequence[Piece], rate: float, opt: Texture
         pc.lsd_db = f.lsd_db(d, rate, min(256, d.shape[0]))
 
 
+def distinct_points(pieces: Sequence[Piece]) -> tuple[list[Piece], list[Piece]]:
+    """(pieces kept, pieces dropped): of several pieces at one (speed, force) point the longest is kept (a model set
+    holds one model per point); points closer than 1e-6 of the largest speed and force count as one."""
+    scale = np.array([max(pc.speed for pc in pieces), max(pc.force for pc in pieces)])
+    scale[scale == 0] = 1.0
+    kept: list[Piece] = []
+    dropped: list[Piece] = []
+    for pc in sorted(pieces, key=lambda pc: -pc.samples):
+        pt = np.array([pc.speed, pc.force])
+        if kept and np.min(np.sum(((np.array([[k.speed, k.force] for k in kept]) - pt) / scale) ** 2, axis=1)) < 1e-12:
+            dropped.append(pc)
+        else:
+            kept.append(pc)
+    return kept, dropped
+
+
 def assemble_set(pieces: Sequence[Piece], rate: float, material: str, metadata: dict | None = None) -> TextureModelSet:
     """Measured models + silent corners + Delaunay triangulation + maxima (see the module docstring)."""
     pts, ar, ma, var, gain = [], [], [], [], []
     max_speed = max(pc.speed for pc in pieces)
     max_force = max(pc.force for pc in pieces)
     scale = np.array([max_speed, max_force])
-    for pc in sorted(pieces, key=lambda pc: -pc.samples):       # a duplicate point keeps the longest piece
+    kept, same = distinct_points(pieces)
+    for pc in kept:
         pt = np.array([pc.speed, pc.force])
-        if pts:
-            dist = np.sum(((np.array(pts) - pt) / scale) ** 2, axis=1)
-            if np.min(dist) < 1e-12:
-                pc.model = int(np.argmin(dist))
-                continue
         assert pc.fit is not None
         pc.model = len(pts)
         pts.append(pt)
@@ -201,6 +214,8 @@ def assemble_set(pieces: Sequence[Piece], rate: float, material: str, metadata: 
         ma.append(poly_to_lsf(pc.fit.ma))
         var.append(pc.fit.variance)
         gain.append(pc.fit.gain)
+    for pc in same:  # a piece at the point of a longer one renders with that one's model
+        pc.model = int(np.argmin(np.sum(((np.array(pts) - np.array([pc.speed, pc.force])) / scale) ** 2, axis=1)))
     measured = np.array(pts)
     if len(measured) < 2:
         raise DataError(f"{material}: only one distinct (speed, force) point was measured; a model set needs a spread of "
@@ -261,4 +276,6 @@ def fit_grid(cells: Sequence[tuple[np.ndarray, float, float]], rate: float, opt:
     fit_pieces(x, pieces, rate, opt, where)
     order = pieces[0].fit.order if pieces[0].fit is not None else (0, 0)
     ms = assemble_set(pieces, rate, material, {"fitted_by": "flowtex fit texture --grid", "order": list(order)})
-    return TextureFit(ms, pieces, x, rate, {}, clipped)
+    same = Counter(f"cell(s) at ({pc.speed:g} mm/s, {pc.force:g} N), the point of a longer cell whose model was kept"
+                   for pc in distinct_points(pieces)[1])
+    return TextureFit(ms, pieces, x, rate, dict(same), clipped)

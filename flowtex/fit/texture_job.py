@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError
+from ..limits import check_file_size
 from .inputs import atomic_output, check_highpass, check_not_constant, check_speed_magnitude, load, signal
 from .texture import TextureFit, TextureOptions, fit_grid, fit_texture
 
@@ -88,6 +89,7 @@ def fit_recording(path: Path, job: TextureJob) -> TextureFit:
 
 def fit_grid_index(index: Path, job: TextureJob) -> TextureFit:
     """Fit a grid: ``index`` is a CSV with columns file, speed (mm/s), force (N); files relative to it."""
+    check_file_size(index, "grid index")
     try:
         with index.open(newline="", encoding="utf-8") as fh:
             rows = list(csv.DictReader(fh))

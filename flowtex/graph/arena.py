@@ -23,6 +23,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import FlowtexError
+from ..limits import MAX_BUFFER_VALUES
 from .resolve import ResolvedGraph
 
 # Header slots of the int arena.
@@ -118,8 +120,21 @@ class _Builder:
         return PortSlot(off, width, self.i_slot(width), self.i_slot(off))
 
 
+def _check_buffers(rg: ResolvedGraph, block_rows: int) -> None:
+    """Refuse, before allocating, port buffers holding more than :data:`~flowtex.limits.MAX_BUFFER_VALUES` values."""
+    per_row = sum(s.width for s in rg.input_specs.values())
+    for rn in rg.nodes.values():
+        per_row += sum(s.width for s in rn.out_specs.values()) + sum(
+            rn.in_specs[p].width for p, src in rn.sources.items() if src is None)
+    if per_row * block_rows > MAX_BUFFER_VALUES:
+        raise FlowtexError(f"{rg.spec.path}: graph {rg.spec.name!r}: its port buffers would hold {per_row * block_rows:,} values "
+                           f"({per_row:,} per tick x {block_rows} rows); flowtex allocates at most {MAX_BUFFER_VALUES:,} "
+                           "(flowtex.limits.MAX_BUFFER_VALUES): make the ports narrower")
+
+
 def plan_layout(rg: ResolvedGraph, block_rows: int) -> Layout:
     """Place every buffer, parameter and state array of ``rg``."""
+    _check_buffers(rg, block_rows)
     b = _Builder(block_rows)
     graph_inputs = {name: b.port(spec.width) for name, spec in rg.input_specs.items()}
     out_ports: dict[tuple[str, str], PortSlot] = {}

@@ -13,6 +13,7 @@ from typing import Any
 import networkx as nx
 
 from ..errors import DataError, FlowtexError, Location, ParamError
+from ..limits import port_values_problem
 from ..node_api import BuildContext, Node, NodeState, Port, PortSpec, simplify_unit, suggest
 from ..nodecheck import checked_state, is_plugin, plugin_raised
 from ..registry import Registry
@@ -302,6 +303,11 @@ def _resolve_pass(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[str
                     shape = specs[port.shape[1:]].shape
                 specs[port_name] = PortSpec(tuple(shape), unit)
                 continue
+            if src.node == name:  # a node (a delay: others are cycles without one) wired to itself
+                ck.error(edge_of[(name, port_name)].loc, f"edge {edge_of[(name, port_name)].text!r}: node {name!r} feeds "
+                         "itself, so its output would hold its initial value forever; feed it from another node")
+                bad = True
+                continue
             if src.node is None:
                 got = inputs[src.port]
                 input_every[port_name] = 1
@@ -321,7 +327,7 @@ def _resolve_pass(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[str
             failed.add(name)
             continue
         rn.in_specs = specs
-        if not _own_schedule(ck, rn, input_every):
+        if _too_wide(ck, rn, specs, "input") or not _own_schedule(ck, rn, input_every):
             failed.add(name)
             continue
         ctx = BuildContext(rate=ck.spec.rate, base_dir=ck.spec.path.parent, every=rn.spec.every, input_every=input_every)
@@ -330,6 +336,9 @@ def _resolve_pass(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[str
             rn.node = rn.cls(name, rn.params, ctx)
             method = "resolve"
             rn.out_specs = rn.node.resolve(specs)
+            if _too_wide(ck, rn, rn.out_specs, "output"):
+                rn.out_specs = {}
+                failed.add(name)
         except ParamError as exc:
             failed.add(name)
             ck.error(_param_loc(rn, exc.param), f"node {name!r} ({rn.cls.type_name}): {exc}")
@@ -351,6 +360,14 @@ def _resolve_pass(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[str
                              f"feedback into delay {name!r} carries {actual.describe()}, but the loop needs "
                              f"{took.describe()} at the delay's output; make both sides of the loop agree")
     return hints
+
+
+def _too_wide(ck: _Checker, rn: ResolvedNode, specs: dict[str, PortSpec], kind: str) -> bool:
+    """Report (at the node's line) every port of ``specs`` carrying more than the per-tick limit; True if any."""
+    wide = [(port, problem) for port, spec in specs.items() if (problem := port_values_problem(spec.shape)) is not None]
+    for port, problem in wide:
+        ck.error(rn.spec.loc, f"node {rn.spec.name!r} ({rn.cls.type_name}): {kind} {port!r}: {problem}")
+    return bool(wide)
 
 
 def _hint_from_mismatch(rn: ResolvedNode, port: Port, port_name: str, got: PortSpec, specs: dict[str, PortSpec],

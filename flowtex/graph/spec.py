@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import Diagnostic, GraphError, Location
-from ..limits import excerpt
+from ..limits import excerpt, port_values_problem
 from ..node_api import suggest
 from ..schema.core import INVALID, Collector, check_keys, check_value, fits, value_of
 from ..schema.graph import EDGE_PATTERN, FORMAT_VERSION, GRAPH, INPUT, NAME_PATTERN, NODE, RATE
@@ -178,6 +178,9 @@ def _inputs(c: Collector, data: LocDict) -> dict[str, InputSpec]:
         shape = value_of(c, value, INPUT, "shape", name=name)
         unit = value_of(c, value, INPUT, "unit", name=name)
         shape = () if shape is INVALID else (shape,) if isinstance(shape, int) else tuple(shape)
+        if (problem := port_values_problem(shape)) is not None:  # before anything allocates the port's buffers
+            c.error(value.value_pos.get("shape"), f"input {name!r}: {problem}")
+            shape = ()
         unit = "" if unit in (INVALID, "-") else unit  # '-' means dimensionless, as in node params
         out[name] = InputSpec(name, shape, unit, c.loc(raw.key_pos[name]))
     return out

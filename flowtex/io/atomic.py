@@ -57,13 +57,13 @@ def check_output(path: str | Path | None, *, inputs: Iterable[str | Path | None]
     if path is None:
         return None
     out = Path(path).expanduser()
-    if suffixes and out.suffix.lower() not in suffixes and not (len(suffixes) == 1 and _is_special(out)):
-        # -o /dev/null (no suffix) is accepted where one format is written; where the suffix picks it, it is refused
-        raise OutputError(f"{option} {path}: unknown output format {out.suffix!r}; use {', '.join(suffixes)}")
-    for item in inputs:
+    for item in inputs:  # first: "that is an input" says more than the suffix would
         if item is not None and _same_file(out, Path(item).expanduser()):
             raise OutputError(f"{option} {path}: that is an input of this command ({item}); "
                               "flowtex never overwrites an input: choose another output file")
+    if suffixes and out.suffix.lower() not in suffixes and not (len(suffixes) == 1 and _is_special(out)):
+        # -o /dev/null (no suffix) is accepted where one format is written; where the suffix picks it, it is refused
+        raise OutputError(f"{option} {path}: unknown output format {out.suffix!r}; use {', '.join(suffixes)}")
     if out.is_dir():
         raise OutputError(f"{option} {path}: is a folder; give a file name inside it")
     folder = out.parent if str(out.parent) else Path(".")
@@ -81,9 +81,36 @@ def check_output(path: str | Path | None, *, inputs: Iterable[str | Path | None]
         return out
     if not os.access(folder, os.W_OK | os.X_OK):
         raise OutputError(f"{option} {path}: folder {folder} is not writable; choose another output folder")
-    if out.exists() and not os.access(out, os.W_OK) and not os.access(folder, os.W_OK):
-        raise OutputError(f"{option} {path}: file is read-only")
+    _probe(out, folder, f"{option} {path}")
     return out
+
+
+def _probe(out: Path, folder: Path, what: str) -> None:
+    """Create (and remove) the temporary file :func:`atomic_output` will write, as the command will: asking
+    (``os.access``, checked first for its plainer message) says yes to root in folders no file can be created in
+    (``/sys/kernel``, a read-only mount)."""
+    try:
+        fd, name = _mkstemp(out, folder)
+    except OSError as exc:
+        raise OutputError(f"{what}: cannot create a file in folder {folder} ({exc.strerror or exc}); "
+                          "choose another output folder") from None
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(name)
+
+
+MAX_TEMP_STEM = 24
+"""Characters of the target's name kept in a temporary name: the temporary file of a 255-character name must fit too."""
+
+
+def _mkstemp(path: Path, folder: Path) -> tuple[int, str]:
+    """A new temporary file beside ``path`` named ``.STEM.XXXXXXXX.part.SUFFIX``, at most ~50 characters long.
+
+    The name keeps the target's suffix (up to 10 characters) so writers that append one (``numpy.savez``) write
+    where expected, and a short piece of its name so a leftover (a session killed with SIGKILL) can be recognised.
+    """
+    suffix = path.suffix if len(path.suffix) <= 10 else ""
+    return tempfile.mkstemp(dir=folder, prefix=f".{path.stem[:MAX_TEMP_STEM]}.", suffix=".part" + suffix)
 
 
 def _is_special(path: Path) -> bool:
@@ -114,7 +141,7 @@ def atomic_output(path: str | Path, *, keep_mode: bool = False) -> Iterator[Path
         mode = path.stat().st_mode & 0o7777
     special = _is_special(path)
     try:
-        fd, tmp_name = tempfile.mkstemp(dir=tempfile.gettempdir() if special else folder, prefix=f".{path.name}.", suffix=".part" + path.suffix)
+        fd, tmp_name = _mkstemp(path, Path(tempfile.gettempdir()) if special else folder)
     except OSError as exc:
         raise OutputError(f"{path}: cannot write in {folder} ({exc.strerror}); choose another output folder") from None
     os.close(fd)

@@ -143,13 +143,10 @@ def default_audio_map(graph_outputs: dict[str, int], rate: float, block: int = 6
 def load_audio_section(path: str | Path, graph_outputs: dict[str, int]) -> AudioMap:
     """Only the ``audio`` section of the map file ``path`` (offline rendering needs no DBC); raises GraphError/DataError."""
     from ..errors import DataError
-    from ..yamlsource import load_yaml
+    from ..yamlsource import load_yaml, read_source
 
     path = Path(path)
-    try:
-        data = load_yaml(path.read_text(encoding="utf-8"), str(path))
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read map file: {exc.strerror or exc}") from None
+    data = load_yaml(read_source(path, "map file"), str(path))
     c = Collector(str(path))
     if not isinstance(data, LocDict) or "audio" not in data:
         raise DataError(f"{path}: the map has no 'audio' section (rate, block, channels); see docs/live.md, \"Audio output\"")

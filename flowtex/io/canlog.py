@@ -18,6 +18,7 @@ import can
 from can.io.blf import FILE_HEADER_SIZE, FILE_HEADER_STRUCT
 
 from ..errors import DataError
+from ..limits import check_regular
 from .atomic import atomic_output
 from .formats import CAN_LOG, suffixes
 
@@ -90,6 +91,7 @@ class SessionWriter:
 def read_session(path: str | Path) -> Iterator[can.Message]:
     """Frames of a session log in file order (with their ``is_rx`` direction)."""
     path = check_log_path(path, for_writing=False)
+    check_regular(path, "CAN log")
     if not path.is_file():
         raise DataError(f"{path}: CAN log not found")
     try:
@@ -147,6 +149,7 @@ def read_session_checked(path: str | Path) -> tuple[list[can.Message], LogComple
 def _read_text_log(path: Path) -> tuple[list[can.Message], LogCompleteness]:
     """A .log/.asc session; when its last line has no newline (cut off), the frames of the lines before it."""
     check_log_path(path, for_writing=False)
+    check_regular(path, "CAN log")
     if not path.is_file():
         raise DataError(f"{path}: CAN log not found")
     data = path.read_bytes()

@@ -41,6 +41,7 @@ from ..yamlsource import LocDict, LocList, load_yaml, read_source
 from .audiomap import AudioMap, parse_audio
 from .dbc import find_signal, suggest
 from .dbcrange import check_value, sendable_range
+from .mapsafety import check_transmitters, check_unbound_signals
 
 __all__ = ["DEFAULT_OVERRUN_MS", "CanMap", "InputBinding", "OutputBinding", "load_map"]
 
@@ -145,6 +146,8 @@ def load_map(path: str | Path, db: Database, dbc_path: str | Path = "DBC",
             p.add((b.loc.line, b.loc.column), f"output {b.name!r} writes message {both[0]!r}, which inputs also read; "
                   "a message is either sensor or actuator")
     _one_message_per_id(p, db, [*inputs.values(), *outputs.values()])
+    check_transmitters(db, list(inputs.values()), list(outputs.values()), p.add)
+    check_unbound_signals(db, list(outputs.values()), p.add)
     audio = parse_audio(data["audio"], data.value_pos["audio"], p, graph_outputs) if "audio" in data else None
     p.raise_if_any()
     return CanMap(path, inputs, outputs, float(overrun), audio)
@@ -235,7 +238,7 @@ def _binding(p: Collector, db: Database, dbc_path: str | Path, section: str, nam
 
 def _safe_sendable(p: Collector, db: Database, entry: LocDict, signals: list[tuple[str, str]], safe: np.ndarray,
                    scale: np.ndarray, offset: np.ndarray, what: str) -> bool:
-    """Every safe value must arrive as itself within one LSB under the DBC (checked before the clamps): else the
+    """Every safe value must arrive as itself within half an LSB under the DBC (checked before the clamps): else the
     encoder's DBC clamp or saturation would send another value on every safe frame and at exit."""
     for j, (m, s) in enumerate(signals):
         msg = db.get_message_by_name(m)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import re
 from pathlib import Path
 
 import cantools
@@ -26,13 +27,14 @@ def load_dbc(path: str | Path) -> Database:
     reports one) for a missing, unreadable or malformed file.
     """
     path = Path(path)
+    check_file_size(path, "DBC file", MAX_DBC_BYTES)  # first: a FIFO or device is refused as such, not "not found"
     if not path.is_file():
         raise DataError(f"{path}: DBC file not found")
-    check_file_size(path, "DBC file", MAX_DBC_BYTES)
     try:
         text = path.read_text(encoding="utf-8", errors="replace")
     except OSError as exc:
         raise DataError(f"{path}: cannot read DBC file: {exc.strerror or exc}") from None
+    check_id_numbers(text, path)
     try:
         db = cantools.database.load_string(text, database_format="dbc", strict=True)
     except Exception as exc:  # cantools raises ParseError, Error, ValueError... all mean "bad file"
@@ -42,6 +44,38 @@ def load_dbc(path: str | Path) -> Database:
     check_unique_ids(db, path)
     check_scales(db, path)
     return db
+
+
+_BO_LINE = re.compile(r"^[ \t]*BO_[ \t]+(-?\d+)[ \t]+(\w+)", re.MULTILINE)
+EXTENDED_FLAG = 1 << 31
+"""Bit 31 of a BO_ line's number marks an extended (29-bit) frame, as in every DBC writer."""
+MAX_STANDARD_ID = 1 << 11
+MAX_EXTENDED_ID = 1 << 29
+
+
+def check_id_numbers(text: str, path: str | Path = "DBC") -> None:
+    """Refuse a ``BO_`` number that is no CAN ID, read from the DBC text before cantools masks it.
+
+    cantools keeps only the low 32 bits of the number (``BO_ 1099511627776`` = 2^40 becomes standard ID 0x000, the
+    highest-priority ID on a bus), so the number is checked as written: below 2^32, and once bit 31 (the extended
+    flag) is taken off, below 2^29 for an extended frame and below 2^11 for a standard one.
+    """
+    for match in _BO_LINE.finditer(text):
+        number, name = int(match.group(1)), match.group(2)
+        line = text.count("\n", 0, match.start()) + 1
+        if number < 0 or number >= 1 << 32:
+            raise DataError(f"{path}:{line}: message {name!r} has CAN ID {number}, which is no CAN ID (a BO_ number is below "
+                            f"2^32: a standard ID below 2^11 = {MAX_STANDARD_ID}, or an extended ID below 2^29 with bit 31 set); "
+                            "fix its BO_ line")
+        if number & EXTENDED_FLAG:
+            can_id = number & ~EXTENDED_FLAG
+            if can_id >= MAX_EXTENDED_ID:
+                raise DataError(f"{path}:{line}: message {name!r} has extended CAN ID {can_id:#x}, beyond 29 bits "
+                                f"(extended IDs are below {MAX_EXTENDED_ID:#x}); fix its BO_ line")
+        elif number >= MAX_STANDARD_ID:
+            raise DataError(f"{path}:{line}: message {name!r} has standard CAN ID {number:#x}, beyond 11 bits (standard IDs are "
+                            f"below {MAX_STANDARD_ID:#x}; an extended ID is written with bit 31 set: {number | EXTENDED_FLAG} for "
+                            f"{number:#x} if it is below 2^29); fix its BO_ line")
 
 
 def check_unique_ids(db: Database, path: str | Path = "DBC") -> None:

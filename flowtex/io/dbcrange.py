@@ -6,7 +6,8 @@ the encoder clamps or saturates it and the device receives something else: a "sa
 0.5 A. :func:`round_trip` encodes a physical value with flowtex's own codec (exactly what the
 runtime sends: DBC clamp, ``round((v - offset) / scale)``, saturation or, for ``scale 1`` without
 a range, wrap-around of the raw integer) and decodes the payload with cantools, an independent
-decoder; :func:`check_value` compares the two within one LSB (:func:`lsb`).
+decoder; :func:`check_value` compares the two within half an LSB (:func:`lsb`): the rounding to the nearest raw
+value, no more. A whole LSB would pass a 1-bit ``Enable`` sent as 1 for a safe 0.
 
 Physical values are in the signal's DBC unit.
 """
@@ -61,11 +62,11 @@ def round_trip(msg: Message, sig: Signal, value: float, codec: MessageCodec | No
 
 
 def check_value(msg: Message, sig: Signal, value: float, codec: MessageCodec | None = None) -> float | None:
-    """None when ``value`` arrives as itself within one LSB; else the value that arrives instead."""
+    """None when ``value`` arrives as itself within half an LSB (the rounding); else the value that arrives instead."""
     try:
         got = round_trip(msg, sig, value, codec)
     except (OverflowError, ValueError, struct.error):  # beyond what a float32 field or the raw integer can pack
         return math.inf if value > 0 else -math.inf
-    if math.isfinite(got) and abs(got - value) <= lsb(sig, value) * (1 + 1e-9):
+    if math.isfinite(got) and abs(got - value) <= lsb(sig, value) / 2 * (1 + 1e-9):
         return None
     return got

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError
-from ..limits import excerpt
+from ..limits import check_regular, excerpt
 from ..models.rendering import HATT_RULE, RenderRule
 from ..models.texture import TextureModelSet
 from ..node_api import suggest
@@ -66,6 +66,7 @@ def load_model_set(path: str | Path) -> TextureModelSet:
     element or key) for a missing, unreadable or malformed file.
     """
     path = Path(path).expanduser()
+    check_regular(path, "model file")
     try:
         with path.open("rb") as fh:
             head = fh.read(256).lstrip()

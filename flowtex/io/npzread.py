@@ -72,6 +72,9 @@ def _member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path, name: str, t
             raise DataError(f"{where} is not an npy array ({excerpt(str(exc), 120)})") from None
         if dtype.hasobject or dtype.names is not None or dtype.subdtype is not None or dtype.kind not in "biufcUS":
             raise DataError(f"{where} has dtype {str(dtype)[:40]}; a recording holds plain numbers")
+        if any(not isinstance(d, int) or d < 0 for d in shape):
+            raise DataError(f"{where}: its header claims shape {excerpt(shape)}; an array's dimensions are counts (>= 0): "
+                            "the file is damaged")
         count = math.prod(shape)
         check_values(path, total + count, f"entry {excerpt(name)} (shape {excerpt(shape)})")
         need = count * dtype.itemsize

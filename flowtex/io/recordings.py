@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError
-from ..limits import MAX_RECORDING_VALUES, check_values, excerpt
+from ..limits import MAX_RECORDING_VALUES, check_regular, check_values, excerpt
 from .formats import AUDIO, RECORDING, format_of, listing, suffixes
 from .npzread import read_npz_arrays
 from .recording_rules import check_signals, numeric_signal
@@ -62,6 +62,7 @@ def load_recording(path: str | Path) -> Recording:
     path = Path(path)
     if not path.exists():
         raise DataError(f"{path}: recording not found")
+    check_regular(path, "recording")
     fmt = format_of(path)
     name = fmt.name if fmt is not None and fmt.kind in (RECORDING, AUDIO) else None
     if name == "npz":

@@ -11,12 +11,17 @@ its full scale: 32768 for 16 bit, 2**31 for 32 bit, 128 around 128 for 8 bit).
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import DataError
+from ..limits import check_values
+
+MAX_CHUNKS = 1000
+"""RIFF chunks walked to find ``data`` (real WAVs have a handful)."""
 
 CHANNEL_PREFIX = "ch"
 
@@ -31,6 +36,11 @@ def read_wav(path: str | Path) -> tuple[float, dict[str, np.ndarray]]:
     from scipy.io import wavfile
 
     path = Path(path)
+    claimed = data_values(path)
+    if claimed is not None:
+        check_values(path, claimed, "its data chunk")
+        if claimed == 0:
+            raise DataError(f"{path}: the WAV file has no samples (its data chunk is empty)")
     try:
         rate, data = wavfile.read(path)
     except OSError as exc:
@@ -45,6 +55,37 @@ def read_wav(path: str | Path) -> tuple[float, dict[str, np.ndarray]]:
         x = data.astype(np.float64) / float(2 ** (8 * data.dtype.itemsize - 1))
     x = x.reshape(x.shape[0], -1)
     return float(rate), {n: x[:, i] for i, n in enumerate(channel_names(x.shape[1]))}
+
+
+def data_values(path: Path) -> int | None:
+    """Samples (all channels) the ``data`` chunk of the WAV at ``path`` claims, from its headers alone; None if unknown.
+
+    Read before scipy allocates the data: a sparse file of a few KB may claim 600 million samples. Unknown (None) when
+    the file is no plain RIFF/WAVE or its ``fmt`` chunk does not precede ``data``; scipy then reports what it finds.
+    """
+    try:
+        with open(path, "rb") as fh:
+            if fh.read(12)[8:12] != b"WAVE":
+                return None
+            sample_bytes = 0
+            for _ in range(MAX_CHUNKS):
+                head = fh.read(8)
+                if len(head) < 8:
+                    return None
+                cid, size = head[:4], struct.unpack("<I", head[4:])[0]
+                if cid == b"fmt ":
+                    fmt = fh.read(min(size, 40))
+                    if len(fmt) < 16:
+                        return None
+                    sample_bytes = max(1, struct.unpack("<H", fmt[14:16])[0] // 8)
+                    fh.seek(size - len(fmt) + (size & 1), 1)
+                elif cid == b"data":
+                    return size // sample_bytes if sample_bytes else None
+                else:
+                    fh.seek(size + (size & 1), 1)
+    except OSError:
+        return None
+    return None
 
 
 def write_wav(path: str | Path, samples: np.ndarray, rate: float) -> None:

@@ -85,6 +85,8 @@ class LiveReport:
     """Not one sensor frame arrived (outputs were safe throughout): ``flowtex live`` then exits with code 3."""
     audio: dict | None = None
     """The audio output's summary (:meth:`~flowtex.runtime.audio.AudioOutput.summary`) when the map has an ``audio`` section."""
+    safe_sent: bool = True
+    """Every actuator message's safe frame went out at exit (False: the bus refused at least one, see ``error``)."""
     warnings: list[str] = field(default_factory=list)
     """One line per output clamped or peak-limited on more than 1 % of the ticks (:func:`~flowtex.runtime.status.clamp_warnings`)."""
 
@@ -272,6 +274,7 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                 device.collect(k)
             if rt_status is not None:
                 leave_realtime(rt_status)
+    safe_sent = safe_error is None or not safe_error.startswith(SAFE_NOT_SENT)
     if safe_error:
         error = f"{error}; {safe_error}" if error else safe_error
     stats.watchdog_events = watchdog.events
@@ -289,7 +292,7 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                       summary=stats.summary(rt_granted), rt_message=rt_message, send_offset_ns=send_offset[:min(k, capacity)],
                       device=device, silent_messages=silent, silence=silence,
                       no_sensor_frames=bool(k) and len(silent) == len(io.map.sensor_messages()) > 0,
-                      warnings=clamp_warnings(io, k), audio=audio_summary)
+                      warnings=clamp_warnings(io, k), audio=audio_summary, safe_sent=safe_sent)
 
 
 def _audio_held(watchdog: Any, k: int) -> bool:
@@ -323,13 +326,17 @@ def _silent_sensors(io: CanIO, last: np.ndarray, ticks: int, frames_in: int, whe
 
 
 def _enter_rt(rt: bool, priority: int, cpu: int | None, status: TextIO | None) -> tuple[RealtimeStatus | None, str]:
-    """With ``rt``: ask for SCHED_FIFO at ``priority`` pinned to ``cpu`` and say what was granted; returns the status to restore."""
+    """With ``rt``: ask for SCHED_FIFO at ``priority`` pinned to ``cpu`` and say what was granted; returns the status to restore.
+
+    What was granted goes to ``status`` (none with ``--quiet``); what was refused goes to ``status`` or else stderr."""
     if not rt:
         return None, ""
     rt_status = enter_realtime(priority, cpu)
     message = str(rt_status.message)
     if rt_status.granted and not message:
         message = f"--rt: SCHED_FIFO priority {rt_status.priority}, pinned to CPU {rt_status.cpu}"
+    elif message:  # a warning: what was asked for was not (all) granted; printed with --quiet too
+        status = status if status is not None else sys.stderr
     if status is not None and message:
         print(message, file=status)
     return rt_status, message
@@ -353,15 +360,25 @@ def _stop_signals(flag: list[str | None], install: bool) -> Iterator[None]:
             signal.signal(s, h)
 
 
+SAFE_NOT_SENT = "could not send the safe values"
+
+
 def _send_safe(io: CanIO, bus: can.BusABC, writer: SessionWriter | None) -> str | None:
-    """Encode and send every output's safe value (and log it); returns an error text if sending failed."""
+    """Encode and send every output's safe value (and log it); returns an error text, starting with
+    :data:`SAFE_NOT_SENT` and naming the messages the bus refused, if any did not go out."""
     io.encode_safe()
-    problem = None
+    failed: list[str] = []
+    reason = ""
     for m in io.tx:
         try:
             bus.send(m)
         except Exception as exc:  # keep trying the other messages
-            problem = f"could not send safe values: {one_line(exc)}"
+            failed.append(f"{m.arbitration_id:#x}")
+            reason = one_line(exc)
+    problem = None
+    if failed:
+        problem = (f"{SAFE_NOT_SENT} (frame id {', '.join(failed)}): {reason}; the device did not receive them: "
+                   "make it safe by hand")
     if writer is not None:
         writer.write_tick((), io.tx)
     return problem

@@ -198,6 +198,11 @@ def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, m
     frames, completeness = read_session_checked(session_path)
     timeline, frames = split_events(frames)
     ticks, exit_block = _split_ticks(frames, io.tx_ids, session_path, completeness.problem is None)
+    if not ticks:
+        ids = ", ".join(f"{fid:#x}" for fid, _ in io.tx_ids)
+        what = "no frame at all" if not frames else f"{len(frames)} frame(s) but no complete tick"
+        raise DataError(f"{session_path}: nothing to replay: the log holds {what} (a tick ends with one frame of each actuator "
+                        f"message of {map_path}: {ids}); is it a session recorded with this map and DBC?")
     fmt = format_of(output_path) if output_path is not None else None
     out_kind = fmt.kind if fmt is not None and (fmt.name in ("npz", "wav") or fmt.kind == CAN_LOG) else None
     if output_path is not None and out_kind is None:

@@ -212,6 +212,17 @@ def plan_json(plan: dict[str, SurfaceData]) -> dict[str, dict[str, dict[str, Any
     return {key: {comp: asdict(d) for comp, d in data.decisions.items()} for key, data in plan.items()}
 
 
+def silent_surfaces(plan: dict[str, SurfaceData]) -> list[str]:
+    """One warning line per surface whose every component was dropped (it renders nothing), naming each reason."""
+    lines = []
+    for key, data in plan.items():
+        if data.decisions and not any(d.keep for d in data.decisions.values()):
+            why = "; ".join(f"{comp} {d.reason}" for comp, d in data.decisions.items())
+            lines.append(f"surface {key!r} renders nothing: every component was dropped ({why}); lower its threshold in the "
+                         "scene's thresholds:, or add keep: COMPONENT to the surface")
+    return lines
+
+
 def explain(plan: dict[str, SurfaceData]) -> str:
     """Human-readable table: one line per surface and component."""
     width = max([7] + [len(k) for k in plan])

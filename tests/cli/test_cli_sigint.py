@@ -37,16 +37,10 @@ sys.exit(main(sys.argv[1:]))
 """``flowtex`` with numpy.savez slowed down in this process only: the test interrupts a write in progress."""
 
 
-def test_sigint_during_the_write_keeps_the_old_output(tmp_path):
-    (tmp_path / "g.yaml").write_text(GRAPH)
-    x = np.arange(5000, dtype=np.float64)
-    save_recording(tmp_path / "in.npz", {"x": x}, rate=1000.0)
-    out = tmp_path / "out.npz"
-    save_recording(out, {"y": np.full(3, 7.0)}, rate=1000.0)  # the old output, which must survive
-    before = out.read_bytes()
+def signal_during_write(tmp_path, verb_args, signum) -> tuple[int, str]:
+    """Run ``flowtex VERB_ARGS`` (numpy.savez held after writing its temporary file), send ``signum`` there; (code, stderr)."""
     marker = tmp_path / "writing"
-    cmd = [sys.executable, "-c", SLOW_WRITER, str(marker), "run", str(tmp_path / "g.yaml"), "-i", str(tmp_path / "in.npz"), "-o", str(out),
-           "--no-plugins"]
+    cmd = [sys.executable, "-c", SLOW_WRITER, str(marker), *map(str, verb_args)]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}  # the flowtex under test, whatever the cwd
     proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -57,13 +51,24 @@ def test_sigint_during_the_write_keeps_the_old_output(tmp_path):
             time.sleep(0.05)
         # the new data are in the temporary file now, not yet renamed: interrupt here
         assert [p.name for p in tmp_path.iterdir() if ".part" in p.name]
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(signum)
         _stdout, stderr = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
             proc.kill()
-    assert proc.returncode == 130 and stderr.strip().splitlines()[-1] == "interrupted", stderr
+    return proc.returncode, stderr
+
+
+def test_sigint_during_the_write_keeps_the_old_output(tmp_path):
+    (tmp_path / "g.yaml").write_text(GRAPH)
+    x = np.arange(5000, dtype=np.float64)
+    save_recording(tmp_path / "in.npz", {"x": x}, rate=1000.0)
+    out = tmp_path / "out.npz"
+    save_recording(out, {"y": np.full(3, 7.0)}, rate=1000.0)  # the old output, which must survive
+    before = out.read_bytes()
+    code, stderr = signal_during_write(tmp_path, ["run", tmp_path / "g.yaml", "-i", tmp_path / "in.npz", "-o", out, "--no-plugins"],
+                                       signal.SIGINT)
+    assert code == 130 and stderr.strip().splitlines()[-1] == "interrupted", stderr
     assert out.read_bytes() == before
     assert load_recording(out).arrays["y"].tolist() == [7.0, 7.0, 7.0]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["g.yaml", "in.npz", "out.npz", "writing"]  # no temporary file
-

@@ -12,6 +12,7 @@ explicit and derandomised so the whole module stays within seconds in CI.
 
 from __future__ import annotations
 
+import os
 import struct
 import zipfile
 from pathlib import Path
@@ -284,3 +285,38 @@ def test_blf_replay(folder, blf, data):
     path = folder / "m.blf"
     path.write_bytes(data.draw(mutated(blf, [b"LOGG", b"LOBJ", b"\xff" * 4, b"\x00" * 16, b"\x78\x9c"])))
     ends_cleanly(lambda: list(read_session(path)), path)
+
+
+# -- special files: FIFOs and devices under any reader's name ---------------------------------------------------------
+
+SPECIAL_READERS = {
+    ".npz": load_recording, ".csv": load_recording, ".wav": load_recording, ".h5": load_recording,
+    ".json": load_model_set, ".xml": load_model_set, ".yaml": check_graph, ".dbc": load_dbc, ".blf": lambda p: list(read_session(p)),
+    ".log": lambda p: list(read_session(p)), ".pattern.json": read_pattern, ".taps.json": read_tap_library,
+}
+
+
+@pytest.fixture(scope="module")
+def special_targets(folder):
+    """A FIFO nobody writes to and the endless devices; each is reached through a link with a reader's suffix."""
+    fifo = folder / "special.fifo"
+    if not fifo.exists():
+        os.mkfifo(fifo)
+    return [str(fifo)] + [d for d in ("/dev/zero", "/dev/urandom", "/dev/null") if os.path.exists(d)]
+
+
+@budget(40, 5000)
+@given(suffix=st.sampled_from(sorted(SPECIAL_READERS)), which=st.integers(0, 3), via_link=st.booleans())
+def test_special_files_end_cleanly_and_fast(folder, special_targets, suffix, which, via_link):
+    """A reader given a FIFO or a device returns a one-line refusal within the deadline: nothing blocks, nothing reads on."""
+    target = Path(special_targets[which % len(special_targets)])
+    path = folder / f"sp{which}{'l' if via_link else ''}{suffix}"
+    if not os.path.lexists(path):
+        mid = folder / f"mid{which}"  # a link to a link
+        if via_link and not os.path.lexists(mid):
+            os.symlink(target, mid)
+        os.symlink(mid if via_link else target, path)
+    with pytest.raises(FlowtexError) as info:
+        SPECIAL_READERS[suffix](path)
+    msg = str(info.value)
+    assert len(msg.splitlines()) == 1 and "not a regular file" in msg, msg
