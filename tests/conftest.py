@@ -13,8 +13,13 @@ REPO = Path(__file__).resolve().parents[1]
 os.environ.setdefault("FLOWTEX_BACKGROUND", "0")  # no background fused compiles (docs/engine.md) competing with the tests
 # The suite runs on the dispatch tier: a structure costs no numba compile once its node types are cached, and both tiers
 # give bit-identical outputs (tests/test_engine_tiers.py). The files below keep the fused tier: tier equivalence and goldens.
-SUITE_SETS_TIER = "FLOWTEX_COMPILE" not in os.environ
-os.environ.setdefault("FLOWTEX_COMPILE", "dispatch")
+_SUITE_TIER_MARK = "PYTEST_FLOWTEX_SUITE_TIER"
+"""Set beside FLOWTEX_COMPILE when this conftest chose the tier: pytest-xdist's workers inherit the controller's
+environment, so in a worker FLOWTEX_COMPILE is already set and only this mark says the suite (not the caller) set it."""
+if "FLOWTEX_COMPILE" not in os.environ:
+    os.environ["FLOWTEX_COMPILE"] = "dispatch"
+    os.environ[_SUITE_TIER_MARK] = "1"
+SUITE_SETS_TIER = os.environ.get(_SUITE_TIER_MARK) == "1"
 
 FUSED_TIER_FILES = frozenset({
     # tier equivalence and goldens

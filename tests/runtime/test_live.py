@@ -146,7 +146,7 @@ def test_signal_leaves_safe_values_last(setup, sig):
     try:
         deadline = time.monotonic() + 120
         # the log grows in a temporary file beside it (renamed over s*.log at the end: atomic)
-        while time.monotonic() < deadline and sum(p.stat().st_size for p in setup.glob(f".{rec.name}.*.part.log")) < 20000:
+        while time.monotonic() < deadline and sum(p.stat().st_size for p in setup.glob(f".{rec.stem}.*.part{rec.suffix}")) < 20000:
             time.sleep(0.1)
             assert proc.poll() is None, proc.stderr.read().decode()
         assert not rec.exists()
