@@ -181,7 +181,10 @@ def test_safe_values_not_sent_are_not_claimed_sent(setup):  # noqa: F811
         for p in (dev, live):
             if p is not None and p.poll() is None:
                 p.kill()
-    lines = [line for line in err.strip().splitlines() if not line.startswith("flowtex: compiling")]
+    # the device stops sending when it dies, so the input watchdog may report the stale sensor (a true warning) in the
+    # ticks before the first write fails; whether it does is a race between the kill and the next write
+    lines = [line for line in err.strip().splitlines()
+             if not line.startswith("flowtex: compiling") and not (line.startswith("watchdog: ") and "stale" in line)]
     assert live.returncode == 1 and len(lines) == 1, err
     assert "could not send the safe values" in lines[0] and "did not receive them" in lines[0], err
     assert "(safe values sent)" not in lines[0]
