@@ -190,18 +190,3 @@ def _discard(cache_file: object) -> None:
     for n in names:
         with contextlib.suppress(OSError):
             os.unlink(os.path.join(folder, n))
-
-
-def _prune(root: Path, current: Path) -> None:
-    try:
-        others = sorted((p for p in root.iterdir() if p.is_dir() and p != current), key=lambda p: p.stat().st_mtime)
-    except OSError:
-        return
-    now = time.time()
-    for old in others[:-KEEP_OLD] if len(others) > KEEP_OLD else []:
-        try:
-            if now - max([old.stat().st_mtime] + [c.stat().st_mtime for c in old.iterdir()]) < IN_USE_S:
-                continue
-        except OSError:
-            continue
-        shutil.rmtree(old, ignore_errors=True)
