@@ -41,7 +41,7 @@ def test_truncated_models_keep_power_and_are_valid():
         assert np.all(np.diff(np.r_[0.0, ar[m], np.pi]) > 0) and np.all(np.diff(np.r_[0.0, ma[m], np.pi]) > 0)
         full = arma_output_variance(lsf_to_poly_new(ms.ar_lsf[m]), lsf_to_poly_new(ms.ma_lsf[m]), ms.gain[m], ms.variance[m])
         red = arma_output_variance(lsf_to_poly_new(ar[m]), lsf_to_poly_new(ma[m]), ms.gain[m], var[m])
-        assert red == pytest.approx(full, rel=1e-9, abs=1e-300)  # rounding of the two Lyapunov solutions
+        assert red == pytest.approx(full, rel=1e-9, abs=1e-300)  # rounding of the two lattice step-downs
 
 
 def test_lookup_order_param(tmp_path: Path):
