@@ -3,8 +3,9 @@
 Each is an ordinary flowtex graph (YAML text, compiled like any graph file),
 so that a dataset's tap transients and friction forces come from exactly the
 nodes a fitted surface is later rendered with: ``tap_player`` and
-``coulomb_friction``. Files and values are given as overrides
-(``taps.library=...``); the rate is formatted in. The texture's vibration is
+``coulomb_friction``. Values are given as overrides, a tap library as the
+loaded object (``taps.library``), so nothing is written to disk; the rate is
+formatted in. The texture's vibration is
 rendered by the one texture graph, :func:`flowtex.fit.texture_graph.texture_builder`.
 """
 
