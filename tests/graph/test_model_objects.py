@@ -132,3 +132,16 @@ def test_an_unreadable_file_is_named_by_its_parameter_in_a_graph_and_in_a_proces
     with pytest.raises(GraphError, match=rf"GraphBuilder.node\('lookup', 'texture_lookup', models=...\): node 'lookup' "
                                          rf"\(texture_lookup\): {missing}: no such model file"):
         texture(str(missing)).resolve()
+
+
+def test_a_pattern_or_tap_library_in_memory_at_another_rate_is_refused_by_what_it_is():
+    from flowtex.datasets.taps import synthetic_tap_library
+    from flowtex.errors import ParamError
+
+    types = load_registry().types
+    with pytest.raises(ParamError, match="^the pattern given in memory: pattern filters are sampled at 1000 Hz but this node "
+                                         "runs at 2000 Hz"):
+        types["patterned_texture"].processor(rate=2000.0, pattern=_pattern())(position=np.zeros((4, 3)))
+    with pytest.raises(ParamError, match=r"^the tap library given in memory is sampled at 1000 Hz but this node runs at 2000 Hz; "
+                                         r"resample it \(flowtex.models.taps.resample_tap_library\)"):
+        types["tap_player"].processor(rate=2000.0, library=synthetic_tap_library())(in_contact=np.zeros(4), incoming_speed=np.zeros(4))
