@@ -48,7 +48,7 @@ def test_fused_tick_sends_the_frames_of_the_separate_calls(setup, monkeypatch, g
         if not fused:
             monkeypatch.setattr(live, "fuse_tick", lambda *a: None)
         log = setup / f"{name}.log"
-        r = live.run_live(load_graph(graph), DBC, canmap, record=log, warm=warm, **kw)
+        r = live.run_live(load_graph(graph), live.LiveConfig(DBC, canmap, record=log, warm=warm, **kw))
         assert r.error is None and r.ticks == ticks and r.watchdog_events == 1
         logs.append(_frames(log))
     assert len(logs[0]) == ticks * 2 + (ticks * 2 - 40) + 2  # actuator frames, sensor frames (minus 40 ToolPosition), safe values
@@ -70,11 +70,11 @@ def test_warming_has_no_observable_effect():
     assert fused is not None
     warm = warmer(io, wd, fused, rx_decoder(io, wd))
     before = (g.f.copy(), g.i.copy(), wd.last.copy(), io.table_decoder.words.copy(), bytes(io.table_encoder.payload),
-              [bytes(m.data) for m in io.tx], io._fbuf.copy(), io._ibuf.copy())
+              [bytes(m.data) for m in io.tx], io.codec.out_floats.copy(), io.codec.out_ints.copy())
     for _ in range(5):
         warm()
     after = (g.f, g.i, wd.last, io.table_decoder.words, bytes(io.table_encoder.payload), [bytes(m.data) for m in io.tx],
-             io._fbuf, io._ibuf)
+             io.codec.out_floats, io.codec.out_ints)
     for a, b in zip(before, after, strict=True):
         if isinstance(a, np.ndarray):
             np.testing.assert_array_equal(a, b)
