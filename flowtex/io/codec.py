@@ -285,7 +285,8 @@ def build_codecs(db: Any) -> dict[str, MessageCodec]:
 # is the same sequence of IEEE double operations as the Python functions (and as
 # cantools), so the values and bytes are identical; signals where that could not hold
 # (more than 52 bits, or integer scales whose products may exceed 2**53) keep the
-# Python functions (``fast_ok`` False), as do payloads longer than 8 bytes.
+# Python functions (``fast_ok`` False), as do payloads longer than 8 bytes. This second path is kept because it
+# pays: benchmarks/bench_live_paths.py (section "codec") times it against the Python functions side by side.
 
 # integer table columns (decode and encode)
 _C_SLOT, _C_BIG, _C_LSB, _C_LEN, _C_SIGNED, _C_KIND, _C_INDEX, _C_IDENT, _C_HASMIN, _C_HASMAX, _C_IDRAW = range(11)
