@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 from ..errors import FlowtexError
 from ..limits import MAX_SEED
-from .buses import BusError
+from .buses import BusError, parse_bus_spec
 
 if TYPE_CHECKING:
     from ..io.recordings import Recording
@@ -124,3 +124,7 @@ def _check(c: LiveConfig) -> None:
         raise _bad("drop", "drop", dict(c.drop), "only applies to a simulated device: give simulate= (--simulate RECORDING)")
     if c.simulate is None and c.bus is None:
         raise BusError("no --bus given (e.g. --bus socketcan:can0), and no --simulate RECORDING")
+    if c.bus is not None:
+        interface = parse_bus_spec(c.bus)[0]  # BusError for a spec that is no INTERFACE[:CHANNEL]
+        if c.simulate is not None and interface != "virtual":
+            raise BusError(f"--simulate runs the device on a 'virtual' bus in this process; drop --bus {c.bus!r} or use --bus virtual")

@@ -58,6 +58,13 @@ def test_options_that_need_each_other():
         LiveConfig("dev.dbc", "map.yaml", bus="virtual", drop={"ToolForce": (0, None)})
     with pytest.raises(BusError, match=r"^no --bus given .* and no --simulate RECORDING$"):
         LiveConfig("dev.dbc", "map.yaml")
+    with pytest.raises(BusError, match=r"^--simulate runs the device on a 'virtual' bus in this process; drop --bus 'socketcan:can0'"):
+        LiveConfig("dev.dbc", "map.yaml", bus="socketcan:can0", simulate="rec.npz")
+    with pytest.raises(BusError, match=r"^--bus ':can0': expected INTERFACE\[:CHANNEL\]"):
+        LiveConfig("dev.dbc", "map.yaml", bus=":can0")
+    with pytest.raises(BusError, match=r"^--bus 'socketcand:can0@host:x1': port 'x1' is not a number"):
+        LiveConfig("dev.dbc", "map.yaml", bus="socketcand:can0@host:x1")
+    LiveConfig("dev.dbc", "map.yaml", bus="virtual:private", simulate="rec.npz")  # a named virtual channel is fine
     ok = LiveConfig("dev.dbc", "map.yaml", simulate="rec.npz", drop={"ToolForce": (0, None)}, seed=np.int64(3), rt_cpu=0)
     with pytest.raises(FlowtexError, match="max_ticks"):  # a copy is checked again
         dataclasses.replace(ok, max_ticks=0)
