@@ -10,7 +10,7 @@ Per tick (the order is the contract replay relies on, see docs/live.md):
 3. to 5. one call (:func:`~flowtex.runtime.tick.tick_compute`): decode the frames into
    the graph inputs (inputs hold their last value between frames), one graph tick,
    watchdog, output guard, encode every actuator frame (:mod:`flowtex.runtime.canio`,
-   fused into one compiled call by :mod:`flowtex.runtime.fused` when the graph allows);
+   fused into one compiled call by :mod:`flowtex.runtime.fused` when the map allows);
 6. send exactly one frame per actuator message, in map order;
 7. in the slack: hand the tick's audio samples to the sound card's callback (when the
    map has an ``audio`` section, :mod:`flowtex.runtime.audio`), write the tick's received
