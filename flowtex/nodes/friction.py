@@ -16,7 +16,10 @@ import numpy as np
 from numba import njit
 
 from ..dsp.friction import (
-    DAHL_ISTATE,
+    COULOMB_P,
+    DAHL_P,
+    DAHL_S,
+    DAHL_SI,
     DAHL_STATE,
     DS_NORMAL,
     coulomb_block,
@@ -26,7 +29,7 @@ from ..dsp.friction import (
 from ..dsp.motion import initial_normal_state
 from ..errors import FlowtexError, ParamError
 from ..models.texture import TextureModelSet
-from ..node_api import Node, NodeState, Param, Port, check
+from ..node_api import Memory, Node, NodeState, Param, Port, check
 
 DAHL_ZMAX_PER_MU_MM = 4.0
 """Culbertson & Kuchenbecker 2017: z_max = 4 mm * mu_k."""
@@ -80,10 +83,11 @@ class CoulombFriction(Node):
     inputs = {"velocity": Port((3,), "mm/s", "tangential velocity"), "normal_force": Port((), "N", "normal force (< 0 counts as 0)")}
     outputs = {"force": Port((3,), "N", "friction force on the tool")}
     kernel = _coulomb
+    memory = Memory(params=COULOMB_P)
 
     def build(self, inputs, outputs):
         mu = _mu(self)
-        return NodeState(params=np.array([mu, coulomb_threshold(mu, self.p["mode"])]))
+        return NodeState(params=COULOMB_P.pack({"mu": mu, "threshold": coulomb_threshold(mu, self.p["mode"])}))
 
 
 @njit(cache=True)
@@ -115,6 +119,7 @@ class DahlFriction(Node):
     }
     outputs = {"force": Port((3,), "N", "friction force on the tool")}
     kernel = _dahl
+    memory = Memory(params=DAHL_P, state=DAHL_S, istate=DAHL_SI)
 
     def input_default(self, name, spec):
         return np.asarray(self.p["normal"], dtype=np.float64)
@@ -127,6 +132,6 @@ class DahlFriction(Node):
             z_max = DAHL_ZMAX_PER_MU_MM * mu
             if z_max <= 0.0:
                 z_max = 1.0  # mu = 0: no force whatever z_max is
-        return NodeState(params=np.array([mu, z_max]),
+        return NodeState(params=DAHL_P.pack({"mu": mu, "z_max": z_max}),
                          state=initial_normal_state(DAHL_STATE, DS_NORMAL, self.p["normal"]),
-                         istate=np.zeros(DAHL_ISTATE, np.int64))
+                         istate=DAHL_SI.zeros())
