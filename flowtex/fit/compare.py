@@ -38,7 +38,7 @@ Welch PSDs use Hann segments of ``rate / resolution_hz`` samples (50 %
 overlap), so the spectral resolution is the same at every sample rate (4 Hz:
 250 samples at 1 kHz, 1000 at 4 kHz) and so is the LSD's scatter: with a
 segment fixed in samples, the 1, 2 and 4 kHz versions of one surface scored
-LSD 2.38, 1.45 and 1.03 dB (issue 23).
+very different LSDs (docs/fitting.md).
 
 ``ranges`` (held-out one-second blocks, flowtex.fit.crossval) restricts every
 figure to those sample ranges of a render along the whole path: the PSDs are
@@ -332,7 +332,7 @@ def resampled_band_hz(ms: TextureModelSet) -> float:
 
     Above it the models hold only a stopband ceiling, and a recording resampled up from that rate with
     ``flowtex resample`` holds only the resampler's transition band, so comparing shapes there measures
-    neither the fit nor the recording (issue 18: a resampled twin is compared in the common band).
+    neither the fit nor the recording (a resampled twin is compared in the common band).
     """
     from_hz = (ms.metadata.get("resample") or {}).get("from_hz") if isinstance(ms.metadata, dict) else None
     if isinstance(from_hz, (int, float)) and 0 < from_hz < ms.sample_rate:
