@@ -26,7 +26,7 @@ import numpy as np
 
 from ..errors import FlowtexError
 from ..io.audiomap import AudioMap
-from .audio_render import interpolator, lead_frames, margin_frames, samples_per_tick
+from .audio_render import interpolator, margin_frames, samples_per_tick
 from .audio_ring import FADED, LATENCIES, MISSING, PLAYED, RECORDED, STOPPING, UNDERRUNS, AudioRing
 from .audio_timeline import END, RESYNC, SILENCE, START, SilenceRuns, event_frame
 
@@ -43,6 +43,12 @@ PACE_FAR_BLOCKS = 2
 once (a sound server that stopped or fell behind; the callback's own jitter stays within a block or two)."""
 STALL_S = 0.5
 """A running stream whose callback has not run for this long (and at least 8 blocks) has lost its device."""
+SETTLE_CALLBACKS = 4
+"""Callbacks the stream plays silence for before tick 0 is placed (:meth:`AudioOutput.start`): the sound server's start
+(JACK connects the new ports and reorders its graph) comes with irregular first callbacks, and a tick placed by the first
+of them could already be late."""
+NOT_STARTED = 1 << 62
+"""The ring's lead until :meth:`AudioOutput.start` places tick 0: every frame before it is lead silence, never late."""
 
 
 SWITCH_INTERVAL_S = 0.0005
@@ -99,7 +105,8 @@ class AudioOutput:
     def __init__(self, graph: Any, amap: AudioMap, record: str | Path | None = None, where: str = "map") -> None:
         self.amap = amap
         self.ratio = samples_per_tick(amap, float(graph.rate), where)
-        self.lead = lead_frames(amap)
+        self.lead = NOT_STARTED
+        """Frames of silence before tick 0's first frame; set by :meth:`start` once the stream has settled."""
         self.interp = interpolator(amap, self.ratio)
         self.views = [graph.output_view(c.output).reshape(-1) for c in amap.channels]
         self.x = np.zeros((1, len(amap.channels)))
@@ -154,7 +161,9 @@ class AudioOutput:
         self.first_callback.set()
 
     def start(self, timeout_s: float = 2.0) -> None:
-        """Open the device and start the stream (silence until tick 0's samples); returns after its first callback."""
+        """Open the device, start the stream and place tick 0: returns after :data:`SETTLE_CALLBACKS` callbacks of
+        silence, with tick 0's first frame ``ahead`` frames after the frames handed over by then (the lead), so the
+        clock started next has the whole margin from tick 0 on (the stream's start-up costs silence, not a late tick)."""
         sd = _sd()
         a = self.amap
         try:
@@ -171,6 +180,11 @@ class AudioOutput:
             self.close()
             raise AudioDeviceError(f"audio device {self.device_name}: the stream started but PortAudio never asked for samples "
                                    f"within {timeout_s:g} s")
+        end = time.monotonic() + timeout_s
+        while self.callbacks < SETTLE_CALLBACKS and time.monotonic() < end:
+            time.sleep(self.amap.block / self.amap.rate / 4)
+        self.lead = int(self.ring.istate[RECORDED]) + self.ahead
+        self.ring.lead = self.ring.base = self.lead
 
     def push(self, k: int, arrival_ns: int, silent: bool) -> None:
         """Render tick ``k`` from the graph's current outputs and hand it to the callback (``silent``: play safe silence).
@@ -292,7 +306,8 @@ class AudioOutput:
         dist = ({"p50": float(np.percentile(lat, 50)), "p99": float(np.percentile(lat, 99)), "max": float(lat.max())}
                 if lat.size else {"p50": None, "p99": None, "max": None})
         return {"rate": float(self.amap.rate), "frames": int(self.ring.istate[RECORDED]), "underruns": self.underruns,
-                "latency_ms": dist, "played_frames": int(self.ring.istate[PLAYED]), "lead_frames": int(self.lead),
+                "latency_ms": dist, "played_frames": int(self.ring.istate[PLAYED]),
+                "lead_frames": int(self.lead) if self.lead != NOT_STARTED else None,
                 "samples_per_tick": self.ratio[0] / self.ratio[1], "ratio": list(self.ratio),
                 "latency_samples": int(self.ring.istate[LATENCIES]),
                 "late_callbacks": int(self.ring.istate[UNDERRUNS]), "device_underflows": self.pa_underflows,

@@ -209,15 +209,15 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     error: str | None = None
     guard_events = k = lateness = overrun = 0
     tx, now = io.tx, time.perf_counter_ns
-    if device is not None:
-        device.publish(0)
     with _stop_signals(stop, install_signals), freeze_gc(), prompt_callbacks(audio is not None):
         try:
             if audio is not None:
-                audio.start()  # silence until tick 0's samples are due; returns after PortAudio's first callback
+                audio.start()  # plays silence until the stream has settled, then places tick 0 a margin ahead of it
                 if writer is not None:
                     audio.log_timeline = True
                     writer.write(audio.start_event(), False)
+            if device is not None:  # tick 0's sensor frames, just before tick 0 (their arrival starts its latency)
+                device.publish(0)
             clock.start()
             while True:
                 receive(rx)  # 2. whatever arrived since prepare() (bus time, not compute)
