@@ -169,19 +169,31 @@ def g5_orders(path: Path) -> str:
     return f"{d['ar_order']}/{d['ma_order']}"
 
 
+def start_jackd(name: str, rate: int, period: int) -> subprocess.Popen:
+    """A JACK server named ``name`` on the dummy backend (no sound hardware, paced in real time), without real-time
+    scheduling, as an unprivileged laptop runs it."""
+    return subprocess.Popen(["jackd", "--no-realtime", "-n", name, "-d", "dummy", "-r", str(rate), "-p", str(period)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
+def example_map(folder: Path, rate: int, period: int, margin_ms: float) -> Path:
+    """The bundled audio map with another audio rate, block and margin, written to ``folder``."""
+    m = folder / "m.yaml"
+    text = MAP.read_text().replace("rate: 8000 ", f"rate: {rate} ").replace("block: 64 ", f"block: {period} ")
+    m.write_text(text.replace("margin_ms: 10 ", f"margin_ms: {margin_ms:g} "))
+    return m
+
+
 def jack_session(rate: int, period: int, seconds: float, margin_ms: float, rt: bool, busy: bool) -> dict:
     """One ``flowtex live`` session of the bundled example against a private JACK dummy server; its ``--stats``."""
     name = f"flowtex-bench-{os.getpid()}-{rate}-{period}-{int(rt)}-{int(busy)}"
     env = {**os.environ, "JACK_DEFAULT_SERVER": name, "JACK_NO_START_SERVER": "1"}
-    jackd = subprocess.Popen(["jackd", "--no-realtime", "-n", name, "-d", "dummy", "-r", str(rate), "-p", str(period)],
-                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
+    jackd = start_jackd(name, rate, period)
     hog = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if busy else None  # one core kept busy
     try:
         time.sleep(1.5)
         with tempfile.TemporaryDirectory() as tmp:
-            m = Path(tmp) / "m.yaml"
-            text = MAP.read_text().replace("rate: 8000 ", f"rate: {rate} ").replace("block: 64 ", f"block: {period} ")
-            m.write_text(text.replace("margin_ms: 10 ", f"margin_ms: {margin_ms:g} "))
+            m = example_map(Path(tmp), rate, period, margin_ms)
             stats = Path(tmp) / "stats.json"
             load = os.getloadavg()[0]
             subprocess.run([sys.executable, "-m", "flowtex", "live", str(GRAPH), "--bus", "virtual", "--dbc", str(DBC), "--map", str(m),

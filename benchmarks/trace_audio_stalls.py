@@ -35,10 +35,8 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
-GRAPH = REPO / "graphs" / "live_audio.yaml"
-REC = REPO / "graphs" / "data" / "exploration.npz"
-MAP = REPO / "graphs" / "devices" / "example_audio_map.yaml"
-DBC = REPO / "graphs" / "devices" / "example.dbc"
+sys.path.insert(0, str(REPO / "benchmarks"))
+from bench_audio import DBC, GRAPH, REC, example_map, start_jackd  # noqa: E402
 
 PHASES = ["wait", "sleep", "prepare", "receive", "compute", "send", "push", "check", "pace", "publish", "collect", "other"]
 P = {name: i for i, name in enumerate(PHASES)}
@@ -178,8 +176,7 @@ def main() -> None:
         sys.exit("jackd is not installed (apt-get install jackd2 libportaudio2)")
     name = f"flowtex-trace-{os.getpid()}"
     os.environ.update(JACK_DEFAULT_SERVER=name, JACK_NO_START_SERVER="1")
-    jackd = subprocess.Popen(["jackd", "--no-realtime", "-n", name, "-d", "dummy", "-r", str(args.rate), "-p", str(args.period)],
-                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    jackd = start_jackd(name, args.rate, args.period)
     hog = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if args.busy else None
     trace = Trace()
     install(trace)
@@ -188,9 +185,7 @@ def main() -> None:
     try:
         time.sleep(1.5)
         with tempfile.TemporaryDirectory() as tmp:
-            m = Path(tmp) / "m.yaml"
-            text = MAP.read_text().replace("rate: 8000 ", f"rate: {args.rate} ").replace("block: 64 ", f"block: {args.period} ")
-            m.write_text(text.replace("margin_ms: 10 ", f"margin_ms: {args.margin:g} "))
+            m = example_map(Path(tmp), args.rate, args.period, args.margin)
             stats = Path(tmp) / "stats.json"
             load = os.getloadavg()[0]
             try:
