@@ -1,6 +1,6 @@
 """Where the live audio loop's stalls come from: one traced ``flowtex live`` session of the bundled audio example.
 
-    python benchmarks/trace_audio_stalls.py [--rate 8000] [--period 64] [--margin 10] [--seconds 20] [--busy] [--rt]
+    python benchmarks/trace_audio_stalls.py [--rate 8000] [--period 64] [--margin 10] [--margin-max 15] [--seconds 20] [--busy] [--rt]
 
 Starts a private JACK dummy server (as benchmarks/bench_audio.py does), then runs
 ``flowtex live`` in this process with the loop's parts wrapped so that every phase
@@ -51,7 +51,7 @@ class Trace:
         self.n = 0
         self.ru = np.zeros((CAP // 8, 5), dtype=np.int64)  # perf ns, minflt, majflt, nvcsw, nivcsw
         self.nru = 0
-        self.cb = np.zeros((CAP // 8, 3), dtype=np.int64)  # start ns, wall ns, thread-CPU ns
+        self.cb = np.zeros((CAP // 8, 4), dtype=np.int64)  # start ns, wall ns, thread-CPU ns, PortAudio's underflow flag
         self.ncb = 0
         self.waits = np.zeros((CAP // 8, 3), dtype=np.int64)  # return ns, lateness ns, deadlines skipped
         self.nw = 0
@@ -124,7 +124,7 @@ def install(trace: Trace) -> None:
         callback(self, *a)
         i = trace.ncb
         if i < trace.cb.shape[0]:
-            trace.cb[i] = (t0, time.perf_counter_ns() - t0, time.thread_time_ns() - c0)
+            trace.cb[i] = (t0, time.perf_counter_ns() - t0, time.thread_time_ns() - c0, bool(a[3].output_underflow))
             trace.ncb = i + 1
     out._callback = traced_callback
 
@@ -135,6 +135,9 @@ def report(trace: Trace, late_ms: float, period_ns: int = 1_000_000) -> None:
     ru = trace.ru[:trace.nru]
     cb = trace.cb[:trace.ncb]
     gaps = np.diff(cb[:, 0]) if cb.shape[0] > 1 else np.zeros(0, dtype=np.int64)
+    flagged = np.flatnonzero(cb[:, 3])
+    print(f"PortAudio output underflows at callbacks {flagged.tolist()[:20]} (the first loop tick ran at callback "
+          f"{int(np.searchsorted(cb[:, 0], waits[0, 1])) if waits.size else None})")
     print(f"{trace.n} phase events, {waits.shape[0]} waits, {cb.shape[0]} callbacks; callback wall p50/p99/max "
           f"{np.percentile(cb[:, 1], 50) / 1e3:.0f}/{np.percentile(cb[:, 1], 99) / 1e3:.0f}/{cb[:, 1].max() / 1e3:.0f} us, "
           f"gap between callbacks p50/max {np.median(gaps) / 1e6:.2f}/{gaps.max() / 1e6:.2f} ms")
@@ -166,6 +169,7 @@ def main() -> None:
     ap.add_argument("--rate", type=int, default=8000)
     ap.add_argument("--period", type=int, default=64)
     ap.add_argument("--margin", type=float, default=10.0)
+    ap.add_argument("--margin-max", type=float, default=None, help="the map's margin_max_ms (default: the bundled map's)")
     ap.add_argument("--seconds", type=float, default=20.0)
     ap.add_argument("--late-ms", type=float, default=1.0)
     ap.add_argument("--busy", action="store_true", help="one CPU-bound process beside the session")
@@ -185,7 +189,7 @@ def main() -> None:
     try:
         time.sleep(1.5)
         with tempfile.TemporaryDirectory() as tmp:
-            m = example_map(Path(tmp), args.rate, args.period, args.margin)
+            m = example_map(Path(tmp), args.rate, args.period, args.margin, args.margin_max)
             stats = Path(tmp) / "stats.json"
             load = os.getloadavg()[0]
             try:

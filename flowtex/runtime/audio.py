@@ -15,6 +15,7 @@ back ends the session with :class:`AudioDeviceError`.
 from __future__ import annotations
 
 import contextlib
+import math
 import sys
 import threading
 import time
@@ -112,7 +113,10 @@ class AudioOutput:
         self.x = np.zeros((1, len(amap.channels)))
         self.ring = AudioRing(self.ratio[0], len(amap.channels), self.lead, amap.rate, down=self.ratio[1])
         self.ahead = margin_frames(amap)
-        """Frames between the callback's position and a tick's first frame at the tick's deadline (tick 0 included)."""
+        """Frames between the callback's position and a tick's first frame at the tick's deadline (tick 0 included);
+        raised by a resync, up to :attr:`most` (:meth:`push`)."""
+        self.most = max(self.ahead, math.ceil(amap.margin_max_ms * amap.rate / 1000.0 - 1e-9))
+        """Largest margin, frames (the map's ``margin_max_ms``)."""
         self.block_buf = np.zeros((self.interp.max_frames, len(amap.channels)), dtype=np.float32)
         self.cb_end = 0
         self.cb_ns = 0
@@ -186,19 +190,29 @@ class AudioOutput:
         self.lead = int(self.ring.istate[RECORDED]) + self.ahead
         self.ring.lead = self.ring.base = self.lead
 
-    def push(self, k: int, arrival_ns: int, silent: bool) -> None:
+    def push(self, k: int, arrival_ns: int, silent: bool) -> bool:
         """Render tick ``k`` from the graph's current outputs and hand it to the callback (``silent``: play safe silence).
 
-        A tick the callback has already passed (after a stall) resyncs the stream: silence is inserted so that
-        this tick plays ``ahead`` frames after the callback's position again."""
+        A tick the callback has already passed (after a stall longer than the margin) resyncs the stream: silence is
+        inserted so that this tick plays after the callback's position by the margin plus the frames it was late, at
+        most ``margin_max_ms``: the margin grows to absorb as long a stall next time. Returns True when it grew
+        (the loop then lets its clock catch up as far: :meth:`catch_up_s`)."""
         x = self.x
         for c, v in enumerate(self.views):
             x[0, c] = v[0]
         n = self.interp.render(x, self.block_buf)
-        gap = self.ring.resync(k, self.ahead)
-        if gap and self.log_timeline:
-            self._events.append(event_frame(RESYNC, k, gap, self.ring.position(k)))
+        gap = self.ring.resync(k, self.ahead, self.most)
+        grew = False
+        if gap:
+            grew, self.ahead = self.ring.margin > self.ahead, self.ring.margin
+            if self.log_timeline:
+                self._events.append(event_frame(RESYNC, k, gap, self.ring.position(k)))
         self.ring.put(k, self.block_buf[:n], arrival_ns, silent)
+        return grew
+
+    def catch_up_s(self) -> float:
+        """The current margin, s: a stall of the tick loop shorter than this is caught up (the clock's ``catch_up_s``)."""
+        return self.ahead / self.amap.rate
 
     def pace(self, k: int, next_deadline_ns: int) -> int:
         """How far (ns) to move the next tick's deadline so that the ticks follow the sound card's clock.
@@ -311,6 +325,7 @@ class AudioOutput:
                 "samples_per_tick": self.ratio[0] / self.ratio[1], "ratio": list(self.ratio),
                 "latency_samples": int(self.ring.istate[LATENCIES]),
                 "late_callbacks": int(self.ring.istate[UNDERRUNS]), "device_underflows": self.pa_underflows,
-                "margin_ms": self.amap.margin_ms,
+                "margin_ms": self.amap.margin_ms, "margin_max_ms": self.amap.margin_max_ms,
+                "margin_end_ms": round(self.ahead * 1000.0 / self.amap.rate, 3),
                 "late_frames": int(self.ring.istate[MISSING]), "fade_frames": int(self.ring.fade),
                 "resyncs": [list(r) for r in self.ring.resyncs]}

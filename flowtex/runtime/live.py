@@ -197,7 +197,7 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
             warm_pass()
 
     # with a sound card, a stall shorter than the audio margin is caught up rather than skipped (docs/live.md, "Audio output")
-    clock = DeadlineClock(rate, prepare=prepare, catch_up_s=audio.amap.margin_ms / 1000.0 if audio is not None else 0.0)
+    clock = DeadlineClock(rate, prepare=prepare, catch_up_s=audio.catch_up_s() if audio is not None else 0.0)
     period = clock.period_ns
     display = StatusDisplay(status, io, watchdog, stats, int(rate / 2), shown) if status is not None else None
     if display is not None and audio is not None:
@@ -230,8 +230,8 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
                 send_offset[k % capacity] = t2 - clock.deadline_ns
                 stats.frames_in += len(rx)
                 stats.frames_out += len(tx)
-                if audio is not None:
-                    audio.push(k, _arrival_ns(rx, wall_minus_perf), _audio_held(watchdog, k))
+                if audio is not None and audio.push(k, _arrival_ns(rx, wall_minus_perf), _audio_held(watchdog, k)):
+                    clock.catch_up_ns = int(audio.catch_up_s() * 1e9)  # the margin grew after a stall: catch up as far
                 if writer is not None:
                     writer.write_tick(rx, tx)
                     if audio is not None:

@@ -276,6 +276,8 @@ def test_stall_longer_than_the_margin_resyncs_and_the_replay_still_equals_the_ca
     assert r["rc"] == 0, r["stderr"]
     audio = r["stats"]["audio"]
     assert any(k >= 1000 for k, _ in audio["resyncs"]), audio["resyncs"]  # 50 ms > the 10 ms margin: silence inserted
+    # the margin grew to absorb as long a stall next time, up to margin_max_ms (absent: 15 ms); 50 ms is beyond it
+    assert (audio["margin_ms"], audio["margin_max_ms"], audio["margin_end_ms"]) == (10.0, 15.0, 15.0), audio
     good, bad = _compare_cycles(r["captured"], r["recorded"], 64)
     assert bad <= _xruns(log), (good, bad)
     done, replayed = _replay(setup, r, 64)

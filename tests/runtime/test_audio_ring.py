@@ -92,7 +92,21 @@ def test_compare_audio_accepts_silence_and_finds_a_real_difference():
 # logs it, and rebuild: every frame handed to the "sound card" must come back bit for bit.
 
 
-def _live_and_rebuilt(schedule, up, down, seed):
+def test_resync_raises_the_margin_by_the_frames_late_up_to_the_most():
+    ring = _ring()
+    _callback(ring, LEAD + 30)  # tick 0 is 30 frames late
+    assert ring.resync(0, 16, most=100) == 30 + 46 and ring.margin == 46  # 16 + 30 frames: this stall absorbed next time
+    assert ring.position(0) == LEAD + 30 + 46
+    _callback(ring, 46 + 200)  # 200 frames late now: the margin stops at the most
+    assert ring.resync(0, 46, most=100) == 200 + 100 and ring.margin == 100
+    _callback(ring, 100 + 5)
+    assert ring.resync(0, 100, most=100) == 5 + 100 and ring.margin == 100  # at the most: fixed from now on
+    ring2 = _ring()
+    _callback(ring2, LEAD + 30)
+    assert ring2.resync(0, 16) == 30 + 16 and ring2.margin == 16  # no most: the margin never grows
+
+
+def _live_and_rebuilt(schedule, up, down, seed, most=0):
     from flowtex.dsp.audio_interp import frames_before
     from flowtex.runtime.audio_check import rebuild_live
     from flowtex.runtime.audio_timeline import AudioTimeline, SilenceRuns
@@ -112,9 +126,10 @@ def _live_and_rebuilt(schedule, up, down, seed):
 
     for push, callback, held in schedule:
         for _ in range(push):
-            gap = ring.resync(k, ahead)
+            gap = ring.resync(k, ahead, most)
             if gap:
                 resyncs.append((k, gap))
+                ahead = ring.margin
             a, b = frames_before(k, up, down), frames_before(k + 1, up, down)
             ring.put(k, samples[a:b], 0, silent=held)
             k += 1
@@ -125,7 +140,7 @@ def _live_and_rebuilt(schedule, up, down, seed):
     drain()
     silences.extend(runs.close())
     live = np.concatenate(handed)
-    timeline = AudioTimeline(lead=lead, fade=ring.fade, margin=ahead, resyncs=resyncs, silences=silences,
+    timeline = AudioTimeline(lead=lead, fade=ring.fade, margin=24, resyncs=resyncs, silences=silences,
                              total=int(ring.istate[RECORDED]))
     rebuilt, klass = rebuild_live(samples, n_ticks, up, down, timeline)
     return live, rebuilt, klass, ring, timeline
@@ -153,9 +168,9 @@ def test_rebuilt_stream_any_interleaving():
     step = st.tuples(st.integers(0, 12), st.integers(1, 160), st.booleans())
 
     @settings(max_examples=60, deadline=None)
-    @given(st.lists(step, min_size=1, max_size=12), st.integers(0, 2**31))
-    def check(schedule, seed):
-        live, rebuilt, _, _, _ = _live_and_rebuilt(schedule, UP, 1, seed)
+    @given(st.lists(step, min_size=1, max_size=12), st.integers(0, 2**31), st.sampled_from([0, 24, 40, 200]))
+    def check(schedule, seed, most):  # most: the margin grows after each resync, up to it (0, 24: it never grows)
+        live, rebuilt, _, _, _ = _live_and_rebuilt(schedule, UP, 1, seed, most)
         np.testing.assert_array_equal(rebuilt, live)
 
     check()
