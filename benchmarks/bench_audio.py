@@ -13,7 +13,7 @@
    for this interpolator, the same filter with linear phase, linear interpolation,
    a zero-order hold of the 1 kHz signal, and the 5 kHz synthesis; with each one's
    delay at 50 Hz.
-3. Live against a JACK server with the dummy backend (jackd2), the bundled example at
+3. Live against a JACK server with the dummy backend (jackd2; real-time in the ``--rt`` rows only), the bundled example at
    8 kHz / 64, 44.1 kHz / 256 and 48 kHz / 128, each idle and with one core kept busy
    by another process, without and with ``--rt``, the map's ``margin_ms`` beside each
    row (the default 10 ms growing up to 15 ms after a stall it did not absorb, beside a fixed 10 ms; a fixed 2 ms, about
@@ -169,10 +169,12 @@ def g5_orders(path: Path) -> str:
     return f"{d['ar_order']}/{d['ma_order']}"
 
 
-def start_jackd(name: str, rate: int, period: int) -> subprocess.Popen:
-    """A JACK server named ``name`` on the dummy backend (no sound hardware, paced in real time), without real-time
-    scheduling, as an unprivileged laptop runs it."""
-    return subprocess.Popen(["jackd", "--no-realtime", "-n", name, "-d", "dummy", "-r", str(rate), "-p", str(period)],
+def start_jackd(name: str, rate: int, period: int, realtime: bool = False) -> subprocess.Popen:
+    """A JACK server named ``name`` on the dummy backend (no sound hardware, paced in real time): without real-time
+    scheduling, as an unprivileged laptop runs it, or (``realtime``, the ``--rt`` rows) with it, as a machine that
+    grants flowtex SCHED_FIFO runs its sound server too (jackd's default; its clients' process threads get it)."""
+    mode = "--realtime" if realtime else "--no-realtime"
+    return subprocess.Popen(["jackd", mode, "-n", name, "-d", "dummy", "-r", str(rate), "-p", str(period)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
@@ -191,7 +193,7 @@ def jack_session(rate: int, period: int, seconds: float, margin_ms: float, most_
     """One ``flowtex live`` session of the bundled example against a private JACK dummy server; its ``--stats``."""
     name = f"flowtex-bench-{os.getpid()}-{rate}-{period}-{int(rt)}-{int(busy)}"
     env = {**os.environ, "JACK_DEFAULT_SERVER": name, "JACK_NO_START_SERVER": "1"}
-    jackd = start_jackd(name, rate, period)
+    jackd = start_jackd(name, rate, period, realtime=rt)
     hog = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if busy else None  # one core kept busy
     try:
         time.sleep(1.5)

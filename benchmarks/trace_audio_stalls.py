@@ -51,7 +51,7 @@ class Trace:
         self.n = 0
         self.ru = np.zeros((CAP // 8, 5), dtype=np.int64)  # perf ns, minflt, majflt, nvcsw, nivcsw
         self.nru = 0
-        self.cb = np.zeros((CAP // 8, 4), dtype=np.int64)  # start ns, wall ns, thread-CPU ns, PortAudio's underflow flag
+        self.cb = np.zeros((CAP // 8, 5), dtype=np.int64)  # start ns, wall ns, thread-CPU ns, underflow flag, PA time ns
         self.ncb = 0
         self.waits = np.zeros((CAP // 8, 3), dtype=np.int64)  # return ns, lateness ns, deadlines skipped
         self.nw = 0
@@ -124,7 +124,8 @@ def install(trace: Trace) -> None:
         callback(self, *a)
         i = trace.ncb
         if i < trace.cb.shape[0]:
-            trace.cb[i] = (t0, time.perf_counter_ns() - t0, time.thread_time_ns() - c0, bool(a[3].output_underflow))
+            trace.cb[i] = (t0, time.perf_counter_ns() - t0, time.thread_time_ns() - c0, bool(a[3].output_underflow),
+                           int(a[2].currentTime * 1e9))
             trace.ncb = i + 1
     out._callback = traced_callback
 
@@ -136,6 +137,13 @@ def report(trace: Trace, late_ms: float, period_ns: int = 1_000_000) -> None:
     cb = trace.cb[:trace.ncb]
     gaps = np.diff(cb[:, 0]) if cb.shape[0] > 1 else np.zeros(0, dtype=np.int64)
     flagged = np.flatnonzero(cb[:, 3])
+    # how long after PortAudio's own time of the callback (its stream clock, offset calibrated on the earliest one)
+    # the Python callback started: the wait for the GIL and for the callback thread's core
+    entry = cb[:, 0] - cb[:, 4]
+    entry = entry - entry.min()
+    print(f"callback entry after PortAudio's time: p50 {np.percentile(entry, 50) / 1e3:.0f} us, p99 "
+          f"{np.percentile(entry, 99) / 1e3:.0f} us, max {entry.max() / 1e3:.0f} us; at the underflowing callbacks: "
+          f"{(entry[flagged] / 1e3).round().astype(int).tolist()[:12]} us")
     print(f"PortAudio output underflows at callbacks {flagged.tolist()[:20]} (the first loop tick ran at callback "
           f"{int(np.searchsorted(cb[:, 0], waits[0, 1])) if waits.size else None})")
     print(f"{trace.n} phase events, {waits.shape[0]} waits, {cb.shape[0]} callbacks; callback wall p50/p99/max "
@@ -180,7 +188,7 @@ def main() -> None:
         sys.exit("jackd is not installed (apt-get install jackd2 libportaudio2)")
     name = f"flowtex-trace-{os.getpid()}"
     os.environ.update(JACK_DEFAULT_SERVER=name, JACK_NO_START_SERVER="1")
-    jackd = start_jackd(name, args.rate, args.period)
+    jackd = start_jackd(name, args.rate, args.period, realtime=args.rt)
     hog = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if args.busy else None
     trace = Trace()
     install(trace)
