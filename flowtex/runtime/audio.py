@@ -131,6 +131,10 @@ class AudioOutput:
         self.stream: Any = None
         self.device_name = "default output" if amap.device is None else repr(amap.device)
         self.pa_underflows = 0
+        """PortAudio's output underflows after the stream played its first tick sample could (clicks)."""
+        self.lead_underflows = 0
+        """PortAudio's output underflows while every frame handed over was the lead's silence (a sound server's start;
+        not clicks: the server played zeros in place of zeros)."""
         self.callbacks = 0
         self.last_callback_ns = 0
         self.error: str | None = None
@@ -151,8 +155,11 @@ class AudioOutput:
     def _callback(self, outdata: np.ndarray, frames: int, time_info: Any, status: Any) -> None:
         now = time.perf_counter_ns()
         try:
-            if status.output_underflow:
-                self.pa_underflows += 1
+            if status.output_underflow:  # the server played zeros since the last callback
+                if self.ring.istate[RECORDED] <= self.lead:
+                    self.lead_underflows += 1  # everything handed over so far was lead silence: zeros for zeros
+                else:
+                    self.pa_underflows += 1
             ahead = time_info.outputBufferDacTime - time_info.currentTime
             dac_ns = now + int(ahead * 1e9) if 0.0 <= ahead < 10.0 else now
             self.ring.fill(outdata, dac_ns)
@@ -188,6 +195,10 @@ class AudioOutput:
         end = time.monotonic() + timeout_s
         while self.callbacks < SETTLE_CALLBACKS and time.monotonic() < end:
             time.sleep(self.amap.block / self.amap.rate / 4)
+        self.place_tick0()
+
+    def place_tick0(self) -> None:
+        """Set the lead: tick 0's first frame goes ``ahead`` frames after the frames handed over so far."""
         self.lead = int(self.ring.istate[RECORDED]) + self.ahead
         self.ring.lead = self.ring.base = self.lead
 
@@ -326,6 +337,7 @@ class AudioOutput:
                 "samples_per_tick": self.ratio[0] / self.ratio[1], "ratio": list(self.ratio),
                 "latency_samples": int(self.ring.istate[LATENCIES]),
                 "late_callbacks": int(self.ring.istate[UNDERRUNS]), "device_underflows": self.pa_underflows,
+                "lead_underflows": self.lead_underflows,
                 "margin_ms": self.amap.margin_ms, "margin_max_ms": self.amap.margin_max_ms,
                 "margin_end_ms": round(self.ahead * 1000.0 / self.amap.rate, 3),
                 "late_frames": int(self.ring.istate[MISSING]), "fade_frames": int(self.ring.fade),

@@ -199,3 +199,31 @@ def test_check_audio_one_line_per_class_and_unexplained_differences():
     cut = check_audio(longer, rebuilt, klass, replace(timeline, total=None), "live.wav", RATE)
     assert cut.unexplained == 0 and "the session log ends before them" in cut.lines[-1]  # a log without its END
 
+
+
+def test_device_underflows_during_the_lead_are_not_underruns(tmp_path):
+    # PortAudio's underflow flag while everything handed over was the lead's silence (a sound server's start) played
+    # zeros for zeros: counted apart; after tick 0's first frame was due it is a click, an underrun
+    from pathlib import Path
+    from types import SimpleNamespace
+
+    from flowtex.graph.compiled import load_graph
+    from flowtex.io.audiomap import load_audio_section
+    from flowtex.runtime.audio import AudioOutput
+
+    repo = Path(__file__).resolve().parents[2]
+    (tmp_path / "g.yaml").write_text("flowtex: 1\nname: vib\nrate: 1000\ninputs:\n  x: {}\nnodes:\n  v: {type: gain, params: {k: 0.5}}\n"
+                                     "edges:\n  - x -> v.x\noutputs:\n  vibration: v.y\n")
+    amap = load_audio_section(repo / "graphs" / "devices" / "example_audio_map.yaml", {"vibration": 1})
+    out = AudioOutput(load_graph(tmp_path / "g.yaml").with_block_rows(1), amap)
+    when = SimpleNamespace(outputBufferDacTime=0.0, currentTime=0.0)
+    block = np.zeros((amap.block, 1), dtype=np.float32)
+    out._callback(block, amap.block, when, SimpleNamespace(output_underflow=True))  # before tick 0 is placed
+    out.place_tick0()
+    assert out.lead == amap.block + 80  # one block handed over, then the 10 ms margin
+    out._callback(block, amap.block, when, SimpleNamespace(output_underflow=True))  # still only lead silence handed over
+    out._callback(block, amap.block, when, SimpleNamespace(output_underflow=False))
+    out._callback(block, amap.block, when, SimpleNamespace(output_underflow=True))  # frames past the lead were due: a click
+    summary = out.summary()
+    assert (summary["lead_underflows"], summary["device_underflows"]) == (2, 1)
+    assert summary["underruns"] == summary["late_callbacks"] + 1 and out.error is None
