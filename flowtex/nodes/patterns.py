@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..dsp.patterns import RING_DECAY, pattern_block, pattern_params, pattern_state
+from ..dsp.patterns import ISTATE, PARAMS, RING_DECAY, STATE, pattern_block, pattern_params, pattern_state
 from ..dsp.prony import ring_length
-from ..errors import DataError, ParamError
-from ..io.patternfile import read_pattern
-from ..node_api import Node, NodeState, Param, Port
+from ..errors import ParamError
+from ..models.patterns import Pattern
+from ..node_api import Memory, Node, Param, Port
 
 
 @njit(cache=True)
@@ -28,7 +28,7 @@ class PatternedTexture(Node):
 
     type_name = "patterned_texture"
     params = {
-        "pattern": Param("path", doc="pattern file (docs/pattern-format.md); relative to the graph file"),
+        "pattern": Param("path", objects=(Pattern,), doc="pattern file (docs/pattern-format.md); relative to the graph file"),
         "max_active": Param("int", default=16, min=1, max=256, doc="most ring-downs playing at once"),
     }
     inputs = {
@@ -37,20 +37,18 @@ class PatternedTexture(Node):
     }
     outputs = {"y": Port((), "m/s^2", "texture vibration")}
     kernel = _pattern
+    memory = Memory(params=PARAMS, state=STATE, istate=ISTATE)
 
     def build(self, inputs, outputs):
-        path = self.p["pattern"]
-        try:
-            pat = read_pattern(path)
-        except DataError as exc:
-            raise ParamError("pattern", str(exc)) from None
+        pat: Pattern = self.p["pattern"]
         rate = self.context.node_rate
         if abs(pat.sample_rate_hz - rate) > 1e-9 * rate:
-            raise ParamError("pattern", f"{path}: pattern filters are sampled at {pat.sample_rate_hz:g} Hz but this node runs at "
+            where = self.context.files.get("pattern", "the pattern given in memory")
+            raise ParamError("pattern", f"{where}: pattern filters are sampled at {pat.sample_rate_hz:g} Hz but this node runs at "
                              f"{rate:g} Hz; refit the pattern at {rate:g} Hz or run the node at the pattern's rate")
         b, a = pat.padded()
         lengths = [ring_length(bk, ak, RING_DECAY) for bk, ak in zip(pat.b, pat.a, strict=True)]
         slots = self.p["max_active"]
         s, si = pattern_state(b.shape[1] - 1, slots)
         params = pattern_params(pat.axis, pat.origin, pat.positions_mm, pat.amplitudes, np.asarray(lengths), b, a, slots)
-        return NodeState(params=params, state=s, istate=si)
+        return self.pack_state({"k": b.shape[0], "order": b.shape[1] - 1, "slots": slots}, params=params, state=s, istate=si)
