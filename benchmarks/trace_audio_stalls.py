@@ -54,6 +54,7 @@ class Trace:
         self.cb = np.zeros((CAP // 8, 5), dtype=np.int64)  # start ns, wall ns, thread-CPU ns, underflow flag, PA time ns
         self.ncb = 0
         self.waits = np.zeros((CAP // 8, 3), dtype=np.int64)  # return ns, lateness ns, deadlines skipped
+        self.signatures: dict[str, int] = {}
         self.nw = 0
 
     def wrap(self, phase: str, fn):
@@ -86,6 +87,7 @@ def install(trace: Trace) -> None:
 
     class TracedClock(base_clock):
         def __init__(self, *a, **kw):
+            trace.signatures = signature_counts()  # the loop starts after this: what compiles later, compiled live
             kw["sleep"] = trace.wrap("sleep", time.sleep)
             if kw.get("prepare") is not None:
                 kw["prepare"] = trace.wrap("prepare", kw["prepare"])
@@ -218,24 +220,25 @@ def main() -> None:
         jackd.terminate()
         jackd.wait(10)
     report(trace, args.late_ms)
-    compiled_twice()
+    compiled_live(trace)
     if args.dump:
         np.savez(args.dump, ev=trace.ev[:trace.n], ru=trace.ru[:trace.nru], cb=trace.cb[:trace.ncb], waits=trace.waits[:trace.nw])
 
 
-def compiled_twice() -> None:
-    """Numba functions of the runtime that hold more than one compiled signature: each extra one was compiled (or
-    loaded from the cache) when first called with new argument types, possibly during the session."""
+def signature_counts() -> dict[str, int]:
+    """Compiled signatures per numba function of flowtex's modules (generated graph code included)."""
     from numba.core.registry import CPUDispatcher
 
-    seen = []
-    for name, mod in list(sys.modules.items()):
-        if not name.startswith("flowtex"):
-            continue
-        for attr, fn in list(vars(mod).items()):
-            if isinstance(fn, CPUDispatcher) and len(fn.signatures) > 1:
-                seen.append(f"{name}.{attr}: {[str(s) for s in fn.signatures]}")
-    print("numba functions with more than one signature: " + ("; ".join(seen) if seen else "none"))
+    return {f"{name}.{attr}": len(fn.signatures) for name, mod in list(sys.modules.items()) if name.startswith("flowtex")
+            for attr, fn in list(vars(mod).items()) if isinstance(fn, CPUDispatcher)}
+
+
+def compiled_live(trace: Trace) -> None:
+    """Numba functions that gained a signature after the clock was built (just before the loop): each was compiled or
+    loaded from the cache inside the session, on a first-seen code path or argument type."""
+    before = trace.signatures
+    grew = [f"{k}: {before.get(k, 0)} -> {n}" for k, n in signature_counts().items() if n > before.get(k, 0)]
+    print("numba functions compiled during the session: " + ("; ".join(grew) if grew else "none"))
 
 
 if __name__ == "__main__":
