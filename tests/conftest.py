@@ -33,6 +33,13 @@ FUSED_TIER_FILES = frozenset({
 """Test files that run on the fused tier (what library callers get by default), whatever the suite's default."""
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    if os.environ.get("PYTEST_FLOWTEX_PROFILE"):  # where the suite's time goes (tests/suite_profile.py, docs/testing.md)
+        from suite_profile import register
+
+        register(config)
+
+
 @pytest.fixture(autouse=True)
 def _compile_tier(request, monkeypatch):
     """The fused tier for the files of :data:`FUSED_TIER_FILES`; the suite's default (dispatch) elsewhere.
