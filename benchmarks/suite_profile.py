@@ -5,7 +5,7 @@
 
 Prints, per test file (heaviest first): wall time, CPU time of the pytest worker and of the subprocesses it
 waited for, and wall time inside numba (compiles and cache loads; real compiles alone); then the same per
-worker, which shows how evenly ``--dist`` spread the work.
+worker, which shows how evenly ``--dist`` spread the work; then the functions numba compiled more than once.
 """
 
 from __future__ import annotations
@@ -45,6 +45,15 @@ def table(groups: dict[str, dict[str, float]], top: int) -> str:
     return "\n".join(lines)
 
 
+def compiled_twice(rows: list[dict]) -> dict[str, list[str]]:
+    """Functions (with signature) that numba compiled in more than one worker: work the shared disk cache did not save."""
+    where: dict[str, set[str]] = defaultdict(set)
+    for r in rows:
+        for name in r.get("compiled", ()):
+            where[name].add(r["worker"])
+    return {name: sorted(workers) for name, workers in where.items() if len(workers) > 1}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("folder", type=Path)
@@ -54,6 +63,11 @@ def main() -> None:
     print(table(totals(rows, "file"), args.top))
     print()
     print(table(totals(rows, "worker"), args.top))
+    twice = compiled_twice(rows)
+    total = sum(len(r.get("compiled", ())) for r in rows)
+    print(f"\n{total} numba compiles; {len(twice)} functions compiled in more than one worker:")
+    for name, workers in sorted(twice.items())[:args.top]:
+        print(f"  {name[:140]}  {' '.join(workers)}")
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ to ``FOLDER/<worker>.jsonl``:
 ``numba``       seconds of wall time inside numba's compiler lock: compiles and loads from the disk cache
 ``compiles``    seconds of wall time of numba compiles that were not cache hits (outermost ``numba:compile``
                 events; a C-callable wrapper's own compile is not one, the kernels it calls are)
+``compiled``    the functions numba compiled (not loaded from its cache), nested ones included
 
 ``python benchmarks/suite_profile.py FOLDER`` sums them per file and per worker.
 """
@@ -35,13 +36,19 @@ class _Nested(event.Listener):
         self.depth = 0
         self.start = 0.0
         self.total = 0.0
+        self.names: list[str] = []
+        """Every function compiled (nested ones too), as ``module.qualname(signature)``."""
 
-    def on_start(self, ev: object) -> None:
+    def on_start(self, ev: event.Event) -> None:
         self.depth += 1
         if self.depth == 1:
             self.start = time.perf_counter()
+        data = ev.data if isinstance(ev.data, dict) else {}
+        func = getattr(data.get("dispatcher"), "py_func", None) or getattr(data.get("dispatcher"), "_pyfunc", None)
+        if func is not None:
+            self.names.append(f"{func.__module__}.{func.__qualname__}{tuple(str(a) for a in data.get('args', ()))}")
 
-    def on_end(self, ev: object) -> None:
+    def on_end(self, ev: event.Event) -> None:
         self.depth -= 1
         if self.depth == 0:
             self.total += time.perf_counter() - self.start
@@ -54,13 +61,34 @@ class SuiteProfile:
         self.lock, self.compile = _Nested(), _Nested()
         event.register("numba:compiler_lock", self.lock)
         event.register("numba:compile", self.compile)
+        self._time_cfunc_compiles()
         folder.mkdir(parents=True, exist_ok=True)
         self.out = (folder / f"{os.environ.get('PYTEST_XDIST_WORKER', 'main')}.jsonl").open("a")
+
+    def _time_cfunc_compiles(self) -> None:
+        """Count a C callback's compile (a dispatch-tier wrapper, which fires no ``numba:compile``) as a compile."""
+        from numba.core.ccallback import CFunc
+
+        compile_, listener = CFunc.compile, self.compile
+
+        def timed(cf: CFunc) -> None:
+            hits, total, names = cf._cache_hits, listener.total, len(listener.names)
+            listener.on_start(event.Event("numba:compile", event.EventStatus.START, {"dispatcher": cf, "args": cf._sig.args}))
+            try:
+                return compile_(cf)
+            finally:
+                listener.on_end(event.Event("numba:compile", event.EventStatus.END))
+                if cf._cache_hits > hits:  # loaded from the disk cache: not a compile
+                    listener.total = total
+                    del listener.names[names:]
+
+        CFunc.compile = timed
 
     @pytest.hookimpl(hookwrapper=True)
     def pytest_runtest_protocol(self, item, nextitem):  # type: ignore[no-untyped-def]
         me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
         wall, lock, comp = time.perf_counter(), self.lock.total, self.compile.total
+        self.compile.names.clear()
         yield
         me2, kids2 = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
         self.out.write(json.dumps({
@@ -69,7 +97,8 @@ class SuiteProfile:
             "wall": round(time.perf_counter() - wall, 4),
             "cpu": round(me2.ru_utime + me2.ru_stime - me.ru_utime - me.ru_stime, 4),
             "children": round(kids2.ru_utime + kids2.ru_stime - kids.ru_utime - kids.ru_stime, 4),
-            "numba": round(self.lock.total - lock, 4), "compiles": round(self.compile.total - comp, 4)}) + "\n")
+            "numba": round(self.lock.total - lock, 4), "compiles": round(self.compile.total - comp, 4),
+            "compiled": self.compile.names}) + "\n")
         self.out.flush()
 
 
