@@ -61,7 +61,7 @@ import numpy as np
 
 from flowtex.graph.compiled import load_graph
 from flowtex.runtime.clock import DeadlineClock
-from flowtex.runtime.live import run_live
+from flowtex.runtime.live import LiveConfig, run_live
 from flowtex.runtime.realtime import enter_realtime, freeze_gc, leave_realtime
 
 REPO = Path(__file__).resolve().parents[1]
@@ -213,7 +213,7 @@ def run(seconds: float, rt: bool, graph_path: Path, rec: Path, cyclictest: bool 
     floor, floor_line = (machine_floor(min(seconds, 60.0), g.rate, rt, 80, cpu) if cyclictest
                          else (None, "machine floor: not measured (--no-cyclictest)"))
     load_before, steal_before = os.getloadavg(), _steal_ms()
-    r = run_live(g, DBC, MAP, simulate=rec, duration_s=seconds, rt=rt, rt_priority=80, rt_cpu=cpu, status=None)
+    r = run_live(g, LiveConfig(DBC, MAP, simulate=rec, duration_s=seconds, rt=rt, rt_priority=80, rt_cpu=cpu, status=None))
     load_after, steal_after = os.getloadavg(), _steal_ms()
     s = r.summary
     period_ns = 1e9 / g.rate

@@ -34,56 +34,20 @@ from __future__ import annotations
 import argparse
 import math
 import statistics
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 from numba import njit
 
-import flowtex
 from flowtex.datasets.model_sets import cork_like_model_set
 from flowtex.dsp.arma import arma_lattice_block, arma_psd, lattice_ladder_coefficients, new_state
 from flowtex.dsp.lsf import lsf_to_poly, lsf_to_poly_new
 from flowtex.dsp.rng import next_normal, seed_rng
 from flowtex.dsp.spectral import gfc, welch_psd
 from flowtex.dsp.triangulation import locate
-from flowtex.io.modelset import save_model_set
+from flowtex.fit.texture_graph import texture_builder
 
 RATE = 1000.0
-
-GRAPH = """
-flowtex: 1
-name: bench-texture
-rate: 1000
-seed: 1
-inputs:
-  speed: {{unit: mm/s}}
-  force: {{unit: N}}
-nodes:
-  lookup:
-    type: texture_lookup
-    every: {every}
-    params: {{models: {models}}}
-  synth: {{type: arma_synth}}
-edges:
-  - speed -> lookup.speed
-  - force -> lookup.force
-  - lookup.ar -> synth.ar
-  - lookup.ma -> synth.ma
-  - lookup.gain -> synth.gain
-  - lookup.variance -> synth.variance
-outputs:
-  accel: synth.y
-{extra}
-"""
-
-EXTRA_OUTPUTS = """  ar: lookup.ar
-  ma: lookup.ma
-  gain: lookup.gain
-  variance: lookup.variance
-"""
-
 
 def trajectory(n: int, max_speed: float, max_force: float) -> dict[str, np.ndarray]:
     """Speed and force sweeping most of the hull (3.1 Hz and 1.7 Hz), never zero."""
@@ -358,36 +322,29 @@ def main() -> None:
     print(f"pieces: lsf_to_poly AR {ms.ar_order} + MA {ms.ma_order} {l2p:6.1f} ns; reflection + ladder coefficients of one model "
           f"{coef:6.1f} ns; locate (moving query) {loc:5.1f} ns")
 
-    with tempfile.TemporaryDirectory() as tmp:
-        models = save_model_set(ms, Path(tmp) / "cork_like.json")
-        # Reference models: the every-1 lookup's per-tick models (a separate graph, so that the timed graphs
-        # only output the acceleration, as a renderer would).
-        ref_path = Path(tmp) / "bench_ref.yaml"
-        ref_path.write_text(GRAPH.format(every=1, models=models, extra=EXTRA_OUTPUTS))
-        ref_out = flowtex.load_graph(ref_path).run(inputs)
-        freqs, _ = welch_psd(ref_out["accel"], RATE, nperseg=1024)
-        reference = mean_model_psd(ref_out, freqs)
-        m = min(args.model_error_ticks, n)
-        exact = {k: ref_out[k][:m] for k in ("ar", "ma", "gain", "variance")}
-        del ref_out
-        rows = []
-        for every in (1, 2, 4, 8):
-            path = Path(tmp) / f"bench_{every}.yaml"
-            path.write_text(GRAPH.format(every=every, models=models, extra=""))
-            graph = flowtex.load_graph(path)
-            if every == 1:
-                ns, floor, ratio = paired_ns(graph, ms, inputs, args.repeats)
-            else:
-                ns = graph_ns(graph, inputs, args.repeats)
-            live = live_ns(graph, inputs, min(args.live_ticks, n), max(1, args.repeats // 2))
-            y = graph.run(inputs)["accel"]
-            _, psd = welch_psd(y, RATE, nperseg=1024)
-            fit = gfc(np.sqrt(psd), np.sqrt(reference))
-            held_path = Path(tmp) / f"bench_{every}_models.yaml"
-            held_path.write_text(GRAPH.format(every=every, models=models, extra=EXTRA_OUTPUTS))
-            held = flowtex.load_graph(held_path).run({k: v[:m] for k, v in inputs.items()})
-            lsd = model_lsd_db(held, exact, freqs)
-            rows.append((every, ns, live, fit, lsd, float(np.max(np.abs(y))), float(np.sqrt(np.mean(y * y)))))
+    # The one texture graph (flowtex.fit.texture_graph), built with the model set in memory.
+    # Reference models: the every-1 lookup's per-tick models (a separate graph, so that the timed graphs
+    # only output the acceleration, as a renderer would).
+    ref_out = texture_builder(ms, RATE, model_outputs=True).build().run(inputs)
+    freqs, _ = welch_psd(ref_out["accel"], RATE, nperseg=1024)
+    reference = mean_model_psd(ref_out, freqs)
+    m = min(args.model_error_ticks, n)
+    exact = {k: ref_out[k][:m] for k in ("ar", "ma", "gain", "variance")}
+    del ref_out
+    rows = []
+    for every in (1, 2, 4, 8):
+        graph = texture_builder(ms, RATE, every=every).build()
+        if every == 1:
+            ns, floor, ratio = paired_ns(graph, ms, inputs, args.repeats)
+        else:
+            ns = graph_ns(graph, inputs, args.repeats)
+        live = live_ns(graph, inputs, min(args.live_ticks, n), max(1, args.repeats // 2))
+        y = graph.run(inputs)["accel"]
+        _, psd = welch_psd(y, RATE, nperseg=1024)
+        fit = gfc(np.sqrt(psd), np.sqrt(reference))
+        held = texture_builder(ms, RATE, every=every, model_outputs=True).build().run({k: v[:m] for k, v in inputs.items()})
+        lsd = model_lsd_db(held, exact, freqs)
+        rows.append((every, ns, live, fit, lsd, float(np.max(np.abs(y))), float(np.sqrt(np.mean(y * y)))))
 
     print(f"floor (plain numba, no safety: triangle search + LSF blend + lsf_to_poly x2 + direct form): {floor:7.1f} ns/tick")
     print()

@@ -57,6 +57,9 @@ after p, s and si; CPython compiles a call with more than 30 positional argument
 cannot compile."""
 MAX_BUFFER_VALUES = 1 << 27
 """Values of all port buffers of a graph together (block rows x values per tick): 1 GiB of float64."""
+MAX_SEED = 2**63 - 1
+"""Largest noise seed (``--seed``, a live session's ``seed``): a non-negative integer (numpy's SeedSequence), kept within
+a signed 64-bit word."""
 MAX_SEEDS = 64
 """Renders ``compare --seeds`` averages at most: the mean power of 64 renders scatters by ~0.06 dB (one render by
 ~0.5 dB), below what any figure of the comparison resolves; more only costs time (a full render each)."""

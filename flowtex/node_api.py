@@ -113,6 +113,14 @@ class Node:
         """
         return None
 
+    @classmethod
+    def check_params(cls, params: dict[str, Any]) -> None:
+        """Check validated ``params`` against each other before any file they name is read (raise :class:`ParamError`).
+
+        For rules the declarations cannot state, such as two parameters that exclude each other, so that such a
+        mistake is reported as itself rather than as a problem with a file. The default checks nothing.
+        """
+
     def latency_samples(self) -> int:
         """Fixed delay from input to output, in ticks of this node (0: none, the default).
 

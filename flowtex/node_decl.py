@@ -43,7 +43,9 @@ class Param:
         Inclusive bounds unless ``min_exclusive`` / ``max_exclusive``.
     objects:
         For ``path``: types of an already loaded object the parameter takes instead of a file (the in-memory API,
-        e.g. a ``TextureModelSet`` for ``models``); such a value is passed to the node as it is.
+        e.g. a ``TextureModelSet`` for ``models``); such a value is passed to the node as it is. A file given
+        instead is read into that object before the node is built, by the format registry's reader of the type
+        (flowtex.io.formats.OBJECT_FORMATS), so the node always receives the object.
     """
 
     kind: str
@@ -252,6 +254,9 @@ class BuildContext:
     input_every: dict[str, int] = field(default_factory=dict)
     """Connected input port -> ``every`` of the node (or 1 for a graph input) that produces it:
     the input's sample rate is ``rate / input_every[port]``."""
+    files: dict[str, Path] = field(default_factory=dict)
+    """Parameter -> the file its object was read from at the graph/io boundary (flowtex.node_params.load_files), for
+    messages; a parameter given a loaded object in memory is absent."""
 
     @property
     def node_rate(self) -> float:

@@ -18,27 +18,16 @@ import numpy as np
 
 from .errors import ParamError
 from .node_decl import BuildContext, PortSpec, suggest
+from .node_params import checked_params, load_files
 
 
-def coerce_params(cls: type, given: dict[str, Any], base_dir: Path) -> dict[str, Any]:
-    """Validated parameter values of node type ``cls`` (defaults filled in); ParamError names a wrong one."""
-    values: dict[str, Any] = {}
-    for key, value in given.items():
-        decl = cls.params.get(key)
-        if decl is None:
-            hint = suggest(key, list(cls.params)) or f"; parameters are: {', '.join(cls.params) or 'none'}"
-            raise ParamError(key, f"node type {cls.type_name!r}: unknown parameter {key!r}{hint}")
-        try:
-            values[key] = decl.coerce(value, base_dir)
-        except ValueError as exc:
-            raise ParamError(key, f"node type {cls.type_name!r}: parameter {key!r} {exc} (expected {decl.describe_type()})") from None
-    for key, decl in cls.params.items():
-        if key in values:
-            continue
-        if decl.required:
-            raise ParamError(key, f"node type {cls.type_name!r}: missing required parameter {key!r} ({decl.describe_type()}: {decl.doc})")
-        values[key] = decl.coerce(decl.default, base_dir) if decl.default is not None else None
-    return values
+def _params(cls: type, given: dict[str, Any], base_dir: Path) -> tuple[dict[str, Any], dict[str, Path]]:
+    """Validated parameter values of node type ``cls`` with files read into objects, and the files read
+    (flowtex.node_params); ParamError names the first wrong one, as a graph file's message does."""
+    values, problems = checked_params(cls, given, base_dir)
+    if problems:
+        raise ParamError(problems[0].key, f"node type {cls.type_name!r}: {problems[0].message}")
+    return load_files(cls, values)
 
 
 def _as_rows(name: str, value: Any) -> np.ndarray:
@@ -60,8 +49,9 @@ class Processor:
         self.cls = cls
         self.name = name or cls.type_name
         self.seed = int(seed)
-        self.context = BuildContext(rate=float(rate), base_dir=Path(base_dir))
-        self.node = cls(self.name, coerce_params(cls, params, self.context.base_dir), self.context)
+        values, files = _params(cls, params, Path(base_dir))
+        self.context = BuildContext(rate=float(rate), base_dir=Path(base_dir), files=files)
+        self.node = cls(self.name, values, self.context)
         self.kernel = cls.get_kernel()
         self.input_specs: dict[str, PortSpec] | None = None
         self.output_specs: dict[str, PortSpec] = {}

@@ -171,21 +171,23 @@ def check_declarations(cls: type[Node]) -> None:
     """Raise :class:`FlowtexError` at the declaring line for a port or parameter declaration flowtex cannot use."""
     for attr, kind in (("params", Param), ("inputs", Port), ("outputs", Port)):
         table = getattr(cls, attr)
-        where = node_where(cls, line=attr_line(cls, attr))
+        def where(attr: str = attr) -> str:  # found only for a message: reading the source costs ms per node
+            return node_where(cls, line=attr_line(cls, attr))
+
         if not isinstance(table, dict):
-            raise FlowtexError(f"{where}: {attr} is {excerpt(table)}, not a dict of name: {kind.__name__}(...)")
+            raise FlowtexError(f"{where()}: {attr} is {excerpt(table)}, not a dict of name: {kind.__name__}(...)")
         for name, decl in table.items():
             if not isinstance(name, str) or not name.isidentifier():
-                raise FlowtexError(f"{where}: {attr[:-1]} name {excerpt(name)} is not a Python identifier")
+                raise FlowtexError(f"{where()}: {attr[:-1]} name {excerpt(name)} is not a Python identifier")
             if not isinstance(decl, kind):
-                raise FlowtexError(f"{where}: {attr[:-1]} {name!r} is {excerpt(decl)}, not a {kind.__name__}(...)")
+                raise FlowtexError(f"{where()}: {attr[:-1]} {name!r} is {excerpt(decl)}, not a {kind.__name__}(...)")
             if kind is Port:
                 output = attr == "outputs"
                 problem = _shape_problem(decl, cls.inputs, output) or _unit_problem(decl, cls.inputs, output)
                 if problem:
-                    raise FlowtexError(f"{where}: {attr[:-1]} {name!r}: {problem}")
+                    raise FlowtexError(f"{where()}: {attr[:-1]} {name!r}: {problem}")
                 if output and decl.optional:
-                    raise FlowtexError(f"{where}: output {name!r}: optional is for inputs only")
+                    raise FlowtexError(f"{where()}: output {name!r}: optional is for inputs only")
     ports = len(cls.inputs) + len(cls.outputs)
     if ports > MAX_NODE_PORTS:
         raise FlowtexError(f"{node_where(cls, line=attr_line(cls, 'inputs'))}: {len(cls.inputs)} inputs and {len(cls.outputs)} "

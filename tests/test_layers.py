@@ -36,7 +36,12 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     # The declarative schema of every file kind (keys, kinds, bounds, units, docs) sits under graph, io and scene, which
     # declare their files with it; it uses the node API's parameter kinds.
     ("schema", ("flowtex.schema",)),
-    ("node API", ("flowtex.node_api", "flowtex.node_decl", "flowtex.node_processor", "flowtex.nodecheck", "flowtex.registry")),
+    ("node API", ("flowtex.node_api", "flowtex.node_decl", "flowtex.node_params", "flowtex.node_processor", "flowtex.nodecheck",
+                  "flowtex.registry")),
+    # The format registry is a table of names (suffix or content -> kind, "module:function" readers and writers, imported
+    # only when used, as the node registry imports node modules), so it sits under the graph/io boundary that uses it:
+    # flowtex.node_params reads a path parameter into its object with it, for the graph's resolver and Node.processor.
+    ("format registry", ("flowtex.io.formats",)),
     ("models", ("flowtex.models",)),
     ("dsp", ("flowtex.dsp",)),
     # config, and what every layer uses: error classes, input limits, the YAML reader with positions, cache folders
@@ -45,16 +50,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
 ]
 """Top to bottom. A module belongs to the layer of its longest matching prefix."""
 
-NODES_OPEN_FILES = ("Nodes open their model files (a path parameter is read in the node's constructor). texture_lookup and "
-                    "the friction nodes already take the loaded object instead (Param(objects=...), the in-memory API); "
-                    "what remains is a loader table at the io boundary (the format registry, issue 24 item 5) that turns a "
-                    "path parameter into the object before build, so the reads stay here until it lands.")
-ALLOWED: dict[tuple[str, str], str] = {
-    ("flowtex.nodes.texture", "flowtex.io.modelset"): NODES_OPEN_FILES,
-    ("flowtex.nodes.friction", "flowtex.io.modelset"): NODES_OPEN_FILES,
-    ("flowtex.nodes.patterns", "flowtex.io.patternfile"): NODES_OPEN_FILES,
-    ("flowtex.nodes.taps", "flowtex.io.taplib"): NODES_OPEN_FILES,
-}
+ALLOWED: dict[tuple[str, str], str] = {}
 """(importer, imported module) -> why this upward import stays for now."""
 
 

@@ -86,6 +86,7 @@ def cmd_fit_friction(args: argparse.Namespace) -> int:
 
 
 def _taps(kinds: Any) -> None:
+    from ..dsp.contact import CONTACT_OFF_N
     from ..fit.taps import DEFAULT_QUIET_S, MAX_TAP_S
 
     p = kinds.add_parser("taps", help="tap library (100 ms transients by incoming speed) from a recording of taps",
@@ -101,7 +102,7 @@ def _taps(kinds: Any) -> None:
                    help=f"seconds cut after each onset (0 < S <= {MAX_TAP_S:g}, at least one sample; Culbertson & Kuchenbecker 2017: 0.1)")
     highpass_option(p)
     p.add_argument("--quiet", type=lambda t: number_in_range(t, 0.0, MAX_TAP_S, unit="s"), default=DEFAULT_QUIET_S, metavar="S",
-                   help=f"seconds without contact (force < 0.05 N) before an onset counts as a tap (0..{MAX_TAP_S:g})")
+                   help=f"seconds without contact (force < {CONTACT_OFF_N:g} N) before an onset counts as a tap (0..{MAX_TAP_S:g})")
     p.add_argument("--name", help="library name (default: the file's stem)")
     p.add_argument("-o", "--output", required=True, type=Path, help="tap library JSON (docs/tap-library.md)")
     p.set_defaults(func=cmd_fit_taps)
@@ -148,6 +149,8 @@ def cmd_fit_pattern(args: argparse.Namespace) -> int:
 
 
 def _compliance(kinds: Any) -> None:
+    from ..dsp.contact import CONTACT_ON_N
+
     p = kinds.add_parser("compliance", help="WHaT compliance k_c from stroking (force vs RMS vibration, Guruswamy thesis sec. 5.2)",
                          description="Estimate the compliance coefficient k_c (0 soft .. 1 stiff) of the stroked surface in REC. "
                                      "An estimate that is not valid (smooth surface, poor fit) is still written, with a reason.")
@@ -161,7 +164,8 @@ def _compliance(kinds: Any) -> None:
                    help="k_g normalisation in N per m/s^2 (> 0; Guruswamy thesis eq. 6; default 1)")
     p.add_argument("--force-range", type=nonneg("N"), nargs=2, metavar=("LO", "HI"),
                    help="force range of the 24 bins in N (default: the range of the contact samples' low-passed force)")
-    p.add_argument("--force-threshold", type=nonneg("N"), default=0.1, help="contact when the low-passed force exceeds this (N, default 0.1)")
+    p.add_argument("--force-threshold", type=nonneg("N"), default=CONTACT_ON_N,
+                   help=f"contact when the low-passed force exceeds this (N, default {CONTACT_ON_N:g})")
     p.add_argument("--smooth-floor", type=nonneg("m/s^2"), default=0.1, help="RMS vibration floor of a smooth surface (m/s^2, default 0.1)")
     p.add_argument("--r2-min", type=lambda t: number_in_range(t, 0.0, 1.0), default=0.8,
                    help="least weighted R^2 of a valid line fit (0..1, default 0.8)")

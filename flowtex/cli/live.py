@@ -67,15 +67,14 @@ def check_live_outputs(args: argparse.Namespace, source: str, dbc: str | None, m
 def run_live_session(graph: Any, args: argparse.Namespace, dbc: str | None = None, map_: str | None = None) -> int:
     """Run ``graph`` live with the live options in ``args`` (``dbc``/``map_`` replace ``args.dbc``/``args.map``)."""
     from ..runtime.live import run_live
+    from ..runtime.liveconfig import LiveConfig
 
-    dbc = dbc or args.dbc
-    map_ = map_ or args.map
-    report = run_live(graph, dbc, map_, args.bus, simulate=args.simulate, duration_s=args.duration,
-                      record=args.record, rt=args.rt, rt_priority=args.rt_priority, rt_cpu=args.cpu,
-                      stats_path=args.stats, seed=args.seed, status=None if args.quiet else sys.stderr,
-                      bitrate=args.bitrate, show=args.show,
-                      inputs=[p for p in (getattr(args, "graph", None), getattr(args, "scene", None)) if p],
-                      record_audio=getattr(args, "record_audio", None))
+    config = LiveConfig(dbc or args.dbc, map_ or args.map, args.bus, simulate=args.simulate, duration_s=args.duration,
+                        record=args.record, record_audio=getattr(args, "record_audio", None), stats_path=args.stats,
+                        rt=args.rt, rt_priority=args.rt_priority, rt_cpu=args.cpu, seed=args.seed,
+                        status=None if args.quiet else sys.stderr, bitrate=args.bitrate, show=tuple(args.show),
+                        inputs=tuple(p for p in (getattr(args, "graph", None), getattr(args, "scene", None)) if p))
+    report = run_live(graph, config)
     for line in report.warnings:
         note(f"flowtex live: warning: {line}")
     if report.error:

@@ -18,10 +18,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from ..errors import FlowtexError
-from ..limits import MAX_RATE_HZ
-
-MAX_SEED = 2**63 - 1
-"""Largest ``--seed``: a seed is a non-negative integer (numpy's SeedSequence), kept within a signed 64-bit word."""
+from ..limits import MAX_RATE_HZ, MAX_SEED
 
 
 def add_plugin_options(p: argparse.ArgumentParser, no_plugins: bool = True) -> None:

@@ -20,7 +20,6 @@ recording with its rate (``flowtex.io.recordings``).
 
 from __future__ import annotations
 
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -28,7 +27,6 @@ from typing import Any
 import numpy as np
 
 from ..io.recordings import save_recording
-from ..io.taplib import write_tap_library
 from ..models.taps import TapLibrary
 from ..models.texture import TextureModelSet
 from .graphs import FRICTION_GRAPH, TAP_GRAPH, run_graph
@@ -154,9 +152,7 @@ def tap_session(speeds: tuple[float, ...] = (30.0, 55.0, 70.0, 90.0, 120.0, 160.
         incoming[t0 + 1:t0 + contact] = v
         onsets.append(t0 + 1)
     force = np.minimum(np.maximum(-z, 0.0) * 0.5 + 0.0, 1.0)
-    with tempfile.TemporaryDirectory() as tmp:
-        path = write_tap_library(Path(tmp) / "taps.json", lib)
-        out = run_graph(TAP_GRAPH, rate, {"taps.library": str(path)}, {"in_contact": in_contact, "incoming_speed": incoming}, seed)
+    out = run_graph(TAP_GRAPH, rate, {"taps.library": lib}, {"in_contact": in_contact, "incoming_speed": incoming}, seed)
     accel = np.asarray(out["accel"], float).reshape(-1)
     accel = accel + noise * float(np.max(np.abs(accel))) * rng.standard_normal(n)
     force = force + 0.005 * rng.standard_normal(n)

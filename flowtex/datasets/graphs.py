@@ -1,10 +1,12 @@
-"""The flowtex graphs that render ground-truth recordings (texture, taps, friction).
+"""The flowtex graphs that render ground-truth tap transients and friction forces.
 
 Each is an ordinary flowtex graph (YAML text, compiled like any graph file),
-so that a dataset's vibration, tap transients and friction forces come from
-exactly the nodes a fitted surface is later rendered with: ``texture_lookup``
-+ ``arma_synth``, ``tap_player`` and ``coulomb_friction``. The model files
-are given as overrides (``lookup.models=...``); the rate is formatted in.
+so that a dataset's tap transients and friction forces come from exactly the
+nodes a fitted surface is later rendered with: ``tap_player`` and
+``coulomb_friction``. Values are given as overrides, a tap library as the
+loaded object (``taps.library``), so nothing is written to disk; the rate is
+formatted in. The texture's vibration is
+rendered by the one texture graph, :func:`flowtex.fit.texture_graph.texture_builder`.
 """
 
 from __future__ import annotations
@@ -13,36 +15,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from ..fit.texture_graph import TEXTURE_GRAPH
-
-__all__ = ["FRICTION_GRAPH", "TAP_GRAPH", "TEXTURE_GRAPH", "run_graph"]
-
-SCALED_TEXTURE_GRAPH = """
-flowtex: 1
-name: dataset-scaled-texture
-rate: {rate}
-seed: 1
-inputs:
-  speed: {{unit: mm/s}}
-  force: {{unit: N}}
-  power_factor: {{}}
-nodes:
-  lookup: {{type: texture_lookup, params: {{models: set.json}}}}
-  scale: {{type: multiply}}
-  synth: {{type: arma_synth}}
-edges:
-  - speed -> lookup.speed
-  - force -> lookup.force
-  - lookup.ar -> synth.ar
-  - lookup.ma -> synth.ma
-  - lookup.gain -> synth.gain
-  - lookup.variance -> scale.a
-  - power_factor -> scale.b
-  - scale.y -> synth.variance
-outputs:
-  accel: synth.y
-"""
-"""The texture graph with the excitation variance multiplied by ``power_factor`` (>= 0) tick by tick (flowtex.datasets.resonant)."""
+__all__ = ["FRICTION_GRAPH", "TAP_GRAPH", "run_graph"]
 
 TAP_GRAPH = """
 flowtex: 1

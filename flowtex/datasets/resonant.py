@@ -27,7 +27,7 @@ each is built in here:
   real vibration's is.
 
 The recording is rendered by flowtex's own nodes (``texture_lookup`` +
-``arma_synth``, :data:`flowtex.datasets.graphs.SCALED_TEXTURE_GRAPH`): the two
+``arma_synth``, :func:`flowtex.fit.texture_graph.texture_builder` with ``scaled=True``): the two
 wandering factors multiply the excitation variance, tick by tick, and the
 whole recording is then scaled so that its power equals the power of the true
 surface's own render along the same path (``truth["clean"]``, the same
@@ -42,8 +42,6 @@ Units: speed mm/s, force N, acceleration m/s^2, frequencies Hz.
 from __future__ import annotations
 
 import math
-import tempfile
-from pathlib import Path
 
 import numpy as np
 
@@ -146,9 +144,8 @@ def textured_exploration(duration_s: float = 20.0, rate: float = 1000.0, surface
     factors), ``power_factor`` (the excitation variance factor per sample, after the final scaling),
     ``loudness_db`` (the drawn level of each second), ``mu``.
     """
-    from ..io.modelset import save_model_set
+    from ..fit.texture_graph import texture_builder
     from . import SyntheticRecording
-    from .graphs import SCALED_TEXTURE_GRAPH, run_graph
     from .trajectories import _smooth_noise, circle_path
 
     ms = surface if surface is not None else resonant_surface(sample_rate=rate)
@@ -156,12 +153,10 @@ def textured_exploration(duration_s: float = 20.0, rate: float = 1000.0, surface
     n = int(round(duration_s * rate))
     speed, force = bounded_path(n, rate, rng, speed_range, force_range)
     factor, level_db = wander_power(n, rate, rng, loudness_db, burst, burst_hz)
-    with tempfile.TemporaryDirectory() as tmp:
-        path = save_model_set(ms, Path(tmp) / "truth.json")
-        over = {"lookup.models": str(path)}
-        inputs = {"speed": speed, "force": force}
-        wild = np.asarray(run_graph(SCALED_TEXTURE_GRAPH, rate, over, inputs | {"power_factor": factor}, seed)["accel"], float)
-        clean = np.asarray(run_graph(SCALED_TEXTURE_GRAPH, rate, over, inputs | {"power_factor": np.ones(n)}, seed)["accel"], float)
+    graph = texture_builder(ms, rate, scaled=True).build()
+    inputs = {"speed": speed, "force": force}
+    wild = np.asarray(graph.run(inputs | {"power_factor": factor}, seed=seed)["accel"], float)
+    clean = np.asarray(graph.run(inputs | {"power_factor": np.ones(n)}, seed=seed)["accel"], float)
     wild, clean = wild.reshape(-1), clean.reshape(-1)
     gain = math.sqrt(float(np.sum(clean ** 2)) / float(np.sum(wild ** 2)))
     accel = gain * wild

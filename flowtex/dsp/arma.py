@@ -189,6 +189,30 @@ def lattice_ladder_coefficients(ar, ma, gain, k, c, v, wa, wr) -> bool:
 
 
 @njit(cache=True)
+def filter_power(ar: np.ndarray, ma: np.ndarray, gain: float, work: np.ndarray) -> float:
+    """g^2 sum_n h_n^2 of g C(z) / A(z) (its output power for unit-variance white input); -1.0 if not usable.
+
+    The one computation of an ARMA model's output power (:func:`arma_output_variance` and the texture lookup's
+    power blending call it). The normalized lattice-ladder realisation's backward states are
+    orthonormal for white unit-variance input, so the output power is exactly
+    the sum of the squared ladder weights v_m. ``work`` (>= 5 L + 3 floats,
+    L = max(p, q)) is scratch; nothing is allocated.
+    """
+    L = max(ar.shape[0], ma.shape[0]) - 1
+    k = work[:L]
+    c = work[L:2 * L]
+    v = work[2 * L:3 * L + 1]
+    wa = work[3 * L + 1:4 * L + 2]
+    wr = work[4 * L + 2:5 * L + 3]
+    if not lattice_ladder_coefficients(ar, ma, gain, k, c, v, wa, wr):
+        return -1.0
+    total = 0.0
+    for m in range(L + 1):
+        total += v[m] * v[m]
+    return total
+
+
+@njit(cache=True)
 def arma_lattice_block(s, si, ar, ma, gain, variance, y) -> None:
     """Normalized lattice-ladder ARMA synthesis over a block of ticks.
 
@@ -306,26 +330,15 @@ def arma_impulse_response(ar: np.ndarray, ma: np.ndarray, gain: float, n: int) -
 def arma_output_variance(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float) -> float:
     """Stationary output variance var * g^2 * sum_n h_n^2 of the model (h: impulse response of C/A).
 
-    Exact (no truncation): solves the discrete Lyapunov equation of a
-    state-space realisation. Units: those of y squared (m^2/s^4).
-    Raises ValueError for a model that is not stable.
+    Exact (no truncation): :func:`filter_power`, the normalized lattice's sum of squared ladder weights. Units:
+    those of y squared (m^2/s^4). Raises ValueError for a model that is not stable (a reflection coefficient
+    beyond :data:`K_MAX`) or not finite.
     """
-    import scipy.linalg
-    import scipy.signal
-
     ar, ma = _check_model(ar, ma)
-    if ar.size > 1 and np.max(np.abs(np.roots(ar))) >= 1.0:
-        raise ValueError("AR polynomial is not stable (a root on or outside the unit circle)")
-    num = gain * ma / ar[0]
-    den = ar / ar[0]
-    n = max(num.size, den.size)
-    num = np.r_[num, np.zeros(n - num.size)]
-    den = np.r_[den, np.zeros(n - den.size)]
-    if n == 1:
-        return float(variance * num[0] ** 2)
-    A, B, C, D = scipy.signal.tf2ss(num, den)
-    P = scipy.linalg.solve_discrete_lyapunov(A, B @ B.T)
-    return float(variance * ((C @ P @ C.T)[0, 0] + D[0, 0] ** 2))
+    unit = filter_power(ar, ma, float(gain), np.empty(5 * (max(ar.size, ma.size) - 1) + 3))
+    if not unit >= 0.0:
+        raise ValueError("the model is not stable (a pole on or outside the unit circle) or not finite")
+    return float(variance * unit)
 
 
 def arma_psd(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, freqs_hz: np.ndarray, rate_hz: float,

@@ -35,6 +35,8 @@ import math
 import numpy as np
 from numba import njit
 
+from .contact import CONTACT_ON_N
+
 N_BINS = 24
 """Bins along force (Guruswamy thesis sec. 5.2.2)."""
 MIN_BINS = 6
@@ -83,7 +85,7 @@ def er_from_kc(kc: float | np.ndarray, extrapolate: bool = False) -> float | np.
 
 
 def compliance_params(rate_hz: float, force_lo: float, force_hi: float, k_g: float = 1.0, force_cutoff_hz: float = 2.5,
-                      highpass_hz: float = 10.0, force_threshold: float = 0.1, vibration_threshold: float = 0.02,
+                      highpass_hz: float = 10.0, force_threshold: float = CONTACT_ON_N, vibration_threshold: float = 0.02,
                       smooth_floor: float = 0.1, r2_min: float = 0.8, min_per_bin: int = 10, settle_s: float = 0.2) -> np.ndarray:
     """The kernel's parameter vector (units: Hz, N, N per m/s^2, m/s^2, s)."""
     import scipy.signal

@@ -1,10 +1,13 @@
-"""Filter design at build time, with scipy.signal (never hand-written)."""
+"""Filter design at build time, with scipy.signal (never hand-written); Butterworth designs are remembered on disk
+(:mod:`flowtex.dsp.design_memo`), so a warm run does not import scipy.signal."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
 import numpy as np
+
+from .design_memo import remembered
 
 
 def butterworth_sos(kind: str, order: int, cutoff_hz: Sequence[float], rate_hz: float) -> np.ndarray:
@@ -25,10 +28,15 @@ def butterworth_sos(kind: str, order: int, cutoff_hz: Sequence[float], rate_hz: 
             raise ValueError(f"cutoff {c:g} Hz must lie between 0 and the Nyquist frequency {nyquist:g} Hz")
     if band and not cut[0] < cut[1]:
         raise ValueError(f"band edges must increase, got [{cut[0]:g}, {cut[1]:g}]")
-    from scipy import signal  # imported here: scipy.signal takes ~0.6 s to import
+    wn = [float(c) for c in cut] if band else float(cut[0])
 
-    wn = cut if band else cut[0]
-    return signal.butter(order, wn, btype=kind, fs=rate_hz, output="sos")
+    def design() -> np.ndarray:
+        from scipy import signal  # imported only when the design is not remembered: it is slow to import
+
+        return signal.butter(order, wn, btype=kind, fs=rate_hz, output="sos")
+
+    sections = order if band else (order + 1) // 2
+    return remembered("butter", (int(order), wn, kind, float(rate_hz)), (sections, 6), design)
 
 
 def zero_phase_highpass(x: np.ndarray, rate_hz: float, cutoff_hz: float, order: int = 4) -> np.ndarray:

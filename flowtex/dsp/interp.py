@@ -50,7 +50,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .arma import lattice_ladder_coefficients
+from .arma import filter_power
 from .lsf import DEFAULT_MIN_GAP, lsf_to_poly, repair_lsf
 from .triangulation import clamp_query, locate, pack_triangulation
 
@@ -172,29 +172,6 @@ def model_output_powers(ar_lsf: np.ndarray, ma_lsf: np.ndarray, variance: np.nda
             raise ValueError(f"model {m}: its LSFs give no stable filter, so it has no output power")
         out[m] = variance[m] * unit
     return out
-
-
-@njit(cache=True)
-def filter_power(ar: np.ndarray, ma: np.ndarray, gain: float, work: np.ndarray) -> float:
-    """g^2 sum_n h_n^2 of g C(z) / A(z) (its output power for unit-variance white input); -1.0 if not usable.
-
-    The normalized lattice-ladder realisation's backward states are
-    orthonormal for white unit-variance input, so the output power is exactly
-    the sum of the squared ladder weights v_m. ``work`` (>= 5 L + 3 floats,
-    L = max(p, q)) is scratch; nothing is allocated.
-    """
-    L = max(ar.shape[0], ma.shape[0]) - 1
-    k = work[:L]
-    c = work[L:2 * L]
-    v = work[2 * L:3 * L + 1]
-    wa = work[3 * L + 1:4 * L + 2]
-    wr = work[4 * L + 2:5 * L + 3]
-    if not lattice_ladder_coefficients(ar, ma, gain, k, c, v, wa, wr):
-        return -1.0
-    total = 0.0
-    for m in range(L + 1):
-        total += v[m] * v[m]
-    return total
 
 
 def state_sizes(ar_order: int, ma_order: int) -> tuple[int, int]:

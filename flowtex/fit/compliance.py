@@ -10,9 +10,7 @@ import numpy as np
 
 from ..dsp import compliance as cm
 from ..errors import DataError
-from ..io.recordings import load_recording
-from .inputs import check_plausible
-from .recording_signals import recording_rate, signal
+from .inputs import check_plausible, load, signal
 
 FORMAT_NAME = "flowtex-compliance"
 FORMAT_VERSION = 1
@@ -75,8 +73,7 @@ def compliance_recording(recording: str | Path, force: str, accel: str, from_rat
                          contact: str | None = None, force_range: tuple[float, float] | None = None,
                          **options: Any) -> dict[str, Any]:
     """:func:`estimate_compliance` of one recording (signals named as the options); the result names the recording."""
-    rec = load_recording(recording)
-    rate = recording_rate(rec, from_rate)
+    rec, rate = load(recording, from_rate)
     f = signal(rec, force, "--force", (1,))
     a = signal(rec, accel, "--accel", (1, 2, 3))
     c = signal(rec, contact, "--contact", (1,)) if contact else None

@@ -24,9 +24,8 @@ from ..dsp.patterns import RING_DECAY, band_edges, feature_onsets
 from ..dsp.prony import fit_iir, impulse_response, ring_length
 from ..dsp.spectral import welch_psd
 from ..errors import DataError
-from ..io.patternfile import Pattern
-from ..io.recordings import load_recording
-from .recording_signals import recording_rate, signal
+from ..models.patterns import Pattern
+from .inputs import load, signal
 
 MIN_SAMPLES = 256
 """Shortest recording a pattern is fitted to: one Welch segment."""
@@ -161,8 +160,7 @@ def _mean_spacing(p: np.ndarray) -> float | None:
 def fit_pattern_recording(recording: str | Path, accel: str, position: str, from_rate: float | None = None,
                           speed: str | None = None, max_order: int = 8) -> Pattern:
     """Fit a :class:`Pattern` to one recording (signals named as the options; filter orders 2..``max_order``)."""
-    rec = load_recording(recording)
-    rate = recording_rate(rec, from_rate)
+    rec, rate = load(recording, from_rate)
     acc = signal(rec, accel, "--accel", (1, 2, 3))
     pos = signal(rec, position, "--position", (3,))
     if max_order < 2:

@@ -6,8 +6,8 @@ together as one :class:`GraphError`.
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import networkx as nx
@@ -15,6 +15,7 @@ import networkx as nx
 from ..errors import DataError, FlowtexError, Location, ParamError
 from ..limits import port_values_problem
 from ..node_api import BuildContext, Node, NodeState, Port, PortSpec, simplify_unit, suggest
+from ..node_params import checked_params, load_files
 from ..nodecheck import checked_state, is_plugin, plugin_raised
 from ..registry import Registry
 from ..schema.core import Collector
@@ -32,6 +33,8 @@ class ResolvedNode:
     in_specs: dict[str, PortSpec] = field(default_factory=dict)
     out_specs: dict[str, PortSpec] = field(default_factory=dict)
     state: NodeState | None = None
+    loaded: tuple[dict[str, Any], dict[str, Path]] | None = None
+    """The parameters with files read into objects, and param -> file read (set when the node is first constructed)."""
 
 
 @dataclass
@@ -129,31 +132,20 @@ def _typed_nodes(ck: _Checker) -> dict[str, ResolvedNode]:
 
 
 def _check_params(ck: _Checker, ns: NodeSpec, cls: type[Node]) -> dict[str, Any] | None:
-    ok = True
-    values: dict[str, Any] = {}
-    misspelt: set[str] = set()
-    for key, value in ns.params.items():
-        loc = ns.param_locs.get(key, ns.params_loc)
-        decl = cls.params.get(key) if isinstance(key, str) else None
-        if decl is None:
-            misspelt.update(difflib.get_close_matches(str(key), list(cls.params), n=3, cutoff=0.6))
-            ck.error(loc, f"node {ns.name!r} ({ns.type}): unknown parameter {key!r}{suggest(str(key), list(cls.params))}"
-                     + ("" if suggest(str(key), list(cls.params)) else f"; parameters are: {', '.join(cls.params) or 'none'}"))
-            ok = False
-            continue
-        try:
-            values[key] = decl.coerce(value, ck.spec.path.parent)
-        except ValueError as exc:
-            ck.error(loc, f"node {ns.name!r} ({ns.type}): parameter {key!r} {exc} (expected {decl.describe_type()})")
-            ok = False
-    for key, decl in cls.params.items():
-        if key not in values and key not in ns.params:
-            if decl.required and key not in misspelt:
-                ck.error(ns.params_loc, f"node {ns.name!r} ({ns.type}): missing required parameter {key!r} ({decl.describe_type()}: {decl.doc})")
-                ok = False
-            elif not decl.required:
-                values[key] = decl.coerce(decl.default, ck.spec.path.parent) if decl.default is not None else None
-    return values if ok else None
+    """The node's coerced parameters (flowtex.node_params), or None after reporting each problem at its line."""
+    values, problems = checked_params(cls, ns.params, ck.spec.path.parent)
+    for problem in problems:
+        loc = ns.param_locs.get(problem.key, ns.params_loc) if problem.given else ns.params_loc
+        ck.error(loc, f"node {ns.name!r} ({ns.type}): {problem.message}")
+    return None if problems else values
+
+
+def _loaded_params(rn: ResolvedNode) -> tuple[dict[str, Any], dict[str, Path]]:
+    """The node's parameters with its files read into objects (flowtex.node_params.load_files: the graph/io
+    boundary), read once per node; ParamError (naming the parameter) for a file that cannot be read."""
+    if rn.loaded is None:
+        rn.loaded = load_files(rn.cls, rn.params)
+    return rn.loaded
 
 
 def _port_names(ports: dict[str, Port]) -> str:
@@ -330,10 +322,12 @@ def _resolve_pass(ck: _Checker, nodes: dict[str, ResolvedNode], inputs: dict[str
         if _too_wide(ck, rn, specs, "input") or not _own_schedule(ck, rn, input_every):
             failed.add(name)
             continue
-        ctx = BuildContext(rate=ck.spec.rate, base_dir=ck.spec.path.parent, every=rn.spec.every, input_every=input_every)
         method = "__init__"
         try:
-            rn.node = rn.cls(name, rn.params, ctx)
+            params, files = _loaded_params(rn)
+            ctx = BuildContext(rate=ck.spec.rate, base_dir=ck.spec.path.parent, every=rn.spec.every, input_every=input_every,
+                               files=files)
+            rn.node = rn.cls(name, params, ctx)
             method = "resolve"
             rn.out_specs = rn.node.resolve(specs)
             if _too_wide(ck, rn, rn.out_specs, "output"):

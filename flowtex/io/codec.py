@@ -285,7 +285,8 @@ def build_codecs(db: Any) -> dict[str, MessageCodec]:
 # is the same sequence of IEEE double operations as the Python functions (and as
 # cantools), so the values and bytes are identical; signals where that could not hold
 # (more than 52 bits, or integer scales whose products may exceed 2**53) keep the
-# Python functions (``fast_ok`` False), as do payloads longer than 8 bytes.
+# Python functions (``fast_ok`` False), as do payloads longer than 8 bytes. This second path is kept because it
+# pays: benchmarks/bench_live_paths.py (section "codec") times it against the Python functions side by side.
 
 # integer table columns (decode and encode)
 _C_SLOT, _C_BIG, _C_LSB, _C_LEN, _C_SIGNED, _C_KIND, _C_INDEX, _C_IDENT, _C_HASMIN, _C_HASMAX, _C_IDRAW = range(11)
@@ -418,12 +419,27 @@ class TableEncoder:
         self.offsets = np.array(offsets, dtype=np.int64)
         self.payload = bytearray(max(1, offsets[-1]))
         self.payload_view = np.frombuffer(self.payload, dtype=np.uint8)
-        self._words = np.zeros((max(1, len(entries)), 2), dtype=np.int64)
-        self._scratch = np.zeros(1, dtype=np.int64)
+        self.words = np.zeros((max(1, len(entries)), 2), dtype=np.int64)
+        """Per message, its little- and big-endian integer words while encoding (scratch of :meth:`run`)."""
+        self.scratch = np.zeros(1, dtype=np.int64)
+        """One word for the float bit casts of :meth:`run`."""
+
+    def int_tables(self) -> list[np.ndarray]:
+        """The encoder's int64 tables in the order :meth:`rebind` takes them: offsets, words, scratch, itab."""
+        return [self.offsets, self.words, self.scratch, self.itab]
+
+    def rebind(self, ints: Sequence[np.ndarray], ftab: np.ndarray) -> None:
+        """Use views holding the same values as :meth:`int_tables` and ``ftab`` from now on (e.g. inside one packed buffer
+        a compiled caller takes as a single argument, see :func:`pack_int64`)."""
+        for new, old in zip([*ints, ftab], [*self.int_tables(), self.ftab], strict=True):
+            if new.shape != old.shape or new.dtype != old.dtype or not np.array_equal(new, old, equal_nan=True):
+                raise ValueError("TableEncoder.rebind: each table must keep its shape, dtype and values")
+        self.offsets, self.words, self.scratch, self.itab = ints
+        self.ftab = ftab
 
     def run(self, values: np.ndarray) -> None:
         """Encode every message from ``values`` into ``payload``."""
-        _encode_tables(values, self.itab, self.ftab, self.offsets, self._words, self.payload_view, self._scratch)
+        _encode_tables(values, self.itab, self.ftab, self.offsets, self.words, self.payload_view, self.scratch)
 
 
 @njit(cache=True)

@@ -70,6 +70,27 @@ JSON_FORMATS = {"flowtex-texture-models": MODEL_SET, "flowtex-pattern": PATTERN,
 """The ``format`` key of each flowtex JSON document -> its kind."""
 
 
+OBJECT_FORMATS: dict[str, tuple[str, str]] = {
+    "flowtex.models.texture:TextureModelSet": (MODEL_SET, "flowtex.io.modelset:load_model_set"),
+    "flowtex.models.patterns:Pattern": (PATTERN, "flowtex.io.patternfile:read_pattern"),
+    "flowtex.models.taps:TapLibrary": (TAP_LIBRARY, "flowtex.io.taplib:read_tap_library"),
+}
+"""A loaded object's type (``module:class``) -> the kind of file it is read from and the reader that reads it.
+
+A node parameter declared ``Param("path", objects=(T,))`` takes a ``T``; given a file instead, it is read here by
+T's reader before the node is built (flowtex.node_params.load_files, called where a graph is resolved and by
+``Node.processor``), so nodes receive objects and never open files."""
+
+
+def object_reader(types: tuple[type, ...]) -> Callable[[Path], Any] | None:
+    """The reader of the first of ``types`` that :data:`OBJECT_FORMATS` knows (it raises DataError naming the file), or None."""
+    for cls in types:
+        entry = OBJECT_FORMATS.get(f"{cls.__module__}:{cls.__qualname__}")
+        if entry is not None:
+            return _load(entry[1], entry[0], "read")
+    return None
+
+
 def _load(target: str | None, name: str, verb: str) -> Callable[..., Any]:
     if target is None:
         raise DataError(f"{name} files cannot be {verb} by flowtex")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -10,6 +9,7 @@ import numpy as np
 
 from ..errors import DataError
 from ..limits import excerpt
+from ..models.patterns import Pattern
 from ..schema.core import Collector, check_unknown, get
 from ..schema.datafiles import FEATURE, PATTERN, RATE_KEY
 from .atomic import write_json_atomic
@@ -18,30 +18,6 @@ from .jsondoc import read_json_document
 FORMAT_NAME = "flowtex-pattern"
 FORMAT_VERSION = 1
 MAX_ORDER = 32
-
-
-@dataclass
-class Pattern:
-    """Features along a straight axis: position (mm along ``axis`` from ``origin``), amplitude A_k (m/s^2) and filter b_k / a_k."""
-
-    sample_rate_hz: float
-    axis: np.ndarray
-    origin: np.ndarray
-    positions_mm: np.ndarray
-    amplitudes: np.ndarray
-    b: list[np.ndarray]
-    a: list[np.ndarray]
-    metadata: dict[str, Any] = field(default_factory=dict)
-
-    def padded(self) -> tuple[np.ndarray, np.ndarray]:
-        """(b, a) as (K, P + 1) arrays padded with zeros to the largest order P."""
-        order = max(max(len(x) for x in self.b), max(len(x) for x in self.a)) - 1
-        b = np.zeros((len(self.b), order + 1))
-        a = np.zeros((len(self.a), order + 1))
-        for k, (bk, ak) in enumerate(zip(self.b, self.a, strict=True)):
-            b[k, :len(bk)] = bk
-            a[k, :len(ak)] = ak
-        return b, a
 
 
 def write_pattern(path: str | Path, pat: Pattern) -> Path:

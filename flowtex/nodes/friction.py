@@ -11,6 +11,7 @@ its NaN policy live in flowtex.dsp.friction, the reasoning in docs/friction.md.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -24,33 +25,29 @@ from ..dsp.friction import (
     dahl_block,
 )
 from ..dsp.motion import initial_normal_state
-from ..errors import FlowtexError, ParamError
+from ..errors import ParamError
 from ..models.texture import TextureModelSet
 from ..node_api import Node, NodeState, Param, Port, check
+from .texture import model_source
 
 DAHL_ZMAX_PER_MU_MM = 4.0
 """Culbertson & Kuchenbecker 2017: z_max = 4 mm * mu_k."""
 
 
-def _mu(node: Node) -> float:
-    """Friction coefficient from ``mu`` or from the model set named by ``models``."""
-    mu, models = node.p["mu"], node.p.get("models")
-    if mu is not None and models is not None:
+def _mu_or_models(params: dict[str, Any]) -> None:
+    """``mu`` and ``models`` exclude each other (checked before the model file is read)."""
+    if params["mu"] is not None and params.get("models") is not None:
         raise ParamError("models", "give either mu or models, not both")
-    if isinstance(models, TextureModelSet):
-        mu, models = models.mu, f"the model set {models.material!r} given in memory"
-    elif models is not None:
-        try:
-            from ..io.modelset import load_model_set
-        except ImportError:
-            raise ParamError("models", "this flowtex cannot read model sets (flowtex.io.modelset is missing); give mu instead") from None
-        try:
-            mu = load_model_set(models).mu
-        except FlowtexError as exc:
-            raise ParamError("models", str(exc)) from None
-    if models is not None:
+
+
+def _mu(node: Node) -> float:
+    """Friction coefficient from ``mu`` or from the model set given as ``models`` (read by the graph/io boundary)."""
+    mu, ms = node.p["mu"], node.p.get("models")
+    if ms is not None:
+        mu = ms.mu
         if mu is None or not math.isfinite(mu) or mu < 0:
-            raise ParamError("models", f"{models}: the model set has no usable friction coefficient (mu = {mu!r}); give mu instead")
+            raise ParamError("models", f"{model_source(ms, node.context.files.get('models'))}: the model set has no usable "
+                                       f"friction coefficient (mu = {mu!r}); give mu instead")
         return float(mu)
     if mu is None:
         raise ParamError("mu", "missing friction coefficient: give mu (e.g. mu: 0.3) or models (a model set file)")
@@ -80,6 +77,7 @@ class CoulombFriction(Node):
     inputs = {"velocity": Port((3,), "mm/s", "tangential velocity"), "normal_force": Port((), "N", "normal force (< 0 counts as 0)")}
     outputs = {"force": Port((3,), "N", "friction force on the tool")}
     kernel = _coulomb
+    check_params = staticmethod(_mu_or_models)
 
     def build(self, inputs, outputs):
         mu = _mu(self)
@@ -115,6 +113,7 @@ class DahlFriction(Node):
     }
     outputs = {"force": Port((3,), "N", "friction force on the tool")}
     kernel = _dahl
+    check_params = staticmethod(_mu_or_models)
 
     def input_default(self, name, spec):
         return np.asarray(self.p["normal"], dtype=np.float64)

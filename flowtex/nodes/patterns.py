@@ -7,8 +7,8 @@ from numba import njit
 
 from ..dsp.patterns import RING_DECAY, pattern_block, pattern_params, pattern_state
 from ..dsp.prony import ring_length
-from ..errors import DataError, ParamError
-from ..io.patternfile import read_pattern
+from ..errors import ParamError
+from ..models.patterns import Pattern
 from ..node_api import Node, NodeState, Param, Port
 
 
@@ -28,7 +28,7 @@ class PatternedTexture(Node):
 
     type_name = "patterned_texture"
     params = {
-        "pattern": Param("path", doc="pattern file (docs/pattern-format.md); relative to the graph file"),
+        "pattern": Param("path", objects=(Pattern,), doc="pattern file (docs/pattern-format.md); relative to the graph file"),
         "max_active": Param("int", default=16, min=1, max=256, doc="most ring-downs playing at once"),
     }
     inputs = {
@@ -39,14 +39,11 @@ class PatternedTexture(Node):
     kernel = _pattern
 
     def build(self, inputs, outputs):
-        path = self.p["pattern"]
-        try:
-            pat = read_pattern(path)
-        except DataError as exc:
-            raise ParamError("pattern", str(exc)) from None
+        pat: Pattern = self.p["pattern"]
         rate = self.context.node_rate
         if abs(pat.sample_rate_hz - rate) > 1e-9 * rate:
-            raise ParamError("pattern", f"{path}: pattern filters are sampled at {pat.sample_rate_hz:g} Hz but this node runs at "
+            where = self.context.files.get("pattern", "the pattern given in memory")
+            raise ParamError("pattern", f"{where}: pattern filters are sampled at {pat.sample_rate_hz:g} Hz but this node runs at "
                              f"{rate:g} Hz; refit the pattern at {rate:g} Hz or run the node at the pattern's rate")
         b, a = pat.padded()
         lengths = [ring_length(bk, ak, RING_DECAY) for bk, ak in zip(pat.b, pat.a, strict=True)]

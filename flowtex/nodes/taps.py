@@ -9,8 +9,8 @@ from __future__ import annotations
 from numba import njit
 
 from ..dsp.taps import initial_tap_state, tap_block, tap_params
-from ..errors import DataError, ParamError
-from ..io.taplib import read_tap_library
+from ..errors import ParamError
+from ..models.taps import TapLibrary
 from ..node_api import Node, NodeState, Param, Port
 
 HAND_MASS_KG = 0.05
@@ -33,7 +33,7 @@ class TapPlayer(Node):
 
     type_name = "tap_player"
     params = {
-        "library": Param("path", doc="tap library file (docs/tap-library.md); relative to the graph file"),
+        "library": Param("path", objects=(TapLibrary,), doc="tap library file (docs/tap-library.md); relative to the graph file"),
         "mass": Param("float", default=HAND_MASS_KG, unit="kg", min=0.0, doc="effective mass m of hand + handle"),
     }
     inputs = {
@@ -44,13 +44,14 @@ class TapPlayer(Node):
     kernel = _taps
 
     def build(self, inputs, outputs):
-        path = self.p["library"]
-        try:
-            lib = read_tap_library(path)
-        except DataError as exc:
-            raise ParamError("library", str(exc)) from None
+        lib: TapLibrary = self.p["library"]
         rate = self.context.node_rate
         if abs(lib.sample_rate_hz - rate) > 1e-9 * rate:
+            path = self.context.files.get("library")
+            if path is None:
+                raise ParamError("library", f"the tap library given in memory is sampled at {lib.sample_rate_hz:g} Hz but this node "
+                                 f"runs at {rate:g} Hz; resample it (flowtex.models.taps.resample_tap_library) or run the node "
+                                 "at the library's rate")
             raise ParamError("library", f"{path}: tap library is sampled at {lib.sample_rate_hz:g} Hz but this node runs at {rate:g} Hz; "
                              f"run 'flowtex models resample {path} --rate {rate:g} -o OUT.json' and load OUT.json, "
                              f"or run the node at the library's rate")

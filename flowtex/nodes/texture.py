@@ -7,8 +7,7 @@ from pathlib import Path
 from numba import njit
 
 from ..dsp.interp import initial_state, texture_lookup_block
-from ..errors import DataError, ParamError
-from ..io.modelset import load_model_set
+from ..errors import ParamError
 from ..models.outside import OUTSIDE_CHOICES
 from ..models.rendering import INTERPOLATION_CHOICES, texture_table
 from ..models.texture import TextureModelSet
@@ -20,21 +19,11 @@ def _texture_lookup(p, s, si, speed, force, ar, ma, gain, variance):
     texture_lookup_block(p, s, si, speed, force, ar, ma, gain, variance)
 
 
-def loaded_models(models: str | Path | TextureModelSet) -> TextureModelSet:
-    """The model set a ``models`` parameter gives: the object itself, or the file it names read (ParamError if unreadable)."""
-    if isinstance(models, TextureModelSet):
-        return models
-    try:
-        return load_model_set(models)
-    except DataError as exc:
-        raise ParamError("models", str(exc)) from None
-
-
-def model_source(models: str | Path | TextureModelSet) -> str:
-    """How messages name a ``models`` parameter: its file, or the in-memory set's name."""
-    if isinstance(models, TextureModelSet):
-        return f"the model set {models.material!r} given in memory"
-    return str(models)
+def model_source(ms: TextureModelSet, file: Path | None) -> str:
+    """How messages name a ``models`` parameter: the file it was read from, or the in-memory set's name."""
+    if file is None:
+        return f"the model set {ms.material!r} given in memory"
+    return str(file)
 
 
 def rate_mismatch_message(path: str, ms: TextureModelSet, graph_rate: float) -> str:
@@ -103,17 +92,17 @@ class TextureLookup(Node):
 
     def __init__(self, name, params, context):
         super().__init__(name, params, context)
-        path = params["models"]
-        self.model_set: TextureModelSet = loaded_models(path)
-        self.source = model_source(path)
+        file = context.files.get("models")
+        self.model_set: TextureModelSet = params["models"]
+        self.source = model_source(self.model_set, file)
         if p_order := params.get("order"):
             self.model_set = self._truncated(p_order)
         ms = self.model_set
         if ms.sample_rate != context.rate:
-            if isinstance(path, TextureModelSet):
+            if file is None:
                 raise ParamError("models", f"{self.source} is for {ms.sample_rate:g} Hz but the graph runs at {context.rate:g} Hz; "
                                            "resample it (flowtex.fit.resample.resample_model_set) or build the graph at its rate")
-            raise ParamError("models", rate_mismatch_message(str(path), ms, context.rate))
+            raise ParamError("models", rate_mismatch_message(str(file), ms, context.rate))
         p = self.p
         for low, value in (("low_speed", "low_speed_value"), ("low_force", "low_force_value")):
             if p[value] > p[low]:

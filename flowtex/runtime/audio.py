@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FlowtexError
+from ..graph.program import TickProgram
 from ..io.audiomap import AudioMap
 from .audio_render import interpolator, lead_frames, margin_frames, samples_per_tick
 from .audio_ring import FADED, LATENCIES, MISSING, PLAYED, RECORDED, STOPPING, UNDERRUNS, AudioRing
@@ -96,7 +97,7 @@ def list_audio_devices() -> str:
 class AudioOutput:
     """One live session's audio output for ``amap``'s channels, fed from ``graph`` at the graph's rate."""
 
-    def __init__(self, graph: Any, amap: AudioMap, record: str | Path | None = None, where: str = "map") -> None:
+    def __init__(self, graph: TickProgram, amap: AudioMap, record: str | Path | None = None, where: str = "map") -> None:
         self.amap = amap
         self.ratio = samples_per_tick(amap, float(graph.rate), where)
         self.lead = lead_frames(amap)

@@ -40,6 +40,9 @@ def parse_bus_spec(spec: str) -> tuple[str, str | None, dict[str, Any]]:
     if interface == "socketcand":
         chan, _, hostport = channel.partition("@")
         host, _, port = hostport.partition(":")
+        if port and not port.isdigit():
+            raise BusError(f"--bus {spec!r}: port {port!r} is not a number; write socketcand:CHANNEL@HOST:PORT, e.g. "
+                           "socketcand:can0@127.0.0.1:29536")
         kwargs = {"host": host or "127.0.0.1", "port": int(port) if port else 29536}
         channel = chan or "can0"
     return interface, (channel or None), kwargs

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -22,12 +23,52 @@ from numba import njit
 
 from ..cache import configure_numba_cache
 from ..errors import DataError
+from ..graph.program import TickProgram
 from ..io.canmap import CanMap, load_map
 from ..io.codec import _NF, _NI, MessageCodec, TableDecoder, TableEncoder, _encode_tables, fast_ok, pack_int64
 from ..io.dbc import load_dbc
+from ..node_decl import PortSpec
 from .safety import OutputGuard, Watchdog, first_stale, guard_kernel
 
 configure_numba_cache()  # numba binds a kernel's cache folder when it is decorated: choose it first (flowtex.cache)
+
+
+PythonEncoder = Callable[[bytearray], None]
+"""A generated per-message encoder (:meth:`~flowtex.io.codec.MessageCodec.encoder`): packs its message into a frame's data."""
+
+
+@dataclass(frozen=True)
+class CompiledCodec:
+    """Everything the compiled live tick reads or writes of a :class:`CanIO`: its public seam to the runtime.
+
+    Built once by :class:`CanIO`; the arrays are the CanIO's own tables (the compiled
+    calls write through them), not copies. :mod:`flowtex.runtime.tick` and
+    :mod:`flowtex.runtime.fused` take every table from here.
+    """
+
+    arena: np.ndarray
+    """The graph's float64 arena every bound port lives in (:attr:`TickProgram.f`)."""
+    decoder: TableDecoder | None
+    """Compiled decoder of the sensor messages it can take; None: Python decoders only."""
+    encoder: TableEncoder | None
+    """Compiled encoder of the actuator messages it can take (its ``payload`` holds their bytes); None: Python encoders only."""
+    out_ints: np.ndarray | None
+    """int64 tables of the compiled output call (:func:`out_packed`, :func:`tick_out`; header in :func:`out_packed`).
+    None exactly when :attr:`encoder` is None: then :meth:`CanIO.guard_and_encode` guards and encodes in separate steps."""
+    out_floats: np.ndarray
+    """float64 tables of the output call: raw outputs | guarded outputs | guard parameters (5 x n) | encoder table."""
+    guard_ints: np.ndarray | None
+    """The output guard's int64 state (peak run lengths, event counts, :attr:`OutputGuard.tables`); None: no bound output."""
+    fast_frames: tuple[tuple[bytearray, memoryview], ...]
+    """Per compiled actuator message, in :attr:`encoder` order: (its frame's data, its bytes in the encoder's payload);
+    ``data[:] = src`` copies without allocating."""
+    python_frames: tuple[tuple[PythonEncoder, bytearray], ...]
+    """Per other actuator message: (its generated Python encoder, its frame's data)."""
+
+    @property
+    def payload(self) -> np.ndarray | None:
+        """The encoder's payload bytes as a uint8 array (what the compiled output call writes), None without an encoder."""
+        return self.encoder.payload_view if self.encoder is not None else None
 
 
 class CanIO:
@@ -37,20 +78,22 @@ class CanIO:
     assembled from several messages goes stale when any of them stops.
 
     Two equivalent paths: the generated Python codecs (:meth:`decode`, always
-    available) and, when the graph's ports live in one float64 arena (the compiled
-    :class:`~flowtex.graph.compiled.Graph`), table-driven compiled codecs
+    available) and table-driven compiled codecs on the graph's float64 arena
     (:class:`~flowtex.io.codec.TableDecoder`/:class:`~flowtex.io.codec.TableEncoder`):
     one call decodes every sensor payload of a tick straight into the arena, one call
     gathers the outputs, applies the guard and encodes every actuator payload. Both give
-    identical values and bytes (tested against cantools).
+    identical values and bytes (tested against cantools). The compiled path is kept because
+    it pays: ``benchmarks/bench_live_paths.py`` (section ``codec``) measures both side by side.
+    The Python path stays as the general one: messages the tables cannot take exactly
+    (:func:`~flowtex.io.codec.fast_ok`), frames of an unexpected length, the replay's decode.
+    What the compiled tick needs is :attr:`codec`.
     """
 
-    def __init__(self, graph: Any, canmap: CanMap, codecs: Mapping[str, MessageCodec], rate_hz: float):
+    def __init__(self, graph: TickProgram, canmap: CanMap, codecs: Mapping[str, MessageCodec], rate_hz: float):
         self.graph = graph
         self.map = canmap
         self.codecs = codecs
         arena = _arena(graph, canmap)
-        self.arena = arena
         # inputs -> decoders
         wd_keys: list[tuple[str, str]] = []
         wd_timeouts: list[int] = []
@@ -63,8 +106,7 @@ class CanIO:
                 c = codecs[m]
                 targets = per_msg.setdefault(m, [None] * len(c.signals))
                 targets[c.index[s]] = (view, j, float(b.scale[j]), float(b.offset[j]))
-                if base is not None:
-                    per_msg_idx.setdefault(m, [None] * len(c.signals))[c.index[s]] = (base + j, float(b.scale[j]), float(b.offset[j]))
+                per_msg_idx.setdefault(m, [None] * len(c.signals))[c.index[s]] = (base + j, float(b.scale[j]), float(b.offset[j]))
                 if (b.name, m) not in wd_keys:
                     wd_keys.append((b.name, m))
                     wd_timeouts.append(max(1, math.ceil(b.timeout_ms * rate_hz / 1000.0 - 1e-9)))
@@ -78,20 +120,17 @@ class CanIO:
                 raise DataError(f"two sensor messages share frame id {c.frame_id:#x}")
             entries = tuple(i for i, (_, mm) in enumerate(wd_keys) if mm == m)
             self.decoders[c.frame_id] = (c.decoder(targets), entries)
-            if arena is not None and fast_ok(c) and len(fast_in) < 62:
+            if fast_ok(c) and len(fast_in) < 62:
                 fast_in.append((c, per_msg_idx[m], entries))
-        self.table_decoder = TableDecoder(fast_in) if fast_in else None
-        """Compiled decoder of the sensor messages it can take (None: Python decoders only)."""
+        table_decoder = TableDecoder(fast_in) if fast_in else None
         # outputs -> guard -> encoders
         self.out_names = list(canmap.outputs)
         self.out_widths = widths = [canmap.outputs[n].width for n in self.out_names]
         total = int(sum(widths))
         rows = sum(len(codecs[m].signals) for m in canmap.actuator_messages() if fast_ok(codecs[m]))
-        self._fbuf = np.zeros(7 * total + _NF * rows)
-        """Float tables of the compiled output call: raw outputs | guarded outputs | guard parameters (5 x n) | encoder table."""
-        self.raw = self._fbuf[:total]
-        self.out = self._fbuf[total:2 * total]
-        self._copies: list[tuple[np.ndarray, np.ndarray]] = []
+        fbuf = np.zeros(7 * total + _NF * rows)
+        self.raw = fbuf[:total]
+        self.out = fbuf[total:2 * total]
         gather: list[int] = []
         lo, hi, safe, plo, phi, pmax = [], [], [], [], [], []
         start = 0
@@ -99,9 +138,8 @@ class CanIO:
         for name, w in zip(self.out_names, widths, strict=True):
             b = canmap.outputs[name]
             view = graph.output_view(name)
-            self._copies.append((view, self.raw[start:start + w]))
             base = _offset(arena, view)
-            gather.extend(range(base, base + w) if base is not None else [])
+            gather.extend(range(base, base + w))
             lo.extend(b.lo)
             hi.extend(b.hi)
             safe.extend(b.safe)
@@ -116,16 +154,14 @@ class CanIO:
             start += w
         self.guard = OutputGuard(np.array(lo), np.array(hi), np.array(safe), peak_hi=np.array(phi), peak_lo=np.array(plo),
                                  peak_max_ticks=np.array(pmax, dtype=np.int64)) if total else None
-        # gather indices into the arena (the compiled path), or None: copy through the views
-        self._gather = np.array(gather, dtype=np.int64) if arena is not None and total else None
-        self._gfp, self._gip = self.guard.tables if self.guard is not None else (None, None)
+        # where the bound outputs are in the arena, in map order (None: no bound output)
+        self._gather = np.array(gather, dtype=np.int64) if total else None
+        self._gfp, gip = self.guard.tables if self.guard is not None else (None, None)
         self.tx: list[can.Message] = []
-        self.encoders: list[Callable[[bytearray], None]] = []
+        self.encoders: list[PythonEncoder] = []
         fast_out = []
-        self._tx_fast: list[tuple[bytearray, memoryview]] = []
-        """(frame data, its bytes in the table encoder's payload) for the compiled actuator messages: ``data[:] = src``
-        copies without allocating."""
-        self._tx_slow: list[tuple[Callable[[bytearray], None], bytearray]] = []
+        tx_fast: list[tuple[bytearray, memoryview]] = []
+        tx_slow: list[tuple[PythonEncoder, bytearray]] = []
         for m in canmap.actuator_messages():
             c = codecs[m]
             msg = can.Message(arbitration_id=c.frame_id, is_extended_id=c.is_extended, is_fd=c.is_fd,
@@ -136,24 +172,39 @@ class CanIO:
             if fast_ok(c) and self.guard is not None:
                 fast_out.append((c, [None if t is None else (t[1], t[2], t[3]) for t in sources[m]], msg))
             else:
-                self._tx_slow.append((enc, msg.data))
-        te = self.table_encoder = TableEncoder([(c, src) for c, src, _ in fast_out]) if fast_out else None
-        self._ibuf = None
-        """Integer tables of the compiled output call (None: no compiled output path), see :func:`out_packed`."""
+                tx_slow.append((enc, msg.data))
+        te = TableEncoder([(c, src) for c, src, _ in fast_out]) if fast_out else None
+        ibuf = None
         if te is not None:
             offs = te.offsets
             whole = memoryview(te.payload)
-            self._tx_fast = [(msg.data, whole[int(offs[i]):int(offs[i + 1])]) for i, (_, _, msg) in enumerate(fast_out)]
-            if self._gather is not None:
-                nm, r = len(fast_out), te.itab.shape[0]
-                self._ibuf, (self._gather, te.offsets, te._words, te._scratch, te.itab, _), o = pack_int64(
-                    [self._gather, te.offsets, te._words, te._scratch, te.itab, self.timeouts_ticks], header=16)
-                self._ibuf[:10] = [total, o[0], nm, o[1], o[2], o[3], r, o[4], self.timeouts_ticks.shape[0], o[5]]
-                self._fbuf[2 * total:7 * total] = self._gfp.reshape(-1)
-                self._fbuf[7 * total:] = te.ftab.reshape(-1)
-                te.ftab = self._fbuf[7 * total:].reshape(r, _NF)
+            tx_fast = [(msg.data, whole[int(offs[i]):int(offs[i + 1])]) for i, (_, _, msg) in enumerate(fast_out)]
+            nm, r = len(fast_out), te.itab.shape[0]  # an encoder implies a bound output, hence a guard and gather indices
+            ibuf, (self._gather, *tables, _), o = pack_int64([self._gather, *te.int_tables(), self.timeouts_ticks], header=16)
+            ibuf[:10] = [total, o[0], nm, o[1], o[2], o[3], r, o[4], self.timeouts_ticks.shape[0], o[5]]
+            fbuf[2 * total:7 * total] = self._gfp.reshape(-1)
+            fbuf[7 * total:] = te.ftab.reshape(-1)
+            te.rebind(tables, fbuf[7 * total:].reshape(r, _NF))
+        self.codec = CompiledCodec(arena=arena, decoder=table_decoder, encoder=te, out_ints=ibuf, out_floats=fbuf, guard_ints=gip,
+                                   fast_frames=tuple(tx_fast), python_frames=tuple(tx_slow))
+        """The compiled codec: every table and frame the compiled live tick uses (:class:`CompiledCodec`)."""
         self.tx_ids = [(m.arbitration_id, m.is_extended_id) for m in self.tx]
         self._warm_up()
+
+    @property
+    def arena(self) -> np.ndarray:
+        """The graph's float64 arena every bound port lives in (:attr:`CompiledCodec.arena`)."""
+        return self.codec.arena
+
+    @property
+    def table_decoder(self) -> TableDecoder | None:
+        """Compiled decoder of the sensor messages it can take, or None (:attr:`CompiledCodec.decoder`)."""
+        return self.codec.decoder
+
+    @property
+    def table_encoder(self) -> TableEncoder | None:
+        """Compiled encoder of the actuator messages it can take, or None (:attr:`CompiledCodec.encoder`)."""
+        return self.codec.encoder
 
     def _warm_up(self) -> None:
         """Compile (or load from numba's disk cache) the compiled codec calls now, not on the first live tick.
@@ -165,9 +216,9 @@ class CanIO:
             self.table_decoder.run(0, 0, self.arena, np.zeros(1, dtype=np.int64))
         if self.guard is not None:
             self.guard_and_encode(True)
-            if self._ibuf is not None:
-                tick_out(self.arena, self._ibuf, self._fbuf, self._gip, np.zeros(1, dtype=np.int64), self.table_encoder.payload_view,
-                         0, 0, 0, True)
+            c = self.codec
+            if c.out_ints is not None:
+                tick_out(c.arena, c.out_ints, c.out_floats, c.guard_ints, np.zeros(1, dtype=np.int64), c.payload, 0, 0, 0, True)
             self.guard_outputs(True)
             self.encode()
 
@@ -187,11 +238,7 @@ class CanIO:
         """Copy bound graph outputs, guard them into ``self.out``; returns the guard's event count."""
         if self.guard is None:
             return 0
-        if self._gather is not None:
-            return _gather_guard(self.arena, self._gather, self.raw, self.out, self._gfp, self._gip, force_safe)
-        for src, dst in self._copies:
-            dst[:] = src
-        return self.guard.apply(self.raw, self.out, force_safe)
+        return _gather_guard(self.arena, self._gather, self.raw, self.out, self._gfp, self.codec.guard_ints, force_safe)
 
     def encode(self) -> None:
         """Encode ``self.out`` into the reusable actuator frames ``self.tx``."""
@@ -201,18 +248,19 @@ class CanIO:
 
     def fill_frames(self) -> None:
         """Copy the encoded payloads into the actuator frames ``self.tx``; run the Python encoders of the others."""
-        for data, src in self._tx_fast:
+        for data, src in self.codec.fast_frames:
             data[:] = src
-        for enc, data in self._tx_slow:
+        for enc, data in self.codec.python_frames:
             enc(data)
 
     def guard_and_encode(self, force_safe: bool) -> int:
         """:meth:`guard_outputs` then :meth:`encode` (one compiled call when possible); returns the guard's event count."""
-        if self._ibuf is None:
+        c = self.codec
+        if c.out_ints is None:
             events = self.guard_outputs(force_safe)
             self.encode()
             return events
-        events = out_packed(self.arena, self._ibuf, self._fbuf, self._gip, self.table_encoder.payload_view, force_safe)
+        events = out_packed(c.arena, c.out_ints, c.out_floats, c.guard_ints, c.payload, force_safe)
         self.fill_frames()
         return events
 
@@ -259,24 +307,21 @@ def peak_low(lo: np.ndarray, hi: np.ndarray, limit: np.ndarray) -> np.ndarray:
     return np.asarray(lo, dtype=np.float64) - (np.asarray(limit, dtype=np.float64) - np.asarray(hi, dtype=np.float64))
 
 
-def _arena(graph: Any, canmap: CanMap) -> np.ndarray | None:
-    """The one C-contiguous float64 array every bound port view lives in, else None (then the Python path is used)."""
-    views = [graph.input_view(n) for n in canmap.inputs] + [graph.output_view(n) for n in canmap.outputs]
-    if not views:
-        return None
-    base = views[0].base
-    if not isinstance(base, np.ndarray) or base.dtype != np.float64 or base.ndim != 1 or not base.flags.c_contiguous:
-        return None
-    for v in views:
-        if v.base is not base or v.dtype != np.float64 or v.ndim != 1 or not v.flags.c_contiguous:
-            return None
-    return base
+def _arena(graph: TickProgram, canmap: CanMap) -> np.ndarray:
+    """The graph's float arena :attr:`TickProgram.f`, checked to be what the protocol promises: C-contiguous 1-D float64,
+    holding every bound port view as a contiguous slice (the compiled codecs index it)."""
+    arena = graph.f
+    if arena.dtype != np.float64 or arena.ndim != 1 or not arena.flags.c_contiguous:
+        raise ValueError(f"CanIO: graph {graph.name!r}: its arena f must be a C-contiguous 1-D float64 array (TickProgram)")
+    views = [(n, graph.input_view(n)) for n in canmap.inputs] + [(n, graph.output_view(n)) for n in canmap.outputs]
+    for name, v in views:
+        if v.base is not arena or v.dtype != np.float64 or v.ndim != 1 or not v.flags.c_contiguous:
+            raise ValueError(f"CanIO: graph {graph.name!r}: port {name!r} is not a contiguous float64 slice of its arena f (TickProgram)")
+    return arena
 
 
-def _offset(arena: np.ndarray | None, view: np.ndarray) -> int | None:
+def _offset(arena: np.ndarray, view: np.ndarray) -> int:
     """Index of ``view[0]`` in ``arena``."""
-    if arena is None:
-        return None
     delta = view.__array_interface__["data"][0] - arena.__array_interface__["data"][0]
     return delta // arena.itemsize
 
@@ -324,7 +369,7 @@ def tick_out(arena, ib, fb, gip, wd_last, payload, tick, overrun_ns, overrun_lim
     return out_packed(arena, ib, fb, gip, payload, False)
 
 
-def load_io(graph: Any, dbc_path: str | Path, map_path: str | Path) -> CanIO:
+def load_io(graph: TickProgram, dbc_path: str | Path, map_path: str | Path) -> CanIO:
     """Load the DBC and map (checked against ``graph``) and build the :class:`CanIO`."""
     db = load_dbc(dbc_path)
     canmap = load_map(map_path, db, dbc_path, port_widths(graph.inputs), port_widths(graph.outputs))
@@ -333,6 +378,6 @@ def load_io(graph: Any, dbc_path: str | Path, map_path: str | Path) -> CanIO:
     return CanIO(graph, canmap, codecs, float(graph.rate))
 
 
-def port_widths(ports: Mapping[str, Any]) -> dict[str, int]:
+def port_widths(ports: Mapping[str, PortSpec]) -> dict[str, int]:
     """Graph port name -> number of scalars (product of its shape)."""
     return {name: int(np.prod(spec.shape)) if spec.shape else 1 for name, spec in ports.items()}

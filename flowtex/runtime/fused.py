@@ -20,7 +20,7 @@ encoded payloads into the ``bytearray`` data of the reusable actuator frames
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
@@ -28,7 +28,11 @@ from numba import njit
 
 from ..graph.jit import load_generated
 from ..graph.kernels import bytes_at, fslice, islice
+from ..graph.program import TickProgram
 from ..io.codec import decode_packed
+
+if TYPE_CHECKING:  # canio imports nothing of this module; the type alone is needed here
+    from .canio import CanIO
 
 POINTER_ORDER = ("f", "i", "d_ib", "d_fb", "stamps", "o_ib", "o_fb", "gip", "payload", "frames")
 """The arrays of a fused tick, in the order of their (address, rows, columns) triples in ``ptrs``."""
@@ -112,17 +116,20 @@ class FusedTick:
     filled) when the watchdog needs its own check.
     """
 
-    def __init__(self, graph: Any, io: Any, tick_out: Callable[..., int], stamps: np.ndarray):
-        td = io.table_decoder
+    def __init__(self, graph: TickProgram, io: CanIO, tick_out: Callable[..., int], stamps: np.ndarray):
+        codec = io.codec
+        if codec.out_ints is None or codec.encoder is None:
+            raise ValueError("FusedTick: the CAN map has no compiled output call (see fuse_tick)")
+        td = codec.decoder
         d_ib, d_fb = (td.ibuf, td.fbuf) if td is not None else _NO_DECODER
         # The actuator frames' bytes, written by compiled code: these views keep each bytearray
         # alive and, holding an export of its buffer, forbid resizing it (its address stays valid).
-        self._frame_bytes = [np.frombuffer(data, dtype=np.uint8) for data, _ in io._tx_fast]
-        offs = io.table_encoder.offsets  # message k of the table encoder is io._tx_fast[k]
+        self._frame_bytes = [np.frombuffer(data, dtype=np.uint8) for data, _ in codec.fast_frames]
+        offs = codec.encoder.offsets  # message k of the table encoder is codec.fast_frames[k]
         frames = np.array([(b.ctypes.data, offs[k], offs[k + 1] - offs[k]) for k, b in enumerate(self._frame_bytes)],
                           dtype=np.int64).reshape(-1, 3)
-        self.arrays = {"f": graph.f, "i": graph.i, "d_ib": d_ib, "d_fb": d_fb, "stamps": stamps, "o_ib": io._ibuf, "o_fb": io._fbuf,
-                       "gip": io._gip, "payload": io.table_encoder.payload_view, "frames": frames}
+        self.arrays = {"f": graph.f, "i": graph.i, "d_ib": d_ib, "d_fb": d_fb, "stamps": stamps, "o_ib": codec.out_ints,
+                       "o_fb": codec.out_floats, "gip": codec.guard_ints, "payload": codec.payload, "frames": frames}
         """Every array the fused call reads or writes (kept alive here; the call sees them through :attr:`ptrs`)."""
         self.ptrs = pointer_table(self.arrays)
         f, i = graph.scratch_arenas()
@@ -149,12 +156,12 @@ class FusedTick:
         self.call(self._warm_ptrs, mask, 0, 0, 0, True)
 
 
-def fuse_tick(graph: Any, io: Any, tick_out: Callable[..., int], stamps: np.ndarray) -> FusedTick | None:
-    """A :class:`FusedTick` when the graph and the map allow it, else None (the loop then makes separate calls).
+def fuse_tick(graph: TickProgram, io: CanIO, tick_out: Callable[..., int], stamps: np.ndarray) -> FusedTick | None:
+    """A :class:`FusedTick` when the map allows it, else None (the loop then makes separate calls).
 
-    It needs the compiled graph (``block_function``), the map's ports in the graph's
-    float arena, and the compiled output call (``CanIO._ibuf``).
+    It needs the compiled output call (:attr:`~flowtex.runtime.canio.CompiledCodec.out_ints`:
+    a bound output and at least one actuator message the compiled encoder takes).
     """
-    if getattr(graph, "block_function", None) is None or io._ibuf is None or io.arena is not getattr(graph, "f", None):
+    if io.codec.out_ints is None:
         return None
     return FusedTick(graph, io, tick_out, stamps)

@@ -10,7 +10,7 @@ Per tick (the order is the contract replay relies on, see docs/live.md):
 3. to 5. one call (:func:`~flowtex.runtime.tick.tick_compute`): decode the frames into
    the graph inputs (inputs hold their last value between frames), one graph tick,
    watchdog, output guard, encode every actuator frame (:mod:`flowtex.runtime.canio`,
-   fused into one compiled call by :mod:`flowtex.runtime.fused` when the graph allows);
+   fused into one compiled call by :mod:`flowtex.runtime.fused` when the map allows);
 6. send exactly one frame per actuator message, in map order;
 7. in the slack: hand the tick's audio samples to the sound card's callback (when the
    map has an ``audio`` section, :mod:`flowtex.runtime.audio`), write the tick's received
@@ -31,7 +31,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
@@ -40,6 +40,7 @@ import can
 import numpy as np
 
 from ..errors import FlowtexError
+from ..graph.program import TickProgram
 from ..io.canlog import SessionWriter
 from ..io.dbc import one_line
 from .audio import AudioOutput, prompt_callbacks
@@ -48,15 +49,16 @@ from .buses import BusError, open_bus, receiver, sender
 from .canio import CanIO, load_io, tick_out
 from .clock import DeadlineClock
 from .fused import fuse_tick
+from .liveconfig import LiveConfig
 from .preflight import preflight_live
 from .realtime import RealtimeStatus, enter_realtime, freeze_gc, leave_realtime
 from .safety import all_updated_after, first_stale
-from .simdevice import in_process_device
+from .simdevice import SimulatedDevice, in_process_device
 from .stats import TickStats
 from .status import Shown, StatusDisplay, clamp_warnings, resolve_shown
 from .tick import rx_decoder, tick_compute, warmer
 
-__all__ = ["BusError", "CanIO", "LiveReport", "load_io", "run_live"]
+__all__ = ["BusError", "CanIO", "LiveConfig", "LiveReport", "load_io", "run_live"]
 
 
 @dataclass
@@ -75,7 +77,7 @@ class LiveReport:
     rt_message: str = ""
     send_offset_ns: np.ndarray | None = None
     """Per tick (first ``ticks``, up to capacity): time from the tick's deadline until its last frame was sent."""
-    device: Any = None
+    device: SimulatedDevice | None = None
     """The in-process :class:`~flowtex.runtime.simdevice.SimulatedDevice`, if any."""
     silent_messages: list[str] = field(default_factory=list)
     """Sensor messages of the map of which not one frame arrived during the session."""
@@ -95,48 +97,22 @@ class LiveReport:
         return self.error is None
 
 
-def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | None = None, *,
-             simulate: Any = None, duration_s: float | None = None, record: str | Path | None = None,
-             rt: bool = False, rt_priority: int = 80, rt_cpu: int | None = None, stats_path: str | Path | None = None,
-             seed: int | None = None, status: TextIO | None = sys.stderr, bitrate: int | None = None,
-             drop: Mapping[str, tuple[int, int | None]] | None = None, install_signals: bool = True,
-             max_ticks: int | None = None, warm: bool = True, show: Sequence[str] = (),
-             inputs: Sequence[str | Path] = (), record_audio: str | Path | None = None) -> LiveReport:
-    """Run ``graph`` live against a CAN bus until ``duration_s`` (None: until Ctrl-C/SIGTERM).
+def run_live(graph: TickProgram, config: LiveConfig) -> LiveReport:
+    """Run ``graph`` live against a CAN bus with the options of ``config`` (:class:`~flowtex.runtime.liveconfig.LiveConfig`).
 
-    ``simulate``: a recording path (or :class:`~flowtex.io.recordings.Recording`);
-    a :class:`~flowtex.runtime.simdevice.SimulatedDevice` then runs in this process on a private ``virtual``
-    bus, stepped once per executed tick, and ``bus`` must be None or ``virtual``.
-    ``drop`` (simulation only) silences sensor messages: name -> (first tick, stop tick or None).
-    ``max_ticks`` ends the session after that many executed ticks (deterministic
-    length for tests). The session runs on ``graph.with_block_rows(1)`` (same code,
-    parameters and seed, one-row port buffers), so ``graph`` itself is not stepped.
-    ``show``: graph outputs or inputs (``NAME`` or ``NAME[i]``) whose current values follow the status line.
-    ``warm``: cache warming before each deadline (see :func:`~flowtex.runtime.tick.warmer`). ``inputs``: other files the
-    session was built from (e.g. a scene file), which ``record`` and ``stats_path`` must not be; both are checked before
-    the session (:func:`~flowtex.runtime.preflight.preflight_live`).
-    ``record_audio``: write the samples handed to PortAudio as a float32 WAV (the map needs an ``audio`` section).
-    Raises :class:`FlowtexError`
-    for bad files or a bus that cannot be opened; failures during the loop end the session with safe values and are
-    returned in ``LiveReport.error``.
+    The session runs until ``config.duration_s`` or ``config.max_ticks`` (neither: until Ctrl-C/SIGTERM) on
+    ``graph.with_block_rows(1)`` (same code, parameters and seed, one-row port buffers), so ``graph`` itself is not
+    stepped. The output paths are checked before the session (:func:`~flowtex.runtime.preflight.preflight_live`).
+    Raises :class:`FlowtexError` for bad files or a bus that cannot be opened; failures during the loop end the session
+    with safe values and are returned in ``LiveReport.error``.
     """
-    relayout = getattr(graph, "with_block_rows", None)
-    if relayout is not None:  # one tick per call: port buffers of one row keep the tick's data in a few KB
-        graph = relayout(1)
-    n_ticks = max_ticks
-    if duration_s is not None:
-        if not duration_s > 0:
-            raise FlowtexError(f"--duration must be a positive number of seconds, got {duration_s!r}")
-        n_ticks = min(n_ticks or 1 << 62, int(round(duration_s * float(graph.rate))))
-    shown = resolve_shown(graph, show)
-    record, stats_path = preflight_live(graph, dbc_path, map_path, simulate=simulate, record=record, stats_path=stats_path,
-                                        inputs=inputs)
-    if record_audio is not None:
-        from ..io.atomic import check_output
-
-        record_audio = check_output(record_audio, inputs=[dbc_path, map_path, *inputs, *(p for p in (record, stats_path, simulate)
-                                                                                         if isinstance(p, (str, Path)))],
-                                    option="--record-audio", suffixes=(".wav",))
+    if not isinstance(config, LiveConfig):
+        raise TypeError(f"run_live takes a LiveConfig, got {type(config).__name__}")
+    graph = graph.with_block_rows(1)  # one tick per call: port buffers of one row keep the tick's data in a few KB
+    n_ticks = config.tick_limit(graph.rate)
+    shown = resolve_shown(graph, config.show)
+    record, stats_path, record_audio = preflight_live(graph, config)
+    dbc_path, map_path, bus = config.dbc_path, config.map_path, config.bus
     io = load_io(graph, dbc_path, map_path)
     if io.map.audio is not None and record is not None:
         check_event_ids(io.tx_ids, str(map_path))
@@ -144,20 +120,16 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
         raise FlowtexError(f"--record-audio: {map_path} has no 'audio' section, so nothing is played (docs/live.md, \"Audio output\")")
     audio = AudioOutput(graph, io.map.audio, record_audio, str(map_path)) if io.map.audio is not None else None
     device = dev_bus = None
-    if simulate is not None:
-        bus_obj, dev_bus, device = in_process_device(bus, io.map, io.codecs, simulate, float(graph.rate), drop, graph.name)
-    elif bus is None:
-        raise BusError("no --bus given (e.g. --bus socketcan:can0), and no --simulate RECORDING")
-    elif drop:
-        raise FlowtexError("drop= only applies to a simulated device")
+    if config.simulate is not None:
+        bus_obj, dev_bus, device = in_process_device(bus, io.map, io.codecs, config.simulate, float(graph.rate), config.drop,
+                                                     graph.name)
     else:
-        bus_obj = open_bus(bus, bitrate)
+        bus_obj = open_bus(bus, config.bitrate)
     writer = None
     try:
         writer = SessionWriter(record) if record is not None else None
         where = "the simulated device's virtual bus" if device is not None else f"bus {bus!r}"
-        return _loop(graph, io, bus_obj, device, writer, n_ticks, rt, rt_priority, rt_cpu, stats_path, seed, status,
-                     install_signals, warm, where, shown, audio)
+        return _loop(graph, io, bus_obj, device, writer, n_ticks, config, stats_path, where, shown, audio)
     finally:
         if audio is not None:
             audio.close()
@@ -169,10 +141,10 @@ def run_live(graph: Any, dbc_path: str | Path, map_path: str | Path, bus: str | 
                     b.shutdown()
 
 
-def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWriter | None, n_ticks: int | None,
-          rt: bool, rt_priority: int, rt_cpu: int | None, stats_path: str | Path | None, seed: int | None,
-          status: TextIO | None, install_signals: bool, warm: bool, where: str, shown: list[Shown],
+def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevice | None, writer: SessionWriter | None,
+          n_ticks: int | None, config: LiveConfig, stats_path: Path | None, where: str, shown: list[Shown],
           audio: AudioOutput | None = None) -> LiveReport:
+    status = config.status
     rate = float(graph.rate)
     capacity = int(min(n_ticks if n_ticks else 600 * rate, 3600 * rate)) + 1
     stats = TickStats(capacity)
@@ -189,7 +161,7 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     receive, send_frames = receiver(bus), sender(bus)
     rx: list[Any] = []
     """Frames received for the current tick: those already there shortly before its deadline, then the rest."""
-    warm_pass = warmer(io, watchdog, fused, decode_rx) if warm else None
+    warm_pass = warmer(io, watchdog, fused, decode_rx) if config.warm else None
 
     def prepare() -> None:  # shortly before each deadline (bus time and warming, not compute)
         receive(rx)
@@ -203,15 +175,15 @@ def _loop(graph: Any, io: CanIO, bus: can.BusABC, device: Any, writer: SessionWr
     if display is not None and audio is not None:
         display.extra = audio.status_text
     wall_minus_perf = time.time_ns() - time.perf_counter_ns()  # python-can timestamps are wall-clock seconds
-    graph.reset(seed)
-    rt_status, rt_message = _enter_rt(rt, rt_priority, rt_cpu, status)
+    graph.reset(config.seed)
+    rt_status, rt_message = _enter_rt(config.rt, config.rt_priority, config.rt_cpu, status)
     stop: list[str | None] = [None]
     error: str | None = None
     guard_events = k = lateness = overrun = 0
     tx, now = io.tx, time.perf_counter_ns
     if device is not None:
         device.publish(0)
-    with _stop_signals(stop, install_signals), freeze_gc(), prompt_callbacks(audio is not None):
+    with _stop_signals(stop, config.install_signals), freeze_gc(), prompt_callbacks(audio is not None):
         try:
             if audio is not None:
                 audio.start()  # silence until tick 0's samples are due; returns after PortAudio's first callback

@@ -37,6 +37,7 @@ import can
 import numpy as np
 
 from ..errors import DataError
+from ..graph.program import TickProgram
 from ..io.atomic import atomic_output
 from ..io.canlog import SessionWriter, read_session_checked
 from ..io.formats import AUDIO, CAN_LOG, RECORDING, format_of
@@ -179,7 +180,7 @@ def _split_ticks(frames: list[can.Message], tx_ids: list[tuple[int, bool]], path
     return ticks, exit_block
 
 
-def replay_session(graph: Any, session_path: str | Path, dbc_path: str | Path, map_path: str | Path,
+def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str | Path, map_path: str | Path,
                    output_path: str | Path | None = None, seed: int | None = None,
                    expect_audio: str | Path | None = None) -> ReplayReport:
     """Run ``graph`` over the frames a live session received, and compare with what it sent.
@@ -280,7 +281,7 @@ def _live_wav(path: str | Path, amap: Any, map_path: str | Path) -> tuple[np.nda
     return data, str(path)
 
 
-def _replay_audio(graph: Any, amap: Any, outputs: dict[str, np.ndarray], timeline: Any, path: str | Path | None,
+def _replay_audio(graph: TickProgram, amap: Any, outputs: dict[str, np.ndarray], timeline: Any, path: str | Path | None,
                   live: tuple[np.ndarray, str] | None, report: ReplayReport) -> None:
     """The stream the session handed to the sound card, rebuilt from the replayed ticks and the log's audio timeline
     (:func:`~flowtex.runtime.audio_check.rebuild_live`): written to ``path`` (a WAV equal to the live ``--record-audio``

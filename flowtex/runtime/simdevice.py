@@ -40,7 +40,7 @@ from ..io.canmap import CanMap, load_map
 from ..io.codec import MessageCodec
 from ..io.dbc import load_dbc
 from ..io.recordings import Recording, load_recording
-from .buses import BusError, open_bus, parse_bus_spec
+from .buses import open_bus, parse_bus_spec
 from .clock import DeadlineClock
 
 
@@ -226,8 +226,8 @@ def in_process_device(bus_spec: str | None, canmap: CanMap, codecs: Mapping[str,
     if rec.rate is not None and abs(rec.rate - rate_hz) > 1e-9 * rate_hz:
         raise DataError(f"{recording}: the recording states rate {rec.rate:g} Hz but graph {graph_name!r} runs at {rate_hz:g} Hz")
     interface, channel, _ = parse_bus_spec(bus_spec or "virtual")
-    if interface != "virtual":
-        raise BusError(f"--simulate runs the device on a 'virtual' bus in this process; drop --bus {bus_spec!r} or use --bus virtual")
+    if interface != "virtual":  # a user's --bus is checked by LiveConfig; this is a caller's mistake
+        raise ValueError(f"in_process_device: bus_spec must be None or virtual[:CHANNEL], got {bus_spec!r}")
     channel = channel or f"flowtex-sim-{id(rec):x}"
     runtime_bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
     device_bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)

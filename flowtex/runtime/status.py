@@ -12,11 +12,12 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable, Sequence
-from typing import Any, TextIO
+from typing import TextIO
 
 import numpy as np
 
 from ..errors import FlowtexError
+from ..graph.program import TickProgram
 from ..node_api import suggest
 from .canio import CanIO
 from .safety import Watchdog
@@ -40,7 +41,7 @@ Shown = tuple[str, np.ndarray, str]
 _NO_UNIT = ("", "1", "dimensionless")
 
 
-def resolve_shown(graph: Any, names: Sequence[str]) -> list[Shown]:
+def resolve_shown(graph: TickProgram, names: Sequence[str]) -> list[Shown]:
     """``--show`` arguments -> what the status line shows: ``NAME`` (a graph output, else a graph input; a vector shows
     every component) or ``NAME[i]`` (component ``i`` in C order). :class:`FlowtexError` naming the known ports otherwise."""
     outputs, inputs = graph.outputs, graph.inputs

@@ -3,12 +3,13 @@
 :func:`tick_compute` hides how a tick is computed from the loop: the Python loop
 over the received frames (:func:`rx_decoder`), then either the fused compiled call
 (:mod:`flowtex.runtime.fused`: decode, graph block, watchdog's quiet case, guard,
-encode, frame copies) or, for graphs the runtime cannot fuse, the same steps as
-separate compiled calls; any watchdog case other than the quiet one goes through
+encode, frame copies; any watchdog case other than the quiet one goes through
 :meth:`~flowtex.runtime.safety.Watchdog.check` and
-:meth:`~flowtex.runtime.canio.CanIO.guard_and_encode`. Both ways send the same bytes
-(tests/runtime/test_fused.py). :func:`warmer` is the effect-free pass the clock makes
-shortly before each deadline.
+:meth:`~flowtex.runtime.canio.CanIO.guard_and_encode`) or, for maps the runtime cannot
+fuse (no actuator message the compiled codec takes), the general steps one by one:
+compiled decode, graph block, ``Watchdog.check``, ``CanIO.guard_and_encode``. Both ways
+send the same bytes (tests/runtime/test_fused.py). :func:`warmer` is the effect-free
+pass the clock makes shortly before each deadline.
 """
 
 from __future__ import annotations
@@ -19,9 +20,10 @@ from typing import Any
 import can
 import numpy as np
 
+from ..graph.program import TickProgram
 from ..io.codec import decode_packed
 from .buses import CAN_ERR_BUSOFF, BusError
-from .canio import CanIO, tick_out
+from .canio import CanIO
 from .fused import FusedTick
 from .safety import Watchdog
 
@@ -43,7 +45,7 @@ def rx_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[Any], int, Any],
     inputs and marks its watchdog entries fresh at ``tick``. An error frame reporting
     bus-off raises :class:`BusError`.
     """
-    td = io.table_decoder
+    td = io.codec.decoder
     slot_get = td.slot_of.get if td is not None else {}.get
     slot_len = td.lengths if td is not None else []
     from_bytes = int.from_bytes
@@ -74,7 +76,7 @@ def rx_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[Any], int, Any],
     return decode_rx
 
 
-def tick_compute(graph: Any, io: CanIO, watchdog: Watchdog, fused: FusedTick | None,
+def tick_compute(graph: TickProgram, io: CanIO, watchdog: Watchdog, fused: FusedTick | None,
                  decode_rx: Callable[[list[Any], int, Any], int]) -> Callable[[list[Any], int, int], int]:
     """``compute(rx, tick, overrun_ns) -> guard events``: steps 2-5 of a live tick (docs/live.md) for the received frames ``rx``.
 
@@ -83,14 +85,17 @@ def tick_compute(graph: Any, io: CanIO, watchdog: Watchdog, fused: FusedTick | N
     the outputs and encodes every actuator frame of ``io.tx``. ``fused``: the fused
     call of :func:`~flowtex.runtime.fused.fuse_tick`, or None for separate calls.
     """
-    td = io.table_decoder
+    codec = io.codec
+    td = codec.decoder
     words = td.words if td is not None else None
     check = watchdog.check
     guard_and_encode = io.guard_and_encode
-    overrun_limit = watchdog.overrun_limit_ns
-    tx_fast, tx_slow = io._tx_fast, io._tx_slow
-    if fused is not None:  # the whole tick in one compiled call, which also fills the compiled messages' frames
+    if fused is not None:
+        # The whole tick in one compiled call, which also fills the compiled messages' frames. Kept beside the separate
+        # calls below because it pays: benchmarks/bench_live_paths.py (section "tick") times both side by side.
         live_tick, ptrs = fused.call, fused.ptrs
+        overrun_limit = watchdog.overrun_limit_ns
+        tx_slow = codec.python_frames
 
         def compute_fused(rx: list[Any], k: int, overrun: int) -> int:
             ev = live_tick(ptrs, decode_rx(rx, k, words), k, overrun, overrun_limit, watchdog.tripped)
@@ -101,12 +106,9 @@ def tick_compute(graph: Any, io: CanIO, watchdog: Watchdog, fused: FusedTick | N
             return ev
 
         return compute_fused
-    arena, wd_last, step = io.arena, watchdog.last, graph.step_block
+    # The general steps one by one: the only way for maps without a compiled output call (fuse_tick gives None).
+    arena, wd_last, step = codec.arena, watchdog.last, graph.step_block
     d_ib, d_fb = (td.ibuf, td.fbuf) if td is not None else (None, None)
-    o_ib, o_fb, gip = io._ibuf, io._fbuf, io._gip
-    out_fused = o_ib is not None
-    e_payload = io.table_encoder.payload_view if out_fused else None
-    tick_out_ = entry_point(tick_out)
     decode_packed_ = entry_point(decode_packed)
 
     def compute_separately(rx: list[Any], k: int, overrun: int) -> int:
@@ -114,14 +116,7 @@ def tick_compute(graph: Any, io: CanIO, watchdog: Watchdog, fused: FusedTick | N
         if mask:
             decode_packed_(d_ib, d_fb, mask, k, arena, wd_last)
         step(1)
-        ev = tick_out_(arena, o_ib, o_fb, gip, wd_last, e_payload, k, overrun, overrun_limit, watchdog.tripped) if out_fused else -1
-        if ev < 0:
-            return guard_and_encode(check(k, overrun))
-        for data, src in tx_fast:
-            data[:] = src
-        for enc, data in tx_slow:
-            enc(data)
-        return ev
+        return guard_and_encode(check(k, overrun))
 
     return compute_separately
 
@@ -134,10 +129,10 @@ def warmer(io: CanIO, watchdog: Watchdog, fused: FusedTick | None, decode_rx: Ca
     with nothing observable changing: the Python decode on one template frame per
     compiled slot into scratch words, then the fused tick on scratch copies of the
     arenas and watchdog stamps with ``tripped=True`` (the output call returns before
-    touching anything). Without a fused tick: the decoder with mask 0, the output call
-    tripped, and :meth:`Graph.warm`.
+    touching anything). Without a fused tick: the decoder with mask 0 and
+    :meth:`~flowtex.graph.program.TickProgram.warm`.
     """
-    td, te = io.table_decoder, io.table_encoder
+    td = io.codec.decoder
     calls: list[Callable[[], Any]] = []
     if td is not None:
         templates = [can.Message(arbitration_id=fid, is_extended_id=fid > 0x7FF, data=bytearray(int(td.lengths[j])))
@@ -149,11 +144,8 @@ def warmer(io: CanIO, watchdog: Watchdog, fused: FusedTick | None, decode_rx: Ca
         calls.append(lambda: fused.warm(every_slot))
     else:
         if td is not None:
-            args = (td.ibuf, td.fbuf, 0, 0, io.arena, watchdog.last)
+            args = (td.ibuf, td.fbuf, 0, 0, io.codec.arena, watchdog.last)
             calls.append(lambda: decode_packed(*args))
-        if io._ibuf is not None:
-            out_args = (io.arena, io._ibuf, io._fbuf, io._gip, watchdog.last, te.payload_view, 0, 0, 0, True)
-            calls.append(lambda: tick_out(*out_args))
         calls.append(io.graph.warm)
 
     def warm() -> None:

@@ -74,7 +74,7 @@ def trajectory_ranges(position_mm: np.ndarray, normal_force_n: np.ndarray, rate_
     touching = force[1:] >= contact_n
     ok = touching & np.isfinite(speed) & np.isfinite(force[1:])
     if ok.sum() < 10:
-        raise ValueError("fewer than 10 samples in contact (normal_force >= 0.1 N)")
+        raise ValueError(f"fewer than 10 samples in contact (normal_force >= {contact_n:g} N)")
     s_lo, s_hi = np.quantile(speed[ok], quantiles)
     f_lo, f_hi = np.quantile(force[1:][ok], quantiles)
     return (float(s_lo), float(s_hi)), (float(f_lo), float(f_hi))

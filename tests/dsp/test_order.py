@@ -14,7 +14,7 @@ from flowtex.dsp.arma import arma_output_variance
 from flowtex.dsp.lsf import lsf_to_poly_new
 from flowtex.dsp.order import step_down, truncate_models
 from flowtex.errors import ParamError
-from flowtex.io.modelset import save_model_set
+from flowtex.io.modelset import load_model_set, save_model_set
 from flowtex.node_api import BuildContext
 from flowtex.nodes.texture import TextureLookup
 
@@ -41,12 +41,12 @@ def test_truncated_models_keep_power_and_are_valid():
         assert np.all(np.diff(np.r_[0.0, ar[m], np.pi]) > 0) and np.all(np.diff(np.r_[0.0, ma[m], np.pi]) > 0)
         full = arma_output_variance(lsf_to_poly_new(ms.ar_lsf[m]), lsf_to_poly_new(ms.ma_lsf[m]), ms.gain[m], ms.variance[m])
         red = arma_output_variance(lsf_to_poly_new(ar[m]), lsf_to_poly_new(ma[m]), ms.gain[m], var[m])
-        assert red == pytest.approx(full, rel=1e-9, abs=1e-300)  # rounding of the two Lyapunov solutions
+        assert red == pytest.approx(full, rel=1e-9, abs=1e-300)  # rounding of the two lattice step-downs
 
 
 def test_lookup_order_param(tmp_path: Path):
     path = save_model_set(synthetic_model_set([50.0, 250.0], [0.5, 2.5], 8, 6), tmp_path / "m.json")
-    params = {"models": str(path), "low_speed": 0.05, "low_speed_value": 0.0001, "speed_margin": 0.01, "low_force": 0.05,
+    params = {"models": load_model_set(path), "low_speed": 0.05, "low_speed_value": 0.0001, "speed_margin": 0.01, "low_force": 0.05,
               "low_force_value": 0.0001, "force_margin": 0.01, "order": [4, 2]}
     node = TextureLookup("lookup", params, BuildContext(rate=1000.0, base_dir=tmp_path))
     out = node.resolve({})

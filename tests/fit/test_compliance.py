@@ -109,7 +109,7 @@ def test_cli_writes_valid_and_invalid_results(tmp_path, capsys):
     bad[123] = np.nan
     save_recording(tmp_path / "n.npz", {"f": smooth["force"], "a": bad}, rate=1000.0)
     assert main(["fit", "compliance", str(tmp_path / "n.npz"), "--force", "f", "--accel", "a", "-o", str(tmp_path / "x.json")]) == 1
-    assert "NaN or infinite values (first at sample 123)" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
+    assert "signal 'a' (--accel): 1 NaN/inf sample(s) (at sample 123)" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
     save_recording(tmp_path / "norate.npz", {"f": smooth["force"], "a": smooth["accel"]})
     assert main(["fit", "compliance", str(tmp_path / "norate.npz"), "--force", "f", "--accel", "a", "-o", str(tmp_path / "x.json")]) == 1
     assert "states no sample rate; pass --from-rate HZ" in capsys.readouterr().err

@@ -140,7 +140,8 @@ def test_cli_and_bad_pattern_files(tmp_path, capsys):
     with pytest.raises(GraphError, match="version 7 is not supported"):
         flowtex.load_graph(tmp_path / "g.yaml")
     assert main(["fit", "pattern", str(tmp_path / "r.npz"), "--accel", "a", "--position", "a", "-o", str(tmp_path / "x.json")]) == 1
-    assert "has 1 components per sample, expected 3" in capsys.readouterr().err and not (tmp_path / "x.json").exists()
+    err = capsys.readouterr().err
+    assert "signal 'a' (--position) has shape (" in err and "; expected (n, 3)" in err and not (tmp_path / "x.json").exists()
     save_recording(tmp_path / "flat.npz", {"a": np.zeros(500), "p": rec["position"][:500]}, rate=1000.0)
     assert main(["fit", "pattern", str(tmp_path / "flat.npz"), "--accel", "a", "--position", "p", "-o", str(tmp_path / "x.json")]) == 1
     assert "constant: there is no texture" in capsys.readouterr().err

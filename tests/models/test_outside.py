@@ -12,9 +12,9 @@ import pytest
 
 from flowtex.datasets.model_sets import lsf_to_poly_reference
 from flowtex.datasets.realistic import SPEED_SHARE, loud_surface
-from flowtex.dsp.arma import arma_output_variance
 from flowtex.fit.quality import models_at
 from flowtex.models.outside import TREND_CAP, model_powers, nearest_measured, power_trend
+from tests.power_reference import lyapunov_power
 
 
 @pytest.fixture(scope="module")
@@ -25,8 +25,8 @@ def surface():
 def test_surface_spans_15_db_and_model_powers_are_exact(surface):
     measured = surface.variance > 0
     p = model_powers(surface)
-    ref = [arma_output_variance(lsf_to_poly_reference(surface.ar_lsf[m]), lsf_to_poly_reference(surface.ma_lsf[m]),
-                                surface.gain[m], surface.variance[m]) for m in np.flatnonzero(measured)]
+    ref = [lyapunov_power(lsf_to_poly_reference(surface.ar_lsf[m]), lsf_to_poly_reference(surface.ma_lsf[m]),
+                          surface.gain[m], surface.variance[m]) for m in np.flatnonzero(measured)]
     assert np.allclose(p[measured], ref, rtol=1e-9)                   # FFT-grid power vs the Lyapunov solution
     assert 10 * np.log10(p[measured].max() / p[measured].min()) == pytest.approx(15.0, abs=1e-6)
 

@@ -81,3 +81,21 @@ def test_wrong_parameters_and_inputs_are_named() -> None:
     proc = node_type("butterworth").processor(order=2, cutoff_hz=50.0)
     with pytest.raises(ValueError, match="no input 'xx'"):
         proc(xx=np.zeros(3))
+
+
+@pytest.mark.parametrize("params", [{"ordr": 3, "cutoff_hz": 50.0}, {"cutoff_hz": 50.0}, {"order": 99, "cutoff_hz": 50.0},
+                                    {"order": 2, "cutoff_hz": 50.0, "kind": "notch"}, {"order": 2.5, "cutoff_hz": 50.0}])
+def test_a_graph_and_a_processor_refuse_a_parameter_with_one_message(params) -> None:
+    # One owner (flowtex.node_params.checked_params) checks a node's parameters for both: the messages differ only
+    # in how they name the node (a graph's node by its name and type, a processor by its type).
+    from flowtex.errors import GraphError
+    from flowtex.graph.builder import GraphBuilder
+
+    with pytest.raises(ParamError) as proc_err:
+        node_type("butterworth").processor(**params)
+    builder = GraphBuilder("g").input("x").node("f", "butterworth", **params).edge("x -> f.x").output("y", "f.y")
+    with pytest.raises(GraphError) as graph_err:
+        builder.resolve()
+    first = graph_err.value.diagnostics[0].message
+    assert str(proc_err.value).removeprefix("node type 'butterworth': ") == first.removeprefix("node 'f' (butterworth): ")
+    assert str(proc_err.value) != first  # both prefixes were there to remove

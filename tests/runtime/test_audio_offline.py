@@ -15,7 +15,7 @@ from flowtex.dsp.audio_interp import Interpolator
 from flowtex.errors import FlowtexError
 from flowtex.graph.compiled import load_graph
 from flowtex.io.recordings import load_recording
-from flowtex.runtime.live import run_live
+from flowtex.runtime.live import LiveConfig, run_live
 from flowtex.runtime.replay import replay_session
 
 REPO = Path(__file__).resolve().parents[2]
@@ -77,11 +77,11 @@ def test_plot_and_resample_take_wav(tmp_path, capsys):
 def test_record_audio_and_replay_wav_need_an_audio_section(tmp_path):
     g = load_graph(REPO / "graphs" / "live_texture.yaml")
     with pytest.raises(FlowtexError, match="no 'audio' section"):
-        run_live(g, DBC, REPO / "graphs" / "devices" / "example_map.yaml", simulate=REPO / "graphs" / "data" / "exploration.npz",
-                 max_ticks=10, record_audio=tmp_path / "x.wav", status=None)
+        run_live(g, LiveConfig(DBC, REPO / "graphs" / "devices" / "example_map.yaml", simulate=REPO / "graphs" / "data" / "exploration.npz",
+                               max_ticks=10, record_audio=tmp_path / "x.wav", status=None))
     blf = tmp_path / "s.blf"
-    run_live(g, DBC, REPO / "graphs" / "devices" / "example_map.yaml", simulate=REPO / "graphs" / "data" / "exploration.npz",
-             max_ticks=20, record=blf, status=None)
+    run_live(g, LiveConfig(DBC, REPO / "graphs" / "devices" / "example_map.yaml", simulate=REPO / "graphs" / "data" / "exploration.npz",
+                           max_ticks=20, record=blf, status=None))
     with pytest.raises(FlowtexError, match="no 'audio' section"):
         replay_session(g, blf, DBC, REPO / "graphs" / "devices" / "example_map.yaml", tmp_path / "r.wav")
 
@@ -107,16 +107,16 @@ def test_no_sensor_frames_with_audio_section_is_still_exit_3_text(tmp_path):
     m = tmp_path / "m.yaml"
     m.write_text(textwrap.dedent(AUDIO_MAP.read_text()).replace("  normal_force:\n    signal: ToolForce.NormalForce\n    timeout_ms: 5\n", ""))
     with pytest.raises(FlowtexError, match="graph input 'normal_force' is not bound"):
-        run_live(load_graph(REPO / "graphs" / "live_audio.yaml"), DBC, m, simulate=REPO / "graphs" / "data" / "exploration.npz",
-                 max_ticks=1, status=None)
+        run_live(load_graph(REPO / "graphs" / "live_audio.yaml"), LiveConfig(DBC, m, simulate=REPO / "graphs" / "data" / "exploration.npz",
+                                                                             max_ticks=1, status=None))
 
 
 def test_record_audio_must_be_a_wav(tmp_path, capsys):
     from flowtex.io.atomic import OutputError
 
     with pytest.raises(OutputError, match=r"--record-audio .*out\.txt: unknown output format '\.txt'; use \.wav"):
-        run_live(load_graph(REPO / "graphs" / "live_audio.yaml"), DBC, AUDIO_MAP, simulate=REPO / "graphs" / "data" / "exploration.npz",
-                 max_ticks=1, record_audio=tmp_path / "out.txt", status=None)
+        run_live(load_graph(REPO / "graphs" / "live_audio.yaml"), LiveConfig(DBC, AUDIO_MAP, simulate=REPO / "graphs" / "data" / "exploration.npz",
+                                                                             max_ticks=1, record_audio=tmp_path / "out.txt", status=None))
     code = main(["live", str(REPO / "graphs" / "live_audio.yaml"), "--bus", "virtual", "--dbc", str(DBC), "--map", str(AUDIO_MAP),
                  "--simulate", str(REPO / "graphs" / "data" / "exploration.npz"), "--duration", "1", "--record-audio",
                  str(tmp_path / "out.txt")])
@@ -133,8 +133,8 @@ def test_simulated_recording_beyond_the_dbc_range_is_refused_naming_the_signal(t
     np.savez(tmp_path / "far.npz", position=pos, normal_force=rec.arrays["normal_force"], rate=np.float64(1000))
     blf = tmp_path / "s.blf"
     with pytest.raises(DataError) as err:
-        run_live(load_graph(REPO / "graphs" / "live_texture.yaml"), DBC, REPO / "graphs" / "devices" / "example_map.yaml",
-                 simulate=tmp_path / "far.npz", max_ticks=10, record=blf, status=None)
+        run_live(load_graph(REPO / "graphs" / "live_texture.yaml"), LiveConfig(DBC, REPO / "graphs" / "devices" / "example_map.yaml",
+                                                                               simulate=tmp_path / "far.npz", max_ticks=10, record=blf, status=None))
     msg = str(err.value)
     assert "signal 'position'[0] leaves what ToolPosition.PosX can carry, [-500, 500] mm" in msg, msg
     assert f"on {pos.shape[0] - 3021} sample(s), the first 501 mm at index 3021" in msg and not blf.exists()

@@ -52,7 +52,7 @@ def test_fused_tick_sends_the_frames_of_the_separate_calls(setup, monkeypatch, g
         if not fused:
             monkeypatch.setattr(live, "fuse_tick", lambda *a: None)
         log = setup / f"{name}.log"
-        r = live.run_live(load_graph(graph), DBC, canmap, record=log, warm=warm, **kw)
+        r = live.run_live(load_graph(graph), live.LiveConfig(DBC, canmap, record=log, warm=warm, **kw))
         assert r.error is None and r.ticks == ticks and r.watchdog_events == 1
         logs.append(_frames(log))
     assert len(logs[0]) == ticks * 2 + (ticks * 2 - 40) + 2  # actuator frames, sensor frames (minus 40 ToolPosition), safe values
@@ -74,11 +74,11 @@ def test_warming_has_no_observable_effect():
     assert fused is not None
     warm = warmer(io, wd, fused, rx_decoder(io, wd))
     before = (g.f.copy(), g.i.copy(), wd.last.copy(), io.table_decoder.words.copy(), bytes(io.table_encoder.payload),
-              [bytes(m.data) for m in io.tx], io._fbuf.copy(), io._ibuf.copy())
+              [bytes(m.data) for m in io.tx], io.codec.out_floats.copy(), io.codec.out_ints.copy())
     for _ in range(5):
         warm()
     after = (g.f, g.i, wd.last, io.table_decoder.words, bytes(io.table_encoder.payload), [bytes(m.data) for m in io.tx],
-             io._fbuf, io._ibuf)
+             io.codec.out_floats, io.codec.out_ints)
     for a, b in zip(before, after, strict=True):
         if isinstance(a, np.ndarray):
             np.testing.assert_array_equal(a, b)
@@ -124,3 +124,38 @@ def test_pointer_table_refuses_arrays_the_generated_views_would_misread():
     for name, bad in [("f", np.zeros(4, dtype=np.float32)), ("i", np.zeros(8, dtype=np.int64)[::2]), ("gip", np.zeros(6, dtype=np.int64))]:
         with pytest.raises(ValueError, match=f"fused tick: {name} must be"):
             pointer_table({**good, name: bad})
+
+
+def test_a_map_the_tick_cannot_fuse_runs_the_general_steps_and_replays_byte_for_byte(setup):  # noqa: F811
+    """Actuator messages the compiled encoder cannot take (an integer scale whose products pass 2^53): no compiled
+    output call, so the loop makes the general calls one by one (tick.py's second way); the replay, built from the
+    Python decoders, the graph and CanIO's own guard and encoders, gives the same bytes every tick."""
+    import cantools
+
+    from flowtex.io.codec import MessageCodec, fast_ok
+
+    pad = ' SG_ Pad : {} (35184372088832,0) [0|0] "" HapticDevice\n'
+    dbc = setup / "wide.dbc"
+    dbc.write_text(DBC.read_text()
+                   .replace("BO_ 512 VoiceCoilCmd: 4 Host\n", "BO_ 512 VoiceCoilCmd: 4 Host\n" + pad.format("20|12@1+"))
+                   .replace("BO_ 513 ForceCmd: 6 Host\n", "BO_ 513 ForceCmd: 8 Host\n" + pad.format("48|16@1+")))
+    db = cantools.database.load_file(dbc)
+    assert not any(fast_ok(MessageCodec(db.get_message_by_name(m))) for m in ("VoiceCoilCmd", "ForceCmd"))
+    g = load_graph(setup / "g.yaml", block_rows=1)
+    io = live.load_io(g, dbc, setup / "m.yaml")
+    assert io.codec.out_ints is None and io.codec.encoder is None and len(io.codec.python_frames) == 2
+    assert fuse_tick(g, io, tick_out, io.new_watchdog(1).last) is None
+    log = setup / "wide.log"
+    r = live.run_live(load_graph(setup / "g.yaml"), live.LiveConfig(dbc, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=400,
+                                                                     record=log, status=None, seed=4))
+    assert r.error is None and r.ticks == 400 and r.watchdog_events == 0
+    from flowtex.runtime.replay import replay_session
+
+    rep = replay_session(load_graph(setup / "g.yaml"), log, dbc, setup / "m.yaml", seed=4)
+    assert rep.ticks == 400 and rep.mismatched_ticks == []
+    # the frames carry the graph's values (vibration = 0.25 x normal force), not safe values
+    frames = list(read_session(log))
+    rx = [m for m in frames if m.is_rx]
+    tx = [m for m in frames if not m.is_rx]
+    nf = db.decode_message(rx[2 * 100 + 1].arbitration_id, rx[2 * 100 + 1].data)["NormalForce"]
+    assert db.decode_message(0x200, tx[2 * 100].data)["Current"] == pytest.approx(0.25 * nf, abs=1e-4) and nf > 1.0

@@ -16,7 +16,7 @@ import pytest
 
 from flowtex.graph.compiled import load_graph
 from flowtex.io.canlog import read_session
-from flowtex.runtime.live import BusError, run_live
+from flowtex.runtime.live import BusError, LiveConfig, run_live
 
 REPO = Path(__file__).resolve().parents[2]
 DBC = REPO / "graphs" / "devices" / "example.dbc"
@@ -73,7 +73,7 @@ def _tx(path):
 def test_two_second_simulated_run_counts_and_safe_exit(setup):
     g = load_graph(setup / "g.yaml")
     rec = setup / "s.blf"
-    r = run_live(g, DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=2000, record=rec, status=None)
+    r = run_live(g, LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=2000, record=rec, status=None))
     assert r.error is None and r.exit_reason == "duration"
     assert r.ticks == 2000
     assert r.frames_in == 2000 * 2  # ToolPosition + ToolForce each tick
@@ -96,8 +96,8 @@ def test_two_second_simulated_run_counts_and_safe_exit(setup):
 def test_sensor_dropout_trips_watchdog_and_sends_safe_values(setup):
     g = load_graph(setup / "g.yaml")
     rec = setup / "s.log"
-    r = run_live(g, DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=1000, record=rec, status=None,
-                 drop={"ToolForce": (300, 600)})
+    r = run_live(g, LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=1000, record=rec, status=None,
+                               drop={"ToolForce": (300, 600)}))
     assert r.error is None
     assert r.watchdog_events == 1
     db = cantools.database.load_file(DBC)
@@ -116,8 +116,8 @@ def test_watchdog_events_get_their_own_named_line_beside_the_status_line(setup, 
     out = _io.StringIO()
     g = load_graph(setup / "g.yaml")
     with caplog.at_level(logging.WARNING, logger="flowtex.runtime.safety"):
-        r = run_live(g, DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=1000, status=out,
-                     drop={"ToolForce": (300, 600)})
+        r = run_live(g, LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=1000, status=out,
+                                   drop={"ToolForce": (300, 600)}))
     assert r.error is None and r.watchdog_events == 1
     text = out.getvalue()
     event = ("watchdog: tick 305: no ToolForce frame for input 'normal_force' in 5 ticks; "
@@ -131,10 +131,10 @@ def test_watchdog_events_get_their_own_named_line_beside_the_status_line(setup, 
 def test_bus_that_cannot_be_opened(setup):
     g = load_graph(setup / "g.yaml")
     with pytest.raises(BusError) as e:
-        run_live(g, DBC, setup / "m.yaml", bus="socketcan:flowtexnone0", max_ticks=10, status=None)
+        run_live(g, LiveConfig(DBC, setup / "m.yaml", bus="socketcan:flowtexnone0", max_ticks=10, status=None))
     assert "cannot open CAN bus" in str(e.value) and "\n" not in str(e.value)
     with pytest.raises(BusError, match="unknown interface"):
-        run_live(g, DBC, setup / "m.yaml", bus="nosuchbus:0", max_ticks=10, status=None)
+        run_live(g, LiveConfig(DBC, setup / "m.yaml", bus="nosuchbus:0", max_ticks=10, status=None))
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
@@ -380,7 +380,7 @@ def test_exception_inside_the_graph_sends_safe_values_last(setup):
     first = int(np.argmax(np.round(nf / 0.001) * 0.001 > 3.5))
     assert 10 < first < 100
     log = setup / "boom.log"
-    r = run_live(g, DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=500, record=log, status=None)
+    r = run_live(g, LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=500, record=log, status=None))
     assert r.exit_reason == "error" and r.ticks == first
     assert r.error == f"tick {first}: ValueError: sensor overload"
     tx = _tx(log)
@@ -443,9 +443,9 @@ def test_a_session_without_any_sensor_frame_says_so_and_exits_3(setup):
 
 def test_one_silent_sensor_message_is_named_but_not_an_error(setup):
     g = load_graph(setup / "g.yaml")
-    r = run_live(g, DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=200, status=None, drop={"ToolForce": (0, None)})
+    r = run_live(g, LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=200, status=None, drop={"ToolForce": (0, None)}))
     assert r.error is None and not r.no_sensor_frames
     assert r.silent_messages == ["ToolForce"]
     assert r.silence.startswith("no frame of ToolForce (id 0x101) received in 200 ticks on the simulated device's virtual bus")
-    r = run_live(g, DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=50, status=None)
+    r = run_live(g, LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=50, status=None))
     assert r.silent_messages == [] and r.silence is None and not r.no_sensor_frames

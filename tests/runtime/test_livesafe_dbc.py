@@ -19,7 +19,7 @@ from flowtex.graph.compiled import load_graph
 from flowtex.io.canmap import load_map
 from flowtex.io.dbc import load_dbc
 from flowtex.io.dbcrange import check_value, round_trip, sendable_range
-from flowtex.runtime.live import run_live
+from flowtex.runtime.live import LiveConfig, run_live
 
 BASE = DBC.read_text()
 CURRENT = ' SG_ Current : 0|16@1- (0.0001,0) [-2|2] "A" HapticDevice'
@@ -39,7 +39,7 @@ def test_safe_value_outside_the_dbc_range_refuses_the_session(setup):  # noqa: F
     assert db.decode_message("VoiceCoilCmd", db.encode_message("VoiceCoilCmd", {"Current": 0.5, "Enable": 0, "Mode": 0}))["Current"] == 0.5
     g = load_graph(setup / "g.yaml")
     with pytest.raises(GraphError) as e:
-        run_live(g, dbc, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=5, status=None, record=setup / "s.blf")
+        run_live(g, LiveConfig(dbc, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=5, status=None, record=setup / "s.blf"))
     msg = str(e.value)
     assert "\n" not in msg
     assert msg.startswith(f"{setup / 'm.yaml'}:")
@@ -137,6 +137,6 @@ def test_two_bound_messages_with_one_id_number_in_the_map(setup):  # noqa: F811
     """... but a map binding both is refused: the runtime and cantools look received frames up by ID number."""
     ext = _dbc(setup, "BO_ 513 ForceCmd", f"BO_ {512 | 0x80000000} ForceCmd", "ext.dbc")
     with pytest.raises(GraphError) as e:
-        run_live(load_graph(setup / "g.yaml"), ext, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=5, status=None)
+        run_live(load_graph(setup / "g.yaml"), LiveConfig(ext, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=5, status=None))
     assert "\n" not in str(e.value)
     assert "'force' binds message 'ForceCmd', whose CAN ID 0x200 is also that of message 'VoiceCoilCmd'" in str(e.value)

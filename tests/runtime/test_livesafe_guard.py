@@ -15,7 +15,7 @@ import numpy as np
 from test_live import DBC, MAP, setup  # noqa: F401  (fixture; rootdir-relative import as pytest does)
 
 from flowtex.graph.compiled import load_graph
-from flowtex.runtime.live import run_live
+from flowtex.runtime.live import LiveConfig, run_live
 from flowtex.runtime.safety import OutputGuard
 
 TICKS = 300
@@ -57,8 +57,8 @@ def test_clamps_per_output_in_status_stats_and_a_warning_above_one_percent(setup
     m.write_text(textwrap.dedent(MAP).replace("clamp: [-1, 1], safe: 0}", "clamp: [-0.8, 0.8], safe: 0}")
                  .replace("clamp: [-4, 4]", "clamp: [-0.5, 0.5]"))
     status = io.StringIO()
-    r = run_live(load_graph(setup / "g.yaml"), DBC, m, simulate=setup / "rec.npz", max_ticks=TICKS, status=status,
-                 stats_path=setup / "stats.json")
+    r = run_live(load_graph(setup / "g.yaml"), LiveConfig(DBC, m, simulate=setup / "rec.npz", max_ticks=TICKS, status=status,
+                                                          stats_path=setup / "stats.json"))
     assert r.error is None and r.watchdog_events == 0
     expected = {"vibration": int(over_v.sum()), "force": int(over_f.sum())}
     assert r.summary["clamped"] == expected
@@ -85,7 +85,7 @@ def test_clamped_on_exactly_one_percent_of_ticks_is_counted_but_not_warned_about
     lo = float(vib[2] + vib[3]) / 2
     m = setup / "one.yaml"
     m.write_text(textwrap.dedent(MAP).replace("clamp: [-1, 1], safe: 0}", f"clamp: [{lo!r}, 1], safe: 0.75}}"))
-    r = run_live(load_graph(setup / "g.yaml"), DBC, m, simulate=setup / "rec.npz", max_ticks=TICKS, status=None)
+    r = run_live(load_graph(setup / "g.yaml"), LiveConfig(DBC, m, simulate=setup / "rec.npz", max_ticks=TICKS, status=None))
     assert r.summary["clamped"] == {"vibration": 3, "force": 0}
     assert r.warnings == []
 
@@ -95,7 +95,7 @@ def test_peak_limited_output_is_called_peak_limited_in_status_and_warning(setup)
     m = setup / "peak.yaml"
     m.write_text(textwrap.dedent(MAP).replace("clamp: [-4, 4]", "clamp: [-0.5, 0.5], peak: {limit: 0.5, max_ms: 1000000}"))
     status = io.StringIO()
-    r = run_live(load_graph(setup / "g.yaml"), DBC, m, simulate=setup / "rec.npz", max_ticks=TICKS, status=status)
+    r = run_live(load_graph(setup / "g.yaml"), LiveConfig(DBC, m, simulate=setup / "rec.npz", max_ticks=TICKS, status=status))
     assert r.error is None
     peaked = r.summary["peak_limited"]["force"]
     assert peaked > 0.01 * TICKS and r.summary["clamped"]["force"] == 0

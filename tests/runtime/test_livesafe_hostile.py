@@ -25,7 +25,7 @@ from flowtex.errors import DataError, GraphError
 from flowtex.graph.compiled import load_graph
 from flowtex.io.atomic import OutputError
 from flowtex.io.dbc import load_dbc
-from flowtex.runtime.live import run_live
+from flowtex.runtime.live import LiveConfig, run_live
 
 ENV = {**os.environ, "PYTHONPATH": str(REPO), "PYTHONUNBUFFERED": "1"}
 """Subprocesses run the flowtex under test, whatever the folder they start in."""
@@ -40,7 +40,7 @@ def _frames(path) -> list[can.Message]:
 
 
 def _session(setup, dbc, map_path=None, **kw):  # noqa: F811
-    return run_live(load_graph(setup / "g.yaml"), dbc, map_path or setup / "m.yaml", simulate=setup / "rec.npz", status=None, **kw)
+    return run_live(load_graph(setup / "g.yaml"), LiveConfig(dbc, map_path or setup / "m.yaml", simulate=setup / "rec.npz", status=None, **kw))
 
 
 @pytest.mark.parametrize("number,what", [(1 << 40, "which is no CAN ID"), (1 << 32, "which is no CAN ID"),

@@ -15,7 +15,7 @@ from test_live import DBC, GRAPH, MAP
 from flowtex.errors import FlowtexError
 from flowtex.graph.compiled import load_graph
 from flowtex.io.canlog import read_session_checked
-from flowtex.runtime.live import run_live
+from flowtex.runtime.live import LiveConfig, run_live
 from flowtex.runtime.replay import replay_session
 
 TICKS = 600
@@ -32,7 +32,7 @@ def session(tmp_path_factory):
     np.savez(setup / "rec.npz", position=pos, normal_force=3 + np.sin(10 * np.pi * t), rate=np.float64(1000))
     g = load_graph(setup / "g.yaml")
     for name in ("s.blf", "s.log"):
-        r = run_live(g, DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=TICKS, record=setup / name, status=None, seed=3)
+        r = run_live(g, LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=TICKS, record=setup / name, status=None, seed=3))
         assert r.error is None and r.ticks == TICKS
     return setup
 

@@ -11,12 +11,12 @@ from flowtex.errors import DataError
 from flowtex.graph.compiled import load_graph
 from flowtex.io.atomic import OutputError
 from flowtex.io.canlog import read_session
-from flowtex.runtime.live import run_live
+from flowtex.runtime.live import LiveConfig, run_live
 
 
 def _live(setup, **kw):  # noqa: F811
     kw.setdefault("simulate", setup / "rec.npz")
-    return run_live(load_graph(setup / "g.yaml"), DBC, setup / "m.yaml", max_ticks=50, status=None, **kw)
+    return run_live(load_graph(setup / "g.yaml"), LiveConfig(DBC, setup / "m.yaml", max_ticks=50, status=None, **kw))
 
 
 @pytest.mark.parametrize("option,inp", [("--stats", "g.yaml"), ("--stats", "m.yaml"), ("--record", "rec.npz")])

@@ -8,15 +8,15 @@ from test_live import DBC, setup  # noqa: F401  (fixture; rootdir-relative impor
 
 from flowtex.graph.compiled import load_graph
 from flowtex.io.canlog import read_session
-from flowtex.runtime.live import run_live
+from flowtex.runtime.live import LiveConfig, run_live
 from flowtex.runtime.replay import replay_session
 
 
 def test_replay_equals_live_and_offline(setup):  # noqa: F811
     g = load_graph(setup / "g.yaml")
     live_log = setup / "live.blf"
-    r = run_live(g, DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=600, record=live_log, status=None,
-                 drop={"ToolPosition": (200, 260)}, seed=3)
+    r = run_live(g, LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=600, record=live_log, status=None,
+                               drop={"ToolPosition": (200, 260)}, seed=3))
     assert r.error is None and r.watchdog_events == 1
     g2 = load_graph(setup / "g.yaml")
     rep = replay_session(g2, live_log, DBC, setup / "m.yaml", setup / "replay.log", seed=3)
@@ -64,8 +64,8 @@ def test_replay_names_overrun_watchdog_ticks_and_real_mismatches_and_prints_a_su
 
     g = load_graph(setup / "g.yaml")
     live_log = setup / "live.log"
-    r = run_live(g, DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=500, record=live_log, status=None,
-                 drop={"ToolPosition": (100, 130)}, seed=3)
+    r = run_live(g, LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=500, record=live_log, status=None,
+                               drop={"ToolPosition": (100, 130)}, seed=3))
     assert r.error is None
     frames = list(read_session(live_log))
     sent = [m for m in frames if not m.is_rx]

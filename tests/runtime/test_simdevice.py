@@ -13,12 +13,12 @@ from test_live import DBC, setup  # noqa: F401  (fixture; rootdir-relative impor
 
 from flowtex.graph.compiled import load_graph
 from flowtex.io.canlog import read_session
-from flowtex.runtime.live import run_live
+from flowtex.runtime.live import LiveConfig, run_live
 
 
 def test_in_process_latency_is_zero_ticks(setup):  # noqa: F811
     g = load_graph(setup / "g.yaml")
-    r = run_live(g, DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=300, status=None)
+    r = run_live(g, LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=300, status=None))
     assert r.error is None
     dev = r.device
     # one answer per executed tick, plus the exit safe values answering the sample published after the last tick
@@ -47,7 +47,7 @@ def test_two_process_session_over_a_pty(setup):  # noqa: F811
         assert m, (line, dev.stderr.read() if dev.poll() is not None else "")
         g = load_graph(setup / "g.yaml")
         log = setup / "pty.log"
-        r = run_live(g, DBC, setup / "m.yaml", bus=m.group(1), max_ticks=1500, record=log, status=None, install_signals=False)
+        r = run_live(g, LiveConfig(DBC, setup / "m.yaml", bus=m.group(1), max_ticks=1500, record=log, status=None, install_signals=False))
         out, err = dev.communicate(timeout=60)
     finally:
         if dev.poll() is None:

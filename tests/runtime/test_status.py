@@ -14,7 +14,7 @@ from test_live import DBC, setup  # noqa: F401  (fixture; rootdir-relative impor
 from flowtex.cli.live import register
 from flowtex.errors import FlowtexError
 from flowtex.graph.compiled import load_graph
-from flowtex.runtime.live import run_live
+from flowtex.runtime.live import LiveConfig, run_live
 from flowtex.runtime.status import format_values, resolve_shown
 
 
@@ -59,7 +59,7 @@ def test_live_session_shows_the_chosen_values_on_its_status_line(setup):  # noqa
 
     out = io.StringIO()
     g = load_graph(setup / "g.yaml")
-    r = run_live(g, DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=600, status=out, show=args.show)
+    r = run_live(g, LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=600, status=out, show=args.show))
     assert r.error is None
     last = [line for line in out.getvalue().replace("\r", "\n").splitlines() if line.startswith("tick ")][-1]
     vib = float(re.search(r"\| vibration (\S+) N \| force\[0\] \S+ mm$", last).group(1))
