@@ -91,9 +91,8 @@ def resonant(seeds: int, seconds: float, order: tuple[int, int]) -> None:
         for rule in INTERPOLATION_CHOICES:
             ins = compare_surface(ms, *sig, RATE, CompareOptions(lookup={"interpolation": rule}))
             rows.setdefault(("in-sample", rule), []).append((ins.power_ratio_db, ins.lsd_db - truth.lsd_db, ins.rms_correlation))
-            folds = evaluate_splits(*sig, RATE, fold_splits(sig[0].shape[0], RATE, 2), opt,
-                                    compare=CompareOptions(lookup={"interpolation": rule}))
-            cs = [c for _, c in folds]
+            cs = evaluate_splits(*sig, RATE, fold_splits(sig[0].shape[0], RATE, 2), opt,
+                                 compare=CompareOptions(lookup={"interpolation": rule})).comparisons
             rows.setdefault(("2-fold", rule), []).append((float(np.mean([c.power_ratio_db for c in cs])),
                                                            float(np.mean([c.lsd_db for c in cs])) - ins.lsd_db,
                                                            float(np.nanmean([np.nan if c.rms_correlation is None else c.rms_correlation

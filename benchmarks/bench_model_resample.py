@@ -26,7 +26,8 @@ test suite's model sets (the narrow-peak copper-like, rough and edge-resonance o
 and worst, from the progress callback), fits done, orders, worst LSD, band-power error, power above the old
 Nyquist, misses, and the LSD of the expected spectra along a path; ``--baseline-every N`` runs the previous
 method beside it on every N-th set; ``--table`` writes every model's figures; ``--between`` measures the LSD at
-vertices, edge midpoints and centroids. The machine is shared: quote ``uptime`` with the numbers, and prefer
+vertices, edge midpoints and centroids; ``--densify N`` densifies each set first (``models resample --densify``).
+The machine is shared: quote ``uptime`` with the numbers, and prefer
 the CPU seconds under load.
 """
 
@@ -160,7 +161,7 @@ def hatt_sets(folder: str, every: int = 1, start: int = 0):
     return [(os.path.basename(f)[7:-4], load_model_set(f)) for f in files]
 
 
-def corpus(sets, rates, baseline_every: int, table: str | None) -> None:
+def corpus(sets, rates, baseline_every: int, table: str | None, densify: int = 0) -> None:
     """Seconds per model fit (median, worst; wall and CPU) of resample_model_set on each set, against the previous rule.
 
     ``baseline_every`` > 0: every that many sets, also the previous method when upsampling (the attempt ladder
@@ -168,6 +169,8 @@ def corpus(sets, rates, baseline_every: int, table: str | None) -> None:
     ``table``: a CSV of every model's figures (set, rate, rule, model, LSD dB, band-power error, power above
     the old Nyquist). "path LSD": flowtex.fit.quality.path_lsd_db along
     lissajous_path, the resampled set against the original (expected spectra as rendered, no noise).
+    ``densify`` > 0: each set is first densified that many levels (flowtex.models.densify); the path LSD is still
+    against the original set, "models" counts the densified set's.
     """
     import flowtex.dsp.arma_resample as arma_resample
     import flowtex.fit.resample as resample
@@ -182,7 +185,10 @@ def corpus(sets, rates, baseline_every: int, table: str | None) -> None:
     if table:
         with open(table, "w") as fh:
             fh.write("set,to_hz,rule,model,lsd_db,band_power_error,power_above_old_nyquist\n")
-    for k, (name, ms) in enumerate(sets):
+    from flowtex.models.densify import densify_set
+
+    for k, (name, original) in enumerate(sets):
+        ms = densify_set(original, densify)
         for rate in rates:
             base = None
             grid = (arma_resample.BAND_POINTS, arma_resample.STOP_POINTS)
@@ -208,7 +214,7 @@ def corpus(sets, rates, baseline_every: int, table: str | None) -> None:
                 base = base or total
                 info = out.metadata["resample"]
                 q = info["quality"]
-                path = path_lsd_db(ms, out, *lissajous_path(ms))
+                path = path_lsd_db(original, out, *lissajous_path(original))
                 summary.setdefault((rule, rate), []).append((per, per_cpu, total / ms.num_models, len(info["misses"]), path))
                 orders = f"{info['from_order'][0]}/{info['from_order'][1]}->{info['to_order'][0]}/{info['to_order'][1]}"
                 print(f"{name[:22]:<22} {rate:6g} {rule:<4} {ms.num_models:6d} {per.size:5d} {orders:>11} "
@@ -298,6 +304,8 @@ def main() -> None:
     ap.add_argument("--baseline-every", type=int, default=0, metavar="N",
                     help="with --corpus: the previous attempt ladder too, on every N-th set (ratio column)")
     ap.add_argument("--table", metavar="OUT.csv", help="with --corpus: every model's LSD, band-power error and power above")
+    ap.add_argument("--densify", type=int, default=0, metavar="N",
+                    help="with --corpus: densify each set N levels first (models resample --densify N)")
     ap.add_argument("--between", action="store_true",
                     help="with --corpus/--hatt: LSD at vertices, edge midpoints and centroids instead (first --corpus-rates)")
     args = ap.parse_args()
@@ -309,7 +317,7 @@ def main() -> None:
         if args.between:
             between(sets, float(args.corpus_rates.split(",")[0]))
             return
-        corpus(sets, [float(r) for r in args.corpus_rates.split(",")], args.baseline_every, args.table)
+        corpus(sets, [float(r) for r in args.corpus_rates.split(",")], args.baseline_every, args.table, args.densify)
         return
     print(f"hatt_like_model seeds 0..{args.seeds - 1}, 19/17 at 1 kHz; LSD and powers of the model rebuilt from its LSFs")
     print(f"{'to Hz':>7} {'meth':<5} {'orders':>6} {'LSD max':>8} {'LSD med':>8} {'band %':>8} {'above %':>9} {'LSF ok':>7} "

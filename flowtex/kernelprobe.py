@@ -36,6 +36,7 @@ import numpy as np
 
 from .errors import FlowtexError
 from .node_api import REQUIRED, BuildContext, Node, Param, PortSpec
+from .node_params import load_files
 from .nodecheck import checked_state, error_line
 
 TICKS = 600
@@ -115,14 +116,14 @@ def shape_cases(cls: type[Node]) -> list[dict[str, tuple[int, ...]]]:
 
 def build_probes(cls: type[Node]) -> list[Probe]:
     """Build ``cls`` at each of :func:`shape_cases` (FlowtexError / the plugin's own exception on failure)."""
-    params = parameter_values(cls)
+    params, files = load_files(cls, parameter_values(cls))  # files read into objects, as the resolver does
     probes = []
     for shapes in shape_cases(cls):
         in_specs = {}
         for name, port in cls.inputs.items():
             unit = port.unit if port.unit not in ("*",) and not port.unit.startswith("=") else ""
             in_specs[name] = PortSpec(shapes[name], unit)
-        node = cls("probe", dict(params), BuildContext(rate=RATE_HZ, base_dir=Path.cwd()))
+        node = cls("probe", dict(params), BuildContext(rate=RATE_HZ, base_dir=Path.cwd(), files=files))
         out_specs = node.resolve(in_specs)
         state = checked_state(cls, "probe", node.build(in_specs, out_specs), cls.build)
         label = ", ".join(f"{n}: {PortSpec(s).describe().split(' [')[0]}" for n, s in shapes.items()) or "no inputs"

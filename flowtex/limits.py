@@ -28,9 +28,9 @@ MAX_TEXT_BYTES = 64 * 1024 * 1024
 """Size of a JSON or XML file (model set, pattern, tap library), read by C parsers (64 MiB)."""
 MAX_YAML_BYTES = 1024 * 1024
 """Size of a YAML file (graph, scene, device map): 1 MiB, 250 times the largest bundled one. The safe YAML
-parser is pure Python (0.04 MiB/s measured on a loaded 2-core machine, 2026-11-25), so this bounds the time too."""
+parser is pure Python (tens of KiB per second; docs/recordings.md, Limits), so this bounds the time too."""
 MAX_DBC_BYTES = 4 * 1024 * 1024
-"""Size of a DBC file (cantools parsed 0.075 MiB/s on a loaded 2-core machine, 2026-11-25)."""
+"""Size of a DBC file (cantools parses tens of KiB per second, so this bounds the time too; docs/recordings.md, Limits)."""
 MAX_DEPTH = 100
 """Nesting of maps and lists in YAML and JSON, and of elements in XML (real flowtex files nest fewer than 10)."""
 MAX_YAML_NODES = 1_000_000

@@ -32,7 +32,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from .cache import configure_numba_cache
-from .dsp.layout import Field, Layout  # noqa: F401  (re-exported: plugins declare their memory with it)
+from .dsp.layout import Field, Layout, Memory  # noqa: F401  (re-exported: plugins declare their memory with it)
 from .node_decl import (  # noqa: F401  (re-exported: the node API is one import for plugins)
     PARAM_KINDS,
     REQUIRED,
@@ -68,6 +68,11 @@ class Node:
     Such nodes also provide ``emit_kernel(p, s, si, out)`` and
     ``absorb_kernel(p, s, si, inp)`` used when the graph has a feedback loop.
     """
+
+    memory: ClassVar[Memory | None] = None
+    """The node's parameters and state declared once (:class:`~flowtex.dsp.layout.Memory`): ``build`` packs with
+    :meth:`pack_state`, kernels index with constants taken from the same declaration. ``None``: a node written to the
+    positional API (its ``build`` fills ``NodeState`` arrays itself)."""
 
     latency_doc: ClassVar[str] = ""
     """How the node's latency follows from its parameters (shown by ``flowtex nodes``); see :meth:`latency_samples`."""
@@ -135,8 +140,22 @@ class Node:
         return np.full(spec.width, self.inputs[name].default, dtype=np.float64)
 
     def build(self, inputs: dict[str, PortSpec], outputs: dict[str, PortSpec]) -> NodeState:
-        """Allocate parameter and state arrays for the kernel."""
-        return NodeState()
+        """Allocate parameter and state arrays for the kernel (default: the declared :attr:`memory` with no sizes)."""
+        return self.pack_state() if self.memory is not None else NodeState()
+
+    def pack_state(self, sizes: dict[str, int] | None = None, *, params: dict[str, Any] | np.ndarray | None = None,
+                   state: dict[str, Any] | np.ndarray | None = None, istate: dict[str, Any] | np.ndarray | None = None
+                   ) -> NodeState:
+        """The :class:`NodeState` this type's :attr:`memory` declares for build-time ``sizes``, fields set from the values
+        (or an array a helper packed with the same layout, its length checked; :meth:`Memory.pack`).
+
+        The sizes are kept in ``self.memory_sizes`` so that checks can compare the packed arrays with the declaration.
+        """
+        if self.memory is None:
+            raise TypeError(f"node type {self.type_name!r} declares no memory; set the class attribute memory = Memory(...)")
+        self.memory_sizes = dict(sizes or {})
+        p, s, si = self.memory.pack(self.memory_sizes, params, state, istate)
+        return NodeState(params=p, state=s, istate=si)
 
     def seed_state(self, state: np.ndarray, istate: np.ndarray, seed: np.random.SeedSequence) -> None:
         """Re-seed random state in place (only for ``uses_seed`` nodes)."""

@@ -3,9 +3,13 @@
 Every source of node types is a Python module; every :class:`~flowtex.node_api.Node`
 subclass with a ``type_name`` defined in it is registered.
 
-* Built-in nodes and installed packages: entry points of group ``flowtex.nodes``
+* Built-in nodes: :data:`BUILTIN_TYPES`, name -> ``"module:Class"``, imported on
+  first use (as python-can's ``BACKENDS``): listing the names, or resolving a graph
+  that uses only filters, imports no other node module.
+* Installed packages: entry points of group ``flowtex.nodes``
   (an entry point may name a module, a package -- all its public submodules --
-  or a single Node class). flowtex's own entry point names ``flowtex.nodes``.
+  or a single Node class). flowtex's own entry point names ``flowtex.nodes``: the
+  built-in table.
 * Plugin folders: every ``*.py`` file in each folder of ``FLOWTEX_PLUGINS``
   (``os.pathsep``-separated), in each ``--plugins DIR``, and (added by the graph
   loader) in the graph file's own ``plugins/`` folder and the folders its
@@ -21,7 +25,7 @@ import importlib.util
 import inspect
 import pkgutil
 import sys
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator, Mapping
 from importlib.metadata import entry_points
 from pathlib import Path
 from types import ModuleType
@@ -32,18 +36,95 @@ from .node_api import Node
 from .nodecheck import check_node_class, error_line, shown_path
 
 ENTRY_POINT_GROUP = "flowtex.nodes"
-__all__ = ["BUILTIN_PACKAGE", "ENTRY_POINT_GROUP", "PLUGIN_ENV", "Registry", "load_plugin_file", "load_registry", "plugin_dirs"]
+__all__ = ["BUILTIN_PACKAGE", "BUILTIN_TYPES", "ENTRY_POINT_GROUP", "PLUGIN_ENV", "NodeTypes", "Registry", "load_plugin_file",
+           "load_registry", "plugin_dirs"]
 
 # The built-in package, used when flowtex runs from a source tree without
 # installed metadata; the installed entry point names the same package.
 BUILTIN_PACKAGE = "flowtex.nodes"
+
+BUILTIN_TYPES: dict[str, str] = {
+    "constant": "flowtex.nodes.arith:Constant",
+    "gain": "flowtex.nodes.arith:Gain",
+    "add": "flowtex.nodes.arith:Add",
+    "subtract": "flowtex.nodes.arith:Subtract",
+    "multiply": "flowtex.nodes.arith:Multiply",
+    "clip": "flowtex.nodes.arith:Clip",
+    "norm": "flowtex.nodes.arith:Norm",
+    "select": "flowtex.nodes.arith:Select",
+    "compliance_estimator": "flowtex.nodes.compliance:ComplianceEstimator",
+    "delay": "flowtex.nodes.delay:Delay",
+    "dft321": "flowtex.nodes.dft321:Dft321",
+    "biquad": "flowtex.nodes.filters:Biquad",
+    "butterworth": "flowtex.nodes.filters:Butterworth",
+    "first_order_lowpass": "flowtex.nodes.filters:FirstOrderLowpass",
+    "differentiator": "flowtex.nodes.filters:Differentiator",
+    "coulomb_friction": "flowtex.nodes.friction:CoulombFriction",
+    "dahl_friction": "flowtex.nodes.friction:DahlFriction",
+    "speed_estimator": "flowtex.nodes.motion:SpeedEstimator",
+    "contact": "flowtex.nodes.motion:Contact",
+    "white_noise": "flowtex.nodes.noise:WhiteNoise",
+    "patterned_texture": "flowtex.nodes.patterns:PatternedTexture",
+    "resample": "flowtex.nodes.resample:Resample",
+    "surface_switch": "flowtex.nodes.switch:SurfaceSwitch",
+    "arma_synth": "flowtex.nodes.synthesis:ArmaSynth",
+    "tap_player": "flowtex.nodes.taps:TapPlayer",
+    "texture_lookup": "flowtex.nodes.texture:TextureLookup",
+    "cross": "flowtex.nodes.vector:Cross",
+    "dot": "flowtex.nodes.vector:Dot",
+    "normalize": "flowtex.nodes.vector:Normalize",
+}
+"""Every built-in node type: name -> ``"module:Class"``, imported on first use (tests/test_registry_lazy.py keeps this
+table equal to the node types the modules of :data:`BUILTIN_PACKAGE` define)."""
+
+
+class NodeTypes(Mapping[str, type[Node]]):
+    """Node type name -> class; a lazily registered entry (``"module:Class"``) is imported and checked on first access.
+
+    Names, ``in`` and ``len`` import nothing; ``types[name]``, ``values()`` and ``items()`` import what they return.
+    """
+
+    def __init__(self) -> None:
+        self._classes: dict[str, type[Node]] = {}
+        self._lazy: dict[str, str] = {}
+        self._order: dict[str, None] = {}
+
+    def set(self, name: str, cls: type[Node]) -> None:
+        self._classes[name] = cls
+        self._lazy.pop(name, None)
+        self._order.setdefault(name, None)
+
+    def set_lazy(self, name: str, target: str) -> None:
+        self._lazy[name] = target
+        self._order.setdefault(name, None)
+
+    def __getitem__(self, name: str) -> type[Node]:
+        if name in self._classes:
+            return self._classes[name]
+        target = self._lazy[name]  # KeyError for an unknown name, as a dict
+        module_name, _, attr = target.partition(":")
+        cls = getattr(importlib.import_module(module_name), attr, None)
+        if not (inspect.isclass(cls) and issubclass(cls, Node) and cls.type_name == name):
+            raise FlowtexError(f"node type {name!r}: {target} is not its Node class (flowtex.registry.BUILTIN_TYPES is out of date)")
+        check_node_class(cls)
+        self.set(name, cls)
+        return cls
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._order
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(list(self._order))
+
+    def __len__(self) -> int:
+        return len(self._order)
 
 
 class Registry:
     """A name -> Node class table with the origin of each entry."""
 
     def __init__(self) -> None:
-        self.types: dict[str, type[Node]] = {}
+        self.types = NodeTypes()
         self.origins: dict[str, str] = {}
         self.plugin_files: list[Path] = []
         """Plugin files (Python code) imported into this registry, in load order."""
@@ -61,11 +142,16 @@ class Registry:
             raise FlowtexError(
                 f"{origin}: node type {name!r} is already defined by {self.origins[name]}; rename one of them"
             )
-        self.types[name] = cls
+        self.types.set(name, cls)
+        self.origins[name] = origin
+
+    def add_lazy(self, name: str, target: str, origin: str) -> None:
+        """Register the built-in ``name`` as ``"module:Class"``, imported (and checked) when first used."""
+        self.types.set_lazy(name, target)
         self.origins[name] = origin
 
     def get(self, name: str) -> type[Node] | None:
-        return self.types.get(name)
+        return self.types[name] if name in self.types else None
 
     def __contains__(self, name: str) -> bool:
         return name in self.types
@@ -142,23 +228,24 @@ def load_registry(plugins: Iterable[str | Path] = ()) -> Registry:
     if dirs in _CACHE:
         return _CACHE[dirs]
     reg = Registry()
-    seen_modules: set[str] = set()
-    for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name):
+    found = sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name)
+    installed = any(ep.value == BUILTIN_PACKAGE for ep in found)
+    for name, target in BUILTIN_TYPES.items():
+        reg.add_lazy(name, target, f"entry point {BUILTIN_PACKAGE}" if installed else target.partition(":")[0])
+    for ep in found:
+        if ep.value == BUILTIN_PACKAGE:  # flowtex's own: the lazy table above, nothing imported
+            continue
         try:
             obj = ep.load()
         except Exception as exc:
             raise FlowtexError(f"entry point {ep.name!r} ({ep.value}) failed to load: {exc}") from exc
         if isinstance(obj, ModuleType):
-            seen_modules.add(obj.__name__)
             for module in _with_submodules(obj):
                 reg.add_module(module, f"entry point {ep.value}")
         elif inspect.isclass(obj) and issubclass(obj, Node):
             reg.add(obj, f"entry point {ep.value}")
         else:
             raise FlowtexError(f"entry point {ep.name!r} ({ep.value}) is neither a module nor a Node class")
-    if BUILTIN_PACKAGE not in seen_modules:
-        for module in _with_submodules(importlib.import_module(BUILTIN_PACKAGE)):
-            reg.add_module(module, module.__name__)
     for folder in dirs:
         if not folder.is_dir():
             raise FlowtexError(f"{folder}: plugin folder does not exist")

@@ -76,21 +76,27 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
-from flowtex.node_api import Node, NodeState, Param, Port
+from flowtex.node_api import Field, Layout, Memory, Node, Param, Port
+
+MEMORY = Memory(params=Layout("float", [Field("k", 1, "gain"), Field("a", 1, "smoothing factor of the low-pass")]),
+                state=Layout("float", [Field("y", "w", "last output of each channel")], sizes=("w",)))
+"""The node's parameters p and state s, declared once: build() packs them, the kernel indexes them by these names."""
+P_K = MEMORY.params.const("k")
+P_A = MEMORY.params.const("a")
+S_Y = MEMORY.state.const("y")
 
 
 @njit(cache=True)
 def ${name}_kernel(p, s, si, x, y):
-    """y[t] = y[t-1] + a * (k * x[t] - y[t-1]) per channel; p = [k, a]; s = last y of each channel."""
-    k = p[0]
-    a = p[1]
+    """y[t] = y[t-1] + a * (k * x[t] - y[t-1]) per channel (layout: MEMORY)."""
+    k = p[P_K]
+    a = p[P_A]
     for t in range(x.shape[0]):
         for c in range(x.shape[1]):
-            s[c] = s[c] + a * (k * x[t, c] - s[c])
-            y[t, c] = s[c]
+            s[S_Y + c] = s[S_Y + c] + a * (k * x[t, c] - s[S_Y + c])
+            y[t, c] = s[S_Y + c]
 
 
 class $cls(Node):
@@ -105,10 +111,11 @@ class $cls(Node):
     inputs = {"x": Port(None, "*", "signal (any shape)")}
     outputs = {"y": Port("=x", "=x", "smoothed, scaled signal")}
     kernel = ${name}_kernel
+    memory = MEMORY
 
     def build(self, inputs, outputs):
         a = 1.0 - math.exp(-2.0 * math.pi * self.p["cutoff_hz"] / self.context.node_rate)
-        return NodeState(params=np.array([self.p["k"], a]), state=np.zeros(inputs["x"].width))
+        return self.pack_state({"w": inputs["x"].width}, params={"k": self.p["k"], "a": a})
 '''
 
 TEST = '''\

@@ -169,7 +169,7 @@ def _check_holdout_options(args: argparse.Namespace) -> None:
 def _fit_holdout(path: Path, job: Any, args: argparse.Namespace) -> tuple[Any, Any]:
     """Fit the held-out split(s), print each comparison and the mean; returns (fit for -o, HeldOut)."""
     from ..fit.compare import summary_lines
-    from ..fit.crossval import describe_split, evaluate_splits, fold_splits, holdout_doc, holdout_split
+    from ..fit.crossval import POOLED_LINE, describe_split, evaluate_splits, fold_splits, holdout_doc, holdout_split
     from ..fit.report import HeldOut, print_table
     from ..fit.texture_job import read_signals
 
@@ -181,24 +181,28 @@ def _fit_holdout(path: Path, job: Any, args: argparse.Namespace) -> tuple[Any, A
     else:
         split, key, value = args.holdout_split, "fraction", args.holdout
         splits = [holdout_split(n, rate, args.holdout, split, where)]
-    done = evaluate_splits(acc, speed, force, rate, splits, job.options, material, where)
+    cv = evaluate_splits(acc, speed, force, rate, splits, job.options, material, where)
     if args.folds is not None:
         from ..fit.texture import fit_texture
 
         fit = fit_texture(acc, speed, force, rate, job.options, material, where)
     else:
-        fit = done[0][0]
+        fit = cv.fits[0]
     print_table(fit)
     line = describe_split(split, key, value, n, rate)
     say(line)
-    cmps = [c for _, c in done]
+    cmps = cv.comparisons
     for k, c in enumerate(cmps):
         if len(cmps) > 1:
             say(f"fold {k}:")
         for text in summary_lines(c):
             say(text)
-    doc = holdout_doc(split, key, value, cmps)
+    doc = holdout_doc(split, key, value, cmps, cv.pooled)
     if len(cmps) > 1:
         m = doc["mean"]
         say(f"mean over {len(cmps)} folds: power ratio {m['power_ratio_db']:+.2f} dB, LSD {m['lsd_db']:.2f} dB, GFC {m['gfc']:.3f}")
+    if cv.pooled is not None:
+        say(f"pooled over the folds ({POOLED_LINE}):")
+        for text in summary_lines(cv.pooled)[1:]:
+            say(text)
     return fit, HeldOut(line, cmps, doc)

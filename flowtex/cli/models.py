@@ -13,6 +13,7 @@ from .output import say
 def register(sub: Any) -> None:
     """Add ``flowtex models`` with its ``resample`` action."""
     from ..fit.resample import MAX_EXTRA_ORDER
+    from ..models.densify import MAX_LEVELS
 
     p = sub.add_parser("models", help="operate on texture model sets and tap libraries (resample)",
                        description="Transform texture model sets (HaTT XML or native JSON).")
@@ -32,6 +33,10 @@ def register(sub: Any) -> None:
                         "(default: the first with which every model keeps its spectrum of: the own order, then up to 2x "
                         "up an elliptic lowpass edge at the old Nyquist, then 2, 4 more without and with it, 6, 8 more; beyond 2x "
                         "0..8 more; down 2, 4 more)")
+    r.add_argument("--densify", type=int_at_least(0, MAX_LEVELS), default=0, metavar="N",
+                   help="first add a model at the midpoint of every edge between two measured models, N times (each "
+                        "about 4x the models; the set renders as before at its own rate): the resampled set then follows "
+                        "its original between the models too (docs/fitting.md; default 0)")
     r.add_argument("--allow-misses", action="store_true",
                    help="write the set even if some model misses LSD <= 0.5 dB / band power within 2 %% (named in a warning); "
                         "without it such a set is not written and the command fails")
@@ -51,6 +56,12 @@ def cmd_models_resample(args: argparse.Namespace) -> int:
         raise DataError(f"-o {args.output}: write the resampled set as .json (flowtex's format, with the resampling "
                         "record) or .xml (HaTT's format)")
     ms = load_model_set(args.input)
+    if args.densify:
+        from ..models.densify import densify_set
+
+        before = ms.num_models
+        ms = densify_set(ms, args.densify)
+        say(f"densified {args.input}: {before} -> {ms.num_models} models ({args.densify} level(s) of edge midpoints)")
     progress, close = tqdm_progress(ms.num_models, "resample")
     try:
         out = resample_model_set(ms, args.rate, progress, keep_order=args.keep_order, extra_order=args.extra_order)

@@ -2,8 +2,8 @@
 
 Where :func:`flowtex.datasets.free_exploration` holds plateaus of speed and
 force (what a segmenter finds easily), :func:`human_exploration` records what
-a person does with a tool on a surface (issue 18's real recordings, 1 kHz,
-~20 s): contact from the first sample to the last, speed and force that drift
+a person does with a tool on a surface (as real recordings at 1 kHz,
+~20 s, do): contact from the first sample to the last, speed and force that drift
 slowly and never settle, some time below the slowest and above the fastest
 speed a fit will model, and a tangential (friction) force.
 

@@ -1,8 +1,8 @@
 """Recordings that behave like real tool-surface recordings: moving resonances, heavy tails, loudness that wanders.
 
 The generators of :mod:`flowtex.datasets.realistic` vary only the power of a
-surface with speed and force. Real recordings (issue 23: copper, fabric,
-leather, paper, stone and wood, 19 s each at 1 kHz) differ in four ways, and
+surface with speed and force. Real recordings (copper, fabric,
+leather, paper, stone and wood, 19 s each at 1 kHz; docs/fitting.md) differ in four ways, and
 each is built in here:
 
 * **resonances that move**: every model is two resonances (AR order 4) and a
@@ -51,9 +51,9 @@ from .model_sets import poly_from_roots, poly_to_lsf_reference
 from .realistic import drift_noise
 
 SPEED_RANGE = (130.0, 320.0)
-"""Speeds (mm/s) of the default path: those of the six real recordings of issue 23."""
+"""Speeds (mm/s) of the default path: those of six real tool-surface recordings (docs/fitting.md)."""
 FORCE_RANGE = (0.3, 4.3)
-"""Normal forces (N) of the default path: those of the six real recordings of issue 23."""
+"""Normal forces (N) of the default path: those of six real tool-surface recordings (docs/fitting.md)."""
 FADE_S = 0.05
 """Raised-cosine fade (s) between two seconds' loudness factors."""
 

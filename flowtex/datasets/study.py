@@ -6,7 +6,7 @@ grid) and scaled so that the planner's texture salience (mean vibration
 power over speed 50-250 mm/s x force 0.5-2.5 N) equals the target below;
 tap libraries are decaying sinusoids tuned to a target spectral centroid.
 
-Values from Culbertson & Kuchenbecker 2017 / issue 13: powers of Whiteboard (0.25), Silk 1 (0.44), MDF
+Values from Culbertson & Kuchenbecker 2017: powers of Whiteboard (0.25), Silk 1 (0.44), MDF
 (1.19), Carpet 3 and ABS Plastic (~38), Brick 1 (200) (m/s^2)^2; mu of
 Whiteboard (0.17), MDF (0.19), ABS (0.21), Silk 1 (0.28), Tarp (0.41), EPDM
 Foam (1.39); Carpet 3's tap centroid 47.8 Hz. Every other number is

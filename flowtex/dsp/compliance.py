@@ -36,19 +36,38 @@ import numpy as np
 from numba import njit
 
 from .contact import CONTACT_ON_N
+from .layout import Field, Layout
 
 N_BINS = 24
 """Bins along force (Guruswamy thesis sec. 5.2.2)."""
 MIN_BINS = 6
 """A fit needs this many filled bins (a quarter of the force range): fewer give wild early slopes when streaming."""
-# parameter vector layout
-P_FB0, P_FB1, P_FA1, P_HB0, P_HA1, P_FTHR, P_ATHR, P_FLO, P_FHI, P_KG, P_FLOOR, P_R2, P_MINBIN, P_SETTLE, P_LEN = range(15)
-# float state layout: force filter (x_prev, y), mean-square filter (x_prev, y), last a_rms, last f_lp,
-# started flag, ticks since the session began, 3 high-pass axes (x_prev, y), bins
-S_FX, S_FY, S_MX, S_MY, S_RMS, S_FLP, S_STARTED, S_SESSION, S_HP = range(9)
-S_BINS = S_HP + 6
-BIN_FIELDS = 4  # count, sum f, sum a_rms, sum a_rms^2
-STATE_LEN = S_BINS + N_BINS * BIN_FIELDS
+BIN = Layout("float", [Field("count"), Field("sum_f", 1, "N"), Field("sum_a", 1, "sum of a_rms"),
+                       Field("sum_a2", 1, "sum of a_rms^2")])
+"""One force bin's sums."""
+BIN_FIELDS = BIN.size()
+PARAMS = Layout("float", [
+    Field("fb0", 1, "force low-pass b0"), Field("fb1", 1, "force low-pass b1"), Field("fa1", 1, "force low-pass a1"),
+    Field("hb0", 1, "acceleration high-pass b0 (b1 = -b0)"), Field("ha1", 1, "acceleration high-pass a1"),
+    Field("fthr", 1, "force threshold, N"), Field("athr", 1, "vibration threshold, m/s^2"),
+    Field("flo", 1, "lowest binned force, N"), Field("fhi", 1, "highest binned force, N"),
+    Field("kg", 1, "k_g, N per m/s^2"), Field("floor", 1, "smooth floor, m/s^2"), Field("r2", 1, "least weighted R^2"),
+    Field("minbin", 1, "ticks a bin needs"), Field("settle", 1, "skipped ticks of each session"),
+])
+"""The kernel's parameters (:func:`compliance_params`)."""
+STATE = Layout("float", [
+    Field("fx", 1, "force filter x_prev"), Field("fy", 1, "force filter y"),
+    Field("mx", 1, "mean-square filter x_prev"), Field("my", 1, "mean-square filter y"),
+    Field("rms", 1, "last a_rms"), Field("flp", 1, "last low-passed force"), Field("started", 1, "1.0 once a tick was seen"),
+    Field("session", 1, "ticks since the session began"), Field("hp", 6, "3 high-pass axes (x_prev, y)"),
+    Field("bins", N_BINS * BIN_FIELDS, "N_BINS BIN records"),
+])
+"""The kernel's float state."""
+P_FB0, P_FB1, P_FA1, P_HB0, P_HA1, P_FTHR, P_ATHR, P_FLO, P_FHI, P_KG, P_FLOOR, P_R2, P_MINBIN, P_SETTLE = (
+    PARAMS.const(f.name) for f in PARAMS.fields)
+P_LEN = PARAMS.size()
+S_FX, S_FY, S_MX, S_MY, S_RMS, S_FLP, S_STARTED, S_SESSION, S_HP, S_BINS = (STATE.const(f.name) for f in STATE.fields)
+STATE_LEN = STATE.size()
 
 REASON_OK, REASON_TOO_FEW, REASON_SMOOTH, REASON_NO_GROWTH, REASON_POOR_FIT = range(5)
 REASONS = {
@@ -97,12 +116,9 @@ def compliance_params(rate_hz: float, force_lo: float, force_hi: float, k_g: flo
             raise ValueError(f"{name} {hz:g} Hz must be between 0 and Nyquist ({rate_hz / 2:g} Hz)")
     fb, fa = scipy.signal.butter(1, force_cutoff_hz, fs=rate_hz)
     hb, ha = scipy.signal.butter(1, highpass_hz, btype="highpass", fs=rate_hz)
-    p = np.zeros(P_LEN)
-    p[[P_FB0, P_FB1, P_FA1]] = fb[0], fb[1], fa[1]
-    p[[P_HB0, P_HA1]] = hb[0], ha[1]  # high-pass: b = (hb0, -hb0)
-    p[[P_FTHR, P_ATHR, P_FLO, P_FHI, P_KG, P_FLOOR, P_R2, P_MINBIN, P_SETTLE]] = (
-        force_threshold, vibration_threshold, force_lo, force_hi, k_g, smooth_floor, r2_min, min_per_bin, round(settle_s * rate_hz))
-    return p
+    return PARAMS.pack({"fb0": fb[0], "fb1": fb[1], "fa1": fa[1], "hb0": hb[0], "ha1": ha[1],  # high-pass: b = (hb0, -hb0)
+                        "fthr": force_threshold, "athr": vibration_threshold, "flo": force_lo, "fhi": force_hi, "kg": k_g,
+                        "floor": smooth_floor, "r2": r2_min, "minbin": min_per_bin, "settle": round(settle_s * rate_hz)})
 
 
 @njit(cache=True)

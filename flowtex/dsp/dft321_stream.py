@@ -43,9 +43,36 @@ import math
 import numpy as np
 from numba import njit
 
+from .layout import Field, Layout
+
 WINDOWS = ("hann", "hamming", "sqrt_hann")
 MAX_FRAME = 1024
-_HEADER = 4  # p[0] = frame, p[1] = hop, p[2] = forgetting factor of the power correction (0: off), p[3] = 1 for fft
+PARAMS = Layout("float", [
+    Field("frame", 1, "frame length N"),
+    Field("hop", 1, "samples between frames"),
+    Field("lam", 1, "forgetting factor of the power correction (0: off)"),
+    Field("fft", 1, "1 for the fft method, 0 for dft"),
+    Field("wa", "n", "analysis window"),
+    Field("ws", "n", "synthesis window, scaled"),
+    Field("tables", "tables", "fft: bit reversal (N), cos and -sin twiddles (N/2 each); dft: cos and sin (m x N each), "
+                              "inverse weights (m)"),
+], sizes=("n", "tables"))
+"""The kernel's parameters for frame ``n`` and transform tables of ``tables`` values (:func:`param_sizes`)."""
+STATE = Layout("float", [
+    Field("ring", "3 * n", "input ring, one N-row per axis"),
+    Field("acc", "n", "overlap-add ring"),
+    Field("work", "6 * n + 2 * m", "scratch of one frame"),
+    Field("energy", 2, "input energy, uncorrected output energy"),
+], sizes=("n",), derived={"m": "n // 2 + 1"})
+ISTATE = Layout("int", [Field("tick", 1, "ticks seen")])
+P_FRAME = PARAMS.const("frame")
+P_HOP = PARAMS.const("hop")
+P_LAM = PARAMS.const("lam")
+P_FFT = PARAMS.const("fft")
+P_WA = PARAMS.const("wa")
+SI_TICK = ISTATE.const("tick")
+_state_offsets = STATE.kernel_offsets()
+"""(m, o_ring, o_acc, o_work, o_energy) for frame n, generated from :data:`STATE`."""
 POWER_TAU_FRAMES = 8.0
 """Time constant of the power correction, in frames."""
 
@@ -100,12 +127,13 @@ def stream_params(frame: int, hop: int, window: str, correct_power: bool = True,
     if method == "fft" and not is_power_of_two(frame):
         raise ValueError(f"frame: the fft method needs a power of two, got {frame}; use method dft or frame {1 << frame.bit_length()}")
     lam = math.exp(-1.0 / (POWER_TAU_FRAMES * frame)) if correct_power else 0.0
-    head = [frame, hop, lam, 1.0 if method == "fft" else 0.0]
+    head = {"frame": frame, "hop": hop, "lam": lam, "fft": 1.0 if method == "fft" else 0.0, "wa": wa, "ws": ws}
     if method == "fft":
         bits = frame.bit_length() - 1
         rev = np.array([int(format(j, f"0{bits}b")[::-1], 2) for j in range(frame)], dtype=np.float64)
         ang = 2.0 * np.pi * np.arange(frame // 2) / frame
-        return np.concatenate([head, wa, ws, rev, np.cos(ang), -np.sin(ang)])
+        tables = np.concatenate([rev, np.cos(ang), -np.sin(ang)])
+        return PARAMS.pack({**head, "tables": tables}, n=frame, tables=tables.size)
     m = frame // 2 + 1
     k = np.arange(m)[:, None]
     j = np.arange(frame)[None, :]
@@ -114,13 +142,19 @@ def stream_params(frame: int, hop: int, window: str, correct_power: bool = True,
     weights[0] = 1.0 / frame
     if frame % 2 == 0:
         weights[-1] = 1.0 / frame
-    return np.concatenate([head, wa, ws, np.cos(ang).ravel(), np.sin(ang).ravel(), weights])
+    tables = np.concatenate([np.cos(ang).ravel(), np.sin(ang).ravel(), weights])
+    return PARAMS.pack({**head, "tables": tables}, n=frame, tables=tables.size)
+
+
+def param_sizes(p: np.ndarray) -> dict[str, int]:
+    """The sizes (n, tables) of :data:`PARAMS` that the packed parameters ``p`` were laid out for."""
+    n = int(p[P_FRAME])
+    return {"n": n, "tables": p.size - PARAMS.size(n=n, tables=0)}
 
 
 def stream_state_sizes(frame: int) -> tuple[int, int]:
     """(float state, int state) sizes: input ring 3N, overlap-add ring N, work 6N + 2m, two energies; tick."""
-    m = frame // 2 + 1
-    return 10 * frame + 2 * m + 2, 1
+    return STATE.size(n=frame), ISTATE.size()
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -163,7 +197,7 @@ def _frame_fft(p, ring, acc, work, start, nf):
     separated by conjugate symmetry), axis 2 has its own, and the inverse is
     ifft(Y) = conj(fft(conj(Y))) / N, of which only the real part is needed.
     """
-    o = _HEADER
+    o = P_WA
     wa = p[o:o + nf]
     ws = p[o + nf:o + 2 * nf]
     rev = p[o + 2 * nf:o + 3 * nf]
@@ -216,7 +250,7 @@ def _frame_fft(p, ring, acc, work, start, nf):
 def _frame_dft(p, ring, acc, work, start, nf):
     """Direct real-DFT path (any frame length): same result as :func:`_frame_fft`."""
     m = nf // 2 + 1
-    o = _HEADER
+    o = P_WA
     wa = p[o:o + nf]
     ws = p[o + nf:o + 2 * nf]
     ct = o + 2 * nf
@@ -260,16 +294,16 @@ def _frame_dft(p, ring, acc, work, start, nf):
 
 @njit(cache=True, nogil=True)
 def dft321_stream_block(p, s, si, x, y):
-    """Advance by ``x.shape[0]`` ticks: x (n, 3) in, y (n, 1) out. ``si[0]`` counts ticks."""
-    nf = int(p[0])
-    hop = int(p[1])
-    lam = p[2]
-    fft = p[3] > 0.5
-    ring = s[0:3 * nf]
-    acc = s[3 * nf:4 * nf]
-    en = s.shape[0] - 2  # s[en]: input energy, s[en + 1]: uncorrected output energy
-    work = s[4 * nf:en]
-    t = si[0]
+    """Advance by ``x.shape[0]`` ticks: x (n, 3) in, y (n, 1) out. ``si[SI_TICK]`` counts ticks."""
+    nf = int(p[P_FRAME])
+    hop = int(p[P_HOP])
+    lam = p[P_LAM]
+    fft = p[P_FFT] > 0.5
+    _, o_ring, o_acc, o_work, en = _state_offsets(nf)  # s[en]: input energy, s[en + 1]: uncorrected output energy
+    ring = s[o_ring:o_ring + 3 * nf]
+    acc = s[o_acc:o_acc + nf]
+    work = s[o_work:en]
+    t = si[SI_TICK]
     for r in range(x.shape[0]):
         pos = t % nf
         for a in range(3):
@@ -297,7 +331,7 @@ def dft321_stream_block(p, s, si, x, y):
                 v *= math.sqrt(s[en] / s[en + 1])
         y[r, 0] = v
         t += 1
-    si[0] = t
+    si[SI_TICK] = t
 
 
 def dft321_stream(x: np.ndarray, frame: int = 128, hop: int = 64, window: str = "hann", correct_power: bool = True,

@@ -13,11 +13,19 @@ import numpy as np
 from numba import njit
 
 from .fastmath import FASTMATH
+from .layout import Field, Layout
 
-SECTION_PARAMS = 5
+SECTION = Layout("float", [Field("b0"), Field("b1"), Field("b2"), Field("a1"), Field("a2")])
+"""One biquad's coefficients (a0 normalised to 1); a cascade's are ``sections`` of these in a row."""
+SECTION_MEMORY = Layout("float", [Field("x1", 1, "x[t-1]"), Field("x2", 1, "x[t-2]"), Field("y1", 1, "y[t-1]"),
+                                  Field("y2", 1, "y[t-2]")])
+"""One biquad's state per channel; a cascade's are ``channels * sections`` of these, channel-major."""
+SECTION_PARAMS = SECTION.size()
 """Per biquad: b0, b1, b2, a1, a2 (a0 normalised to 1)."""
-SECTION_STATE = 4
+SECTION_STATE = SECTION_MEMORY.size()
 """Per biquad and channel: x[t-1], x[t-2], y[t-1], y[t-2]."""
+B0, B1, B2, A1, A2 = (SECTION.const(n) for n in ("b0", "b1", "b2", "a1", "a2"))
+X1, X2, Y1, Y2 = (SECTION_MEMORY.const(n) for n in ("x1", "x2", "y1", "y2"))
 
 
 def sos_to_params(sos: np.ndarray) -> np.ndarray:
@@ -48,16 +56,17 @@ def sos_block(coef: np.ndarray, state: np.ndarray, x: np.ndarray, y: np.ndarray)
     sections = coef.shape[0] // SECTION_PARAMS
     for c in range(channels):
         for k in range(sections):
-            b0 = coef[5 * k]
-            b1 = coef[5 * k + 1]
-            b2 = coef[5 * k + 2]
-            a1 = coef[5 * k + 3]
-            a2 = coef[5 * k + 4]
+            at = SECTION_PARAMS * k
+            b0 = coef[at + B0]
+            b1 = coef[at + B1]
+            b2 = coef[at + B2]
+            a1 = coef[at + A1]
+            a2 = coef[at + A2]
             base = (c * sections + k) * SECTION_STATE
-            x1 = state[base]
-            x2 = state[base + 1]
-            y1 = state[base + 2]
-            y2 = state[base + 3]
+            x1 = state[base + X1]
+            x2 = state[base + X2]
+            y1 = state[base + Y1]
+            y2 = state[base + Y2]
             src = x if k == 0 else y
             for t in range(n):
                 x0 = src[t, c]
@@ -70,10 +79,10 @@ def sos_block(coef: np.ndarray, state: np.ndarray, x: np.ndarray, y: np.ndarray)
                 x1 = x0
                 y2 = y1
                 y1 = y0
-            state[base] = x1
-            state[base + 1] = x2
-            state[base + 2] = y1
-            state[base + 3] = y2
+            state[base + X1] = x1
+            state[base + X2] = x2
+            state[base + Y1] = y1
+            state[base + Y2] = y2
 
 
 @njit(cache=True)
@@ -92,13 +101,14 @@ def sos_steady_state(coef: np.ndarray, state: np.ndarray, x0: np.ndarray) -> Non
     for c in range(channels):
         u = x0[c]
         for k in range(sections):
-            g = (coef[5 * k] + coef[5 * k + 1] + coef[5 * k + 2]) / (1.0 + coef[5 * k + 3] + coef[5 * k + 4])
+            at = SECTION_PARAMS * k
+            g = (coef[at + B0] + coef[at + B1] + coef[at + B2]) / (1.0 + coef[at + A1] + coef[at + A2])
             base = (c * sections + k) * SECTION_STATE
-            state[base] = u
-            state[base + 1] = u
+            state[base + X1] = u
+            state[base + X2] = u
             u = g * u
-            state[base + 2] = u
-            state[base + 3] = u
+            state[base + Y1] = u
+            state[base + Y2] = u
 
 
 def lowpass_alpha(cutoff_hz: float, rate_hz: float) -> float:

@@ -22,14 +22,18 @@ import math
 import numpy as np
 from numba import njit
 
+from .layout import Field, Layout
 from .motion import finite3, update_normal
 
 VISCOUS_PER_MM_S = 0.004
 """HaTT's viscous factor: F = -mu F_n 0.004 v with v in mm/s."""
 
 # ---- Coulomb / viscous layout ----------------------------------------------
-CF_MU, CF_THRESHOLD = 0, 1
-COULOMB_PARAMS = 2
+COULOMB_P = Layout("float", [Field("mu", 1, "kinetic friction coefficient"),
+                             Field("threshold", 1, "speed from which the force is Coulomb's, mm/s")])
+CF_MU = COULOMB_P.const("mu")
+CF_THRESHOLD = COULOMB_P.const("threshold")
+COULOMB_PARAMS = COULOMB_P.size()
 
 
 def coulomb_threshold(mu: float, mode: str) -> float:
@@ -80,15 +84,24 @@ def coulomb_block(p: np.ndarray, vel: np.ndarray, fn: np.ndarray, out: np.ndarra
 
 
 # ---- Dahl layout ---------------------------------------------------------------
-DP_MU, DP_ZMAX = 0, 1
-DAHL_PARAMS = 2
-DS_W = 0          # adhesion point w (3, mm)
-DS_XPREV = 3      # last valid tool position (3, mm)
-DS_NORMAL = 6     # last valid unit normal (3)
-DS_FN = 9         # normal force of the last valid tick (N, >= 0)
-DAHL_STATE = 10
-DI_STARTED = 0
-DAHL_ISTATE = 1
+DAHL_P = Layout("float", [Field("mu", 1, "kinetic friction coefficient"), Field("z_max", 1, "largest stretch, mm")])
+DAHL_S = Layout("float", [
+    Field("w", 3, "adhesion point, mm"),
+    Field("xprev", 3, "last valid tool position, mm"),
+    Field("normal", 3, "last valid unit normal"),
+    Field("fn", 1, "normal force of the last valid tick, N (>= 0)"),
+])
+DAHL_SI = Layout("int", [Field("started", 1, "1 once a valid tick was seen")])
+DP_MU = DAHL_P.const("mu")
+DP_ZMAX = DAHL_P.const("z_max")
+DAHL_PARAMS = DAHL_P.size()
+DS_W = DAHL_S.const("w")
+DS_XPREV = DAHL_S.const("xprev")
+DS_NORMAL = DAHL_S.const("normal")
+DS_FN = DAHL_S.const("fn")
+DAHL_STATE = DAHL_S.size()
+DI_STARTED = DAHL_SI.const("started")
+DAHL_ISTATE = DAHL_SI.size()
 
 
 @njit(cache=True)

@@ -51,49 +51,123 @@ import numpy as np
 from numba import njit
 
 from .arma import filter_power
+from .layout import Field, Layout
 from .lsf import DEFAULT_MIN_GAP, lsf_to_poly, repair_lsf
 from .triangulation import clamp_query, locate, pack_triangulation
 
-# Packed table header (float64 slots).
-T_P = 0
-T_Q = 1
-T_NMOD = 2
-T_OFF_TRI = 3
-T_OFF_MOD = 4
-T_MAX_SPEED = 5
-T_MAX_FORCE = 6
-T_SPEED_MARGIN = 7
-T_LOW_SPEED = 8
-T_LOW_SPEED_VALUE = 9
-T_FORCE_MARGIN = 10
-T_LOW_FORCE = 11
-T_LOW_FORCE_VALUE = 12
-T_MIN_GAP = 13
-T_OUTSIDE = 14
-T_OFF_OUT = 15
-T_INTERP = 16
-T_HEADER = 17
+HEADER = Layout("float", [
+    Field("p", 1, "AR order"),
+    Field("q", 1, "MA order"),
+    Field("nmod", 1, "number of models"),
+    Field("off_tri", 1, "offset of the triangulation (flowtex.dsp.triangulation.pack_triangulation)"),
+    Field("off_mod", 1, "offset of the models (MODEL rows)"),
+    Field("max_speed", 1, "mm/s"),
+    Field("max_force", 1, "N"),
+    Field("speed_margin", 1, "mm/s"),
+    Field("low_speed", 1, "mm/s"),
+    Field("low_speed_value", 1, "mm/s"),
+    Field("force_margin", 1, "N"),
+    Field("low_force", 1, "N"),
+    Field("low_force_value", 1, "N"),
+    Field("min_gap", 1, "rad, for repair_lsf"),
+    Field("outside", 1, "code of OUTSIDE_MODES"),
+    Field("off_out", 1, "offset of the OUTSIDE section"),
+    Field("interp", 1, "code of INTERP_MODES"),
+])
+"""The packed table's header; the triangulation, ``nmod`` MODEL rows and the OUTSIDE section follow at its offsets."""
+
+MODEL = Layout("float", [
+    Field("ar_lsf", "p", "AR line spectral frequencies"),
+    Field("ma_lsf", "q", "MA line spectral frequencies"),
+    Field("variance", 1, "excitation variance"),
+    Field("gain", 1, "MA gain"),
+    Field("power", 1, "output power g^2 var ||C/A||^2"),
+], sizes=("p", "q"))
+"""One model's row of the table (its width is ``p + q + M_EXTRA``)."""
+
+OUTSIDE = Layout("float", [
+    Field("ks", 1, "trend exponent in speed"),
+    Field("kf", 1, "trend exponent in force"),
+    Field("cap", 1, "trend_cap"),
+    Field("src", "nmod", "per model, the measured model standing in for it"),
+    Field("points", "2 * nmod", "per model, its (speed mm/s, force N)"),
+], sizes=("nmod",))
+"""The rule outside the measured models, at the header's ``off_out``."""
+
+TABLE = Layout("float", [
+    Field("header", HEADER.size()),
+    Field("tri", "ntri", "the triangulation"),
+    Field("models", f"nmod * (p + q + {MODEL.size(p=0, q=0)})", "the MODEL rows"),
+    Field("outside", f"{OUTSIDE.size(nmod=0)} + 3 * nmod", "the OUTSIDE section"),
+], sizes=("p", "q", "nmod", "ntri"))
+"""The whole packed table for orders p, q, ``nmod`` models and a triangulation of ``ntri`` values."""
+
+# Header slots: module-level ints from HEADER (numba compiles them as constants).
+T_P = HEADER.const("p")
+T_Q = HEADER.const("q")
+T_NMOD = HEADER.const("nmod")
+T_OFF_TRI = HEADER.const("off_tri")
+T_OFF_MOD = HEADER.const("off_mod")
+T_MAX_SPEED = HEADER.const("max_speed")
+T_MAX_FORCE = HEADER.const("max_force")
+T_SPEED_MARGIN = HEADER.const("speed_margin")
+T_LOW_SPEED = HEADER.const("low_speed")
+T_LOW_SPEED_VALUE = HEADER.const("low_speed_value")
+T_FORCE_MARGIN = HEADER.const("force_margin")
+T_LOW_FORCE = HEADER.const("low_force")
+T_LOW_FORCE_VALUE = HEADER.const("low_force_value")
+T_MIN_GAP = HEADER.const("min_gap")
+T_OUTSIDE = HEADER.const("outside")
+T_OFF_OUT = HEADER.const("off_out")
+T_INTERP = HEADER.const("interp")
+T_HEADER = HEADER.size()
+
+O_KS = OUTSIDE.const("ks")
+O_KF = OUTSIDE.const("kf")
+O_CAP = OUTSIDE.const("cap")
+O_SRC = OUTSIDE.const("src")
 
 OUTSIDE_MODES = {"fade": 0, "hold": 1, "trend": 2}
 """Codes of the rules outside the measured models (flowtex.models.outside)."""
 INTERP_MODES = {"variance": 0, "power": 1, "log_power": 2}
 """Codes of the interpolation rules: HaTT's (excitation variance blended), output power blended linearly, or geometrically."""
-M_EXTRA = 3
+M_EXTRA = MODEL.size(p=0, q=0)
 """Per model, after its p AR and q MA LSFs: excitation variance, MA gain, output power."""
 
-# Float state slots.
-S_X = 0
-S_Y = 1
-S_W = 2  # 3 weights
-S_VAR = 5
-S_GAIN = 6
-S_AR = 7  # p+1 values, then q+1 values of C(z), then max(p, q) scratch, then 5 L + 3 lattice scratch (L = max(p, q))
+STATE = Layout("float", [
+    Field("x", 1, "last query's speed (after clamping for fade), mm/s; NaN before any"),
+    Field("y", 1, "last query's force, N; NaN before any"),
+    Field("w", 3, "barycentric weights"),
+    Field("var", 1, "held excitation variance"),
+    Field("gain", 1, "held MA gain"),
+    Field("ar", "p + 1", "held A(z)"),
+    Field("ma", "q + 1", "held C(z)"),
+    Field("lsf", "L", "scratch: the blended LSFs"),
+    Field("lattice", "5 * L + 3", "scratch of filter_power"),
+], sizes=("p", "q"), derived={"L": "max(p, q)"})
+"""The lookup's float state for orders p, q."""
 
-# Int state slots.
-SI_HINT = 0
-SI_VALID = 1
-SI_V = 2  # 3 vertex indices
-SI_SIZE = 5
+ISTATE = Layout("int", [
+    Field("hint", 1, "triangle of the last query (-1: none), where locate starts"),
+    Field("valid", 1, "1 once a query was answered"),
+    Field("v", 3, "vertex (model) indices of the blend"),
+])
+"""The lookup's int state (fixed length)."""
+
+S_X = STATE.const("x")
+S_Y = STATE.const("y")
+S_W = STATE.const("w")
+S_VAR = STATE.const("var")
+S_GAIN = STATE.const("gain")
+S_AR = STATE.const("ar")
+
+SI_HINT = ISTATE.const("hint")
+SI_VALID = ISTATE.const("valid")
+SI_V = ISTATE.const("v")
+SI_SIZE = ISTATE.size()
+
+_offsets = STATE.kernel_offsets()
+"""(L, o_x, o_y, o_w, o_var, o_gain, o_ar, o_ma, o_lsf, o_lattice) for orders (p, q), generated from :data:`STATE`."""
 
 
 def pack_texture_table(speeds: np.ndarray, forces: np.ndarray, triangles: np.ndarray, ar_lsf: np.ndarray, ma_lsf: np.ndarray,
@@ -123,28 +197,23 @@ def pack_texture_table(speeds: np.ndarray, forces: np.ndarray, triangles: np.nda
     variance = np.asarray(variance, np.float64)
     gain = np.asarray(gain, np.float64)
     models = np.column_stack([ar_lsf, ma_lsf, variance, gain, model_output_powers(ar_lsf, ma_lsf, variance, gain)])
-    head = np.zeros(T_HEADER)
-    head[T_P] = p
-    head[T_Q] = q
-    head[T_NMOD] = count
-    head[T_OFF_TRI] = T_HEADER
-    head[T_OFF_MOD] = T_HEADER + tri_tab.size
-    head[T_MAX_SPEED] = max_speed
-    head[T_MAX_FORCE] = max_force
-    head[T_SPEED_MARGIN] = speed_margin
-    head[T_LOW_SPEED] = low_speed
-    head[T_LOW_SPEED_VALUE] = low_speed_value
-    head[T_FORCE_MARGIN] = force_margin
-    head[T_LOW_FORCE] = low_force
-    head[T_LOW_FORCE_VALUE] = low_force_value
-    head[T_MIN_GAP] = min_gap
-    head[T_OUTSIDE] = OUTSIDE_MODES[outside]
-    head[T_OFF_OUT] = T_HEADER + tri_tab.size + models.size
-    head[T_INTERP] = INTERP_MODES[interpolation]
     src = np.arange(count) if src is None else np.asarray(src)
-    out = np.concatenate([[trend[0], trend[1], trend_cap], src.astype(np.float64),
-                          np.column_stack([np.asarray(speeds, np.float64), np.asarray(forces, np.float64)]).ravel()])
-    return np.concatenate([head, tri_tab, models.ravel(), out])
+    outside_part = OUTSIDE.pack({"ks": trend[0], "kf": trend[1], "cap": trend_cap, "src": src.astype(np.float64),
+                                 "points": np.column_stack([np.asarray(speeds, np.float64), np.asarray(forces, np.float64)])},
+                                nmod=count)
+    at = TABLE.bind(p=p, q=q, nmod=count, ntri=tri_tab.size)
+    head = HEADER.pack({"p": p, "q": q, "nmod": count, "off_tri": at["tri"].start, "off_mod": at["models"].start,
+                        "max_speed": max_speed, "max_force": max_force, "speed_margin": speed_margin, "low_speed": low_speed,
+                        "low_speed_value": low_speed_value, "force_margin": force_margin, "low_force": low_force,
+                        "low_force_value": low_force_value, "min_gap": min_gap, "outside": OUTSIDE_MODES[outside],
+                        "off_out": at["outside"].start, "interp": INTERP_MODES[interpolation]})
+    return TABLE.pack({"header": head, "tri": tri_tab, "models": models, "outside": outside_part},
+                      p=p, q=q, nmod=count, ntri=tri_tab.size)
+
+
+def table_sizes(tab: np.ndarray) -> dict[str, int]:
+    """The sizes (p, q, nmod, ntri) a packed table was laid out for (:data:`TABLE`), read from its header."""
+    return {"p": int(tab[T_P]), "q": int(tab[T_Q]), "nmod": int(tab[T_NMOD]), "ntri": int(tab[T_OFF_MOD] - tab[T_OFF_TRI])}
 
 
 def model_output_powers(ar_lsf: np.ndarray, ma_lsf: np.ndarray, variance: np.ndarray, gain: np.ndarray) -> np.ndarray:
@@ -176,21 +245,16 @@ def model_output_powers(ar_lsf: np.ndarray, ma_lsf: np.ndarray, variance: np.nda
 
 def state_sizes(ar_order: int, ma_order: int) -> tuple[int, int]:
     """Lengths of the float and int state arrays for orders p, q."""
-    L = max(ar_order, ma_order)
-    return S_AR + (ar_order + 1) + (ma_order + 1) + L + 5 * L + 3, SI_SIZE
+    return STATE.size(p=ar_order, q=ma_order), SI_SIZE
 
 
 def initial_state(ar_order: int, ma_order: int) -> tuple[np.ndarray, np.ndarray]:
     """Fresh state: no query seen, held model silent (A = C = 1, gain 0, variance 0)."""
-    nf, ni = state_sizes(ar_order, ma_order)
-    s = np.zeros(nf)
-    s[S_X] = np.nan
-    s[S_Y] = np.nan
-    s[S_AR] = 1.0
-    s[S_AR + ar_order + 1] = 1.0
-    si = np.zeros(ni, dtype=np.int64)
-    si[SI_HINT] = -1
-    return s, si
+    at = STATE.bind(p=ar_order, q=ma_order)
+    s = STATE.pack({"x": np.nan, "y": np.nan}, p=ar_order, q=ma_order)
+    s[at["ar"].start] = 1.0
+    s[at["ma"].start] = 1.0
+    return s, ISTATE.pack({"hint": -1})
 
 
 @njit(cache=True, inline="always")
@@ -223,15 +287,15 @@ def _blend_valid(models, width, col, n, v, w, min_gap, out):
 def _trend_factor(tab, o_out, v, w, speed, force):
     """(speed / s_eff)^ks (force / f_eff)^kf with each ratio in [0, cap]; (s_eff, f_eff) = weighted point of models ``v``."""
     nmod = int(tab[T_NMOD])
-    o_pts = o_out + 3 + nmod
+    o_pts = o_out + O_SRC + nmod
     se = w[0] * tab[o_pts + 2 * v[0]] + w[1] * tab[o_pts + 2 * v[1]] + w[2] * tab[o_pts + 2 * v[2]]
     fe = w[0] * tab[o_pts + 2 * v[0] + 1] + w[1] * tab[o_pts + 2 * v[1] + 1] + w[2] * tab[o_pts + 2 * v[2] + 1]
-    cap = tab[o_out + 2]
+    cap = tab[o_out + O_CAP]
     rs = min(max(speed, 0.0) / se, cap) if se > 0.0 else 1.0
     rf = min(max(force, 0.0) / fe, cap) if fe > 0.0 else 1.0
     if rs <= 0.0 or rf <= 0.0:
         return 0.0  # at rest or without contact: silent for every exponent (0^0 would be 1)
-    return rs ** tab[o_out] * rf ** tab[o_out + 1]
+    return rs ** tab[o_out + O_KS] * rf ** tab[o_out + O_KF]
 
 
 @njit(cache=True, inline="always")
@@ -275,20 +339,19 @@ def lookup_model(tab: np.ndarray, s: np.ndarray, si: np.ndarray, speed: float, f
     o_out = int(tab[T_OFF_OUT])
     beyond = x != speed or y != force  # clamped, or (below) blending a silent model: outside the measured models
     if mode != 0:
-        o_src = o_out + 3
+        o_src = o_out + O_SRC
         for k in range(3):
             m = int(tab[o_src + v[k]])
             beyond |= m != v[k]
             v[k] = m
     width = p + q + M_EXTRA
-    o_ma = S_AR + p + 1
-    L = max(p, q)
-    scratch = s[o_ma + q + 1:o_ma + q + 1 + L]
+    L, _, _, _, _, _, o_ar, o_ma, o_lsf, o_lattice = _offsets(p, q)
+    scratch = s[o_lsf:o_lsf + L]
     min_gap = tab[T_MIN_GAP]
     lsf = scratch[:p]
     if not _blend_valid(models, width, 0, p, v, w, min_gap, lsf):
         repair_lsf(lsf, min_gap)
-    lsf_to_poly(lsf, s[S_AR:S_AR + p + 1])
+    lsf_to_poly(lsf, s[o_ar:o_ar + p + 1])
     lsf = scratch[:q]
     if not _blend_valid(models, width, p, q, v, w, min_gap, lsf):
         repair_lsf(lsf, min_gap)
@@ -300,7 +363,7 @@ def lookup_model(tab: np.ndarray, s: np.ndarray, si: np.ndarray, speed: float, f
     interp = int(tab[T_INTERP])
     if interp != 0:
         target = _blend_power(models, width, v, w, interp == 2)
-        unit = filter_power(s[S_AR:S_AR + p + 1], s[o_ma:o_ma + q + 1], s[S_GAIN], s[o_ma + q + 1 + L:o_ma + q + 1 + 6 * L + 3])
+        unit = filter_power(s[o_ar:o_ar + p + 1], s[o_ma:o_ma + q + 1], s[S_GAIN], s[o_lattice:o_lattice + 5 * L + 3])
         s[S_VAR] = target / unit if unit > 0.0 and target > 0.0 else 0.0
     if mode == 2 and beyond:
         s[S_VAR] *= _trend_factor(tab, o_out, v, w, speed, force)
@@ -317,11 +380,11 @@ def texture_lookup_block(tab: np.ndarray, s: np.ndarray, si: np.ndarray, speed: 
     """Run :func:`lookup_model` for each row of ``speed``/``force`` (n, 1) and write the model to the (n, width) outputs."""
     p = int(tab[T_P])
     q = int(tab[T_Q])
-    o_ma = S_AR + p + 1
+    _, _, _, _, _, _, o_ar, o_ma, _, _ = _offsets(p, q)
     for t in range(speed.shape[0]):
         lookup_model(tab, s, si, speed[t, 0], force[t, 0])
         for j in range(p + 1):
-            ar[t, j] = s[S_AR + j]
+            ar[t, j] = s[o_ar + j]
         for j in range(q + 1):
             ma[t, j] = s[o_ma + j]
         gain[t, 0] = s[S_GAIN]

@@ -113,6 +113,27 @@ class Layout:
         """A zeroed array of this layout for these sizes."""
         return np.zeros(self.size(**sizes), dtype=_DTYPES[self.kind])
 
+    def pack(self, values: Mapping[str, Any] | None = None, **sizes: int) -> np.ndarray:
+        """An array of this layout for these sizes: zeros, with each field named in ``values`` set.
+
+        A scalar value fills its whole field; an array must have the field's length (ValueError naming the field).
+        """
+        slices = self.bind(**sizes)
+        out = np.zeros(max((s.stop for s in slices.values()), default=0), dtype=_DTYPES[self.kind])
+        for name, value in (values or {}).items():
+            if name not in slices:
+                raise KeyError(f"layout has no field {name!r}; fields: {', '.join(f.name for f in self.fields)}")
+            where = slices[name]
+            data = np.asarray(value, dtype=out.dtype)
+            if data.ndim == 0:
+                out[where] = data
+                continue
+            data = data.ravel()
+            if data.size != where.stop - where.start:
+                raise ValueError(f"layout field {name!r} holds {where.stop - where.start} values for {sizes}, given {data.size}")
+            out[where] = data
+        return out
+
     def const(self, name: str) -> int:
         """Offset of ``name`` when every field before it has a fixed length (a constant kernels may use)."""
         at = 0
@@ -153,3 +174,56 @@ class Layout:
         exec(compile(self.offsets_source(), f"<layout {self.kind}: {', '.join(f.name for f in self.fields)}>", "exec"),
              {"max": max, "min": min}, namespace)
         return njit(inline="always")(namespace["offsets"])
+
+
+@dataclass(frozen=True)
+class Memory:
+    """A node's memory declared once: its parameters ``p`` and float state ``s`` (float layouts), its int state ``si``.
+
+    Each layout takes the build-time sizes it declares (``sizes=``) from one mapping, so a node states its sizes
+    once per build (:meth:`pack`), and checks can compare what a build packed with what was declared (:meth:`sizes`).
+    """
+
+    params: Layout = Layout("float", [])
+    state: Layout = Layout("float", [])
+    istate: Layout = Layout("int", [])
+
+    def __post_init__(self) -> None:
+        for name, want in (("params", "float"), ("state", "float"), ("istate", "int")):
+            if getattr(self, name).kind != want:
+                raise ValueError(f"Memory {name}: declare a {want!r} layout, got {getattr(self, name).kind!r}")
+
+    def _pick(self, layout: Layout, sizes: Mapping[str, int]) -> dict[str, int]:
+        return {name: sizes[name] for name in layout.sizes if name in sizes}
+
+    def pack(self, sizes: Mapping[str, int] | None = None, params: Mapping[str, Any] | np.ndarray | None = None,
+             state: Mapping[str, Any] | np.ndarray | None = None, istate: Mapping[str, Any] | np.ndarray | None = None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(p, s, si) for these build-time sizes, each packed from its field values (:meth:`Layout.pack`).
+
+        An array instead of a mapping is one a helper already packed with the same layout: it is taken as it is,
+        after checking that its length is the declared one (ValueError otherwise).
+        """
+        sizes = dict(sizes or {})
+        unknown = sorted(set(sizes) - set(self.params.sizes + self.state.sizes + self.istate.sizes))
+        if unknown:
+            raise ValueError(f"memory declares no size {', '.join(unknown)}")
+        out = []
+        for name, layout, values in (("params", self.params, params), ("state", self.state, state),
+                                     ("istate", self.istate, istate)):
+            dims = self._pick(layout, sizes)
+            if isinstance(values, np.ndarray):
+                array = np.ascontiguousarray(values, dtype=_DTYPES[layout.kind]).ravel()
+                if array.size != layout.size(**dims):
+                    raise ValueError(f"{name}: {array.size} values packed, the declared layout holds {layout.size(**dims)} "
+                                     f"for {dims}")
+                out.append(array)
+            else:
+                out.append(layout.pack(values, **dims))
+        return out[0], out[1], out[2]
+
+    def sizes(self, sizes: Mapping[str, int] | None = None) -> tuple[int, int, int]:
+        """Lengths of (p, s, si) for these build-time sizes."""
+        sizes = dict(sizes or {})
+        return (self.params.size(**self._pick(self.params, sizes)), self.state.size(**self._pick(self.state, sizes)),
+                self.istate.size(**self._pick(self.istate, sizes)))

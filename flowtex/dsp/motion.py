@@ -49,30 +49,68 @@ import math
 import numpy as np
 from numba import njit
 
+from .layout import Field, Layout
+
 # ---- speed estimator layout -------------------------------------------------
-SP_RATE, SP_B0, SP_B1, SP_B2, SP_A1, SP_A2, SP_HP_ALPHA, SP_LP_ALPHA, SP_THRESHOLD = range(9)
-SPEED_PARAMS = 9
-SS_XPREV = 0      # last valid position (3)
-SS_NORMAL = 3     # last valid unit normal (3)
-SS_BIQUAD = 6     # per axis x1, x2, y1, y2 (12)
-SS_HP = 18        # 10 Hz low-pass state used by the high-pass (3)
-SS_LP = 21        # 100 Hz low-pass state of the high-passed position (3)
-SS_VEL = 24       # last output velocity (3)
-SS_SPEED = 27     # last output speed (1)
-SPEED_STATE = 28
-SI_STARTED, SI_GAP = 0, 1
-SPEED_ISTATE = 2
+SPEED_P = Layout("float", [
+    Field("rate", 1, "Hz"),
+    Field("biquad", 5, "b0, b1, b2, a1, a2 of the velocity filter"),
+    Field("hp_alpha", 1, "10 Hz low-pass used by the high-pass"),
+    Field("lp_alpha", 1, "100 Hz low-pass of the high-passed position"),
+    Field("threshold", 1, "stationary threshold, mm"),
+])
+SPEED_S = Layout("float", [
+    Field("xprev", 3, "last valid position, mm"),
+    Field("normal", 3, "last valid unit normal"),
+    Field("biquad", 12, "per axis x1, x2, y1, y2 of the velocity filter"),
+    Field("hp", 3, "10 Hz low-pass state used by the high-pass"),
+    Field("lp", 3, "100 Hz low-pass state of the high-passed position"),
+    Field("vel", 3, "last output velocity, mm/s"),
+    Field("speed", 1, "last output speed, mm/s"),
+])
+SPEED_SI = Layout("int", [Field("started", 1, "1 once a finite position was seen"),
+                          Field("gap", 1, "ticks skipped since the last valid position")])
+SP_RATE = SPEED_P.const("rate")
+SP_B0 = SPEED_P.const("biquad")
+SP_B1, SP_B2, SP_A1, SP_A2 = SP_B0 + 1, SP_B0 + 2, SP_B0 + 3, SP_B0 + 4
+SP_HP_ALPHA = SPEED_P.const("hp_alpha")
+SP_LP_ALPHA = SPEED_P.const("lp_alpha")
+SP_THRESHOLD = SPEED_P.const("threshold")
+SPEED_PARAMS = SPEED_P.size()
+SS_XPREV = SPEED_S.const("xprev")
+SS_NORMAL = SPEED_S.const("normal")
+SS_BIQUAD = SPEED_S.const("biquad")
+SS_HP = SPEED_S.const("hp")
+SS_LP = SPEED_S.const("lp")
+SS_VEL = SPEED_S.const("vel")
+SS_SPEED = SPEED_S.const("speed")
+SPEED_STATE = SPEED_S.size()
+SI_STARTED = SPEED_SI.const("started")
+SI_GAP = SPEED_SI.const("gap")
+SPEED_ISTATE = SPEED_SI.size()
 
 # ---- contact layout -----------------------------------------------------------
-CP_RATE, CP_ON, CP_OFF = range(3)
-CONTACT_PARAMS = 3
-CS_XPREV = 0      # last valid position (3)
-CS_NORMAL = 3     # last valid unit normal (3)
-CS_INCOMING = 6   # held incoming speed (mm/s)
-CS_VN = 7         # latest approach speed estimate -(v.n) (mm/s)
-CONTACT_STATE = 8
-CI_STARTED, CI_GAP, CI_IN = 0, 1, 2
-CONTACT_ISTATE = 3
+CONTACT_P = Layout("float", [Field("rate", 1, "Hz"), Field("on", 1, "N"), Field("off", 1, "N")])
+CONTACT_S = Layout("float", [
+    Field("xprev", 3, "last valid position, mm"),
+    Field("normal", 3, "last valid unit normal"),
+    Field("incoming", 1, "held incoming speed, mm/s"),
+    Field("vn", 1, "latest approach speed estimate -(v.n), mm/s"),
+])
+CONTACT_SI = Layout("int", [Field("started", 1), Field("gap", 1), Field("in_contact", 1)])
+CP_RATE = CONTACT_P.const("rate")
+CP_ON = CONTACT_P.const("on")
+CP_OFF = CONTACT_P.const("off")
+CONTACT_PARAMS = CONTACT_P.size()
+CS_XPREV = CONTACT_S.const("xprev")
+CS_NORMAL = CONTACT_S.const("normal")
+CS_INCOMING = CONTACT_S.const("incoming")
+CS_VN = CONTACT_S.const("vn")
+CONTACT_STATE = CONTACT_S.size()
+CI_STARTED = CONTACT_SI.const("started")
+CI_GAP = CONTACT_SI.const("gap")
+CI_IN = CONTACT_SI.const("in_contact")
+CONTACT_ISTATE = CONTACT_SI.size()
 
 MIN_NORMAL = 1e-9
 """A normal vector shorter than this is treated as missing."""
@@ -100,13 +138,10 @@ def butter2_biquad(omega_rad_s: float, rate_hz: float) -> tuple[float, float, fl
 
 def speed_params(biquad: tuple[float, ...], rate_hz: float, threshold_mm: float) -> np.ndarray:
     """Parameter array for :func:`speed_block` (layout ``SP_*``)."""
-    p = np.zeros(SPEED_PARAMS)
-    p[SP_RATE] = rate_hz
-    p[SP_B0:SP_A2 + 1] = biquad
-    p[SP_HP_ALPHA] = 1.0 - math.exp(-2.0 * math.pi * 10.0 / rate_hz)
-    p[SP_LP_ALPHA] = 1.0 - math.exp(-2.0 * math.pi * min(100.0, 0.45 * rate_hz) / rate_hz)
-    p[SP_THRESHOLD] = threshold_mm
-    return p
+    return SPEED_P.pack({"rate": rate_hz, "biquad": biquad,
+                         "hp_alpha": 1.0 - math.exp(-2.0 * math.pi * 10.0 / rate_hz),
+                         "lp_alpha": 1.0 - math.exp(-2.0 * math.pi * min(100.0, 0.45 * rate_hz) / rate_hz),
+                         "threshold": threshold_mm})
 
 
 def initial_normal_state(size: int, offset: int, normal: tuple[float, ...] | np.ndarray) -> np.ndarray:

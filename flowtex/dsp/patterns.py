@@ -15,8 +15,42 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-# parameter header: features K, filter order P (coefficients per filter: P + 1), slots, axis (3), origin (3)
-H_K, H_P, H_SLOTS, H_AXIS, H_ORIGIN, H_LEN = 0, 1, 2, 3, 6, 9
+from .layout import Field, Layout
+
+PARAMS = Layout("float", [
+    Field("k", 1, "features K"),
+    Field("order", 1, "filter order P (coefficients per filter: P + 1)"),
+    Field("slots", 1, "most ring-downs at once"),
+    Field("axis", 3, "the pattern's axis"),
+    Field("origin", 3, "origin of the axis, mm"),
+    Field("positions", "k", "feature positions along the axis, mm, sorted"),
+    Field("amplitudes", "k", "A_k, m/s^2"),
+    Field("lengths", "k", "ring-down length of each feature's filter, ticks"),
+    Field("b", "k * (order + 1)", "numerators, one row per feature"),
+    Field("a", "k * (order + 1)", "denominators (a[0] = 1), one row per feature"),
+], sizes=("k", "order"))
+"""The kernel's parameters for K features with filters of order P."""
+STATE = Layout("float", [
+    Field("xprev", 1, "position along the axis on the previous tick, mm"),
+    Field("input", "slots", "per slot: the impulse to feed on its next tick"),
+    Field("z", "slots * zord", "per slot: its filter's state"),
+], sizes=("slots", "order"), derived={"zord": "max(order, 1)"})
+ISTATE = Layout("int", [
+    Field("started", 1, "1 once a position was seen"),
+    Field("filter", "slots", "per slot: the feature playing (-1: free)"),
+    Field("age", "slots", "per slot: ticks played"),
+], sizes=("slots",))
+H_K = PARAMS.const("k")
+H_P = PARAMS.const("order")
+H_SLOTS = PARAMS.const("slots")
+H_AXIS = PARAMS.const("axis")
+H_ORIGIN = PARAMS.const("origin")
+_param_offsets = PARAMS.kernel_offsets()
+"""(o_k, o_order, o_slots, o_axis, o_origin, o_positions, o_amplitudes, o_lengths, o_b, o_a) for (k, order)."""
+_state_offsets = STATE.kernel_offsets()
+"""(zord, o_xprev, o_input, o_z) for (slots, order), generated from :data:`STATE`."""
+_istate_offsets = ISTATE.kernel_offsets()
+"""(o_started, o_filter, o_age) for slots, generated from :data:`ISTATE`."""
 RING_DECAY = 1e-6
 """A ring-down stops when its slowest pole has decayed to this fraction."""
 
@@ -109,36 +143,32 @@ def pattern_params(axis: np.ndarray, origin: np.ndarray, positions: np.ndarray, 
                    lengths: np.ndarray, b: np.ndarray, a: np.ndarray, max_active: int) -> np.ndarray:
     """Pack the kernel's parameter vector; ``b``, ``a`` are (K, P + 1) with a[:, 0] == 1, positions sorted."""
     k, width = b.shape
-    head = np.zeros(H_LEN)
-    head[H_K], head[H_P], head[H_SLOTS] = k, width - 1, max_active
-    head[H_AXIS:H_AXIS + 3] = axis
-    head[H_ORIGIN:H_ORIGIN + 3] = origin
-    return np.concatenate([head, positions, amplitudes, lengths.astype(np.float64), b.ravel(), a.ravel()])
+    return PARAMS.pack({"k": k, "order": width - 1, "slots": max_active, "axis": axis, "origin": origin, "positions": positions,
+                        "amplitudes": amplitudes, "lengths": lengths.astype(np.float64), "b": b, "a": a}, k=k, order=width - 1)
 
 
 def pattern_state(order: int, max_active: int) -> tuple[np.ndarray, np.ndarray]:
     """Float state [x_prev, slot input (S), slot z (S x P)]; int state [started, slot filter (S), slot age (S)]."""
-    s = np.zeros(1 + max_active + max_active * max(order, 1))
-    si = np.zeros(1 + 2 * max_active, np.int64)
-    si[1:1 + max_active] = -1
-    return s, si
+    return STATE.zeros(slots=max_active, order=order), ISTATE.pack({"filter": -1}, slots=max_active)
 
 
 @njit(cache=True)
 def _start(p, s, si, k, amp, slots, order) -> None:
+    _, _, o_in, o_z = _state_offsets(slots, order)
+    _, o_f, o_age = _istate_offsets(slots)
     best = 0
     best_age = -1
     for j in range(slots):  # a free slot, else the oldest ring-down
-        if si[1 + j] < 0:
+        if si[o_f + j] < 0:
             best = j
             break
-        if si[1 + slots + j] > best_age:
-            best_age = si[1 + slots + j]
+        if si[o_age + j] > best_age:
+            best_age = si[o_age + j]
             best = j
-    si[1 + best] = k
-    si[1 + slots + best] = 0
-    s[1 + best] = amp
-    z0 = 1 + slots + best * order
+    si[o_f + best] = k
+    si[o_age + best] = 0
+    s[o_in + best] = amp
+    z0 = o_z + best * order
     for i in range(order):
         s[z0 + i] = 0.0
 
@@ -149,44 +179,44 @@ def pattern_block(p, s, si, position, in_contact, y) -> None:
     nk = int(p[H_K])
     order = int(p[H_P])
     slots = int(p[H_SLOTS])
-    pos = p[H_LEN:H_LEN + nk]
-    amps = p[H_LEN + nk:H_LEN + 2 * nk]
-    lens = p[H_LEN + 2 * nk:H_LEN + 3 * nk]
+    _, _, _, _, _, o_pos, o_amp, o_len, b0, a0 = _param_offsets(nk, order)
+    pos = p[o_pos:o_pos + nk]
+    amps = p[o_amp:o_amp + nk]
+    lens = p[o_len:o_len + nk]
     w = order + 1
-    b0 = H_LEN + 3 * nk
-    a0 = b0 + nk * w
-    zord = max(order, 1)
+    zord, o_x, o_in, o_z = _state_offsets(slots, order)
+    o_st, o_f, o_age = _istate_offsets(slots)
     for t in range(position.shape[0]):
         x = (p[H_AXIS] * (position[t, 0] - p[H_ORIGIN]) + p[H_AXIS + 1] * (position[t, 1] - p[H_ORIGIN + 1])
              + p[H_AXIS + 2] * (position[t, 2] - p[H_ORIGIN + 2]))
-        if si[0] == 1 and in_contact[t, 0] >= 0.5 and x != s[0]:
-            if x > s[0]:
-                i0 = np.searchsorted(pos, s[0], side="right")
+        if si[o_st] == 1 and in_contact[t, 0] >= 0.5 and x != s[o_x]:
+            if x > s[o_x]:
+                i0 = np.searchsorted(pos, s[o_x], side="right")
                 i1 = np.searchsorted(pos, x, side="right")
             else:
                 i0 = np.searchsorted(pos, x, side="left")
-                i1 = np.searchsorted(pos, s[0], side="left")
+                i1 = np.searchsorted(pos, s[o_x], side="left")
             for k in range(i0, i1):
                 _start(p, s, si, k, amps[k], slots, zord)
-        si[0] = 1
-        s[0] = x
+        si[o_st] = 1
+        s[o_x] = x
         acc = 0.0
         for j in range(slots):
-            k = si[1 + j]
+            k = si[o_f + j]
             if k < 0:
                 continue
-            u = s[1 + j]
-            s[1 + j] = 0.0
+            u = s[o_in + j]
+            s[o_in + j] = 0.0
             bk = b0 + k * w
             ak = a0 + k * w
-            z = 1 + slots + j * zord
+            z = o_z + j * zord
             out = p[bk] * u + s[z]
             for i in range(order - 1):
                 s[z + i] = p[bk + i + 1] * u - p[ak + i + 1] * out + s[z + i + 1]
             if order >= 1:
                 s[z + order - 1] = p[bk + order] * u - p[ak + order] * out
             acc += out
-            si[1 + slots + j] += 1
-            if si[1 + slots + j] >= lens[k]:
-                si[1 + j] = -1
+            si[o_age + j] += 1
+            if si[o_age + j] >= lens[k]:
+                si[o_f + j] = -1
         y[t, 0] = acc

@@ -23,8 +23,27 @@ import numpy as np
 from numba import njit
 
 from .filter_design import resampling_fir
+from .layout import Field, Layout
 
-_HEADER = 4  # p[0] = 1 up / 0 down; p[1] = factor; p[2] = filter length; p[3] = history length per component
+PARAMS = Layout("float", [
+    Field("up", 1, "1 up-sampling, 0 down-sampling"),
+    Field("factor", 1, "U or D"),
+    Field("length", 1, "filter length"),
+    Field("hist", 1, "history length per component"),
+    Field("coef", "ncoef", "time-reversed coefficients: down, h; up, the U polyphase branches of hist each"),
+], sizes=("ncoef",))
+STATE = Layout("float", [
+    Field("ring", "2 * hist * w", "per component, its last hist samples stored twice"),
+    Field("held", "w", "the output held between computed samples"),
+], sizes=("hist", "w"))
+ISTATE = Layout("int", [Field("call", 1, "call counter modulo the factor"), Field("pos", 1, "ring slot of the newest sample")])
+P_UP = PARAMS.const("up")
+P_FACTOR = PARAMS.const("factor")
+P_HIST = PARAMS.const("hist")
+P_COEF = PARAMS.const("coef")
+S_RING = STATE.const("ring")
+SI_CALL = ISTATE.const("call")
+SI_POS = ISTATE.const("pos")
 
 def polyphase_filter(up: int, down: int, atten_db: float, passband: float = 0.8) -> np.ndarray:
     """The resampling FIR, symmetric zero padding so that (len - 1) / 2 is a multiple of max(up, down)."""
@@ -55,14 +74,19 @@ def stream_params(h: np.ndarray, up: int, down: int) -> np.ndarray:
         for phase in range(up):
             g = up * h[phase::up]
             branches[phase, :g.size] = g
-        return np.concatenate([[1.0, up, h.size, hist], branches[:, ::-1].ravel()])
-    return np.concatenate([[0.0, down, h.size, h.size], h[::-1]])
+        coef = branches[:, ::-1].ravel()
+        return PARAMS.pack({"up": 1.0, "factor": up, "length": h.size, "hist": hist, "coef": coef}, ncoef=coef.size)
+    return PARAMS.pack({"up": 0.0, "factor": down, "length": h.size, "hist": h.size, "coef": h[::-1]}, ncoef=h.size)
 
 
 def stream_state_sizes(h: np.ndarray, up: int, down: int, width: int) -> tuple[int, int]:
     """(float state, int state): a doubled history ring per component plus the held output; call counter, ring slot."""
-    hist = -(-h.size // up) if up > 1 else h.size
-    return 2 * hist * width + width, 2
+    return STATE.size(hist=history_length(h, up), w=width), ISTATE.size()
+
+
+def history_length(h: np.ndarray, up: int) -> int:
+    """Samples of history per component: the polyphase branch length when up-sampling, else the filter's."""
+    return -(-h.size // up) if up > 1 else h.size
 
 
 @njit(cache=True, nogil=True)
@@ -73,26 +97,26 @@ def resample_block(p, s, si, x, y):
     (slots k and k + hist), so the last ``hist`` samples, oldest first, are
     always the contiguous run ``pos + 1 .. pos + hist``.
     """
-    up = p[0] > 0.5
-    factor = int(p[1])
-    hist = int(p[3])
-    coef = p[_HEADER:]
+    up = p[P_UP] > 0.5
+    factor = int(p[P_FACTOR])
+    hist = int(p[P_HIST])
+    coef = p[P_COEF:]
     w = x.shape[1]
     span = 2 * hist
-    held = span * w
-    c = si[0]
-    pos = si[1]  # ring slot of the newest input sample
+    held = S_RING + span * w
+    c = si[SI_CALL]
+    pos = si[SI_POS]  # ring slot of the newest input sample
     for r in range(x.shape[0]):
         fresh = (c == 0) if up else True
         if fresh:
             pos = pos + 1 if pos + 1 < hist else 0
             for q in range(w):
-                s[q * span + pos] = x[r, q]
-                s[q * span + pos + hist] = x[r, q]
+                s[S_RING + q * span + pos] = x[r, q]
+                s[S_RING + q * span + pos + hist] = x[r, q]
         if up or c == 0:
             g = c * hist if up else 0
             for q in range(w):
-                base = q * span + pos + 1
+                base = S_RING + q * span + pos + 1
                 acc = 0.0
                 for j in range(hist):
                     acc += coef[g + j] * s[base + j]
@@ -102,5 +126,5 @@ def resample_block(p, s, si, x, y):
         c += 1
         if c == factor:
             c = 0
-    si[0] = c
-    si[1] = pos
+    si[SI_CALL] = c
+    si[SI_POS] = pos

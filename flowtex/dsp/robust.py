@@ -110,7 +110,7 @@ def clamp_outliers(x: np.ndarray, k: float = 8.0, block: int = 250) -> tuple[np.
     the +-k band of their block (their power no longer dominates the spectrum):
     a spike of 20 x RMS raises its block's RMS by sqrt(1 + 400 / 250) = 1.6 and
     still stands 12 scales out. Why not the MAD alone: real vibration is
-    heavy-tailed (kurtosis 4-12, issue 23), its MAD underestimates its RMS, and
+    heavy-tailed (kurtosis 4-12), its MAD underestimates its RMS, and
     its bursts went past 8 MAD-sigma: on generated heavy-tailed recordings
     (flowtex.datasets.resonant) the MAD alone clipped some 90 genuine samples in
     20 s and the fitted surface lost 0.5-1 dB; the larger scale clips none of

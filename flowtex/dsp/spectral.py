@@ -91,7 +91,7 @@ def lsd_db(s_fit: np.ndarray, s_true: np.ndarray, freqs_hz: np.ndarray, min_freq
     Band: the frequencies ``freqs_hz`` with ``min_freq_hz`` < f <= ``max_freq_hz``
     (Hz, the units of ``freqs_hz``) where ``s_true`` is within ``range_db`` dB of
     its peak in that band (None: all of them), so deep notches and the DC region,
-    where a 10 s record says little, do not dominate (issue 11's definition is the
+    where a 10 s record says little, do not dominate (the project's definition is the
     default: above 15 Hz, 40 dB range). ``floor`` (PSD units, >= 0) raises both
     spectra to at least that before the logs (silent bands of rendered signals;
     0: none). ``shape_only``: the RMS about the mean of 10 log10(S_fit / S_true) (its standard deviation), the

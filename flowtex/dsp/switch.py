@@ -31,23 +31,29 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-S_W = 0
-S_LAST = 1
-"""The last valid index (rounded); 0 at the start: the chain starts on surface 0."""
-STATE_SIZE = 2
+from .layout import Field, Layout
+
+PARAMS = Layout("float", [Field("b_index", 1, "index value choosing b"), Field("step", 1, "change of w per tick")])
+STATE = Layout("float", [Field("w", 1, "weight of b"),
+                         Field("last", 1, "the last valid index (rounded); 0 at the start: the chain starts on surface 0")])
+P_B_INDEX = PARAMS.const("b_index")
+P_STEP = PARAMS.const("step")
+S_W = STATE.const("w")
+S_LAST = STATE.const("last")
+STATE_SIZE = STATE.size()
 
 
 def switch_params(b_index: int, fade_ticks: float) -> np.ndarray:
     """Params for :func:`crossfade_block`: ``b`` is chosen when round(index) == b_index; fade over ``fade_ticks`` ticks (0: instant)."""
     step = 1.0 if fade_ticks <= 1.0 else 1.0 / fade_ticks
-    return np.array([float(b_index), step])
+    return PARAMS.pack({"b_index": float(b_index), "step": step})
 
 
 @njit(cache=True)
 def crossfade_block(p: np.ndarray, s: np.ndarray, index: np.ndarray, a: np.ndarray, b: np.ndarray, y: np.ndarray) -> None:
     """One block: rows of ``index`` (n, 1), ``a`` and ``b`` (n, width) -> ``y`` (n, width)."""
-    b_index = p[0]
-    step = p[1]
+    b_index = p[P_B_INDEX]
+    step = p[P_STEP]
     w = s[S_W]
     last = s[S_LAST]
     for t in range(index.shape[0]):

@@ -23,11 +23,31 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-TP_MASS, TP_COUNT, TP_LENGTH, TP_SPEEDS = 0, 1, 2, 3
-TS_W_LO, TS_W_HI, TS_PREV = 0, 1, 2
-TAP_STATE = 3
-TI_LO, TI_HI, TI_POS = 0, 1, 2
-TAP_ISTATE = 3
+from .layout import Field, Layout
+
+TAP_P = Layout("float", [
+    Field("mass", 1, "kg"),
+    Field("count", 1, "K transients"),
+    Field("length", 1, "L samples each"),
+    Field("speeds", "k", "incoming speed of each transient, mm/s, increasing"),
+    Field("transients", "k * length", "the K transients one after the other, m/s^2"),
+], sizes=("k", "length"))
+TAP_S = Layout("float", [Field("w_lo", 1, "weight of the lower transient"), Field("w_hi", 1, "weight of the upper one"),
+                         Field("prev", 1, "contact state of the previous tick")])
+TAP_SI = Layout("int", [Field("lo", 1, "lower transient"), Field("hi", 1, "upper transient"),
+                        Field("pos", 1, "sample playing (L: none)")])
+TP_MASS = TAP_P.const("mass")
+TP_COUNT = TAP_P.const("count")
+TP_LENGTH = TAP_P.const("length")
+TP_SPEEDS = TAP_P.const("speeds")
+TS_W_LO = TAP_S.const("w_lo")
+TS_W_HI = TAP_S.const("w_hi")
+TS_PREV = TAP_S.const("prev")
+TAP_STATE = TAP_S.size()
+TI_LO = TAP_SI.const("lo")
+TI_HI = TAP_SI.const("hi")
+TI_POS = TAP_SI.const("pos")
+TAP_ISTATE = TAP_SI.size()
 
 
 def tap_params(mass_kg: float, speeds: np.ndarray, transients: np.ndarray) -> np.ndarray:
@@ -37,15 +57,13 @@ def tap_params(mass_kg: float, speeds: np.ndarray, transients: np.ndarray) -> np
     k, length = transients.shape
     if speeds.shape != (k,):
         raise ValueError(f"{k} transients need {k} speeds, got {speeds.shape}")
-    return np.concatenate([[mass_kg, float(k), float(length)], speeds, transients.ravel()])
+    return TAP_P.pack({"mass": mass_kg, "count": float(k), "length": float(length), "speeds": speeds, "transients": transients},
+                      k=k, length=length)
 
 
 def initial_tap_state(length: int) -> tuple[np.ndarray, np.ndarray]:
     """Idle state: nothing playing (position = L), previous contact 0."""
-    s = np.zeros(TAP_STATE)
-    si = np.zeros(TAP_ISTATE, np.int64)
-    si[TI_POS] = length
-    return s, si
+    return TAP_S.zeros(), TAP_SI.pack({"pos": length})
 
 
 @njit(cache=True)

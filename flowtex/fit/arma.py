@@ -83,7 +83,7 @@ class ArmaFit:
         return arma_psd(self.ar, self.ma, self.gain, self.variance, freqs_hz, rate_hz)
 
     def lsd_db(self, x: np.ndarray, rate_hz: float, nperseg: int = 1024) -> float:
-        """LSD (dB) of the model's PSD against the Welch PSD of ``x`` (issue 11's definition: > 15 Hz, 40 dB range)."""
+        """LSD (dB) of the model's PSD against the Welch PSD of ``x`` (the project's definition: > 15 Hz, 40 dB range)."""
         freqs, s_data = welch_psd(np.asarray(x, dtype=np.float64), rate_hz, nperseg)
         return lsd_db(self.psd(freqs, rate_hz), s_data, freqs)
 

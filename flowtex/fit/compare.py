@@ -38,7 +38,7 @@ Welch PSDs use Hann segments of ``rate / resolution_hz`` samples (50 %
 overlap), so the spectral resolution is the same at every sample rate (4 Hz:
 250 samples at 1 kHz, 1000 at 4 kHz) and so is the LSD's scatter: with a
 segment fixed in samples, the 1, 2 and 4 kHz versions of one surface scored
-LSD 2.38, 1.45 and 1.03 dB (issue 23).
+very different LSDs (docs/fitting.md).
 
 ``ranges`` (held-out one-second blocks, flowtex.fit.crossval) restricts every
 figure to those sample ranges of a render along the whole path: the PSDs are
@@ -194,10 +194,33 @@ def compare_signals(recorded: np.ndarray, renders: list[np.ndarray], rate: float
     ``ranges``: (start, stop) sample ranges to compare (default: all); the first ``skip_s`` are left out either way.
     """
     opt = opt or CompareOptions()
+    return compare_highpassed(highpassed(recorded, rate, opt), [highpassed(r, rate, opt) for r in renders], rate, opt, ranges)
+
+
+def highpassed(x: np.ndarray, rate: float, opt: CompareOptions) -> np.ndarray:
+    """``x`` (m/s^2) through the comparison's zero-phase high-pass (``opt.highpass_hz``), as :func:`compare_signals` takes it."""
+    return zero_phase_highpass(np.asarray(x, float), rate, opt.highpass_hz)
+
+
+def compare_highpassed(x: np.ndarray, ys: list[np.ndarray], rate: float, opt: CompareOptions,
+                       ranges: list[tuple[int, int]] | None = None, where: str | None = None) -> Comparison:
+    """:func:`compare_signals` on a recording and renders already through :func:`highpassed`; errors name ``where``.
+
+    Each range is measured on its own (Welch PSDs and windows inside it), so the renders may come from different
+    surfaces in different ranges (flowtex.fit.crossval's out-of-fold comparison) without a splice entering a spectrum.
+    """
+    try:
+        return _compare(x, ys, rate, opt, ranges)
+    except DataError as exc:
+        if where is None:
+            raise
+        raise DataError(f"{where}: {exc}") from None
+
+
+def _compare(x: np.ndarray, ys: list[np.ndarray], rate: float, opt: CompareOptions,
+             ranges: list[tuple[int, int]] | None) -> Comparison:
     skip = int(round(opt.skip_s * rate))
-    n_all = np.asarray(recorded).shape[0]
-    x = zero_phase_highpass(np.asarray(recorded, float), rate, opt.highpass_hz)
-    ys = [zero_phase_highpass(np.asarray(r, float), rate, opt.highpass_hz) for r in renders]
+    n_all = x.shape[0]
     keep = [(max(a, skip), min(b, n_all)) for a, b in (ranges if ranges is not None else [(0, n_all)])]
     keep = [(a, b) for a, b in keep if b > a]
     nperseg = welch_length(rate, opt.resolution_hz)
@@ -233,7 +256,7 @@ def compare_signals(recorded: np.ndarray, renders: list[np.ndarray], rate: float
                       power_ratio_db=float(10 * np.log10(max(p_ren, 1e-300) / p_rec)),
                       power_ratio_spread_db=float(np.std(ratios)) if len(ratios) > 1 else float("nan"),
                       rms_correlation=corr, recorded_rms=float(np.sqrt(p_rec)), rendered_rms=float(np.sqrt(p_ren)),
-                      seconds=n / rate, seeds=len(renders), windows=windows, max_freq_hz=opt.max_freq_hz,
+                      seconds=n / rate, seeds=len(ys), windows=windows, max_freq_hz=opt.max_freq_hz,
                       shape_lsd_db=shape_lsd, band_hz=[float(opt.min_freq_hz), float(top)], resolution_hz=float(rate / nperseg),
                       octave_bands=_octaves(freqs, s_rec, s_ren, opt.min_freq_hz, top), warnings=warnings,
                       freqs=freqs, recorded_psd=s_rec, rendered_psd=s_ren)
@@ -265,6 +288,15 @@ def compare_surface(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, f
     ``ranges``: compare only these (start, stop) sample ranges of the whole path's render (held-out blocks).
     """
     opt = opt or CompareOptions()
+    renders, opt = surface_renders(ms, accel, speed, force, rate, opt, where)
+    return compare_highpassed(highpassed(accel, rate, opt), [highpassed(r, rate, opt) for r in renders], rate, opt,
+                              ranges, where)
+
+
+def surface_renders(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, force: np.ndarray, rate: float,
+                    opt: CompareOptions, where: str = "recording") -> tuple[list[np.ndarray], CompareOptions]:
+    """(``opt.seeds`` renders of ``ms`` along the recorded path, ``opt`` with the band a resampled set knows): what
+    :func:`compare_surface` compares, checked (matching rate, at least one seed, something rendered)."""
     if opt.seeds < 1:
         raise DataError(f"--seeds must be at least 1, got {opt.seeds}")
     if abs(ms.sample_rate - rate) > 1e-9 * rate:
@@ -275,10 +307,7 @@ def compare_surface(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, f
         opt = replace(opt, max_freq_hz=top)
     renders = render_along(ms, speed, force, range(opt.seeds), opt.lookup)
     _check_rendered(renders, accel, speed, force, where)
-    try:
-        return compare_signals(accel, renders, rate, opt, ranges)
-    except DataError as exc:
-        raise DataError(f"{where}: {exc}") from None
+    return renders, opt
 
 
 SILENT_RATIO = 1e-6
@@ -303,7 +332,7 @@ def resampled_band_hz(ms: TextureModelSet) -> float:
 
     Above it the models hold only a stopband ceiling, and a recording resampled up from that rate with
     ``flowtex resample`` holds only the resampler's transition band, so comparing shapes there measures
-    neither the fit nor the recording (issue 18: a resampled twin is compared in the common band).
+    neither the fit nor the recording (a resampled twin is compared in the common band).
     """
     from_hz = (ms.metadata.get("resample") or {}).get("from_hz") if isinstance(ms.metadata, dict) else None
     if isinstance(from_hz, (int, float)) and 0 < from_hz < ms.sample_rate:

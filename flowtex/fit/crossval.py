@@ -22,12 +22,13 @@ Units: samples, seconds (``rate`` Hz).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from ..errors import DataError
-from .compare import CompareOptions, Comparison, compare_surface
+from .compare import CompareOptions, Comparison, compare_highpassed, highpassed, surface_renders
 from .texture import TextureFit, TextureOptions, fit_texture
 
 BLOCK_S = 1.0
@@ -36,6 +37,9 @@ MIN_HELD_S = 2.0
 """Shortest held-out part (s) of a split."""
 CV_WINDOW_S = 0.5
 """Window of the held-out window-RMS correlation (s): half a block, so that a 19-s recording's fold still has >= 10 windows."""
+
+POOLED_LINE = "every second once, rendered by the fold's surface that did not see it"
+"""What the pooled comparison is, for the output and the report."""
 
 Ranges = list[tuple[int, int]]
 
@@ -105,18 +109,41 @@ def fold_splits(n: int, rate: float, folds: int, where: str = "recording") -> li
     return out
 
 
+@dataclass
+class CrossValidation:
+    """What :func:`evaluate_splits` found: one fit and one held-out comparison per split, and the pooled comparison."""
+
+    fits: list[TextureFit]
+    comparisons: list[Comparison]
+    pooled: Comparison | None = None
+    """K-fold only (None for one split): every held-out block compared at once, each rendered by the fold's surface
+    that did not see it (module docstring, 'Pooled')."""
+
+
 def evaluate_splits(acc: np.ndarray, speed: np.ndarray, force: np.ndarray, rate: float,
                     splits: list[tuple[Ranges, Ranges]], opt: TextureOptions | None = None, material: str = "surface",
-                    where: str = "recording", compare: CompareOptions | None = None) -> list[tuple[TextureFit, Comparison]]:
-    """Fit on each split's training ranges and compare on its held-out ranges (module docstring)."""
-    from dataclasses import replace
-
-    cmp_opt = replace(compare or CompareOptions(), window_s=min((compare or CompareOptions()).window_s, CV_WINDOW_S))
-    out = []
+                    where: str = "recording", compare: CompareOptions | None = None) -> CrossValidation:
+    """Fit on each split's training ranges and compare on its held-out ranges; with several splits, pool them too
+    (module docstring)."""
+    base = compare or CompareOptions()
+    cmp_opt = replace(base, window_s=min(base.window_s, CV_WINDOW_S))
+    x = highpassed(acc, rate, cmp_opt)
+    pool = [np.zeros_like(x) for _ in range(cmp_opt.seeds)] if len(splits) > 1 else None
+    out = CrossValidation([], [])
     for k, (train, test) in enumerate(splits):
         fit = fit_texture(acc, speed, force, rate, opt, material, f"{where} (fold {k} training blocks)", within=train)
-        cmp = compare_surface(fit.model_set, acc, speed, force, rate, cmp_opt, f"{where} (fold {k} held-out part)", ranges=test)
-        out.append((fit, cmp))
+        held = f"{where} (fold {k} held-out part)"
+        renders, fold_opt = surface_renders(fit.model_set, acc, speed, force, rate, cmp_opt, held)
+        ys = [highpassed(r, rate, fold_opt) for r in renders]
+        out.fits.append(fit)
+        out.comparisons.append(compare_highpassed(x, ys, rate, fold_opt, test, held))
+        if pool is not None:
+            for y, p in zip(ys, pool, strict=True):
+                for a, b in test:
+                    p[a:b] = y[a:b]
+    if pool is not None:
+        tests = sorted(r for _train, test in splits for r in test)      # not merged: a range never spans two folds
+        out.pooled = compare_highpassed(x, pool, rate, cmp_opt, tests, f"{where} (held-out blocks pooled)")
     return out
 
 
@@ -135,11 +162,14 @@ def _mean(values: list[Any]) -> Any:
     return [x for v in values for x in v]                 # windows: every fold's, one after the other
 
 
-def holdout_doc(split: str, key: str, value: float | int, comparisons: list[Comparison]) -> dict[str, Any]:
-    """The --holdout-json document: {split, fraction or folds, results (one per fold, compare --json keys), mean}."""
+def holdout_doc(split: str, key: str, value: float | int, comparisons: list[Comparison],
+                pooled: Comparison | None = None) -> dict[str, Any]:
+    """The --holdout-json document: {split, fraction or folds, block_s, results (one per fold, compare --json keys),
+    mean (the same keys averaged over the folds), pooled (the same keys for every held-out block at once, or null)}."""
     results = [c.to_json() for c in comparisons]
     mean = {k: _mean([r[k] for r in results]) for k in results[0]}
-    return {"split": split, key: value, "block_s": BLOCK_S if split == "blocks" else None, "results": results, "mean": mean}
+    return {"split": split, key: value, "block_s": BLOCK_S if split == "blocks" else None, "results": results, "mean": mean,
+            "pooled": None if pooled is None else pooled.to_json()}
 
 
 def describe_split(split: str, key: str, value: float | int, n: int, rate: float) -> str:

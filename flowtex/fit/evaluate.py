@@ -34,6 +34,6 @@ def fit_holdout(acc: np.ndarray, speed: np.ndarray, force: np.ndarray, rate: flo
     """Fit on all but the held-out ``fraction`` (the last part, or interleaved one-second blocks: flowtex.fit.crossval), compare there."""
     from .crossval import evaluate_splits, holdout_split
 
-    (fit, cmp), = evaluate_splits(acc, speed, force, rate, [holdout_split(acc.shape[0], rate, fraction, split, where)], opt,
-                                  material, where, compare)
-    return fit, cmp
+    cv = evaluate_splits(acc, speed, force, rate, [holdout_split(acc.shape[0], rate, fraction, split, where)], opt,
+                         material, where, compare)
+    return cv.fits[0], cv.comparisons[0]

@@ -10,7 +10,7 @@ samples at small N bias, while the line's slope weighs each sample by N.
 The default is HaTT's Coulomb fit through the origin (``--offset no``): the
 renderer's friction nodes take mu only, and on real recordings the
 tangential force often barely varies with the normal force, where a free
-offset soaks up the whole force and leaves a mu 24-60x too small (issue 18).
+offset soaks up the whole force and leaves a mu far too small (docs/fitting.md).
 ``--offset yes`` fits T = mu N + b instead (a biased tangential sensor biases
 a line through the origin by b sum N / sum N^2); such a fit cannot be stored
 with ``--into``, which refuses it rather than drop b.

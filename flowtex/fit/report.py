@@ -31,6 +31,7 @@ import numpy as np
 from ..dsp.spectral import welch_psd
 from ..io.atomic import write_text_atomic
 from ..io.figures import agg_pyplot, save_png
+from .crossval import POOLED_LINE
 from .texture import TextureFit
 
 PLOT_HINT = "plots need matplotlib: pip install 'flowtex[plot]'"
@@ -104,6 +105,8 @@ def held_out_lines(held: HeldOut) -> list[str]:
     md += [row(str(k), r) for k, r in enumerate(held.doc["results"])]
     if len(held.doc["results"]) > 1:
         md.append(row("mean", held.doc["mean"]))
+    if held.doc.get("pooled") is not None:
+        md += [row("pooled", held.doc["pooled"]), "", f"pooled: {POOLED_LINE}."]
     bands = held.doc["mean"].get("octave_bands") or []
     if bands:
         md += ["", "Octave-band power error (rendered over recorded, dB, mean over folds): "

@@ -56,13 +56,13 @@ def power_above(ar: np.ndarray, ma: np.ndarray, rate: float, f_hz: float) -> flo
 
 
 MAX_LSD_DB = 0.5
-"""A resampled model keeps its spectrum when its LSD (up to 0.9 x the lower Nyquist) is at most this (issue 11)."""
+"""A resampled model keeps its spectrum when its LSD (up to 0.9 x the lower Nyquist) is at most this."""
 
 MAX_BAND_ERROR = 0.02
-"""... and its power up to 0.9 x the lower Nyquist is within this fraction of the original's (issue 11)."""
+"""... and its power up to 0.9 x the lower Nyquist is within this fraction of the original's."""
 
 MAX_POWER_ABOVE = 0.02
-"""An upsampled model may put at most this fraction of its power above the old Nyquist (issue 11)."""
+"""An upsampled model may put at most this fraction of its power above the old Nyquist."""
 
 MAX_RATE_RATIO = 16.0
 """Largest change of a model set's rate (up or down): upsampling by M multiplies every model's order by about M / 2."""

@@ -23,27 +23,87 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..dsp.layout import Field
+from ..dsp.layout import Layout as Declared
 from ..errors import FlowtexError
 from ..limits import MAX_BUFFER_VALUES
 from .resolve import ResolvedGraph
 
-# Header slots of the int arena.
-TICK = 0
-BLOCK_ROWS = 1
-N_IN = 2
-N_OUT = 3
-IN_TABLE = 4
-OUT_TABLE = 5
-TABLE_STRIDE = 5
-IN_WIDTH = 6
-OUT_WIDTH = 7
-DISPATCH = 8
+INT_HEADER = Declared("int", [
+    Field("tick", 1, "ticks run since reset"),
+    Field("block_rows", 1, "rows of every port buffer"),
+    Field("n_in", 1, "graph inputs"),
+    Field("n_out", 1, "graph outputs"),
+    Field("in_table", 1, "position of the input table (n_in SIGNAL entries)"),
+    Field("out_table", 1, "position of the output table (n_out SIGNAL entries)"),
+    Field("in_width", 1, "values per tick of all graph inputs"),
+    Field("out_width", 1, "values per tick of all graph outputs"),
+    Field("dispatch", 1, "position of the dispatch tier's table (flowtex.graph.dispatch); 0 for the fused tier"),
+    Field("fault", 3, "dispatch tier: descriptor position of a node whose kernel raised (0: none), its first row, its rows"),
+])
+"""The int arena's header, declared once: its slots below, the generated ``run`` and the dispatch driver read it."""
+
+SIGNAL = Declared("int", [
+    Field("offset_index", 1, "position in i of the port's offset"),
+    Field("width", 1, "values per tick"),
+    Field("column", 1, "first column in run()'s X or Y"),
+    Field("own_offset", 1, "the port's own arena offset (restored after run)"),
+    Field("redirect", 1, "1 if run() points the port into the caller's array"),
+])
+"""One entry of the input and output tables (``TABLE_STRIDE`` ints per graph input or output)."""
+
+TICK = INT_HEADER.const("tick")
+BLOCK_ROWS = INT_HEADER.const("block_rows")
+N_IN = INT_HEADER.const("n_in")
+N_OUT = INT_HEADER.const("n_out")
+IN_TABLE = INT_HEADER.const("in_table")
+OUT_TABLE = INT_HEADER.const("out_table")
+IN_WIDTH = INT_HEADER.const("in_width")
+OUT_WIDTH = INT_HEADER.const("out_width")
+DISPATCH = INT_HEADER.const("dispatch")
 """Position of the dispatch tier's table (:mod:`flowtex.graph.dispatch`); 0 for the fused tier."""
-FAULT = 9
+FAULT = INT_HEADER.const("fault")
 """Dispatch tier: the descriptor position of a node whose kernel raised (0: none); the driver and ``run`` stop on it.
 
 ``FAULT + 1`` holds the first row and ``FAULT + 2`` the number of rows of that call (:mod:`flowtex.graph.wrappers`)."""
-HEADER = 12
+HEADER = INT_HEADER.size()
+TABLE_STRIDE = SIGNAL.size()
+E_OFFSET_INDEX = SIGNAL.const("offset_index")
+E_WIDTH = SIGNAL.const("width")
+E_COLUMN = SIGNAL.const("column")
+E_OWN_OFFSET = SIGNAL.const("own_offset")
+E_REDIRECT = SIGNAL.const("redirect")
+
+DISPATCH_HEAD = Declared("int", [Field("count", 1, "nodes"), Field("cyclic", 1, "1 if the graph has a feedback loop")])
+"""Start of the dispatch tier's table; ``count`` DISPATCH_ENTRY entries follow, then descriptors and holds."""
+
+DISPATCH_ENTRY = Declared("int", [
+    Field("kernel", 1, "address of the kernel's wrapper"),
+    Field("emit", 1, "address of the emit wrapper (delays in a loop), else 0"),
+    Field("absorb", 1, "address of the absorb wrapper (delays in a loop), else 0"),
+    Field("desc", 1, "position of the node's DESCRIPTOR"),
+    Field("every", 1, "position in i of the node's every"),
+    Field("holds", 1, "position of the node's HOLD entries"),
+    Field("n_holds", 1, "number of HOLD entries"),
+    Field("split", 1, "1 if the node runs as emit + absorb (a delay in a loop)"),
+    Field("emit_desc", 1, "position of the emit wrapper's DESCRIPTOR, else 0"),
+])
+"""One node's entry of the dispatch table."""
+
+DESCRIPTOR = Declared("int", [
+    Field("p", 2, "positions in i of the parameter bounds (start, stop in f)"),
+    Field("s", 2, "positions in i of the float state bounds"),
+    Field("si", 2, "positions in i of the int state bounds"),
+    Field("ports", "2 * n_ports", "per input then output: positions in i of its offset and width"),
+], sizes=("n_ports",))
+"""What a node's dispatch-tier wrapper reads (:mod:`flowtex.graph.wrappers`)."""
+
+HOLD = Declared("int", [
+    Field("hold", 1, "position in i of the hold slot's offset"),
+    Field("out", 1, "position in i of the output port's offset"),
+    Field("width", 1, "position in i of the output port's width"),
+])
+"""A multi-rate node's hold of one output (dispatch tier)."""
 
 
 @dataclass
@@ -132,6 +192,12 @@ def _check_buffers(rg: ResolvedGraph, block_rows: int) -> None:
                            "(flowtex.limits.MAX_BUFFER_VALUES): make the ports narrower")
 
 
+def _signal_entry(slot: PortSlot, column: int, redirect: bool) -> list[int]:
+    """The input/output table entry of one graph signal (:data:`SIGNAL`)."""
+    return SIGNAL.pack({"offset_index": slot.offset_index, "width": slot.width, "column": column,
+                        "own_offset": slot.offset, "redirect": int(redirect)}).tolist()
+
+
 def plan_layout(rg: ResolvedGraph, block_rows: int) -> Layout:
     """Place every buffer, parameter and state array of ``rg``."""
     _check_buffers(rg, block_rows)
@@ -178,7 +244,7 @@ def plan_layout(rg: ResolvedGraph, block_rows: int) -> Layout:
     col = 0
     in_table = len(b.ints)
     for name, slot in graph_inputs.items():
-        b.ints += [slot.offset_index, slot.width, col, slot.offset, 1]
+        b.ints += _signal_entry(slot, col, True)
         in_columns[name] = (col, slot.width)
         col += slot.width
     col = 0
@@ -188,7 +254,7 @@ def plan_layout(rg: ResolvedGraph, block_rows: int) -> Layout:
         # The first output of a port not read from the inputs is written in place (zero copy).
         in_place = id(slot) not in redirected
         redirected.add(id(slot))
-        b.ints += [slot.offset_index, slot.width, col, slot.offset, int(in_place)]
+        b.ints += _signal_entry(slot, col, in_place)
         out_columns[name] = (col, slot.width)
         col += slot.width
 
@@ -199,12 +265,9 @@ def plan_layout(rg: ResolvedGraph, block_rows: int) -> Layout:
         b.ints[slots.si[1]] = start + istate.size
 
     ints = np.array(b.ints, dtype=np.int64)
-    ints[BLOCK_ROWS] = block_rows
-    ints[N_IN] = len(graph_inputs)
-    ints[N_OUT] = len(graph_outputs)
-    ints[IN_TABLE] = in_table
-    ints[OUT_TABLE] = out_table
-    ints[IN_WIDTH] = sum(s.width for s in graph_inputs.values())
-    ints[OUT_WIDTH] = sum(s.width for s in graph_outputs.values())
+    ints[:HEADER] = INT_HEADER.pack({"block_rows": block_rows, "n_in": len(graph_inputs), "n_out": len(graph_outputs),
+                                     "in_table": in_table, "out_table": out_table,
+                                     "in_width": sum(s.width for s in graph_inputs.values()),
+                                     "out_width": sum(s.width for s in graph_outputs.values())})
     f = np.concatenate(b.f_chunks) if b.f_chunks else np.zeros(0)
     return Layout(f, ints, block_rows, graph_inputs, graph_outputs, node_slots, in_columns, out_columns)

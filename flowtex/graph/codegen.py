@@ -13,6 +13,7 @@ tick) phase. Multi-rate nodes (``every: k``) run on ticks where
 
 from __future__ import annotations
 
+from . import arena
 from .arena import TICK, NodeSlots, PortSlot
 from .resolve import ResolvedGraph
 
@@ -112,7 +113,12 @@ def _step_source(inputs: list[PortSlot], outputs: list[PortSlot]) -> str:
     return "\n".join(lines) + "\n"
 
 
-RUN_SOURCE = '''\
+def offset_expr(var: str, k: int) -> str:
+    """``var + k`` as generated source (``var`` alone for 0)."""
+    return var if k == 0 else f"{var} + {k}"
+
+
+RUN_TEMPLATE = '''\
 @njit(cache=True, nogil=True)
 def run(f, i, X, Y):
     # X holds each graph input's (total x width) values one input after the
@@ -120,42 +126,50 @@ def run(f, i, X, Y):
     # graph-input ports (and of the ports that are graph outputs) are pointed
     # into X and Y themselves, so kernels read and write the caller's arrays
     # without copies. The arena offsets are restored at the end.
-    if i[6] > 0:
-        total = X.shape[0] // i[6]
+    if i[{IN_WIDTH}] > 0:
+        total = X.shape[0] // i[{IN_WIDTH}]
     else:
-        total = Y.shape[0] // i[7]
+        total = Y.shape[0] // i[{OUT_WIDTH}]
     fb = f.ctypes.data
     xd = (np.int64(X.ctypes.data) - np.int64(fb)) // 8
     yd = (np.int64(Y.ctypes.data) - np.int64(fb)) // 8
-    rows = i[1]
+    rows = i[{BLOCK_ROWS}]
     t = 0
     while t < total:
         n = min(rows, total - t)
-        tab = i[4]
-        for k in range(i[2]):
-            e = tab + 5 * k
-            i[i[e]] = xd + total * i[e + 2] + t * i[e + 1]
-        tab = i[5]
-        for k in range(i[3]):
-            e = tab + 5 * k
-            if i[e + 4] != 0:
-                i[i[e]] = yd + total * i[e + 2] + t * i[e + 1]
+        tab = i[{IN_TABLE}]
+        for k in range(i[{N_IN}]):
+            e = tab + {TABLE_STRIDE} * k
+            i[i[{e_offset}]] = xd + total * i[{e_column}] + t * i[{e_width}]
+        tab = i[{OUT_TABLE}]
+        for k in range(i[{N_OUT}]):
+            e = tab + {TABLE_STRIDE} * k
+            if i[{e_redirect}] != 0:
+                i[i[{e_offset}]] = yd + total * i[{e_column}] + t * i[{e_width}]
         block(f, i, n)
-        if i[9] != 0:  # arena.FAULT: a kernel raised on the dispatch tier; the Graph reports it
+        if i[{FAULT}] != 0:  # arena.FAULT: a kernel raised on the dispatch tier; the Graph reports it
             break
-        for k in range(i[3]):
-            e = tab + 5 * k
-            if i[e + 4] == 0:
-                w = i[e + 1]
-                src = view(fb, i[i[e]], w, n)
+        for k in range(i[{N_OUT}]):
+            e = tab + {TABLE_STRIDE} * k
+            if i[{e_redirect}] == 0:
+                w = i[{e_width}]
+                src = view(fb, i[i[{e_offset}]], w, n)
                 dst = t * w
-                base = total * i[e + 2]
+                base = total * i[{e_column}]
                 for r in range(n):
                     for q in range(w):
                         Y[base + dst + r * w + q] = src[r, q]
         t += n
-    for tab, count in ((i[4], i[2]), (i[5], i[3])):
+    for tab, count in ((i[{IN_TABLE}], i[{N_IN}]), (i[{OUT_TABLE}], i[{N_OUT}])):
         for k in range(count):
-            e = tab + 5 * k
-            i[i[e]] = i[e + 3]
+            e = tab + {TABLE_STRIDE} * k
+            i[i[{e_offset}]] = i[{e_own}]
 '''
+"""The ``run`` loop, its int-arena positions left as names (filled from :mod:`flowtex.graph.arena`'s declarations)."""
+
+RUN_SOURCE = RUN_TEMPLATE.format(
+    IN_WIDTH=arena.IN_WIDTH, OUT_WIDTH=arena.OUT_WIDTH, BLOCK_ROWS=arena.BLOCK_ROWS, IN_TABLE=arena.IN_TABLE,
+    OUT_TABLE=arena.OUT_TABLE, N_IN=arena.N_IN, N_OUT=arena.N_OUT, FAULT=arena.FAULT, TABLE_STRIDE=arena.TABLE_STRIDE,
+    e_offset=offset_expr("e", arena.E_OFFSET_INDEX), e_width=offset_expr("e", arena.E_WIDTH), e_column=offset_expr("e", arena.E_COLUMN),
+    e_own=offset_expr("e", arena.E_OWN_OFFSET), e_redirect=offset_expr("e", arena.E_REDIRECT))
+"""Source of the compiled ``run`` (shared by both tiers), with the arena's declared positions as literals."""

@@ -168,9 +168,7 @@ class Graph:
     def _check_fault(self) -> None:
         """Raise the error a dispatch-tier kernel recorded (see :mod:`flowtex.graph.faults`), after a reset."""
         if self.i[FAULT] != 0:
-            from .dispatch import STRIDE
-
-            error = dispatch_fault(self.resolved, self.i, STRIDE)
+            error = dispatch_fault(self.resolved, self.i)
             self.reset()
             raise error
 

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from .arena import DISPATCH, FAULT, TICK, Layout, NodeSlots, PortSlot
+from .arena import DESCRIPTOR, DISPATCH, DISPATCH_ENTRY, DISPATCH_HEAD, FAULT, HOLD, TICK, Layout, NodeSlots, PortSlot
 from .codegen import RUN_SOURCE
 from .fused import BLOCK_SIG, RUN_SIG, Compiled, entry
 from .jit import load_generated
@@ -42,24 +42,41 @@ from .kernels import call_pointer, copy_row
 from .resolve import ResolvedGraph, ResolvedNode
 from .wrappers import REBUILT, load_wrapper, wrapper_path
 
-STRIDE = 9
+STRIDE = DISPATCH_ENTRY.size()
+"""Ints per node entry (:data:`~flowtex.graph.arena.DISPATCH_ENTRY`); the positions below come from the same declaration."""
+HEAD = DISPATCH_HEAD.size()
+T_COUNT = DISPATCH_HEAD.const("count")
+T_CYCLIC = DISPATCH_HEAD.const("cyclic")
+D_KERNEL = DISPATCH_ENTRY.const("kernel")
+D_EMIT = DISPATCH_ENTRY.const("emit")
+D_ABSORB = DISPATCH_ENTRY.const("absorb")
+D_DESC = DISPATCH_ENTRY.const("desc")
+D_EVERY = DISPATCH_ENTRY.const("every")
+D_HOLDS = DISPATCH_ENTRY.const("holds")
+D_NHOLDS = DISPATCH_ENTRY.const("n_holds")
+D_SPLIT = DISPATCH_ENTRY.const("split")
+D_EMIT_DESC = DISPATCH_ENTRY.const("emit_desc")
+H_STRIDE = HOLD.size()
+H_HOLD = HOLD.const("hold")
+H_OUT = HOLD.const("out")
+H_WIDTH = HOLD.const("width")
 
 
 @njit(inline="always", cache=True)
 def _guarded(i, e, fn, d, fb, ib, t, r, every):  # pragma: no cover - compiled
     """Run the node on row ``r`` if tick ``t`` is one of its ticks and refresh its holds, else repeat its holds."""
-    holds, nh = i[e + 5], i[e + 6]
+    holds, nh = i[e + D_HOLDS], i[e + D_NHOLDS]
     if t % every == 0:
         call_pointer(fn, fb, ib, d, r, 1)
         for h in range(nh):
-            q = holds + 3 * h
-            w = i[i[q + 2]]
-            copy_row(fb, i[i[q]], i[i[q + 1]] + r * w, w)
+            q = holds + H_STRIDE * h
+            w = i[i[q + H_WIDTH]]
+            copy_row(fb, i[i[q + H_HOLD]], i[i[q + H_OUT]] + r * w, w)
     else:
         for h in range(nh):
-            q = holds + 3 * h
-            w = i[i[q + 2]]
-            copy_row(fb, i[i[q + 1]] + r * w, i[i[q]], w)
+            q = holds + H_STRIDE * h
+            w = i[i[q + H_WIDTH]]
+            copy_row(fb, i[i[q + H_OUT]] + r * w, i[i[q + H_HOLD]], w)
 
 
 @njit(cache=True, nogil=True)
@@ -69,26 +86,26 @@ def block(f, i, n):  # pragma: no cover - compiled
     fb = np.int64(f.ctypes.data)
     ib = np.int64(i.ctypes.data)
     tab = i[DISPATCH]
-    count = i[tab]
-    if i[tab + 1] == 0:  # acyclic: node by node over the whole block
+    count = i[tab + T_COUNT]
+    if i[tab + T_CYCLIC] == 0:  # acyclic: node by node over the whole block
         for k in range(count):
-            e = tab + 2 + STRIDE * k
-            every = i[i[e + 4]]
+            e = tab + HEAD + STRIDE * k
+            every = i[i[e + D_EVERY]]
             if every == 1:
-                call_pointer(i[e], fb, ib, i[e + 3], 0, n)
+                call_pointer(i[e + D_KERNEL], fb, ib, i[e + D_DESC], 0, n)
             else:
                 for r in range(n):
-                    _guarded(i, e, i[e], i[e + 3], fb, ib, t0 + r, r, every)
+                    _guarded(i, e, i[e + D_KERNEL], i[e + D_DESC], fb, ib, t0 + r, r, every)
             if i[FAULT] != 0:  # the kernel raised: stop here (Graph reports the node)
                 return
     else:  # a feedback loop: tick by tick, delays emit first and absorb last
         for r in range(n):
             for k in range(count):
-                e = tab + 2 + STRIDE * k
-                split = i[e + 7]
-                fn = i[e + 1] if split else i[e]
-                d = i[e + 8] if split else i[e + 3]
-                every = i[i[e + 4]]
+                e = tab + HEAD + STRIDE * k
+                split = i[e + D_SPLIT]
+                fn = i[e + D_EMIT] if split else i[e + D_KERNEL]
+                d = i[e + D_EMIT_DESC] if split else i[e + D_DESC]
+                every = i[i[e + D_EVERY]]
                 if every == 1:
                     call_pointer(fn, fb, ib, d, r, 1)
                 else:
@@ -96,9 +113,9 @@ def block(f, i, n):  # pragma: no cover - compiled
                 if i[FAULT] != 0:
                     return
             for k in range(count):
-                e = tab + 2 + STRIDE * k
-                if i[e + 7]:
-                    call_pointer(i[e + 2], fb, ib, i[e + 3], r, 1)
+                e = tab + HEAD + STRIDE * k
+                if i[e + D_SPLIT]:
+                    call_pointer(i[e + D_ABSORB], fb, ib, i[e + D_DESC], r, 1)
             if i[FAULT] != 0:
                 return
     i[TICK] = t0 + n
@@ -131,13 +148,13 @@ def dispatch_table(rg: ResolvedGraph, layout: Layout) -> tuple[np.ndarray, list[
     entries: list[int] = []
     extra: list[int] = []
     lines = []
-    start_extra = base + 2 + STRIDE * count
+    start_extra = base + HEAD + STRIDE * count
 
     def descriptor(ns: NodeSlots, ports: list[PortSlot]) -> int:
         pos = start_extra + len(extra)
-        extra.extend([ns.p[0], ns.p[1], ns.s[0], ns.s[1], ns.si[0], ns.si[1]])
-        for s in ports:
-            extra.extend([s.offset_index, s.width_index])
+        extra.extend(DESCRIPTOR.pack({"p": ns.p, "s": ns.s, "si": ns.si,
+                                      "ports": [k for s in ports for k in (s.offset_index, s.width_index)]},
+                                     n_ports=len(ports)).tolist())
         return pos
 
     used = {name: wrappers_of(rn, rg.cyclic) for name, rn in rg.nodes.items()}
@@ -152,10 +169,12 @@ def dispatch_table(rg: ResolvedGraph, layout: Layout) -> tuple[np.ndarray, list[
         holds = start_extra + len(extra)
         for port, hold in ns.holds.items():
             out = ns.outputs[port]
-            extra.extend([hold.offset_index, out.offset_index, out.width_index])
-        entries += [fns[0], fns[1], fns[2], desc, ns.every, holds, len(ns.holds), int(split), emit_desc]
+            extra.extend(HOLD.pack({"hold": hold.offset_index, "out": out.offset_index, "width": out.width_index}).tolist())
+        entries += DISPATCH_ENTRY.pack({"kernel": fns[0], "emit": fns[1], "absorb": fns[2], "desc": desc, "every": ns.every,
+                                        "holds": holds, "n_holds": len(ns.holds), "split": int(split),
+                                        "emit_desc": emit_desc}).tolist()
         lines.append(f"{name} ({rn.cls.type_name}): " + ", ".join(wrapper_path(*u).name for u in used[name]))
-    table = np.array([count, int(rg.cyclic)] + entries + extra, dtype=np.int64)
+    table = np.array(DISPATCH_HEAD.pack({"count": count, "cyclic": int(rg.cyclic)}).tolist() + entries + extra, dtype=np.int64)
     ints = np.concatenate([layout.i, table])
     ints[DISPATCH] = base
     return ints, lines

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..errors import FlowtexError
 from ..nodecheck import kernel_location
-from .arena import DISPATCH, FAULT, TICK
+from .arena import DISPATCH, DISPATCH_ENTRY, DISPATCH_HEAD, FAULT, TICK
 from .resolve import ResolvedGraph, ResolvedNode
 
 
@@ -34,14 +34,16 @@ def _node_text(rg: ResolvedGraph, names: list[str]) -> str:
     return f"node {which} ({cls.type_name})" if len(names) == 1 else f"nodes {which} ({cls.type_name}, one of them)"
 
 
-def dispatch_fault(rg: ResolvedGraph, ints: np.ndarray, stride: int) -> KernelError | None:
+def dispatch_fault(rg: ResolvedGraph, ints: np.ndarray) -> KernelError | None:
     """The error recorded in ``ints`` by the dispatch tier's wrappers (None when no kernel raised)."""
     d = int(ints[FAULT])
     if d == 0:
         return None
     row, rows = int(ints[FAULT + 1]), int(ints[FAULT + 2])
-    tab = int(ints[DISPATCH])
-    name = next((n for k, n in enumerate(rg.nodes) if d in (ints[tab + 2 + stride * k + 3], ints[tab + 2 + stride * k + 8])),
+    tab = int(ints[DISPATCH]) + DISPATCH_HEAD.size()
+    stride = DISPATCH_ENTRY.size()
+    descs = (DISPATCH_ENTRY.const("desc"), DISPATCH_ENTRY.const("emit_desc"))
+    name = next((n for k, n in enumerate(rg.nodes) if d in (ints[tab + stride * k + descs[0]], ints[tab + stride * k + descs[1]])),
                 next(iter(rg.nodes)))
     rn = rg.nodes[name]
     first = int(ints[TICK]) + row

@@ -7,6 +7,7 @@
       rate: 8000               # Hz, p/q times the graph's rate (p, q <= 1000: 8000, 44100, 48000 for a 1 kHz graph)
       block: 64                # frames per PortAudio callback
       margin_ms: 10            # optional: how far ahead of the sound card the ticks run (robustness vs latency)
+      margin_max_ms: 15        # optional: how far a stall the margin did not absorb may raise it
       channels:                # one entry per audio channel, in channel order
         - output: vibration    # a scalar graph output
           scale: 1.5           # graph units per full-scale sample (sample = value / scale)
@@ -25,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..schema.core import INVALID, Collector, check_unknown, is_number, value_of
-from ..schema.devmap import AUDIO, CHANNEL, DEFAULT_AUDIO_MARGIN_MS, MAP
+from ..schema.devmap import AUDIO, CHANNEL, DEFAULT_AUDIO_MARGIN_MAX_MS, DEFAULT_AUDIO_MARGIN_MS, MAP
 from ..schema.devmap import MIN_AUDIO_RATE as MIN_RATE
 from ..yamlsource import LocDict, LocList
 from .dbc import suggest
@@ -55,6 +56,8 @@ class AudioMap:
     """Time, ms, by which each tick's samples are ready before the sound card's callback can need them: a stall of
     the tick loop shorter than this is absorbed (the loop catches up), a longer one inserts silence (a resync).
     Sensor-to-DAC latency grows by the same amount."""
+    margin_max_ms: float = DEFAULT_AUDIO_MARGIN_MAX_MS
+    """Largest margin, ms (>= ``margin_ms``): a resync raises the margin by the frames the tick was late, up to this."""
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(scale, lo, hi) per channel as float64 arrays."""
@@ -79,11 +82,18 @@ def parse_audio(raw: Any, pos: Any, c: Collector, graph_outputs: dict[str, int] 
         rate = value_of(c, raw, AUDIO, "rate")
     block = value_of(c, raw, AUDIO, "block")
     margin = value_of(c, raw, AUDIO, "margin_ms")
+    most = value_of(c, raw, AUDIO, "margin_max_ms")
+    if "margin_max_ms" not in raw and margin is not INVALID:
+        most = max(most, margin)
+    elif most is not INVALID and margin is not INVALID and most < margin:
+        c.error(raw.value_pos.get("margin_max_ms", raw.pos), f"audio.margin_max_ms ({most:g}) is below audio.margin_ms "
+                f"({margin:g}): give margin_max_ms >= margin_ms (equal: the margin never grows)")
     device = value_of(c, raw, AUDIO, "device") if "device" in raw else None
     channels = _channels(raw, c, graph_outputs)
     if len(c) > before:
         return None
-    return AudioMap(rate=float(rate), block=int(block), channels=tuple(channels), device=device, margin_ms=float(margin))
+    return AudioMap(rate=float(rate), block=int(block), channels=tuple(channels), device=device, margin_ms=float(margin),
+                    margin_max_ms=float(most))
 
 
 def _channels(raw: LocDict, c: Collector, graph_outputs: dict[str, int] | None) -> list[AudioChannel]:

@@ -5,14 +5,27 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..node_api import Node, NodeState, Param, Port, PortSpec, check, unit_product
+from ..node_api import Field, Layout, Memory, Node, Param, Port, PortSpec, check, unit_product
+
+CONSTANT = Memory(params=Layout("float", [Field("value", "w", "the value, one per component")], sizes=("w",)))
+P_VALUE = CONSTANT.params.const("value")
+GAIN = Memory(params=Layout("float", [Field("k", 1, "gain factor")]))
+P_K = GAIN.params.const("k")
+CLIP = Memory(params=Layout("float", [Field("low", 1), Field("high", 1), Field("nan", 1, "value replacing NaN")]))
+P_LOW = CLIP.params.const("low")
+P_HIGH = CLIP.params.const("high")
+P_NAN = CLIP.params.const("nan")
+SELECT = Memory(params=Layout("float", [Field("index", 1, "0-based component")]))
+P_INDEX = SELECT.params.const("index")
+STATELESS = Memory()
+"""Nodes without parameters or state in their arrays."""
 
 
 @njit(cache=True)
 def _constant(p, s, si, y):
     for t in range(y.shape[0]):
         for c in range(y.shape[1]):
-            y[t, c] = p[c]
+            y[t, c] = p[P_VALUE + c]
 
 
 class Constant(Node):
@@ -26,6 +39,7 @@ class Constant(Node):
     }
     outputs = {"y": Port((), "", "the value", shape_doc="scalar, or vector of the values", unit_doc="the 'unit' parameter")}
     kernel = _constant
+    memory = CONSTANT
 
     def resolve(self, inputs):
         values = self.p["value"]
@@ -33,12 +47,12 @@ class Constant(Node):
         return {"y": PortSpec(shape, "" if self.p["unit"] == "-" else self.p["unit"])}
 
     def build(self, inputs, outputs):
-        return NodeState(params=np.array(self.p["value"], dtype=np.float64))
+        return self.pack_state({"w": len(self.p["value"])}, params={"value": self.p["value"]})
 
 
 @njit(cache=True)
 def _gain(p, s, si, x, y):
-    k = p[0]
+    k = p[P_K]
     for t in range(x.shape[0]):
         for c in range(x.shape[1]):
             y[t, c] = k * x[t, c]
@@ -55,13 +69,14 @@ class Gain(Node):
     inputs = {"x": Port(None, "*", "signal")}
     outputs = {"y": Port("=x", "=x", "k * x", unit_doc="the 'unit' parameter, or unit of x")}
     kernel = _gain
+    memory = GAIN
 
     def resolve(self, inputs):
         unit = inputs["x"].unit if self.p["unit"] == "=" else ("" if self.p["unit"] == "-" else self.p["unit"])
         return {"y": PortSpec(inputs["x"].shape, unit)}
 
     def build(self, inputs, outputs):
-        return NodeState(params=np.array([self.p["k"]]))
+        return self.pack_state(params={"k": self.p["k"]})
 
 
 @njit(cache=True)
@@ -85,6 +100,7 @@ class Add(Node):
     inputs = {"a": Port(None, "*", "first term"), "b": Port("=a", "=a", "second term")}
     outputs = {"y": Port("=a", "=a", "a + b")}
     kernel = _add
+    memory = STATELESS
 
 
 class Subtract(Node):
@@ -94,6 +110,7 @@ class Subtract(Node):
     inputs = {"a": Port(None, "*", "minuend"), "b": Port("=a", "=a", "subtrahend")}
     outputs = {"y": Port("=a", "=a", "a - b")}
     kernel = _subtract
+    memory = STATELESS
 
 
 @njit(cache=True)
@@ -112,6 +129,7 @@ class Multiply(Node):
     inputs = {"a": Port(None, "*", "first factor"), "b": Port(None, "*", "second factor (same shape as a, or scalar)")}
     outputs = {"y": Port("=a", "", "a * b", unit_doc="unit of a * unit of b")}
     kernel = _multiply
+    memory = STATELESS
 
     def resolve(self, inputs):
         a, b = inputs["a"], inputs["b"]
@@ -121,13 +139,13 @@ class Multiply(Node):
 
 @njit(cache=True)
 def _clip(p, s, si, x, y):
-    lo = p[0]
-    hi = p[1]
+    lo = p[P_LOW]
+    hi = p[P_HIGH]
     for t in range(x.shape[0]):
         for c in range(x.shape[1]):
             v = x[t, c]
             if v != v:
-                v = p[2]
+                v = p[P_NAN]
             y[t, c] = lo if v < lo else (hi if v > hi else v)
 
 
@@ -143,13 +161,14 @@ class Clip(Node):
     inputs = {"x": Port(None, "*", "signal")}
     outputs = {"y": Port("=x", "=x", "clipped signal")}
     kernel = _clip
+    memory = CLIP
 
     def resolve(self, inputs):
         check(self.p["low"] <= self.p["high"], "high", f"high ({self.p['high']:g}) must be >= low ({self.p['low']:g})")
         return super().resolve(inputs)
 
     def build(self, inputs, outputs):
-        return NodeState(params=np.array([self.p["low"], self.p["high"], self.p["nan"]]))
+        return self.pack_state(params={"low": self.p["low"], "high": self.p["high"], "nan": self.p["nan"]})
 
 
 @njit(cache=True)
@@ -168,11 +187,12 @@ class Norm(Node):
     inputs = {"x": Port(None, "*", "vector")}
     outputs = {"y": Port((), "=x", "magnitude")}
     kernel = _norm
+    memory = STATELESS
 
 
 @njit(cache=True)
 def _select(p, s, si, x, y):
-    k = int(p[0])
+    k = int(p[P_INDEX])
     for t in range(x.shape[0]):
         y[t, 0] = x[t, k]
 
@@ -185,6 +205,7 @@ class Select(Node):
     inputs = {"x": Port(None, "*", "vector")}
     outputs = {"y": Port((), "=x", "the component")}
     kernel = _select
+    memory = SELECT
 
     def resolve(self, inputs):
         width = inputs["x"].width
@@ -193,4 +214,4 @@ class Select(Node):
         return super().resolve(inputs)
 
     def build(self, inputs, outputs):
-        return NodeState(params=np.array([float(self.p["index"])]))
+        return self.pack_state(params={"index": float(self.p["index"])})

@@ -4,26 +4,30 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
-from ..dsp.compliance import STATE_LEN, compliance_fit, compliance_params, compliance_step, new_state
+from ..dsp.compliance import PARAMS, STATE, compliance_fit, compliance_params, compliance_step
 from ..dsp.contact import CONTACT_ON_N
 from ..errors import ParamError
-from ..node_api import Node, NodeState, Param, Port, PortSpec
+from ..node_api import Field, Layout, Memory, Node, Param, Port, PortSpec
 
-_FIT = STATE_LEN  # 5 floats of fit scratch after the kernel state
-_P_FALLBACK = -1  # the fallback k_c is appended after the kernel parameters
+COMPLIANCE = Memory(
+    params=Layout("float", [*PARAMS.fields, Field("fallback_kc", 1, "k_c output while the estimate is not valid")]),
+    state=Layout("float", [*STATE.fields, Field("fit", 5, "the last fit: k_c, sigma, valid, reason, bins used "
+                                                          "(flowtex.dsp.compliance.compliance_fit)")]))
+"""The kernel's parameters and state (flowtex.dsp.compliance) with the node's fallback and last fit after them."""
+P_FALLBACK = COMPLIANCE.params.const("fallback_kc")
+S_FIT = COMPLIANCE.state.const("fit")
 
 
 @njit(cache=True)
 def _compliance(p, s, si, normal_force, acceleration, in_contact, k_c, sigma, valid):
-    fit = s[_FIT:_FIT + 5]
+    fit = s[S_FIT:S_FIT + 5]
     for t in range(normal_force.shape[0]):
         if compliance_step(p, s, normal_force[t, 0], acceleration[t], in_contact[t, 0]):
             compliance_fit(p, s, fit)
         ok = fit[2] > 0.5
-        k_c[t, 0] = fit[0] if ok else p[p.shape[0] + _P_FALLBACK]
+        k_c[t, 0] = fit[0] if ok else p[P_FALLBACK]
         sigma[t, 0] = fit[1] if not math.isnan(fit[1]) else 0.0
         valid[t, 0] = 1.0 if ok else 0.0
 
@@ -62,6 +66,7 @@ class ComplianceEstimator(Node):
         "valid": Port((), "", "1 when the estimate is valid"),
     }
     kernel = _compliance
+    memory = COMPLIANCE
 
     def resolve(self, inputs: dict[str, PortSpec]) -> dict[str, PortSpec]:
         if inputs["acceleration"].width not in (1, 2, 3):
@@ -79,5 +84,6 @@ class ComplianceEstimator(Node):
         except ValueError as exc:
             name = "force_range" if "range" in str(exc) else ("force_cutoff_hz" if "force cutoff" in str(exc) else "highpass_hz")
             raise ParamError(name, str(exc)) from None
-        state = np.concatenate([new_state(), [np.nan, np.nan, 0.0, 0.0, 0.0]])
-        return NodeState(params=np.append(params, p["fallback_kc"]), state=state)
+        names = [f.name for f in PARAMS.fields]
+        return self.pack_state(params={**dict(zip(names, params, strict=True)), "fallback_kc": p["fallback_kc"]},
+                               state={"fit": [math.nan, math.nan, 0.0, 0.0, 0.0]})

@@ -2,33 +2,36 @@
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
-from ..node_api import Node, NodeState, Param, Port
+from ..node_api import Field, Layout, Memory, Node, Param, Port
+
+DELAY = Memory(state=Layout("float", [Field("ring", "k * w", "k rows of w values, oldest at row pos")], sizes=("k", "w")),
+               istate=Layout("int", [Field("pos", 1, "row of the oldest value")]))
+S_RING = DELAY.state.const("ring")
+SI_POS = DELAY.istate.const("pos")
 
 
 @njit(cache=True)
 def _delay(p, s, si, x, y):
-    # s: ring of k rows x w values; si[0]: index of the oldest row.
     w = x.shape[1]
     k = s.shape[0] // w
-    pos = si[0]
+    pos = si[SI_POS]
     for t in range(x.shape[0]):
-        base = pos * w
+        base = S_RING + pos * w
         for c in range(w):
             y[t, c] = s[base + c]
             s[base + c] = x[t, c]
         pos += 1
         if pos == k:
             pos = 0
-    si[0] = pos
+    si[SI_POS] = pos
 
 
 @njit(cache=True)
 def _emit(p, s, si, y):
     w = y.shape[1]
-    base = si[0] * w
+    base = S_RING + si[SI_POS] * w
     for c in range(w):
         y[0, c] = s[base + c]
 
@@ -37,11 +40,11 @@ def _emit(p, s, si, y):
 def _absorb(p, s, si, x):
     w = x.shape[1]
     k = s.shape[0] // w
-    base = si[0] * w
+    base = S_RING + si[SI_POS] * w
     for c in range(w):
         s[base + c] = x[0, c]
-    pos = si[0] + 1
-    si[0] = 0 if pos == k else pos
+    pos = si[SI_POS] + 1
+    si[SI_POS] = 0 if pos == k else pos
 
 
 MAX_SAMPLES = 10_000_000
@@ -59,6 +62,7 @@ class Delay(Node):
     kernel = _delay
     emit_kernel = _emit
     absorb_kernel = _absorb
+    memory = DELAY
 
     def build(self, inputs, outputs):
-        return NodeState(state=np.zeros(self.p["samples"] * inputs["x"].width), istate=np.zeros(1, np.int64))
+        return self.pack_state({"k": self.p["samples"], "w": inputs["x"].width})

@@ -2,12 +2,21 @@
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
-from ..dsp.dft321_stream import WINDOWS, check_config, dft321_stream_block, latency_samples, stream_params, stream_state_sizes
+from ..dsp.dft321_stream import (
+    ISTATE,
+    PARAMS,
+    STATE,
+    WINDOWS,
+    check_config,
+    dft321_stream_block,
+    latency_samples,
+    param_sizes,
+    stream_params,
+)
 from ..errors import ParamError
-from ..node_api import Node, NodeState, Param, Port, PortSpec
+from ..node_api import Memory, Node, Param, Port, PortSpec
 
 
 @njit(cache=True)
@@ -35,6 +44,7 @@ class Dft321(Node):
     outputs = {"y": Port((), "=x", "1-axis signal, same unit, delayed by frame - 1 samples")}
     latency_doc = "frame - 1 samples (127 samples = 127 ms at 1 kHz with the defaults)"
     kernel = _dft321
+    memory = Memory(params=PARAMS, state=STATE, istate=ISTATE)
 
     def latency_samples(self) -> int:
         return latency_samples(self.p["frame"])
@@ -48,5 +58,4 @@ class Dft321(Node):
             params = stream_params(self.p["frame"], self.p["hop"], self.p["window"], self.p["correct_power"], self.p["method"])
         except ValueError as exc:
             raise ParamError(str(exc).partition(": ")[0], str(exc)) from None
-        nf, ni = stream_state_sizes(self.p["frame"])
-        return NodeState(params=params, state=np.zeros(nf), istate=np.zeros(ni, np.int64))
+        return self.pack_state(param_sizes(params), params=params)

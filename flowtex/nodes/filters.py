@@ -7,6 +7,7 @@ from numba import njit
 
 from ..dsp.filter_design import butterworth_sos
 from ..dsp.filters import (
+    SECTION_PARAMS,
     SECTION_STATE,
     difference_block,
     first_order_lowpass_block,
@@ -16,7 +17,28 @@ from ..dsp.filters import (
     sos_to_params,
 )
 from ..errors import ParamError
-from ..node_api import Node, NodeState, Param, Port, PortSpec, check, simplify_unit
+from ..node_api import Field, Layout, Memory, Node, Param, Port, PortSpec, check, simplify_unit
+
+_STARTED = Layout("int", [Field("started", "steady", "init: steady only: 1 once the first input set the state")],
+                  sizes=("steady",))
+SOS = Memory(params=Layout("float", [Field("sos", f"{SECTION_PARAMS} * sections", "b0 b1 b2 a1 a2 per section "
+                                                                                  "(flowtex.dsp.filters.SECTION)")],
+                           sizes=("sections",)),
+             state=Layout("float", [Field("z", f"w * sections * {SECTION_STATE}", "per channel and section: "
+                                                                              "flowtex.dsp.filters.SECTION_MEMORY")],
+                          sizes=("w", "sections")),
+             istate=_STARTED)
+"""A cascade of ``sections`` biquads filtering ``w`` channels (sos_block reads p and s whole: one field each)."""
+LOWPASS = Memory(params=Layout("float", [Field("alpha", 1, "smoothing factor")]),
+                 state=Layout("float", [Field("y", "w", "last output per channel")], sizes=("w",)), istate=_STARTED)
+DIFFERENCE = Memory(params=Layout("float", [Field("rate", 1, "node rate, Hz")]),
+                    state=Layout("float", [Field("x", "w", "last input per channel")], sizes=("w",)),
+                    istate=Layout("int", [Field("started", 1, "1 once a sample was seen")]))
+"""difference_block reads s (x) and si (started) whole: one field each."""
+SI_STARTED = _STARTED.const("started")
+P_ALPHA = LOWPASS.params.const("alpha")
+S_Y = LOWPASS.state.const("y")
+P_RATE = DIFFERENCE.params.const("rate")
 
 INIT_PARAM = Param("choice", default="zero", choices=("zero", "steady"),
                    doc="initial state: zero (rest), or steady (as if the first input sample had always been applied, "
@@ -25,30 +47,30 @@ INIT_PARAM = Param("choice", default="zero", choices=("zero", "steady"),
 
 @njit(cache=True)
 def _sos(p, s, si, x, y):
-    if si.shape[0] > 0 and si[0] == 0 and x.shape[0] > 0:  # init: steady, first tick since reset
+    if si.shape[0] > 0 and si[SI_STARTED] == 0 and x.shape[0] > 0:  # init: steady, first tick since reset
         sos_steady_state(p, s, x[0])
-        si[0] = 1
+        si[SI_STARTED] = 1
     sos_block(p, s, x, y)
 
 
-def _init_flag(init: str) -> np.ndarray:
-    """Integer state of a filter with an ``init`` parameter: one 'started' flag for steady, nothing for zero."""
-    return np.zeros(1 if init == "steady" else 0, np.int64)
+def _steady(init: str) -> int:
+    """Length of the 'started' flag of a filter with an ``init`` parameter: one for steady, none for zero."""
+    return 1 if init == "steady" else 0
 
 
 class _SosNode(Node):
     inputs = {"x": Port(None, "*", "signal (each component filtered separately)")}
     outputs = {"y": Port("=x", "=x", "filtered signal")}
     kernel = _sos
+    memory = SOS
 
     def sos(self) -> np.ndarray:
         raise NotImplementedError
 
     def build(self, inputs, outputs):
         coef = sos_to_params(self.sos())
-        sections = coef.size // 5
-        return NodeState(params=coef, state=np.zeros(inputs["x"].width * sections * SECTION_STATE),
-                         istate=_init_flag(self.p["init"]))
+        return self.pack_state({"sections": coef.size // SECTION_PARAMS, "w": inputs["x"].width,
+                                "steady": _steady(self.p["init"])}, params={"sos": coef})
 
 
 class Biquad(_SosNode):
@@ -88,11 +110,11 @@ class Butterworth(_SosNode):
 
 @njit(cache=True)
 def _lowpass(p, s, si, x, y):
-    if si.shape[0] > 0 and si[0] == 0 and x.shape[0] > 0:  # init: steady (DC gain 1: the state is the input)
+    if si.shape[0] > 0 and si[SI_STARTED] == 0 and x.shape[0] > 0:  # init: steady (DC gain 1: the state is the input)
         for c in range(x.shape[1]):
-            s[c] = x[0, c]
-        si[0] = 1
-    first_order_lowpass_block(p[0], s, x, y)
+            s[S_Y + c] = x[0, c]
+        si[SI_STARTED] = 1
+    first_order_lowpass_block(p[P_ALPHA], s, x, y)
 
 
 class FirstOrderLowpass(Node):
@@ -108,19 +130,20 @@ class FirstOrderLowpass(Node):
     inputs = {"x": Port(None, "*", "signal")}
     outputs = {"y": Port("=x", "=x", "smoothed signal")}
     kernel = _lowpass
+    memory = LOWPASS
 
     def build(self, inputs, outputs):
         rate = self.context.node_rate
         if self.p["cutoff_hz"] >= rate / 2:
             raise ParamError("cutoff_hz", f"cutoff {self.p['cutoff_hz']:g} Hz must be below Nyquist ({rate / 2:g} Hz)")
         alpha = lowpass_alpha(self.p["cutoff_hz"], rate)
-        return NodeState(params=np.array([alpha]), state=np.full(inputs["x"].width, self.p["initial"]),
-                         istate=_init_flag(self.p["init"]))
+        return self.pack_state({"w": inputs["x"].width, "steady": _steady(self.p["init"])}, params={"alpha": alpha},
+                               state={"y": self.p["initial"]})
 
 
 @njit(cache=True)
 def _difference(p, s, si, x, y):
-    difference_block(p[0], s, si, x, y)
+    difference_block(p[P_RATE], s, si, x, y)
 
 
 def _per_second(unit: str) -> str:
@@ -134,10 +157,10 @@ class Differentiator(Node):
     inputs = {"x": Port(None, "*", "signal")}
     outputs = {"y": Port("=x", "", "rate of change per second", unit_doc="unit of x per second")}
     kernel = _difference
+    memory = DIFFERENCE
 
     def resolve(self, inputs):
         return {"y": PortSpec(inputs["x"].shape, _per_second(inputs["x"].unit))}
 
     def build(self, inputs, outputs):
-        return NodeState(params=np.array([self.context.node_rate]), state=np.zeros(inputs["x"].width),
-                         istate=np.zeros(1, np.int64))
+        return self.pack_state({"w": inputs["x"].width}, params={"rate": self.context.node_rate})

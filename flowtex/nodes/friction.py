@@ -17,7 +17,10 @@ import numpy as np
 from numba import njit
 
 from ..dsp.friction import (
-    DAHL_ISTATE,
+    COULOMB_P,
+    DAHL_P,
+    DAHL_S,
+    DAHL_SI,
     DAHL_STATE,
     DS_NORMAL,
     coulomb_block,
@@ -27,7 +30,7 @@ from ..dsp.friction import (
 from ..dsp.motion import initial_normal_state
 from ..errors import ParamError
 from ..models.texture import TextureModelSet
-from ..node_api import Node, NodeState, Param, Port, check
+from ..node_api import Memory, Node, NodeState, Param, Port, check
 from .texture import model_source
 
 DAHL_ZMAX_PER_MU_MM = 4.0
@@ -78,10 +81,11 @@ class CoulombFriction(Node):
     outputs = {"force": Port((3,), "N", "friction force on the tool")}
     kernel = _coulomb
     check_params = staticmethod(_mu_or_models)
+    memory = Memory(params=COULOMB_P)
 
     def build(self, inputs, outputs):
         mu = _mu(self)
-        return NodeState(params=np.array([mu, coulomb_threshold(mu, self.p["mode"])]))
+        return NodeState(params=COULOMB_P.pack({"mu": mu, "threshold": coulomb_threshold(mu, self.p["mode"])}))
 
 
 @njit(cache=True)
@@ -114,6 +118,7 @@ class DahlFriction(Node):
     outputs = {"force": Port((3,), "N", "friction force on the tool")}
     kernel = _dahl
     check_params = staticmethod(_mu_or_models)
+    memory = Memory(params=DAHL_P, state=DAHL_S, istate=DAHL_SI)
 
     def input_default(self, name, spec):
         return np.asarray(self.p["normal"], dtype=np.float64)
@@ -126,6 +131,6 @@ class DahlFriction(Node):
             z_max = DAHL_ZMAX_PER_MU_MM * mu
             if z_max <= 0.0:
                 z_max = 1.0  # mu = 0: no force whatever z_max is
-        return NodeState(params=np.array([mu, z_max]),
+        return NodeState(params=DAHL_P.pack({"mu": mu, "z_max": z_max}),
                          state=initial_normal_state(DAHL_STATE, DS_NORMAL, self.p["normal"]),
-                         istate=np.zeros(DAHL_ISTATE, np.int64))
+                         istate=DAHL_SI.zeros())

@@ -9,10 +9,14 @@ from numba import njit
 
 from ..dsp.contact import CONTACT_OFF_N, CONTACT_ON_N, DEFAULT_CUTOFF_HZ, HATT_CORNER_RAD_S, STATIONARY_MM
 from ..dsp.motion import (
-    CONTACT_ISTATE,
+    CONTACT_P,
+    CONTACT_S,
+    CONTACT_SI,
     CONTACT_STATE,
     CS_NORMAL,
-    SPEED_ISTATE,
+    SPEED_P,
+    SPEED_S,
+    SPEED_SI,
     SPEED_STATE,
     SS_NORMAL,
     butter2_biquad,
@@ -23,7 +27,7 @@ from ..dsp.motion import (
     speed_params,
 )
 from ..errors import ParamError
-from ..node_api import Node, NodeState, Param, Port, check
+from ..node_api import Memory, Node, NodeState, Param, Port, check
 
 _NORMAL_PARAM = Param("floats", default=(0.0, 0.0, 1.0), length=(3, 3),
                       doc="surface normal used when the normal input is not connected (normalised; need not be unit)")
@@ -61,6 +65,7 @@ class SpeedEstimator(Node):
     inputs = {"position": Port((3,), "mm", "tool position"), "normal": _NORMAL_PORT}
     outputs = {"speed": Port((), "mm/s", "tangential speed |v_t|"), "velocity": Port((3,), "mm/s", "tangential velocity v_t")}
     kernel = _speed
+    memory = Memory(params=SPEED_P, state=SPEED_S, istate=SPEED_SI)
 
     def input_default(self, name, spec):
         return np.asarray(self.p["normal"], dtype=np.float64)
@@ -83,7 +88,7 @@ class SpeedEstimator(Node):
                 raise ParamError("method", f"hatt filter at node rate {rate:g} Hz: {exc}") from None
         return NodeState(params=speed_params(biquad, rate, self.p["stationary_mm"]),
                          state=initial_normal_state(SPEED_STATE, SS_NORMAL, self.p["normal"]),
-                         istate=np.zeros(SPEED_ISTATE, np.int64))
+                         istate=SPEED_SI.zeros())
 
 
 @njit(cache=True)
@@ -116,6 +121,7 @@ class Contact(Node):
         "onset": Port((), "", "1 on the tick contact begins, else 0"),
     }
     kernel = _contact
+    memory = Memory(params=CONTACT_P, state=CONTACT_S, istate=CONTACT_SI)
 
     def input_default(self, name, spec):
         return np.asarray(self.p["normal"], dtype=np.float64)
@@ -123,6 +129,6 @@ class Contact(Node):
     def build(self, inputs, outputs):
         _check_normal(self.p["normal"])
         check(self.p["off_n"] <= self.p["on_n"], "off_n", f"off_n ({self.p['off_n']:g} N) must be <= on_n ({self.p['on_n']:g} N)")
-        return NodeState(params=np.array([self.context.node_rate, self.p["on_n"], self.p["off_n"]]),
+        return NodeState(params=CONTACT_P.pack({"rate": self.context.node_rate, "on": self.p["on_n"], "off": self.p["off_n"]}),
                          state=initial_normal_state(CONTACT_STATE, CS_NORMAL, self.p["normal"]),
-                         istate=np.zeros(CONTACT_ISTATE, np.int64))
+                         istate=CONTACT_SI.zeros())

@@ -6,7 +6,11 @@ import numpy as np
 from numba import njit
 
 from ..dsp.rng import STATE_FLOATS, STATE_INTS, next_normal, seed_rng
-from ..node_api import Node, NodeState, Param, Port, PortSpec
+from ..node_api import Field, Layout, Memory, Node, Param, Port, PortSpec
+
+NOISE = Memory(state=Layout("float", [Field("rng", STATE_FLOATS, "cached normal of the random generator")]),
+               istate=Layout("int", [Field("rng", STATE_INTS, "random generator words (flowtex.dsp.rng)")]))
+"""next_normal reads s and si whole: the generator is their only field."""
 
 
 @njit(cache=True)
@@ -29,15 +33,13 @@ class WhiteNoise(Node):
     inputs = {"variance": Port((), "*", "variance per tick; overrides the parameter when connected", optional=True)}
     outputs = {"y": Port((), "", "noise sample", unit_doc="the 'unit' parameter")}
     kernel = _white_noise
+    memory = NOISE
 
     def resolve(self, inputs):
         return {"y": PortSpec((), "" if self.p["unit"] == "-" else self.p["unit"])}
 
     def input_default(self, name, spec):
         return np.full(spec.width, self.p["variance"])
-
-    def build(self, inputs, outputs):
-        return NodeState(state=np.zeros(STATE_FLOATS), istate=np.zeros(STATE_INTS, np.int64))
 
     def seed_state(self, state, istate, seed):
         seed_rng(istate, state, seed)

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..dsp.patterns import RING_DECAY, pattern_block, pattern_params, pattern_state
+from ..dsp.patterns import ISTATE, PARAMS, RING_DECAY, STATE, pattern_block, pattern_params, pattern_state
 from ..dsp.prony import ring_length
 from ..errors import ParamError
 from ..models.patterns import Pattern
-from ..node_api import Node, NodeState, Param, Port
+from ..node_api import Memory, Node, Param, Port
 
 
 @njit(cache=True)
@@ -37,6 +37,7 @@ class PatternedTexture(Node):
     }
     outputs = {"y": Port((), "m/s^2", "texture vibration")}
     kernel = _pattern
+    memory = Memory(params=PARAMS, state=STATE, istate=ISTATE)
 
     def build(self, inputs, outputs):
         pat: Pattern = self.p["pattern"]
@@ -50,4 +51,4 @@ class PatternedTexture(Node):
         slots = self.p["max_active"]
         s, si = pattern_state(b.shape[1] - 1, slots)
         params = pattern_params(pat.axis, pat.origin, pat.positions_mm, pat.amplitudes, np.asarray(lengths), b, a, slots)
-        return NodeState(params=params, state=s, istate=si)
+        return self.pack_state({"k": b.shape[0], "order": b.shape[1] - 1, "slots": slots}, params=params, state=s, istate=si)

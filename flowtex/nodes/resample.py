@@ -15,9 +15,18 @@ import numpy as np
 from numba import njit
 
 from ..dsp.resample import DEFAULT_ATTEN_DB
-from ..dsp.resample_stream import latency_samples, polyphase_filter, resample_block, stream_params, stream_state_sizes
+from ..dsp.resample_stream import (
+    ISTATE,
+    PARAMS,
+    STATE,
+    history_length,
+    latency_samples,
+    polyphase_filter,
+    resample_block,
+    stream_params,
+)
 from ..errors import ParamError
-from ..node_api import Node, NodeState, Param, Port
+from ..node_api import Memory, Node, Param, Port
 
 
 @njit(cache=True)
@@ -52,6 +61,7 @@ class Resample(Node):
     latency_doc = ("(len(h) - 1) / 2 samples of the faster rate, shown by flowtex graph "
                    "(1 kHz -> 250 Hz at 80 dB: 108 samples = 108 ms)")
     kernel = _resample
+    memory = Memory(params=PARAMS, state=STATE, istate=ISTATE)
 
     @classmethod
     def own_every(cls, params: dict[str, Any], rate: float, input_every: dict[str, int]) -> int | None:
@@ -87,5 +97,6 @@ class Resample(Node):
 
     def build(self, inputs, outputs):
         h = self._filter()
-        nf, ni = stream_state_sizes(h, self.up, self.down, inputs["x"].width)
-        return NodeState(params=stream_params(h, self.up, self.down), state=np.zeros(nf), istate=np.zeros(ni, np.int64))
+        params = stream_params(h, self.up, self.down)
+        return self.pack_state({"ncoef": params.size - PARAMS.size(ncoef=0), "hist": history_length(h, self.up),
+                                "w": inputs["x"].width}, params=params)

@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
-from ..dsp.switch import STATE_SIZE, crossfade_block, switch_params
-from ..node_api import Node, NodeState, Param, Port, PortSpec, check
+from ..dsp.switch import PARAMS, STATE, crossfade_block, switch_params
+from ..node_api import Memory, Node, NodeState, Param, Port, PortSpec, check
 
 
 @njit(cache=True)
@@ -40,6 +39,7 @@ class SurfaceSwitch(Node):
     }
     outputs = {"y": Port("=a", "=a", "crossfaded selection")}
     kernel = _switch
+    memory = Memory(params=PARAMS, state=STATE)
 
     def resolve(self, inputs):
         a, b = inputs["a"], inputs["b"]
@@ -47,5 +47,4 @@ class SurfaceSwitch(Node):
         return {"y": PortSpec(a.shape, a.unit)}
 
     def build(self, inputs, outputs):
-        return NodeState(params=switch_params(self.p["b_index"], self.p["fade"] * self.context.node_rate),
-                         state=np.zeros(STATE_SIZE))
+        return NodeState(params=switch_params(self.p["b_index"], self.p["fade"] * self.context.node_rate), state=STATE.zeros())

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from numba import njit
 
-from ..dsp.arma import ISTATE_INTS, arma_lattice_block, new_state
+from ..dsp.arma import ISTATE, STATE, arma_lattice_block, new_state
 from ..dsp.rng import seed_rng
-from ..node_api import Node, NodeState, Port, PortSpec, check
+from ..node_api import Memory, Node, NodeState, Port, PortSpec, check
 
 
 @njit(cache=True)
@@ -40,6 +40,7 @@ class ArmaSynth(Node):
     }
     outputs = {"y": Port((), "m/s^2", "synthesized vibration (acceleration)")}
     kernel = _arma_synth
+    memory = Memory(state=STATE, istate=ISTATE)
 
     def resolve(self, inputs: dict[str, PortSpec]) -> dict[str, PortSpec]:
         for name in ("ar", "ma"):
@@ -53,8 +54,7 @@ class ArmaSynth(Node):
         p = inputs["ar"].shape[0] - 1
         q = inputs["ma"].shape[0] - 1
         s, si = new_state(p, q)
-        assert si.shape[0] == ISTATE_INTS
-        return NodeState(state=s, istate=si)
+        return self.pack_state({"p": p, "q": q}, state=s, istate=si)
 
     def seed_state(self, state, istate, seed) -> None:
-        seed_rng(istate, state[0:1], seed)
+        seed_rng(istate[ISTATE.bind()["rng"]], state[STATE.bind(p=0, q=0)["rng"]], seed)

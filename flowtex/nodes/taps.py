@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from numba import njit
 
-from ..dsp.taps import initial_tap_state, tap_block, tap_params
+from ..dsp.taps import TAP_P, TAP_S, TAP_SI, initial_tap_state, tap_block, tap_params
 from ..errors import ParamError
 from ..models.taps import TapLibrary
-from ..node_api import Node, NodeState, Param, Port
+from ..node_api import Memory, Node, Param, Port
 
 HAND_MASS_KG = 0.05
 """Effective mass of hand + handle (Kuchenbecker & Culbertson 2014; Culbertson & Kuchenbecker 2017)."""
@@ -42,6 +42,7 @@ class TapPlayer(Node):
     }
     outputs = {"force": Port((), "N", "tap transient force")}
     kernel = _taps
+    memory = Memory(params=TAP_P, state=TAP_S, istate=TAP_SI)
 
     def build(self, inputs, outputs):
         lib: TapLibrary = self.p["library"]
@@ -56,4 +57,5 @@ class TapPlayer(Node):
                              f"run 'flowtex models resample {path} --rate {rate:g} -o OUT.json' and load OUT.json, "
                              f"or run the node at the library's rate")
         s, si = initial_tap_state(lib.length)
-        return NodeState(params=tap_params(self.p["mass"], lib.speeds, lib.transients), state=s, istate=si)
+        return self.pack_state({"k": len(lib.speeds), "length": lib.length},
+                               params=tap_params(self.p["mass"], lib.speeds, lib.transients), state=s, istate=si)

@@ -6,12 +6,12 @@ from pathlib import Path
 
 from numba import njit
 
-from ..dsp.interp import initial_state, texture_lookup_block
+from ..dsp.interp import ISTATE, STATE, TABLE, initial_state, table_sizes, texture_lookup_block
 from ..errors import ParamError
 from ..models.outside import OUTSIDE_CHOICES
 from ..models.rendering import INTERPOLATION_CHOICES, texture_table
 from ..models.texture import TextureModelSet
-from ..node_api import Node, NodeState, Param, Port, PortSpec
+from ..node_api import Memory, Node, Param, Port, PortSpec
 
 
 @njit(cache=True)
@@ -89,6 +89,7 @@ class TextureLookup(Node):
         "variance": Port((), "", "variance of the white excitation (HaTT's var)"),
     }
     kernel = _texture_lookup
+    memory = Memory(params=TABLE, state=STATE, istate=ISTATE)
 
     def __init__(self, name, params, context):
         super().__init__(name, params, context)
@@ -149,5 +150,5 @@ class TextureLookup(Node):
         except ValueError as exc:
             raise ParamError("models", f"{self.source}: {exc}") from None
         s, si = initial_state(ms.ar_order, ms.ma_order)
-        return NodeState(params=table, state=s, istate=si)
+        return self.pack_state(table_sizes(table), params=table, state=s, istate=si)
 

@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
-from ..node_api import Node, NodeState, Param, Port, PortSpec, check, unit_product
+from ..node_api import Field, Layout, Memory, Node, NodeState, Param, Port, PortSpec, check, unit_product
+
+NORMALIZE = Memory(params=Layout("float", [Field("min_norm", 1, "below this magnitude the output is zero")]))
+P_MIN_NORM = NORMALIZE.params.const("min_norm")
 
 
 @njit(cache=True)
@@ -36,6 +38,7 @@ class Cross(Node):
     inputs = {"a": Port((3,), "*", "first 3-vector"), "b": Port((3,), "*", "second 3-vector")}
     outputs = {"y": Port((3,), "", "a x b", unit_doc="unit of a * unit of b")}
     kernel = _cross
+    memory = Memory()
 
     def resolve(self, inputs: dict[str, PortSpec]) -> dict[str, PortSpec]:
         return {"y": PortSpec((3,), unit_product(inputs["a"].unit, inputs["b"].unit))}
@@ -57,6 +60,7 @@ class Dot(Node):
     inputs = {"a": Port(None, "*", "first vector"), "b": Port(None, "*", "second vector (same shape as a)")}
     outputs = {"y": Port((), "", "a . b", unit_doc="unit of a * unit of b")}
     kernel = _dot
+    memory = Memory()
 
     def resolve(self, inputs: dict[str, PortSpec]) -> dict[str, PortSpec]:
         a, b = inputs["a"], inputs["b"]
@@ -67,7 +71,7 @@ class Dot(Node):
 
 @njit(cache=True)
 def _normalize(p, s, si, x, y):
-    min_norm = p[0]
+    min_norm = p[P_MIN_NORM]
     for t in range(x.shape[0]):
         acc = 0.0
         for c in range(x.shape[1]):
@@ -99,6 +103,7 @@ class Normalize(Node):
     inputs = {"x": Port(None, "*", "vector")}
     outputs = {"y": Port("=x", "", "unit vector along x, or zeros (dimensionless)")}
     kernel = _normalize
+    memory = NORMALIZE
 
     def resolve(self, inputs: dict[str, PortSpec]) -> dict[str, PortSpec]:
         x = inputs["x"]
@@ -106,4 +111,4 @@ class Normalize(Node):
         return {"y": PortSpec(x.shape, "")}
 
     def build(self, inputs: dict[str, PortSpec], outputs: dict[str, PortSpec]) -> NodeState:
-        return NodeState(params=np.array([self.p["min_norm"]]))
+        return self.pack_state(params={"min_norm": self.p["min_norm"]})

@@ -15,6 +15,7 @@ back ends the session with :class:`AudioDeviceError`.
 from __future__ import annotations
 
 import contextlib
+import math
 import sys
 import threading
 import time
@@ -27,7 +28,7 @@ import numpy as np
 from ..errors import FlowtexError
 from ..graph.program import TickProgram
 from ..io.audiomap import AudioMap
-from .audio_render import interpolator, lead_frames, margin_frames, samples_per_tick
+from .audio_render import interpolator, margin_frames, samples_per_tick
 from .audio_ring import FADED, LATENCIES, MISSING, PLAYED, RECORDED, STOPPING, UNDERRUNS, AudioRing
 from .audio_timeline import END, RESYNC, SILENCE, START, SilenceRuns, event_frame
 
@@ -44,6 +45,12 @@ PACE_FAR_BLOCKS = 2
 once (a sound server that stopped or fell behind; the callback's own jitter stays within a block or two)."""
 STALL_S = 0.5
 """A running stream whose callback has not run for this long (and at least 8 blocks) has lost its device."""
+SETTLE_CALLBACKS = 4
+"""Callbacks the stream plays silence for before tick 0 is placed (:meth:`AudioOutput.start`): the sound server's start
+(JACK connects the new ports and reorders its graph) comes with irregular first callbacks, and a tick placed by the first
+of them could already be late."""
+NOT_STARTED = 1 << 62
+"""The ring's lead until :meth:`AudioOutput.start` places tick 0: every frame before it is lead silence, never late."""
 
 
 SWITCH_INTERVAL_S = 0.0005
@@ -100,13 +107,17 @@ class AudioOutput:
     def __init__(self, graph: TickProgram, amap: AudioMap, record: str | Path | None = None, where: str = "map") -> None:
         self.amap = amap
         self.ratio = samples_per_tick(amap, float(graph.rate), where)
-        self.lead = lead_frames(amap)
+        self.lead = NOT_STARTED
+        """Frames of silence before tick 0's first frame; set by :meth:`start` once the stream has settled."""
         self.interp = interpolator(amap, self.ratio)
         self.views = [graph.output_view(c.output).reshape(-1) for c in amap.channels]
         self.x = np.zeros((1, len(amap.channels)))
         self.ring = AudioRing(self.ratio[0], len(amap.channels), self.lead, amap.rate, down=self.ratio[1])
         self.ahead = margin_frames(amap)
-        """Frames between the callback's position and a tick's first frame at the tick's deadline (tick 0 included)."""
+        """Frames between the callback's position and a tick's first frame at the tick's deadline (tick 0 included);
+        raised by a resync, up to :attr:`most` (:meth:`push`)."""
+        self.most = max(self.ahead, math.ceil(amap.margin_max_ms * amap.rate / 1000.0 - 1e-9))
+        """Largest margin, frames (the map's ``margin_max_ms``)."""
         self.block_buf = np.zeros((self.interp.max_frames, len(amap.channels)), dtype=np.float32)
         self.cb_end = 0
         self.cb_ns = 0
@@ -120,6 +131,10 @@ class AudioOutput:
         self.stream: Any = None
         self.device_name = "default output" if amap.device is None else repr(amap.device)
         self.pa_underflows = 0
+        """PortAudio's output underflows after the stream played its first tick sample could (clicks)."""
+        self.lead_underflows = 0
+        """PortAudio's output underflows while every frame handed over was the lead's silence (a sound server's start;
+        not clicks: the server played zeros in place of zeros)."""
         self.callbacks = 0
         self.last_callback_ns = 0
         self.error: str | None = None
@@ -140,8 +155,11 @@ class AudioOutput:
     def _callback(self, outdata: np.ndarray, frames: int, time_info: Any, status: Any) -> None:
         now = time.perf_counter_ns()
         try:
-            if status.output_underflow:
-                self.pa_underflows += 1
+            if status.output_underflow:  # the server played zeros since the last callback
+                if self.ring.istate[RECORDED] <= self.lead:
+                    self.lead_underflows += 1  # everything handed over so far was lead silence: zeros for zeros
+                else:
+                    self.pa_underflows += 1
             ahead = time_info.outputBufferDacTime - time_info.currentTime
             dac_ns = now + int(ahead * 1e9) if 0.0 <= ahead < 10.0 else now
             self.ring.fill(outdata, dac_ns)
@@ -155,7 +173,9 @@ class AudioOutput:
         self.first_callback.set()
 
     def start(self, timeout_s: float = 2.0) -> None:
-        """Open the device and start the stream (silence until tick 0's samples); returns after its first callback."""
+        """Open the device, start the stream and place tick 0: returns after :data:`SETTLE_CALLBACKS` callbacks of
+        silence, with tick 0's first frame ``ahead`` frames after the frames handed over by then (the lead), so the
+        clock started next has the whole margin from tick 0 on (the stream's start-up costs silence, not a late tick)."""
         sd = _sd()
         a = self.amap
         try:
@@ -172,20 +192,39 @@ class AudioOutput:
             self.close()
             raise AudioDeviceError(f"audio device {self.device_name}: the stream started but PortAudio never asked for samples "
                                    f"within {timeout_s:g} s")
+        end = time.monotonic() + timeout_s
+        while self.callbacks < SETTLE_CALLBACKS and time.monotonic() < end:
+            time.sleep(self.amap.block / self.amap.rate / 4)
+        self.place_tick0()
 
-    def push(self, k: int, arrival_ns: int, silent: bool) -> None:
+    def place_tick0(self) -> None:
+        """Set the lead: tick 0's first frame goes ``ahead`` frames after the frames handed over so far."""
+        self.lead = int(self.ring.istate[RECORDED]) + self.ahead
+        self.ring.lead = self.ring.base = self.lead
+
+    def push(self, k: int, arrival_ns: int, silent: bool) -> bool:
         """Render tick ``k`` from the graph's current outputs and hand it to the callback (``silent``: play safe silence).
 
-        A tick the callback has already passed (after a stall) resyncs the stream: silence is inserted so that
-        this tick plays ``ahead`` frames after the callback's position again."""
+        A tick the callback has already passed (after a stall longer than the margin) resyncs the stream: silence is
+        inserted so that this tick plays after the callback's position by the margin plus the frames it was late, at
+        most ``margin_max_ms``: the margin grows to absorb as long a stall next time. Returns True when it grew
+        (the loop then lets its clock catch up as far: :meth:`catch_up_s`)."""
         x = self.x
         for c, v in enumerate(self.views):
             x[0, c] = v[0]
         n = self.interp.render(x, self.block_buf)
-        gap = self.ring.resync(k, self.ahead)
-        if gap and self.log_timeline:
-            self._events.append(event_frame(RESYNC, k, gap, self.ring.position(k)))
+        gap = self.ring.resync(k, self.ahead, self.most)
+        grew = False
+        if gap:
+            grew, self.ahead = self.ring.margin > self.ahead, self.ring.margin
+            if self.log_timeline:
+                self._events.append(event_frame(RESYNC, k, gap, self.ring.position(k)))
         self.ring.put(k, self.block_buf[:n], arrival_ns, silent)
+        return grew
+
+    def catch_up_s(self) -> float:
+        """The current margin, s: a stall of the tick loop shorter than this is caught up (the clock's ``catch_up_s``)."""
+        return self.ahead / self.amap.rate
 
     def pace(self, k: int, next_deadline_ns: int) -> int:
         """How far (ns) to move the next tick's deadline so that the ticks follow the sound card's clock.
@@ -293,10 +332,13 @@ class AudioOutput:
         dist = ({"p50": float(np.percentile(lat, 50)), "p99": float(np.percentile(lat, 99)), "max": float(lat.max())}
                 if lat.size else {"p50": None, "p99": None, "max": None})
         return {"rate": float(self.amap.rate), "frames": int(self.ring.istate[RECORDED]), "underruns": self.underruns,
-                "latency_ms": dist, "played_frames": int(self.ring.istate[PLAYED]), "lead_frames": int(self.lead),
+                "latency_ms": dist, "played_frames": int(self.ring.istate[PLAYED]),
+                "lead_frames": int(self.lead) if self.lead != NOT_STARTED else None,
                 "samples_per_tick": self.ratio[0] / self.ratio[1], "ratio": list(self.ratio),
                 "latency_samples": int(self.ring.istate[LATENCIES]),
                 "late_callbacks": int(self.ring.istate[UNDERRUNS]), "device_underflows": self.pa_underflows,
-                "margin_ms": self.amap.margin_ms,
+                "lead_underflows": self.lead_underflows,
+                "margin_ms": self.amap.margin_ms, "margin_max_ms": self.amap.margin_max_ms,
+                "margin_end_ms": round(self.ahead * 1000.0 / self.amap.rate, 3),
                 "late_frames": int(self.ring.istate[MISSING]), "fade_frames": int(self.ring.fade),
                 "resyncs": [list(r) for r in self.ring.resyncs]}

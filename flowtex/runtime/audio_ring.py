@@ -157,6 +157,8 @@ class AudioRing:
         """Position of tick 0's first frame; moved forward by :meth:`resync`."""
         self.resyncs: list[tuple[int, int]] = []
         """(tick, frames of silence inserted before it) per resync."""
+        self.margin = 0
+        """Frames between the callback's position and the first frame of the tick the latest :meth:`resync` placed."""
 
     def position(self, k: int) -> int:
         """Stream position of tick ``k``'s first frame."""
@@ -174,13 +176,19 @@ class AudioRing:
         """
         put(self.ring, self.stamps, self.arrival, self.position(k), block, silent, arrival_ns)
 
-    def resync(self, k: int, ahead: int) -> int:
+    def resync(self, k: int, ahead: int, most: int = 0) -> int:
         """If the callback already passed tick ``k``'s position, move ``base`` forward so that tick ``k`` plays
-        ``ahead`` frames after the callback's position; returns the frames of silence inserted (0: in time)."""
+        ``ahead`` frames after the callback's position; returns the frames of silence inserted (0: in time).
+
+        ``most`` > ``ahead`` lets the margin grow: tick ``k`` then plays ``ahead`` plus the frames it was behind
+        after the callback's position, at most ``most`` (a stall as long as this one would be absorbed next time).
+        :attr:`margin` keeps the frames it was placed after the callback's position."""
         done = int(self.istate[RECORDED])
-        if self.position(k) >= done:
+        behind = done - self.position(k)
+        if behind <= 0:
             return 0
-        gap = done + ahead - self.position(k)
+        self.margin = max(ahead, min(most, ahead + behind))
+        gap = behind + self.margin
         self.base += gap
         self.resyncs.append((int(k), gap))
         return gap

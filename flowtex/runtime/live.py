@@ -169,7 +169,7 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
             warm_pass()
 
     # with a sound card, a stall shorter than the audio margin is caught up rather than skipped (docs/live.md, "Audio output")
-    clock = DeadlineClock(rate, prepare=prepare, catch_up_s=audio.amap.margin_ms / 1000.0 if audio is not None else 0.0)
+    clock = DeadlineClock(rate, prepare=prepare, catch_up_s=audio.catch_up_s() if audio is not None else 0.0)
     period = clock.period_ns
     display = StatusDisplay(status, io, watchdog, stats, int(rate / 2), shown) if status is not None else None
     if display is not None and audio is not None:
@@ -181,15 +181,15 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
     error: str | None = None
     guard_events = k = lateness = overrun = 0
     tx, now = io.tx, time.perf_counter_ns
-    if device is not None:
-        device.publish(0)
     with _stop_signals(stop, config.install_signals), freeze_gc(), prompt_callbacks(audio is not None):
         try:
             if audio is not None:
-                audio.start()  # silence until tick 0's samples are due; returns after PortAudio's first callback
+                audio.start()  # plays silence until the stream has settled, then places tick 0 a margin ahead of it
                 if writer is not None:
                     audio.log_timeline = True
                     writer.write(audio.start_event(), False)
+            if device is not None:  # tick 0's sensor frames, just before tick 0 (their arrival starts its latency)
+                device.publish(0)
             clock.start()
             while True:
                 receive(rx)  # 2. whatever arrived since prepare() (bus time, not compute)
@@ -202,8 +202,8 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
                 send_offset[k % capacity] = t2 - clock.deadline_ns
                 stats.frames_in += len(rx)
                 stats.frames_out += len(tx)
-                if audio is not None:
-                    audio.push(k, _arrival_ns(rx, wall_minus_perf), _audio_held(watchdog, k))
+                if audio is not None and audio.push(k, _arrival_ns(rx, wall_minus_perf), _audio_held(watchdog, k)):
+                    clock.catch_up_ns = int(audio.catch_up_s() * 1e9)  # the margin grew after a stall: catch up as far
                 if writer is not None:
                     writer.write_tick(rx, tx)
                     if audio is not None:

@@ -23,7 +23,7 @@ from ..models.rendering import texture_table
 from ..models.texture import TextureModelSet
 
 GRID_POINTS = 9
-"""Grid size per axis for texture salience (issue 13: 9 x 9)."""
+"""Grid size per axis for texture salience (9 x 9)."""
 
 
 def texture_power_grid(ms: TextureModelSet, speeds_mm_s: np.ndarray, forces_n: np.ndarray) -> np.ndarray:

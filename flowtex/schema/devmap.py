@@ -13,6 +13,9 @@ DEFAULT_AUDIO_MARGIN_MS = 10.0
 """Default ``audio.margin_ms``: a stall of the tick loop shorter than this costs no sample (docs/live.md, "Audio output")."""
 MAX_AUDIO_MARGIN_MS = 250.0
 """Largest ``audio.margin_ms``: every millisecond of margin is a millisecond of sensor-to-sound latency."""
+DEFAULT_AUDIO_MARGIN_MAX_MS = 15.0
+"""Default ``audio.margin_max_ms`` (or ``margin_ms`` if larger): how far the margin may grow after stalls it did not absorb;
+at 8 kHz / 64 under JACK (3 blocks, 24 ms) it keeps sensor-to-sound latency within 40 ms."""
 SIGNAL_PATTERN = r"^[^.\s]+\.[^.\s]+$"
 
 _NUMBER = Field("number")
@@ -116,6 +119,13 @@ AUDIO = Record(
                            message=f"audio.margin_ms must be a number of ms in (0, {MAX_AUDIO_MARGIN_MS:g}] (default "
                                    f"{DEFAULT_AUDIO_MARGIN_MS:g}: robust without --rt; e.g. 0.5 with --rt for low latency), "
                                    "got {got}"),
+        "margin_max_ms": Field("number", unit="ms", default=DEFAULT_AUDIO_MARGIN_MAX_MS, min=0.0, min_exclusive=True,
+                               max=MAX_AUDIO_MARGIN_MS,
+                               doc="How far the margin may grow: a stall longer than the margin inserts silence once and "
+                                   "raises the margin to absorb as long a stall next time, up to this; absent: "
+                                   f"{DEFAULT_AUDIO_MARGIN_MAX_MS:g} or margin_ms if larger; equal to margin_ms: fixed margin.",
+                               message=f"audio.margin_max_ms must be a number of ms in (0, {MAX_AUDIO_MARGIN_MS:g}], at least "
+                                       "margin_ms (equal: the margin never grows), got {got}"),
         "channels": Field("list", items=Field("record", record=CHANNEL), length=(1, None), doc="One entry per audio channel, in order.",
                           message="audio.channels must be a list of {{output: NAME, scale: S, clip: C}}, one per channel"),
         "doc": Field("str", doc="Free text."),

@@ -10,8 +10,8 @@ import pytest
 from flowtex.cli import main
 from flowtex.datasets.realistic import human_exploration
 from flowtex.errors import DataError
-from flowtex.fit.compare import compare_signals
-from flowtex.fit.crossval import blocks, fold_splits, holdout_split
+from flowtex.fit.compare import CompareOptions, compare_signals, welch_length
+from flowtex.fit.crossval import blocks, evaluate_splits, fold_splits, holdout_split
 from flowtex.fit.texture import TextureOptions, fit_texture
 
 RATE = 1000.0
@@ -76,6 +76,27 @@ def test_compare_on_ranges_equals_compare_on_each_block_pooled():
     assert compare_signals(x, [y], RATE, ranges=ranges).power_ratio_db == pytest.approx(0.0, abs=1e-9)
 
 
+def test_pooled_renders_each_held_out_block_by_the_surface_that_did_not_see_it():
+    """The pooled comparison is every fold's held-out blocks at once: its PSDs are the folds' held-out PSDs weighted
+    by their Welch segments (a block rendered by another fold's surface, or a splice, would break the identity)."""
+    rec = human_exploration(12.0, RATE, seed=5)
+    a = rec.arrays
+    n = a["accel"].shape[0]
+    splits = fold_splits(n, RATE, 2)
+    cv = evaluate_splits(a["accel"], a["speed"], a["normal_force"], RATE, splits, TextureOptions(order=(4, 2)))
+    opt = CompareOptions()
+    seg, skip = welch_length(RATE, opt.resolution_hz), int(opt.skip_s * RATE)
+    weights = [sum(1 + (b - max(lo, skip) - seg) // (seg // 2) for lo, b in test if b - max(lo, skip) >= seg)
+               for _train, test in splits]
+    for key in ("rendered_psd", "recorded_psd"):
+        expected = sum(w * getattr(c, key) for w, c in zip(weights, cv.comparisons, strict=True)) / sum(weights)
+        np.testing.assert_allclose(getattr(cv.pooled, key), expected, rtol=1e-12)
+    assert cv.pooled.seconds == pytest.approx(sum(c.seconds for c in cv.comparisons))
+    assert len(cv.pooled.windows) == sum(len(c.windows) for c in cv.comparisons)
+    # the two folds' surfaces differ, so the pooled render is not either one's alone
+    assert not np.allclose(cv.comparisons[0].rendered_psd, cv.comparisons[1].rendered_psd)
+
+
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory):
     path = tmp_path_factory.mktemp("cv") / "rec.npz"
@@ -92,13 +113,14 @@ def test_cli_folds_writes_json_and_report(recording, tmp_path, capsys):
     assert doc["split"] == "blocks" and doc["folds"] == 2 and "fraction" not in doc and len(doc["results"]) == 2
     keys = set(doc["results"][0])
     assert {"power_ratio_db", "lsd_db", "gfc", "rms_correlation", "band_hz", "octave_bands", "windows"} <= keys
-    assert set(doc["mean"]) == keys
+    assert set(doc["mean"]) == keys and set(doc["pooled"]) == keys
+    assert "pooled over the folds" in printed
     for k in ("power_ratio_db", "lsd_db", "gfc"):
         assert doc["mean"][k] == pytest.approx(np.mean([r[k] for r in doc["results"]]))
     assert doc["mean"]["octave_bands"][0]["error_db"] == pytest.approx(
         np.mean([r["octave_bands"][0]["error_db"] for r in doc["results"]]))
     md = (rep / "report.md").read_text()
-    assert "## Held out" in md and "2-fold cross-validation" in md and "| mean |" in md
+    assert "## Held out" in md and "2-fold cross-validation" in md and "| mean |" in md and "| pooled |" in md
     # the set written is the fit of the whole recording, its models numbered as in the report
     ms = json.loads(out.read_text())
     assert ms["metadata"]["pieces"] >= 1
@@ -110,7 +132,7 @@ def test_cli_holdout_blocks_and_option_errors(recording, tmp_path, capsys):
                  "--holdout-split", "blocks", "-o", str(out), "--holdout-json", str(js)]) == 0
     assert "held out: 0.5 of the recording as interleaved 1-s blocks" in capsys.readouterr().out
     doc = json.loads(js.read_text())
-    assert doc["split"] == "blocks" and doc["fraction"] == 0.5 and len(doc["results"]) == 1
+    assert doc["split"] == "blocks" and doc["fraction"] == 0.5 and len(doc["results"]) == 1 and doc["pooled"] is None
     assert doc["results"][0]["seconds"] == pytest.approx(6.0 - 0.0)           # seconds 1, 3, 5, 7, 9, 11
     for bad, msg in ((["--folds", "2", "--holdout", "0.3"], "not both"), (["--holdout-json", str(js)], "--holdout-json"),
                      (["--holdout-split", "blocks"], "--holdout-split"), (["--folds", "1"], "--folds")):

@@ -134,8 +134,8 @@ def two_fold(recordings):
     docs = []
     for rec in recordings:
         a = rec.arrays
-        done = evaluate_splits(a["accel"], a["speed"], a["normal_force"], RATE, fold_splits(a["accel"].shape[0], RATE, 2), ORDER)
-        docs.append(holdout_doc("blocks", "folds", 2, [c for _, c in done]))
+        cv = evaluate_splits(a["accel"], a["speed"], a["normal_force"], RATE, fold_splits(a["accel"].shape[0], RATE, 2), ORDER)
+        docs.append(holdout_doc("blocks", "folds", 2, cv.comparisons, cv.pooled))
     return docs
 
 
@@ -146,9 +146,11 @@ def test_in_sample_power(in_sample):
 
 
 @pytest.mark.xfail(strict=True, reason="seed 1's in-sample LSD is 1.43 dB against the truth's 0.93 (target +0.5: 1.4332), "
-                                       "measured 2026-11-26 with power interpolation (fitted sets' rule); with HaTT's "
-                                       "variance interpolation it was 1.25; seed 0: 1.25 against 1.73. The generator renders "
-                                       "its truth with variance interpolation (docs/fitting.md, 'Interpolating loudness')")
+                                       "measured 2026-11-26. Not the generator's rule: a truth 3x denser (460 models, where "
+                                       "variance and power interpolation differ by <= 0.27 dB) gives 1.42 against 0.92. The fitted "
+                                       "models carry each 0.35-s piece's loudness (-7.9..+8.9 dB around the truth at their points), "
+                                       "and their expected spectra lie 1.57 dB (path LSD) from the truth's (docs/fitting.md, "
+                                       "'In-sample LSD against the truth')")
 def test_in_sample_lsd(in_sample):
     for _fit, got, truth in in_sample:
         assert got.lsd_db <= truth.lsd_db + 0.5
@@ -167,9 +169,23 @@ def test_two_fold_held_out_power(two_fold):
         assert abs(doc["mean"]["power_ratio_db"]) <= 1.0
 
 
-@pytest.mark.xfail(strict=True, reason="held-out LSD is 1.1-2.0 dB above in-sample (target 1 dB): measured 2026-11-26 "
-                                       "seed 0 2.45 vs 1.25, seed 1 3.12 vs 1.43 (power interpolation); the true surface itself scores 1.6-2.5 dB "
-                                       "on the held-out blocks (docs/fitting.md, 'Held-out figures')")
 def test_two_fold_held_out_lsd_near_in_sample(two_fold, in_sample):
+    """Issue 23: held-out LSD within 1 dB of in-sample, on the pooled out-of-fold comparison (every held-out second
+    compared once, rendered by the fold's surface that did not see it: flowtex.fit.crossval, 'Pooled').
+
+    Measured (2026-11-26, seeds 0 and 1): pooled 1.50 / 2.34 dB against in-sample 1.25 / 1.43.
+    """
+    for doc, (_fit, got, _truth) in zip(two_fold, in_sample, strict=True):
+        assert doc["pooled"]["lsd_db"] <= got.lsd_db + 1.0
+        assert abs(doc["pooled"]["power_ratio_db"]) <= 1.0
+        assert doc["pooled"]["seconds"] == pytest.approx(sum(r["seconds"] for r in doc["results"]))
+
+
+@pytest.mark.xfail(strict=True, reason="each fold's LSD holds that fold's level offset and the noise of half the data: "
+                                       "measured 2026-11-26, mean over the folds 2.45 / 3.12 dB (seeds 0 / 1) against "
+                                       "in-sample 1.25 / 1.43; the true surface itself scores 2.54 / 1.50 and 1.15 / 2.06 dB "
+                                       "on the single folds against 1.73 / 0.93 on the whole recording (docs/fitting.md, "
+                                       "'Held-out figures')")
+def test_two_fold_mean_of_fold_lsds_near_in_sample(two_fold, in_sample):
     for doc, (_fit, got, _truth) in zip(two_fold, in_sample, strict=True):
         assert doc["mean"]["lsd_db"] <= got.lsd_db + 1.0

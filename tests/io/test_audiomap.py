@@ -66,6 +66,8 @@ def test_device_by_name_and_asymmetric_clip(tmp_path):
     ("audio:\n  rate: 8000\n  margin_ms: 0\n  channels: [{output: vibration, scale: 1, clip: 1}]\n", 9, "number of ms in (0, 250]"),
     ("audio:\n  rate: 8000\n  margin_ms: 300\n  channels: [{output: vibration, scale: 1, clip: 1}]\n", 9, "audio.margin_ms must be"),
     ("audio:\n  rate: 8000\n  margin_ms: ten\n  channels: [{output: vibration, scale: 1, clip: 1}]\n", 9, "got 'ten'"),
+    ("audio:\n  rate: 8000\n  margin_ms: 20\n  margin_max_ms: 12\n  channels: [{output: vibration, scale: 1, clip: 1}]\n", 10,
+     "audio.margin_max_ms (12) is below audio.margin_ms (20)"),
 ])
 def test_errors_name_the_line_and_the_fix(tmp_path, audio, line, text):
     with pytest.raises(GraphError) as err:
@@ -76,7 +78,17 @@ def test_errors_name_the_line_and_the_fix(tmp_path, audio, line, text):
 
 def test_audio_section_alone_needs_no_dbc(tmp_path):
     a = load_audio_section(REPO / "graphs" / "devices" / "example_audio_map.yaml", GOUT)
-    assert a.rate == 8000.0 and a.margin_ms == 10.0
+    assert a.rate == 8000.0 and a.margin_ms == 10.0 and a.margin_max_ms == 15.0
+
+
+def test_margin_max_defaults_to_15_ms_or_the_margin_if_larger(tmp_path):
+    assert _load(tmp_path, "audio:\n  rate: 8000\n  margin_ms: 0.5\n  channels: [{output: vibration, scale: 1, clip: 1}]\n"
+                 ).audio.margin_max_ms == 15.0
+    assert _load(tmp_path, "audio:\n  rate: 8000\n  margin_ms: 40\n  channels: [{output: vibration, scale: 1, clip: 1}]\n"
+                 ).audio.margin_max_ms == 40.0
+    fixed = _load(tmp_path, "audio:\n  rate: 8000\n  margin_ms: 0.5\n  margin_max_ms: 0.5\n"
+                  "  channels: [{output: vibration, scale: 1, clip: 1}]\n").audio
+    assert (fixed.margin_ms, fixed.margin_max_ms) == (0.5, 0.5)
     with pytest.raises(DataError, match="no 'audio' section"):
         load_audio_section(REPO / "graphs" / "devices" / "example_map.yaml", GOUT)
 
