@@ -7,6 +7,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -31,6 +32,39 @@ FUSED_TIER_FILES = frozenset({
     "test_livesafe_session.py", "test_replay.py", "test_fused.py", "test_scene_live.py",
 })
 """Test files that run on the fused tier (what library callers get by default), whatever the suite's default."""
+
+
+settings.register_profile("flowtex", deadline=None)
+"""Hypothesis's per-example deadline (200 ms) is off: an example's first call may compile a kernel (seconds, more on a
+loaded machine), and speed is measured in benchmarks/, never in a test. Each test's ``max_examples`` is its own."""
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "flowtex"))
+
+SLOW_FIRST = (
+    "test_examples.py", "test_audio_jack.py", "test_engine_tiers.py", "test_cli_hostile_options.py",
+    "test_plugin_declarations.py", "test_plugin_check.py", "test_nodes_builtin.py", "test_engine_cache.py",
+    "test_golden_portability.py", "test_resample_corpus.py", "test_live.py", "test_texture_examples.py",
+    "test_hatt_parity.py", "test_livesafe_hostile.py", "test_fit_batch.py", "test_kernel_faults.py", "test_crossval.py",
+    "test_hostile_bounds.py", "test_arma.py", "test_fused.py",
+)
+"""The test files that take longest (CPU and real time of a fresh-clone run, docs/testing.md), slowest first.
+
+They are collected first so that pytest-xdist (``--dist loadfile``) starts them first: the many quick files then fill
+the gaps at the end, and no slow file starts last on one worker while the other one waits (largest job first)."""
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    if os.environ.get("PYTEST_FLOWTEX_PROFILE"):  # where the suite's time goes (tests/suite_profile.py, docs/testing.md)
+        from suite_profile import register
+
+        register(config)
+    if hasattr(config.option, "loadscopereorder"):
+        config.option.loadscopereorder = False  # xdist would order files by their number of tests; keep SLOW_FIRST's
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """The files of :data:`SLOW_FIRST` first, in its order; the others after them, in collection order."""
+    rank = {name: k for k, name in enumerate(SLOW_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # a stable sort: tests keep their order in a file
 
 
 @pytest.fixture(autouse=True)

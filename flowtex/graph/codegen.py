@@ -100,11 +100,14 @@ def _guard_every(every: int, ns: NodeSlots, call: str, indent: str, tick: str, r
 
 def _step_source(inputs: list[PortSlot], outputs: list[PortSlot]) -> str:
     """``step(f, i, x0, x1, ...)``: one tick from Python with scalar inputs as arguments
-    and scalar outputs returned as a tuple (cheaper than item access from Python)."""
+    and scalar outputs returned as a tuple (cheaper than item access from Python).
+
+    It calls ``block`` with ``np.int64(1)``, not the literal ``1``: numba would compile a second ``block`` specialised
+    for ``Literal[int](1)``, the largest function of the module (every kernel inlined), for no measurable gain per call."""
     args = "".join(f", x{k}" for k in range(len(inputs)))
     lines = ["@njit(cache=True, nogil=True)", f"def step(f, i{args}):"]
     lines += [f"    f[i[{slot.offset_index}]] = x{k}" for k, slot in enumerate(inputs)]
-    lines.append("    block(f, i, 1)")
+    lines.append("    block(f, i, np.int64(1))")
     values = [f"f[i[{slot.offset_index}]]" for slot in outputs] or ["0.0"]
     lines.append(f"    return ({', '.join(values)},)")
     return "\n".join(lines) + "\n"
