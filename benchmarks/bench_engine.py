@@ -141,21 +141,19 @@ def bench_tiers(ticks: int, runs: int) -> dict:
     ms = bt.cork_like_model_set()
     inputs = bt.trajectory(ticks, ms.max_speed, ms.max_force)
     out: dict = {"fused": [], "dispatch": [], "floor": [], "live_fused": [], "live_dispatch": []}
-    with tempfile.TemporaryDirectory() as d:
-        path = Path(d) / "texture.yaml"
-        path.write_text(bt.GRAPH.format(every=1, models=bt.save_model_set(ms, Path(d) / "m.json"), extra=""))
-        graphs = {t: flowtex.load_graph(path, tier=t) for t in ("fused", "dispatch")}
-        live = {t: g.with_block_rows(1) for t, g in graphs.items()}
-        y = {t: g.run(inputs)["accel"].copy() for t, g in graphs.items()}
-        bt.run_floor(ms, {k: v[:100] for k, v in inputs.items()})
-        for _ in range(runs):
-            for t, g in graphs.items():
-                t0 = time.perf_counter()
-                g.run(inputs)
-                out[t].append((time.perf_counter() - t0) / ticks * 1e9)
-            out["floor"].append(bt.run_floor(ms, inputs))
-            for t, g in live.items():
-                out["live_" + t].append(bt.live_ns(g, inputs, min(ticks, 50_000), 1))
+    # the texture graph bench_texture.py times (flowtex.fit.texture_graph.texture_builder), built in memory
+    graphs = {t: bt.texture_builder(ms, bt.RATE).build(tier=t) for t in ("fused", "dispatch")}
+    live = {t: g.with_block_rows(1) for t, g in graphs.items()}
+    y = {t: g.run(inputs)["accel"].copy() for t, g in graphs.items()}
+    bt.run_floor(ms, {k: v[:100] for k, v in inputs.items()})
+    for _ in range(runs):
+        for t, g in graphs.items():
+            t0 = time.perf_counter()
+            g.run(inputs)
+            out[t].append((time.perf_counter() - t0) / ticks * 1e9)
+        out["floor"].append(bt.run_floor(ms, inputs))
+        for t, g in live.items():
+            out["live_" + t].append(bt.live_ns(g, inputs, min(ticks, 50_000), 1))
     # a feedback loop and a node every 4 ticks: tick-by-tick execution, where the dispatch tier pays per tick
     path = REPO / "graphs" / "multirate_feedback.yaml"
     data = np.load(REPO / "graphs" / "data" / "accel_demo.npz")
