@@ -22,6 +22,7 @@ import contextlib
 import functools
 import hashlib
 import os
+import secrets
 import shutil
 import time
 from pathlib import Path
@@ -29,7 +30,8 @@ from pathlib import Path
 from .config import CACHE_ENV, cache_dir, contract_enabled
 from .errors import FlowtexError
 
-__all__ = ["CACHE_ENV", "cache_dir", "configure_numba_cache", "guard_numba_cache", "prune_numba_cache", "source_fingerprint"]
+__all__ = ["CACHE_ENV", "cache_dir", "configure_numba_cache", "guard_numba_cache", "prune_numba_cache", "source_fingerprint",
+           "write_cache_file"]
 
 KEEP_OLD = 3
 IN_USE_S = 3600.0
@@ -153,20 +155,31 @@ def guard_numba_cache() -> None:
     caching.Cache._flowtex_guarded = True
 
 
+def write_cache_file(path: str | Path, data: bytes) -> None:
+    """Replace the cache file ``path`` by ``data`` atomically: a temporary file beside it (created exclusively, mode
+    from the umask), renamed over it, and removed on any failure, so another process reading the entry sees the old
+    file or the new one, never half of one, and nothing is left behind. The cache's one writer (user outputs go
+    through :func:`flowtex.io.atomic.atomic_output`, which also guards inputs and special files). Raises OSError."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
+    try:
+        with open(tmp, "xb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
 def _digest(path: str) -> str:
     with open(path, "rb") as fh:
         return hashlib.sha256(fh.read()).hexdigest()
 
 
 def _seal(path: str) -> None:
-    tmp = f"{path}{SEAL_SUFFIX}.{os.getpid()}"
-    try:
-        with open(tmp, "w") as fh:
-            fh.write(_digest(path))
-        os.replace(tmp, path + SEAL_SUFFIX)
-    except OSError:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
+    with contextlib.suppress(OSError):
+        write_cache_file(path + SEAL_SUFFIX, _digest(path).encode())
 
 
 def _sealed(path: str) -> bool:

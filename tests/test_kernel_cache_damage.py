@@ -132,3 +132,20 @@ def test_the_command_line_says_it_in_one_line(tmp_path):
     lines = p.stderr.strip().splitlines()
     assert p.returncode == 1 and len(lines) == 1, p.stderr
     assert lines[0].startswith(f"FLOWTEX_CACHE_DIR={tmp_path / 'f'}: is a file"), p.stderr
+
+
+def test_the_cache_writer_leaves_the_old_file_and_no_temporary_on_failure(tmp_path, monkeypatch):
+    """flowtex.cache.write_cache_file, the one writer of seals, generated sources and filter designs: a rename that
+    fails (a full disk, Ctrl-C) leaves the previous entry as it was and no temporary file beside it."""
+    from flowtex.cache import write_cache_file
+
+    entry = tmp_path / "entry.seal"
+    write_cache_file(entry, b"old")
+
+    def refuse(src, dst):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "replace", refuse)
+    with pytest.raises(OSError):
+        write_cache_file(entry, b"new")
+    assert entry.read_bytes() == b"old" and sorted(p.name for p in tmp_path.iterdir()) == ["entry.seal"]

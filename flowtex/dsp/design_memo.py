@@ -6,7 +6,7 @@ scipy 1.17, ``import scipy.signal`` alone takes most of a second (it rewrites th
 docstring of each of its functions at import), more than the rest of a warm
 ``flowtex run``. :func:`remembered` keeps scipy's exact output in
 ``<cache>/designs/`` (the cache folder of :func:`flowtex.config.cache_dir`), one
-``.npz`` file per design, named by a hash of the design's name, its arguments and
+``.npz`` file per design (written by :func:`flowtex.cache.write_cache_file`), named by a hash of the design's name, its arguments and
 scipy's version, and holding that key beside the coefficients. A file that does
 not load, holds another key, or holds anything but a finite float64 array of the
 shape the caller expects is ignored and written again; a cache folder that cannot
@@ -17,16 +17,16 @@ computed, bit for bit, so outputs do not depend on whether the memo was warm.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
-import os
-import tempfile
+import io
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from ..config import cache_dir
+from ..cache import cache_dir, write_cache_file
 from ..errors import FlowtexError
 
 FOLDER = "designs"
@@ -60,19 +60,12 @@ def _load(path: Path, key: str, shape: tuple[int, ...]) -> np.ndarray | None:
 
 
 def _store(path: Path, key: str, coef: np.ndarray) -> None:
-    """Write atomically (a temporary file in the same folder, then a rename); give up quietly if the folder refuses."""
-    try:
+    """Write through the cache's atomic writer; give up quietly if the folder refuses."""
+    buf = io.BytesIO()
+    np.savez(buf, key=np.array(key), coef=coef)
+    with contextlib.suppress(OSError):
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".design.", suffix=".npz")
-        try:
-            with os.fdopen(fd, "wb") as out:
-                np.savez(out, key=np.array(key), coef=coef)
-            os.replace(tmp, path)
-        except BaseException:
-            os.unlink(tmp)
-            raise
-    except OSError:
-        pass
+        write_cache_file(path, buf.getvalue())
 
 
 def remembered(name: str, args: tuple, shape: tuple[int, ...], design: Callable[[], np.ndarray]) -> np.ndarray:

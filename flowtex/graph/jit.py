@@ -13,9 +13,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import inspect
-import os
 import sys
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
@@ -23,7 +21,7 @@ from typing import Any
 
 import numba
 
-from ..cache import cache_dir, source_fingerprint
+from ..cache import cache_dir, source_fingerprint, write_cache_file
 
 
 def kernel_fingerprint(kernel: Callable) -> str:
@@ -66,10 +64,7 @@ def import_source(path: Path, source: str, namespace: dict[str, Any], mod_name: 
     and import it as ``mod_name`` with ``namespace`` added to its globals."""
     path.parent.mkdir(parents=True, exist_ok=True)
     if not path.exists() or path.read_text() != source:
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-        with os.fdopen(fd, "w") as fh:
-            fh.write(source)
-        os.replace(tmp, path)
+        write_cache_file(path, source.encode())
     spec = importlib.util.spec_from_file_location(mod_name, path)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)

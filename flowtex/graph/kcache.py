@@ -25,6 +25,8 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TypeVar
 
+from ..cache import write_cache_file
+
 T = TypeVar("T")
 
 
@@ -94,7 +96,5 @@ def sealed_compile(stem: Path, cache_files: Callable[[], list[Path]], compile_: 
         result = compile_()
         now = seal_of(cache_files())
         if now:
-            tmp = seal_path.with_suffix(f".seal.{os.getpid()}")
-            tmp.write_text(json.dumps(now))
-            os.replace(tmp, seal_path)
+            write_cache_file(seal_path, json.dumps(now).encode())
     return result, rebuilt
