@@ -26,6 +26,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -33,6 +34,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -171,13 +173,26 @@ def g5_orders(path: Path) -> str:
     return f"{d['ar_order']}/{d['ma_order']}"
 
 
-def start_jackd(name: str, rate: int, period: int, realtime: bool = False) -> subprocess.Popen:
-    """A JACK server named ``name`` on the dummy backend (no sound hardware, paced in real time): without real-time
-    scheduling, as an unprivileged laptop runs it, or (``realtime``, the ``--rt`` rows) with it, as a machine that
-    grants flowtex SCHED_FIFO runs its sound server too (jackd's default; its clients' process threads get it)."""
+@contextlib.contextmanager
+def jack_server(name: str, rate: int, period: int, realtime: bool = False, busy: bool = False) -> Iterator[None]:
+    """A JACK server named ``name`` on the dummy backend (no sound hardware, paced in real time), given 1.5 s to
+    start, and (``busy``) one CPU-bound process beside it; both stopped on exit. jackd runs without real-time
+    scheduling, as an unprivileged laptop runs it, or (``realtime``) with it, as a machine that grants flowtex
+    SCHED_FIFO, or a laptop whose sound server rtkit makes real-time, runs it (jackd's default; its clients'
+    process threads get it)."""
     mode = "--realtime" if realtime else "--no-realtime"
-    return subprocess.Popen(["jackd", mode, "-n", name, "-d", "dummy", "-r", str(rate), "-p", str(period)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    jackd = subprocess.Popen(["jackd", mode, "-n", name, "-d", "dummy", "-r", str(rate), "-p", str(period)],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    hog = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if busy else None  # one core kept busy
+    try:
+        time.sleep(1.5)
+        yield
+    finally:
+        if hog is not None:
+            hog.kill()
+            hog.wait()
+        jackd.terminate()
+        jackd.wait(10)
 
 
 def example_map(folder: Path, rate: int, period: int, margin_ms: float, margin_max_ms: float | None = None) -> Path:
@@ -197,26 +212,17 @@ def jack_session(rate: int, period: int, seconds: float, margin_ms: float, most_
     ``server_rt``: jackd real-time (None: as ``rt``)."""
     name = f"flowtex-bench-{os.getpid()}-{rate}-{period}-{int(rt)}-{int(busy)}"
     env = {**os.environ, "JACK_DEFAULT_SERVER": name, "JACK_NO_START_SERVER": "1"}
-    jackd = start_jackd(name, rate, period, realtime=rt if server_rt is None else server_rt)
-    hog = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if busy else None  # one core kept busy
-    try:
-        time.sleep(1.5)
-        with tempfile.TemporaryDirectory() as tmp:
-            m = example_map(Path(tmp), rate, period, margin_ms, most_ms)
-            stats = Path(tmp) / "stats.json"
-            load = os.getloadavg()[0]
-            subprocess.run([sys.executable, "-m", "flowtex", "live", str(GRAPH), "--bus", "virtual", "--dbc", str(DBC), "--map", str(m),
-                            "--simulate", str(REC), "--duration", str(seconds), "--stats", str(stats), "--quiet",
-                            *(["--rt"] if rt else [])], env=env, check=True, timeout=600)
-            s = json.loads(stats.read_text())
-            s["load"] = (load + os.getloadavg()[0]) / 2
-            return s
-    finally:
-        if hog is not None:
-            hog.kill()
-            hog.wait()
-        jackd.terminate()
-        jackd.wait(10)
+    with jack_server(name, rate, period, realtime=rt if server_rt is None else server_rt, busy=busy), \
+            tempfile.TemporaryDirectory() as tmp:
+        m = example_map(Path(tmp), rate, period, margin_ms, most_ms)
+        stats = Path(tmp) / "stats.json"
+        load = os.getloadavg()[0]
+        subprocess.run([sys.executable, "-m", "flowtex", "live", str(GRAPH), "--bus", "virtual", "--dbc", str(DBC), "--map", str(m),
+                        "--simulate", str(REC), "--duration", str(seconds), "--stats", str(stats), "--quiet",
+                        *(["--rt"] if rt else [])], env=env, check=True, timeout=600)
+        s = json.loads(stats.read_text())
+        s["load"] = (load + os.getloadavg()[0]) / 2
+        return s
 
 
 LIVE_ROWS = [  # (rate, period, margin_ms, margin_max_ms, --rt, seconds)

@@ -25,7 +25,6 @@ import argparse
 import os
 import resource
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -36,7 +35,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "benchmarks"))
-from bench_audio import DBC, GRAPH, REC, example_map, start_jackd  # noqa: E402
+from bench_audio import DBC, GRAPH, REC, example_map, jack_server  # noqa: E402
 
 PHASES = ["wait", "sleep", "prepare", "receive", "compute", "send", "push", "check", "pace", "publish", "collect", "other"]
 P = {name: i for i, name in enumerate(PHASES)}
@@ -190,35 +189,26 @@ def main() -> None:
         sys.exit("jackd is not installed (apt-get install jackd2 libportaudio2)")
     name = f"flowtex-trace-{os.getpid()}"
     os.environ.update(JACK_DEFAULT_SERVER=name, JACK_NO_START_SERVER="1")
-    jackd = start_jackd(name, args.rate, args.period, realtime=args.rt)
-    hog = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if args.busy else None
     trace = Trace()
     install(trace)
     from flowtex.cli import main as cli
 
-    try:
-        time.sleep(1.5)
-        with tempfile.TemporaryDirectory() as tmp:
-            m = example_map(Path(tmp), args.rate, args.period, args.margin, args.margin_max)
-            stats = Path(tmp) / "stats.json"
-            load = os.getloadavg()[0]
-            try:
-                cli(["live", str(GRAPH), "--bus", "virtual", "--dbc", str(DBC), "--map", str(m), "--simulate", str(REC),
-                     "--duration", str(args.seconds), "--stats", str(stats), "--quiet", *(["--rt"] if args.rt else [])])
-            except SystemExit:
-                pass
-            import json
+    with jack_server(name, args.rate, args.period, realtime=args.rt, busy=args.busy), \
+            tempfile.TemporaryDirectory() as tmp:
+        m = example_map(Path(tmp), args.rate, args.period, args.margin, args.margin_max)
+        stats = Path(tmp) / "stats.json"
+        load = os.getloadavg()[0]
+        try:
+            cli(["live", str(GRAPH), "--bus", "virtual", "--dbc", str(DBC), "--map", str(m), "--simulate", str(REC),
+                 "--duration", str(args.seconds), "--stats", str(stats), "--quiet", *(["--rt"] if args.rt else [])])
+        except SystemExit:
+            pass
+        import json
 
-            s = json.loads(stats.read_text())
-            a = s["audio"]
-            print(f"load {load:.1f}->{os.getloadavg()[0]:.1f}; underruns {a['underruns']} ({a['late_callbacks']} + "
-                  f"{a['device_underflows']}), resyncs {a['resyncs']}, missed {s['missed']}, latency {a['latency_ms']}")
-    finally:
-        if hog is not None:
-            hog.kill()
-            hog.wait()
-        jackd.terminate()
-        jackd.wait(10)
+        s = json.loads(stats.read_text())
+        a = s["audio"]
+        print(f"load {load:.1f}->{os.getloadavg()[0]:.1f}; underruns {a['underruns']} ({a['late_callbacks']} + "
+              f"{a['device_underflows']}), resyncs {a['resyncs']}, missed {s['missed']}, latency {a['latency_ms']}")
     report(trace, args.late_ms)
     compiled_live(trace)
     if args.dump:
