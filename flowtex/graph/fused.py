@@ -23,6 +23,7 @@ from types import ModuleType
 from typing import Any
 
 import numpy as np
+from numba.core import types
 
 from .arena import Layout
 from .codegen import generate
@@ -30,8 +31,11 @@ from .jit import generated_digest, load_generated
 from .kcache import sealed_compile
 from .resolve import ResolvedGraph
 
-BLOCK_SIG = "(float64[::1], int64[::1], int64)"
-RUN_SIG = "(float64[::1], int64[::1], float64[::1], float64[::1])"
+F64, I64 = types.float64[::1], types.int64[::1]
+BLOCK_SIG = (F64, I64, types.int64)
+"""``block(f, i, n)``'s argument types. A tuple of types, not a string: numba keys its disk cache by the signature as
+given, and ``step`` compiling ``block`` as its callee asks for these types, so both find one cache entry."""
+RUN_SIG = (F64, I64, F64, F64)
 
 
 ENTRY_POINTS = ("run", "block", "step")
@@ -91,8 +95,7 @@ class FusedPlan:
                 kernels[f"k{idx}_emit"] = rn.cls.get_kernel("emit_kernel")
                 kernels[f"k{idx}_absorb"] = rn.cls.get_kernel("absorb_kernel")
         self.kernels = kernels
-        self.signatures = {"block": BLOCK_SIG, "run": RUN_SIG,
-                           "step": "(float64[::1], int64[::1]" + ", float64" * len(step_in) + ")"}
+        self.signatures = {"block": BLOCK_SIG, "run": RUN_SIG, "step": (F64, I64) + (types.float64,) * len(step_in)}
         self.source = generate(rg, layout.nodes, names, [layout.graph_inputs[n] for n in step_in],
                                [layout.graph_outputs[n] for n in step_out])
         self.versions = ";".join(f"{rn.cls.type_name}@{rn.cls.version}" for rn in rg.nodes.values())
