@@ -3,9 +3,10 @@
 ``block(f, i, n)`` advances the graph by ``n`` ticks (``1 <= n <= block
 rows``); ``step(f, i, x0, ...)`` is one tick from Python; ``run(f, i, X, Y)``
 loops over a whole recording inside numba, block by block, copying graph
-inputs from ``X`` and outputs to ``Y``. ``run`` holds ``block``'s body itself
-(generated once, emitted twice) rather than calling it, so an offline run
-compiles one function and live code compiles ``block`` alone.
+inputs from ``X`` and outputs to ``Y``. ``run`` and ``step`` hold ``block``'s
+body themselves (generated once, emitted three times) rather than calling it,
+so an offline run compiles ``run`` alone, ``step()`` ``step`` alone and live
+code ``block`` alone.
 
 Acyclic graphs run node by node over the block (each kernel loops over its
 rows, keeping its state in registers). Graphs with a feedback loop run tick
@@ -53,14 +54,14 @@ def generate(rg: ResolvedGraph, slots: dict[str, NodeSlots], kernel_names: dict[
     body = block_body(rg, slots, kernel_names)
     lines = [HEADER_SOURCE.format(name=rg.spec.name), "", "@njit(cache=True, nogil=True)", "def block(f, i, n):"]
     lines += ["    " + line for line in body]
-    lines += ["", "", _step_source(step_inputs, step_outputs), "", run_source(body)]
+    lines += ["", "", _step_source(step_inputs, step_outputs, body), "", run_source(body)]
     return "\n".join(lines)
 
 
 def block_body(rg: ResolvedGraph, slots: dict[str, NodeSlots], kernel_names: dict[str, str]) -> list[str]:
     """Lines (unindented) that advance the graph by ``n`` ticks on the arenas ``f`` and ``i``: ``block``'s body.
 
-    ``run`` gets the same lines in place of a call to ``block``, so an offline run compiles one function: numba
+    ``run`` and ``step`` get the same lines in place of a call to ``block``, so each use compiles one function: numba
     compiles a callee separately and then optimizes the callee's code again inside the caller's module.
     """
     lines = [f"t0 = i[{TICK}]", "fb = f.ctypes.data", "ib = i.ctypes.data"]
@@ -112,16 +113,17 @@ def _guard_every(every: int, ns: NodeSlots, call: str, indent: str, tick: str, r
     return out
 
 
-def _step_source(inputs: list[PortSlot], outputs: list[PortSlot]) -> str:
+def _step_source(inputs: list[PortSlot], outputs: list[PortSlot], body: list[str]) -> str:
     """``step(f, i, x0, x1, ...)``: one tick from Python with scalar inputs as arguments
     and scalar outputs returned as a tuple (cheaper than item access from Python).
 
-    It calls ``block`` with ``np.int64(1)``, not the literal ``1``: numba would compile a second ``block`` specialised
-    for ``Literal[int](1)``, the largest function of the module (every kernel inlined), for no measurable gain per call."""
+    It holds ``block``'s ``body`` for ``n = np.int64(1)`` rather than calling ``block``: a call would link ``block``'s
+    code into ``step``'s module and optimize it again there, so ``step()`` would compile the graph twice."""
     args = "".join(f", x{k}" for k in range(len(inputs)))
     lines = ["@njit(cache=True, nogil=True)", f"def step(f, i{args}):"]
     lines += [f"    f[i[{slot.offset_index}]] = x{k}" for k, slot in enumerate(inputs)]
-    lines.append("    block(f, i, np.int64(1))")
+    lines.append("    n = np.int64(1)")
+    lines += ["    " + line for line in body]
     values = [f"f[i[{slot.offset_index}]]" for slot in outputs] or ["0.0"]
     lines.append(f"    return ({', '.join(values)},)")
     return "\n".join(lines) + "\n"

@@ -4,7 +4,7 @@ The fastest tick, but each new structure costs a numba compile (seconds).
 :class:`FusedPlan` computes the generated source and its cache key without
 compiling; :meth:`FusedPlan.compile` gives a :class:`Compiled` whose entry
 points each load or compile on first use (an offline run compiles ``run``
-only; live code ``block``; ``step()`` from Python ``step`` and ``block``). Like the dispatch
+only; live code ``block``; ``step()`` from Python ``step``). Like the dispatch
 backend (:mod:`flowtex.graph.dispatch`) it compiles in this process and starts
 none: which backend runs, and any background job, is the compile service's
 choice (:mod:`flowtex.compile.service`, docs/engine.md).
@@ -34,7 +34,7 @@ from .resolve import ResolvedGraph
 F64, I64 = types.float64[::1], types.int64[::1]
 BLOCK_SIG = (F64, I64, types.int64)
 """``block(f, i, n)``'s argument types. A tuple of types, not a string: numba keys its disk cache by the signature as
-given, and ``step`` compiling ``block`` as its callee asks for these types, so both find one cache entry."""
+given, and code calling ``block`` (the live tick) asks for these types, so both find one cache entry."""
 RUN_SIG = (F64, I64, F64, F64)
 
 
@@ -132,10 +132,7 @@ class FusedPlan:
         return Compiled("fused", ints, self.source, load, rebuilt)
 
     def _compile(self, module: ModuleType, name: str, rebuilt: list[str]) -> None:
-        """Load or compile ``module``'s function ``name`` under the entry's lock, then seal all of the module's files.
-
-        Compiling ``step`` compiles (or loads) ``block`` too, its callee: the seal, written after, covers both.
-        """
+        """Load or compile ``module``'s function ``name`` under the entry's lock, then seal all of the module's files."""
         base = Path(module.block._cache._cache_path)
 
         def files() -> list[Path]:
