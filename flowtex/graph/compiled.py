@@ -25,7 +25,7 @@ from ..nodecheck import check_plugin_kernels
 from ..registry import Registry, load_registry
 from .arena import FAULT, OUT_WIDTH, TICK, Layout, plan_layout
 from .faults import dispatch_fault, raised_fault
-from .fused import ENTRY_POINTS, FusedPlan, entry
+from .fused import ENTRY_POINTS, EntryCompileError, FusedPlan, entry, lazy_entry
 from .resolve import ResolvedGraph, resolve_graph
 from .spec import GraphSpec, load_spec
 
@@ -69,11 +69,11 @@ class Graph:
                                and resolved.input_specs[name].shape == ()}
         self._scalar_in = frozenset(self._in_scalar_off)
         self._scratch: tuple[np.ndarray, np.ndarray] | None = None
-        # step() and step_block() start as stand-ins that compile their entry point, then put the fast version in place
-        # (step: the function generated for this graph's ports, one call layer less).
-        self._py_step: Callable[[Mapping[str, Any] | None], dict[str, Any]] = self._first_step
-        self.step = self._first_step  # type: ignore[method-assign]
-        self.step_block = self._first_step_block  # type: ignore[method-assign]
+        # The compiled step and block entry points start as stand-ins that compile on the first call and put the entry
+        # point in their place: calling them skips numba's per-call type dispatch (the arena arrays never change type).
+        self._block_entry: Callable[..., Any] = lazy_entry(lambda: entry(code.get("block")), self._set_block_entry)
+        self._py_step = self._make_py_step()
+        self.step = self._py_step  # type: ignore[method-assign]  # the generated function, one call layer less
         self.seed = self.spec.seed
         self.reset()
 
@@ -161,6 +161,8 @@ class Graph:
 
     def _kernel_raised(self, exc: Exception) -> None:
         """Raise the :class:`~flowtex.graph.faults.KernelError` for ``exc``; reset first (the state is spoilt)."""
+        if isinstance(exc, EntryCompileError):  # not a kernel's: the entry point's first compile failed
+            raise exc.__cause__ from None  # type: ignore[misc]
         error = raised_fault(self.resolved, exc, self.i)
         self.reset()
         raise error from None
@@ -198,17 +200,8 @@ class Graph:
             self._code.get(name)
         return self
 
-    def _first_step(self, values: Mapping[str, Any] | None = None) -> dict[str, Any]:
-        """``step()`` before its first use: compile ``step``, put the generated step function in place, run it."""
-        self._py_step = self._make_py_step()
-        self.step = self._py_step  # type: ignore[method-assign]
-        return self._py_step(values)
-
-    def _first_step_block(self, n: int = 1) -> None:
-        """``step_block()`` before its first use: compile ``block``, then :meth:`Graph.step_block` (no check per tick)."""
-        self._block_entry = entry(self._code.get("block"))
-        self.__dict__.pop("step_block", None)
-        Graph.step_block(self, n)
+    def _set_block_entry(self, fn: Callable[..., Any]) -> None:
+        self._block_entry = fn
 
     def _make_py_step(self) -> Callable[[Mapping[str, Any] | None], dict[str, Any]]:
         """Generate a Python step function specialised to this graph's inputs and outputs.
@@ -247,11 +240,12 @@ class Graph:
         items += [f"{name!r}: OUT_VIEWS[{name!r}].reshape({self.resolved.output_specs[name].shape!r}).copy()"
                   for name in self._vector_out]
         lines.append("    return {" + ", ".join(items) + "}")
-        namespace = {"EMPTY": {}, "MISSING": object(), "f": self.f, "i": self.i, "np": np, "STEP": self._code.get("step"),
+        namespace: dict[str, Any] = {"EMPTY": {}, "MISSING": object(), "f": self.f, "i": self.i, "np": np,
                      "bad_scalar": self._bad_scalar, "bad_vector": self._bad_vector,
                      "IN_VIEWS": self._in_views, "OUT_VIEWS": self._out_views, "KNOWN": frozenset(self._in_views),
                      "unknown_input": self._unknown_input, "kernel_raised": self._kernel_raised,
                      "check_fault": self._check_fault}
+        namespace["STEP"] = lazy_entry(lambda: self._code.get("step"), lambda fn: namespace.__setitem__("STEP", fn))
         exec("\n".join(lines), namespace)  # generated from port names validated as identifiers
         return namespace["py_step"]
 
@@ -331,10 +325,7 @@ class Graph:
         return self._out_views[name]
 
     def step_block(self, n: int = 1) -> None:
-        """Advance ``n`` ticks using whatever is in the input views (no Python mapping).
-
-        (Until its first call, each instance has a stand-in that compiles ``block`` first.)
-        """
+        """Advance ``n`` ticks using whatever is in the input views (no Python mapping); the first call compiles ``block``."""
         try:
             self._block_entry(self.f, self.i, n)
         except Exception as exc:  # fused tier: the kernel's exception (costs nothing when none is raised)

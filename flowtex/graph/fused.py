@@ -80,6 +80,28 @@ def entry(fn: Any) -> Callable[..., Any]:
     return fn.overloads[fn.signatures[0]].entry_point
 
 
+class EntryCompileError(Exception):
+    """Raised by a :func:`lazy_entry` stand-in when its entry point fails to compile; its ``__cause__`` is the error.
+
+    The stand-in is called where a kernel's exception is expected and reported as the node's fault: this class keeps a
+    compile error from being reported as one."""
+
+
+def lazy_entry(compile_: Callable[[], Callable[..., Any]], install: Callable[[Callable[..., Any]], None]) -> Callable[..., Any]:
+    """A stand-in for a compiled entry point: its first call runs ``compile_()``, hands the result to ``install`` (which
+    puts it where the stand-in was, so later calls cost nothing extra) and calls it."""
+
+    def first_call(*args: Any) -> Any:
+        try:
+            fn = compile_()
+        except Exception as exc:
+            raise EntryCompileError(str(exc)) from exc
+        install(fn)
+        return fn(*args)
+
+    return first_call
+
+
 class FusedPlan:
     """The fused tier's generated source and cache key, computed without compiling anything."""
 
