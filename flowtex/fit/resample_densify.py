@@ -9,7 +9,8 @@ resampled) on the :data:`CHECK_PATHS`; while the worst exceeds :data:`PATH_MARGI
 sets' rendered models at every edge midpoint and triangle centroid, splits the edges where the LSD there
 exceeds :data:`POINT_MARGIN_DB` (all three edges of a triangle whose centroid does), resamples the models
 added (the fits already made are reused) and measures again, at most
-:data:`flowtex.models.densify.MAX_LEVELS` times, keeping the level whose worst path LSD is lowest. A set that
+:data:`flowtex.models.densify.MAX_LEVELS` times and only while a level lowers the worst path LSD, keeping the
+level whose worst path LSD is lowest. A set that
 already agrees along the paths gains no model.
 
 Why paths and not points: at single points between the models a resampled set is up to a few dB off
@@ -111,7 +112,7 @@ def resample_densified(ms: TextureModelSet, rate_hz: float, densify: int | str =
 
     dense, out = ms, resample(ms, cache)
     levels = [(worst_path(out), dense, out)]
-    while levels[-1][0] > margin_db and len(levels) <= MAX_LEVELS:
+    while levels[-1][0] > margin_db and len(levels) <= MAX_LEVELS and (len(levels) == 1 or levels[-1][0] < levels[-2][0]):
         finer = split_edges(dense, _edges_to_split(dense, out, point_margin_db))
         if finer.num_models == dense.num_models:  # nothing left to split (only edges to silent models were marked)
             break
