@@ -9,8 +9,9 @@ resampled) on the :data:`CHECK_PATHS`; while the worst exceeds :data:`PATH_MARGI
 sets' rendered models at every edge midpoint and triangle centroid, splits the edges where the LSD there
 exceeds :data:`POINT_MARGIN_DB` (all three edges of a triangle whose centroid does), resamples the models
 added (the fits already made are reused) and measures again, at most
-:data:`flowtex.models.densify.MAX_LEVELS` times and only while a level lowers the worst path LSD, keeping the
-level whose worst path LSD is lowest. A set that
+:data:`flowtex.models.densify.MAX_LEVELS` times and up to :data:`MAX_GROWTH` times the set's models, keeping
+the level whose worst path LSD is lowest (a level can be worse and the next better: a midpoint model can be
+harder to resample than its ends). A set that
 already agrees along the paths gains no model.
 
 Why paths and not points: at single points between the models a resampled set is up to a few dB off
@@ -45,6 +46,11 @@ CHECK_PATHS = (((7.3, 11.1), 1.0), ((3.1, 4.7), 0.3), ((13.3, 2.9), 2.0))
 """(cycles, phase) of the Lissajous figures (flowtex.fit.quality.lissajous_path, 5-95 % of the speed and force
 range) along which ``auto`` measures: the first is the one docs/fitting.md quotes, the others cross the set at
 other angles."""
+
+MAX_GROWTH = 8
+"""``auto`` refines no further than this many times the set's own models: it bounds the time (every added model
+is fitted) on sets whose neighbouring models are unrelated, where each level gains little; HaTT's sets need at
+most about 6x (docs/fitting.md)."""
 
 AUTO = "auto"
 """The ``densify`` value that refines adaptively."""
@@ -112,9 +118,11 @@ def resample_densified(ms: TextureModelSet, rate_hz: float, densify: int | str =
 
     dense, out = ms, resample(ms, cache)
     levels = [(worst_path(out), dense, out)]
-    while levels[-1][0] > margin_db and len(levels) <= MAX_LEVELS and (len(levels) == 1 or levels[-1][0] < levels[-2][0]):
+    while levels[-1][0] > margin_db and len(levels) <= MAX_LEVELS:
         finer = split_edges(dense, _edges_to_split(dense, out, point_margin_db))
         if finer.num_models == dense.num_models:  # nothing left to split (only edges to silent models were marked)
+            break
+        if finer.num_models > MAX_GROWTH * ms.num_models:  # bounded time: unrelated neighbours gain little per level
             break
         dense = finer
         out = resample(dense, cache)
