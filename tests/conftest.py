@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import subprocess
 import textwrap
 from pathlib import Path
 
@@ -86,6 +87,23 @@ def write_graph(tmp_path):
         return path
 
     return _write
+
+
+@pytest.fixture
+def flowtex_cli(capsys):
+    """Run ``flowtex ARGS...`` in this process (:func:`flowtex.cli.main`); its exit code, stdout and stderr, as
+    :func:`subprocess.run` gives them. For tests about what a verb does: a fresh interpreter costs a second of CPU
+    (imports, kernels loaded from the cache) that the test does not look at. Tests about the process itself (signals,
+    the interpreter's exit code, a fresh cache, installs) start a real one."""
+    from flowtex.cli import main
+
+    def run(*args: object) -> subprocess.CompletedProcess:
+        capsys.readouterr()
+        code = main([str(a) for a in args])
+        out = capsys.readouterr()
+        return subprocess.CompletedProcess(["flowtex", *map(str, args)], code, out.out, out.err)
+
+    return run
 
 
 HATT_ENV = "FLOWTEX_HATT_DIR"

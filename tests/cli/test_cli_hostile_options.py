@@ -16,12 +16,12 @@ from flowtex.datasets.model_sets import synthetic_model_set
 from flowtex.io.canlog import SessionWriter
 from flowtex.io.modelset import save_model_set
 from flowtex.io.recordings import save_recording
+from tests.cli.gain_graph import MAP_GRAPH
 from tests.conftest import REPO
 from tests.io.test_hostile_files import npy_header
 
 DBC = REPO / "graphs" / "devices" / "example.dbc"
 MAP = REPO / "graphs" / "devices" / "example_map.yaml"
-LIVE_GRAPH = REPO / "graphs" / "live_texture.yaml"
 
 
 def cli_one_line(capsys, argv: list[str], match: str) -> str:
@@ -139,9 +139,11 @@ def test_replays_of_nothing_are_refused(tmp_path, capsys):
     (tmp_path / "empty.log").write_text("")
     (tmp_path / "garbage.log").write_bytes(b"\x00\xffnot a candump line\n" * 50)
     (tmp_path / "long.log").write_text("(1.0) vcan0 " + "A" * (5 << 20) + "\n")
+    graph = tmp_path / "g.yaml"  # the inputs are the point, not the graph: the smallest one the map binds
+    graph.write_text(MAP_GRAPH)
     for name in ("empty.blf", "unknown.blf", "empty.log", "garbage.log", "long.log"):
         out = tmp_path / f"{name}.npz"
-        msg = cli_one_line(capsys, ["run", str(LIVE_GRAPH), "--input", str(tmp_path / name), "--dbc", str(DBC), "--map", str(MAP),
+        msg = cli_one_line(capsys, ["run", str(graph), "--input", str(tmp_path / name), "--dbc", str(DBC), "--map", str(MAP),
                                     "-o", str(out), "--no-plugins"], f"{tmp_path / name}: ")
         assert "nothing to replay" in msg or "malformed" in msg, msg
         assert not out.exists()
