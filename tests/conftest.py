@@ -11,6 +11,7 @@ import pytest
 from hypothesis import settings
 
 REPO = Path(__file__).resolve().parents[1]
+pytest_plugins = ["pytester"]  # runs pytest inside a test (tests/test_golden_portability.py: what a golden failure prints)
 
 os.environ.setdefault("FLOWTEX_BACKGROUND", "0")  # no background fused compiles (docs/engine.md) competing with the tests
 # The suite runs on the dispatch tier: a structure costs no numba compile once its node types are cached, and both tiers
