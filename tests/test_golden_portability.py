@@ -135,7 +135,7 @@ def test_exact_mode_and_numpy_style_tolerances():
     assert compare_outputs(a, e, atol=1e-13, rms_rtol=0.0)
 
 
-def test_a_golden_mismatch_shows_its_message_not_a_long_traceback(pytester):
+def test_a_golden_mismatch_shows_its_message_not_a_long_traceback(pytester, monkeypatch):
     """What pytest prints for a failing golden test (issue 9): the message, in a few lines. The inner pytest runs in
     this process (pytester): its report is the point, and it loads flowtex's plugin from its entry point as a process
     of its own would."""
@@ -145,6 +145,7 @@ def test_a_golden_mismatch_shows_its_message_not_a_long_traceback(pytester):
     np.savez(golden, **tampered)
     test = pytester.path / "test_user_graph.py"
     test.write_text(f"def test_graph(golden):\n    golden.check({str(ACCEL[0])!r}, {str(ACCEL[1])!r}, {str(golden)!r})\n")
+    monkeypatch.delenv("PYTEST_XDIST_WORKER", raising=False)  # a user's plain pytest run, not an xdist worker's
     run = pytester.runpytest_inprocess("-q", "-p", "no:cacheprovider", str(test))
     stdout = run.stdout.str()
     assert run.ret == 1, stdout
