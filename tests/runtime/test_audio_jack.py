@@ -109,8 +109,12 @@ def _port_events(env: dict):
         assert select.select([proc.stdout], [], [], 20)[0] and os.read(proc.stdout.fileno(), 65536), "jack_evmon did not start"
         yield _PortEvents(proc)
     finally:
-        proc.kill()  # it outlives a server that is gone
-        proc.wait(10)
+        proc.terminate()  # it closes its JACK client and exits (SIGKILL would leave the server a dead client to drop)
+        try:
+            proc.wait(5)
+        except subprocess.TimeoutExpired:  # its server is gone: closing the client hangs
+            proc.kill()
+            proc.wait()
         proc.stdout.close()
 
 
