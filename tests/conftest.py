@@ -93,8 +93,8 @@ def write_graph(tmp_path):
 @pytest.fixture
 def flowtex_cli(capsys):
     """Run ``flowtex ARGS...`` in this process (:func:`flowtex.cli.main`); its exit code, stdout and stderr, as
-    :func:`subprocess.run` gives them. For tests about what a verb does: a fresh interpreter costs a second of CPU
-    (imports, kernels loaded from the cache) that the test does not look at. Tests about the process itself (signals,
+    :func:`subprocess.run` gives them. For tests about what a verb does: a fresh interpreter costs CPU (imports,
+    kernels loaded from the cache; docs/testing.md) that the test does not look at. Tests about the process itself (signals,
     the interpreter's exit code, a fresh cache, installs) start a real one."""
     from flowtex.cli import main
 

@@ -63,7 +63,7 @@ def test_installed_package_lists_its_node_and_its_tests_pass(tmp_path):
     assert main(["plugin", "new", "soft_gain", "-o", str(pkg)]) == 0
     venv = tmp_path / "venv"
     # --without-pip: the venv runs this interpreter's pip (a system site package) and pip installs into the venv that
-    # runs it; copying pip into the venv (ensurepip) would cost 3 s of CPU and is not what is tested
+    # runs it; copying pip into the venv (ensurepip) costs CPU (docs/testing.md) and is not what is tested
     subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", "--without-pip", str(venv)], check=True,
                    timeout=STEP_TIMEOUT_S)
     python = str(venv / "bin" / "python")

@@ -83,7 +83,8 @@ def _ports(env: dict) -> set[str]:
 
 class _PortEvents:
     """``jack_evmon``'s event lines: wakes the wait for a client's port at its registration, instead of polling
-    ``jack_lsp`` (a JACK client of its own, ~30 ms of CPU with jackd's share) a hundred times while flowtex starts."""
+    ``jack_lsp`` (a JACK client of its own, and work for jackd: docs/testing.md) every few milliseconds while flowtex
+    starts."""
 
     POLL_S = 0.5
     """Longest wait for an event (a port registered before the monitor saw it is found by the next poll)."""
