@@ -1,8 +1,8 @@
 """Pieces pooled with their neighbours in (speed, force): the data each model of a free-exploration fit is fitted on.
 
-Why: a piece of free exploration is some 0.35 s long, and real surfaces
-wander in loudness from second to second by a few dB at the same speed and
-force (issue 23), so a model fitted on one piece carries that piece's
+Why: a piece of free exploration is a fraction of a second long, and real
+surfaces wander in loudness from second to second at the same speed and
+force, so a model fitted on one piece carries that piece's
 loudness and its noise: fitted piece by piece, neighbouring models differ in
 level by several dB where the surface does not, and the interpolated render
 jumps between them. Each model is therefore fitted on its own piece together
@@ -17,6 +17,11 @@ not have (docs/fitting.md, "Pooling neighbouring pieces"). Fitting on the
 pooled samples averages the spectra in power, as the recording does: loud
 pieces weigh as much as their energy, the noise floor stays where it is, and
 the level is an arithmetic mean of powers (no log-mean bias).
+
+A group's mean power belongs to the group's centre, not to the piece it
+models (at the edge of the explored range every neighbour lies inward):
+:func:`trend_factors` moves it to the piece's own point along the pieces'
+power law in speed and force.
 
 The pooled pieces are joined end to end for the ARMA estimator. The recording
 was high-passed whole before it was cut, so a joint makes no filter

@@ -29,9 +29,10 @@ Pipeline of :func:`fit_texture` (units: acceleration m/s^2, speed mm/s, force N)
    property of the material, and a minute of exploration has some 40 pieces
    whose full search would cost 6 refined fits each - else ``(p, q)``.
    A free exploration's model of a piece is fitted on that piece pooled with
-   its ``pool_pieces`` - 1 nearest neighbours in (speed, force)
-   (flowtex.fit.pooling: a 0.35 s piece carries its second's wandering
-   loudness); a grid's cells are long and stationary and are fitted alone;
+   its ``pool_pieces`` - 1 nearest neighbours in (speed, force), its level
+   moved to its own point along the pieces' power law (flowtex.fit.pooling:
+   a short piece carries its second's wandering loudness); a grid's cells
+   are long and stationary and are fitted alone;
 5. the set (:func:`assemble_set`): the measured models, silent corner models
    (variance 0) at speed 0 and force 0 copying their nearest measured model
    (HaTT, Romano & Kuchenbecker 2012), a Delaunay triangulation over (speed, force) and the set's
