@@ -38,7 +38,12 @@ import numpy as np
 
 def neighbour_groups(speeds: Sequence[float], forces: Sequence[float], count: int) -> list[np.ndarray]:
     """For each point (speed mm/s, force N), the indices of the ``count`` points nearest to it (itself first),
-    in (ln speed, ln force) scaled by the points' standard deviation on each axis. ``count`` <= 1: each alone."""
+    in (ln speed, ln force) scaled by the points' standard deviation on each axis. ``count`` <= 1: each alone.
+
+    A KD-tree (scipy.spatial.cKDTree): memory and time grow as n log n with the number of pieces, not n^2.
+    """
+    from scipy.spatial import cKDTree
+
     n = len(speeds)
     k = max(1, min(int(count), n))
     if k == 1:
@@ -46,9 +51,14 @@ def neighbour_groups(speeds: Sequence[float], forces: Sequence[float], count: in
     x = np.log(np.column_stack([np.asarray(speeds, float), np.asarray(forces, float)]))
     spread = x.std(axis=0)
     x = x[:, spread > 1e-12] / spread[spread > 1e-12]
-    d2 = np.sum((x[:, None, :] - x[None, :, :]) ** 2, axis=2)
-    d2[np.arange(n), np.arange(n)] = -1.0                  # itself first, even beside a duplicate point
-    return [np.argsort(row, kind="stable")[:k] for row in d2]
+    if x.shape[1] == 0:                                    # every piece at one point: all equally near
+        x = np.zeros((n, 1))
+    _dist, idx = cKDTree(x).query(x, k=k)
+    out = []
+    for i, row in enumerate(np.asarray(idx).reshape(n, k)):
+        rest = [int(j) for j in row if j != i][:k - 1]     # itself first, even beside a duplicate point
+        out.append(np.array([i, *rest]))
+    return out
 
 
 def pooled_data(data: Sequence[np.ndarray], group: np.ndarray) -> np.ndarray:

@@ -54,6 +54,11 @@ def test_groups_are_the_nearest_pieces_itself_first(pts, k):
         np.testing.assert_allclose(np.sort(d[g]), np.sort(np.atleast_1d(ref)), atol=1e-9)
 
 
+def test_pieces_all_at_one_point_pool_with_as_many_others():
+    groups = neighbour_groups([100.0] * 4, [1.0] * 4, 3)
+    assert all(g[0] == i and len(set(g.tolist())) == 3 for i, g in enumerate(groups))
+
+
 def test_an_axis_that_does_not_vary_is_left_out():
     speeds = [100.0, 110.0, 200.0, 400.0]
     groups = neighbour_groups(speeds, [1.0] * 4, 2)
@@ -121,6 +126,7 @@ def test_cli_pool_option_is_recorded(tmp_path, seed1, capsys):
     alone = json.loads((tmp_path / "alone.json").read_text())
     assert default["metadata"]["pool_pieces"] == POOL_PIECES and alone["metadata"]["pool_pieces"] == 1
     assert default["models"] != alone["models"]
-    assert main([*common, "--pool", "0", "-o", str(tmp_path / "bad.json")]) != 0
-    assert "--pool" in capsys.readouterr().err
-    assert not (tmp_path / "bad.json").exists()
+    for bad in ("0", "21"):                     # 1..20: each model's data, and so the fit's time, stay bounded
+        assert main([*common, "--pool", bad, "-o", str(tmp_path / "bad.json")]) != 0
+        assert "--pool" in capsys.readouterr().err
+        assert not (tmp_path / "bad.json").exists()
