@@ -52,6 +52,7 @@ from ..dsp.filter_design import zero_phase_highpass
 from ..dsp.lsf import poly_to_lsf
 from ..dsp.robust import clamp_outliers
 from ..dsp.segment import segment
+from ..dsp.spectral import gfc_data_model
 from ..errors import DataError
 from ..io.modelset import delaunay_triangles
 from ..models.rendering import FITTED_RULE
@@ -193,11 +194,13 @@ def fit_pieces(x: np.ndarray, pieces: Sequence[Piece], rate: float, opt: Texture
         fits = [fit_arma(pooled_data(data, g), order) for g in groups]
     except DataError as exc:
         raise DataError(f"{where}: {exc}") from None
-    own = [float(np.var(d)) for d in data]
-    factors = (trend_factors([pc.speed for pc in pieces], [pc.force for pc in pieces], own, [d.shape[0] for d in data], groups)
-               if pool > 1 else np.ones(len(pieces)))
-    # power_error then says how far pooling moved each model from its own piece's power
-    fits = [replace(f, variance=f.variance * k, data_variance=v) for f, k, v in zip(fits, factors, own, strict=True)]
+    if pool > 1:
+        # each group's level moved to its own piece's point; the table's GFC and power error then describe each model
+        # against its own piece (the power error: how far pooling moved its level)
+        own = [float(np.var(d)) for d in data]
+        factors = trend_factors([pc.speed for pc in pieces], [pc.force for pc in pieces], own, [d.shape[0] for d in data], groups)
+        fits = [replace(f, variance=f.variance * k, data_variance=v, gfc=gfc_data_model(d - np.mean(d), f.ar, f.ma))
+                for f, k, v, d in zip(fits, factors, own, data, strict=True)]
     for pc, d, f in zip(pieces, data, fits, strict=True):
         pc.fit = f
         pc.lsd_db = f.lsd_db(d, rate, min(256, d.shape[0]))

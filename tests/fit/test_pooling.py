@@ -121,7 +121,9 @@ def test_cli_pool_option_is_recorded(tmp_path, seed1, capsys):
     save_recording(rec, seed1.arrays, RATE)
     common = ["fit", "texture", str(rec), "--speed", "speed", "--order", "4,2"]
     assert main([*common, "-o", str(tmp_path / "default.json")]) == 0
+    assert f"the {POOL_PIECES - 1} nearest, --pool {POOL_PIECES})" in capsys.readouterr().out     # stated in the output
     assert main([*common, "--pool", "1", "-o", str(tmp_path / "alone.json")]) == 0
+    assert "--pool" not in capsys.readouterr().out
     default = json.loads((tmp_path / "default.json").read_text())
     alone = json.loads((tmp_path / "alone.json").read_text())
     assert default["metadata"]["pool_pieces"] == POOL_PIECES and alone["metadata"]["pool_pieces"] == 1
