@@ -61,7 +61,8 @@ def test_installed_entry_points_load_on_first_use(tmp_path):
     (broken / "flowtex_broken_node" / "__init__.py").write_text("")
     (broken / "flowtex_broken_node" / "node.py").write_text("raise RuntimeError('the lab forgot a file')\n")
     venv = tmp_path / "venv"
-    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True, timeout=STEP_TIMEOUT_S)
+    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", "--without-pip", str(venv)], check=True,
+                   timeout=STEP_TIMEOUT_S)  # this interpreter's pip installs into the venv that runs it
     python = str(venv / "bin" / "python")
     for pkg in (tmp_path / "good", broken):
         install = subprocess.run([python, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation", "--no-index",
