@@ -101,9 +101,23 @@ def resample_densified(ms: TextureModelSet, rate_hz: float, densify: int | str =
     (carried into the resampled set) records the mode, the margins, the level kept and the levels tried, the
     models before and added, and the worst check-path LSD before (``path_lsd_db_before``) and after.
     """
+    done_before = [0]  # fits of the earlier passes: one progress count over every pass
+
+    def step(done: int, total: int) -> None:
+        if progress is not None:
+            progress(done_before[0] + done, done_before[0] + total)
+
     def resample(s: TextureModelSet, cache: FitCache | None = None) -> TextureModelSet:
-        return resample_model_set(s, rate_hz, progress, keep_order=keep_order, extra_order=extra_order, option=option,
-                                  cache=cache)
+        fits = [0]
+
+        def count(done: int, total: int) -> None:
+            fits[0] = done
+            step(done, total)
+
+        out = resample_model_set(s, rate_hz, count, keep_order=keep_order, extra_order=extra_order, option=option,
+                                 cache=cache)
+        done_before[0] += fits[0]
+        return out
 
     if densify != AUTO:
         if not (isinstance(densify, int) and 0 <= densify <= MAX_LEVELS):

@@ -135,6 +135,14 @@ def test_default_resample_follows_its_original_along_paths(tmp_path, capsys):
     assert info["path_lsd_db"] <= PATH_MARGIN_DB < info["path_lsd_db_before"]
 
 
+def test_auto_counts_progress_over_every_pass():
+    calls = []
+    dense, _ = resample_densified(_coarse(), 500.0, progress=lambda done, total: calls.append((done, total)))
+    assert dense.metadata["densify"]["levels"] >= 1                          # more than one pass was made
+    assert [d for d, _ in calls] == list(range(1, len(calls) + 1))           # one count, never restarting
+    assert all(d <= t for d, t in calls)
+
+
 def test_auto_adds_nothing_to_a_set_that_already_agrees():
     ms = synthetic_model_set(np.array([60.0, 150.0, 240.0]), np.array([0.5, 1.5, 2.5]), ar_order=12, ma_order=10)
     dense, out = resample_densified(ms, 500.0)
