@@ -14,10 +14,11 @@ the level whose worst path LSD is lowest (a level can be worse and the next bett
 harder to resample than its ends). A set that
 already agrees along the paths gains no model.
 
-Why paths and not points: at single points between the models a resampled set is up to a few dB off
-(docs/fitting.md has the figures), and splitting does not bring every point within 0.5 dB at any level
-(HaTT sets still 2-3 dB at a few points after three levels, with 15-30x the models); what a render
-shows, and what the target is about, is the spectrum along a path, where those errors average out.
+Why paths and not points: at single points between the models a resampled set is further off than along a
+path, and splitting does not bring every point within 0.5 dB at any level (docs/fitting.md has the figures);
+what a render shows, and what the target is about, is the spectrum along a path, where those errors average out.
+A level whose resampled set has a model that misses its spectrum (flowtex.fit.resample.misses_text) is kept
+only if every level has one: densifying never turns a set that can be written into one that is refused.
 
 Units: rates Hz, LSD dB (flowtex.dsp.spectral.lsd_db, 15 Hz to 0.9 x the lower Nyquist).
 """
@@ -49,8 +50,8 @@ other angles."""
 
 MAX_GROWTH = 8
 """``auto`` refines no further than this many times the set's own models: it bounds the time (every added model
-is fitted) on sets whose neighbouring models are unrelated, where each level gains little; HaTT's sets need at
-most about 6x (docs/fitting.md)."""
+is fitted) on sets whose neighbouring models are unrelated, where each level gains little; HaTT's sets need
+less (docs/fitting.md)."""
 
 AUTO = "auto"
 """The ``densify`` value that refines adaptively."""
@@ -120,7 +121,7 @@ def resample_densified(ms: TextureModelSet, rate_hz: float, densify: int | str =
         return out
 
     if densify != AUTO:
-        if not (isinstance(densify, int) and 0 <= densify <= MAX_LEVELS):
+        if not (isinstance(densify, int) and not isinstance(densify, bool) and 0 <= densify <= MAX_LEVELS):
             raise ValueError(f"densify must be {AUTO!r} or an integer from 0 to {MAX_LEVELS}, got {densify!r}")
         dense = densify_set(ms, densify)
         return dense, resample(dense)
@@ -141,7 +142,7 @@ def resample_densified(ms: TextureModelSet, rate_hz: float, densify: int | str =
         dense = finer
         out = resample(dense, cache)
         levels.append((worst_path(out), dense, out))
-    best = min(range(len(levels)), key=lambda k: levels[k][0])
+    best = min(range(len(levels)), key=lambda k: (bool(levels[k][2].metadata["resample"]["misses"]), levels[k][0]))
     path, dense, out = levels[best]
     dense = record_densify(dense, ms, mode=AUTO, path_margin_db=margin_db, point_margin_db=point_margin_db,
                            levels=best, levels_tried=len(levels) - 1, path_lsd_db_before=levels[0][0], path_lsd_db=path)
