@@ -60,7 +60,7 @@ def _densify_value(text: str) -> int | str:
 
 def cmd_models_resample(args: argparse.Namespace) -> int:
     from ..fit.resample import check_misses, resample_summary, tqdm_progress
-    from ..fit.resample_densify import AUTO, resample_densified
+    from ..fit.resample_densify import densify_summary, resample_densified
     from ..io.atomic import atomic_output, check_output
     from ..io.hatt import write_hatt_xml
     from ..io.modelset import load_model_set, save_model_set
@@ -78,11 +78,9 @@ def cmd_models_resample(args: argparse.Namespace) -> int:
                                      extra_order=args.extra_order)
     finally:
         close()
-    if ms.num_models != original.num_models:
-        info = ms.metadata["densify"]
-        how = (f"{info['levels']} level(s) of edge midpoints where needed, path LSD {info['path_lsd_db_before']:.2f} -> "
-               f"{info['path_lsd_db']:.2f} dB" if info.get("mode") == AUTO else f"{args.densify} level(s) of edge midpoints")
-        say(f"densified {args.input}: {original.num_models} -> {ms.num_models} models ({how})")
+    added = densify_summary(str(args.input), original, ms)
+    if added:
+        say(added)
     check_misses(out, args.allow_misses, str(args.input))  # refuses (FlowtexError naming the models) unless --allow-misses
     with atomic_output(target) as tmp:
         if target.suffix.lower() == ".xml":

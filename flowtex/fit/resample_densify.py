@@ -148,3 +148,13 @@ def resample_densified(ms: TextureModelSet, rate_hz: float, densify: int | str =
                            levels=best, levels_tried=len(levels) - 1, path_lsd_db_before=levels[0][0], path_lsd_db=path)
     out.metadata["densify"] = dense.metadata["densify"]
     return dense, out
+
+
+def densify_summary(source: str, original: TextureModelSet, dense: TextureModelSet) -> str | None:
+    """One line on what densifying added to ``original`` (None when it added nothing), as the CLI prints it."""
+    if dense.num_models == original.num_models:
+        return None
+    info = dense.metadata["densify"]
+    how = (f"{info['levels']} level(s) of edge midpoints where needed, path LSD {info['path_lsd_db_before']:.2f} -> "
+           f"{info['path_lsd_db']:.2f} dB" if info.get("mode") == AUTO else f"{info['levels']} level(s) of edge midpoints")
+    return f"densified {source}: {original.num_models} -> {dense.num_models} models ({how})"

@@ -135,6 +135,22 @@ def test_default_resample_follows_its_original_along_paths(tmp_path, capsys):
     assert info["path_lsd_db"] <= PATH_MARGIN_DB < info["path_lsd_db_before"]
 
 
+def test_fit_texture_render_rate_densifies_as_models_resample_does(tmp_path, capsys):
+    """``fit texture --render-rate`` writes its set through the same default: before, it resampled without adding models
+    and this set missed the path target (asserted in the test above)."""
+    from types import SimpleNamespace
+
+    from flowtex.fit.texture_job import write_outputs
+
+    ms = _coarse()
+    out = tmp_path / "fitted_500.json"
+    write_outputs(SimpleNamespace(model_set=ms), out, None, 500.0)   # what fit texture does with its fitted set
+    assert f"densified {out}" in capsys.readouterr().out
+    res = load_model_set(out)
+    assert res.sample_rate == 500.0 and res.metadata["densify"]["mode"] == "auto" and res.num_models > ms.num_models
+    assert _worst_path(ms, res) <= 0.5
+
+
 def test_auto_counts_progress_over_every_pass():
     calls = []
     dense, _ = resample_densified(_coarse(), 500.0, progress=lambda done, total: calls.append((done, total)))
