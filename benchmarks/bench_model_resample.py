@@ -26,7 +26,8 @@ test suite's model sets (the narrow-peak copper-like, rough and edge-resonance o
 and worst, from the progress callback), fits done, orders, worst LSD, band-power error, power above the old
 Nyquist, misses, and the LSD of the expected spectra along a path; ``--baseline-every N`` runs the previous
 method beside it on every N-th set; ``--table`` writes every model's figures; ``--between`` measures the LSD at
-vertices, edge midpoints and centroids; ``--densify N`` densifies each set first (``models resample --densify``).
+vertices, edge midpoints and centroids; ``--densify 0,auto`` runs those densify modes side by side
+(``models resample --densify``).
 The machine is shared: quote ``uptime`` with the numbers, and prefer
 the CPU seconds under load.
 """
@@ -161,41 +162,43 @@ def hatt_sets(folder: str, every: int = 1, start: int = 0):
     return [(os.path.basename(f)[7:-4], load_model_set(f)) for f in files]
 
 
-def corpus(sets, rates, baseline_every: int, table: str | None, densify: int = 0) -> None:
+def corpus(sets, rates, baseline_every: int, table: str | None, densify: tuple = (0,)) -> None:
     """Seconds per model fit (median, worst; wall and CPU) of resample_model_set on each set, against the previous rule.
 
     ``baseline_every`` > 0: every that many sets, also the previous method when upsampling (the attempt ladder
-    :data:`BASELINE_ATTEMPTS` on the fit grid :data:`BASELINE_GRID`), side by side in this process.
+    :data:`BASELINE_ATTEMPTS` on the fit grid :data:`BASELINE_GRID`), side by side in this process (with the
+    first ``densify`` mode only).
     ``table``: a CSV of every model's figures (set, rate, rule, model, LSD dB, band-power error, power above
     the old Nyquist). "path LSD": flowtex.fit.quality.path_lsd_db along
-    lissajous_path, the resampled set against the original (expected spectra as rendered, no noise).
-    ``densify`` > 0: each set is first densified that many levels (flowtex.models.densify); the path LSD is still
-    against the original set, "models" counts the densified set's.
+    lissajous_path, the resampled set against the original (expected spectra as rendered, no noise); "paths":
+    the worst over flowtex.fit.resample_densify.CHECK_PATHS.
+    ``densify``: the modes run side by side for each set and rate (flowtex.fit.resample_densify.resample_densified:
+    0..3 levels or "auto"); "models" counts the densified set's, "set s/model" is the set's time over the
+    original's models, "ratio" its time over the first mode's.
     """
     import flowtex.dsp.arma_resample as arma_resample
     import flowtex.fit.resample as resample
     from flowtex.datasets.model_sets import synthetic_model_set
     from flowtex.fit.quality import lissajous_path, path_lsd_db
+    from flowtex.fit.resample_densify import CHECK_PATHS, resample_densified
 
     resample.resample_model_set(synthetic_model_set([60.0], [0.5], ar_order=4, ma_order=2), 2000.0)  # warm-up: imports
-    print(f"{'set':<22} {'to Hz':>6} {'rule':<4} {'models':>6} {'fits':>5} {'orders':>11} {'LSD max':>8} {'band %':>7} "
+    print(f"{'set':<22} {'to Hz':>6} {'rule':<9} {'models':>6} {'fits':>5} {'orders':>11} {'LSD max':>8} {'band %':>7} "
           f"{'above %':>7} {'misses':>6} {'wall s/fit med':>14} {'worst':>6} {'cpu s/fit med':>13} {'worst':>6} "
-          f"{'set s/model':>11} {'ratio':>6} {'path LSD':>8}", flush=True)
+          f"{'set s/model':>11} {'cpu':>6} {'ratio':>6} {'path LSD':>8} {'paths':>6}", flush=True)
     summary = {}
     if table:
         with open(table, "w") as fh:
             fh.write("set,to_hz,rule,model,lsd_db,band_power_error,power_above_old_nyquist\n")
-    from flowtex.models.densify import densify_set
-
     for k, (name, original) in enumerate(sets):
-        ms = densify_set(original, densify)
+        walks = [lissajous_path(original, cycles=c, phase=ph) for c, ph in CHECK_PATHS]
         for rate in rates:
             base = None
             grid = (arma_resample.BAND_POINTS, arma_resample.STOP_POINTS)
-            rules = [("new", resample.EDGE_ATTEMPTS, grid)]
-            if baseline_every and k % baseline_every == 0 and rate > ms.sample_rate:
-                rules.append(("old", BASELINE_ATTEMPTS, BASELINE_GRID))
-            for rule, attempts, (band_points, stop_points) in rules:
+            rules = [(f"new d{mode}", mode, resample.EDGE_ATTEMPTS, grid) for mode in densify]
+            if baseline_every and k % baseline_every == 0 and rate > original.sample_rate:
+                rules.append(("old", densify[0], BASELINE_ATTEMPTS, BASELINE_GRID))
+            for rule, mode, attempts, (band_points, stop_points) in rules:
                 saved = resample.EDGE_ATTEMPTS
                 resample.EDGE_ATTEMPTS = attempts
                 arma_resample.BAND_POINTS, arma_resample.STOP_POINTS = band_points, stop_points
@@ -205,23 +208,27 @@ def corpus(sets, rates, baseline_every: int, table: str | None, densify: int = 0
                     wall.append(time.perf_counter())
                     cpu.append(time.process_time())
                 try:
-                    out = resample.resample_model_set(ms, rate, progress=tick)
+                    ms, out = resample_densified(original, rate, mode, progress=tick)
                 finally:
                     resample.EDGE_ATTEMPTS = saved
                     arma_resample.BAND_POINTS, arma_resample.STOP_POINTS = grid
+                end, end_cpu = time.perf_counter(), time.process_time()
                 per, per_cpu = np.diff(wall), np.diff(cpu)
-                total = wall[-1] - wall[0]
-                base = base or total
+                total, total_cpu = end - wall[0], end_cpu - cpu[0]
+                base = base or total_cpu
                 info = out.metadata["resample"]
                 q = info["quality"]
-                path = path_lsd_db(original, out, *lissajous_path(original))
-                summary.setdefault((rule, rate), []).append((per, per_cpu, total / ms.num_models, len(info["misses"]), path))
+                path = path_lsd_db(original, out, *walks[0])
+                paths = max([path] + [path_lsd_db(original, out, *w) for w in walks[1:]])
+                summary.setdefault((rule, rate), []).append((per, per_cpu, total / original.num_models, len(info["misses"]), path,
+                                                             paths, ms.num_models - original.num_models, original.num_models,
+                                                             total_cpu / original.num_models, name))
                 orders = f"{info['from_order'][0]}/{info['from_order'][1]}->{info['to_order'][0]}/{info['to_order'][1]}"
-                print(f"{name[:22]:<22} {rate:6g} {rule:<4} {ms.num_models:6d} {per.size:5d} {orders:>11} "
+                print(f"{name[:22]:<22} {rate:6g} {rule:<9} {ms.num_models:6d} {per.size:5d} {orders:>11} "
                       f"{info['worst_lsd_db']:8.3f} {100 * info['worst_band_power_error']:7.3f} "
                       f"{100 * info['worst_power_above_old_nyquist']:7.3f} {len(info['misses']):6d} {np.median(per):14.3f} "
-                      f"{per.max():6.2f} {np.median(per_cpu):13.3f} {per_cpu.max():6.2f} {total / ms.num_models:11.3f} "
-                      f"{total / base:6.2f} {path:8.3f}", flush=True)
+                      f"{per.max():6.2f} {np.median(per_cpu):13.3f} {per_cpu.max():6.2f} {total / original.num_models:11.3f} "
+                      f"{total_cpu / original.num_models:6.3f} {total_cpu / base:6.2f} {path:8.3f} {paths:6.3f}", flush=True)
                 if table:  # appended set by set: a run stopped early keeps what it measured
                     with open(table, "a") as fh:
                         fh.writelines(",".join(str(x) for x in (name, rate, rule, m, *q[m])) + "\n" for m in range(ms.num_models))
@@ -229,10 +236,17 @@ def corpus(sets, rates, baseline_every: int, table: str | None, densify: int = 0
         per = np.concatenate([i[0] for i in items])
         per_cpu = np.concatenate([i[1] for i in items])
         set_avg = np.array([i[2] for i in items])
-        print(f"all {rule} -> {rate:g} Hz: {len(items)} sets, {per.size} fits, {sum(i[3] for i in items)} models missing; "
+        set_cpu = np.array([i[8] for i in items])
+        path = np.array([i[4] for i in items])
+        paths = np.array([i[5] for i in items])
+        worst = items[int(np.argmax(path))]
+        print(f"all {rule} -> {rate:g} Hz: {len(items)} sets, {sum(i[7] for i in items)} models + {sum(i[6] for i in items)} added "
+              f"({sum(i[6] > 0 for i in items)} sets densified), {per.size} fits, {sum(i[3] for i in items)} models missing; "
               f"s per fit median {np.median(per):.3f} worst {per.max():.2f} (CPU {np.median(per_cpu):.3f} / {per_cpu.max():.2f}); "
-              f"set seconds per model median {np.median(set_avg):.3f} worst {set_avg.max():.2f}; "
-              f"path LSD worst {max(i[4] for i in items):.3f} dB", flush=True)
+              f"set seconds per model median {np.median(set_avg):.3f} worst {set_avg.max():.2f} "
+              f"(CPU {np.median(set_cpu):.3f} / {set_cpu.max():.2f}); path LSD median {np.median(path):.3f} "
+              f"worst {path.max():.3f} dB ({worst[9]}), {int(np.sum(path > 0.5))} over 0.5; "
+              f"check paths worst {paths.max():.3f} dB, {int(np.sum(paths > 0.5))} over 0.5", flush=True)
 
 
 def between(sets, rate: float) -> None:
@@ -304,8 +318,9 @@ def main() -> None:
     ap.add_argument("--baseline-every", type=int, default=0, metavar="N",
                     help="with --corpus: the previous attempt ladder too, on every N-th set (ratio column)")
     ap.add_argument("--table", metavar="OUT.csv", help="with --corpus: every model's LSD, band-power error and power above")
-    ap.add_argument("--densify", type=int, default=0, metavar="N",
-                    help="with --corpus: densify each set N levels first (models resample --densify N)")
+    ap.add_argument("--densify", default="0", metavar="MODES",
+                    help="with --corpus: comma-separated densify modes run side by side (0..3 or auto: models resample "
+                         "--densify), e.g. 0,auto")
     ap.add_argument("--between", action="store_true",
                     help="with --corpus/--hatt: LSD at vertices, edge midpoints and centroids instead (first --corpus-rates)")
     args = ap.parse_args()
@@ -317,7 +332,8 @@ def main() -> None:
         if args.between:
             between(sets, float(args.corpus_rates.split(",")[0]))
             return
-        corpus(sets, [float(r) for r in args.corpus_rates.split(",")], args.baseline_every, args.table, args.densify)
+        modes = tuple(m if m == "auto" else int(m) for m in args.densify.split(","))
+        corpus(sets, [float(r) for r in args.corpus_rates.split(",")], args.baseline_every, args.table, modes)
         return
     print(f"hatt_like_model seeds 0..{args.seeds - 1}, 19/17 at 1 kHz; LSD and powers of the model rebuilt from its LSFs")
     print(f"{'to Hz':>7} {'meth':<5} {'orders':>6} {'LSD max':>8} {'LSD med':>8} {'band %':>8} {'above %':>9} {'LSF ok':>7} "

@@ -1,11 +1,12 @@
 """Where the test suite's time goes, from the logs of tests/suite_profile.py (docs/testing.md).
 
     PYTEST_FLOWTEX_PROFILE=/tmp/prof python3 -m pytest -q -n auto --dist loadfile
-    python3 benchmarks/suite_profile.py /tmp/prof [--top 40]
+    python3 benchmarks/suite_profile.py /tmp/prof [--top 40] [--tests 30]
 
 Prints, per test file (heaviest first): wall time, CPU time of the pytest worker and of the subprocesses it
 waited for, and wall time inside numba (compiles and cache loads; real compiles alone); then the same per
-worker, which shows how evenly ``--dist`` spread the work; then the functions numba compiled more than once.
+worker, which shows how evenly ``--dist`` spread the work; then the functions numba compiled more than once;
+with ``--tests N``, the N heaviest tests (their CPU and their subprocesses' CPU) last.
 """
 
 from __future__ import annotations
@@ -58,6 +59,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("folder", type=Path)
     ap.add_argument("--top", type=int, default=40)
+    ap.add_argument("--tests", type=int, default=0, help="also list the N heaviest tests")
     args = ap.parse_args()
     rows = load(args.folder)
     print(table(totals(rows, "file"), args.top))
@@ -68,6 +70,9 @@ def main() -> None:
     print(f"\n{total} numba compiles; {len(twice)} functions compiled in more than one worker:")
     for name, workers in sorted(twice.items())[:args.top]:
         print(f"  {name[:140]}  {' '.join(workers)}")
+    if args.tests:
+        print()
+        print(table({r["test"]: {**{k: r[k] for k in KEYS}, "n": 1} for r in rows}, args.tests))
 
 
 if __name__ == "__main__":

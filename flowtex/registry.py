@@ -9,7 +9,12 @@ subclass with a ``type_name`` defined in it is registered.
 * Installed packages: entry points of group ``flowtex.nodes``
   (an entry point may name a module, a package -- all its public submodules --
   or a single Node class). flowtex's own entry point names ``flowtex.nodes``: the
-  built-in table.
+  built-in table. They are lazy too: an entry point's name is listed as a node type
+  (``flowtex plugin new`` names it after its node type) and its ``value`` is imported
+  on the first use of that name, or of a name nothing else defines (a package may
+  define types under other names), or when every type is listed in full
+  (:meth:`Registry.load_all`). An entry point that fails to import is reported,
+  naming it, where it is first used.
 * Plugin folders: every ``*.py`` file in each folder of ``FLOWTEX_PLUGINS``
   (``os.pathsep``-separated), in each ``--plugins DIR``, and (added by the graph
   loader) in the graph file's own ``plugins/`` folder and the folders its
@@ -25,8 +30,8 @@ import importlib.util
 import inspect
 import pkgutil
 import sys
-from collections.abc import Iterable, Iterator, Mapping
-from importlib.metadata import entry_points
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from importlib.metadata import EntryPoint, entry_points
 from pathlib import Path
 from types import ModuleType
 
@@ -79,14 +84,17 @@ table equal to the node types the modules of :data:`BUILTIN_PACKAGE` define)."""
 
 
 class NodeTypes(Mapping[str, type[Node]]):
-    """Node type name -> class; a lazily registered entry (``"module:Class"``) is imported and checked on first access.
+    """Node type name -> class; a lazily registered entry is imported and checked on first access.
 
-    Names, ``in`` and ``len`` import nothing; ``types[name]``, ``values()`` and ``items()`` import what they return.
+    A lazy entry is a built-in's ``"module:Class"`` or an entry point's loader (a callable that registers what
+    the entry point defines). Names, ``in`` and ``len`` import nothing; ``types[name]``, ``values()`` and
+    ``items()`` import what they return. A loader that defines no type of its own name (a package's entry point)
+    drops the name: ``types[name]`` then raises KeyError, as for an unknown name.
     """
 
     def __init__(self) -> None:
         self._classes: dict[str, type[Node]] = {}
-        self._lazy: dict[str, str] = {}
+        self._lazy: dict[str, str | Callable[[], None]] = {}
         self._order: dict[str, None] = {}
 
     def set(self, name: str, cls: type[Node]) -> None:
@@ -94,7 +102,7 @@ class NodeTypes(Mapping[str, type[Node]]):
         self._lazy.pop(name, None)
         self._order.setdefault(name, None)
 
-    def set_lazy(self, name: str, target: str) -> None:
+    def set_lazy(self, name: str, target: str | Callable[[], None]) -> None:
         self._lazy[name] = target
         self._order.setdefault(name, None)
 
@@ -102,6 +110,17 @@ class NodeTypes(Mapping[str, type[Node]]):
         if name in self._classes:
             return self._classes[name]
         target = self._lazy[name]  # KeyError for an unknown name, as a dict
+        if callable(target):
+            del self._lazy[name]
+            try:
+                target()
+            except BaseException:
+                self._lazy[name] = target  # the same clear error at the next use
+                raise
+            if name in self._classes:
+                return self._classes[name]
+            self._order.pop(name, None)
+            raise KeyError(name)
         module_name, _, attr = target.partition(":")
         cls = getattr(importlib.import_module(module_name), attr, None)
         if not (inspect.isclass(cls) and issubclass(cls, Node) and cls.type_name == name):
@@ -128,6 +147,8 @@ class Registry:
         self.origins: dict[str, str] = {}
         self.plugin_files: list[Path] = []
         """Plugin files (Python code) imported into this registry, in load order."""
+        self._pending: dict[str, EntryPoint] = {}
+        """Installed entry points not imported yet, by name."""
 
     def add_module(self, module: ModuleType, origin: str) -> None:
         for obj in vars(module).values():
@@ -138,7 +159,11 @@ class Registry:
         """Register ``cls``; its kernel is checked against the node contract first (errors name its file and line)."""
         name = cls.type_name
         check_node_class(cls)
-        if name in self.types and self.types[name] is not cls:
+        try:
+            existing = self.types[name] if name in self.types else None
+        except KeyError:  # the name of an entry point being loaded, or of one that defines no such type
+            existing = None
+        if existing is not None and existing is not cls:
             raise FlowtexError(
                 f"{origin}: node type {name!r} is already defined by {self.origins[name]}; rename one of them"
             )
@@ -150,8 +175,52 @@ class Registry:
         self.types.set_lazy(name, target)
         self.origins[name] = origin
 
+    def add_entry_point(self, ep: EntryPoint) -> None:
+        """Register an installed entry point lazily: its name now, its ``value`` imported when first needed."""
+        self._pending[ep.name] = ep
+        if ep.name not in self.types:  # a name taken already is checked when the entry point loads
+            self.types.set_lazy(ep.name, lambda: self._load_entry_point(ep.name))
+            self.origins[ep.name] = f"entry point {ep.value}"
+
+    def _load_entry_point(self, name: str) -> None:
+        ep = self._pending.pop(name, None)
+        if ep is None:
+            return
+        try:
+            obj = ep.load()
+        except Exception as exc:
+            self._pending[name] = ep
+            raise FlowtexError(f"entry point {ep.name!r} ({ep.value}) of group {ENTRY_POINT_GROUP} failed to load: "
+                               f"{type(exc).__name__}: {exc}; fix or uninstall the package that provides it") from exc
+        if isinstance(obj, ModuleType):
+            for module in _with_submodules(obj):
+                self.add_module(module, f"entry point {ep.value}")
+        elif inspect.isclass(obj) and issubclass(obj, Node):
+            self.add(obj, f"entry point {ep.value}")
+        else:
+            raise FlowtexError(f"entry point {ep.name!r} ({ep.value}) is neither a module nor a Node class")
+
+    def load_all(self) -> None:
+        """Import every installed entry point not imported yet (a full listing describes every type)."""
+        for name in list(self._pending):
+            if name in self.types:
+                try:
+                    self.types[name]
+                except KeyError:  # a package's entry point: its types have other names
+                    pass
+            self._load_entry_point(name)
+
     def get(self, name: str) -> type[Node] | None:
-        return self.types[name] if name in self.types else None
+        """The class of node type ``name``; None if nothing defines it (pending entry points are imported first)."""
+        if name in self.types:
+            try:
+                return self.types[name]
+            except KeyError:
+                pass
+        if self._pending:
+            self.load_all()
+            return self.get(name)
+        return None
 
     def __contains__(self, name: str) -> bool:
         return name in self.types
@@ -233,19 +302,8 @@ def load_registry(plugins: Iterable[str | Path] = ()) -> Registry:
     for name, target in BUILTIN_TYPES.items():
         reg.add_lazy(name, target, f"entry point {BUILTIN_PACKAGE}" if installed else target.partition(":")[0])
     for ep in found:
-        if ep.value == BUILTIN_PACKAGE:  # flowtex's own: the lazy table above, nothing imported
-            continue
-        try:
-            obj = ep.load()
-        except Exception as exc:
-            raise FlowtexError(f"entry point {ep.name!r} ({ep.value}) failed to load: {exc}") from exc
-        if isinstance(obj, ModuleType):
-            for module in _with_submodules(obj):
-                reg.add_module(module, f"entry point {ep.value}")
-        elif inspect.isclass(obj) and issubclass(obj, Node):
-            reg.add(obj, f"entry point {ep.value}")
-        else:
-            raise FlowtexError(f"entry point {ep.name!r} ({ep.value}) is neither a module nor a Node class")
+        if ep.value != BUILTIN_PACKAGE:  # flowtex's own is the lazy table above
+            reg.add_entry_point(ep)
     for folder in dirs:
         if not folder.is_dir():
             raise FlowtexError(f"{folder}: plugin folder does not exist")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import subprocess
 import textwrap
 from pathlib import Path
 
@@ -10,6 +11,7 @@ import pytest
 from hypothesis import settings
 
 REPO = Path(__file__).resolve().parents[1]
+pytest_plugins = ["pytester"]  # runs pytest inside a test (tests/test_golden_portability.py: what a golden failure prints)
 
 os.environ.setdefault("FLOWTEX_BACKGROUND", "0")  # no background fused compiles (docs/engine.md) competing with the tests
 # The suite runs on the dispatch tier: a structure costs no numba compile once its node types are cached, and both tiers
@@ -40,11 +42,11 @@ loaded machine), and speed is measured in benchmarks/, never in a test. Each tes
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "flowtex"))
 
 SLOW_FIRST = (
-    "test_examples.py", "test_audio_jack.py", "test_engine_tiers.py", "test_cli_hostile_options.py",
-    "test_plugin_declarations.py", "test_plugin_check.py", "test_nodes_builtin.py", "test_engine_cache.py",
-    "test_golden_portability.py", "test_resample_corpus.py", "test_live.py", "test_texture_examples.py",
-    "test_hatt_parity.py", "test_livesafe_hostile.py", "test_fit_batch.py", "test_kernel_faults.py", "test_crossval.py",
-    "test_hostile_bounds.py", "test_arma.py", "test_fused.py",
+    "test_examples.py", "test_engine_tiers.py", "test_audio_jack.py", "test_live.py", "test_plugin_check.py",
+    "test_plugin_declarations.py", "test_engine_cache.py", "test_plugin_new.py", "test_cli_hostile_options.py",
+    "test_golden_portability.py", "test_fused.py", "test_livesafe_hostile.py", "test_hatt_parity.py", "test_scene_live.py",
+    "test_texture_examples.py", "test_hostile_bounds.py", "test_crossval.py", "test_fit_batch.py", "test_arma_resample.py",
+    "test_kernel_faults.py", "test_resample_corpus.py",
 )
 """The test files that take longest (CPU and real time of a fresh-clone run, docs/testing.md), slowest first.
 
@@ -86,6 +88,23 @@ def write_graph(tmp_path):
         return path
 
     return _write
+
+
+@pytest.fixture
+def flowtex_cli(capsys):
+    """Run ``flowtex ARGS...`` in this process (:func:`flowtex.cli.main`); its exit code, stdout and stderr, as
+    :func:`subprocess.run` gives them. For tests about what a verb does: a fresh interpreter costs CPU (imports,
+    kernels loaded from the cache; docs/testing.md) that the test does not look at. Tests about the process itself (signals,
+    the interpreter's exit code, a fresh cache, installs) start a real one."""
+    from flowtex.cli import main
+
+    def run(*args: object) -> subprocess.CompletedProcess:
+        capsys.readouterr()
+        code = main([str(a) for a in args])
+        out = capsys.readouterr()
+        return subprocess.CompletedProcess(["flowtex", *map(str, args)], code, out.out, out.err)
+
+    return run
 
 
 HATT_ENV = "FLOWTEX_HATT_DIR"

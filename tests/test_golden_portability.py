@@ -135,19 +135,21 @@ def test_exact_mode_and_numpy_style_tolerances():
     assert compare_outputs(a, e, atol=1e-13, rms_rtol=0.0)
 
 
-def test_a_golden_mismatch_shows_its_message_not_a_long_traceback(tmp_path):
-    """What pytest prints for a failing golden test (issue 9): the message, in a few lines."""
-    golden = tmp_path / "accel.npz"
+def test_a_golden_mismatch_shows_its_message_not_a_long_traceback(pytester, monkeypatch):
+    """What pytest prints for a failing golden test (issue 9): the message, in a few lines. The inner pytest runs in
+    this process (pytester): its report is the point, and it loads flowtex's plugin from its entry point as a process
+    of its own would."""
+    golden = pytester.path / "accel.npz"
     tampered = load(ACCEL[2])
     tampered["envelope"] = tampered["envelope"] * 1.01
     np.savez(golden, **tampered)
-    test = tmp_path / "test_user_graph.py"
+    test = pytester.path / "test_user_graph.py"
     test.write_text(f"def test_graph(golden):\n    golden.check({str(ACCEL[0])!r}, {str(ACCEL[1])!r}, {str(golden)!r})\n")
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
-    run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(test)],
-                         capture_output=True, text=True, env=env, cwd=tmp_path, timeout=300)
-    assert run.returncode == 1, run.stdout
-    failure = run.stdout[run.stdout.index("_ test_graph _"):run.stdout.index("short test summary")]
+    monkeypatch.delenv("PYTEST_XDIST_WORKER", raising=False)  # a user's plain pytest run, not an xdist worker's
+    run = pytester.runpytest_inprocess("-q", "-p", "no:cacheprovider", str(test))
+    stdout = run.stdout.str()
+    assert run.ret == 1, stdout
+    failure = stdout[stdout.index("_ test_graph _"):stdout.index("short test summary")]
     assert "output 'envelope': 8000 of 8000 values differ" in failure
     assert "testing.py" not in failure  # flowtex's own frames are hidden
     assert len(failure.splitlines()) < 20, failure

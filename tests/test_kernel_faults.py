@@ -49,13 +49,16 @@ outputs: {y: g.y}
 """
 
 
-@pytest.fixture
-def project(tmp_path):
-    (tmp_path / "plugins").mkdir()
-    (tmp_path / "plugins" / "boom_fault.py").write_text(PLUGIN)
-    (tmp_path / "g.yaml").write_text(GRAPH)
-    np.savez(tmp_path / "r.npz", x=np.arange(300.0), rate=1000.0)
-    return tmp_path
+@pytest.fixture(scope="module")
+def project(tmp_path_factory):
+    """The plugin, graph and recording, shared by the tests (they read them and must write nothing): one plugin file
+    compiles its kernel once, and the fused structure once."""
+    folder = tmp_path_factory.mktemp("faults")
+    (folder / "plugins").mkdir()
+    (folder / "plugins" / "boom_fault.py").write_text(PLUGIN)
+    (folder / "g.yaml").write_text(GRAPH)
+    np.savez(folder / "r.npz", x=np.arange(300.0), rate=1000.0)
+    return folder
 
 
 def _raise_line() -> int:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from flowtex.cli import main
 from flowtex.dsp.nonfinite import count_nonfinite
@@ -59,28 +60,32 @@ def _expected(x: np.ndarray) -> str:
     return f"output 'y': {nan} NaN and {inf} inf value(s), the first at tick {first}"
 
 
-def _setup(tmp_path):
-    (tmp_path / "plugins").mkdir()
-    (tmp_path / "plugins" / "ema_nf.py").write_text(PLUGIN)
-    (tmp_path / "g.yaml").write_text(GRAPH)
+@pytest.fixture(scope="module")
+def project(tmp_path_factory):
+    """The plugin, graph and recording, shared by the tests (they only read them; each writes into its own tmp_path):
+    one plugin file compiles its kernel once."""
+    folder = tmp_path_factory.mktemp("nonfinite")
+    (folder / "plugins").mkdir()
+    (folder / "plugins" / "ema_nf.py").write_text(PLUGIN)
+    (folder / "g.yaml").write_text(GRAPH)
     x = np.sin(np.arange(2000) / 7.0)
-    np.savez(tmp_path / "r.npz", x=x, rate=1000.0)
-    return x
+    np.savez(folder / "r.npz", x=x, rate=1000.0)
+    return folder, x
 
 
-def test_run_warns_per_output(tmp_path, capsys):
-    x = _setup(tmp_path)
+def test_run_warns_per_output(project, tmp_path, capsys):
+    folder, x = project
     out = tmp_path / "o.npz"
-    assert main(["run", str(tmp_path / "g.yaml"), "-i", str(tmp_path / "r.npz"), "-o", str(out)]) == 0
+    assert main(["run", str(folder / "g.yaml"), "-i", str(folder / "r.npz"), "-o", str(out)]) == 0
     warnings = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning:")]
     assert warnings == [f"warning: {_expected(x)} (--nonfinite-outputs error refuses instead)"]  # nothing about 'x'
     assert out.exists()
 
 
-def test_run_refuses_with_the_error_policy(tmp_path, capsys):
-    x = _setup(tmp_path)
+def test_run_refuses_with_the_error_policy(project, tmp_path, capsys):
+    folder, x = project
     out = tmp_path / "o.npz"
-    assert main(["run", str(tmp_path / "g.yaml"), "-i", str(tmp_path / "r.npz"), "-o", str(out),
+    assert main(["run", str(folder / "g.yaml"), "-i", str(folder / "r.npz"), "-o", str(out),
                  "--nonfinite-outputs", "error"]) == 1
     err = [line for line in capsys.readouterr().err.splitlines() if not line.startswith("flowtex: ")]
     assert len(err) == 1 and _expected(x) in err[0] and "nothing written" in err[0]

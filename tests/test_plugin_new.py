@@ -1,7 +1,7 @@
 """``flowtex plugin new``: the package installs, its node appears in ``flowtex nodes``, its tests pass (issue 25).
 
-Installed for real into a virtual environment made by the test (``--system-site-packages``, so numpy, numba
-and flowtex's dependencies come from this interpreter; ``--no-deps --no-build-isolation --no-index`` keeps
+Installed for real into a virtual environment made by the test (``--system-site-packages``, so numpy, numba,
+pip and flowtex's dependencies come from this interpreter; ``--no-deps --no-build-isolation --no-index`` keeps
 it offline). ``PYTHONPATH`` points at this source tree so the venv runs this flowtex, not another install.
 """
 
@@ -62,7 +62,10 @@ def test_installed_package_lists_its_node_and_its_tests_pass(tmp_path):
     pkg = tmp_path / "pkg"
     assert main(["plugin", "new", "soft_gain", "-o", str(pkg)]) == 0
     venv = tmp_path / "venv"
-    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)], check=True, timeout=STEP_TIMEOUT_S)
+    # --without-pip: the venv runs this interpreter's pip (a system site package) and pip installs into the venv that
+    # runs it; copying pip into the venv (ensurepip) costs CPU (docs/testing.md) and is not what is tested
+    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", "--without-pip", str(venv)], check=True,
+                   timeout=STEP_TIMEOUT_S)
     python = str(venv / "bin" / "python")
     install = subprocess.run([python, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation", "--no-index", "-e", str(pkg)],
                              capture_output=True, text=True, timeout=STEP_TIMEOUT_S, env=_env())

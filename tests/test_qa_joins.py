@@ -148,7 +148,7 @@ def test_holdout_one_is_refused_by_the_option_that_said_it_was_valid() -> None:
     assert number_in_range("1", 0.0, 1.0) == 1.0    # closed by default, as before
 
 
-def test_models_resample_writes_the_format_its_output_suffix_names(tmp_path: Path) -> None:
+def test_models_resample_writes_the_format_its_output_suffix_names(tmp_path: Path, flowtex_cli) -> None:
     # `models resample IN.xml -o OUT.xml` wrote JSON into OUT.xml (HaTT's tools cannot read it); `-o OUT.txt` too.
     import subprocess
     import sys
@@ -160,16 +160,16 @@ def test_models_resample_writes_the_format_its_output_suffix_names(tmp_path: Pat
 
     src = save_model_set(synthetic_model_set(np.array([50.0, 150.0]), np.array([1.0, 3.0]), 4, 2, grid=True), tmp_path / "in.json")
     outs = {}
-    for suffix in (".json", ".xml"):
+    for suffix in (".json", ".xml"):  # in this process: the files written are the point
         outs[suffix] = tmp_path / f"out{suffix}"
-        done = subprocess.run([sys.executable, "-m", "flowtex", "models", "resample", str(src), "--rate", "2000",
-                               "-o", str(outs[suffix])], capture_output=True, text=True, timeout=300)
+        done = flowtex_cli("models", "resample", src, "--rate", "2000", "-o", outs[suffix])
         assert done.returncode == 0, done.stderr
     assert outs[".xml"].read_text().startswith("<?xml")
     xml, native = load_model_set(outs[".xml"]), load_model_set(outs[".json"])
     assert xml.metadata["format"] == "hatt-xml" and xml.sample_rate == native.sample_rate == 2000.0
     np.testing.assert_array_equal(xml.variance, native.variance)       # repr floats: an exact round trip
     np.testing.assert_array_equal(xml.ar_lsf, native.ar_lsf)
+    # a process of its own: the interpreter's exit code, and no traceback on its stderr
     done = subprocess.run([sys.executable, "-m", "flowtex", "models", "resample", str(src), "--rate", "2000",
                            "-o", str(tmp_path / "out.txt")], capture_output=True, text=True, timeout=300)
     assert done.returncode != 0 and ".json" in done.stderr and "Traceback" not in done.stderr

@@ -31,6 +31,10 @@ def register_fit(kinds: Any) -> None:
     p.add_argument("--max-order", type=int_at_least(1, 40), default=20, help="largest p and q searched by --order auto (1..40)")
     p.add_argument("--highpass", type=lambda t: number_in_range(t, 0.0, math.inf, unit="Hz"), default=10.0, metavar="HZ",
                    help="zero-phase high-pass of the acceleration (0: none; below half the recording's rate)")
+    p.add_argument("--pool", type=int_at_least(1, 20), metavar="K",
+                   help="fit each model of a free exploration on its piece and the K-1 pieces nearest to it in speed and "
+                        "force, which pools the loudness that wanders from second to second (1..20, default 5; 1 fits every "
+                        "piece alone; docs/fitting.md)")
     p.add_argument("--render-rate", type=positive_hz, metavar="HZ",
                    help="resample the models to this rate before writing (at most 16x the recording's rate, up or down)")
     p.add_argument("--allow-misses", action="store_true",
@@ -62,6 +66,8 @@ def _job(args: argparse.Namespace) -> Any:
     from ..fit.texture_job import TextureJob, parse_order
 
     opt = TextureOptions(order=parse_order(args.order), max_order=args.max_order, highpass_hz=args.highpass)
+    if args.pool is not None:
+        opt.pool_pieces = args.pool
     return TextureJob(accel=args.accel, speed=args.speed, force=args.force, position=args.position, normal=args.normal,
                       rate=args.from_rate, options=opt, render_rate=args.render_rate, material=args.material,
                       allow_misses=args.allow_misses)

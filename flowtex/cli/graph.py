@@ -103,6 +103,8 @@ def cmd_nodes(args: argparse.Namespace) -> int:
         note(f"flowtex: loaded plugin code: {', '.join(str(f) for f in registry.plugin_files)}")
     if args.type and registry.get(args.type) is None:
         raise FlowtexError(f"unknown node type {args.type!r}{suggest(args.type, registry.names())}")
+    if not args.type:
+        registry.load_all()  # every type is described: installed packages are imported
     if args.json:
         import json
 

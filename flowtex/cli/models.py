@@ -13,7 +13,7 @@ from .output import say
 def register(sub: Any) -> None:
     """Add ``flowtex models`` with its ``resample`` action."""
     from ..fit.resample import MAX_EXTRA_ORDER
-    from ..models.densify import MAX_LEVELS
+    from ..fit.resample_densify import AUTO
 
     p = sub.add_parser("models", help="operate on texture model sets and tap libraries (resample)",
                        description="Transform texture model sets (HaTT XML or native JSON).")
@@ -33,18 +33,34 @@ def register(sub: Any) -> None:
                         "(default: the first with which every model keeps its spectrum of: the own order, then up to 2x "
                         "up an elliptic lowpass edge at the old Nyquist, then 2, 4 more without and with it, 6, 8 more; beyond 2x "
                         "0..8 more; down 2, 4 more)")
-    r.add_argument("--densify", type=int_at_least(0, MAX_LEVELS), default=0, metavar="N",
-                   help="first add a model at the midpoint of every edge between two measured models, N times (each "
-                        "about 4x the models; the set renders as before at its own rate): the resampled set then follows "
-                        "its original between the models too (docs/fitting.md; default 0)")
+    r.add_argument("--densify", type=_densify_value, default=AUTO, metavar="auto|N",
+                   help="add models between the measured ones (the models the set itself renders there: it renders as "
+                        "before at its own rate) so that the resampled set follows its original between the models too: "
+                        "'auto' (default) adds edge midpoints only where the resampled set departs from the original, "
+                        "while its path LSD exceeds 0.4 dB, up to 3 levels; N (0..3) adds every edge midpoint N times "
+                        "(each about 4x the models; 0: none) (docs/fitting.md)")
     r.add_argument("--allow-misses", action="store_true",
                    help="write the set even if some model misses LSD <= 0.5 dB / band power within 2 %% (named in a warning); "
                         "without it such a set is not written and the command fails")
     r.set_defaults(func=cmd_models_resample)
 
 
+def _densify_value(text: str) -> int | str:
+    """argparse type of ``--densify``: 'auto' or a number of levels 0..MAX_LEVELS."""
+    from ..fit.resample_densify import AUTO
+    from ..models.densify import MAX_LEVELS
+
+    if text == AUTO:
+        return AUTO
+    try:
+        return int_at_least(0, MAX_LEVELS)(text)
+    except argparse.ArgumentTypeError as exc:
+        raise argparse.ArgumentTypeError(f"{exc}; or '{AUTO}'") from None
+
+
 def cmd_models_resample(args: argparse.Namespace) -> int:
-    from ..fit.resample import check_misses, resample_model_set, resample_summary, tqdm_progress
+    from ..fit.resample import check_misses, resample_summary, tqdm_progress
+    from ..fit.resample_densify import densify_summary, resample_densified
     from ..io.atomic import atomic_output, check_output
     from ..io.hatt import write_hatt_xml
     from ..io.modelset import load_model_set, save_model_set
@@ -55,18 +71,16 @@ def cmd_models_resample(args: argparse.Namespace) -> int:
     if target.suffix.lower() not in (".json", ".xml"):
         raise DataError(f"-o {args.output}: write the resampled set as .json (flowtex's format, with the resampling "
                         "record) or .xml (HaTT's format)")
-    ms = load_model_set(args.input)
-    if args.densify:
-        from ..models.densify import densify_set
-
-        before = ms.num_models
-        ms = densify_set(ms, args.densify)
-        say(f"densified {args.input}: {before} -> {ms.num_models} models ({args.densify} level(s) of edge midpoints)")
-    progress, close = tqdm_progress(ms.num_models, "resample")
+    original = load_model_set(args.input)
+    progress, close = tqdm_progress(original.num_models, "resample")
     try:
-        out = resample_model_set(ms, args.rate, progress, keep_order=args.keep_order, extra_order=args.extra_order)
+        ms, out = resample_densified(original, args.rate, args.densify, progress, keep_order=args.keep_order,
+                                     extra_order=args.extra_order)
     finally:
         close()
+    added = densify_summary(str(args.input), original, ms)
+    if added:
+        say(added)
     check_misses(out, args.allow_misses, str(args.input))  # refuses (FlowtexError naming the models) unless --allow-misses
     with atomic_output(target) as tmp:
         if target.suffix.lower() == ".xml":

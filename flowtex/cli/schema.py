@@ -27,7 +27,9 @@ def schema_text(kind: str, plugins: tuple[str, ...] = ()) -> str:
     if kind == "graph":
         from ..registry import load_registry
 
-        doc = jsonschema.graph_schema(load_registry(plugins).types)
+        registry = load_registry(plugins)
+        registry.load_all()  # the schema lists every type: installed packages are imported
+        doc = jsonschema.graph_schema(registry.types)
     else:
         doc = jsonschema.scene_schema() if kind == "scene" else jsonschema.map_schema()
     return json.dumps(doc, indent=1, ensure_ascii=False) + "\n"

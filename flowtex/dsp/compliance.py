@@ -46,6 +46,16 @@ BIN = Layout("float", [Field("count"), Field("sum_f", 1, "N"), Field("sum_a", 1,
                        Field("sum_a2", 1, "sum of a_rms^2")])
 """One force bin's sums."""
 BIN_FIELDS = BIN.size()
+B_COUNT, B_SUM_F, B_SUM_A, B_SUM_A2 = (BIN.const(f.name) for f in BIN.fields)
+HP_AXIS = Layout("float", [Field("x_prev", 1, "last input, m/s^2"), Field("y", 1, "last output, m/s^2")])
+"""One acceleration axis's first-order high-pass state; the state holds 3 of these."""
+HP_FIELDS = HP_AXIS.size()
+H_X, H_Y = HP_AXIS.const("x_prev"), HP_AXIS.const("y")
+FIT = Layout("float", [Field("k_c"), Field("sigma", 1, "m/s^2"), Field("valid", 1, "0/1"),
+                       Field("reason", 1, "REASON_* code"), Field("bins", 1, "bins used")])
+"""What :func:`compliance_fit` writes."""
+FIT_LEN = FIT.size()
+F_KC, F_SIGMA, F_VALID, F_REASON, F_BINS = (FIT.const(f.name) for f in FIT.fields)
 PARAMS = Layout("float", [
     Field("fb0", 1, "force low-pass b0"), Field("fb1", 1, "force low-pass b1"), Field("fa1", 1, "force low-pass a1"),
     Field("hb0", 1, "acceleration high-pass b0 (b1 = -b0)"), Field("ha1", 1, "acceleration high-pass a1"),
@@ -59,7 +69,7 @@ STATE = Layout("float", [
     Field("fx", 1, "force filter x_prev"), Field("fy", 1, "force filter y"),
     Field("mx", 1, "mean-square filter x_prev"), Field("my", 1, "mean-square filter y"),
     Field("rms", 1, "last a_rms"), Field("flp", 1, "last low-passed force"), Field("started", 1, "1.0 once a tick was seen"),
-    Field("session", 1, "ticks since the session began"), Field("hp", 6, "3 high-pass axes (x_prev, y)"),
+    Field("session", 1, "ticks since the session began"), Field("hp", 3 * HP_FIELDS, "3 HP_AXIS records"),
     Field("bins", N_BINS * BIN_FIELDS, "N_BINS BIN records"),
 ])
 """The kernel's float state."""
@@ -128,17 +138,17 @@ def compliance_step(p, s, force, accel, in_contact) -> bool:
     if s[S_STARTED] == 0.0:  # start the high-passes at rest on the first sample (no gravity step)
         s[S_STARTED] = 1.0
         for k in range(accel.shape[0]):
-            s[S_HP + 2 * k] = accel[k]
+            s[S_HP + HP_FIELDS * k + H_X] = accel[k]
     f_lp = fb0 * force + fb1 * s[S_FX] - fa1 * s[S_FY]
     s[S_FX] = force
     s[S_FY] = f_lp
     hb0, ha1 = p[P_HB0], p[P_HA1]
     a2 = 0.0
     for k in range(accel.shape[0]):
-        o = S_HP + 2 * k
-        y = hb0 * (accel[k] - s[o]) - ha1 * s[o + 1]
-        s[o] = accel[k]
-        s[o + 1] = y
+        o = S_HP + HP_FIELDS * k
+        y = hb0 * (accel[k] - s[o + H_X]) - ha1 * s[o + H_Y]
+        s[o + H_X] = accel[k]
+        s[o + H_Y] = y
         a2 += y * y
     ms = fb0 * a2 + fb1 * s[S_MX] - fa1 * s[S_MY]
     s[S_MX] = a2
@@ -159,10 +169,10 @@ def compliance_step(p, s, force, accel, in_contact) -> bool:
     if j >= N_BINS:
         j = N_BINS - 1
     o = S_BINS + BIN_FIELDS * j
-    s[o] += 1.0
-    s[o + 1] += f_lp
-    s[o + 2] += rms
-    s[o + 3] += rms * rms
+    s[o + B_COUNT] += 1.0
+    s[o + B_SUM_F] += f_lp
+    s[o + B_SUM_A] += rms
+    s[o + B_SUM_A2] += rms * rms
     return True
 
 
@@ -170,14 +180,14 @@ def compliance_step(p, s, force, accel, in_contact) -> bool:
 def _bin_point(s, j, min_n):
     """Bin j's WLS point: (weight 1/sigma_j, mean force N, mean RMS vibration m/s^2); weight 0 for a bin left out."""
     o = S_BINS + BIN_FIELDS * j
-    n = s[o]
+    n = s[o + B_COUNT]
     if n < min_n:
         return 0.0, 0.0, 0.0
-    mean_a = s[o + 2] / n
-    var = (s[o + 3] - n * mean_a * mean_a) / (n - 1.0)
+    mean_a = s[o + B_SUM_A] / n
+    var = (s[o + B_SUM_A2] - n * mean_a * mean_a) / (n - 1.0)
     if var <= 0.0:
         return 0.0, 0.0, 0.0
-    return 1.0 / math.sqrt(var), s[o + 1] / n, mean_a
+    return 1.0 / math.sqrt(var), s[o + B_SUM_F] / n, mean_a
 
 
 @njit(cache=True)
@@ -197,12 +207,12 @@ def compliance_fit(p, s, out) -> None:
         used += 1
         if mean_a > max_mean:
             max_mean = mean_a
-    out[0] = math.nan
-    out[1] = math.nan
-    out[2] = 0.0
-    out[4] = used
+    out[F_KC] = math.nan
+    out[F_SIGMA] = math.nan
+    out[F_VALID] = 0.0
+    out[F_BINS] = used
     if used < MIN_BINS:
-        out[3] = REASON_TOO_FEW
+        out[F_REASON] = REASON_TOO_FEW
         return
     fbar = swf / sw
     abar = swa / sw
@@ -220,18 +230,18 @@ def compliance_fit(p, s, out) -> None:
     ssr = saa - slope * sfa
     if ssr < 0.0:
         ssr = 0.0
-    out[0] = p[P_KG] * slope
-    out[1] = math.sqrt(ssr / sw * used / (used - 2.0))
+    out[F_KC] = p[P_KG] * slope
+    out[F_SIGMA] = math.sqrt(ssr / sw * used / (used - 2.0))
     r2 = 1.0 - ssr / saa if saa > 0.0 else 0.0
     if max_mean < p[P_FLOOR]:
-        out[3] = REASON_SMOOTH
+        out[F_REASON] = REASON_SMOOTH
     elif slope <= 0.0:
-        out[3] = REASON_NO_GROWTH
+        out[F_REASON] = REASON_NO_GROWTH
     elif r2 < p[P_R2]:
-        out[3] = REASON_POOR_FIT
+        out[F_REASON] = REASON_POOR_FIT
     else:
-        out[3] = REASON_OK
-        out[2] = 1.0
+        out[F_REASON] = REASON_OK
+        out[F_VALID] = 1.0
 
 
 @njit(cache=True)

@@ -49,12 +49,13 @@ import math
 import numpy as np
 from numba import njit
 
+from .filters import A1, A2, B0, B1, B2, SECTION_PARAMS, SECTION_STATE, X1, X2, Y1, Y2
 from .layout import Field, Layout
 
 # ---- speed estimator layout -------------------------------------------------
 SPEED_P = Layout("float", [
     Field("rate", 1, "Hz"),
-    Field("biquad", 5, "b0, b1, b2, a1, a2 of the velocity filter"),
+    Field("biquad", SECTION_PARAMS, "the velocity filter: a flowtex.dsp.filters.SECTION record (b0, b1, b2, a1, a2)"),
     Field("hp_alpha", 1, "10 Hz low-pass used by the high-pass"),
     Field("lp_alpha", 1, "100 Hz low-pass of the high-passed position"),
     Field("threshold", 1, "stationary threshold, mm"),
@@ -62,7 +63,7 @@ SPEED_P = Layout("float", [
 SPEED_S = Layout("float", [
     Field("xprev", 3, "last valid position, mm"),
     Field("normal", 3, "last valid unit normal"),
-    Field("biquad", 12, "per axis x1, x2, y1, y2 of the velocity filter"),
+    Field("biquad", 3 * SECTION_STATE, "per axis the velocity filter's SECTION_MEMORY record (x1, x2, y1, y2)"),
     Field("hp", 3, "10 Hz low-pass state used by the high-pass"),
     Field("lp", 3, "100 Hz low-pass state of the high-passed position"),
     Field("vel", 3, "last output velocity, mm/s"),
@@ -71,8 +72,8 @@ SPEED_S = Layout("float", [
 SPEED_SI = Layout("int", [Field("started", 1, "1 once a finite position was seen"),
                           Field("gap", 1, "ticks skipped since the last valid position")])
 SP_RATE = SPEED_P.const("rate")
-SP_B0 = SPEED_P.const("biquad")
-SP_B1, SP_B2, SP_A1, SP_A2 = SP_B0 + 1, SP_B0 + 2, SP_B0 + 3, SP_B0 + 4
+SP_BIQUAD = SPEED_P.const("biquad")
+SP_B0, SP_B1, SP_B2, SP_A1, SP_A2 = (SP_BIQUAD + o for o in (B0, B1, B2, A1, A2))
 SP_HP_ALPHA = SPEED_P.const("hp_alpha")
 SP_LP_ALPHA = SPEED_P.const("lp_alpha")
 SP_THRESHOLD = SPEED_P.const("threshold")
@@ -223,16 +224,16 @@ def speed_block(p: np.ndarray, s: np.ndarray, si: np.ndarray, pos: np.ndarray, n
             x = pos[t, c]
             v = (x - s[SS_XPREV + c]) * scale
             s[SS_XPREV + c] = x
-            base = SS_BIQUAD + 4 * c
-            x1 = s[base]
-            x2 = s[base + 1]
-            y1 = s[base + 2]
-            y2 = s[base + 3]
+            base = SS_BIQUAD + SECTION_STATE * c
+            x1 = s[base + X1]
+            x2 = s[base + X2]
+            y1 = s[base + Y1]
+            y2 = s[base + Y2]
             y = b0 * v + b1 * x1 + b2 * x2 - a1 * y1 - a2 * y2
-            s[base] = v
-            s[base + 1] = x1
-            s[base + 2] = y
-            s[base + 3] = y1
+            s[base + X1] = v
+            s[base + X2] = x1
+            s[base + Y1] = y
+            s[base + Y2] = y1
             lp10 = s[SS_HP + c] + ahp * (x - s[SS_HP + c])
             s[SS_HP + c] = lp10
             disp = s[SS_LP + c] + alp * ((x - lp10) - s[SS_LP + c])

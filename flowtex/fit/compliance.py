@@ -37,7 +37,7 @@ def estimate_compliance(force: np.ndarray, accel: np.ndarray, rate_hz: float, co
     if touching.any() and not np.any(accel[touching] != accel[touching][:1]):  # in contact, yet no vibration at all
         raise ValueError(f"the acceleration (--accel) is {accel[touching][0, 0]:g} m/s^2 throughout the contact: "
                          "no vibration was recorded; check the accelerometer signal")
-    out = np.zeros(5)
+    out = np.zeros(cm.FIT_LEN)
     if force_range is None:
         p = cm.compliance_params(rate_hz, -1e300, 1e300, **options)
         f_lp = np.zeros(force.size)
@@ -54,15 +54,15 @@ def estimate_compliance(force: np.ndarray, accel: np.ndarray, rate_hz: float, co
 
 
 def _result(out: np.ndarray, rate: float, n: int, force_range: tuple[float, float], options: dict, empty: bool = False) -> dict[str, Any]:
-    reason = cm.REASON_TOO_FEW if empty else int(out[3])
-    finite = not empty and np.isfinite(out[0])
+    reason = cm.REASON_TOO_FEW if empty else int(out[cm.F_REASON])
+    finite = not empty and np.isfinite(out[cm.F_KC])
     return {
         "format": FORMAT_NAME, "version": FORMAT_VERSION,
-        "k_c": float(out[0]) if finite else None,
-        "sigma": float(out[1]) if finite else None,
-        "valid": bool(out[2] > 0.5) and not empty,
+        "k_c": float(out[cm.F_KC]) if finite else None,
+        "sigma": float(out[cm.F_SIGMA]) if finite else None,
+        "valid": bool(out[cm.F_VALID] > 0.5) and not empty,
         "reason": cm.REASONS[reason],
-        "bins_used": 0 if empty else int(out[4]),
+        "bins_used": 0 if empty else int(out[cm.F_BINS]),
         "force_range_n": [float(v) for v in force_range] if np.all(np.isfinite(force_range)) else None,
         "k_g": float(options.get("k_g", 1.0)),
         "rate_hz": rate, "samples": n,

@@ -74,8 +74,12 @@ def path_lsd_db(original: TextureModelSet, other: TextureModelSet, speeds: np.nd
     return lsd_db(mean_psd(other), mean_psd(original), f)
 
 
-def lissajous_path(ms: TextureModelSet, points: int = 300) -> tuple[np.ndarray, np.ndarray]:
-    """(speeds mm/s, forces N): a Lissajous figure over 5 %..95 % of the set's speed and force range, ``points`` long."""
+def lissajous_path(ms: TextureModelSet, points: int = 300, cycles: tuple[float, float] = (7.3, 11.1),
+                   phase: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """(speeds mm/s, forces N): a Lissajous figure over 5 %..95 % of the set's speed and force range, ``points`` long.
+
+    ``cycles``: the speed's and the force's number of periods along it; ``phase``: the force's phase (radians).
+    """
     t = np.linspace(0.0, 1.0, points)
-    return (ms.max_speed * (0.5 + 0.45 * np.sin(2 * np.pi * 7.3 * t)),
-            ms.max_force * (0.5 + 0.45 * np.sin(2 * np.pi * 11.1 * t + 1.0)))
+    return (ms.max_speed * (0.5 + 0.45 * np.sin(2 * np.pi * cycles[0] * t)),
+            ms.max_force * (0.5 + 0.45 * np.sin(2 * np.pi * cycles[1] * t + phase)))

@@ -70,7 +70,9 @@ def summary_line(fit: TextureFit) -> str:
     ms = fit.model_set
     lsd = [pc.lsd_db for pc in fit.pieces]
     dropped = ", ".join(f"{v} {k}" for k, v in fit.dropped.items() if v) or "none"
-    return (f"{ms.material}: {len(fit.pieces)} pieces fitted at order {ms.ar_order},{ms.ma_order}; {ms.num_models} models "
+    pool = int(ms.metadata.get("pool_pieces", 1))
+    pooled = f" (each model on its piece and the {pool - 1} nearest, --pool {pool})" if pool > 1 else ""
+    return (f"{ms.material}: {len(fit.pieces)} pieces fitted at order {ms.ar_order},{ms.ma_order}{pooled}; {ms.num_models} models "
             f"(with silent corners), {len(ms.triangles)} triangles; median LSD {np.median(lsd):.2f} dB; dropped: {dropped}; "
             f"clipped outliers: {fit.clipped}")
 

@@ -162,24 +162,35 @@ class _Progress:
             self.callback(self.done, self.total)
 
 
+FitCache = dict
+"""Resampled models kept across calls of :func:`resample_model_set` on sets that share models (adaptive densifying,
+flowtex.fit.resample_densify): keyed by the attempt, the target rate and order rule and the model's own numbers."""
+
+
+def _model_key(ms: TextureModelSet, m: int) -> bytes:
+    """What model ``m``'s resampled fit depends on: the set's rate and the model's LSFs, variance and gain."""
+    return np.r_[ms.sample_rate, ms.variance[m], ms.gain[m], ms.ar_lsf[m], ms.ma_lsf[m]].tobytes()
+
+
 def _resample_models(ms: TextureModelSet, rate_to: float, keep_order: bool, tries: tuple[Attempt, ...],
-                     progress: _Progress) -> tuple[Attempt, list[_Model]]:
+                     progress: _Progress, cache: FitCache | None = None) -> tuple[Attempt, list[_Model]]:
     """(attempt, every model) for the first of ``tries`` with which every model keeps its spectrum (else the last).
 
     Stopping rule (bounded: at most len(tries) x models fits, each itself bounded, see
     :func:`flowtex.dsp.arma_logfit.fit_log_spectrum`): the models are fitted in turn, those that missed at a
     earlier attempt first. An attempt stops at its first miss unless it is the last; the model that missed is
     then tried alone at the next attempts until it keeps its spectrum, and the set is attempted there.
-    Results are cached per (attempt, model): nothing is fitted twice.
+    Results are cached per (attempt, model) in ``cache`` (a fresh one if None): nothing is fitted twice.
     """
     m_count = ms.num_models
-    cache: dict[tuple[Attempt, int], _Model] = {}
+    cache = {} if cache is None else cache
 
     def get(attempt: Attempt, m: int) -> _Model:
-        if (attempt, m) not in cache:
-            cache[(attempt, m)] = _resample_one(ms, m, rate_to, keep_order, *attempt)
+        key = (attempt, rate_to, keep_order, _model_key(ms, m))
+        if key not in cache:
+            cache[key] = _resample_one(ms, m, rate_to, keep_order, *attempt)
             progress.step()
-        return cache[(attempt, m)]
+        return cache[key]
 
     hard: list[int] = []
     i = 0
@@ -206,7 +217,8 @@ def check_rate_ratio(rate_from: float, rate_to: float, option: str = "--rate", w
 
 
 def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[int, int], None] | None = None,
-                       keep_order: bool = False, extra_order: int | None = None, option: str = "--rate") -> TextureModelSet:
+                       keep_order: bool = False, extra_order: int | None = None, option: str = "--rate",
+                       cache: FitCache | None = None) -> TextureModelSet:
     """A copy of ``ms`` whose models run at ``rate_hz`` (Hz) with the same physical PSDs below min Nyquist.
 
     Upsampling by more than 2x raises every model's order alike
@@ -224,6 +236,7 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
     ``quality``: every model's [LSD dB, band-power error, power above the old Nyquist], and ``edge_lowpass``.
     ``progress(done, total)`` is called after each model fit (the total grows if an extra order is tried).
     ``option`` names the rate in errors. The rate may change by at most :data:`MAX_RATE_RATIO` either way.
+    ``cache``: fits kept from an earlier call on a set sharing models (:data:`FitCache`), reused and extended.
     """
     if not (isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0):
         raise FlowtexError(f"{option} must be a positive number of Hz, got {rate_hz!r}")
@@ -241,7 +254,8 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
         tries = ((extra_order, False),)
     else:
         tries = DOWN_ATTEMPTS if not upsampling else EDGE_ATTEMPTS if direct else tuple((e, False) for e in EXTRA_ORDERS)
-    (best_extra, edge), models = _resample_models(ms, rate_to, keep_order, tries, _Progress(progress, ms.num_models))
+    (best_extra, edge), models = _resample_models(ms, rate_to, keep_order, tries, _Progress(progress, ms.num_models),
+                                                    cache)
     p0, q0 = ms.ar_order, ms.ma_order
     p, q = models[0].ar_lsf.shape[0], models[0].ma_lsf.shape[0]
     metadata = dict(ms.metadata)

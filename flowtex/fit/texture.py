@@ -27,7 +27,12 @@ Pipeline of :func:`fit_texture` (units: acceleration m/s^2, speed mm/s, force N)
    ``order=None`` chooses it (flowtex.fit.arma.select_shared_order, the least
    summed BIC) over the ``order_pieces`` longest pieces - the order is a
    property of the material, and a minute of exploration has some 40 pieces
-   whose full search would cost 6 refined fits each - else ``(p, q)``;
+   whose full search would cost 6 refined fits each - else ``(p, q)``.
+   A free exploration's model of a piece is fitted on that piece pooled with
+   its ``pool_pieces`` - 1 nearest neighbours in (speed, force), its level
+   moved to its own point along the pieces' power law (flowtex.fit.pooling:
+   a short piece carries its second's wandering loudness); a grid's cells
+   are long and stationary and are fitted alone;
 5. the set (:func:`assemble_set`): the measured models, silent corner models
    (variance 0) at speed 0 and force 0 copying their nearest measured model
    (HaTT, Romano & Kuchenbecker 2012), a Delaunay triangulation over (speed, force) and the set's
@@ -38,7 +43,7 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -47,14 +52,18 @@ from ..dsp.filter_design import zero_phase_highpass
 from ..dsp.lsf import poly_to_lsf
 from ..dsp.robust import clamp_outliers
 from ..dsp.segment import segment
+from ..dsp.spectral import gfc_data_model
 from ..errors import DataError
 from ..io.modelset import delaunay_triangles
 from ..models.rendering import FITTED_RULE
 from ..models.texture import TextureModelSet
 from .arma import ArmaFit, fit_arma, select_shared_order
+from .pooling import neighbour_groups, pooled_data, trend_factors
 
 CORNERS = 8
 """Silent corner models per axis (HaTT's cork surface has 8 at speed 0 and 8 at force 0, plus the origin)."""
+POOL_PIECES = 5
+"""Default of :attr:`TextureOptions.pool_pieces` (docs/fitting.md, "Pooling neighbouring pieces", has the measurements)."""
 
 
 @dataclass
@@ -72,6 +81,9 @@ class TextureOptions:
     min_speed: float = 5.0
     penalty_scale: float = 1.0
     order_pieces: int = 8
+    pool_pieces: int = POOL_PIECES
+    """Pieces each model of a free exploration is fitted on: its own and its nearest neighbours in (speed, force)
+    (flowtex.fit.pooling); 1 fits every piece alone."""
 
 
 @dataclass
@@ -160,8 +172,12 @@ def find_pieces(x: np.ndarray, speed: np.ndarray, force: np.ndarray, rate: float
     return pieces, dropped
 
 
-def fit_pieces(x: np.ndarray, pieces: Sequence[Piece], rate: float, opt: TextureOptions, where: str) -> None:
-    """Fit every piece at one shared order (chosen over all pieces unless ``opt.order``), in place."""
+def fit_pieces(x: np.ndarray, pieces: Sequence[Piece], rate: float, opt: TextureOptions, where: str, pool: int = 1) -> None:
+    """Fit every piece at one shared order (chosen over all pieces unless ``opt.order``), in place.
+
+    ``pool``: each piece's model is fitted on it and its ``pool`` - 1 nearest pieces in (speed, force)
+    (flowtex.fit.pooling); its LSD is measured against its own samples.
+    """
     data = [x[pc.start:pc.stop] for pc in pieces]
     p, q = opt.order if opt.order is not None else (opt.max_order, opt.max_order)
     need = max(10 * (p + q + 1), 100)
@@ -174,9 +190,17 @@ def fit_pieces(x: np.ndarray, pieces: Sequence[Piece], rate: float, opt: Texture
         if order is None:
             longest_first = sorted(range(len(data)), key=lambda k: -data[k].shape[0])[:max(1, opt.order_pieces)]
             order = select_shared_order([data[k] for k in longest_first], opt.max_order)
-        fits = [fit_arma(d, order) for d in data]
+        groups = neighbour_groups([pc.speed for pc in pieces], [pc.force for pc in pieces], pool)
+        fits = [fit_arma(pooled_data(data, g), order) for g in groups]
     except DataError as exc:
         raise DataError(f"{where}: {exc}") from None
+    if pool > 1:
+        # each group's level moved to its own piece's point; the table's GFC and power error then describe each model
+        # against its own piece (the power error: how far pooling moved its level)
+        own = [float(np.var(d)) for d in data]
+        factors = trend_factors([pc.speed for pc in pieces], [pc.force for pc in pieces], own, [d.shape[0] for d in data], groups)
+        fits = [replace(f, variance=f.variance * k, data_variance=v, gfc=gfc_data_model(d - np.mean(d), f.ar, f.ma))
+                for f, k, v, d in zip(fits, factors, own, data, strict=True)]
     for pc, d, f in zip(pieces, data, fits, strict=True):
         pc.fit = f
         pc.lsd_db = f.lsd_db(d, rate, min(256, d.shape[0]))
@@ -251,9 +275,11 @@ def fit_texture(accel: np.ndarray, speed: np.ndarray, force: np.ndarray, rate: f
     opt = opt or TextureOptions()
     x, clipped = preprocess(accel, rate, opt.highpass_hz, opt.outlier_sigma)
     pieces, dropped = find_pieces(x, np.asarray(speed, float), np.asarray(force, float), rate, opt, where, within)
-    fit_pieces(x, pieces, rate, opt, where)
+    pool = max(1, min(opt.pool_pieces, len(pieces)))
+    fit_pieces(x, pieces, rate, opt, where, pool)
     order = pieces[0].fit.order if pieces[0].fit is not None else (0, 0)
-    meta = {"fitted_by": "flowtex fit texture", "order": list(order), "pieces": len(pieces), "highpass_hz": opt.highpass_hz}
+    meta = {"fitted_by": "flowtex fit texture", "order": list(order), "pieces": len(pieces), "highpass_hz": opt.highpass_hz,
+            "pool_pieces": pool}
     ms = assemble_set(pieces, rate, material, meta)
     return TextureFit(ms, pieces, x, rate, dropped, clipped, np.column_stack([speed, force]).astype(np.float64))
 

@@ -132,14 +132,19 @@ def write_outputs(fit: TextureFit, output: Path, xml: Path | None, render_rate: 
 
 
 def _resample(ms: Any, rate: float, allow_misses: bool, where: str) -> Any:
-    """The set at ``rate`` Hz (flowtex models resample's method), with a one-line account of what it cost."""
-    from .resample import check_misses, resample_model_set, tqdm_progress
+    """The set at ``rate`` Hz by flowtex models resample's method and default (``--densify auto``: models added where
+    the resampled set would otherwise depart from the fitted one along a path), with a one-line account of what it cost."""
+    from .resample import check_misses, tqdm_progress
+    from .resample_densify import densify_summary, resample_densified
 
     progress, close = tqdm_progress(ms.num_models, "resample")
     try:
-        out = resample_model_set(ms, rate, progress, option="--render-rate")
+        dense, out = resample_densified(ms, rate, progress=progress, option="--render-rate")
     finally:
         close()
+    added = densify_summary(where, ms, dense)
+    if added:
+        print(added)
     warning = check_misses(out, allow_misses, where)
     info = out.metadata["resample"]
     print(f"resampled {info['from_hz']:g} Hz -> {info['to_hz']:g} Hz: orders {ms.ar_order}/{ms.ma_order} -> "

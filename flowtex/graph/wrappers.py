@@ -49,15 +49,16 @@ def wrapper_source(kernel_name: str, n_in: int, n_out: int) -> str:
     for name, make in (("p", "fslice(fb"), ("s", "fslice(fb"), ("si", "islice(ib")):
         start = DESCRIPTOR.const(name)
         lines.append(f"    {name} = {make}, at(ib, at(ib, {offset_expr('d', start)})), at(ib, at(ib, {offset_expr('d', start + 1)})))")
-    ports = []
     for k in range(n_in + n_out):
         off, w = DESC_FIXED + 2 * k, DESC_FIXED + 2 * k + 1
         lines.append(f"    w{k} = at(ib, at(ib, d + {w}))")
-        ports.append(f"view(fb, at(ib, at(ib, d + {off})) + r * w{k}, w{k}, n)")
+        lines.append(f"    v{k} = view(fb, at(ib, at(ib, d + {off})) + r * w{k}, w{k}, n)")
     # A cfunc cannot pass an exception to its caller (numba would print "Exception ignored" and carry on):
     # the wrapper records it in the int arena's FAULT slots and the driver stops (flowtex.graph.dispatch).
+    # Only the kernel call is inside the try: numba lowers every call in a try block with its own exception
+    # check and cleanup, so views built there cost compile time per port and can raise nothing.
     lines.append("    try:")
-    lines.append("        kernel(p, s, si" + "".join(", " + v for v in ports) + ")")
+    lines.append("        kernel(p, s, si" + "".join(f", v{k}" for k in range(n_in + n_out)) + ")")
     lines.append("    except Exception:")
     lines.append("        record_fault(ib, d, r, n)")
     return "\n".join(lines) + "\n"

@@ -39,6 +39,13 @@ MAX_LEVELS = 3
 """Most halvings :func:`densify_set` does: each multiplies the measured models by about 4."""
 
 
+def measured_edges(ms: TextureModelSet) -> set[tuple[int, int]]:
+    """Every edge of ``ms``'s triangulation between two measured models (variance > 0), as (low, high) indices."""
+    measured = ms.variance > 0
+    return {(min(a, b), max(a, b)) for t in ms.triangles for a, b in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0]))
+            if measured[a] and measured[b]}
+
+
 def densify_set(ms: TextureModelSet, levels: int = 1) -> TextureModelSet:
     """``ms`` with the midpoint of every edge between two measured models added, ``levels`` times (module docstring).
 
@@ -49,28 +56,62 @@ def densify_set(ms: TextureModelSet, levels: int = 1) -> TextureModelSet:
         raise ValueError(f"densify levels must be an integer from 0 to {MAX_LEVELS}, got {levels!r}")
     out = ms
     for _ in range(levels):
-        out = _split_once(out)
+        out = split_edges(out, measured_edges(out))
     if levels:
-        meta = dict(out.metadata or {})
-        meta["densify"] = {"levels": levels, "models_before": ms.num_models, "models_added": out.num_models - ms.num_models}
-        out = dataclasses.replace(out, metadata=meta)
+        out = record_densify(out, ms, levels=levels)
     return out
 
 
-def _split_once(ms: TextureModelSet) -> TextureModelSet:
+def record_densify(dense: TextureModelSet, original: TextureModelSet, **info: object) -> TextureModelSet:
+    """``dense`` with ``metadata["densify"]`` = ``info`` plus the models before and added (relative to ``original``)."""
+    meta = dict(dense.metadata or {})
+    meta["densify"] = {**info, "models_before": original.num_models, "models_added": dense.num_models - original.num_models}
+    return dataclasses.replace(dense, metadata=meta)
+
+
+def _closure(ms: TextureModelSet, edges: set[tuple[int, int]]) -> set[tuple[int, int]]:
+    """``edges`` plus every splittable edge of each triangle that has two or more of them marked (red refinement).
+
+    A triangle is then split in 4 (all three edges marked), in 2 (one) or not at all, never in 3 (two marked
+    edges would leave a thin triangle); the closure repeats until no triangle has exactly two marked edges.
+    """
+    splittable = measured_edges(ms)
+    marked = set(edges) & splittable
+    tris = [tuple((min(a, b), max(a, b)) for a, b in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0]))) for t in ms.triangles]
+    changed = True
+    while changed:
+        changed = False
+        for t in tris:
+            if sum(e in marked for e in t) >= 2:
+                for e in t:
+                    if e in splittable and e not in marked:
+                        marked.add(e)
+                        changed = True
+    return marked
+
+
+def split_edges(ms: TextureModelSet, edges: set[tuple[int, int]]) -> TextureModelSet:
+    """``ms`` with the model it renders at the midpoint of each of ``edges`` (between measured models) added.
+
+    ``edges`` are (low, high) model indices; edges touching a silent model are ignored, and the closure
+    (:func:`_closure`) may add a few so that the triangulation stays conforming. The models added are appended
+    (every existing model keeps its index and values) and the set renders as before everywhere (module docstring).
+    """
     from ..dsp.interp import model_output_powers
 
+    marked = _closure(ms, edges)
+    if not marked:
+        return ms
     rule = resolve_rule(ms).interpolation
-    measured = ms.variance > 0
     power = model_output_powers(ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain)
     speeds, forces = list(ms.speeds), list(ms.forces)
     ar, ma, gain, var = list(ms.ar_lsf), list(ms.ma_lsf), list(ms.gain), list(ms.variance)
     mids: dict[tuple[int, int], int] = {}
 
     def midpoint(i: int, j: int) -> int | None:
-        if not (measured[i] and measured[j]):
-            return None
         key = (min(i, j), max(i, j))
+        if key not in marked:
+            return None
         if key not in mids:
             mids[key] = len(speeds)
             speeds.append(0.5 * (ms.speeds[i] + ms.speeds[j]))

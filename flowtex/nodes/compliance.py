@@ -6,15 +6,15 @@ import math
 
 from numba import njit
 
-from ..dsp.compliance import PARAMS, STATE, compliance_fit, compliance_params, compliance_step
+from ..dsp.compliance import F_KC, F_SIGMA, F_VALID, FIT, FIT_LEN, PARAMS, STATE, compliance_fit, compliance_params, compliance_step
 from ..dsp.contact import CONTACT_ON_N
 from ..errors import ParamError
 from ..node_api import Field, Layout, Memory, Node, Param, Port, PortSpec
 
 COMPLIANCE = Memory(
     params=Layout("float", [*PARAMS.fields, Field("fallback_kc", 1, "k_c output while the estimate is not valid")]),
-    state=Layout("float", [*STATE.fields, Field("fit", 5, "the last fit: k_c, sigma, valid, reason, bins used "
-                                                          "(flowtex.dsp.compliance.compliance_fit)")]))
+    state=Layout("float", [*STATE.fields, Field("fit", FIT_LEN, "the last fit: a FIT record "
+                                                                "(flowtex.dsp.compliance.compliance_fit)")]))
 """The kernel's parameters and state (flowtex.dsp.compliance) with the node's fallback and last fit after them."""
 P_FALLBACK = COMPLIANCE.params.const("fallback_kc")
 S_FIT = COMPLIANCE.state.const("fit")
@@ -22,13 +22,13 @@ S_FIT = COMPLIANCE.state.const("fit")
 
 @njit(cache=True)
 def _compliance(p, s, si, normal_force, acceleration, in_contact, k_c, sigma, valid):
-    fit = s[S_FIT:S_FIT + 5]
+    fit = s[S_FIT:S_FIT + FIT_LEN]
     for t in range(normal_force.shape[0]):
         if compliance_step(p, s, normal_force[t, 0], acceleration[t], in_contact[t, 0]):
             compliance_fit(p, s, fit)
-        ok = fit[2] > 0.5
-        k_c[t, 0] = fit[0] if ok else p[P_FALLBACK]
-        sigma[t, 0] = fit[1] if not math.isnan(fit[1]) else 0.0
+        ok = fit[F_VALID] > 0.5
+        k_c[t, 0] = fit[F_KC] if ok else p[P_FALLBACK]
+        sigma[t, 0] = fit[F_SIGMA] if not math.isnan(fit[F_SIGMA]) else 0.0
         valid[t, 0] = 1.0 if ok else 0.0
 
 
@@ -86,4 +86,4 @@ class ComplianceEstimator(Node):
             raise ParamError(name, str(exc)) from None
         names = [f.name for f in PARAMS.fields]
         return self.pack_state(params={**dict(zip(names, params, strict=True)), "fallback_kc": p["fallback_kc"]},
-                               state={"fit": [math.nan, math.nan, 0.0, 0.0, 0.0]})
+                               state={"fit": FIT.pack({"k_c": math.nan, "sigma": math.nan})})

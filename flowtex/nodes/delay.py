@@ -7,15 +7,17 @@ from numba import njit
 from ..node_api import Field, Layout, Memory, Node, Param, Port
 
 DELAY = Memory(state=Layout("float", [Field("ring", "k * w", "k rows of w values, oldest at row pos")], sizes=("k", "w")),
-               istate=Layout("int", [Field("pos", 1, "row of the oldest value")]))
+               istate=Layout("int", [Field("pos", 1, "row of the oldest value"),
+                                     Field("rows", 1, "k: rows of the ring (the delay in ticks)")]))
 S_RING = DELAY.state.const("ring")
 SI_POS = DELAY.istate.const("pos")
+SI_ROWS = DELAY.istate.const("rows")
 
 
 @njit(cache=True)
 def _delay(p, s, si, x, y):
     w = x.shape[1]
-    k = s.shape[0] // w
+    k = si[SI_ROWS]
     pos = si[SI_POS]
     for t in range(x.shape[0]):
         base = S_RING + pos * w
@@ -39,7 +41,7 @@ def _emit(p, s, si, y):
 @njit(cache=True)
 def _absorb(p, s, si, x):
     w = x.shape[1]
-    k = s.shape[0] // w
+    k = si[SI_ROWS]
     base = S_RING + si[SI_POS] * w
     for c in range(w):
         s[base + c] = x[0, c]
@@ -65,4 +67,4 @@ class Delay(Node):
     memory = DELAY
 
     def build(self, inputs, outputs):
-        return self.pack_state({"k": self.p["samples"], "w": inputs["x"].width})
+        return self.pack_state({"k": self.p["samples"], "w": inputs["x"].width}, istate={"rows": self.p["samples"]})

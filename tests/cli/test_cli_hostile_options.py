@@ -16,12 +16,12 @@ from flowtex.datasets.model_sets import synthetic_model_set
 from flowtex.io.canlog import SessionWriter
 from flowtex.io.modelset import save_model_set
 from flowtex.io.recordings import save_recording
+from tests.cli.gain_graph import MAP_GRAPH
 from tests.conftest import REPO
 from tests.io.test_hostile_files import npy_header
 
 DBC = REPO / "graphs" / "devices" / "example.dbc"
 MAP = REPO / "graphs" / "devices" / "example_map.yaml"
-LIVE_GRAPH = REPO / "graphs" / "live_texture.yaml"
 
 
 def cli_one_line(capsys, argv: list[str], match: str) -> str:
@@ -139,9 +139,11 @@ def test_replays_of_nothing_are_refused(tmp_path, capsys):
     (tmp_path / "empty.log").write_text("")
     (tmp_path / "garbage.log").write_bytes(b"\x00\xffnot a candump line\n" * 50)
     (tmp_path / "long.log").write_text("(1.0) vcan0 " + "A" * (5 << 20) + "\n")
+    graph = tmp_path / "g.yaml"  # the inputs are the point, not the graph: the smallest one the map binds
+    graph.write_text(MAP_GRAPH)
     for name in ("empty.blf", "unknown.blf", "empty.log", "garbage.log", "long.log"):
         out = tmp_path / f"{name}.npz"
-        msg = cli_one_line(capsys, ["run", str(LIVE_GRAPH), "--input", str(tmp_path / name), "--dbc", str(DBC), "--map", str(MAP),
+        msg = cli_one_line(capsys, ["run", str(graph), "--input", str(tmp_path / name), "--dbc", str(DBC), "--map", str(MAP),
                                     "-o", str(out), "--no-plugins"], f"{tmp_path / name}: ")
         assert "nothing to replay" in msg or "malformed" in msg, msg
         assert not out.exists()
@@ -181,7 +183,8 @@ def test_bench_on_a_dead_scheduler_is_one_line(tmp_path, capsys):
                                      "edges: [x -> k.x]\noutputs: {y: k.y}\n")
     import dask.distributed  # its defaults loaded first, so leaving the context restores them, not nothing
 
-    with dask.config.set({"distributed.comm.timeouts.connect": "2s"}):  # a dead address fails fast; 30 s by default
+    # a dead address (connection refused) fails at the connect timeout, however short: 0.5 s (30 s by default)
+    with dask.config.set({"distributed.comm.timeouts.connect": "0.5s"}):
         cli_one_line(capsys, ["bench", str(tmp_path / "g.yaml"), "-i", str(tmp_path / "in.npz"), "--knob", "k.k=1,2",
                               "--scheduler", "tcp://127.0.0.1:9"], "--scheduler tcp://127.0.0.1:9: cannot reach the Dask scheduler")
 

@@ -8,8 +8,10 @@ that wanders beyond speed and force, the span of piece powers.
 Part 2 is issue 23's check: fit -> compare in-sample and under two-fold
 cross-validation over interleaved one-second blocks. In-sample: power within
 +-1 dB of the recording and LSD within 0.5 dB of the true surface's own
-render. Held out: mean power over the folds within +-1 dB, and mean LSD within
-1 dB of the in-sample LSD. 20-s recordings at order (4, 2) (the true order)
+render. Held out: mean power over the folds within +-1 dB, and the pooled
+out-of-fold LSD within 1 dB of the in-sample LSD; each fold's own LSD is read
+against the true surface's on the same seconds (the last two tests say why).
+20-s recordings at order (4, 2) (the true order)
 keep this file fast; benchmarks/bench_compare.py --surfaces runs the table over
 more seeds.
 """
@@ -140,18 +142,18 @@ def two_fold(recordings):
 
 
 def test_in_sample_power(in_sample):
-    """Measured (2026-11-26, seeds 0 and 1, fitted sets rendering with power interpolation): +0.04 / +0.27 dB."""
+    """Measured (2026-11-26, seeds 0 and 1, 5 pooled pieces): +0.29 / -0.27 dB (piece by piece +0.04 / +0.27)."""
     for _fit, got, _truth in in_sample:
         assert abs(got.power_ratio_db) <= 1.0
 
 
-@pytest.mark.xfail(strict=True, reason="seed 1's in-sample LSD is 1.43 dB against the truth's 0.93 (target +0.5: 1.4332), "
-                                       "measured 2026-11-26. Not the generator's rule: a truth 3x denser (460 models, where "
-                                       "variance and power interpolation differ by <= 0.27 dB) gives 1.42 against 0.92. The fitted "
-                                       "models carry each 0.35-s piece's loudness (-7.9..+8.9 dB around the truth at their points), "
-                                       "and their expected spectra lie 1.57 dB (path LSD) from the truth's (docs/fitting.md, "
-                                       "'In-sample LSD against the truth')")
 def test_in_sample_lsd(in_sample):
+    """Issue 23: in-sample LSD within 0.5 dB of the true surface's own render.
+
+    Measured (2026-11-26, seeds 0 and 1, models fitted on 5 pooled pieces, flowtex.fit.pooling): 1.27 / 1.26 dB
+    against the truth's 1.73 / 0.93. Fitted piece by piece (``pool_pieces=1``) seed 1 scored 1.43, +0.50: each
+    model carried its own 0.35-s piece's loudness (docs/fitting.md, "Pooling neighbouring pieces").
+    """
     for _fit, got, truth in in_sample:
         assert got.lsd_db <= truth.lsd_db + 0.5
 
@@ -181,11 +183,40 @@ def test_two_fold_held_out_lsd_near_in_sample(two_fold, in_sample):
         assert doc["pooled"]["seconds"] == pytest.approx(sum(r["seconds"] for r in doc["results"]))
 
 
-@pytest.mark.xfail(strict=True, reason="each fold's LSD holds that fold's level offset and the noise of half the data: "
-                                       "measured 2026-11-26, mean over the folds 2.45 / 3.12 dB (seeds 0 / 1) against "
-                                       "in-sample 1.25 / 1.43; the true surface itself scores 2.54 / 1.50 and 1.15 / 2.06 dB "
-                                       "on the single folds against 1.73 / 0.93 on the whole recording (docs/fitting.md, "
-                                       "'Held-out figures')")
-def test_two_fold_mean_of_fold_lsds_near_in_sample(two_fold, in_sample):
-    for doc, (_fit, got, _truth) in zip(two_fold, in_sample, strict=True):
-        assert doc["mean"]["lsd_db"] <= got.lsd_db + 1.0
+@pytest.fixture(scope="module")
+def truth_on_folds(recordings):
+    """The true surface's LSD on each fold's held-out blocks: what the data of a fold sets, whatever the surface."""
+    out = []
+    for rec in recordings:
+        a = rec.arrays
+        splits = fold_splits(a["accel"].shape[0], RATE, 2)
+        out.append([compare_surface(rec.truth["surface"], a["accel"], a["speed"], a["normal_force"], RATE, ranges=test).lsd_db
+                    for _train, test in splits])
+    return out
+
+
+def test_two_fold_fold_lsds_near_the_truths_on_the_same_blocks(two_fold, truth_on_folds):
+    """Each fold's own LSD, read against the true surface's on the same held-out seconds (as the in-sample LSD is
+    read against the truth's on the whole recording): the mean over the folds within 1 dB of the truth's mean.
+
+    Measured (2026-11-26, seeds 0 and 1, 5 pooled pieces): 2.36 / 2.37 dB against the truth's 2.02 / 1.61; piece
+    by piece seed 1 was 3.12 against 1.61. Over seeds 0-7 this holds on 7 (docs/fitting.md, "Held-out figures").
+    """
+    for doc, truth in zip(two_fold, truth_on_folds, strict=True):
+        assert doc["mean"]["lsd_db"] <= float(np.mean(truth)) + 1.0
+
+
+def test_mean_of_fold_lsds_against_the_whole_recording_is_not_a_property_of_the_surface():
+    """Why the folds' own LSDs are not read against the in-sample LSD: the true surface itself fails that reading.
+
+    Seed 6 (docs/fitting.md, "Held-out figures"): the truth scores 1.60 dB on the whole recording and 2.80 / 3.29 on
+    the two folds' held-out seconds (each fold's seconds wander in loudness by their own 2 dB per second, and Welch
+    PSDs of half the data are noisier), 1.45 dB above; no fit can be held to less than the surface it estimates.
+    """
+    rec = textured_exploration(float(SECONDS), RATE, seed=6)
+    a = rec.arrays
+    sig = (a["accel"], a["speed"], a["normal_force"])
+    whole = compare_surface(rec.truth["surface"], *sig, RATE).lsd_db
+    folds = [compare_surface(rec.truth["surface"], *sig, RATE, ranges=test).lsd_db
+             for _train, test in fold_splits(a["accel"].shape[0], RATE, 2)]
+    assert float(np.mean(folds)) > whole + 1.0

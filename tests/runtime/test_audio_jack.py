@@ -16,6 +16,8 @@ from __future__ import annotations
 import itertools
 import json
 import os
+import re
+import select
 import shutil
 import signal
 import subprocess
@@ -30,6 +32,8 @@ import numpy as np
 import pytest
 from scipy.io import wavfile
 
+from tests.cli.gain_graph import MAP_GRAPH as GRAPH  # two gains: what the audio path does is the point
+
 REPO = Path(__file__).resolve().parents[2]
 DBC = REPO / "graphs" / "devices" / "example.dbc"
 CAPTURE = Path(__file__).with_name("jack_capture.py")
@@ -37,24 +41,6 @@ JACKD = shutil.which("jackd")
 pytestmark = pytest.mark.skipif(JACKD is None, reason="jackd is not installed (Debian: apt-get install jackd2 libportaudio2)")
 RATE = 8000
 _names = itertools.count()
-
-GRAPH = """
-flowtex: 1
-name: audio-passthrough
-rate: 1000
-inputs:
-  position: {shape: [3], unit: mm}
-  normal_force: {unit: N}
-nodes:
-  k: {type: gain, params: {k: 0.01}}
-  v: {type: gain, params: {k: 0.25}}
-edges:
-  - position -> k.x
-  - normal_force -> v.x
-outputs:
-  force: k.y
-  vibration: v.y
-"""
 
 MAP = """
 flowtex_map: 1
@@ -93,6 +79,44 @@ def _map(path: Path, block: int, margin_ms: float = 10.0) -> Path:
 def _ports(env: dict) -> set[str]:
     out = subprocess.run(["jack_lsp"], capture_output=True, text=True, env=env, timeout=10)
     return set(out.stdout.split()) if out.returncode == 0 else set()
+
+
+class _PortEvents:
+    """``jack_evmon``'s event lines: wakes the wait for a client's port at its registration, instead of polling
+    ``jack_lsp`` (a JACK client of its own, and work for jackd: docs/testing.md) every few milliseconds while flowtex
+    starts."""
+
+    POLL_S = 0.5
+    """Longest wait for an event (a port registered before the monitor saw it is found by the next poll)."""
+
+    def __init__(self, proc: subprocess.Popen) -> None:
+        self.fd = proc.stdout.fileno()
+
+    def wait_port(self) -> None:
+        """Return at the next port registration, or after :data:`POLL_S`."""
+        end = time.monotonic() + self.POLL_S
+        while (left := end - time.monotonic()) > 0 and select.select([self.fd], [], [], left)[0]:
+            data = os.read(self.fd, 65536)
+            if not data or re.search(rb"^Port \d+ registered$", data, re.MULTILINE):
+                return
+
+
+@contextmanager
+def _port_events(env: dict):
+    """A running ``jack_evmon`` (line-buffered through stdbuf), subscribed to the server's events when this yields."""
+    proc = subprocess.Popen(["stdbuf", "-oL", "jack_evmon"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env)
+    try:
+        # its first line ("Graph reordered": its own activation) comes once it receives the server's events
+        assert select.select([proc.stdout], [], [], 20)[0] and os.read(proc.stdout.fileno(), 65536), "jack_evmon did not start"
+        yield _PortEvents(proc)
+    finally:
+        proc.terminate()  # it closes its JACK client and exits (SIGKILL would leave the server a dead client to drop)
+        try:
+            proc.wait(5)
+        except subprocess.TimeoutExpired:  # its server is gone: closing the client hangs
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
 
 
 @contextmanager
@@ -136,12 +160,15 @@ sys.exit(main())
 
 
 def _session(setup: Path, env: dict, block: int, duration: float, sigint_after: float | None = None,
-             kill_server: Any = None, stall: bool = False, margin_ms: float = 10.0) -> dict:
+             kill_server: Any = None, stall: bool = False, margin_ms: float = 10.0, busy: bool = False) -> dict:
     """Run flowtex live with its output connected to a capture client; returns what happened.
 
-    ``stall``: run it through :data:`STALL` (the tick loop stops for 50 ms at tick 1000)."""
+    ``stall``: run it through :data:`STALL` (the tick loop stops for 50 ms at tick 1000). ``busy``: one core kept busy
+    by a process in this test's own process group from the moment flowtex's port appears (the session plays) to its end
+    (not while flowtex starts: a busy core then only costs CPU)."""
     cap_path = setup / f"cap{block}.npy"
     before = _ports(env)
+    hog = None
     cap = subprocess.Popen([sys.executable, str(CAPTURE), str(cap_path), str(RATE), str(block)], stdout=subprocess.PIPE,
                            text=True, env=env)
     try:
@@ -152,15 +179,18 @@ def _session(setup: Path, env: dict, block: int, duration: float, sigint_after: 
         cmd = [sys.executable, *(("-c", STALL) if stall else ("-m", "flowtex")), "live", str(setup / "g.yaml"), "--bus", "virtual", "--dbc", str(DBC),
                "--map", str(_map(setup, block, margin_ms)), "--simulate", str(setup / "rec.npz"), "--duration", str(duration),
                "--record-audio", str(wav), "--record", str(blf), "--stats", str(stats), "--quiet"]
-        live = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, env=env)
-        end = time.monotonic() + 180  # the first run compiles the graph: minutes on a cold cache and a loaded machine
-        while True:
-            outs = sorted(p for p in _ports(env) - base if ":out" in p)
-            if outs:
-                subprocess.run(["jack_connect", outs[0], cap_in], check=True, env=env, timeout=10)
-                break
-            assert live.poll() is None and time.monotonic() < end, f"flowtex never opened its JACK port: {live.stderr.read()}"
-            time.sleep(0.01)
+        with _port_events(env) as events:
+            live = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, env=env)
+            end = time.monotonic() + 180  # the first run compiles the graph: minutes on a cold cache and a loaded machine
+            while True:
+                outs = sorted(p for p in _ports(env) - base if ":out" in p)
+                if outs:
+                    subprocess.run(["jack_connect", outs[0], cap_in], check=True, env=env, timeout=10)
+                    break
+                assert live.poll() is None and time.monotonic() < end, f"flowtex never opened its JACK port: {live.stderr.read()}"
+                events.wait_port()
+        if busy:
+            hog = subprocess.Popen([sys.executable, "-c", "while True: pass"])
         if sigint_after is not None:
             time.sleep(sigint_after)
             live.send_signal(signal.SIGINT)
@@ -170,6 +200,11 @@ def _session(setup: Path, env: dict, block: int, duration: float, sigint_after: 
         _, err = live.communicate(timeout=120)
         time.sleep(0.3)  # let the capture run past the end of flowtex's stream
     finally:
+        if hog is not None:
+            hog.kill()
+            hog.wait(10)
+        if kill_server is not None:  # no server left: the capture hangs in PortAudio and ignores SIGTERM (nothing to save)
+            cap.kill()
         cap.terminate()
         try:
             cap.wait(20)
@@ -229,7 +264,7 @@ def _line_up(captured: np.ndarray, recorded: np.ndarray, period: int) -> tuple[i
     raise AssertionError("the captured samples appear nowhere in --record-audio")
 
 
-def test_captured_equals_record_audio_and_replay_at_period_64(setup):
+def test_captured_equals_record_audio_and_replay_at_period_64(setup, flowtex_cli):
     log = setup / "jackd.log"
     with jack_server(64, log) as (env, _):
         r = _session(setup, env, 64, duration=2.0)
@@ -245,7 +280,7 @@ def test_captured_equals_record_audio_and_replay_at_period_64(setup):
     lat = audio["latency_ms"]
     assert 0 < lat["p50"] <= lat["p99"] <= lat["max"]
 
-    done, replayed = _replay(setup, r, 64)
+    done, replayed = _replay(flowtex_cli, setup, r, 64)
     assert done.returncode == 0, done.stdout + done.stderr
     np.testing.assert_array_equal(replayed, rec)  # the whole stream, silence included, sample for sample
     assert audio["played_frames"] > 0.5 * rec.size  # most of the session played the graph's samples, not safe silence
@@ -256,20 +291,20 @@ def test_captured_equals_record_audio_and_replay_at_period_64(setup):
     i = audio["lead_frames"] + 8 * 500
     bad[i] = np.float32(bad[i] * (1 + 1e-6))
     wavfile.write(tampered, RATE, bad)
-    done, _ = _replay(setup, r, 64, expect=tampered)
+    done, _ = _replay(flowtex_cli, setup, r, 64, expect=tampered)
     assert done.returncode == 1 and f"1 frames DIFFER (the ticks' samples), first at frame {i} " in done.stdout, done.stdout
 
 
-def _replay(setup: Path, r: dict, block: int, expect: Path | None = None) -> tuple[subprocess.CompletedProcess, np.ndarray]:
-    """``flowtex run`` on the session's log into a WAV, checked with --expect-audio (default: the live WAV)."""
+def _replay(cli, setup: Path, r: dict, block: int, expect: Path | None = None) -> tuple[subprocess.CompletedProcess, np.ndarray]:
+    """``flowtex run`` on the session's log into a WAV, checked with --expect-audio (default: the live WAV); in this
+    process (``cli``: the flowtex_cli fixture), since what is checked is the replay, not a process."""
     replay = setup / "replay.wav"
-    done = subprocess.run([sys.executable, "-m", "flowtex", "run", str(setup / "g.yaml"), "--input", str(r["blf"]), "--dbc", str(DBC),
-                           "--map", str(setup / f"m{block}.yaml"), "--output", str(replay), "--expect-audio",
-                           str(expect or r["wav"])], capture_output=True, text=True, timeout=300)
+    done = cli("run", setup / "g.yaml", "--input", r["blf"], "--dbc", DBC, "--map", setup / f"m{block}.yaml", "--output", replay,
+               "--expect-audio", expect or r["wav"])
     return done, (wavfile.read(replay)[1] if replay.exists() else np.zeros(0, dtype=np.float32))
 
 
-def test_stall_longer_than_the_margin_resyncs_and_the_replay_still_equals_the_capture(setup):
+def test_stall_longer_than_the_margin_resyncs_and_the_replay_still_equals_the_capture(setup, flowtex_cli):
     log = setup / "jackd.log"
     with jack_server(64, log) as (env, _):
         r = _session(setup, env, 64, duration=2.0, stall=True)
@@ -280,7 +315,7 @@ def test_stall_longer_than_the_margin_resyncs_and_the_replay_still_equals_the_ca
     assert (audio["margin_ms"], audio["margin_max_ms"], audio["margin_end_ms"]) == (10.0, 15.0, 15.0), audio
     good, bad = _compare_cycles(r["captured"], r["recorded"], 64)
     assert bad <= _xruns(log), (good, bad)
-    done, replayed = _replay(setup, r, 64)
+    done, replayed = _replay(flowtex_cli, setup, r, 64)
     assert done.returncode == 0, done.stdout + done.stderr
     np.testing.assert_array_equal(replayed, r["recorded"])  # over its whole length, the inserted silence included
     assert "resync(s) at tick(s)" in done.stdout and "ticks later than the margin (underruns)" in done.stdout
@@ -296,15 +331,9 @@ mechanism: every stall shorter than the margin is caught up, and not one sample 
 
 
 def test_cpu_bound_process_beside_the_session_costs_no_sample(setup):
-    # one core kept busy by a process in this test's own process group, for the session only
     log = setup / "jackd.log"
-    busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
-    try:
-        with jack_server(64, log) as (env, _):
-            r = _session(setup, env, 64, duration=3.0, margin_ms=BUSY_MARGIN_MS)
-    finally:
-        busy.kill()
-        busy.wait(10)
+    with jack_server(64, log) as (env, _):
+        r = _session(setup, env, 64, duration=3.0, margin_ms=BUSY_MARGIN_MS, busy=True)  # one core busy while it plays
     assert r["rc"] == 0, r["stderr"]
     audio = r["stats"]["audio"]
     # no tick was late for the sound card: no late frame, no resync (the margin absorbed every stall of the loop);
