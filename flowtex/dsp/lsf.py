@@ -38,11 +38,11 @@ import from here, lazily.
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 from numba import njit
 
+from ..moved import moved_names
 from .fastmath import FASTMATH
 
 DEFAULT_MIN_GAP = 1e-6
@@ -301,15 +301,5 @@ def repair_lsf(lsf: np.ndarray, min_gap: float = DEFAULT_MIN_GAP) -> bool:
     return True
 
 
-_MOVED = ("poly_to_lsf", "roots_to_lsf")
-"""Names that moved to :mod:`flowtex.dsp.lsf_roots`, importable from here as before."""
-
-
-def __getattr__(name: str) -> Any:
-    if name not in _MOVED:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    import importlib  # by name, not by an import statement: lsf_roots imports this module
-
-    value = getattr(importlib.import_module("flowtex.dsp.lsf_roots"), name)
-    globals()[name] = value
-    return value
+__getattr__ = moved_names(__name__, dict.fromkeys(("poly_to_lsf", "roots_to_lsf"), "flowtex.dsp.lsf_roots"))
+"""Names that moved to :mod:`flowtex.dsp.lsf_roots` still import from here (lazily: lsf_roots imports this module)."""

@@ -46,6 +46,7 @@ from typing import Any
 from cantools.database.can import Message
 
 from ..errors import DataError
+from ..moved import moved_names
 
 _PACK_FORMATS = {1: "B", 2: "H", 4: "I", 8: "Q"}
 
@@ -275,15 +276,6 @@ def build_codecs(db: Any) -> dict[str, MessageCodec]:
     return {m.name: MessageCodec(m) for m in db.messages if not m.is_multiplexed()}
 
 
-_MOVED = ("fast_ok", "pack_int64", "TableDecoder", "TableEncoder", "decode_packed")
-"""Names that moved to :mod:`flowtex.io.codec_tables`, importable from here as before."""
-
-
-def __getattr__(name: str) -> Any:
-    if name not in _MOVED:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    import importlib  # by name, not by an import statement: codec_tables imports this module
-
-    value = getattr(importlib.import_module("flowtex.io.codec_tables"), name)
-    globals()[name] = value
-    return value
+__getattr__ = moved_names(__name__, dict.fromkeys(("fast_ok", "pack_int64", "TableDecoder", "TableEncoder", "decode_packed"),
+                                                  "flowtex.io.codec_tables"))
+"""Names that moved to :mod:`flowtex.io.codec_tables` still import from here (lazily: codec_tables imports this module)."""
