@@ -24,7 +24,7 @@ from .arena import Layout
 from .codegen import generate
 from .jit import generated_digest, load_generated
 from .kcache import sealed_compile
-from .resolve import ResolvedGraph
+from .resolved import ResolvedGraph
 
 BLOCK_SIG = "(float64[::1], int64[::1], int64)"
 RUN_SIG = "(float64[::1], int64[::1], float64[::1], float64[::1])"
