@@ -13,7 +13,7 @@ The live runtime keeps two ways of doing two things (docs/live.md, "How steps 3 
   compared every tick.
 - ``codec``: decoding one tick's sensor frames and encoding its actuator frames with the
   generated Python codecs (:meth:`CanIO.decode`, ``CanIO.encoders``) against the compiled
-  table codecs (:func:`~flowtex.io.codec.decode_packed`, :class:`~flowtex.io.codec.TableEncoder`
+  table codecs (:func:`~flowtex.io.codec_tables.decode_packed`, :class:`~flowtex.io.codec_tables.TableEncoder`
   plus the copies into the frames); values and bytes are compared.
 
 Graph: graphs/live_texture.yaml on graphs/data/exploration.npz with the example device
@@ -38,7 +38,7 @@ import can
 import numpy as np
 
 from flowtex.graph.compiled import load_graph
-from flowtex.io.codec import decode_packed
+from flowtex.io.codec_tables import decode_packed
 from flowtex.runtime.buses import receiver
 from flowtex.runtime.canio import CanIO, load_io, tick_out
 from flowtex.runtime.fused import fuse_tick

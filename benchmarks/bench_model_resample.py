@@ -46,7 +46,8 @@ from flowtex.datasets.model_sets import hatt_like_model
 from flowtex.dsp.arma import arma_psd
 from flowtex.dsp.arma_estimate import whittle_refine
 from flowtex.dsp.arma_resample import GRID, STOPBAND_FLOOR, _map_roots, _model_power_spectrum, resample_arma_lsf
-from flowtex.dsp.lsf import is_valid_lsf, lsf_to_poly_new, poly_to_lsf
+from flowtex.dsp.lsf import is_valid_lsf, lsf_to_poly_new
+from flowtex.dsp.lsf_roots import poly_to_lsf
 from flowtex.fit.arma import min_phase_for_lsf
 from flowtex.fit.resample import resample_quality
 

@@ -18,7 +18,8 @@ import time
 
 import can
 
-from flowtex.io.slcan_fast import FastSlcanBus, open_pty
+from flowtex.io.slcan_fast import FastSlcanBus
+from flowtex.io.slcan_pty import open_pty
 
 
 def frame(i: int) -> can.Message:

@@ -194,3 +194,15 @@ def test_wrong_input_shape_is_a_clear_error(chain):
         g.run({})
     with pytest.raises(flowtex.errors.FlowtexError, match="has no input 'z'"):
         g.step({"z": 1.0})
+
+
+def test_resolved_types_still_import_from_resolve(chain):
+    """ResolvedGraph and ResolvedNode moved to flowtex.graph.resolved (resolve.py's checks to wiring.py and ports.py);
+    flowtex.graph.resolve still gives the same classes, and resolve_graph returns them."""
+    import flowtex.graph.resolve as resolve
+    import flowtex.graph.resolved as resolved
+
+    assert resolve.ResolvedGraph is resolved.ResolvedGraph and resolve.ResolvedNode is resolved.ResolvedNode
+    rg = resolve_graph(load_spec(chain), load_registry())
+    assert isinstance(rg, resolve.ResolvedGraph) and rg.nodes
+    assert all(isinstance(rn, resolve.ResolvedNode) for rn in rg.nodes.values())

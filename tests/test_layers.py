@@ -45,8 +45,10 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("models", ("flowtex.models",)),
     ("dsp", ("flowtex.dsp",)),
     # config, and what every layer uses: error classes, input limits, the YAML reader with positions, cache folders
-    # (numba's cache folder must be chosen before any kernel module, dsp's included, decorates its kernels).
-    ("config", ("flowtex.config", "flowtex.version", "flowtex.errors", "flowtex.limits", "flowtex.yamlsource", "flowtex.cache")),
+    # (numba's cache folder must be chosen before any kernel module, dsp's included, decorates its kernels), the old import
+    # paths of names that moved (flowtex.moved).
+    ("config", ("flowtex.config", "flowtex.version", "flowtex.errors", "flowtex.limits", "flowtex.yamlsource", "flowtex.cache",
+                "flowtex.moved")),
 ]
 """Top to bottom. A module belongs to the layer of its longest matching prefix."""
 

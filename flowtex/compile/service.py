@@ -53,7 +53,7 @@ from ..errors import FlowtexError
 from ..graph.arena import Layout
 from ..graph.kcache import locked
 from ..graph.notice import compile_notice
-from ..graph.resolve import ResolvedGraph
+from ..graph.resolved import ResolvedGraph
 
 TIERS = ("fused", "dispatch", "auto")
 WORKER = "flowtex.compile.worker"

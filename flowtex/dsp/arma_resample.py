@@ -40,7 +40,7 @@ most 2x compressed) and cascaded with an all-zero (FIR) lowpass that removes
 the M - 1 images (its passband ripple is compensated inside the fit; no poles,
 which at the band edge would crowd in with the model's own): orders
 (M p, M q + n), n the FIR's order (2.5x to 4x: 38/42 from 19/17). The LSFs
-are computed from the roots (:func:`flowtex.dsp.lsf.roots_to_lsf`), not from
+are computed from the roots (:func:`flowtex.dsp.lsf_roots.roots_to_lsf`), not from
 the coefficients.
 
 Measured on 30 HaTT-like 19/17 models (benchmarks/bench_model_resample.py),
@@ -71,7 +71,8 @@ import numpy as np
 from .anti_imaging import elliptic_lowpass, fir_lowpass
 from .arma_estimate import whittle_refine
 from .arma_logfit import fit_log_spectrum, real_poly
-from .lsf import is_valid_lsf, lsf_to_poly_new, roots_to_lsf
+from .lsf import is_valid_lsf, lsf_to_poly_new
+from .lsf_roots import roots_to_lsf
 from .poly import MAX_RADIUS, stabilize
 from .poly import power_spectrum as _model_power_spectrum
 from .poly import root_power_spectrum as _root_power_spectrum
@@ -325,7 +326,7 @@ def resample_arma_lsf(ar: np.ndarray, ma: np.ndarray, gain: float, variance: flo
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, float, float]:
     """:func:`resample_arma` plus the new model's LSFs: (ar, ma, ar_lsf, ma_lsf, gain, variance).
 
-    When upsampling the LSFs come from the fitted roots (:func:`flowtex.dsp.lsf.roots_to_lsf`), exactly; they
+    When upsampling the LSFs come from the fitted roots (:func:`flowtex.dsp.lsf_roots.roots_to_lsf`), exactly; they
     are None when downsampling (or if they do not come out valid): take them from the polynomials then.
     """
     ar = np.asarray(ar, dtype=np.float64)

@@ -16,7 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 from .arma import arma_output_variance
-from .lsf import lsf_to_poly_new, poly_to_lsf
+from .lsf import lsf_to_poly_new
+from .lsf_roots import poly_to_lsf
 from .poly import step_down  # noqa: F401  (re-exported)
 
 

@@ -35,7 +35,7 @@ import numpy as np
 MAX_RADIUS = 1.0 - 1e-5
 """Largest root radius kept (AR poles and MA zeros). HaTT's MA zeros sit at |z| ~ 0.9999, 10x further in; at 1 - 1e-5
 the line spectral frequencies of an isolated root pair near z = -1 are still ~1e-5 rad apart, which
-:func:`flowtex.dsp.lsf.poly_to_lsf` resolves (the caller checks and pulls further in only if it does not)."""
+:func:`flowtex.dsp.lsf_roots.poly_to_lsf` resolves (the caller checks and pulls further in only if it does not)."""
 
 
 def step_down(a: np.ndarray, order: int) -> np.ndarray:

@@ -25,7 +25,8 @@ import numpy as np
 
 from ..dsp.arma import arma_output_variance, arma_psd
 from ..dsp.arma_estimate import MAX_RADIUS, HRDesign, hr_order_screen, periodogram_grid, stabilize, whittle_refine
-from ..dsp.lsf import is_valid_lsf, poly_to_lsf
+from ..dsp.lsf import is_valid_lsf
+from ..dsp.lsf_roots import poly_to_lsf
 from ..dsp.spectral import gfc_data_model, lsd_db, welch_psd
 from ..errors import DataError
 

@@ -15,7 +15,8 @@ import numpy as np
 
 from ..dsp.arma import arma_psd
 from ..dsp.arma_resample import DIRECT_MAX_RATIO, resample_arma_lsf
-from ..dsp.lsf import lsf_to_poly_new, poly_to_lsf
+from ..dsp.lsf import lsf_to_poly_new
+from ..dsp.lsf_roots import poly_to_lsf
 from ..dsp.spectral import lsd_db
 from ..errors import FlowtexError
 from ..models.texture import TextureModelSet

@@ -49,7 +49,7 @@ import numpy as np
 
 from ..dsp.contact import CONTACT_ON_N
 from ..dsp.filter_design import zero_phase_highpass
-from ..dsp.lsf import poly_to_lsf
+from ..dsp.lsf_roots import poly_to_lsf
 from ..dsp.robust import clamp_outliers
 from ..dsp.segment import segment
 from ..dsp.spectral import gfc_data_model

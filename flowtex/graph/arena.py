@@ -27,7 +27,7 @@ from ..dsp.layout import Field
 from ..dsp.layout import Layout as Declared
 from ..errors import FlowtexError
 from ..limits import MAX_BUFFER_VALUES
-from .resolve import ResolvedGraph
+from .resolved import ResolvedGraph
 
 INT_HEADER = Declared("int", [
     Field("tick", 1, "ticks run since reset"),

@@ -102,7 +102,7 @@ class GraphBuilder:
         return spec_from_data(data, self._path, overrides)
 
     def resolve(self, overrides: dict[str, Any] | None = None, plugins: tuple[str | Path, ...] = ()) -> Any:
-        """The checked, built :class:`flowtex.graph.resolve.ResolvedGraph` (what ``check_graph`` gives for a file)."""
+        """The checked, built :class:`flowtex.graph.resolved.ResolvedGraph` (what ``check_graph`` gives for a file)."""
         from ..registry import load_registry
         from .resolve import resolve_graph
 

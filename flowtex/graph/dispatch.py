@@ -39,7 +39,7 @@ from .codegen import run_source
 from .fused import BLOCK_SIG, RUN_SIG, Compiled, entry
 from .jit import load_generated
 from .kernels import call_pointer, copy_row
-from .resolve import ResolvedGraph, ResolvedNode
+from .resolved import ResolvedGraph, ResolvedNode
 from .wrappers import REBUILT, load_wrapper, wrapper_path
 
 STRIDE = DISPATCH_ENTRY.size()

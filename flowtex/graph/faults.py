@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import FlowtexError
 from ..nodecheck import kernel_location
 from .arena import DISPATCH, DISPATCH_ENTRY, DISPATCH_HEAD, FAULT, TICK
-from .resolve import ResolvedGraph, ResolvedNode
+from .resolved import ResolvedGraph, ResolvedNode
 
 
 class KernelError(FlowtexError):

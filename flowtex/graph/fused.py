@@ -29,7 +29,7 @@ from .arena import Layout
 from .codegen import generate
 from .jit import generated_digest, load_generated
 from .kcache import sealed_compile
-from .resolve import ResolvedGraph
+from .resolved import ResolvedGraph
 
 F64, I64 = types.float64[::1], types.int64[::1]
 BLOCK_SIG = (F64, I64, types.int64)

@@ -1,7 +1,7 @@
 """Graph files: YAML text -> :class:`GraphSpec` with a source location for everything.
 
 This module checks the *shape* of the file (keys, types, edge syntax). Checks
-that need node types (parameters, ports, units) live in ``resolve.py``.
+that need node types (parameters, ports, units) live in ``wiring.py`` and ``ports.py``, run by ``resolve.py``.
 """
 
 from __future__ import annotations

@@ -25,7 +25,8 @@ from ..cache import configure_numba_cache
 from ..errors import DataError
 from ..graph.program import TickProgram
 from ..io.canmap import CanMap, load_map
-from ..io.codec import _NF, _NI, MessageCodec, TableDecoder, TableEncoder, _encode_tables, fast_ok, pack_int64
+from ..io.codec import MessageCodec
+from ..io.codec_tables import _NF, _NI, TableDecoder, TableEncoder, _encode_tables, fast_ok, pack_int64
 from ..io.dbc import load_dbc
 from ..node_decl import PortSpec
 from .safety import OutputGuard, Watchdog, first_stale, guard_kernel
@@ -79,13 +80,13 @@ class CanIO:
 
     Two equivalent paths: the generated Python codecs (:meth:`decode`, always
     available) and table-driven compiled codecs on the graph's float64 arena
-    (:class:`~flowtex.io.codec.TableDecoder`/:class:`~flowtex.io.codec.TableEncoder`):
+    (:class:`~flowtex.io.codec_tables.TableDecoder`/:class:`~flowtex.io.codec_tables.TableEncoder`):
     one call decodes every sensor payload of a tick straight into the arena, one call
     gathers the outputs, applies the guard and encodes every actuator payload. Both give
     identical values and bytes (tested against cantools). The compiled path is kept because
     it pays: ``benchmarks/bench_live_paths.py`` (section ``codec``) measures both side by side.
     The Python path stays as the general one: messages the tables cannot take exactly
-    (:func:`~flowtex.io.codec.fast_ok`), frames of an unexpected length, the replay's decode.
+    (:func:`~flowtex.io.codec_tables.fast_ok`), frames of an unexpected length, the replay's decode.
     What the compiled tick needs is :attr:`codec`.
     """
 

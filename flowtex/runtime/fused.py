@@ -29,7 +29,7 @@ from numba import njit
 from ..graph.jit import load_generated
 from ..graph.kernels import bytes_at, fslice, islice
 from ..graph.program import TickProgram
-from ..io.codec import decode_packed
+from ..io.codec_tables import decode_packed
 
 if TYPE_CHECKING:  # canio imports nothing of this module; the type alone is needed here
     from .canio import CanIO
@@ -111,7 +111,7 @@ class FusedTick:
     ``call(ptrs, mask, tick, overrun_ns, overrun_limit_ns, tripped)`` is the compiled
     entry point (numba's type dispatch skipped: the argument types never change);
     ``ptrs`` is :attr:`ptrs`, ``mask`` and ``tick`` those of
-    :func:`~flowtex.io.codec.decode_packed`, the rest the overrun and tripped state of
+    :func:`~flowtex.io.codec_tables.decode_packed`, the rest the overrun and tripped state of
     :func:`~flowtex.runtime.canio.tick_out`. Returns guard events, or -1 (frames not
     filled) when the watchdog needs its own check.
     """

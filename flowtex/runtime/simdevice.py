@@ -270,7 +270,8 @@ def run_device(bus_spec: str | None, dbc_path: str, map_path: str, recording: st
     rate = float(rate_hz or rec.rate or 1000.0)
     pty_pair = None
     if pty:
-        from ..io.slcan_fast import FastSlcanBus, open_pty
+        from ..io.slcan_fast import FastSlcanBus
+        from ..io.slcan_pty import open_pty
 
         pty_pair = open_pty()
         bus = FastSlcanBus(pty_pair.master_fd, role="device")

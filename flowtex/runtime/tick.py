@@ -21,7 +21,7 @@ import can
 import numpy as np
 
 from ..graph.program import TickProgram
-from ..io.codec import decode_packed
+from ..io.codec_tables import decode_packed
 from .buses import CAN_ERR_BUSOFF, BusError
 from .canio import CanIO
 from .fused import FusedTick

@@ -1,6 +1,6 @@
 """Line spectral frequencies: round trips, hard cases of real surfaces, repair, float32 comparison.
 
-References are independent of flowtex.dsp.lsf: polynomials are built from
+References are independent of flowtex.dsp.lsf and lsf_roots: polynomials are built from
 chosen roots with numpy.poly, stability is checked with numpy.roots, and the
 LSF -> polynomial convention is checked against a plain full-complex-product
 construction written here (MATLAB's lsf2poly formulation).
@@ -15,7 +15,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from flowtex.dsp.lsf import DEFAULT_MIN_GAP, is_valid_lsf, lsf_to_poly, lsf_to_poly_new, poly_to_lsf, repair_lsf, roots_to_lsf
+from flowtex.dsp.lsf import DEFAULT_MIN_GAP, is_valid_lsf, lsf_to_poly, lsf_to_poly_new, repair_lsf
+from flowtex.dsp.lsf_roots import poly_to_lsf, roots_to_lsf
 
 
 def random_stable_poly(rng: np.random.Generator, p: int, rmin: float = 0.2, rmax: float = 0.995) -> np.ndarray:
@@ -354,3 +355,13 @@ def test_roots_to_lsf_property_agrees_with_poly_to_lsf(pairs, reals) -> None:
     assert lsf.shape == (roots.shape[0],) and is_valid_lsf(lsf)
     a = np.real(np.poly(roots))
     np.testing.assert_allclose(lsf, poly_to_lsf(a), rtol=0, atol=1e-7)
+
+
+def test_lsf_roots_names_still_import_from_lsf():
+    """poly_to_lsf and roots_to_lsf moved to flowtex.dsp.lsf_roots; the old path gives the same functions."""
+    import flowtex.dsp.lsf as lsf
+    import flowtex.dsp.lsf_roots as lsf_roots
+
+    assert lsf.poly_to_lsf is lsf_roots.poly_to_lsf and lsf.roots_to_lsf is lsf_roots.roots_to_lsf
+    with pytest.raises(AttributeError, match="no attribute 'lsf_to_roots'"):
+        lsf.lsf_to_roots  # noqa: B018 - the attribute access is the test

@@ -19,7 +19,8 @@ import scipy.signal
 from flowtex.datasets.model_sets import hatt_like_model, poly_from_roots
 from flowtex.dsp.arma import arma_output_variance, arma_psd
 from flowtex.dsp.arma_estimate import periodogram_grid, prediction_error_variance
-from flowtex.dsp.lsf import is_valid_lsf, poly_to_lsf
+from flowtex.dsp.lsf import is_valid_lsf
+from flowtex.dsp.lsf_roots import poly_to_lsf
 from flowtex.dsp.spectral import gfc, gfc_data_model, lsd_db
 from flowtex.errors import DataError
 from flowtex.fit import ArmaFit, fit_arma, select_shared_order

@@ -16,7 +16,8 @@ from flowtex.cli import main
 from flowtex.datasets.model_sets import hatt_like_model, synthetic_model_set
 from flowtex.dsp.arma import arma_output_variance, arma_psd, lattice_ladder_coefficients
 from flowtex.dsp.arma_resample import resample_arma, resample_arma_lsf, upsampled_order
-from flowtex.dsp.lsf import is_valid_lsf, lsf_to_poly_new, poly_to_lsf
+from flowtex.dsp.lsf import is_valid_lsf, lsf_to_poly_new
+from flowtex.dsp.lsf_roots import poly_to_lsf
 from flowtex.dsp.spectral import lsd_db
 from flowtex.fit.arma import min_phase_for_lsf
 from flowtex.io.hatt import write_hatt_xml

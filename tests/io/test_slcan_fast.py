@@ -9,7 +9,9 @@ import time
 import can
 import pytest
 
-from flowtex.io.slcan_fast import INTERFACE_NAME, FastSlcanBus, SlcanParser, encode_frame, open_pty, register_interface
+from flowtex.io.slcan_fast import INTERFACE_NAME, FastSlcanBus, register_interface
+from flowtex.io.slcan_protocol import SlcanParser, encode_frame
+from flowtex.io.slcan_pty import open_pty
 
 
 def msg(ident: int, data: bytes = b"", ext: bool = False, remote: bool = False, dlc: int | None = None) -> can.Message:
@@ -299,3 +301,15 @@ def test_bell_split_across_chunks_and_after_garbage():
     p.feed(b"01AB\r", 0.0)
     assert (p.errors, p.malformed, p.frames, p.acks) == (1, 1, 1, 0)
     assert bytes(p.messages[0].data) == b"\xab"
+
+
+def test_protocol_and_pty_names_still_import_from_slcan_fast():
+    """encode_frame, SlcanParser and the pty helpers moved to slcan_protocol / slcan_pty; the old path gives the same objects."""
+    import flowtex.io.slcan_fast as fast
+    import flowtex.io.slcan_protocol as protocol
+    import flowtex.io.slcan_pty as pty_mod
+
+    for name in ("encode_frame", "SlcanParser", "MAX_LINE", "BITRATE_COMMANDS"):
+        assert getattr(fast, name) is getattr(protocol, name)
+    for name in ("open_pty", "SlcanPty"):
+        assert getattr(fast, name) is getattr(pty_mod, name)

@@ -132,7 +132,8 @@ def test_a_map_the_tick_cannot_fuse_runs_the_general_steps_and_replays_byte_for_
     Python decoders, the graph and CanIO's own guard and encoders, gives the same bytes every tick."""
     import cantools
 
-    from flowtex.io.codec import MessageCodec, fast_ok
+    from flowtex.io.codec import MessageCodec
+    from flowtex.io.codec_tables import fast_ok
 
     pad = ' SG_ Pad : {} (35184372088832,0) [0|0] "" HapticDevice\n'
     dbc = setup / "wide.dbc"

@@ -221,7 +221,8 @@ def _random_payload(rng, msg):
 
 
 def test_table_decoder_equals_cantools_bit_for_bit(table_db):
-    from flowtex.io.codec import MessageCodec, TableDecoder, fast_ok
+    from flowtex.io.codec import MessageCodec
+    from flowtex.io.codec_tables import TableDecoder, fast_ok
 
     rng = np.random.default_rng(7)
     msgs = table_db.messages
@@ -268,7 +269,8 @@ def _clamped(sig, v):
 
 
 def test_table_encoder_equals_cantools_with_clamp_and_saturation(table_db):
-    from flowtex.io.codec import MessageCodec, TableEncoder
+    from flowtex.io.codec import MessageCodec
+    from flowtex.io.codec_tables import TableEncoder
 
     rng = np.random.default_rng(11)
     msgs = table_db.messages
@@ -331,7 +333,8 @@ def test_table_encoder_equals_cantools_with_clamp_and_saturation(table_db):
 
 
 def test_fast_ok_refuses_what_the_tables_cannot_reproduce(tmp_path):
-    from flowtex.io.codec import MessageCodec, fast_ok
+    from flowtex.io.codec import MessageCodec
+    from flowtex.io.codec_tables import fast_ok
 
     (tmp_path / "w.dbc").write_text(TABLE_DBC.replace('BO_ 104 BigOnly: 5 A\n SG_ W : 7|40@0+ (0.001,-5) [0|0] "" B',
                                                       'BO_ 104 Wide: 8 A\n SG_ W : 7|64@0- (1,0) [0|0] "" B'))

@@ -15,7 +15,7 @@ from test_live import DBC, setup  # noqa: F401  (fixture; rootdir-relative impor
 from flowtex.errors import FlowtexError
 from flowtex.graph.compiled import Graph, load_graph
 from flowtex.graph.program import TickProgram
-from flowtex.io.codec import TableEncoder
+from flowtex.io.codec_tables import TableEncoder
 from flowtex.runtime.buses import BusError
 from flowtex.runtime.canio import CanIO, load_io
 from flowtex.runtime.live import run_live
