@@ -20,6 +20,12 @@ of load on a shared machine hits both alike. Sections:
     ``step_block(1)``) and the 10-node chain's ``step()``, each as bench_engine.py measures them, with the ratio to
     the plain-numba floor measured in the same process.
 
+``inline``
+    in this tree, one process: the texture graph's offline ``run()`` as generated (``block``'s body in ``run``'s loop)
+    against the same module with a ``run`` that calls ``block`` (the generator's form before), alternating on the
+    same arenas and inputs, outputs compared bit for bit: the per-tick cost of the change without the noise between
+    processes.
+
 The CPU figures are ``time.process_time`` (graphs) or the children's ``rusage`` (cold): user + system of every core.
 """
 
@@ -78,6 +84,36 @@ with tempfile.TemporaryDirectory() as d:
     s = be.bench_step(flowtex.load_graph(path, tier="fused"), ticks)
 print(json.dumps({"fused": t["fused"], "floor": t["floor"], "live_fused": t["live_fused"], "identical": t["identical"],
                   "step_ns": s["step_ns"], "step_floor_ns": s["floor_ns"]}))
+"""
+
+INLINE_SCRIPT = """
+import json, sys, time
+import numpy as np
+sys.path.insert(0, "benchmarks")
+import bench_texture as bt
+from flowtex.graph.codegen import run_source
+from flowtex.graph.jit import load_generated
+ticks, runs = int(sys.argv[1]), int(sys.argv[2])
+ms = bt.cork_like_model_set()
+inputs = bt.trajectory(ticks, ms.max_speed, ms.max_force)
+g = bt.texture_builder(ms, bt.RATE).build(tier="fused")
+plan = g.fused_plan
+runs_by = {"inline": g._code.get("run")}
+cut = plan.source.index("@njit(cache=True, nogil=True)\\ndef run(")
+calling = load_generated(plan.source[:cut] + run_source(), plan.kernels, plan.versions + ";bench-run-calls-block")
+calling.run.compile(plan.signatures["run"])
+runs_by["call"] = calling.run
+out, ns = {}, {"inline": [], "call": []}
+for name, fn in runs_by.items():
+    g._code._done["run"] = fn  # the Graph's run() then calls this entry point
+    out[name] = g.run(inputs)["accel"].copy()
+for _ in range(runs):
+    for name, fn in runs_by.items():
+        g._code._done["run"] = fn
+        t0 = time.perf_counter()
+        g.run(inputs)
+        ns[name].append((time.perf_counter() - t0) / ticks * 1e9)
+print(json.dumps({"ns": ns, "identical": bool(np.array_equal(out["inline"].view(np.int64), out["call"].view(np.int64)))}))
 """
 
 
@@ -159,7 +195,8 @@ def main() -> None:
     ap.add_argument("--baseline", default="main", help="git revision to compare with (default: main)")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--ticks", type=int, default=200_000)
-    ap.add_argument("--only", nargs="+", choices=("graphs", "cold", "ticks"), default=("graphs", "cold", "ticks"))
+    ap.add_argument("--only", nargs="+", choices=("graphs", "cold", "ticks", "inline"),
+                    default=("graphs", "cold", "ticks", "inline"))
     args = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="flowtex-bench-compile-"))
     try:
@@ -195,6 +232,13 @@ def main() -> None:
             b, n = t["baseline"], t["this"]
             print(f"  this / baseline: texture run() {n['fused'] / b['fused']:.2f}  live {n['live_fused'] / b['live_fused']:.2f}  "
                   f"step() {n['step_ns'] / b['step_ns']:.2f}")
+        if "inline" in args.only:
+            r = json.loads(run(REPO, work / "inline", ["-c", INLINE_SCRIPT, str(args.ticks), str(5 * args.rounds)])[2])
+            inline, call = (float(np.median(r["ns"][k])) for k in ("inline", "call"))
+            pairs = [a / b for a, b in zip(r["ns"]["inline"], r["ns"]["call"], strict=True)]
+            print(f"texture run(), one process, {len(pairs)} alternating pairs: block's body in run {inline:.1f} ns/tick, "
+                  f"run calling block {call:.1f} ns/tick ({inline / call:.3f} x; pairs {min(pairs):.3f}-{max(pairs):.3f}); "
+                  f"bit-identical {r['identical']}")
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
