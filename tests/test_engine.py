@@ -165,7 +165,7 @@ def test_graph_differing_only_in_parameters_reuses_compiled_code(write_graph):
     a = flowtex.load_graph(write_graph(text, "a.yaml"))
     b = flowtex.load_graph(write_graph(text.replace("cutoff_hz: 60", "cutoff_hz: 90").replace("samples: 3", "samples: 9"), "b.yaml"))
     assert a.source == b.source
-    assert a._block is b._block  # the same compiled function (offsets and parameters are data)
+    assert a.block_function is b.block_function  # the same compiled function (offsets and parameters are data)
 
 
 def test_nan_input_does_not_crash_and_stays_local(write_graph):

@@ -83,7 +83,8 @@ def compile_tick(resolved: ResolvedGraph, layout: Layout, plan: Any, tier: str, 
     """Compile (or load from the disk cache) the tick of ``resolved`` on ``tier`` (``fused``, ``dispatch`` or ``auto``).
 
     ``plan`` is the graph's :class:`~flowtex.graph.fused.FusedPlan`; returns the backend's
-    :class:`~flowtex.graph.fused.Compiled`. Says so on stderr when compiling takes long.
+    :class:`~flowtex.graph.fused.Compiled`. Says so on stderr when compiling takes long. The dispatch tier is ready
+    on return; the fused tier compiles each entry point (``run``, ``block``, ``step``) on its first use.
     """
     from ..graph.dispatch import compile_dispatch, needed_wrappers
     from ..nodecheck import check_plugin_kernels
@@ -91,13 +92,13 @@ def compile_tick(resolved: ResolvedGraph, layout: Layout, plan: Any, tier: str, 
     if not _FIRST_COMPILE:
         _FIRST_COMPILE.append(True)
         prune_numba_cache()  # once per process, at its first compile (never at import)
-    use = "fused" if tier == "fused" or (tier == "auto" and plan.cached()) else "dispatch"
+    use = "fused" if tier == "fused" or (tier == "auto" and plan.cached("run")) else "dispatch"
     types = sorted({rn.cls.type_name for rn in resolved.nodes.values()})
     what = f"graph {resolved.spec.name!r} ({len(resolved.nodes)} nodes: {', '.join(types)})"
     with compile_notice(what if use == "fused" else f"node kernels of {what}", str(cache_dir())):
         check_plugin_kernels(rn.cls for rn in resolved.nodes.values())  # a typing error is the plugin's, at its line
-        if use == "fused":
-            return plan.compile(layout.i)
+        if use == "fused":  # each entry point compiles on its first use (an offline run: run alone), announced alike
+            return plan.compile(layout.i, lambda: compile_notice(what, str(cache_dir())))
         helper = start_prewarm(needed_wrappers(resolved))  # a cold cache: compile on two cores
 
         def helper_done() -> None:

@@ -30,7 +30,7 @@ def background(request: str) -> int:
     path = Path(args["path"])  # the text as it was; relative paths in it resolve against its folder, as in the run
     spec = parse_spec(args["text"], path, args["overrides"])
     registry = graph_registry(path, tuple(args["plugins"]), args["auto_plugins"], spec.plugins)
-    Graph(resolve_graph(spec, registry), args["block_rows"], "fused")
+    Graph(resolve_graph(spec, registry), args["block_rows"], "fused").prepare("run")  # what the next offline run loads
     return 0
 
 

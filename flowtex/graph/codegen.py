@@ -1,8 +1,12 @@
-"""Generate the source of a graph's compiled ``block`` and ``run`` functions.
+"""Generate the source of a graph's compiled ``block``, ``step`` and ``run`` functions.
 
 ``block(f, i, n)`` advances the graph by ``n`` ticks (``1 <= n <= block
-rows``); ``run(f, i, X, Y)`` loops ``block`` over a whole recording inside
-numba, copying graph inputs from ``X`` and outputs to ``Y``.
+rows``); ``step(f, i, x0, ...)`` is one tick from Python; ``run(f, i, X, Y)``
+loops over a whole recording inside numba, block by block, copying graph
+inputs from ``X`` and outputs to ``Y``. ``run`` and ``step`` hold ``block``'s
+body themselves (generated once, emitted three times) rather than calling it,
+so an offline run compiles ``run`` alone, ``step()`` ``step`` alone and live
+code ``block`` alone.
 
 Acyclic graphs run node by node over the block (each kernel loops over its
 rows, keeping its state in registers). Graphs with a feedback loop run tick
@@ -47,33 +51,44 @@ def generate(rg: ResolvedGraph, slots: dict[str, NodeSlots], kernel_names: dict[
     For delays in feedback graphs ``kernel_names`` also holds ``node + ':emit'``
     and ``node + ':absorb'``.
     """
-    lines = [HEADER_SOURCE.format(name=rg.spec.name), "", "@njit(cache=True, nogil=True)", "def block(f, i, n):",
-             f"    t0 = i[{TICK}]", "    fb = f.ctypes.data", "    ib = i.ctypes.data"]
+    body = block_body(rg, slots, kernel_names)
+    lines = [HEADER_SOURCE.format(name=rg.spec.name), "", "@njit(cache=True, nogil=True)", "def block(f, i, n):"]
+    lines += ["    " + line for line in body]
+    lines += ["", "", _step_source(step_inputs, step_outputs, body), "", run_source(body)]
+    return "\n".join(lines)
+
+
+def block_body(rg: ResolvedGraph, slots: dict[str, NodeSlots], kernel_names: dict[str, str]) -> list[str]:
+    """Lines (unindented) that advance the graph by ``n`` ticks on the arenas ``f`` and ``i``: ``block``'s body.
+
+    ``run`` and ``step`` get the same lines in place of a call to ``block``, so each use compiles one function: numba
+    compiles a callee separately and then optimizes the callee's code again inside the caller's module.
+    """
+    lines = [f"t0 = i[{TICK}]", "fb = f.ctypes.data", "ib = i.ctypes.data"]
     if rg.cyclic:
-        lines.append("    for r in range(n):")
+        lines.append("for r in range(n):")
         absorbs = []
         for name, rn in rg.nodes.items():
             ns = slots[name]
             body = _tick_call(rn.cls.breaks_cycles, name, ns, kernel_names, rn)
             if rn.cls.breaks_cycles:
-                absorbs.append(f"        {kernel_names[name + ':absorb']}({_args(ns)}, "
+                absorbs.append(f"    {kernel_names[name + ':absorb']}({_args(ns)}, "
                                + ", ".join(_row_view(ns.inputs[p], "r") for p in rn.cls.inputs) + ")")
-            lines += _guard_every(rn.spec.every, ns, body, "        ", "t0 + r", "r")
+            lines += _guard_every(rn.spec.every, ns, body, "    ", "t0 + r", "r")
         lines += absorbs
     else:
         for name, rn in rg.nodes.items():
             ns = slots[name]
-            lines.append(f"    # {name}: {rn.cls.type_name}")
+            lines.append(f"# {name}: {rn.cls.type_name}")
             if rn.spec.every == 1:
                 ports = [_view(ns.inputs[p], "n") for p in rn.cls.inputs] + [_view(ns.outputs[p], "n") for p in rn.cls.outputs]
-                lines.append(f"    {kernel_names[name]}({_args(ns)}, " + ", ".join(ports) + ")")
+                lines.append(f"{kernel_names[name]}({_args(ns)}, " + ", ".join(ports) + ")")
             else:
-                lines.append("    for r in range(n):")
+                lines.append("for r in range(n):")
                 body = _tick_call(False, name, ns, kernel_names, rn)
-                lines += _guard_every(rn.spec.every, ns, body, "        ", "t0 + r", "r")
-    lines.append(f"    i[{TICK}] = t0 + n")
-    lines += ["", "", _step_source(step_inputs, step_outputs), "", RUN_SOURCE]
-    return "\n".join(lines)
+                lines += _guard_every(rn.spec.every, ns, body, "    ", "t0 + r", "r")
+    lines.append(f"i[{TICK}] = t0 + n")
+    return lines
 
 
 def _tick_call(split: bool, name: str, ns: NodeSlots, kernel_names: dict[str, str], rn) -> str:
@@ -98,16 +113,17 @@ def _guard_every(every: int, ns: NodeSlots, call: str, indent: str, tick: str, r
     return out
 
 
-def _step_source(inputs: list[PortSlot], outputs: list[PortSlot]) -> str:
+def _step_source(inputs: list[PortSlot], outputs: list[PortSlot], body: list[str]) -> str:
     """``step(f, i, x0, x1, ...)``: one tick from Python with scalar inputs as arguments
     and scalar outputs returned as a tuple (cheaper than item access from Python).
 
-    It calls ``block`` with ``np.int64(1)``, not the literal ``1``: numba would compile a second ``block`` specialised
-    for ``Literal[int](1)``, the largest function of the module (every kernel inlined), for no measurable gain per call."""
+    It holds ``block``'s ``body`` for ``n = np.int64(1)`` rather than calling ``block``: a call would link ``block``'s
+    code into ``step``'s module and optimize it again there, so ``step()`` would compile the graph twice."""
     args = "".join(f", x{k}" for k in range(len(inputs)))
     lines = ["@njit(cache=True, nogil=True)", f"def step(f, i{args}):"]
     lines += [f"    f[i[{slot.offset_index}]] = x{k}" for k, slot in enumerate(inputs)]
-    lines.append("    block(f, i, np.int64(1))")
+    lines.append("    n = np.int64(1)")
+    lines += ["    " + line for line in body]
     values = [f"f[i[{slot.offset_index}]]" for slot in outputs] or ["0.0"]
     lines.append(f"    return ({', '.join(values)},)")
     return "\n".join(lines) + "\n"
@@ -172,4 +188,17 @@ RUN_SOURCE = RUN_TEMPLATE.format(
     OUT_TABLE=arena.OUT_TABLE, N_IN=arena.N_IN, N_OUT=arena.N_OUT, FAULT=arena.FAULT, TABLE_STRIDE=arena.TABLE_STRIDE,
     e_offset=offset_expr("e", arena.E_OFFSET_INDEX), e_width=offset_expr("e", arena.E_WIDTH), e_column=offset_expr("e", arena.E_COLUMN),
     e_own=offset_expr("e", arena.E_OWN_OFFSET), e_redirect=offset_expr("e", arena.E_REDIRECT))
-"""Source of the compiled ``run`` (shared by both tiers), with the arena's declared positions as literals."""
+"""Source of the compiled ``run`` calling a ``block`` function (the dispatch tier's, over its generic driver), with the
+arena's declared positions as literals."""
+
+BLOCK_CALL = "        block(f, i, n)\n"
+"""The line of :data:`RUN_SOURCE` that advances the graph by one block."""
+
+
+def run_source(body: list[str] | None = None) -> str:
+    """Source of ``run``: :data:`RUN_SOURCE`, with ``body`` (``block``'s lines, see :func:`block_body`) in place of
+    the call to ``block`` when given (the fused tier: ``run`` then compiles without ``block``)."""
+    if body is None:
+        return RUN_SOURCE
+    assert RUN_SOURCE.count(BLOCK_CALL) == 1
+    return RUN_SOURCE.replace(BLOCK_CALL, "".join(f"        {line}\n" for line in body))

@@ -25,7 +25,7 @@ from ..nodecheck import check_plugin_kernels
 from ..registry import Registry, load_registry
 from .arena import FAULT, OUT_WIDTH, TICK, Layout, plan_layout
 from .faults import dispatch_fault, raised_fault
-from .fused import FusedPlan, entry
+from .fused import ENTRY_POINTS, EntryCompileError, FusedPlan, entry, lazy_entry
 from .resolve import ResolvedGraph, resolve_graph
 from .spec import GraphSpec, load_spec
 
@@ -48,16 +48,16 @@ class Graph:
         self.requested_tier = check_tier(tier or default_tier())
         plan = FusedPlan(resolved, self.layout, self._step_in, self._step_out)
         self.fused_plan = plan
-        # Compile (or load from the disk cache) now, not on the first live tick.
+        # Choose the tier and make its code ready; the fused tier compiles (or loads from the disk cache) each entry
+        # point on its first use: run() compiles run, step() step, live code block (prepare() before its first tick).
         code = compile_tick(resolved, self.layout, plan, self.requested_tier, self._step_in, self._step_out)
+        self._code = code
         self.tier = code.tier
         """The tier that runs: ``fused`` or ``dispatch``."""
         self._dispatch = code.tier == "dispatch"
         self.layout.i = code.ints
         self.source = code.source
         self.rebuilt_cache_entries = code.rebuilt
-        self._block = code.block
-        self._run = code.run
         self._f0 = self.layout.f.copy()
         self._i0 = self.layout.i.copy()
         self.f = self.layout.f
@@ -68,11 +68,10 @@ class Graph:
         self._in_scalar_off = {name: s.offset for name, s in self.layout.graph_inputs.items() if s.width == 1
                                and resolved.input_specs[name].shape == ()}
         self._scalar_in = frozenset(self._in_scalar_off)
-        # Compiled entry points of the signatures compiled above: calling them skips
-        # numba's per-call argument-type dispatch (the arena arrays never change type).
-        self._step_entry = code.step
-        self._block_entry = entry(self._block)
         self._scratch: tuple[np.ndarray, np.ndarray] | None = None
+        # The compiled step and block entry points start as stand-ins that compile on the first call and put the entry
+        # point in their place: calling them skips numba's per-call type dispatch (the arena arrays never change type).
+        self._block_entry: Callable[..., Any] = lazy_entry(lambda: entry(code.get("block")), self._set_block_entry)
         self._py_step = self._make_py_step()
         self.step = self._py_step  # type: ignore[method-assign]  # the generated function, one call layer less
         self.seed = self.spec.seed
@@ -152,8 +151,9 @@ class Graph:
             X = np.concatenate([np.ascontiguousarray(arrays[name]).reshape(-1) for name in self.layout.in_columns]) \
                 if arrays else np.empty(0)
         Y = np.empty(total * int(self.i[OUT_WIDTH]))
+        run = self._code.get("run")  # compiled (or loaded) on the first run
         try:
-            self._run(self.f, self.i, X, Y)
+            run(self.f, self.i, X, Y)
         except Exception as exc:  # a kernel raised (fused tier): the arena still points into X and Y
             self._kernel_raised(exc)
         self._check_fault()
@@ -161,6 +161,8 @@ class Graph:
 
     def _kernel_raised(self, exc: Exception) -> None:
         """Raise the :class:`~flowtex.graph.faults.KernelError` for ``exc``; reset first (the state is spoilt)."""
+        if isinstance(exc, EntryCompileError):  # not a kernel's: the entry point's first compile failed
+            raise exc.__cause__ from None  # type: ignore[misc]
         error = raised_fault(self.resolved, exc, self.i)
         self.reset()
         raise error from None
@@ -188,6 +190,18 @@ class Graph:
         (Replaced per instance by a function generated for this graph's ports.)
         """
         return self._py_step(values)
+
+    def prepare(self, *entries: str) -> Graph:
+        """Compile (or load from the disk cache) the named entry points now (``run``, ``block``, ``step``; default
+        ``run``), rather than on first use: e.g. before a deadline, or in the background compile. Returns ``self``."""
+        for name in entries or ("run",):
+            if name not in ENTRY_POINTS:
+                raise FlowtexError(f"unknown entry point {name!r}; use one of {', '.join(ENTRY_POINTS)}")
+            self._code.get(name)
+        return self
+
+    def _set_block_entry(self, fn: Callable[..., Any]) -> None:
+        self._block_entry = fn
 
     def _make_py_step(self) -> Callable[[Mapping[str, Any] | None], dict[str, Any]]:
         """Generate a Python step function specialised to this graph's inputs and outputs.
@@ -226,12 +240,12 @@ class Graph:
         items += [f"{name!r}: OUT_VIEWS[{name!r}].reshape({self.resolved.output_specs[name].shape!r}).copy()"
                   for name in self._vector_out]
         lines.append("    return {" + ", ".join(items) + "}")
-        entry = self._step_entry
-        namespace = {"EMPTY": {}, "MISSING": object(), "f": self.f, "i": self.i, "np": np, "STEP": entry,
+        namespace: dict[str, Any] = {"EMPTY": {}, "MISSING": object(), "f": self.f, "i": self.i, "np": np,
                      "bad_scalar": self._bad_scalar, "bad_vector": self._bad_vector,
                      "IN_VIEWS": self._in_views, "OUT_VIEWS": self._out_views, "KNOWN": frozenset(self._in_views),
                      "unknown_input": self._unknown_input, "kernel_raised": self._kernel_raised,
                      "check_fault": self._check_fault}
+        namespace["STEP"] = lazy_entry(lambda: self._code.get("step"), lambda fn: namespace.__setitem__("STEP", fn))
         exec("\n".join(lines), namespace)  # generated from port names validated as identifiers
         return namespace["py_step"]
 
@@ -266,7 +280,7 @@ class Graph:
         when the real tick runs.
         """
         f, i = self.scratch_arenas()
-        self._step_entry(f, i, *([0.0] * len(self._step_in)))
+        entry(self.block_function)(f, i, 1)  # block, not step: live code compiles block (and fuses it) anyway
 
     def scratch_arenas(self) -> tuple[np.ndarray, np.ndarray]:
         """Float and int arenas that are copies of this graph's state, for effect-free warm-up ticks.
@@ -297,9 +311,10 @@ class Graph:
     def block_function(self) -> Any:
         """The compiled ``block(f, i, n)`` numba function: ``n`` ticks on the arenas ``f`` (float64) and ``i`` (int64).
 
-        For code that fuses a graph tick into its own compiled function (the live runtime).
+        For code that fuses a graph tick into its own compiled function (the live runtime). Compiled (or loaded) on
+        the first request.
         """
-        return self._block
+        return self._code.get("block")
 
     def input_view(self, name: str) -> np.ndarray:
         """Writable view of the current-tick value of graph input ``name`` (live fast path)."""
@@ -310,7 +325,7 @@ class Graph:
         return self._out_views[name]
 
     def step_block(self, n: int = 1) -> None:
-        """Advance ``n`` ticks using whatever is in the input views (no Python mapping)."""
+        """Advance ``n`` ticks using whatever is in the input views (no Python mapping); the first call compiles ``block``."""
         try:
             self._block_entry(self.f, self.i, n)
         except Exception as exc:  # fused tier: the kernel's exception (costs nothing when none is raised)
