@@ -28,9 +28,10 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("runtime", ("flowtex.runtime",)),
     ("io", ("flowtex.io", "flowtex.plotting")),  # plotting: a recording's figures, written through io.figures
     # The compile service, and the compiled Graph it produces (kept at its historical import path flowtex.graph.compiled,
-    # which users and plugins import; describe prints a compiled Graph; builder compiles a graph built in Python, as
-    # load_graph does a file).
-    ("compile", ("flowtex.compile", "flowtex.graph.compiled", "flowtex.graph.describe", "flowtex.graph.builder")),
+    # which users and plugins import; pystep generates its step(); describe prints a compiled Graph; builder compiles a
+    # graph built in Python, as load_graph does a file).
+    ("compile", ("flowtex.compile", "flowtex.graph.compiled", "flowtex.graph.pystep", "flowtex.graph.describe",
+                 "flowtex.graph.builder")),
     ("graph", ("flowtex.graph",)),
     ("nodes", ("flowtex.nodes",)),
     # The declarative schema of every file kind (keys, kinds, bounds, units, docs) sits under graph, io and scene, which

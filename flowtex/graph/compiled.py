@@ -26,6 +26,7 @@ from ..registry import Registry, load_registry
 from .arena import FAULT, OUT_WIDTH, TICK, Layout, plan_layout
 from .faults import dispatch_fault, raised_fault
 from .fused import ENTRY_POINTS, EntryCompileError, FusedPlan, entry, lazy_entry
+from .pystep import make_py_step
 from .resolve import ResolvedGraph, resolve_graph
 from .spec import GraphSpec, load_spec
 
@@ -72,7 +73,7 @@ class Graph:
         # The compiled step and block entry points start as stand-ins that compile on the first call and put the entry
         # point in their place: calling them skips numba's per-call type dispatch (the arena arrays never change type).
         self._block_entry: Callable[..., Any] = lazy_entry(lambda: entry(code.get("block")), self._set_block_entry)
-        self._py_step = self._make_py_step()
+        self._py_step = make_py_step(self)
         self.step = self._py_step  # type: ignore[method-assign]  # the generated function, one call layer less
         self.seed = self.spec.seed
         self.reset()
@@ -202,75 +203,6 @@ class Graph:
 
     def _set_block_entry(self, fn: Callable[..., Any]) -> None:
         self._block_entry = fn
-
-    def _make_py_step(self) -> Callable[[Mapping[str, Any] | None], dict[str, Any]]:
-        """Generate a Python step function specialised to this graph's inputs and outputs.
-
-        Straight-line code (no loops or comprehensions over port names) keeps the
-        Python side of a tick to a few hundred nanoseconds.
-        """
-        lines = ["def py_step(values=None):", "    if values is None:", "        values = EMPTY", "    hits = 0"]
-        for k, name in enumerate(self._step_in):
-            lines.append(f"    x{k} = values.get({name!r}, MISSING)")
-            lines.append(f"    if x{k} is MISSING:")
-            lines.append(f"        x{k} = f[{self._in_scalar_off[name]}]")
-            lines.append("    else:")
-            lines.append("        hits += 1")
-        vector_in = [n for n in self.resolved.input_specs if n not in self._scalar_in]
-        for name in vector_in:
-            lines.append(f"    if {name!r} in values:")
-            lines.append("        try:")
-            lines.append(f"            IN_VIEWS[{name!r}][:] = np.ravel(values[{name!r}])")
-            lines.append("        except (ValueError, TypeError):")
-            lines.append(f"            bad_vector({name!r}, values[{name!r}])")
-            lines.append("        hits += 1")
-        lines.append("    if hits != len(values):")
-        lines.append("        unknown_input(values)")
-        args = "".join(f", x{k}" for k in range(len(self._step_in)))
-        lines.append("    try:")
-        lines.append(f"        r = STEP(f, i{args})")
-        lines.append("    except TypeError:")
-        lines.append("        bad_scalar(values)")
-        lines.append("    except Exception as exc:")
-        lines.append("        kernel_raised(exc)")
-        if self.tier == "dispatch":
-            lines.append(f"    if i[{FAULT}] != 0:")
-            lines.append("        check_fault()")
-        items = [f"{name!r}: r[{k}]" for k, name in enumerate(self._step_out)]
-        items += [f"{name!r}: OUT_VIEWS[{name!r}].reshape({self.resolved.output_specs[name].shape!r}).copy()"
-                  for name in self._vector_out]
-        lines.append("    return {" + ", ".join(items) + "}")
-        namespace: dict[str, Any] = {"EMPTY": {}, "MISSING": object(), "f": self.f, "i": self.i, "np": np,
-                     "bad_scalar": self._bad_scalar, "bad_vector": self._bad_vector,
-                     "IN_VIEWS": self._in_views, "OUT_VIEWS": self._out_views, "KNOWN": frozenset(self._in_views),
-                     "unknown_input": self._unknown_input, "kernel_raised": self._kernel_raised,
-                     "check_fault": self._check_fault}
-        namespace["STEP"] = lazy_entry(lambda: self._code.get("step"), lambda fn: namespace.__setitem__("STEP", fn))
-        exec("\n".join(lines), namespace)  # generated from port names validated as identifiers
-        return namespace["py_step"]
-
-    def _bad_scalar(self, values: Mapping[str, Any]) -> None:
-        for name in self._step_in:
-            if name in values:
-                try:
-                    float(values[name])
-                except (TypeError, ValueError):
-                    raise FlowtexError(f"input {name!r} is a scalar; step() got {values[name]!r}") from None
-        raise FlowtexError("step(): scalar inputs must be numbers")
-
-    def _bad_vector(self, name: str, value: Any) -> None:
-        shape = self.resolved.input_specs[name].shape
-        try:
-            got = f"shape {np.shape(value)}"
-        except (ValueError, TypeError):
-            got = repr(value)
-        raise FlowtexError(f"input {name!r} has shape {shape} ({self.resolved.input_specs[name].width} numbers); "
-                           f"step() got {got}")
-
-    def _unknown_input(self, values: Mapping[str, Any]) -> None:
-        for name in values:
-            if name not in self._in_views:
-                raise FlowtexError(f"graph {self.name!r} has no input {name!r}; inputs: {', '.join(self._in_views) or 'none'}")
 
     def warm(self) -> None:
         """Run one tick on scratch copies of the arenas: no effect on this graph's state.
