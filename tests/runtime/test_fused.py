@@ -96,6 +96,17 @@ def test_frames_written_by_compiled_code_cannot_be_resized():
         io.tx[0].data.append(0)  # the address the compiled copy writes to must stay valid
 
 
+def test_the_fused_tick_compiles_the_graph_body_for_one_signature():
+    """The live tick calls ``block`` with the int64 row count that ``step_block`` uses: numba compiles no second
+    ``block`` for the literal ``1`` (a whole graph body, seconds of CPU at every first live start)."""
+    g = load_graph(TEXTURE, block_rows=1)
+    io = live.load_io(g, DBC, MAP)
+    g.step_block(1)
+    assert fuse_tick(g, io, tick_out, io.new_watchdog(2_000_000).last) is not None
+    signatures = g.block_function.signatures
+    assert len(signatures) == 1 and str(signatures[0][2]) == "int64", signatures
+
+
 def test_one_row_layout_gives_the_same_outputs_and_keeps_the_seed():
     rec = load_recording(RECORDING)
     inputs = {k: v[:3000] for k, v in rec.arrays.items() if k in ("position", "normal_force")}
