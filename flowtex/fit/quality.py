@@ -59,6 +59,11 @@ def model_lsd_db(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, t
     return lsd_db(arma_psd(ar, ma, gain, variance, freqs, rate), arma_psd(*truth, freqs, rate), freqs)
 
 
+def common_band(original: TextureModelSet, other: TextureModelSet, points: int) -> np.ndarray:
+    """``points`` frequencies (Hz) where two sets' spectra are compared: 15 Hz to 0.9 x the lower Nyquist."""
+    return np.linspace(15.0, 0.45 * min(original.sample_rate, other.sample_rate), points)
+
+
 def path_lsd_db(original: TextureModelSet, other: TextureModelSet, speeds: np.ndarray, forces: np.ndarray,
                 nfreq: int = 1500) -> float:
     """LSD (dB, 15 Hz to 0.9 x the lower Nyquist) between two sets' expected spectra along a (speed, force) path.
@@ -66,7 +71,7 @@ def path_lsd_db(original: TextureModelSet, other: TextureModelSet, speeds: np.nd
     At each point the model texture_lookup builds (:func:`models_at`), its PSD at its set's rate; the PSDs
     averaged over the path are what a long render along it shows, without the noise of a render.
     """
-    f = np.linspace(15.0, 0.45 * min(original.sample_rate, other.sample_rate), nfreq)
+    f = common_band(original, other, nfreq)
 
     def mean_psd(ms: TextureModelSet) -> np.ndarray:
         return np.mean([arma_psd(a, c, g, v, f, ms.sample_rate) for a, c, g, v in models_at(ms, speeds, forces)], axis=0)

@@ -33,7 +33,7 @@ from ..dsp.arma import arma_psd
 from ..dsp.spectral import lsd_db
 from ..models.densify import MAX_LEVELS, densify_set, measured_edges, record_densify, split_edges
 from ..models.texture import TextureModelSet
-from .quality import lissajous_path, models_at, path_lsd_db
+from .quality import common_band, lissajous_path, models_at, path_lsd_db
 from .resample import FitCache, resample_model_set
 
 PATH_MARGIN_DB = 0.4
@@ -57,7 +57,7 @@ AUTO = "auto"
 """The ``densify`` value that refines adaptively."""
 
 FREQ_POINTS = 600
-"""Frequencies of the per-point LSD (uniform from 15 Hz to 0.45 x the lower rate)."""
+"""Frequencies of the per-point LSD (flowtex.fit.quality.common_band)."""
 
 
 def point_lsds(original: TextureModelSet, other: TextureModelSet, speeds: np.ndarray, forces: np.ndarray) -> np.ndarray:
@@ -67,7 +67,7 @@ def point_lsds(original: TextureModelSet, other: TextureModelSet, speeds: np.nda
     0 where the original renders silence (variance 0: a point between silent corner models), which a resampled
     set keeps.
     """
-    f = np.linspace(15.0, 0.45 * min(original.sample_rate, other.sample_rate), FREQ_POINTS)
+    f = common_band(original, other, FREQ_POINTS)
     return np.array([lsd_db(arma_psd(a2, c2, g2, v2, f, other.sample_rate), arma_psd(a1, c1, g1, v1, f, original.sample_rate), f)
                      if g1 * g1 * v1 > 0 else 0.0
                      for (a1, c1, g1, v1), (a2, c2, g2, v2)
