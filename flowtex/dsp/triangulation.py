@@ -203,12 +203,20 @@ def locate(tab: np.ndarray, px: float, py: float, hint: int, w: np.ndarray, v: n
     ntri = int(tab[H_NTRI])
     o_nbr = HEADER + 2 * nvert + 3 * ntri
     t = hint if 0 <= hint < ntri else 0
-    # 1-2. hint, then a bounded walk
+    # 1-2. hint, then a bounded walk. A triangle the point is inside only within INSIDE_TOL (just across one of its
+    # edges) is taken only if its neighbour across that edge does not hold the point with every weight >= 0: the
+    # tolerance would otherwise lend a tiny weight to the far vertex (a point on a silent hull edge would render a
+    # little of an interior model's variance)
     steps = int(tab[H_WALK])
+    near = -1
     for _ in range(steps + 1):
         lo = triangle_weights(tab, t, px, py, w)
-        if lo >= -INSIDE_TOL:
+        if lo >= 0.0:
             return _finish(tab, t, w, v)
+        if near >= 0:
+            break
+        if lo >= -INSIDE_TOL:
+            near = t
         k = 0
         if w[1] < w[k]:
             k = 1
@@ -218,6 +226,9 @@ def locate(tab: np.ndarray, px: float, py: float, hint: int, w: np.ndarray, v: n
         if nxt < 0:
             break
         t = nxt
+    if near >= 0:
+        triangle_weights(tab, near, px, py, w)
+        return _finish(tab, near, w, v)
     # 3. full scan: the triangle the point is most inside
     best = -1
     best_lo = -np.inf
