@@ -21,6 +21,7 @@ from typing import Any
 
 from .. import config
 from ..errors import FlowtexError
+from .interrupts import interrupt_was_lost, interrupts_kept
 from .output import clean
 
 EXIT_OK = 0
@@ -118,9 +119,16 @@ def sigterm_interrupts() -> Iterator[None]:
         signal.signal(signal.SIGTERM, old)
 
 
+def _signal_of(exc: BaseException) -> int | None:
+    """The signal an interrupt exception stands for (SIGTERM for :class:`Terminated`, SIGINT for Ctrl-C), else None."""
+    if isinstance(exc, Terminated):
+        return signal.SIGTERM
+    return signal.SIGINT if isinstance(exc, KeyboardInterrupt) else None
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     try:
-        with sigterm_interrupts():
+        with sigterm_interrupts(), interrupts_kept(_signal_of):
             return _main(argv)
     except Terminated:  # between the verb's own handlers (after it returned, or while the parser loads)
         print("terminated", file=sys.stderr)
@@ -160,6 +168,9 @@ def _main(argv: Sequence[str] | None) -> int:
     except BrokenPipeError:
         return EXIT_OK
     except Exception as exc:
+        if interrupt_was_lost():  # an interrupt dropped inside a C callback broke what it interrupted (.interrupts)
+            print("interrupted", file=sys.stderr)
+            return EXIT_INTERRUPTED
         if config.debug():
             raise
         print(clean(f"flowtex: internal error: {type(exc).__name__}: {exc} (set FLOWTEX_DEBUG=1 for a traceback; please report it)"),

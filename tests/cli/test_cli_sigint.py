@@ -26,7 +26,8 @@ def savez_then_wait(file, *args, **kwds):  # the data are written into the tempo
     savez(file, *args, **kwds)
     file.flush()
     marker.write_text("writing\\n")
-    time.sleep(60.0)
+    for _ in range(600):  # short sleeps: a SIGINT that lands on another thread of the process is acted on at once
+        time.sleep(0.1)
 
 
 numpy.savez = savez_then_wait

@@ -1,0 +1,86 @@
+"""A Ctrl-C dropped inside a C callback is raised again, and an error it caused is reported as the interrupt.
+
+numba hands LLVM's object code to Python through a ctypes callback; a KeyboardInterrupt raised there is dropped by
+ctypes ("Exception ignored"). Before flowtex.cli.interrupts, a cold ``flowtex live`` interrupted at that moment either
+ran its whole session or ended with "internal error: RuntimeError: no compiled object yet" (exit 2). Here a ctypes
+callback that raises KeyboardInterrupt stands for that moment, deterministically.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ctypes
+import importlib
+import signal
+import sys
+import time
+
+import pytest
+
+from flowtex.cli.interrupts import RESEND_AFTER_S, interrupt_was_lost, interrupts_kept
+
+cli_main = importlib.import_module("flowtex.cli.main")  # the module (flowtex.cli re-exports its main function)
+CALLBACK = ctypes.CFUNCTYPE(None)
+
+
+def _interrupted_in_callback() -> None:
+    def body() -> None:
+        raise KeyboardInterrupt
+
+    CALLBACK(body)()  # ctypes drops the exception: this call returns normally
+
+
+@pytest.fixture
+def sigint_raises(monkeypatch):
+    """SIGINT raises KeyboardInterrupt here (as Python's default handler does), counted; restored afterwards."""
+    received: list[int] = []
+
+    def handler(signum, frame):
+        received.append(signum)
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGINT, handler)
+    yield received
+    signal.signal(signal.SIGINT, old)
+
+
+def test_an_interrupt_dropped_in_a_callback_is_raised_again(sigint_raises, capsys):
+    deadline = time.monotonic() + 10.0  # the signal comes back after RESEND_AFTER_S; 10 s only bounds a failure
+    with pytest.raises(KeyboardInterrupt), interrupts_kept(cli_main._signal_of):
+        _interrupted_in_callback()
+        assert interrupt_was_lost()
+        while time.monotonic() < deadline:
+            time.sleep(RESEND_AFTER_S / 5)
+    assert sigint_raises == [signal.SIGINT]
+    assert "Exception ignored" not in capsys.readouterr().err
+
+
+def test_other_dropped_exceptions_are_still_reported(monkeypatch):
+    def body() -> None:
+        raise ValueError("a bug in a callback")
+
+    reported: list[BaseException] = []
+    def recorder(unraisable) -> None:
+        reported.append(unraisable.exc_value)
+
+    monkeypatch.setattr(sys, "unraisablehook", recorder)
+    with interrupts_kept(cli_main._signal_of):
+        CALLBACK(body)()
+    assert not interrupt_was_lost()
+    assert [str(e) for e in reported] == ["a bug in a callback"]
+    assert sys.unraisablehook is recorder  # the hook from before the block is back
+
+
+def test_an_error_caused_by_a_dropped_interrupt_exits_as_interrupted(monkeypatch, sigint_raises, capsys):
+    def verb(args: argparse.Namespace) -> int:
+        _interrupted_in_callback()
+        raise RuntimeError("no compiled object yet")  # what numba raised next in a cold `flowtex live`
+
+    parser = argparse.ArgumentParser()
+    parser.set_defaults(func=verb)
+    monkeypatch.setattr(cli_main, "build_parser", lambda command: parser)
+    assert cli_main.main([]) == cli_main.EXIT_INTERRUPTED
+    assert capsys.readouterr().err.strip().splitlines() == ["interrupted"]
+    with pytest.raises(KeyboardInterrupt):  # the signal raised again arrives here, after main returned
+        time.sleep(10.0)
+    assert sigint_raises == [signal.SIGINT]
