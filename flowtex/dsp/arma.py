@@ -358,3 +358,36 @@ def arma_psd(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, freqs
         inner = (freqs_hz > 0) & (freqs_hz < rate_hz / 2)
         psd = np.where(inner, 2.0 * psd, psd)
     return psd
+
+
+def arma_psd_rows(ar: np.ndarray, ma: np.ndarray, gain: np.ndarray, variance: np.ndarray, freqs_hz: np.ndarray,
+                  rate_hz: float, rows_per_pass: int = 256) -> np.ndarray:
+    """One-sided PSDs of many models of one order pair, one row per model: row k is :func:`arma_psd` of model k.
+
+    ``ar`` (m, p + 1), ``ma`` (m, q + 1), ``gain`` and ``variance`` (m,). The same operations as :func:`arma_psd`,
+    element by element (numpy's Horner over a stack of coefficient vectors), so each row equals its
+    :func:`arma_psd` bit for bit; one numpy pass for ``rows_per_pass`` models instead of one per model, which is
+    what evaluating a set along a path costs (flowtex.fit.quality). Units: those of :func:`arma_psd`.
+    """
+    ar = np.asarray(ar, dtype=np.float64)
+    ma = np.asarray(ma, dtype=np.float64)
+    gain = np.asarray(gain, dtype=np.float64).reshape(-1)
+    variance = np.asarray(variance, dtype=np.float64).reshape(-1)
+    m = gain.shape[0]
+    if ar.ndim != 2 or ma.ndim != 2 or ar.shape[0] != m or ma.shape[0] != m or variance.shape[0] != m:
+        raise ValueError(f"arma_psd_rows: ar (m, p+1), ma (m, q+1), gain (m,), variance (m,); got {ar.shape}, "
+                         f"{ma.shape}, {gain.shape}, {variance.shape}")
+    if ar.shape[1] == 0 or ma.shape[1] == 0 or np.any(ar[:, 0] == 0.0):
+        raise ValueError("ar and ma need at least one coefficient and ar[:, 0] must be non-zero")
+    freqs_hz = np.asarray(freqs_hz, dtype=np.float64)
+    from .poly import power_spectrum
+
+    out = np.empty((m, freqs_hz.shape[0]))
+    inner = (freqs_hz > 0) & (freqs_hz < rate_hz / 2)
+    w = 2.0 * np.pi * freqs_hz / rate_hz
+    for a in range(0, m, rows_per_pass):
+        b = min(m, a + rows_per_pass)
+        psd = (variance[a:b] * gain[a:b] ** 2)[:, None] * power_spectrum(ar[a:b], ma[a:b], w) / rate_hz
+        out[a:b] = np.where(inner, 2.0 * psd, psd)
+    return out
+

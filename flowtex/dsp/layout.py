@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 _DTYPES = {"float": np.float64, "int": np.int64}
+_BOUND_KEEP = 256  # bind() answers kept per layout (distinct sizes seen in one process; then it starts again)
 
 
 @dataclass(frozen=True)
@@ -81,6 +82,12 @@ class Layout:
                 _check_expression(f.size, known)
             elif not isinstance(f.size, int) or isinstance(f.size, bool) or f.size < 0:
                 raise ValueError(f"layout field {f.name!r}: size {f.size!r} is not a count")
+        # the checked expressions compiled once (eval of a string parses it on every call), and each bind's
+        # answer kept per sizes: node builds and dsp helpers bind the same few sizes again and again
+        self._derived_code = {name: compile(text, f"<layout size {name}>", "eval") for name, text in self.derived.items()}
+        self._size_code = {f.name: compile(f.size, f"<layout size {f.name}>", "eval")
+                           for f in self.fields if isinstance(f.size, str)}
+        self._bound: dict[tuple[tuple[str, int], ...], dict[str, slice]] = {}
 
     # ----------------------------------------------------------------- Python side
     def _dims(self, sizes: Mapping[str, int]) -> dict[str, int]:
@@ -88,21 +95,28 @@ class Layout:
         if missing:
             raise ValueError(f"layout needs the sizes {', '.join(missing)}")
         dims = {s: int(sizes[s]) for s in self.sizes}
-        for name, text in self.derived.items():
-            dims[name] = int(eval(text, {"max": max, "min": min}, dims))  # checked by _check_expression
+        for name, code in self._derived_code.items():
+            dims[name] = int(eval(code, {"max": max, "min": min}, dims))  # checked by _check_expression
         return dims
 
     def bind(self, **sizes: int) -> dict[str, slice]:
-        """Each field's slice of the array for these sizes, in declaration order."""
+        """Each field's slice of the array for these sizes, in declaration order (a new dict, the caller's to change)."""
+        key = tuple((s, int(sizes[s])) for s in self.sizes if s in sizes)
+        known = self._bound.get(key) if len(key) == len(self.sizes) else None
+        if known is not None:
+            return dict(known)
         dims = self._dims(sizes)
         out, at = {}, 0
         for f in self.fields:
-            n = f.size if isinstance(f.size, int) else int(eval(f.size, {"max": max, "min": min}, dims))
+            n = f.size if isinstance(f.size, int) else int(eval(self._size_code[f.name], {"max": max, "min": min}, dims))
             if n < 0:
                 raise ValueError(f"layout field {f.name!r}: size {f.size!r} is {n} for {sizes}")
             out[f.name] = slice(at, at + n)
             at += n
-        return out
+        if len(self._bound) >= _BOUND_KEEP:
+            self._bound.clear()
+        self._bound[key] = out
+        return dict(out)
 
     def size(self, **sizes: int) -> int:
         """Length of the array for these sizes."""

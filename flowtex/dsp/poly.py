@@ -97,11 +97,13 @@ def stabilize(poly: np.ndarray, radius: float = MAX_RADIUS) -> np.ndarray:
 def power_spectrum(ar: np.ndarray, ma: np.ndarray, w: np.ndarray) -> np.ndarray:
     """|C(e^jw) / A(e^jw)|^2 at ``w`` (rad/sample), from the coefficients (Horner).
 
-    The physical PSD is :func:`flowtex.dsp.arma.arma_psd` (variance, gain and rate applied).
+    ``ar`` and ``ma`` may also be stacks (m, p + 1) and (m, q + 1): then one row per model, shape (m, len(w)),
+    each row what the model alone gives. The physical PSD is :func:`flowtex.dsp.arma.arma_psd` (variance, gain
+    and rate applied).
     """
     z = np.exp(-1j * np.asarray(w, dtype=np.float64))
-    num = np.polynomial.polynomial.polyval(z, np.asarray(ma, dtype=np.float64))
-    den = np.polynomial.polynomial.polyval(z, np.asarray(ar, dtype=np.float64))
+    num = np.polynomial.polynomial.polyval(z, np.asarray(ma, dtype=np.float64).T)
+    den = np.polynomial.polynomial.polyval(z, np.asarray(ar, dtype=np.float64).T)
     return np.abs(num) ** 2 / np.abs(den) ** 2
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..dsp.arma import arma_psd
+from ..dsp.arma import arma_psd, arma_psd_rows
 from ..dsp.interp import initial_state, texture_lookup_block
 from ..dsp.spectral import lsd_db
 from ..models.rendering import texture_table
@@ -22,6 +22,13 @@ def models_at(ms: TextureModelSet, speeds: np.ndarray, forces: np.ndarray, outsi
 
     ``outside`` / ``interpolation``: as the node's parameters (None: the set's own rule, flowtex.models.rendering).
     """
+    ar, ma, gain, var = model_rows_at(ms, speeds, forces, outside, interpolation)
+    return [(ar[k].copy(), ma[k].copy(), float(gain[k]), float(var[k])) for k in range(gain.shape[0])]
+
+
+def model_rows_at(ms: TextureModelSet, speeds: np.ndarray, forces: np.ndarray, outside: str | None = None,
+                  interpolation: str | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`models_at` as arrays: ar (n, p + 1), ma (n, q + 1), gain (n,), variance (n,), row k for point k."""
     speeds = np.asarray(speeds, float).reshape(-1, 1)
     forces = np.asarray(forces, float).reshape(-1, 1)
     tab = texture_table(ms, interpolation, outside)
@@ -30,12 +37,17 @@ def models_at(ms: TextureModelSet, speeds: np.ndarray, forces: np.ndarray, outsi
     ma = np.empty((n, ms.ma_order + 1))
     gain = np.empty((n, 1))
     var = np.empty((n, 1))
-    out = []
+    s0, si0 = initial_state(ms.ar_order, ms.ma_order)
     for k in range(n):  # a fresh state per point: no smoothing or holding across queries
-        s, si = initial_state(ms.ar_order, ms.ma_order)
+        s, si = s0.copy(), si0.copy()
         texture_lookup_block(tab, s, si, speeds[k:k + 1], forces[k:k + 1], ar[k:k + 1], ma[k:k + 1], gain[k:k + 1], var[k:k + 1])
-        out.append((ar[k].copy(), ma[k].copy(), float(gain[k, 0]), float(var[k, 0])))
-    return out
+    return ar, ma, gain[:, 0], var[:, 0]
+
+
+def psds_at(ms: TextureModelSet, speeds: np.ndarray, forces: np.ndarray, freqs_hz: np.ndarray) -> np.ndarray:
+    """PSD (arma_psd, at the set's own rate) of the model :func:`models_at` gives at each point: one row per point."""
+    ar, ma, gain, var = model_rows_at(ms, speeds, forces)
+    return arma_psd_rows(ar, ma, gain, var, freqs_hz, ms.sample_rate)
 
 
 def set_lsd_db(fitted: TextureModelSet, truth: TextureModelSet, speeds: np.ndarray, forces: np.ndarray,
@@ -46,11 +58,8 @@ def set_lsd_db(fitted: TextureModelSet, truth: TextureModelSet, speeds: np.ndarr
     """
     nyquist = 0.5 * min(truth.sample_rate, fitted.sample_rate)
     freqs = np.linspace(0.0, nyquist, nfreq + 1)[1:-1]
-    out = []
-    for (a1, c1, g1, v1), (a2, c2, g2, v2) in zip(models_at(fitted, speeds, forces), models_at(truth, speeds, forces), strict=True):
-        out.append(lsd_db(arma_psd(a1, c1, g1, v1, freqs, fitted.sample_rate), arma_psd(a2, c2, g2, v2, freqs, truth.sample_rate),
-                          freqs))
-    return np.array(out)
+    fit_psd, true_psd = psds_at(fitted, speeds, forces, freqs), psds_at(truth, speeds, forces, freqs)
+    return np.array([lsd_db(a, b, freqs) for a, b in zip(fit_psd, true_psd, strict=True)])
 
 
 def model_lsd_db(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, truth: tuple, rate: float, nfreq: int = 512) -> float:
@@ -73,10 +82,7 @@ def path_lsd_db(original: TextureModelSet, other: TextureModelSet, speeds: np.nd
     """
     f = common_band(original, other, nfreq)
 
-    def mean_psd(ms: TextureModelSet) -> np.ndarray:
-        return np.mean([arma_psd(a, c, g, v, f, ms.sample_rate) for a, c, g, v in models_at(ms, speeds, forces)], axis=0)
-
-    return lsd_db(mean_psd(other), mean_psd(original), f)
+    return lsd_db(np.mean(psds_at(other, speeds, forces, f), axis=0), np.mean(psds_at(original, speeds, forces, f), axis=0), f)
 
 
 def lissajous_path(ms: TextureModelSet, points: int = 300, cycles: tuple[float, float] = (7.3, 11.1),

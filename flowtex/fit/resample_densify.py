@@ -29,11 +29,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..dsp.arma import arma_psd
+from ..dsp.arma import arma_psd_rows
 from ..dsp.spectral import lsd_db
 from ..models.densify import MAX_LEVELS, densify_set, measured_edges, record_densify, split_edges
 from ..models.texture import TextureModelSet
-from .quality import common_band, lissajous_path, models_at, path_lsd_db
+from .quality import common_band, lissajous_path, model_rows_at, path_lsd_db, psds_at
 from .resample import FitCache, resample_model_set
 
 PATH_MARGIN_DB = 0.4
@@ -68,10 +68,13 @@ def point_lsds(original: TextureModelSet, other: TextureModelSet, speeds: np.nda
     set keeps.
     """
     f = common_band(original, other, FREQ_POINTS)
-    return np.array([lsd_db(arma_psd(a2, c2, g2, v2, f, other.sample_rate), arma_psd(a1, c1, g1, v1, f, original.sample_rate), f)
-                     if g1 * g1 * v1 > 0 else 0.0
-                     for (a1, c1, g1, v1), (a2, c2, g2, v2)
-                     in zip(models_at(original, speeds, forces), models_at(other, speeds, forces), strict=True)])
+    a1, c1, g1, v1 = model_rows_at(original, speeds, forces)
+    loud = g1 * g1 * v1 > 0
+    out = np.zeros(g1.shape[0])
+    speeds, forces = np.asarray(speeds, float).reshape(-1)[loud], np.asarray(forces, float).reshape(-1)[loud]
+    want = arma_psd_rows(a1[loud], c1[loud], g1[loud], v1[loud], f, original.sample_rate)
+    out[loud] = [lsd_db(a, b, f) for a, b in zip(psds_at(other, speeds, forces, f), want, strict=True)]
+    return out
 
 
 def _edges_to_split(ms: TextureModelSet, out: TextureModelSet, margin_db: float) -> set[tuple[int, int]]:

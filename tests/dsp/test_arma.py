@@ -17,6 +17,7 @@ from flowtex.dsp.arma import (
     arma_lattice_block,
     arma_output_variance,
     arma_psd,
+    arma_psd_rows,
     lattice_ladder_coefficients,
     new_state,
 )
@@ -121,6 +122,19 @@ def test_output_variance_and_psd_helpers_match_independent_references() -> None:
     np.testing.assert_allclose(total, arma_output_variance(a, c, g, var), rtol=1e-3)
     with pytest.raises(ValueError):
         arma_output_variance(np.real(np.poly([1.01])), c, g, var)
+
+
+def test_psd_rows_equal_each_models_own_psd_bit_for_bit() -> None:
+    """arma_psd_rows (flowtex.fit.quality's path evaluations) gives each model's arma_psd exactly: the same operations."""
+    models = [model_19_17(k) for k in range(5)]
+    ar, ma = np.array([m[0] for m in models]), np.array([m[1] for m in models])
+    gain, var = np.array([0.6, 1.0, 0.0, 2.0, 0.3]), np.array([2.5, 1.0, 1.0, 0.0, 7.0])
+    freqs = np.r_[0.0, np.linspace(1.0, 499.0, 300), 500.0]
+    rows = arma_psd_rows(ar, ma, gain, var, freqs, RATE, rows_per_pass=2)
+    for k in range(5):
+        np.testing.assert_array_equal(rows[k], arma_psd(ar[k], ma[k], gain[k], var[k], freqs, RATE))
+    with pytest.raises(ValueError, match="ar"):
+        arma_psd_rows(ar[:, :0], ma, gain, var, freqs, RATE)
 
 
 def test_stationary_variance_and_psd() -> None:

@@ -20,6 +20,20 @@ def test_fields_follow_each_other_in_order() -> None:
         lay.const("c")
 
 
+def test_bind_answers_are_kept_per_sizes_and_the_callers_to_change() -> None:
+    """bind() keeps its answer per sizes (node builds bind the same sizes again and again): a caller changing the dict
+    it got changes no later answer, and other sizes, a missing size or a negative length are still checked."""
+    lay = Layout("float", [Field("a", 2), Field("b", "m"), Field("c", "n - 2")], sizes=("n",), derived={"m": "2 * n"})
+    first = lay.bind(n=3)
+    first["a"] = slice(0, 0)
+    assert lay.bind(n=3) == {"a": slice(0, 2), "b": slice(2, 8), "c": slice(8, 9)}
+    assert lay.bind(n=4, other=9) == {"a": slice(0, 2), "b": slice(2, 10), "c": slice(10, 12)}
+    with pytest.raises(ValueError, match="needs the sizes n"):
+        lay.bind()
+    with pytest.raises(ValueError, match="'c'"):
+        lay.bind(n=1)
+
+
 def test_bad_declarations_are_refused() -> None:
     with pytest.raises(ValueError, match="twice"):
         Layout("int", [Field("a"), Field("a")])
