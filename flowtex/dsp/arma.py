@@ -361,7 +361,7 @@ def arma_psd(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, freqs
 
 
 def arma_psd_rows(ar: np.ndarray, ma: np.ndarray, gain: np.ndarray, variance: np.ndarray, freqs_hz: np.ndarray,
-                  rate_hz: float, rows_per_pass: int = 256) -> np.ndarray:
+                  rate_hz: float, rows_per_pass: int = 8) -> np.ndarray:
     """One-sided PSDs of many models of one order pair, one row per model: row k is :func:`arma_psd` of model k.
 
     ``ar`` (m, p + 1), ``ma`` (m, q + 1), ``gain`` and ``variance`` (m,). The same operations as :func:`arma_psd`,

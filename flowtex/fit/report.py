@@ -162,8 +162,7 @@ def _plot_spectra(fit: TextureFit, path: Path, plt: Any) -> None:
         axes[k // cols][k % cols].axis("off")
     fig.supxlabel("frequency (Hz)", fontsize=FONT + 1)
     fig.supylabel("PSD ((m/s^2)^2/Hz)", fontsize=FONT + 1)
-    fig.tight_layout()
-    save_png(fig, path)
+    save_png(fig, path)  # lays the figure out (tight_layout) once
 
 
 def _plot_plane(fit: TextureFit, path: Path, plt: Any, dups: list[tuple[int, int]]) -> None:

@@ -151,32 +151,50 @@ class Layout:
 
 
 class _Builder:
+    """Collects the float arena's pieces (offset order) and the int table; :meth:`floats` allocates the arena once.
+
+    A port buffer without a fill is zeros: it is only counted, never allocated here, so the arena is one zeroed
+    allocation with the filled pieces written into it (a wide graph's buffers are neither built twice nor copied).
+    """
+
     def __init__(self, block_rows: int):
         self.rows = block_rows
-        self.f_chunks: list[np.ndarray] = []
+        self.f_chunks: list[tuple[int, np.ndarray]] = []
         self.f_size = 0
         self.ints: list[int] = [0] * HEADER
 
-    def f_alloc(self, values: np.ndarray) -> int:
+    def f_alloc(self, values: np.ndarray | None, size: int = 0) -> int:
+        """Offset of ``values`` (or of ``size`` zeros when ``values`` is None) in the float arena."""
         off = self.f_size
+        if values is None:
+            self.f_size += size
+            return off
         values = np.ascontiguousarray(values, dtype=np.float64).ravel()
-        self.f_chunks.append(values)
+        self.f_chunks.append((off, values))
         self.f_size += values.size
         return off
+
+    def floats(self) -> np.ndarray:
+        f = np.zeros(self.f_size)
+        for off, values in self.f_chunks:
+            f[off:off + values.size] = values
+        return f
 
     def i_slot(self, value: int = 0) -> int:
         self.ints.append(int(value))
         return len(self.ints) - 1
 
     def port(self, width: int, fill: np.ndarray | None = None) -> PortSlot:
-        data = np.zeros((self.rows, width))
-        if fill is not None:
+        if fill is None:
+            off = self.f_alloc(None, self.rows * width)
+        else:
+            data = np.zeros((self.rows, width))
             data[:] = fill
-        off = self.f_alloc(data)
+            off = self.f_alloc(data)
         return PortSlot(off, width, self.i_slot(width), self.i_slot(off))
 
     def hold(self, width: int) -> PortSlot:
-        off = self.f_alloc(np.zeros(width))
+        off = self.f_alloc(None, width)
         return PortSlot(off, width, self.i_slot(width), self.i_slot(off))
 
 
@@ -269,5 +287,5 @@ def plan_layout(rg: ResolvedGraph, block_rows: int) -> Layout:
                                      "in_table": in_table, "out_table": out_table,
                                      "in_width": sum(s.width for s in graph_inputs.values()),
                                      "out_width": sum(s.width for s in graph_outputs.values())})
-    f = np.concatenate(b.f_chunks) if b.f_chunks else np.zeros(0)
+    f = b.floats()
     return Layout(f, ints, block_rows, graph_inputs, graph_outputs, node_slots, in_columns, out_columns)
