@@ -140,6 +140,27 @@ def run(tree: Path, cache: Path, argv: list[str]) -> tuple[float, float, str]:
     return wall, after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime, done.stdout
 
 
+def alternating_json(baseline: str, rounds: int, script: str, warm: bool = False) -> dict[str, list]:
+    """``python -c script`` in the baseline revision's tree and in this one, alternating, ``rounds`` times each.
+
+    Each run's stdout is one JSON document; returns {"baseline": [...], "this": [...]}. ``warm``: one unmeasured run
+    per tree first (its kernels into that tree's own cache). Prints the baseline's commit and the load average.
+    """
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        commit = export_tree(baseline, work / "baseline")
+        trees = {"baseline": work / "baseline", "this": REPO}
+        print(f"baseline {baseline} = {commit[:12]}; load average {os.getloadavg()[0]:.1f}")
+        for label, tree in trees.items() if warm else ():
+            run(tree, work / f"cache_{label}", ["-c", script])
+        got: dict[str, list] = {label: [] for label in trees}
+        for _ in range(rounds):
+            for label, tree in trees.items():
+                got[label].append(json.loads(run(tree, work / f"cache_{label}", ["-c", script])[2]))
+        print(f"load average after {os.getloadavg()[0]:.1f}")
+        return got
+
+
 def renamed(tree: Path, tag: str) -> Path:
     """A copy of graphs/hatt_texture.yaml beside it under a new name: a structure no cache has seen."""
     path = tree / "graphs" / f".bench_compile_{tag}.yaml"

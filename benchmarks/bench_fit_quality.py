@@ -6,7 +6,7 @@ What the resampling and fit tests (and ``models resample --densify auto``) spend
 a fresh lookup state per point (``initial_state``, which binds the state's declared layout), the models
 ``texture_lookup`` renders along a path (``models_at``), the PSD of each (``arma_psd``) and the path LSD
 (``path_lsd_db``, ``point_lsds``). The baseline is the git revision ``--baseline`` exported to a temporary
-folder (bench_compile.export_tree); each figure is the CPU time (``time.process_time``) of one process, the
+folder (bench_compile.alternating_json); each figure is the CPU time (``time.process_time``) of one process, the
 processes alternating between the two trees (baseline, this, baseline, ...) so that a change of load on a shared
 machine hits both alike. Each process also prints a SHA-256 of every result it computed: the two trees must
 agree bit for bit (the script exits with an error otherwise).
@@ -15,12 +15,8 @@ agree bit for bit (the script exits with an error otherwise).
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import tempfile
-from pathlib import Path
 
-from bench_compile import export_tree, run
+from bench_compile import alternating_json
 
 WORK = """
 import hashlib, json, time
@@ -68,25 +64,15 @@ def main() -> None:
     ap.add_argument("--baseline", default="main", help="git revision to compare with (default: main)")
     ap.add_argument("--rounds", type=int, default=3, help="processes per tree")
     args = ap.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
-        work = Path(tmp)
-        commit = export_tree(args.baseline, work / "baseline")
-        trees = {"baseline": work / "baseline", "this": Path(__file__).resolve().parents[1]}
-        print(f"baseline {args.baseline} = {commit[:12]}; load average {os.getloadavg()[0]:.1f}")
-        for label, tree in trees.items():  # each tree's kernels into its own cache first
-            run(tree, work / f"cache_{label}", ["-c", WORK])
-        got: dict[str, list[dict]] = {label: [] for label in trees}
-        for _ in range(args.rounds):
-            for label, tree in trees.items():
-                got[label].append(json.loads(run(tree, work / f"cache_{label}", ["-c", WORK])[2]))
-        hashes = {r["sha256"] for rows in got.values() for r in rows}
-        print(f"load average after {os.getloadavg()[0]:.1f}; results bit-identical: {len(hashes) == 1}")
-        print(f"{'CPU s (median of ' + str(args.rounds) + ')':44s} {'baseline':>9s} {'this':>9s} {'ratio':>7s}")
-        for name in got["baseline"][0]["times"]:
-            b, n = (sorted(r["times"][name] for r in got[label])[args.rounds // 2] for label in ("baseline", "this"))
-            print(f"{name:44s} {b:9.3f} {n:9.3f} {n / b:7.2f}")
-        if len(hashes) != 1:
-            raise SystemExit("the two trees computed different results")
+    got = alternating_json(args.baseline, args.rounds, WORK, warm=True)
+    hashes = {r["sha256"] for rows in got.values() for r in rows}
+    print(f"results bit-identical: {len(hashes) == 1}")
+    print(f"{'CPU s (median of ' + str(args.rounds) + ')':44s} {'baseline':>9s} {'this':>9s} {'ratio':>7s}")
+    for name in got["baseline"][0]["times"]:
+        b, n = (sorted(r["times"][name] for r in got[label])[args.rounds // 2] for label in ("baseline", "this"))
+        print(f"{name:44s} {b:9.3f} {n:9.3f} {n / b:7.2f}")
+    if len(hashes) != 1:
+        raise SystemExit("the two trees computed different results")
 
 
 if __name__ == "__main__":

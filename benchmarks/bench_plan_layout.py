@@ -6,19 +6,15 @@ Graphs: graphs/hatt_texture.yaml (a usual graph) and a gain on one input of flow
 (the widest graph flowtex loads, tests/io/test_hostile_bounds.py's), both at the default 1,024 rows. CPU seconds
 (``time.process_time``) of ``plan_layout`` on the resolved graph, its first call (fresh memory, as
 load_graph pays it) and the best of 3 in one process, the processes
-alternating between the trees (bench_compile.run). Each process prints a SHA-256 of the float and int arenas it
+alternating between the trees (bench_compile.alternating_json). Each process prints a SHA-256 of the float and int arenas it
 placed: the two trees must agree bit for bit (the script exits with an error otherwise).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import tempfile
-from pathlib import Path
 
-from bench_compile import export_tree, run
+from bench_compile import alternating_json
 
 WORK = """
 import hashlib, json, sys, tempfile, time
@@ -55,26 +51,17 @@ def main() -> None:
     ap.add_argument("--baseline", default="main", help="git revision to compare with (default: main)")
     ap.add_argument("--rounds", type=int, default=3, help="processes per tree")
     args = ap.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
-        work = Path(tmp)
-        commit = export_tree(args.baseline, work / "baseline")
-        trees = {"baseline": work / "baseline", "this": Path(__file__).resolve().parents[1]}
-        print(f"baseline {args.baseline} = {commit[:12]}; load average {os.getloadavg()[0]:.1f}")
-        got: dict[str, list[dict]] = {label: [] for label in trees}
-        for _ in range(args.rounds):
-            for label, tree in trees.items():
-                got[label].append(json.loads(run(tree, work / f"cache_{label}", ["-c", WORK])[2]))
-        print(f"load average after {os.getloadavg()[0]:.1f}")
-        same = True
-        for name in got["baseline"][0]:
-            hashes = {r[name][2] for rows in got.values() for r in rows}
-            same &= len(hashes) == 1
-            for k, what in ((0, "first call"), (1, "best of 3")):
-                b, n = (sorted(r[name][k] for r in got[label])[args.rounds // 2] for label in ("baseline", "this"))
-                print(f"{name:24s} {what:10s} CPU s (median of {args.rounds}): baseline {b:8.4f}  this {n:8.4f}  "
-                      f"ratio {n / b:5.2f}  arenas bit-identical: {len(hashes) == 1}")
-        if not same:
-            raise SystemExit("the two trees placed different arenas")
+    got = alternating_json(args.baseline, args.rounds, WORK)
+    same = True
+    for name in got["baseline"][0]:
+        hashes = {r[name][2] for rows in got.values() for r in rows}
+        same &= len(hashes) == 1
+        for k, what in ((0, "first call"), (1, "best of 3")):
+            b, n = (sorted(r[name][k] for r in got[label])[args.rounds // 2] for label in ("baseline", "this"))
+            print(f"{name:24s} {what:10s} CPU s (median of {args.rounds}): baseline {b:8.4f}  this {n:8.4f}  "
+                  f"ratio {n / b:5.2f}  arenas bit-identical: {len(hashes) == 1}")
+    if not same:
+        raise SystemExit("the two trees placed different arenas")
 
 
 if __name__ == "__main__":
