@@ -148,6 +148,15 @@ class Layout:
     position in ``i`` of the port's offset, width, column, the port's own arena
     offset, and whether ``run`` redirects the port into the caller's array."""
     out_columns: dict[str, tuple[int, int]]
+    f_pieces: tuple[tuple[int, np.ndarray], ...] = ()
+    """The float arena's initial values that are not zero-filled buffers: (offset, values), in offset order;
+    ``f`` as placed is zeros with these written in (:meth:`initial_floats`)."""
+
+    def initial_floats(self, out: np.ndarray) -> None:
+        """Write the float arena as placed into ``out`` (a graph's reset): zeros, then :attr:`f_pieces`."""
+        out[:] = 0.0
+        for off, values in self.f_pieces:
+            out[off:off + values.size] = values
 
 
 class _Builder:
@@ -169,7 +178,7 @@ class _Builder:
         if values is None:
             self.f_size += size
             return off
-        values = np.ascontiguousarray(values, dtype=np.float64).ravel()
+        values = np.array(values, dtype=np.float64).ravel()  # a copy: the arena's initial values, kept for resets
         self.f_chunks.append((off, values))
         self.f_size += values.size
         return off
@@ -288,4 +297,5 @@ def plan_layout(rg: ResolvedGraph, block_rows: int) -> Layout:
                                      "in_width": sum(s.width for s in graph_inputs.values()),
                                      "out_width": sum(s.width for s in graph_outputs.values())})
     f = b.floats()
-    return Layout(f, ints, block_rows, graph_inputs, graph_outputs, node_slots, in_columns, out_columns)
+    return Layout(f, ints, block_rows, graph_inputs, graph_outputs, node_slots, in_columns, out_columns,
+                  tuple(b.f_chunks))

@@ -59,8 +59,7 @@ class Graph:
         self.layout.i = code.ints
         self.source = code.source
         self.rebuilt_cache_entries = code.rebuilt
-        self._f0 = self.layout.f.copy()
-        self._i0 = self.layout.i.copy()
+        self._i0 = self.layout.i.copy()  # the float arena's initial values are the layout's (Layout.initial_floats)
         self.f = self.layout.f
         self.i = self.layout.i
         self._in_views = {name: self.f[s.offset:s.offset + s.width] for name, s in self.layout.graph_inputs.items()}
@@ -76,7 +75,7 @@ class Graph:
         self._py_step = make_py_step(self)
         self.step = self._py_step  # type: ignore[method-assign]  # the generated function, one call layer less
         self.seed = self.spec.seed
-        self.reset()
+        self._seed_nodes()  # the arenas are as placed: a reset's copies would only touch every page of them again
 
     # --- description -------------------------------------------------
     @property
@@ -106,8 +105,12 @@ class Graph:
         """Restore the initial state; re-seed random nodes with ``seed`` (default: the graph's)."""
         if seed is not None:
             self.seed = int(seed)
-        self.f[:] = self._f0
+        self.layout.initial_floats(self.f)
         self.i[:] = self._i0
+        self._seed_nodes()
+
+    def _seed_nodes(self) -> None:
+        """Seed every random node's state from the graph's seed and the node's name."""
         for name, rn in self.resolved.nodes.items():
             if rn.cls.uses_seed and rn.node is not None:
                 slots = self.layout.nodes[name]
