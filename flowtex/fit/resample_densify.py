@@ -96,12 +96,14 @@ def resample_densified(ms: TextureModelSet, rate_hz: float, densify: int | str =
                        progress: Callable[[int, int], None] | None = None, keep_order: bool = False,
                        extra_order: int | None = None, option: str = "--rate",
                        margin_db: float = PATH_MARGIN_DB,
-                       point_margin_db: float = POINT_MARGIN_DB) -> tuple[TextureModelSet, TextureModelSet]:
+                       point_margin_db: float = POINT_MARGIN_DB,
+                       cache: FitCache | None = None) -> tuple[TextureModelSet, TextureModelSet]:
     """(the set as densified, it resampled to ``rate_hz`` Hz): ``models resample --densify``.
 
     ``densify`` N (0..MAX_LEVELS) adds every edge midpoint N times first (flowtex.models.densify.densify_set);
     ``"auto"`` refines where needed (module docstring). The other arguments are
-    :func:`flowtex.fit.resample.resample_model_set`'s. With ``auto`` the densified set's ``metadata["densify"]``
+    :func:`flowtex.fit.resample.resample_model_set`'s (``cache``: fits kept from earlier calls on sets sharing models,
+reused and extended; every pass of ``auto`` shares one). With ``auto`` the densified set's ``metadata["densify"]``
     (carried into the resampled set) records the mode, the margins, the level kept and the levels tried, the
     models before and added, and the worst check-path LSD before (``path_lsd_db_before``) and after.
     """
@@ -127,8 +129,8 @@ def resample_densified(ms: TextureModelSet, rate_hz: float, densify: int | str =
         if not (isinstance(densify, int) and not isinstance(densify, bool) and 0 <= densify <= MAX_LEVELS):
             raise ValueError(f"densify must be {AUTO!r} or an integer from 0 to {MAX_LEVELS}, got {densify!r}")
         dense = densify_set(ms, densify)
-        return dense, resample(dense)
-    cache: FitCache = {}
+        return dense, resample(dense, cache)
+    cache = {} if cache is None else cache
     paths = [lissajous_path(ms, cycles=c, phase=ph) for c, ph in CHECK_PATHS]
 
     def worst_path(resampled: TextureModelSet) -> float:

@@ -162,11 +162,18 @@ def test_auto_counts_progress_over_every_pass():
 def test_auto_adds_nothing_to_a_set_that_already_agrees():
     ms = synthetic_model_set(np.array([60.0, 150.0, 240.0]), np.array([0.5, 1.5, 2.5]), ar_order=12, ma_order=10)
     dense, out = resample_densified(ms, 500.0)
-    plain = resample_model_set(ms, 500.0)
+    cache: dict = {}
+    plain = resample_model_set(ms, 500.0, cache=cache)
     assert dense.num_models == ms.num_models and out.metadata["densify"]["models_added"] == 0
     assert out.metadata["densify"]["path_lsd_db"] <= PATH_MARGIN_DB
     np.testing.assert_array_equal(out.ar_lsf, plain.ar_lsf)                  # the same fits as without densifying
     np.testing.assert_array_equal(out.variance, plain.variance)
+    # a cache given to resample_densified serves its fits (none made again) and changes nothing
+    calls = []
+    _, again = resample_densified(ms, 500.0, progress=lambda d, t: calls.append(d), cache=cache)
+    assert calls == [] and again.metadata["densify"] == out.metadata["densify"]
+    np.testing.assert_array_equal(again.ar_lsf, out.ar_lsf)
+    np.testing.assert_array_equal(again.variance, out.variance)
 
 
 def test_fit_cache_reuses_fits_without_changing_them():
@@ -190,9 +197,10 @@ def test_densified_hatt_set_follows_its_original_when_resampled(hatt_files):
     path = next(p for p in hatt_files if p.name == "Models_Carpet 3.xml")
     src = load_model_set(path)
     walk = lissajous_path(src)
-    assert path_lsd_db(src, resample_model_set(src, 500.0), *walk) > 0.5
-    assert path_lsd_db(src, resample_model_set(densify_set(src, 1), 500.0), *walk) <= 0.5
-    dense, out = resample_densified(src, 500.0)
+    cache: dict = {}  # the three resamples share their models' fits (the same fits: test_fit_cache_reuses_fits...)
+    assert path_lsd_db(src, resample_model_set(src, 500.0, cache=cache), *walk) > 0.5
+    assert path_lsd_db(src, resample_model_set(densify_set(src, 1), 500.0, cache=cache), *walk) <= 0.5
+    dense, out = resample_densified(src, 500.0, cache=cache)
     assert dense.num_models > src.num_models and _worst_path(src, out) <= 0.5
 
 
