@@ -54,9 +54,22 @@ def native(surface):
     return _psd(surface, 1000.0)
 
 
+@pytest.fixture(scope="module")
+def twins(surface):
+    """surface resampled to each rate once per module (the tests only read the sets)."""
+    made = {}
+
+    def twin(rate):
+        if rate not in made:
+            made[rate] = resample_model_set(surface, rate)
+        return made[rate]
+
+    return twin
+
+
 @pytest.mark.parametrize("rate", [2000.0, 4000.0])
-def test_resampled_set_renders_like_the_original_along_a_path(surface, native, rate):
-    twin = resample_model_set(surface, rate)
+def test_resampled_set_renders_like_the_original_along_a_path(twins, native, rate):
+    twin = twins(rate)
     f1, p1, power1 = native
     f2, p2, power2 = _psd(twin, rate)
     n = f1.shape[0]
@@ -65,11 +78,11 @@ def test_resampled_set_renders_like_the_original_along_a_path(surface, native, r
     assert abs(10 * np.log10(power2 / power1)) <= 0.3  # the renders' power; seeds scatter by ~0.1 dB
 
 
-def test_interpolated_models_keep_their_level_between_vertices(surface):
+def test_interpolated_models_keep_their_level_between_vertices(surface, twins):
     # deterministic companion of the render test: the models texture_lookup builds between vertices, both rates
     from flowtex.dsp.arma import arma_psd
 
-    twin = resample_model_set(surface, 2000.0)
+    twin = twins(2000.0)
     rng = np.random.default_rng(0)
     sp, fo = rng.uniform(20, 230, 30), rng.uniform(0.2, 2.4, 30)
     f = np.linspace(15.0, 450.0, 2000)
