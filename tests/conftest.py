@@ -113,10 +113,8 @@ def nrt_allocations():
 
     numba counts them only while its runtime statistics are on: switched on for the test (numba's
     ``memsys_enable_stats``, what ``NUMBA_NRT_STATS=1`` does at start-up) and off again after it, in this process
-    (a child started with the variable costs a second of imports). ``count`` first checks that the counter sees one
-    ``np.empty``."""
-    import numpy as np
-    from numba import njit
+    (a child started with the variable costs a second of imports). A call from Python boxes its array arguments: a
+    count above 0 shows the counter is on."""
     from numba.core.runtime import _nrt_python as nrt
     from numba.core.runtime import rtsys
 
@@ -128,9 +126,6 @@ def nrt_allocations():
     was_on = nrt.memsys_stats_enabled()
     nrt.memsys_enable_stats()
     try:
-        one = njit(lambda: np.empty(3).size)
-        one()
-        assert count(one) == 1, "numba's allocation counter is off"
         yield count
     finally:
         if not was_on:

@@ -132,4 +132,4 @@ def test_lookup_kernel_allocates_nothing_per_tick(nrt_allocations):
         texture_lookup_block(tab, s, si, speed[:10], force[:10], *[o[:10] for o in out])  # compiled before counting
         short, long = (nrt_allocations(texture_lookup_block, tab, s, si, speed[:m], force[:m], *[o[:m] for o in out])
                        for m in (10, n))
-        assert short == long, (rule, short, long)  # 10 ticks and 3000 ticks: the same (boxing) allocations
+        assert short == long and short > 0, (rule, short, long)  # 10 and 3000 ticks: the same (boxing) allocations

@@ -32,4 +32,4 @@ def test_kernels_allocate_nothing_per_tick(nrt_allocations) -> None:
         rows.append((count(R.resample_block, p, s, si, x[:10], y[:10]), count(R.resample_block, p, s, si, x, y)))
     assert len(rows) == 4
     for short, long in rows:
-        assert short == long, rows
+        assert short == long and short > 0, rows  # > 0: the counter is on (it counts the boxing)
