@@ -4,9 +4,13 @@ numba's ``cache=True`` checks only the modification time of the file that
 defines a function, not of the functions it calls: edit a kernel in
 ``flowtex/dsp`` and a cached node kernel in ``flowtex/nodes`` that calls it
 would keep the old machine code. flowtex therefore keys numba's cache folder
-by a fingerprint of its whole source tree (every ``.py`` file's path, size and
-modification time): any edit to flowtex gives a fresh folder, and unchanged
-sources load instantly. Setting ``NUMBA_CACHE_DIR`` yourself turns this off.
+by a fingerprint of its whole source tree (every ``.py`` file's path and
+contents): any edit to flowtex gives a fresh folder, and unchanged sources load
+instantly. Inside that folder, a kernel's entries are filed by its module's path
+within the package (:func:`file_by_package_path`), not by where the package lies
+on disk, so another checkout or a reinstall of the same sources (a fresh clone,
+a CI run, a branch switched away and back) finds the compiled code of the first.
+Setting ``NUMBA_CACHE_DIR`` yourself turns this off.
 
 numba binds a function's cache folder when the function is decorated, so
 :func:`configure_numba_cache` runs just before the first module holding
@@ -30,25 +34,30 @@ from pathlib import Path
 from .config import CACHE_ENV, cache_dir, contract_enabled
 from .errors import FlowtexError
 
-__all__ = ["CACHE_ENV", "cache_dir", "configure_numba_cache", "guard_numba_cache", "prune_numba_cache", "source_fingerprint",
-           "write_cache_file"]
+__all__ = ["CACHE_ENV", "cache_dir", "configure_numba_cache", "file_by_package_path", "guard_numba_cache", "prune_numba_cache",
+           "source_fingerprint", "write_cache_file"]
 
 KEEP_OLD = 3
 IN_USE_S = 3600.0
 """A folder used this recently is never pruned: another checkout of flowtex (another source tree) may be compiling into it."""
 
 
+PACKAGE = Path(__file__).resolve().parent
+"""The flowtex package folder whose sources the fingerprint covers."""
+
+
 @functools.lru_cache(maxsize=1)
 def source_fingerprint() -> str:
-    """Hash of the path, size and modification time of every flowtex source file, and of the FMA-contraction setting.
+    """Hash of the path (within the package) and contents of every flowtex source file, and of the FMA-contraction
+    setting: the same for every copy of the same sources, wherever it lies and whenever it was written.
 
     Computed once per process (the tree a process runs is the one it imported).
     """
-    package = Path(__file__).resolve().parent
     h = hashlib.sha256()
-    for path in sorted(package.rglob("*.py")):
-        st = path.stat()
-        h.update(f"{path.relative_to(package)}:{st.st_size}:{st.st_mtime_ns};".encode())
+    for path in sorted(PACKAGE.rglob("*.py")):
+        data = path.read_bytes()
+        h.update(f"{path.relative_to(PACKAGE).as_posix()}:{len(data)}:".encode())
+        h.update(data)
     h.update(f"contract={contract_enabled()};".encode())  # flowtex.dsp.fastmath's setting changes the machine code
     return h.hexdigest()[:16]
 
@@ -72,6 +81,7 @@ def configure_numba_cache() -> str:
     import numba
 
     guard_numba_cache()
+    file_by_package_path()
     try:
         folder = cache_dir() / "numba" / fingerprint
         folder.mkdir(parents=True, exist_ok=True)
@@ -104,6 +114,48 @@ def prune_numba_cache() -> None:
 
 SEAL_SUFFIX = ".sha256"
 """Beside each numba index (``.nbi``) and data (``.nbc``) file: the sha256 of its bytes, written after numba wrote it."""
+
+
+def _in_package(py_file: str) -> Path | None:
+    """The folder of ``py_file`` relative to the flowtex package, or None for a file outside it (a plugin's)."""
+    try:
+        return Path(py_file).resolve().parent.relative_to(PACKAGE)
+    except (OSError, ValueError):
+        return None
+
+
+def file_by_package_path() -> None:
+    """Make numba file the cache entries of flowtex's own kernels under ``flowtex/<subpackage>`` of its cache folder
+    (numba's own locator names the folder after the absolute path of the source, so every checkout compiled anew).
+
+    Entries stay keyed by numba's content hash of the source file, and the folder by :func:`source_fingerprint`:
+    two copies share an entry only when their sources are the same. Kernels outside the package (plugins) keep
+    numba's own locators. Once per process; numba's ``NUMBA_CACHE_LOCATOR_CLASSES``, when set, still rules.
+    """
+    from numba.core import caching
+
+    impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)  # numba >= 0.62 / older
+    numba_locator = getattr(caching, "UserProvidedCacheLocator", None) or getattr(caching, "_UserProvidedCacheLocator", None)
+    if impl is None or numba_locator is None or not isinstance(getattr(impl, "_locator_classes", None), list):
+        return  # another numba layout: its own locators (every checkout compiles anew, nothing is wrong)
+    if any(getattr(cls, "flowtex_package", False) for cls in impl._locator_classes):
+        return
+
+    class PackageCacheLocator(numba_locator):  # type: ignore[misc, valid-type]
+        """numba's locator for ``numba.config.CACHE_DIR``, with a subfolder named by the path within flowtex."""
+
+        flowtex_package = True
+
+        @classmethod
+        def get_suitable_cache_subpath(cls, py_file: str) -> str:
+            inside = _in_package(py_file)
+            return os.path.join("flowtex", *inside.parts) if inside is not None else super().get_suitable_cache_subpath(py_file)
+
+        @classmethod
+        def from_function(cls, py_func, py_file):  # type: ignore[no-untyped-def]
+            return super().from_function(py_func, py_file) if _in_package(py_file) is not None else None
+
+    impl._locator_classes = [PackageCacheLocator, *impl._locator_classes]
 
 
 def guard_numba_cache() -> None:

@@ -18,8 +18,8 @@ went wrong can be named:
   port, ``p``, ``s`` or ``si`` raises ``IndexError`` there instead of corrupting
   memory or crashing the caller.
 
-``python -m flowtex.kernelprobe TARGET TYPE`` prints the problems as JSON lines
-``{"line": L, "message": M}`` (``line`` 0: the class's line).
+``python -m flowtex.kernelprobe MODE TARGET TYPE...`` prints the problems as JSON lines
+``{"type": TYPE, "line": L, "message": M}`` (``line`` 0: the class's line), see :func:`main`.
 """
 
 from __future__ import annotations
@@ -222,15 +222,10 @@ def allocations(cls: type[Node]) -> list[str]:
     return sorted(found)
 
 
-def main(argv: list[str]) -> int:
-    """Child-process entry: ``allocations|runtime TARGET TYPE`` -> JSON lines on stdout."""
-    from .plugincheck import node_types
-
-    mode, target, type_name = argv
-    cls = node_types(target)[type_name]
+def _probe_type(mode: str, cls: type[Node]) -> list[dict]:
+    """One node type's JSON items for ``mode`` (``allocations`` or ``runtime``)."""
     if mode == "allocations":
-        print(json.dumps({"allocations": allocations(cls)}))
-        return 0
+        return [{"allocations": allocations(cls)}]
     found: list[tuple[int, str]]
     try:
         found = probe_problems(cls)
@@ -238,8 +233,25 @@ def main(argv: list[str]) -> int:
         found = [(0, f"note: {exc}")]
     except Exception as exc:  # __init__, resolve() or build() raised: the plugin's error, at its line
         found = [(error_line(exc, inspect.getsourcefile(cls) or ""), f"building the node raised {type(exc).__name__}: {exc}")]
-    for line, message in found:
-        print(json.dumps({"line": line, "message": message}))
+    return [{"line": line, "message": message} for line, message in found]
+
+
+def main(argv: list[str]) -> int:
+    """Child-process entry: ``allocations|runtime TARGET TYPE...`` -> JSON lines on stdout.
+
+    Every node type is framed by ``{"start": TYPE}`` and ``{"done": TYPE}`` (each line flushed), so that the parent
+    names the type that crashed or hung this process and checks the ones after it in a new one; one process checks
+    every type of a plugin file (its imports and numba's start-up cost about a second each time).
+    """
+    from .plugincheck import node_types
+
+    mode, target, *type_names = argv
+    classes = node_types(target)
+    for type_name in type_names:
+        print(json.dumps({"start": type_name}), flush=True)
+        for item in _probe_type(mode, classes[type_name]):
+            print(json.dumps({"type": type_name, **item}), flush=True)
+        print(json.dumps({"done": type_name}), flush=True)
     return 0
 
 

@@ -14,6 +14,7 @@ node type, in order (a failed step stops that type's later steps):
    (:mod:`flowtex.kernelprobe`): out-of-bounds reads and writes, state kept
    between calls, every output element written, finite outputs.
 
+Steps 3 and 4 each run in one child process for all the node types of TARGET.
 Parameters of kind float, int or floats without a min or max are listed as notes.
 Each problem is one line ``FILE:LINE: node 'TYPE': ...``.
 """
@@ -23,10 +24,13 @@ from __future__ import annotations
 import inspect
 import json
 import os
+import queue
 import signal
 import subprocess
 import sys
 import tempfile
+import threading
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -36,7 +40,7 @@ from .node_api import Node, suggest
 from .nodecheck import attr_line, check_kernel_compiles, check_node_class, node_where
 
 PROBE_TIMEOUT_S = 600.0
-"""Longest the bounds-checked child process may take (it compiles the kernel once, then runs a few thousand ticks)."""
+"""Longest a child process may take over one node type (it compiles the kernel once, then runs a few thousand ticks)."""
 
 
 @dataclass
@@ -80,56 +84,121 @@ def _unbounded(cls: type[Node]) -> list[tuple[str, str]]:
     return found
 
 
-def _child(target: str, cls: type[Node], mode: str, env: dict[str, str]) -> tuple[list[dict], str | None]:
-    """Run ``python -m flowtex.kernelprobe MODE TARGET TYPE``; its JSON lines, or None and why it failed."""
+def _children(target: str, classes: list[type[Node]], mode: str, env: dict[str, str]) -> dict[str, tuple[list[dict], str | None]]:
+    """Run ``python -m flowtex.kernelprobe MODE TARGET TYPE...`` for ``classes``; per type name its JSON items, and None
+    or why its check failed.
+
+    One process checks every type (a process costs about a second of imports and numba start-up before it checks
+    anything). A type that crashes the process or runs longer than :data:`PROBE_TIMEOUT_S` is reported as such, and the
+    types after it are checked in a new process.
+    """
     root = str(Path(__file__).resolve().parents[1])  # the folder holding this flowtex package
     env = {**os.environ, **env, "PYTHONPATH": os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]),
            BACKGROUND_ENV: "0"}
+    results: dict[str, tuple[list[dict], str | None]] = {}
+    pending = [cls.type_name for cls in classes]
+    while pending:
+        items, done, current, failed = _child(mode, target, pending, env)
+        for name in pending:
+            if name in done:
+                results[name] = (items.get(name, []), None)
+        if failed is None:
+            break
+        stopped = current or next(name for name in pending if name not in done)  # died before its first line
+        results[stopped] = (items.get(stopped, []), failed)
+        pending = pending[pending.index(stopped) + 1:]
+    return results
+
+
+def _child(mode: str, target: str, names: list[str], env: dict[str, str]) -> tuple[dict[str, list[dict]], set[str], str | None, str | None]:
+    """One kernelprobe process over ``names``: (items per type, types done, the type it was checking when it stopped,
+    None or why it stopped early)."""
+    items: dict[str, list[dict]] = {}
+    done: set[str] = set()
+    current = None
+    lines: queue.Queue[str | None] = queue.Queue()
+    with tempfile.TemporaryFile("w+") as err:
+        proc = subprocess.Popen([sys.executable, "-m", "flowtex.kernelprobe", mode, str(target), *names], env=env,
+                                stdout=subprocess.PIPE, stderr=err, text=True, stdin=subprocess.DEVNULL)
+        reader = threading.Thread(target=lambda: [*map(lines.put, proc.stdout), lines.put(None)], daemon=True)
+        reader.start()
+        deadline = time.monotonic() + PROBE_TIMEOUT_S  # per type: from the start, then from each type's start line
+        failed = None
+        while (line := _next_line(lines, deadline)) is not None:
+            if line == "":  # no line before the deadline
+                proc.kill()
+                failed = f"the {mode} check did not finish in {PROBE_TIMEOUT_S:g} s (does the kernel loop forever?)"
+                break
+            if not line.startswith("{"):
+                continue
+            item = json.loads(line)
+            if "start" in item:
+                current, deadline = item["start"], time.monotonic() + PROBE_TIMEOUT_S
+            elif "done" in item:
+                done.add(item["done"])
+                current = None
+            else:
+                items.setdefault(item.pop("type"), []).append(item)
+        proc.wait()
+        reader.join()
+        proc.stdout.close()
+        if failed is None and proc.returncode != 0:
+            how = f"signal {signal.Signals(-proc.returncode).name}" if proc.returncode < 0 else f"exit code {proc.returncode}"
+            err.seek(0)
+            last = (err.read().strip().splitlines() or [""])[-1]
+            failed = f"running the kernel crashed the checking process ({how}{': ' + last if last else ''})"
+    if failed is None and len(done) < len(names):
+        failed = "the checking process ended before checking it"
+    return items, done, current, failed
+
+
+def _next_line(lines: queue.Queue[str | None], deadline: float) -> str | None:
+    """The next line (None at the end of the output), or "" when none came before ``deadline``."""
     try:
-        done = subprocess.run([sys.executable, "-m", "flowtex.kernelprobe", mode, str(target), cls.type_name], env=env,
-                              capture_output=True, text=True, timeout=PROBE_TIMEOUT_S, stdin=subprocess.DEVNULL)
-    except subprocess.TimeoutExpired:
-        return [], f"the {mode} check did not finish in {PROBE_TIMEOUT_S:g} s (does the kernel loop forever?)"
-    if done.returncode != 0:
-        how = f"signal {signal.Signals(-done.returncode).name}" if done.returncode < 0 else f"exit code {done.returncode}"
-        last = (done.stderr.strip().splitlines() or [""])[-1]
-        return [], f"running the kernel crashed the checking process ({how}{': ' + last if last else ''})"
-    return [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")], None
+        return lines.get(timeout=max(0.0, deadline - time.monotonic()))
+    except queue.Empty:
+        return ""
 
 
-def allocations(target: str, cls: type[Node]) -> tuple[list[str], str | None]:
-    """Allocator calls in the kernel's compiled code, found in a child process compiling into an empty numba cache.
+def allocations(target: str, classes: list[type[Node]]) -> dict[str, tuple[list[str], str | None]]:
+    """Per type name: allocator calls in the kernel's compiled code, found in a child process compiling into an empty
+    numba cache, and None or why the check failed.
 
     numba cannot show the LLVM IR of code it loaded from its disk cache (and a plugin kernel is usually cached), so the
     child compiles the kernel and every function it calls afresh.
     """
     with tempfile.TemporaryDirectory(prefix="flowtex-alloc-") as tmp:
-        items, failed = _child(target, cls, "allocations", {"NUMBA_CACHE_DIR": tmp})
-    return sorted({str(name) for item in items for name in item.get("allocations", [])}), failed
+        found = _children(target, classes, "allocations", {"NUMBA_CACHE_DIR": tmp})
+    return {name: (sorted({str(call) for item in items for call in item.get("allocations", [])}), failed)
+            for name, (items, failed) in found.items()}
 
 
-def runtime_problems(target: str, cls: type[Node]) -> list[tuple[int, str]]:
-    """(line, message) from :mod:`flowtex.kernelprobe` run in a child process with numba's bounds checking on.
+def runtime_problems(target: str, classes: list[type[Node]]) -> dict[str, list[tuple[int, str]]]:
+    """Per type name: (line, message) from :mod:`flowtex.kernelprobe` run in a child process with numba's bounds
+    checking on.
 
     The child compiles into its own numba cache folder (bounds-checked machine code must not
     replace the normal one); a crash or a timeout there is reported, not suffered here.
     """
     from .cache import cache_dir
 
-    items, failed = _child(target, cls, "runtime", {"NUMBA_BOUNDSCHECK": "1", "NUMBA_CACHE_DIR": str(cache_dir() / "boundscheck")})
-    if failed:
-        return [(0, failed + "; look for reads or writes outside the ports, p, s and si")]
-    return [(int(item["line"]), str(item["message"])) for item in items]
+    found = _children(target, classes, "runtime", {"NUMBA_BOUNDSCHECK": "1", "NUMBA_CACHE_DIR": str(cache_dir() / "boundscheck")})
+    out = {}
+    for name, (items, failed) in found.items():
+        out[name] = [(int(item["line"]), str(item["message"])) for item in items]
+        if failed:
+            out[name].append((0, failed + "; look for reads or writes outside the ports, p, s and si"))
+    return out
 
 
-def check_type(target: str, cls: type[Node], report: Report) -> None:
-    """Append every problem and note of one node type to ``report``."""
+def check_in_process(cls: type[Node], report: Report) -> bool:
+    """Steps 1 and 2 (declarations, the kernel compiles) and the notes on parameters; whether the child steps follow."""
     report.checked.append(cls.type_name)
     try:
         check_node_class(cls)
     except FlowtexError as exc:
         report.problems.append(str(exc))
-        return
+        return False
     for name, missing in _unbounded(cls):
         report.notes.append(f"{node_where(cls, line=attr_line(cls, 'params'))}: note: parameter {name!r} has no {missing}; "
                             "any such value reaches the kernel (declare bounds, e.g. Param('float', min=0.0, max=1.0))")
@@ -137,24 +206,44 @@ def check_type(target: str, cls: type[Node], report: Report) -> None:
         check_kernel_compiles(cls)
     except FlowtexError as exc:
         report.problems.append(str(exc))
-        return
-    kernel = cls.get_kernel()
-    func = getattr(kernel, "py_func", kernel)
-    calls, failed = allocations(target, cls)
-    if failed:
-        report.problems.append(f"{node_where(cls, func)}: {failed}")
-    if calls:
-        report.problems.append(f"{node_where(cls, func)}: kernel {func.__name__} allocates memory on every call (numba "
-                               f"generated {', '.join(calls)}): np.empty/zeros, array expressions such as x[t, :] * 2 and "
-                               "copied slices allocate; size work arrays in build() and keep them in s")
-    for line, message in runtime_problems(target, cls):
-        where = node_where(cls, func, line or None)
-        (report.notes if message.startswith("note: ") else report.problems).append(f"{where}: {message}")
+        return False
+    return True
+
+
+def check_in_children(target: str, classes: list[type[Node]]) -> dict[str, Report]:
+    """Steps 3 and 4 for ``classes`` (each passed :func:`check_in_process`): per type name, its problems and notes."""
+    calls = allocations(target, classes)
+    runtime = runtime_problems(target, classes)
+    reports = {}
+    for cls in classes:
+        report = reports[cls.type_name] = Report()
+        kernel = cls.get_kernel()
+        func = getattr(kernel, "py_func", kernel)
+        found, failed = calls[cls.type_name]
+        if failed:
+            report.problems.append(f"{node_where(cls, func)}: {failed}")
+        if found:
+            report.problems.append(f"{node_where(cls, func)}: kernel {func.__name__} allocates memory on every call (numba "
+                                   f"generated {', '.join(found)}): np.empty/zeros, array expressions such as x[t, :] * 2 "
+                                   "and copied slices allocate; size work arrays in build() and keep them in s")
+        for line, message in runtime[cls.type_name]:
+            where = node_where(cls, func, line or None)
+            (report.notes if message.startswith("note: ") else report.problems).append(f"{where}: {message}")
+    return reports
 
 
 def check_target(target: str) -> Report:
-    """Check every node type ``target`` defines (see the module docstring)."""
+    """Check every node type ``target`` defines (see the module docstring): steps 1 and 2 here, type by type, then
+    step 3 for every type that passed them in one child process, and step 4 in another."""
+    classes = list(node_types(target).values())
+    parts = {cls.type_name: Report() for cls in classes}
+    passed = [cls for cls in classes if check_in_process(cls, parts[cls.type_name])]
+    for name, found in check_in_children(target, passed).items():
+        parts[name].problems += found.problems
+        parts[name].notes += found.notes
     report = Report()
-    for cls in node_types(target).values():
-        check_type(target, cls, report)
+    for part in parts.values():  # in the order the types are defined, each type's problems in the order of the steps
+        report.problems += part.problems
+        report.notes += part.notes
+        report.checked += part.checked
     return report

@@ -107,6 +107,31 @@ def flowtex_cli(capsys):
     return run
 
 
+@pytest.fixture
+def nrt_allocations():
+    """``count(fn, *args)``: the heap allocations numba's runtime made during ``fn(*args)``.
+
+    numba counts them only while its runtime statistics are on: switched on for the test (numba's
+    ``memsys_enable_stats``, what ``NUMBA_NRT_STATS=1`` does at start-up) and off again after it, in this process
+    (a child started with the variable costs a second of imports). A call from Python boxes its array arguments: a
+    count above 0 shows the counter is on."""
+    from numba.core.runtime import _nrt_python as nrt
+    from numba.core.runtime import rtsys
+
+    def count(fn, *args) -> int:
+        before = rtsys.get_allocation_stats().alloc
+        fn(*args)
+        return rtsys.get_allocation_stats().alloc - before
+
+    was_on = nrt.memsys_stats_enabled()
+    nrt.memsys_enable_stats()
+    try:
+        yield count
+    finally:
+        if not was_on:
+            nrt.memsys_disable_stats()
+
+
 HATT_ENV = "FLOWTEX_HATT_DIR"
 """Folder holding HaTT's published ``Models_*.xml`` files (research licence: never committed)."""
 

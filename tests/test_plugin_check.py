@@ -110,12 +110,63 @@ def test_declaration_mistakes_are_reported_by_plugin_check(tmp_path, capsys):
     assert lines == [f"{tmp_path / 'badport.py'}:16: node 'badport_pc': output 'y': shape '=nope' names no input; inputs are: x"]
 
 
-def test_allocation_is_found_in_a_cached_kernel_too(tmp_path, capsys):
-    # numba shows no LLVM IR for code loaded from its disk cache: the second check (kernel cached by the first) must
-    # still see the allocation
-    source = (CASES / "mistakes.py").read_text()
-    (tmp_path / "alloc_only.py").write_text(source[:source.index("@njit(cache=True)\ndef forget_kernel")])
-    for _ in range(2):
-        code, lines, _ = _check(capsys, str(tmp_path / "alloc_only.py"))
-        assert code == 1
-        assert any("kernel alloc_kernel allocates memory on every call (numba generated NRT_" in line for line in lines)
+def test_allocation_is_found_in_a_cached_kernel_too(mistakes_report, capsys, monkeypatch):
+    # numba shows no LLVM IR for code loaded from its disk cache: a second check of the mistakes file (its kernels
+    # cached by the fixture's check) must still see the allocation
+    monkeypatch.chdir(mistakes_report[3].parent)
+    code, lines, _ = _check(capsys, "mistakes.py")
+    assert code == 1
+    assert any("kernel alloc_kernel allocates memory on every call (numba generated NRT_" in line for line in lines)
+
+KILLS = """\
+import os
+import signal
+
+import numpy as np
+from numba import njit
+
+from flowtex.node_api import Node, NodeState, Param, Port
+
+
+@njit(cache=True)
+def div0_kernel(p, s, si, x, y):
+    for t in range(x.shape[0]):
+        y[t, 0] = p[0] / 0.0 * x[t, 0]
+
+
+class Before(Node):
+    \"\"\"divides by zero\"\"\"
+    type_name = "before_pc"
+    params = {"k": Param("float", default=1.0, min=0.0, max=2.0)}
+    inputs = {"x": Port((), "*")}
+    outputs = {"y": Port((), "=x")}
+    kernel = div0_kernel
+
+    def build(self, inputs, outputs):
+        return NodeState(params=np.array([self.p["k"]]))
+
+
+class Kills(Before):
+    \"\"\"ends the process that builds it\"\"\"
+    type_name = "kills_pc"
+
+    def build(self, inputs, outputs):
+        os.kill(os.getpid(), signal.SIGKILL)  # build() runs in the runtime check's child process only
+
+
+class After(Before):
+    \"\"\"divides by zero, defined after the type that kills the process\"\"\"
+    type_name = "after_pc"
+"""
+
+
+def test_a_type_that_kills_the_checking_process_is_named_and_the_next_type_is_still_checked(tmp_path, capsys):
+    # the runtime checks of every type of a file run in one child process: when one type ends that process, the report
+    # names that type, the type checked before it keeps its result, and the type after it is checked in a new process
+    (tmp_path / "kills.py").write_text(KILLS)
+    code, lines, err = _check(capsys, str(tmp_path / "kills.py"))
+    assert code == 1 and err.endswith("3 problem(s) in node type(s) before_pc, kills_pc, after_pc"), err
+    by_type = {name: [line for line in lines if f"node '{name}_pc'" in line] for name in ("before", "kills", "after")}
+    assert len(by_type["kills"]) == 1 and "running the kernel crashed the checking process (signal SIGKILL)" in by_type["kills"][0]
+    for name in ("before", "after"):
+        assert len(by_type[name]) == 1 and "kernel raised ZeroDivisionError" in by_type[name][0], lines

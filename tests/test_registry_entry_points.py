@@ -49,6 +49,22 @@ for _ in range(2):
 out["errors"] = errors
 print(json.dumps(out))
 """
+"""Run by the venv's interpreter: what listing the node types imports, what using one imports, a broken package's error."""
+
+CLI = """
+import contextlib, io, json
+from flowtex.cli import main
+
+runs = []
+for args in (["nodes", "lazy_gain"], ["nodes"]):
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(args)
+    runs.append({"code": code, "stdout": out.getvalue(), "stderr": err.getvalue()})
+print(json.dumps(runs))
+"""
+"""Run by the venv's interpreter: ``flowtex nodes lazy_gain`` and ``flowtex nodes`` (:func:`flowtex.cli.main`), one process
+for both (the venv and its entry points are the point, not a process per command)."""
 
 
 @pytest.mark.skipif(not _can_build_editable(), reason="needs setuptools >= 70.1 or the 'wheel' package (test extra) "
@@ -64,10 +80,10 @@ def test_installed_entry_points_load_on_first_use(tmp_path):
     subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", "--without-pip", str(venv)], check=True,
                    timeout=STEP_TIMEOUT_S)  # this interpreter's pip installs into the venv that runs it
     python = str(venv / "bin" / "python")
-    for pkg in (tmp_path / "good", broken):
-        install = subprocess.run([python, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation", "--no-index",
-                                  "-e", str(pkg)], capture_output=True, text=True, timeout=STEP_TIMEOUT_S, env=_env())
-        assert install.returncode == 0, install.stderr[-2000:]
+    install = subprocess.run([python, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation", "--no-index",
+                              "-e", str(tmp_path / "good"), "-e", str(broken)], capture_output=True, text=True,
+                             timeout=STEP_TIMEOUT_S, env=_env())  # one pip for both packages: its start-up once
+    assert install.returncode == 0, install.stderr[-2000:]
     probe = subprocess.run([python, "-c", PROBE], capture_output=True, text=True, timeout=STEP_TIMEOUT_S, env=_env(),
                            cwd=tmp_path)
     assert probe.returncode == 0, probe.stderr[-3000:]
@@ -78,9 +94,8 @@ def test_installed_entry_points_load_on_first_use(tmp_path):
     assert len(out["errors"]) == 2 and out["errors"][0] == out["errors"][1]  # the same error at every use
     assert "entry point 'broken_node' (flowtex_broken_node.node)" in out["errors"][0]
     assert "RuntimeError: the lab forgot a file" in out["errors"][0]
-    nodes = subprocess.run([python, "-m", "flowtex", "nodes", "lazy_gain"], capture_output=True, text=True,
-                           timeout=STEP_TIMEOUT_S, env=_env(), cwd=tmp_path)
-    assert nodes.returncode == 0 and "from entry point flowtex_lazy_gain.node" in nodes.stdout, nodes.stderr
-    listing = subprocess.run([python, "-m", "flowtex", "nodes"], capture_output=True, text=True, timeout=STEP_TIMEOUT_S,
-                             env=_env(), cwd=tmp_path)
-    assert listing.returncode == 1 and "entry point 'broken_node'" in listing.stderr  # a full listing imports every package
+    cli = subprocess.run([python, "-c", CLI], capture_output=True, text=True, timeout=STEP_TIMEOUT_S, env=_env(), cwd=tmp_path)
+    assert cli.returncode == 0, cli.stderr[-3000:]
+    nodes, listing = json.loads(cli.stdout.strip().splitlines()[-1])
+    assert nodes["code"] == 0 and "from entry point flowtex_lazy_gain.node" in nodes["stdout"], nodes["stderr"]
+    assert listing["code"] == 1 and "entry point 'broken_node'" in listing["stderr"]  # a full listing imports every package

@@ -35,6 +35,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..dsp.powerlaw import fit_power_law, power_law_design
+
 
 def neighbour_groups(speeds: Sequence[float], forces: Sequence[float], count: int) -> list[np.ndarray]:
     """For each point (speed mm/s, force N), the indices of the ``count`` points nearest to it (itself first),
@@ -77,10 +79,8 @@ def trend_factors(speeds: Sequence[float], forces: Sequence[float], powers: Sequ
     dB over the pieces weighted by their lengths, gives the factor T_i / (sum_j n_j T_j / sum_j n_j): a ratio of
     the trend alone, so neither the pieces' scatter nor the log-mean bias of a dB fit enters it.
     """
-    x = np.log(np.column_stack([np.asarray(speeds, float), np.asarray(forces, float)]))
-    y = np.log(np.asarray(powers, float))
     w = np.asarray(samples, float)
-    a = np.column_stack([np.ones(len(y)), x])
-    coef = np.linalg.lstsq(a * np.sqrt(w)[:, None], y * np.sqrt(w), rcond=None)[0]
+    a = power_law_design(np.asarray(speeds, float), np.asarray(forces, float))
+    coef = fit_power_law(a, powers, w)
     trend = np.exp(a @ coef - np.max(a @ coef))
     return np.array([trend[i] * np.sum(w[g]) / np.sum(w[g] * trend[g]) for i, g in enumerate(groups)])

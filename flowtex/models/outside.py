@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..dsp.powerlaw import fit_power_law, power_law_design
 from .texture import OUTSIDE_CHOICES, TextureModelSet
 
 __all__ = ["MAX_EXPONENT", "OUTSIDE_CHOICES", "TREND_CAP", "model_powers", "nearest_measured", "power_trend"]
@@ -67,12 +68,12 @@ def power_trend(ms: TextureModelSet) -> tuple[float, float]:
     k = [1.0, 1.0]
     if np.count_nonzero(use) < 2:
         return k[0], k[1]
-    cols = [np.log(ms.speeds[use]), np.log(ms.forces[use])]
-    spread = [np.ptp(c) > 1e-6 for c in cols]
-    design = np.column_stack([np.ones(np.count_nonzero(use))] + [c for c, ok in zip(cols, spread, strict=True) if ok])
+    full = power_law_design(ms.speeds[use], ms.forces[use])
+    spread = [np.ptp(full[:, 1 + axis]) > 1e-6 for axis in range(2)]
+    design = full[:, [0] + [1 + axis for axis in range(2) if spread[axis]]]
     if design.shape[1] == 1 or np.linalg.matrix_rank(design) < design.shape[1]:
         return k[0], k[1]
-    coef = np.linalg.lstsq(design, np.log(power[use]), rcond=None)[0][1:]
+    coef = fit_power_law(design, power[use])[1:]
     it = iter(coef)
     for axis, ok in enumerate(spread):
         if ok:

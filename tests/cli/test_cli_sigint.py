@@ -9,8 +9,10 @@ import sys
 import time
 
 import numpy as np
+import pytest
 
 from flowtex.io.recordings import load_recording, save_recording
+from tests.child_signals import sigint_as_a_terminal_gives_it, signal_state
 from tests.cli.gain_graph import GAIN_GRAPH as GRAPH
 
 SLOW_WRITER = """
@@ -43,7 +45,8 @@ def signal_during_write(tmp_path, verb_args, signum) -> tuple[int, str]:
     marker = tmp_path / "writing"
     cmd = [sys.executable, "-c", SLOW_WRITER, str(marker), *map(str, verb_args)]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}  # the flowtex under test, whatever the cwd
-    proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=sigint_as_a_terminal_gives_it)
     try:
         deadline = time.monotonic() + 240  # a cold numba compile under load comes first
         while not marker.exists():
@@ -52,8 +55,12 @@ def signal_during_write(tmp_path, verb_args, signum) -> tuple[int, str]:
             time.sleep(0.05)
         # the new data are in the temporary file now, not yet renamed: interrupt here
         assert [p.name for p in tmp_path.iterdir() if ".part" in p.name]
+        state = signal_state(proc.pid)
         proc.send_signal(signum)
-        _stdout, stderr = proc.communicate(timeout=60)
+        try:
+            _stdout, stderr = proc.communicate(timeout=60)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"the writer ignored the signal for 60 s; its signal state when it was sent: {state}")
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -73,9 +73,10 @@ def test_an_unusable_cache_folder_only_costs_the_import(tmp_path, monkeypatch):
 
 
 def test_a_warm_design_does_not_import_scipy_signal(cache):
+    butterworth_sos("lowpass", 4, [100.0], 1000.0)  # memoized here; a new process designs it warm, then another one cold
     code = ("import sys; from flowtex.dsp.filter_design import butterworth_sos; "
-            "s = butterworth_sos('lowpass', 4, [100.0], 1000.0); print('scipy.signal' in sys.modules, s.shape)")
+            "s = butterworth_sos('lowpass', 4, [100.0], 1000.0); print('scipy.signal' in sys.modules, s.shape); "
+            "s = butterworth_sos('lowpass', 4, [110.0], 1000.0); print('scipy.signal' in sys.modules, s.shape)")
     env = {"FLOWTEX_CACHE_DIR": str(cache.parent), "PATH": "/usr/bin:/bin"}
-    first = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True).stdout.split()
-    second = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True).stdout.split()
-    assert first[0] == "True" and second[0] == "False"
+    warm, cold = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True).stdout.split("\n")[:2]
+    assert warm.split()[0] == "False" and cold.split()[0] == "True"  # the cold design shows the check sees the import

@@ -7,11 +7,6 @@ polynomials, barycentric weights from the file's triangle (tests/hatt_reference.
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 import scipy.signal
@@ -20,12 +15,10 @@ from hypothesis import strategies as st
 
 from flowtex.datasets.model_sets import cork_like_model_set, hard_model_set, lsf_to_poly_reference, poly_from_roots
 from flowtex.dsp.arma import arma_output_variance
-from flowtex.dsp.interp import filter_power, model_output_powers
+from flowtex.dsp.interp import filter_power, initial_state, model_output_powers, pack_texture_table, texture_lookup_block
 from flowtex.fit.quality import models_at
 from tests.hatt_reference import clamp, locate
 from tests.power_reference import lyapunov_power
-
-REPO = Path(__file__).resolve().parents[2]
 
 
 def _power(a, c, g, v):
@@ -125,32 +118,18 @@ def test_power_interpolation_keeps_loudness_where_variance_interpolation_loses_i
     assert np.array_equal(a1, a2) and v1 != v2
 
 
-def test_lookup_kernel_allocates_nothing_per_tick():
-    script = """
-import numpy as np
-from numba.core.runtime import rtsys
-from flowtex.datasets.model_sets import cork_like_model_set
-from flowtex.dsp.interp import initial_state, pack_texture_table, texture_lookup_block
-ms = cork_like_model_set()
-n = 3000
-rng = np.random.default_rng(0)
-speed = rng.uniform(0, 400, (n, 1)); force = rng.uniform(0, 4.5, (n, 1))
-out = [np.empty((n, 20)), np.empty((n, 18)), np.empty((n, 1)), np.empty((n, 1))]
-for rule in ("power", "log_power"):
-    tab = pack_texture_table(ms.speeds, ms.forces, ms.triangles, ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain,
-                             ms.max_speed, ms.max_force, interpolation=rule, outside="trend")
-    s, si = initial_state(19, 17)
-    texture_lookup_block(tab, s, si, speed[:10], force[:10], *[o[:10] for o in out])
-    counts = []
-    for m in (10, n):
-        a = rtsys.get_allocation_stats().alloc
-        texture_lookup_block(tab, s, si, speed[:m], force[:m], *[o[:m] for o in out])
-        counts.append(rtsys.get_allocation_stats().alloc - a)
-    print(counts[0], counts[1])
-"""
-    env = {**os.environ, "NUMBA_NRT_STATS": "1", "PYTHONPATH": str(REPO)}
-    res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, cwd=REPO, timeout=600)
-    assert res.returncode == 0, res.stderr
-    for line in res.stdout.split("\n")[-3:-1]:
-        short, long = (int(x) for x in line.split())
-        assert short == long, res.stdout                 # 10 ticks and 3000 ticks: the same (boxing) allocations
+def test_lookup_kernel_allocates_nothing_per_tick(nrt_allocations):
+    ms = cork_like_model_set()
+    n = 3000
+    rng = np.random.default_rng(0)
+    speed = rng.uniform(0, 400, (n, 1))
+    force = rng.uniform(0, 4.5, (n, 1))
+    out = [np.empty((n, 20)), np.empty((n, 18)), np.empty((n, 1)), np.empty((n, 1))]
+    for rule in ("power", "log_power"):
+        tab = pack_texture_table(ms.speeds, ms.forces, ms.triangles, ms.ar_lsf, ms.ma_lsf, ms.variance, ms.gain,
+                                 ms.max_speed, ms.max_force, interpolation=rule, outside="trend")
+        s, si = initial_state(19, 17)
+        texture_lookup_block(tab, s, si, speed[:10], force[:10], *[o[:10] for o in out])  # compiled before counting
+        short, long = (nrt_allocations(texture_lookup_block, tab, s, si, speed[:m], force[:m], *[o[:m] for o in out])
+                       for m in (10, n))
+        assert short == long and short > 0, (rule, short, long)  # 10 and 3000 ticks: the same (boxing) allocations
