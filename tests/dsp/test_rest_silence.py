@@ -35,6 +35,8 @@ below = st.one_of(st.just(0.0), st.just(-np.inf), st.floats(-1e6, 0.0), st.float
 @example(name="corners", outside="fade", interp="variance", ks=0.0, kf=0.0, low=0.0, which="force", rest=0.0,
          other=7.488369018590465e-147)
 @example(name="corners", outside="fade", interp="power", ks=0.0, kf=0.0, low=0.0, which="force", rest=0.0, other=1e-100)
+# found by hypothesis: 0.75 x 5e-324 rounds to 5e-324, a speed equal to low_speed (not below it), which renders
+@example(name="corners", outside="hold", interp="variance", ks=0.0, kf=0.0, low=5e-324, which="speed", rest=0.75, other=1.0)
 def test_silent_at_rest_for_every_rule_and_exponent(name, outside, interp, ks, kf, low, which, rest, other):
     ms = SETS[name]
     if outside == "fade" and name == "no corners":
@@ -44,6 +46,8 @@ def test_silent_at_rest_for_every_rule_and_exponent(name, outside, interp, ks, k
                              ms.max_force, low_speed=low, low_speed_value=low_value, low_force=low, low_force_value=low_value,
                              outside=outside, src=nearest_measured(ms), trend=(ks, kf), interpolation=interp)
     r = rest * low if 0.0 <= rest < 1.0 else rest             # at rest: <= 0, or below the threshold
+    if r >= low > 0.0:  # rest x low rounded up to low itself (a subnormal low): not below it, so take the next float down
+        r = float(np.nextafter(low, 0.0))
     speed, force = {"speed": (r, other), "force": (other, r), "both": (r, r)}[which]
     s, si = initial_state(ms.ar_order, ms.ma_order)
     lookup_model(tab, s, si, speed, force)
