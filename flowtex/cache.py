@@ -55,7 +55,10 @@ def source_fingerprint() -> str:
     """
     h = hashlib.sha256()
     for path in sorted(PACKAGE.rglob("*.py")):
-        data = path.read_bytes()
+        try:
+            data = path.read_bytes()
+        except OSError as exc:  # a file this process cannot read (and so does not run): its error stands for it
+            data = f"unreadable: {exc.strerror}".encode()
         h.update(f"{path.relative_to(PACKAGE).as_posix()}:{len(data)}:".encode())
         h.update(data)
     h.update(f"contract={contract_enabled()};".encode())  # flowtex.dsp.fastmath's setting changes the machine code

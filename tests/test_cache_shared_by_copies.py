@@ -62,3 +62,17 @@ def test_a_copy_elsewhere_loads_the_kernels_the_first_copy_compiled(tmp_path):
     where, hits, misses = _run_copy(_copy_package(tmp_path))
     assert Path(where).is_relative_to(tmp_path)  # the copy ran, not this checkout
     assert (hits, misses) == (1, 0)
+
+
+def test_an_unreadable_source_file_gives_a_fingerprint_not_an_error(monkeypatch):
+    victim = PACKAGE / "dsp" / "powerlaw.py"
+    read = Path.read_bytes
+
+    def refusing(self: Path) -> bytes:
+        if self == victim:
+            raise PermissionError(13, "Permission denied", str(self))
+        return read(self)
+
+    monkeypatch.setattr(Path, "read_bytes", refusing)
+    fingerprint = source_fingerprint.__wrapped__()  # computed afresh, not the process's cached answer
+    assert len(fingerprint) == 16 and fingerprint != source_fingerprint()
