@@ -1,7 +1,8 @@
 """Where compiled code is cached, and when it is stale.
 
-numba's ``cache=True`` checks only the modification time of the file that
-defines a function, not of the functions it calls: edit a kernel in
+numba's ``cache=True`` checks only the file that defines a function (its
+modification time, or its contents in newer numba), not the files of the
+functions it calls: edit a kernel in
 ``flowtex/dsp`` and a cached node kernel in ``flowtex/nodes`` that calls it
 would keep the old machine code. flowtex therefore keys numba's cache folder
 by a fingerprint of its whole source tree (every ``.py`` file's path and
