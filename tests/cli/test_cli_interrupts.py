@@ -84,3 +84,21 @@ def test_an_error_caused_by_a_dropped_interrupt_exits_as_interrupted(monkeypatch
     with pytest.raises(KeyboardInterrupt):  # the signal raised again arrives here, after main returned
         time.sleep(10.0)
     assert sigint_raises == [signal.SIGINT]
+
+
+def test_a_dropped_sigterm_is_raised_again_as_sigterm(monkeypatch):
+    # SIGTERM raises Terminated (a KeyboardInterrupt) inside the CLI: dropped in a callback, it must come back as
+    # SIGTERM (exit 143), not as a Ctrl-C
+    raised: list[int] = []
+    monkeypatch.setattr("flowtex.cli.interrupts._raise_again", raised.append)
+    monkeypatch.setattr("flowtex.cli.interrupts.RESEND_AFTER_S", 0.0)
+
+    def body() -> None:
+        raise cli_main.Terminated
+
+    with interrupts_kept(cli_main._signal_of):
+        CALLBACK(body)()
+        deadline = time.monotonic() + 10.0
+        while not raised and time.monotonic() < deadline:
+            time.sleep(0.01)
+    assert raised == [signal.SIGTERM] and interrupt_was_lost()
