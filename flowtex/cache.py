@@ -35,8 +35,8 @@ from pathlib import Path
 from .config import CACHE_ENV, cache_dir, contract_enabled
 from .errors import FlowtexError
 
-__all__ = ["CACHE_ENV", "cache_dir", "configure_numba_cache", "file_by_package_path", "guard_numba_cache", "prune_numba_cache",
-           "source_fingerprint", "write_cache_file"]
+__all__ = ["CACHE_ENV", "PLUGIN_CODE", "cache_dir", "configure_numba_cache", "file_by_package_path", "guard_numba_cache", "plugin_code_id",
+           "prune_numba_cache", "source_fingerprint", "write_cache_file"]
 
 KEEP_OLD = 3
 IN_USE_S = 3600.0
@@ -128,14 +128,50 @@ def _in_package(py_file: str) -> Path | None:
         return None
 
 
-def file_by_package_path() -> None:
-    """Make numba file the cache entries of flowtex's own kernels under ``flowtex/<subpackage>`` of its cache folder
-    (numba's own locator names the folder after the absolute path of the source, so every checkout compiled anew).
+PLUGIN_CODE = "__flowtex_plugin_code__"
+"""Global of a plugin file's module (set by :func:`flowtex.registry.load_plugin_file` before the file runs): the
+:func:`plugin_code_id` of its folder. Compiled code of the plugin is filed and keyed by it, not by where it lies."""
 
-    Entries stay keyed by numba's content hash of the source file, and the folder by :func:`source_fingerprint`:
-    two copies share an entry only when their sources are the same. Kernels outside the package (plugins) keep
-    numba's own locators. Once per process; numba's ``NUMBA_CACHE_LOCATOR_CLASSES``, when set, still rules.
+
+@functools.lru_cache(maxsize=64)
+def _folder_digest(listing: tuple[tuple[str, int, int], ...], folder: str) -> str:
+    h = hashlib.sha256()
+    for name, _, _ in listing:
+        try:
+            data = (Path(folder) / name).read_bytes()
+        except OSError as exc:  # unreadable: it cannot be imported either; its error stands for it
+            data = f"unreadable: {exc.strerror}".encode()
+        h.update(f"{name}:{len(data)}:".encode())
+        h.update(data)
+    return h.hexdigest()[:16]
+
+
+def plugin_code_id(path: str | Path) -> str:
+    """Digest of the names and contents of the ``.py`` files in the folder of the plugin file ``path``.
+
+    A plugin folder is loaded as a whole, and a kernel may call code from another file of it: any edit in the folder
+    gives its plugins a new id (fresh machine code), and a copy of the folder elsewhere (another checkout, a folder
+    moved or staged and renamed) has the same id, so it finds the code compiled for the first.
     """
+    folder = Path(path).resolve().parent
+    try:
+        listing = tuple(sorted((f.name, f.stat().st_mtime_ns, f.stat().st_size) for f in folder.glob("*.py")))
+    except OSError:
+        listing = ()
+    return _folder_digest(listing, str(folder))
+
+
+def file_by_package_path() -> None:
+    """Make numba file the cache entries of flowtex's own kernels under ``flowtex/<subpackage>`` of its cache folder,
+    and those of plugin files under ``plugins/<code id>`` (numba's own locator names the folder after the absolute
+    path of the source, so every checkout, and every copy of a plugin folder, compiled anew).
+
+    Entries stay keyed by numba's content hash of the source file, the folder by :func:`source_fingerprint`, and a
+    plugin's subfolder by :func:`plugin_code_id`: two copies share an entry only when their sources are the same.
+    Other kernels outside the package (installed plugin packages) keep numba's own locators. Once per process;
+    numba's ``NUMBA_CACHE_LOCATOR_CLASSES``, when set, still rules.
+    """
+    import numba
     from numba.core import caching
 
     impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)  # numba >= 0.62 / older
@@ -155,9 +191,16 @@ def file_by_package_path() -> None:
             inside = _in_package(py_file)
             return os.path.join("flowtex", *inside.parts) if inside is not None else super().get_suitable_cache_subpath(py_file)
 
+        def __init__(self, py_func, py_file):  # type: ignore[no-untyped-def]
+            super().__init__(py_func, py_file)
+            code = py_func.__globals__.get(PLUGIN_CODE)
+            if isinstance(code, str):
+                self._cache_path = os.path.join(numba.config.CACHE_DIR, "plugins", code)
+
         @classmethod
         def from_function(cls, py_func, py_file):  # type: ignore[no-untyped-def]
-            return super().from_function(py_func, py_file) if _in_package(py_file) is not None else None
+            ours = _in_package(py_file) is not None or isinstance(py_func.__globals__.get(PLUGIN_CODE), str)
+            return super().from_function(py_func, py_file) if ours else None
 
     impl._locator_classes = [PackageCacheLocator, *impl._locator_classes]
 

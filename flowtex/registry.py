@@ -35,6 +35,7 @@ from importlib.metadata import EntryPoint, entry_points
 from pathlib import Path
 from types import ModuleType
 
+from .cache import PLUGIN_CODE, plugin_code_id
 from .config import PLUGIN_ENV, plugin_folders
 from .errors import FlowtexError
 from .node_api import Node
@@ -242,16 +243,33 @@ def plugin_dirs(extra: Iterable[str | Path] = ()) -> list[Path]:
     return unique
 
 
+def _plugin_module_name(path: Path) -> tuple[str, str | None]:
+    """The private module name of plugin file ``path``, and its code id (None: filed by its path, as numba does).
+
+    The name comes from the file's stem and its folder's sources (:func:`flowtex.cache.plugin_code_id`), since
+    numba's cached code names the module it was compiled in: a copy of the folder in another place then loads the code
+    compiled for the first. A second copy loaded in the same process runs as a module of its own (its ``__file__`` and
+    the data beside it are its own), named and cached by its path.
+    """
+    code = plugin_code_id(path)
+    name = f"{_PLUGIN_MODULE_PREFIX}{path.stem}_{code}"
+    loaded = sys.modules.get(name)
+    if loaded is None or Path(getattr(loaded, "__file__", "")).resolve() == path.resolve():
+        return name, code
+    return f"{_PLUGIN_MODULE_PREFIX}{path.stem}_{hashlib.sha1(str(path.resolve()).encode()).hexdigest()[:10]}", None
+
+
 def load_plugin_file(path: Path) -> ModuleType:
-    """Import one plugin file under a stable private module name."""
-    digest = hashlib.sha1(str(path.resolve()).encode()).hexdigest()[:10]
-    mod_name = f"{_PLUGIN_MODULE_PREFIX}{path.stem}_{digest}"
+    """Import one plugin file under a stable private module name (:func:`_plugin_module_name`)."""
+    mod_name, code = _plugin_module_name(path)
     if mod_name in sys.modules:
         return sys.modules[mod_name]
     spec = importlib.util.spec_from_file_location(mod_name, path)
     if spec is None or spec.loader is None:
         raise FlowtexError(f"{path}: cannot load plugin file")
     module = importlib.util.module_from_spec(spec)
+    if code is not None:
+        setattr(module, PLUGIN_CODE, code)  # its compiled code is filed by its folder's sources (flowtex.cache)
     sys.modules[mod_name] = module
     try:
         spec.loader.exec_module(module)

@@ -21,17 +21,24 @@ from typing import Any
 
 import numba
 
-from ..cache import cache_dir, source_fingerprint, write_cache_file
+from ..cache import PLUGIN_CODE, cache_dir, source_fingerprint, write_cache_file
 
 
 def kernel_fingerprint(kernel: Callable) -> str:
-    """Identity of a jitted kernel: where it lives and its source text."""
+    """Identity of a jitted kernel: where it lives and its source text.
+
+    A plugin file's kernel lives in its file, named by the file and its folder's code id
+    (:func:`flowtex.cache.plugin_code_id`), not by the folder's path: a copy of the folder finds the generated code
+    compiled for the first, and an edit anywhere in the folder (a helper the kernel calls) gives new code.
+    """
     func = getattr(kernel, "py_func", kernel)
     try:
         source = inspect.getsource(func)
     except (OSError, TypeError):
         source = repr(func.__code__.co_code)
-    return f"{func.__module__}.{func.__qualname__}:{hashlib.sha256(source.encode()).hexdigest()}"
+    code = func.__globals__.get(PLUGIN_CODE) if hasattr(func, "__globals__") else None
+    module = f"plugin_{Path(func.__code__.co_filename).stem}_{code}" if isinstance(code, str) else func.__module__
+    return f"{module}.{func.__qualname__}:{hashlib.sha256(source.encode()).hexdigest()}"
 
 
 _LOADED: dict[str, ModuleType] = {}

@@ -1,0 +1,127 @@
+"""A plugin folder's compiled code is filed by its sources, not its path (flowtex.cache.plugin_code_id): a copy of the
+folder elsewhere (another checkout, a folder moved, or staged and renamed) loads the kernels, the dispatch wrapper
+and the fused module the first copy compiled; an edit anywhere in the folder, even in a helper the kernel calls and
+not in the kernel, gives new machine code; and two copies loaded in one process each run as their own module."""
+
+from __future__ import annotations
+
+import shutil
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numba.core import event
+
+from flowtex.graph.compiled import load_graph
+from flowtex.registry import forget_plugin_code
+
+PLUGIN = """
+import numpy as np
+from numba import njit
+from flowtex.node_api import Node, NodeState, Port
+
+@njit(cache=True)
+def factor():
+    return FACTOR
+
+@njit(cache=True)
+def scaled_kernel(p, s, si, x, y):
+    for t in range(x.shape[0]):
+        for c in range(x.shape[1]):
+            y[t, c] = factor() * x[t, c]
+
+class Scaled(Node):
+    type_name = "copied_scale"
+    inputs = {"x": Port(None, "*", "signal")}
+    outputs = {"y": Port("=x", "=x", "x times the helper's factor")}
+    kernel = scaled_kernel
+
+    def build(self, inputs, outputs):
+        return NodeState(params=np.zeros(0))
+"""
+
+GRAPH = """
+flowtex: 1
+name: copied
+rate: 1000
+plugins: [plugins]
+inputs:
+  x: {}
+nodes:
+  s: {type: copied_scale}
+edges:
+  - x -> s.x
+outputs:
+  y: s.y
+"""
+
+
+class _Compiles(event.Listener):
+    """Names of the functions numba compiles (not loads from its cache) while registered."""
+
+    def __init__(self) -> None:
+        self.names: list[str] = []
+
+    def on_start(self, ev: event.Event) -> None:
+        func = getattr((ev.data or {}).get("dispatcher"), "py_func", None)
+        self.names.append(getattr(func, "__qualname__", "?"))
+
+    def on_end(self, ev: event.Event) -> None:
+        pass
+
+
+def _project(root: Path, factor: float) -> Path:
+    (root / "plugins").mkdir(parents=True)
+    (root / "plugins" / "copied_scale.py").write_text(textwrap.dedent(PLUGIN).replace("FACTOR", repr(factor)))
+    (root / "g.yaml").write_text(textwrap.dedent(GRAPH))
+    return root
+
+
+def _run(project: Path, tier: str) -> tuple[np.ndarray, list[str]]:
+    """The graph's output on both tiers' inputs, and what numba compiled for it (nothing loaded earlier is kept)."""
+    forget_plugin_code()
+    listener = _Compiles()
+    with event.install_listener("numba:compile", listener):
+        y = load_graph(project / "g.yaml", tier=tier).run({"x": np.arange(4.0)})["y"].copy()
+    return y, listener.names
+
+
+@pytest.fixture(autouse=True)
+def _forget_plugins():
+    yield
+    forget_plugin_code()
+
+
+@pytest.mark.parametrize("tier", ["dispatch", "fused"])
+def test_a_copied_plugin_folder_loads_what_the_first_compiled(tmp_path, tier):
+    first = _project(tmp_path / "first", 2.5)
+    y, _ = _run(first, tier)
+    np.testing.assert_array_equal(y, 2.5 * np.arange(4.0))
+    copy = tmp_path / "elsewhere" / "copy"
+    shutil.copytree(first, copy)
+    shutil.rmtree(first)  # moved, not only copied: nothing can come from the first folder's files
+    y, compiled = _run(copy, tier)
+    np.testing.assert_array_equal(y, 2.5 * np.arange(4.0))
+    assert compiled == [], compiled
+
+
+@pytest.mark.parametrize("tier", ["dispatch", "fused"])
+def test_an_edited_helper_gives_new_code_on_both_tiers(tmp_path, tier):
+    project = _project(tmp_path, 2.0)
+    y, _ = _run(project, tier)
+    np.testing.assert_array_equal(y, 2.0 * np.arange(4.0))
+    plugin = project / "plugins" / "copied_scale.py"
+    plugin.write_text(plugin.read_text().replace("return 2.0", "return 3.0"))  # the helper, not the kernel, changes
+    y, _ = _run(project, tier)  # (whether it compiles depends on what earlier runs left in the cache)
+    np.testing.assert_array_equal(y, 3.0 * np.arange(4.0))
+
+
+def test_two_copies_in_one_process_are_two_modules(tmp_path):
+    a, b = _project(tmp_path / "a", 1.5), _project(tmp_path / "b", 1.5)
+    forget_plugin_code()
+    ga, gb = load_graph(a / "g.yaml", tier="dispatch"), load_graph(b / "g.yaml", tier="dispatch")
+    files = {Path(g.resolved.nodes["s"].cls.kernel.py_func.__code__.co_filename).resolve() for g in (ga, gb)}
+    assert files == {(a / "plugins" / "copied_scale.py").resolve(), (b / "plugins" / "copied_scale.py").resolve()}
+    for g in (ga, gb):
+        np.testing.assert_array_equal(g.run({"x": np.arange(4.0)})["y"], 1.5 * np.arange(4.0))
