@@ -36,7 +36,8 @@ from .config import CACHE_ENV, cache_dir, contract_enabled
 from .errors import FlowtexError
 
 __all__ = ["CACHE_ENV", "PLUGIN_CODE", "cache_dir", "configure_numba_cache", "file_by_package_path", "guard_numba_cache", "plugin_code_id",
-           "prune_numba_cache", "source_fingerprint", "write_cache_file"]
+           "prune_numba_cache", "shares_compiled_code", "source_fingerprint",
+           "write_cache_file"]
 
 KEEP_OLD = 3
 IN_USE_S = 3600.0
@@ -159,6 +160,29 @@ def plugin_code_id(path: str | Path) -> str:
     except OSError:
         listing = ()
     return _folder_digest(listing, str(folder))
+
+
+def shares_compiled_code(compiled_from: str | Path, func: object) -> bool:
+    """True when machine code whose debug locations name the file ``compiled_from`` may be the code of ``func``'s file.
+
+    Compiled code is shared by copies (:func:`file_by_package_path`): a location baked into it (a kernel's ``raise``)
+    names the copy that compiled it, which may be another checkout of flowtex or another copy of a plugin folder,
+    perhaps deleted since. The same file, the same file within the flowtex package, or a file of the same name in a
+    plugin folder with the same code id (or one no longer there to check) counts.
+    """
+    code = getattr(func, "__code__", None)
+    if code is None:
+        return False
+    here, there = Path(code.co_filename).resolve(), Path(compiled_from).resolve()
+    if here == there:
+        return True
+    inside = _in_package(str(here))
+    if inside is not None:
+        return there.parent.parts[-len(inside.parts) - 1:] == ("flowtex", *inside.parts) and there.name == here.name
+    plugin = getattr(func, "__globals__", {}).get(PLUGIN_CODE)
+    if not isinstance(plugin, str) or there.name != here.name:
+        return False
+    return not there.exists() or plugin_code_id(there) == plugin
 
 
 def file_by_package_path() -> None:

@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
 
+import numba
 import pytest
 
+from flowtex.cache import source_fingerprint
 from flowtex.graph import wrappers
 from flowtex.graph.kcache import entry_ok
 from flowtex.nodes.arith import Add, Gain
@@ -39,10 +42,15 @@ wrapper's cache key, how many wrappers were rebuilt (a damaged entry), cache hit
 
 @pytest.fixture(scope="module")
 def cache(tmp_path_factory):
-    """One empty cache (flowtex's and numba's) for this module: the driver compiles once, each test uses its own kernel."""
+    """One cache for this module with no wrapper entry (each test uses its own node type's wrapper), seeded with
+    numba's entries of flowtex's own kernels and driver from the suite's cache, so that its processes compile only
+    what is tested here, the wrappers. (The seed is a copy: damaging an entry here touches no other test's cache.)"""
     root = tmp_path_factory.mktemp("kcache")
     env = {**os.environ, "FLOWTEX_CACHE_DIR": str(root / "cache"), "FLOWTEX_BACKGROUND": "0"}
     env.pop("NUMBA_CACHE_DIR", None)
+    ours = Path(numba.config.CACHE_DIR) / "flowtex"  # flowtex.cache files flowtex's kernels there (by source fingerprint)
+    if ours.is_dir():
+        shutil.copytree(ours, root / "cache" / "numba" / source_fingerprint() / "flowtex", ignore_dangling_symlinks=True)
     return root, env
 
 

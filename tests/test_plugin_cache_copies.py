@@ -1,7 +1,8 @@
 """A plugin folder's compiled code is filed by its sources, not its path (flowtex.cache.plugin_code_id): a copy of the
 folder elsewhere (another checkout, a folder moved, or staged and renamed) loads the kernels, the dispatch wrapper
 and the fused module the first copy compiled; an edit anywhere in the folder, even in a helper the kernel calls and
-not in the kernel, gives new machine code; and two copies loaded in one process each run as their own module."""
+not in the kernel, gives new machine code; two copies loaded in one process each run as their own module; and a
+kernel's exception raised by code another copy compiled still names its node and file."""
 
 from __future__ import annotations
 
@@ -13,7 +14,9 @@ import numpy as np
 import pytest
 from numba.core import event
 
+from flowtex.cache import shares_compiled_code
 from flowtex.graph.compiled import load_graph
+from flowtex.graph.faults import KernelError
 from flowtex.registry import forget_plugin_code
 
 PLUGIN = """
@@ -29,6 +32,8 @@ def factor():
 def scaled_kernel(p, s, si, x, y):
     for t in range(x.shape[0]):
         for c in range(x.shape[1]):
+            if x[t, c] > 99.5:
+                raise ValueError("x too large")
             y[t, c] = factor() * x[t, c]
 
 class Scaled(Node):
@@ -125,3 +130,28 @@ def test_two_copies_in_one_process_are_two_modules(tmp_path):
     assert files == {(a / "plugins" / "copied_scale.py").resolve(), (b / "plugins" / "copied_scale.py").resolve()}
     for g in (ga, gb):
         np.testing.assert_array_equal(g.run({"x": np.arange(4.0)})["y"], 1.5 * np.arange(4.0))
+
+
+def test_an_exception_from_code_a_deleted_copy_compiled_names_the_node_and_this_file(tmp_path):
+    first = _project(tmp_path / "first", 1.25)
+    _run(first, "fused")  # compiles the fused module, whose raise locations name the first copy's file
+    copy = tmp_path / "copy"
+    shutil.copytree(first, copy)
+    shutil.rmtree(first)
+    forget_plugin_code()
+    graph = load_graph(copy / "g.yaml", tier="fused")
+    with pytest.raises(KernelError) as caught:
+        graph.run({"x": np.array([1.0, 100.0])})
+    message = str(caught.value)
+    assert "node 's' (copied_scale)" in message and "x too large" in message, message
+    assert message.startswith(str(copy / "plugins" / "copied_scale.py") + ":"), message
+
+
+def test_compiled_code_is_shared_with_the_same_file_in_another_copy_of_flowtex():
+    from flowtex.nodes.arith import _gain
+
+    here = Path(_gain.py_func.__code__.co_filename)
+    assert shares_compiled_code(here, _gain.py_func)
+    assert shares_compiled_code(Path("/another/checkout/flowtex/nodes") / here.name, _gain.py_func)
+    assert not shares_compiled_code(Path("/another/checkout/flowtex/dsp") / here.name, _gain.py_func)
+    assert not shares_compiled_code(Path("/another/checkout/notflowtex/nodes") / here.name, _gain.py_func)

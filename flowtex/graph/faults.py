@@ -13,11 +13,11 @@ error".
 from __future__ import annotations
 
 import inspect
-from pathlib import Path
 from types import TracebackType
 
 import numpy as np
 
+from ..cache import shares_compiled_code
 from ..errors import FlowtexError
 from ..nodecheck import kernel_location
 from .arena import DISPATCH, DISPATCH_ENTRY, DISPATCH_HEAD, FAULT, TICK
@@ -75,7 +75,7 @@ def _defines(rn: ResolvedNode, path: str, line: int) -> bool:
             source = inspect.getsourcefile(func)
         except (OSError, TypeError):
             continue
-        if source and Path(source).resolve() == Path(path).resolve() and start <= line < start + len(lines):
+        if source and shares_compiled_code(path, func) and start <= line < start + len(lines):
             return True
     return False
 
