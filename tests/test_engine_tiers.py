@@ -31,10 +31,16 @@ def same_bits(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> list[str]:
     return [k for k in a if a[k].shape != b[k].shape or not np.array_equal(a[k].view(np.int64), b[k].view(np.int64))]
 
 
-# Reverse order: test_examples.py (another xdist worker, started at the same time: conftest.SLOW_FIRST) compiles the same
-# fused modules in sorted order; each worker then compiles half and loads the other's from the shared cache instead of
-# waiting on the same entry's lock.
-@pytest.mark.parametrize("name", sorted(EXAMPLES, reverse=True))
+def _tier_order(names) -> list[str]:
+    """Reverse order, the graphs without a texture lookup first. test_examples.py (another xdist worker, started at the
+    same time: conftest.SLOW_FIRST) compiles the same fused modules in sorted order, so each worker compiles half and
+    loads the other's from the shared cache instead of waiting on the same entry's lock; and it compiles the texture
+    kernels (the heaviest node kernels) third, which this file, starting elsewhere, then loads instead of compiling
+    them at the same time (numba's per-function cache has no lock between processes)."""
+    return sorted(sorted(names, reverse=True), key=lambda n: "type: texture_lookup" in (GRAPHS / n).read_text())
+
+
+@pytest.mark.parametrize("name", _tier_order(EXAMPLES))
 def test_example_graph_dispatch_equals_fused_bit_for_bit_and_golden(name, monkeypatch):
     recording, options = EXAMPLES[name]
     outs = {}
