@@ -20,6 +20,11 @@ of load on a shared machine hits both alike. Sections:
     ``step_block(1)``) and the 10-node chain's ``step()``, each as bench_engine.py measures them, with the ratio to
     the plain-numba floor measured in the same process.
 
+``live``
+    ``graphs/live_texture.yaml``'s fused live tick (``fuse_tick`` on the example CAN map), node kernels cached and the
+    fused cache empty: CPU seconds until the tick is ready (what the first ``flowtex live`` of a structure compiles
+    before its first deadline), then the tick's own time per call (``live_tick`` on the session's arrays, no bus).
+
 ``inline``
     in this tree, one process: the texture graph's offline ``run()`` as generated (``block``'s body in ``run``'s loop)
     against the same module with a ``run`` that calls ``block`` (the generator's form before), alternating on the
@@ -117,6 +122,32 @@ print(json.dumps({"ns": ns, "identical": bool(np.array_equal(out["inline"].view(
 """
 
 
+LIVE_SCRIPT = """
+import json, sys, time
+import numpy as np
+from flowtex.graph.compiled import load_graph
+import flowtex.runtime.live as live
+from flowtex.runtime.canio import tick_out
+from flowtex.runtime.fused import fuse_tick
+dbc, canmap, calls = sys.argv[1], "graphs/devices/example_map.yaml", int(sys.argv[2])
+t0 = time.process_time()
+g = load_graph("graphs/live_texture.yaml", block_rows=1, tier="fused")
+io = live.load_io(g, dbc, canmap)
+wd = io.new_watchdog(10**12)
+t1 = time.process_time()
+fused = fuse_tick(g, io, tick_out, wd.last)
+t2 = time.process_time()
+g.input_view("normal_force")[:] = 1.5
+ns = []
+for r in range(5):
+    t = time.perf_counter()
+    for k in range(calls):
+        fused.call(fused.ptrs, 0, k, 0, 10**12, False)
+    ns.append((time.perf_counter() - t) / calls * 1e9)
+print(json.dumps({"setup": t1 - t0, "tick_compile": t2 - t1, "ns": float(np.median(ns))}))
+"""
+
+
 def export_tree(ref: str, dest: Path) -> str:
     """Export revision ``ref`` of this repository into ``dest``; returns its commit."""
     commit = subprocess.run(["git", "rev-parse", ref], cwd=REPO, capture_output=True, text=True, check=True).stdout.strip()
@@ -211,13 +242,28 @@ def section_ticks(trees: dict[str, Path], work: Path, rounds: int, ticks: int) -
                     for key in rs[0]} for label, rs in res.items()}
 
 
+def section_live(trees: dict[str, Path], work: Path, rounds: int, calls: int) -> dict:
+    res: dict = {label: [] for label in trees}
+    dbc = str(REPO / "graphs" / "devices" / "example.dbc")
+    for label, tree in trees.items():  # node kernels, codecs and the dispatch driver into each tree's cache
+        run(tree, work / f"live-{label}", ["-c", GRAPH_SCRIPT, "dispatch", "live_texture.yaml"])
+    for _ in range(rounds):
+        for label, tree in trees.items():  # a fresh fused cache each round, the kernels' kept
+            cache = work / f"live-{label}"
+            shutil.rmtree(cache / "codegen", ignore_errors=True)
+            for folder in (cache / "numba").glob("*/codegen_*"):
+                shutil.rmtree(folder)
+            res[label].append(json.loads(run(tree, cache, ["-c", LIVE_SCRIPT, dbc, str(calls)])[2]))
+    return {label: {key: float(np.median([r[key] for r in rs])) for key in rs[0]} for label, rs in res.items()}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--baseline", default="main", help="git revision to compare with (default: main)")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--ticks", type=int, default=200_000)
-    ap.add_argument("--only", nargs="+", choices=("graphs", "cold", "ticks", "inline"),
-                    default=("graphs", "cold", "ticks", "inline"))
+    ap.add_argument("--only", nargs="+", choices=("graphs", "cold", "ticks", "live", "inline"),
+                    default=("graphs", "cold", "ticks", "live", "inline"))
     args = ap.parse_args()
     work = Path(tempfile.mkdtemp(prefix="flowtex-bench-compile-"))
     try:
@@ -253,6 +299,14 @@ def main() -> None:
             b, n = t["baseline"], t["this"]
             print(f"  this / baseline: texture run() {n['fused'] / b['fused']:.2f}  live {n['live_fused'] / b['live_fused']:.2f}  "
                   f"step() {n['step_ns'] / b['step_ns']:.2f}")
+        if "live" in args.only:
+            t = section_live(trees, work, args.rounds, args.ticks // 10)
+            print("graphs/live_texture.yaml's fused live tick, node kernels cached: CPU s to compile it / ns per call")
+            for label, r in t.items():
+                print(f"  {label:8s} tick compile {r['tick_compile']:6.2f} s  (graph and CAN map before it {r['setup']:5.2f} s)  "
+                      f"{r['ns']:7.1f} ns per tick")
+            b, n = t["baseline"], t["this"]
+            print(f"  this / baseline: tick compile {n['tick_compile'] / b['tick_compile']:.2f}  per tick {n['ns'] / b['ns']:.2f}")
         if "inline" in args.only:
             r = json.loads(run(REPO, work / "inline", ["-c", INLINE_SCRIPT, str(args.ticks), str(5 * args.rounds)])[2])
             inline, call = (float(np.median(r["ns"][k])) for k in ("inline", "call"))

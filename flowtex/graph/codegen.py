@@ -30,6 +30,9 @@ from numba import njit
 from flowtex.graph.kernels import view, fslice, islice, copy_row
 '''
 
+HELPERS = ("view", "fslice", "islice", "copy_row")
+"""The functions of :mod:`flowtex.graph.kernels` that :func:`block_body`'s lines call (imported by :data:`HEADER_SOURCE`)."""
+
 
 def _view(slot: PortSlot, rows: str) -> str:
     return f"view(fb, i[{slot.offset_index}], i[{slot.width_index}], {rows})"
@@ -44,14 +47,8 @@ def _args(slots: NodeSlots) -> str:
             f"islice(ib, i[{slots.si[0]}], i[{slots.si[1]}])")
 
 
-def generate(rg: ResolvedGraph, slots: dict[str, NodeSlots], kernel_names: dict[str, str],
-             step_inputs: list[PortSlot], step_outputs: list[PortSlot]) -> str:
-    """Source text of the module; ``kernel_names[node] -> global name of its kernel``.
-
-    For delays in feedback graphs ``kernel_names`` also holds ``node + ':emit'``
-    and ``node + ':absorb'``.
-    """
-    body = block_body(rg, slots, kernel_names)
+def generate(rg: ResolvedGraph, body: list[str], step_inputs: list[PortSlot], step_outputs: list[PortSlot]) -> str:
+    """Source text of the module, from ``block``'s ``body`` (:func:`block_body`)."""
     lines = [HEADER_SOURCE.format(name=rg.spec.name), "", "@njit(cache=True, nogil=True)", "def block(f, i, n):"]
     lines += ["    " + line for line in body]
     lines += ["", "", _step_source(step_inputs, step_outputs, body), "", run_source(body)]
@@ -61,8 +58,10 @@ def generate(rg: ResolvedGraph, slots: dict[str, NodeSlots], kernel_names: dict[
 def block_body(rg: ResolvedGraph, slots: dict[str, NodeSlots], kernel_names: dict[str, str]) -> list[str]:
     """Lines (unindented) that advance the graph by ``n`` ticks on the arenas ``f`` and ``i``: ``block``'s body.
 
-    ``run`` and ``step`` get the same lines in place of a call to ``block``, so each use compiles one function: numba
-    compiles a callee separately and then optimizes the callee's code again inside the caller's module.
+    ``run`` and ``step`` (and the live tick, :mod:`flowtex.runtime.fused`) get the same lines in place of a call to
+    ``block``, so each use compiles one function: numba compiles a callee separately and then optimizes the callee's
+    code again inside the caller's module. ``kernel_names[node]`` is the global name of its kernel (for delays in
+    feedback graphs also ``node + ':emit'`` and ``node + ':absorb'``); the lines also call :data:`HELPERS`.
     """
     lines = [f"t0 = i[{TICK}]", "fb = f.ctypes.data", "ib = i.ctypes.data"]
     if rg.cyclic:

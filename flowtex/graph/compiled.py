@@ -251,6 +251,13 @@ class Graph:
         """
         return self._code.get("block")
 
+    def block_source(self) -> tuple[list[str], dict[str, Any]] | None:
+        """``block``'s body and the kernels it calls by name, for code that runs ticks inside its own compiled function
+        (the live tick) without compiling ``block`` separately; None on the dispatch tier (call :attr:`block_function`)."""
+        if self._dispatch:
+            return None
+        return list(self.fused_plan.block_body), dict(self.fused_plan.kernels)
+
     def input_view(self, name: str) -> np.ndarray:
         """Writable view of the current-tick value of graph input ``name`` (live fast path)."""
         return self._in_views[name]

@@ -26,7 +26,7 @@ import numpy as np
 from numba.core import types
 
 from .arena import Layout
-from .codegen import generate
+from .codegen import block_body, generate
 from .jit import generated_digest, load_generated
 from .kcache import sealed_compile
 from .resolved import ResolvedGraph
@@ -117,8 +117,12 @@ class FusedPlan:
                 kernels[f"k{idx}_emit"] = rn.cls.get_kernel("emit_kernel")
                 kernels[f"k{idx}_absorb"] = rn.cls.get_kernel("absorb_kernel")
         self.kernels = kernels
+        """Global name (``k0``, ``k1``, ...) -> the kernel it calls."""
         self.signatures = {"block": BLOCK_SIG, "run": RUN_SIG, "step": (F64, I64) + (types.float64,) * len(step_in)}
-        self.source = generate(rg, layout.nodes, names, [layout.graph_inputs[n] for n in step_in],
+        self.block_body = block_body(rg, layout.nodes, names)
+        """``block``'s body (:func:`~flowtex.graph.codegen.block_body`): code that runs ticks inside its own compiled
+        function (the live tick) holds these lines, with :attr:`kernels` and the codegen helpers as globals."""
+        self.source = generate(rg, self.block_body, [layout.graph_inputs[n] for n in step_in],
                                [layout.graph_outputs[n] for n in step_out])
         self.versions = ";".join(f"{rn.cls.type_name}@{rn.cls.version}" for rn in rg.nodes.values())
         self.digest, self.folder = generated_digest(self.source, kernels, self.versions)

@@ -56,6 +56,11 @@ class TickProgram(Protocol):
         """The compiled ``block(f, i, n)`` numba function (``n`` ticks on the arenas), for code that fuses a tick into its own call."""
         ...
 
+    def block_source(self) -> tuple[list[str], dict[str, Any]] | None:
+        """``block``'s body (lines over ``f``, ``i`` and ``n``) and the kernels its lines name, for code that holds a
+        tick in its own compiled function; None when it can only call :attr:`block_function`."""
+        ...
+
     def with_block_rows(self, rows: int) -> TickProgram:
         """The same program (code, parameters, seed; fresh state) with port buffers of ``rows`` rows; ``self`` if it has them."""
         ...

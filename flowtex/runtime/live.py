@@ -154,8 +154,9 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
     # Load the watchdog's compiled checks now (pure functions), not on the first live tick.
     first_stale(watchdog.last, watchdog.timeouts, 0)
     all_updated_after(watchdog.last, 0)
-    graph.warm()
-    fused = fuse_tick(graph, io, tick_out, watchdog.last)
+    fused = fuse_tick(graph, io, tick_out, watchdog.last)  # compiled (or loaded) now, before the first deadline
+    if fused is None:
+        graph.warm()  # the separate calls' block: compiled (or loaded) and run once on scratch arenas now
     decode_rx = rx_decoder(io, watchdog)
     compute = tick_compute(graph, io, watchdog, fused, decode_rx)
     receive, send_frames = receiver(bus), sender(bus)

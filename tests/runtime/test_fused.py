@@ -96,10 +96,20 @@ def test_frames_written_by_compiled_code_cannot_be_resized():
         io.tx[0].data.append(0)  # the address the compiled copy writes to must stay valid
 
 
-def test_the_fused_tick_compiles_the_graph_body_for_one_signature():
-    """The live tick calls ``block`` with the int64 row count that ``step_block`` uses: numba compiles no second
-    ``block`` for the literal ``1`` (a whole graph body, seconds of CPU at every first live start)."""
+def test_the_fused_tick_holds_the_graph_body_and_compiles_no_separate_block():
+    """On the fused tier the live tick holds ``block``'s lines: a session compiles the graph's body once, inside the
+    tick, not ``block`` and then ``block``'s code again inside the tick (seconds of CPU at every first live start)."""
     g = load_graph(TEXTURE, block_rows=1)
+    assert g.tier == "fused"
+    io = live.load_io(g, DBC, MAP)
+    assert fuse_tick(g, io, tick_out, io.new_watchdog(2_000_000).last) is not None
+    assert not g._code.compiled("block")
+
+
+def test_the_dispatch_tiers_tick_calls_block_for_one_signature():
+    """A dispatch-tier graph's live tick calls its ``block`` with the int64 row count that ``step_block`` uses: numba
+    compiles no second ``block`` for the literal ``1``."""
+    g = load_graph(TEXTURE, block_rows=1, tier="dispatch")
     io = live.load_io(g, DBC, MAP)
     g.step_block(1)
     assert fuse_tick(g, io, tick_out, io.new_watchdog(2_000_000).last) is not None
