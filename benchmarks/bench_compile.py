@@ -200,16 +200,21 @@ def renamed(tree: Path, tag: str) -> Path:
     return path
 
 
+def forget_fused_code(cache: Path) -> Path:
+    """``cache`` without its generated (fused) modules and their machine code; node kernels and wrappers kept."""
+    shutil.rmtree(cache / "codegen", ignore_errors=True)
+    for folder in (cache / "numba").glob("*/codegen_*"):
+        shutil.rmtree(folder)
+    return cache
+
+
 def section_graphs(trees: dict[str, Path], work: Path, rounds: int) -> dict:
     res: dict = {label: [] for label in trees}
     for label, tree in trees.items():  # node kernels and the dispatch driver into each tree's cache
         run(tree, work / f"cache-{label}", ["-c", GRAPH_SCRIPT, "dispatch", *EXAMPLES])
     for _ in range(rounds):
         for label, tree in trees.items():  # a fresh fused cache each round, the kernels' kept
-            cache = work / f"cache-{label}"
-            shutil.rmtree(cache / "codegen", ignore_errors=True)
-            for folder in (cache / "numba").glob("*/codegen_*"):
-                shutil.rmtree(folder)
+            cache = forget_fused_code(work / f"cache-{label}")
             res[label].append(json.loads(run(tree, cache, ["-c", GRAPH_SCRIPT, "fused", *EXAMPLES])[2]))
     return {label: {name: {key: float(np.median([r[name][key] for r in rs])) for key in ("offline", "step", "block")}
                     for name in EXAMPLES} for label, rs in res.items()}
@@ -249,10 +254,7 @@ def section_live(trees: dict[str, Path], work: Path, rounds: int, calls: int) ->
         run(tree, work / f"live-{label}", ["-c", GRAPH_SCRIPT, "dispatch", "live_texture.yaml"])
     for _ in range(rounds):
         for label, tree in trees.items():  # a fresh fused cache each round, the kernels' kept
-            cache = work / f"live-{label}"
-            shutil.rmtree(cache / "codegen", ignore_errors=True)
-            for folder in (cache / "numba").glob("*/codegen_*"):
-                shutil.rmtree(folder)
+            cache = forget_fused_code(work / f"live-{label}")
             res[label].append(json.loads(run(tree, cache, ["-c", LIVE_SCRIPT, dbc, str(calls)])[2]))
     return {label: {key: float(np.median([r[key] for r in rs])) for key in rs[0]} for label, rs in res.items()}
 
