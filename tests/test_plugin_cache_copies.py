@@ -76,7 +76,9 @@ class _Compiles(event.Listener):
         pass
 
 
-def _project(root: Path, factor: float) -> Path:
+def _project(root: Path, factor: float = 2.0) -> Path:
+    """A graph and its plugin folder under ``root``. The tests use the same factor (the same sources) where they can:
+    what one compiles, the next loads, wherever its folder lies."""
     (root / "plugins").mkdir(parents=True)
     (root / "plugins" / "copied_scale.py").write_text(textwrap.dedent(PLUGIN).replace("FACTOR", repr(factor)))
     (root / "g.yaml").write_text(textwrap.dedent(GRAPH))
@@ -100,14 +102,14 @@ def _forget_plugins():
 
 @pytest.mark.parametrize("tier", ["dispatch", "fused"])
 def test_a_copied_plugin_folder_loads_what_the_first_compiled(tmp_path, tier):
-    first = _project(tmp_path / "first", 2.5)
+    first = _project(tmp_path / "first")
     y, _ = _run(first, tier)
-    np.testing.assert_array_equal(y, 2.5 * np.arange(4.0))
+    np.testing.assert_array_equal(y, 2.0 * np.arange(4.0))
     copy = tmp_path / "elsewhere" / "copy"
     shutil.copytree(first, copy)
     shutil.rmtree(first)  # moved, not only copied: nothing can come from the first folder's files
     y, compiled = _run(copy, tier)
-    np.testing.assert_array_equal(y, 2.5 * np.arange(4.0))
+    np.testing.assert_array_equal(y, 2.0 * np.arange(4.0))
     assert compiled == [], compiled
 
 
@@ -123,17 +125,17 @@ def test_an_edited_helper_gives_new_code_on_both_tiers(tmp_path, tier):
 
 
 def test_two_copies_in_one_process_are_two_modules(tmp_path):
-    a, b = _project(tmp_path / "a", 1.5), _project(tmp_path / "b", 1.5)
+    a, b = _project(tmp_path / "a"), _project(tmp_path / "b")
     forget_plugin_code()
     ga, gb = load_graph(a / "g.yaml", tier="dispatch"), load_graph(b / "g.yaml", tier="dispatch")
     files = {Path(g.resolved.nodes["s"].cls.kernel.py_func.__code__.co_filename).resolve() for g in (ga, gb)}
     assert files == {(a / "plugins" / "copied_scale.py").resolve(), (b / "plugins" / "copied_scale.py").resolve()}
     for g in (ga, gb):
-        np.testing.assert_array_equal(g.run({"x": np.arange(4.0)})["y"], 1.5 * np.arange(4.0))
+        np.testing.assert_array_equal(g.run({"x": np.arange(4.0)})["y"], 2.0 * np.arange(4.0))
 
 
 def test_an_exception_from_code_a_deleted_copy_compiled_names_the_node_and_this_file(tmp_path):
-    first = _project(tmp_path / "first", 1.25)
+    first = _project(tmp_path / "first")
     _run(first, "fused")  # compiles the fused module, whose raise locations name the first copy's file
     copy = tmp_path / "copy"
     shutil.copytree(first, copy)
