@@ -35,9 +35,8 @@ from pathlib import Path
 from .config import CACHE_ENV, cache_dir, contract_enabled
 from .errors import FlowtexError
 
-__all__ = ["CACHE_ENV", "PLUGIN_CODE", "cache_dir", "configure_numba_cache", "file_by_package_path", "guard_numba_cache", "plugin_code_id",
-           "prune_numba_cache", "shares_compiled_code", "source_fingerprint",
-           "write_cache_file"]
+__all__ = ["CACHE_ENV", "PLUGIN_CODE", "cache_dir", "configure_numba_cache", "file_by_package_path", "guard_numba_cache",
+           "plugin_code_id", "prune_numba_cache", "shares_compiled_code", "source_fingerprint", "write_cache_file"]
 
 KEEP_OLD = 3
 IN_USE_S = 3600.0
@@ -97,11 +96,19 @@ def configure_numba_cache() -> str:
     return fingerprint
 
 
+PLUGIN_KEEP_S = 30 * 86400.0
+"""A plugin code folder (``plugins/<code id>``) in which nothing was written for this long is pruned: every edit of a
+plugin folder gives a new code id, so a plugin author's edits would otherwise pile up. Code still in use is compiled
+once more."""
+
+
 def prune_numba_cache() -> None:
-    """Delete numba cache folders of older source trees (kept: the newest few, and any used in the last hour)."""
+    """Delete numba cache folders of older source trees (kept: the newest few, and any used in the last hour), and
+    plugin code folders of the current one left unwritten for :data:`PLUGIN_KEEP_S`."""
     if not _CONFIGURED:
         return
     current = _CONFIGURED[0]
+    _prune_plugin_code(current / "plugins", time.time() - PLUGIN_KEEP_S)
     root = current.parent
     try:
         others = sorted((p for p in root.iterdir() if p.is_dir() and p != current), key=lambda p: p.stat().st_mtime)
@@ -115,6 +122,20 @@ def prune_numba_cache() -> None:
         except OSError:
             continue
         shutil.rmtree(old, ignore_errors=True)
+
+
+def _prune_plugin_code(folder: Path, before: float) -> None:
+    """Delete the subfolders of ``folder`` whose newest file (or the folder itself) was written before ``before``."""
+    try:
+        codes = [p for p in folder.iterdir() if p.is_dir()]
+    except OSError:
+        return
+    for code in codes:
+        try:
+            if max([code.stat().st_mtime] + [c.stat().st_mtime for c in code.iterdir()]) < before:
+                shutil.rmtree(code, ignore_errors=True)
+        except OSError:
+            continue
 
 
 SEAL_SUFFIX = ".sha256"

@@ -6,14 +6,17 @@ kernel's exception raised by code another copy compiled still names its node and
 
 from __future__ import annotations
 
+import os
 import shutil
 import textwrap
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 from numba.core import event
 
+from flowtex import cache
 from flowtex.cache import shares_compiled_code
 from flowtex.graph.compiled import load_graph
 from flowtex.graph.faults import KernelError
@@ -157,3 +160,19 @@ def test_compiled_code_is_shared_with_the_same_file_in_another_copy_of_flowtex()
     assert shares_compiled_code(Path("/another/checkout/flowtex/nodes") / here.name, _gain.py_func)
     assert not shares_compiled_code(Path("/another/checkout/flowtex/dsp") / here.name, _gain.py_func)
     assert not shares_compiled_code(Path("/another/checkout/notflowtex/nodes") / here.name, _gain.py_func)
+
+
+def test_plugin_code_left_unwritten_for_a_month_is_pruned(tmp_path, monkeypatch):
+    current = tmp_path / "numba" / "fingerprint"
+    old, recent, touched = (current / "plugins" / name for name in ("old", "recent", "touched"))
+    month_ago = time.time() - cache.PLUGIN_KEEP_S - 3600
+    for folder in (old, recent, touched):
+        folder.mkdir(parents=True)
+        (folder / "k.nbi").write_bytes(b"x")
+        if folder is not recent:
+            os.utime(folder / "k.nbi", (month_ago, month_ago))
+            os.utime(folder, (month_ago, month_ago))
+    (touched / "k.2.nbc").write_bytes(b"y")  # a new entry this month: the folder is in use
+    monkeypatch.setattr(cache, "_CONFIGURED", [current])
+    cache.prune_numba_cache()
+    assert not old.exists() and recent.exists() and touched.exists()
