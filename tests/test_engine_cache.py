@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -49,8 +50,9 @@ def cache(tmp_path_factory):
     env = {**os.environ, "FLOWTEX_CACHE_DIR": str(root / "cache"), "FLOWTEX_BACKGROUND": "0"}
     env.pop("NUMBA_CACHE_DIR", None)
     ours = Path(numba.config.CACHE_DIR) / "flowtex"  # flowtex.cache files flowtex's kernels there (by source fingerprint)
-    if ours.is_dir():
-        shutil.copytree(ours, root / "cache" / "numba" / source_fingerprint() / "flowtex", ignore_dangling_symlinks=True)
+    if ours.is_dir():  # other processes may be writing there: a file that vanishes mid-copy only costs its compile
+        with contextlib.suppress(shutil.Error, OSError):
+            shutil.copytree(ours, root / "cache" / "numba" / source_fingerprint() / "flowtex", ignore_dangling_symlinks=True)
     return root, env
 
 
