@@ -36,7 +36,7 @@ from .config import CACHE_ENV, cache_dir, contract_enabled
 from .errors import FlowtexError
 
 __all__ = ["CACHE_ENV", "PLUGIN_CODE", "cache_dir", "configure_numba_cache", "file_by_package_path", "guard_numba_cache",
-           "plugin_code_id", "prune_numba_cache", "shares_compiled_code", "source_fingerprint", "write_cache_file"]
+           "plugin_code_id", "prune_numba_cache", "prune_other_trees", "shares_compiled_code", "source_fingerprint", "write_cache_file"]
 
 KEEP_OLD = 3
 IN_USE_S = 3600.0
@@ -109,6 +109,12 @@ def prune_numba_cache() -> None:
         return
     current = _CONFIGURED[0]
     _prune_plugin_code(current / "plugins", time.time() - PLUGIN_KEEP_S)
+    prune_other_trees(current)
+
+
+def prune_other_trees(current: Path) -> None:
+    """Delete the siblings of the folder ``current`` (one per flowtex source tree) but the newest few, and any used in
+    the last hour (another checkout may be compiling into it)."""
     root = current.parent
     try:
         others = sorted((p for p in root.iterdir() if p.is_dir() and p != current), key=lambda p: p.stat().st_mtime)

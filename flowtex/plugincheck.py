@@ -178,11 +178,15 @@ def runtime_problems(target: str, classes: list[type[Node]]) -> dict[str, list[t
     checking on.
 
     The child compiles into its own numba cache folder (bounds-checked machine code must not
-    replace the normal one); a crash or a timeout there is reported, not suffered here.
+    replace the normal one), one per flowtex source tree as the normal cache is (:func:`flowtex.cache.source_fingerprint`:
+    numba's own cache, which the child uses there, does not see an edit to a function a kernel calls in another file);
+    a crash or a timeout there is reported, not suffered here.
     """
-    from .cache import cache_dir
+    from .cache import cache_dir, prune_other_trees, source_fingerprint
 
-    found = _children(target, classes, "runtime", {"NUMBA_BOUNDSCHECK": "1", "NUMBA_CACHE_DIR": str(cache_dir() / "boundscheck")})
+    folder = cache_dir() / "boundscheck" / source_fingerprint()
+    prune_other_trees(folder)
+    found = _children(target, classes, "runtime", {"NUMBA_BOUNDSCHECK": "1", "NUMBA_CACHE_DIR": str(folder)})
     out = {}
     for name, (items, failed) in found.items():
         out[name] = [(int(item["line"]), str(item["message"])) for item in items]

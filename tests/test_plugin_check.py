@@ -170,3 +170,22 @@ def test_a_type_that_kills_the_checking_process_is_named_and_the_next_type_is_st
     assert len(by_type["kills"]) == 1 and "running the kernel crashed the checking process (signal SIGKILL)" in by_type["kills"][0]
     for name in ("before", "after"):
         assert len(by_type[name]) == 1 and "kernel raised ZeroDivisionError" in by_type[name][0], lines
+
+
+def test_the_bounds_checked_child_compiles_into_a_folder_of_this_source_tree(tmp_path, monkeypatch):
+    """numba's own cache (which the bounds-checked child uses) misses an edit to a function a kernel calls in another
+    file: the child's folder is per flowtex source tree, as flowtex's normal cache is, and older trees' are pruned."""
+    from flowtex import plugincheck
+    from flowtex.cache import KEEP_OLD, source_fingerprint
+
+    monkeypatch.setenv("FLOWTEX_CACHE_DIR", str(tmp_path))
+    older = [tmp_path / "boundscheck" / f"tree{k}" for k in range(KEEP_OLD + 2)]
+    for k, folder in enumerate(older):
+        folder.mkdir(parents=True)
+        os.utime(folder, (1e9 + k, 1e9 + k))  # long unused, oldest first
+    seen = {}
+    monkeypatch.setattr(plugincheck, "_children", lambda target, classes, mode, env: seen.update(env) or {})
+    plugincheck.runtime_problems("any.py", [])
+    assert seen["NUMBA_BOUNDSCHECK"] == "1"
+    assert Path(seen["NUMBA_CACHE_DIR"]) == tmp_path / "boundscheck" / source_fingerprint()
+    assert [f.exists() for f in older] == [False, False] + [True] * KEEP_OLD  # the newest few kept
