@@ -54,16 +54,22 @@ def source_fingerprint() -> str:
 
     Computed once per process (the tree a process runs is the one it imported).
     """
+    h = _hash_sources(PACKAGE, sorted(PACKAGE.rglob("*.py")))
+    h.update(f"contract={contract_enabled()};".encode())  # flowtex.dsp.fastmath's setting changes the machine code
+    return h.hexdigest()[:16]
+
+
+def _hash_sources(base: Path, paths: list[Path]) -> hashlib._Hash:
+    """sha256 over each file's path relative to ``base``, its length and its bytes, in the order given."""
     h = hashlib.sha256()
-    for path in sorted(PACKAGE.rglob("*.py")):
+    for path in paths:
         try:
             data = path.read_bytes()
         except OSError as exc:  # a file this process cannot read (and so does not run): its error stands for it
             data = f"unreadable: {exc.strerror}".encode()
-        h.update(f"{path.relative_to(PACKAGE).as_posix()}:{len(data)}:".encode())
+        h.update(f"{path.relative_to(base).as_posix()}:{len(data)}:".encode())
         h.update(data)
-    h.update(f"contract={contract_enabled()};".encode())  # flowtex.dsp.fastmath's setting changes the machine code
-    return h.hexdigest()[:16]
+    return h
 
 
 _CONFIGURED: list[Path] = []
@@ -120,14 +126,18 @@ def prune_other_trees(current: Path) -> None:
         others = sorted((p for p in root.iterdir() if p.is_dir() and p != current), key=lambda p: p.stat().st_mtime)
     except OSError:
         return
-    now = time.time()
     for old in others[:-KEEP_OLD] if len(others) > KEEP_OLD else []:
-        try:
-            if now - max([old.stat().st_mtime] + [c.stat().st_mtime for c in old.iterdir()]) < IN_USE_S:
-                continue
-        except OSError:
-            continue
-        shutil.rmtree(old, ignore_errors=True)
+        _remove_unused_since(old, time.time() - IN_USE_S)
+
+
+def _remove_unused_since(folder: Path, before: float) -> None:
+    """Delete ``folder`` if it and every file directly in it were last written before ``before`` (seconds)."""
+    try:
+        if max([folder.stat().st_mtime] + [c.stat().st_mtime for c in folder.iterdir()]) >= before:
+            return
+    except OSError:
+        return
+    shutil.rmtree(folder, ignore_errors=True)
 
 
 def _prune_plugin_code(folder: Path, before: float) -> None:
@@ -137,11 +147,7 @@ def _prune_plugin_code(folder: Path, before: float) -> None:
     except OSError:
         return
     for code in codes:
-        try:
-            if max([code.stat().st_mtime] + [c.stat().st_mtime for c in code.iterdir()]) < before:
-                shutil.rmtree(code, ignore_errors=True)
-        except OSError:
-            continue
+        _remove_unused_since(code, before)
 
 
 SEAL_SUFFIX = ".sha256"
@@ -163,15 +169,9 @@ PLUGIN_CODE = "__flowtex_plugin_code__"
 
 @functools.lru_cache(maxsize=64)
 def _folder_digest(listing: tuple[tuple[str, int, int], ...], folder: str) -> str:
-    h = hashlib.sha256()
-    for name, _, _ in listing:
-        try:
-            data = (Path(folder) / name).read_bytes()
-        except OSError as exc:  # unreadable: it cannot be imported either; its error stands for it
-            data = f"unreadable: {exc.strerror}".encode()
-        h.update(f"{name}:{len(data)}:".encode())
-        h.update(data)
-    return h.hexdigest()[:16]
+    """:func:`_hash_sources` of the files ``listing`` names (name, mtime, size: the cache key) in ``folder``."""
+    base = Path(folder)
+    return _hash_sources(base, [base / name for name, _, _ in listing]).hexdigest()[:16]
 
 
 def plugin_code_id(path: str | Path) -> str:

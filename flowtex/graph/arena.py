@@ -19,6 +19,7 @@ model files therefore share generated code and its compiled cache.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -155,8 +156,13 @@ class Layout:
     def initial_floats(self, out: np.ndarray) -> None:
         """Write the float arena as placed into ``out`` (a graph's reset): zeros, then :attr:`f_pieces`."""
         out[:] = 0.0
-        for off, values in self.f_pieces:
-            out[off:off + values.size] = values
+        _write_pieces(out, self.f_pieces)
+
+
+def _write_pieces(out: np.ndarray, pieces: Sequence[tuple[int, np.ndarray]]) -> None:
+    """Write each (offset, values) piece of a float arena into ``out``."""
+    for off, values in pieces:
+        out[off:off + values.size] = values
 
 
 class _Builder:
@@ -184,9 +190,8 @@ class _Builder:
         return off
 
     def floats(self) -> np.ndarray:
-        f = np.zeros(self.f_size)
-        for off, values in self.f_chunks:
-            f[off:off + values.size] = values
+        f = np.zeros(self.f_size)  # zero pages are not touched until written
+        _write_pieces(f, self.f_chunks)
         return f
 
     def i_slot(self, value: int = 0) -> int:
