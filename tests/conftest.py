@@ -13,6 +13,13 @@ from hypothesis import settings
 REPO = Path(__file__).resolve().parents[1]
 pytest_plugins = ["pytester"]  # runs pytest inside a test (tests/test_golden_portability.py: what a golden failure prints)
 
+if os.environ.get("NUMBA_CACHE_DIR"):
+    # A caller's NUMBA_CACHE_DIR turns flowtex's filing of compiled code off (flowtex.cache), and the suite tests that
+    # filing (test_cache_shared_by_copies, test_plugin_cache_copies, test_kernel_cache_damage): keep the caller's
+    # choice of where caches may be written, as flowtex's own cache folder, and let flowtex file numba's code there.
+    numba_dir = os.environ.pop("NUMBA_CACHE_DIR")
+    if not os.environ.get("FLOWTEX_CACHE_DIR"):
+        os.environ["FLOWTEX_CACHE_DIR"] = str(Path(numba_dir) / "flowtex")
 os.environ.setdefault("FLOWTEX_BACKGROUND", "0")  # no background fused compiles (docs/engine.md) competing with the tests
 # The suite runs on the dispatch tier: a structure costs no numba compile once its node types are cached, and both tiers
 # give bit-identical outputs (tests/test_engine_tiers.py). The files below keep the fused tier: tier equivalence and goldens.
