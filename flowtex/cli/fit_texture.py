@@ -198,12 +198,14 @@ def _fit_holdout(path: Path, job: Any, args: argparse.Namespace) -> tuple[Any, A
     line = describe_split(split, key, value, n, rate)
     say(line)
     cmps = cv.comparisons
-    for k, c in enumerate(cmps):
+    for k, (c, own) in enumerate(zip(cmps, cv.in_sample, strict=True)):
         if len(cmps) > 1:
             say(f"fold {k}:")
         for text in summary_lines(c):
             say(text)
-    doc = holdout_doc(split, key, value, cmps, cv.pooled)
+        say(f"  in-sample (the same surface on its training blocks): power ratio {own.power_ratio_db:+.2f} dB, "
+            f"LSD {own.lsd_db:.2f} dB; held out minus in-sample: LSD {c.lsd_db - own.lsd_db:+.2f} dB")
+    doc = holdout_doc(split, key, value, cmps, cv.pooled, cv.in_sample)
     if len(cmps) > 1:
         m = doc["mean"]
         say(f"mean over {len(cmps)} folds: power ratio {m['power_ratio_db']:+.2f} dB, LSD {m['lsd_db']:.2f} dB, GFC {m['gfc']:.3f}")

@@ -22,7 +22,7 @@ Units: samples, seconds (``rate`` Hz).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -118,6 +118,9 @@ class CrossValidation:
     pooled: Comparison | None = None
     """K-fold only (None for one split): every held-out block compared at once, each rendered by the fold's surface
     that did not see it (module docstring, 'Pooled')."""
+    in_sample: list[Comparison] = field(default_factory=list)
+    """Per split: its surface compared on its own training ranges, the in-sample figure its held-out one is read
+    against (fit on the even seconds, compare on the even and on the odd ones: the same render, other seconds)."""
 
 
 def evaluate_splits(acc: np.ndarray, speed: np.ndarray, force: np.ndarray, rate: float,
@@ -137,6 +140,7 @@ def evaluate_splits(acc: np.ndarray, speed: np.ndarray, force: np.ndarray, rate:
         ys = [highpassed(r, rate, fold_opt) for r in renders]
         out.fits.append(fit)
         out.comparisons.append(compare_highpassed(x, ys, rate, fold_opt, test, held))
+        out.in_sample.append(compare_highpassed(x, ys, rate, fold_opt, train, f"{where} (fold {k} training blocks)"))
         if pool is not None:
             for y, p in zip(ys, pool, strict=True):
                 for a, b in test:
@@ -163,10 +167,14 @@ def _mean(values: list[Any]) -> Any:
 
 
 def holdout_doc(split: str, key: str, value: float | int, comparisons: list[Comparison],
-                pooled: Comparison | None = None) -> dict[str, Any]:
-    """The --holdout-json document: {split, fraction or folds, block_s, results (one per fold, compare --json keys),
-    mean (the same keys averaged over the folds), pooled (the same keys for every held-out block at once, or null)}."""
+                pooled: Comparison | None = None, in_sample: list[Comparison] | None = None) -> dict[str, Any]:
+    """The --holdout-json document: {split, fraction or folds, block_s, results (one per fold, compare --json keys,
+    and with ``in_sample`` the same keys for that fold's surface on its own training blocks), mean (the same keys
+    averaged over the folds), pooled (the same keys for every held-out block at once, or null)}."""
     results = [c.to_json() for c in comparisons]
+    if in_sample is not None:
+        for r, c in zip(results, in_sample, strict=True):
+            r["in_sample"] = c.to_json()
     mean = {k: _mean([r[k] for r in results]) for k in results[0]}
     return {"split": split, key: value, "block_s": BLOCK_S if split == "blocks" else None, "results": results, "mean": mean,
             "pooled": None if pooled is None else pooled.to_json()}

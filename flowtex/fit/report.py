@@ -96,14 +96,17 @@ def near_duplicates(ms: Any) -> list[tuple[int, int]]:
 
 
 def held_out_lines(held: HeldOut) -> list[str]:
-    """The held-out section of the report: the split, one row per fold, the mean."""
+    """The held-out section of the report: the split, one row per fold (with its surface's in-sample LSD on its own
+    training blocks), the mean, the pooled comparison."""
     def row(name: str, r: dict) -> str:
         def f(v: Any, fmt: str) -> str:
             return "null" if v is None else format(v, fmt)
+        own = r.get("in_sample") or {}
         return (f"| {name} | {f(r['seconds'], '.1f')} | {f(r['power_ratio_db'], '+.2f')} | {f(r['lsd_db'], '.2f')} | "
-                f"{f(r['gfc'], '.3f')} | {f(r['rms_correlation'], '.2f')} |")
-    md = ["## Held out", "", held.line, "", "| fold | seconds | power ratio dB | LSD dB | GFC | window-RMS correlation |",
-          "|---|---|---|---|---|---|"]
+                f"{f(own.get('lsd_db'), '.2f') if own else '-'} | {f(r['gfc'], '.3f')} | {f(r['rms_correlation'], '.2f')} |")
+    md = ["## Held out", "", held.line, "",
+          "| fold | seconds | power ratio dB | LSD dB | in-sample LSD dB | GFC | window-RMS correlation |",
+          "|---|---|---|---|---|---|---|"]
     md += [row(str(k), r) for k, r in enumerate(held.doc["results"])]
     if len(held.doc["results"]) > 1:
         md.append(row("mean", held.doc["mean"]))

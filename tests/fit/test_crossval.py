@@ -10,8 +10,8 @@ import pytest
 from flowtex.cli import main
 from flowtex.datasets.realistic import human_exploration
 from flowtex.errors import DataError
-from flowtex.fit.compare import CompareOptions, compare_signals, welch_length
-from flowtex.fit.crossval import blocks, evaluate_splits, fold_splits, holdout_split
+from flowtex.fit.compare import CompareOptions, compare_signals, compare_surface, welch_length
+from flowtex.fit.crossval import CV_WINDOW_S, blocks, evaluate_splits, fold_splits, holdout_split
 from flowtex.fit.texture import TextureOptions, fit_texture
 
 RATE = 1000.0
@@ -95,6 +95,12 @@ def test_pooled_renders_each_held_out_block_by_the_surface_that_did_not_see_it()
     assert len(cv.pooled.windows) == sum(len(c.windows) for c in cv.comparisons)
     # the two folds' surfaces differ, so the pooled render is not either one's alone
     assert not np.allclose(cv.comparisons[0].rendered_psd, cv.comparisons[1].rendered_psd)
+    # each fold's in-sample figure is its surface compared on its training blocks, as compare_surface computes it
+    cv_opt = CompareOptions(window_s=CV_WINDOW_S)
+    for fit, own, (train, _test) in zip(cv.fits, cv.in_sample, splits, strict=True):
+        alone = compare_surface(fit.model_set, a["accel"], a["speed"], a["normal_force"], RATE, cv_opt, ranges=train)
+        assert own.lsd_db == pytest.approx(alone.lsd_db, rel=1e-12)
+        assert own.power_ratio_db == pytest.approx(alone.power_ratio_db, rel=1e-12)
 
 
 @pytest.fixture(scope="module")
@@ -113,7 +119,12 @@ def test_cli_folds_writes_json_and_report(recording, tmp_path, capsys):
     assert doc["split"] == "blocks" and doc["folds"] == 2 and "fraction" not in doc and len(doc["results"]) == 2
     keys = set(doc["results"][0])
     assert {"power_ratio_db", "lsd_db", "gfc", "rms_correlation", "band_hz", "octave_bands", "windows"} <= keys
-    assert set(doc["mean"]) == keys and set(doc["pooled"]) == keys
+    assert set(doc["mean"]) == keys and set(doc["pooled"]) == keys - {"in_sample"}
+    for r in doc["results"]:  # each fold's surface on its own training blocks: the other half of the 12 s (less the skipped start)
+        assert set(r["in_sample"]) == keys - {"in_sample"}
+        assert r["in_sample"]["seconds"] + r["seconds"] == pytest.approx(12.0 - CompareOptions().skip_s)
+    assert doc["mean"]["in_sample"]["lsd_db"] == pytest.approx(np.mean([r["in_sample"]["lsd_db"] for r in doc["results"]]))
+    assert printed.count("in-sample (the same surface on its training blocks)") == 2
     assert "pooled over the folds" in printed
     for k in ("power_ratio_db", "lsd_db", "gfc"):
         assert doc["mean"][k] == pytest.approx(np.mean([r[k] for r in doc["results"]]))
