@@ -34,9 +34,10 @@ from pathlib import Path
 
 from .config import CACHE_ENV, cache_dir, contract_enabled
 from .errors import FlowtexError
+from .plugincode import PLUGIN_CODE, hash_sources, plugin_code_id, plugin_code_of
 
-__all__ = ["CACHE_ENV", "PLUGIN_CODE", "cache_dir", "configure_numba_cache", "file_by_package_path", "guard_numba_cache",
-           "plugin_code_id", "prune_numba_cache", "prune_other_trees", "shares_compiled_code", "source_fingerprint", "write_cache_file"]
+__all__ = ["CACHE_ENV", "cache_dir", "configure_numba_cache", "file_by_package_path", "guard_numba_cache",
+           "prune_numba_cache", "prune_other_trees", "shares_compiled_code", "source_fingerprint", "write_cache_file"]
 
 KEEP_OLD = 3
 IN_USE_S = 3600.0
@@ -54,22 +55,9 @@ def source_fingerprint() -> str:
 
     Computed once per process (the tree a process runs is the one it imported).
     """
-    h = _hash_sources(PACKAGE, sorted(PACKAGE.rglob("*.py")))
+    h = hash_sources(PACKAGE, sorted(PACKAGE.rglob("*.py")))
     h.update(f"contract={contract_enabled()};".encode())  # flowtex.dsp.fastmath's setting changes the machine code
     return h.hexdigest()[:16]
-
-
-def _hash_sources(base: Path, paths: list[Path]) -> hashlib._Hash:
-    """sha256 over each file's path relative to ``base``, its length and its bytes, in the order given."""
-    h = hashlib.sha256()
-    for path in paths:
-        try:
-            data = path.read_bytes()
-        except OSError as exc:  # a file this process cannot read (and so does not run): its error stands for it
-            data = f"unreadable: {exc.strerror}".encode()
-        h.update(f"{path.relative_to(base).as_posix()}:{len(data)}:".encode())
-        h.update(data)
-    return h
 
 
 _CONFIGURED: list[Path] = []
@@ -162,33 +150,6 @@ def _in_package(py_file: str) -> Path | None:
         return None
 
 
-PLUGIN_CODE = "__flowtex_plugin_code__"
-"""Global of a plugin file's module (set by :func:`flowtex.registry.load_plugin_file` before the file runs): the
-:func:`plugin_code_id` of its folder. Compiled code of the plugin is filed and keyed by it, not by where it lies."""
-
-
-@functools.lru_cache(maxsize=64)
-def _folder_digest(listing: tuple[tuple[str, int, int], ...], folder: str) -> str:
-    """:func:`_hash_sources` of the files ``listing`` names (name, mtime, size: the cache key) in ``folder``."""
-    base = Path(folder)
-    return _hash_sources(base, [base / name for name, _, _ in listing]).hexdigest()[:16]
-
-
-def plugin_code_id(path: str | Path) -> str:
-    """Digest of the names and contents of the ``.py`` files in the folder of the plugin file ``path``.
-
-    A plugin folder is loaded as a whole, and a kernel may call code from another file of it: any edit in the folder
-    gives its plugins a new id (fresh machine code), and a copy of the folder elsewhere (another checkout, a folder
-    moved or staged and renamed) has the same id, so it finds the code compiled for the first.
-    """
-    folder = Path(path).resolve().parent
-    try:
-        listing = tuple(sorted((f.name, f.stat().st_mtime_ns, f.stat().st_size) for f in folder.glob("*.py")))
-    except OSError:
-        listing = ()
-    return _folder_digest(listing, str(folder))
-
-
 def shares_compiled_code(compiled_from: str | Path, func: object) -> bool:
     """True when machine code whose debug locations name the file ``compiled_from`` may be the code of ``func``'s file.
 
@@ -206,20 +167,24 @@ def shares_compiled_code(compiled_from: str | Path, func: object) -> bool:
     inside = _in_package(str(here))
     if inside is not None:
         return there.parent.parts[-len(inside.parts) - 1:] == ("flowtex", *inside.parts) and there.name == here.name
-    plugin = getattr(func, "__globals__", {}).get(PLUGIN_CODE)
-    if not isinstance(plugin, str) or there.name != here.name:
+    found = plugin_code_of(func)
+    if found is None or there.name != here.name:
         return False
-    return not there.exists() or plugin_code_id(there) == plugin
+    if isinstance(getattr(func, "__globals__", {}).get(PLUGIN_CODE), str):  # a plugin folder's file
+        return not there.exists() or plugin_code_id(there) == found.code
+    tail = len(found.parts) + 2  # an installed package's file: the same package folder, subfolders and file name
+    return there.parts[-tail:] == here.parts[-tail:]
 
 
 def file_by_package_path() -> None:
     """Make numba file the cache entries of flowtex's own kernels under ``flowtex/<subpackage>`` of its cache folder,
-    and those of plugin files under ``plugins/<code id>`` (numba's own locator names the folder after the absolute
-    path of the source, so every checkout, and every copy of a plugin folder, compiled anew).
+    and those of plugin files and registered plugin packages under ``plugins/<code id>`` (numba's own locator names the
+    folder after the absolute path of the source, so every checkout, and every copy of a plugin folder, compiled anew,
+    and keys an entry by its own file only, so an edited helper in another file of a package left stale code).
 
     Entries stay keyed by numba's content hash of the source file, the folder by :func:`source_fingerprint`, and a
     plugin's subfolder by :func:`plugin_code_id`: two copies share an entry only when their sources are the same.
-    Other kernels outside the package (installed plugin packages) keep numba's own locators. Once per process;
+    Other numba functions outside the package keep numba's own locators. Once per process;
     numba's ``NUMBA_CACHE_LOCATOR_CLASSES``, when set, still rules.
     """
     import numba
@@ -244,13 +209,13 @@ def file_by_package_path() -> None:
 
         def __init__(self, py_func, py_file):  # type: ignore[no-untyped-def]
             super().__init__(py_func, py_file)
-            code = py_func.__globals__.get(PLUGIN_CODE)
-            if isinstance(code, str):
-                self._cache_path = os.path.join(numba.config.CACHE_DIR, "plugins", code)
+            found = plugin_code_of(py_func)
+            if found is not None:
+                self._cache_path = os.path.join(numba.config.CACHE_DIR, "plugins", found.code, *found.parts)
 
         @classmethod
         def from_function(cls, py_func, py_file):  # type: ignore[no-untyped-def]
-            ours = _in_package(py_file) is not None or isinstance(py_func.__globals__.get(PLUGIN_CODE), str)
+            ours = _in_package(py_file) is not None or plugin_code_of(py_func) is not None
             return super().from_function(py_func, py_file) if ours else None
 
     impl._locator_classes = [PackageCacheLocator, *impl._locator_classes]

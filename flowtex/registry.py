@@ -35,11 +35,11 @@ from importlib.metadata import EntryPoint, entry_points
 from pathlib import Path
 from types import ModuleType
 
-from .cache import PLUGIN_CODE, plugin_code_id
 from .config import PLUGIN_ENV, plugin_folders
 from .errors import FlowtexError
 from .node_api import Node
 from .nodecheck import check_node_class, error_line, shown_path
+from .plugincode import PLUGIN_CODE, plugin_code_id, register_plugin_package
 
 ENTRY_POINT_GROUP = "flowtex.nodes"
 __all__ = ["BUILTIN_PACKAGE", "BUILTIN_TYPES", "ENTRY_POINT_GROUP", "PLUGIN_ENV", "NodeTypes", "Registry", "load_plugin_file",
@@ -187,6 +187,7 @@ class Registry:
         ep = self._pending.pop(name, None)
         if ep is None:
             return
+        register_plugin_package(ep.module)  # its kernels' compiled code is keyed by its package's sources
         try:
             obj = ep.load()
         except Exception as exc:
@@ -246,7 +247,7 @@ def plugin_dirs(extra: Iterable[str | Path] = ()) -> list[Path]:
 def _plugin_module_name(path: Path) -> tuple[str, str | None]:
     """The private module name of plugin file ``path``, and its code id (None: filed by its path, as numba does).
 
-    The name comes from the file's stem and its folder's sources (:func:`flowtex.cache.plugin_code_id`), since
+    The name comes from the file's stem and its folder's sources (:func:`flowtex.plugincode.plugin_code_id`), since
     numba's cached code names the module it was compiled in: a copy of the folder in another place then loads the code
     compiled for the first. A second copy loaded in the same process runs as a module of its own (its ``__file__`` and
     the data beside it are its own), named and cached by its path.

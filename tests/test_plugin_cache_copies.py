@@ -1,4 +1,4 @@
-"""A plugin folder's compiled code is filed by its sources, not its path (flowtex.cache.plugin_code_id): a copy of the
+"""A plugin folder's compiled code is filed by its sources, not its path (flowtex.plugincode.plugin_code_id): a copy of the
 folder elsewhere (another checkout, a folder moved, or staged and renamed) loads the kernels, the dispatch wrapper
 and the fused module the first copy compiled; an edit anywhere in the folder, even in a helper the kernel calls and
 not in the kernel, gives new machine code; two copies loaded in one process each run as their own module; and a
@@ -22,15 +22,20 @@ from flowtex.graph.compiled import load_graph
 from flowtex.graph.faults import KernelError
 from flowtex.registry import forget_plugin_code
 
-PLUGIN = """
+IMPORTS = """
 import numpy as np
 from numba import njit
 from flowtex.node_api import Node, NodeState, Port
+"""
 
+HELPER = """
 @njit(cache=True)
 def factor():
     return FACTOR
+"""
+"""The helper the kernel calls (FACTOR: its literal); tests/test_plugin_package_code.py puts it in a file of its own."""
 
+NODE = """
 @njit(cache=True)
 def scaled_kernel(p, s, si, x, y):
     for t in range(x.shape[0]):
@@ -40,7 +45,7 @@ def scaled_kernel(p, s, si, x, y):
             y[t, c] = factor() * x[t, c]
 
 class Scaled(Node):
-    type_name = "copied_scale"
+    type_name = "TYPE_NAME"
     inputs = {"x": Port(None, "*", "signal")}
     outputs = {"y": Port("=x", "=x", "x times the helper's factor")}
     kernel = scaled_kernel
@@ -48,6 +53,8 @@ class Scaled(Node):
     def build(self, inputs, outputs):
         return NodeState(params=np.zeros(0))
 """
+
+PLUGIN = IMPORTS + HELPER + NODE.replace("TYPE_NAME", "copied_scale")
 
 GRAPH = """
 flowtex: 1

@@ -21,23 +21,25 @@ from typing import Any
 
 import numba
 
-from ..cache import PLUGIN_CODE, cache_dir, source_fingerprint, write_cache_file
+from ..cache import cache_dir, source_fingerprint, write_cache_file
+from ..plugincode import plugin_code_of
 
 
 def kernel_fingerprint(kernel: Callable) -> str:
     """Identity of a jitted kernel: where it lives and its source text.
 
     A plugin file's kernel lives in its file, named by the file and its folder's code id
-    (:func:`flowtex.cache.plugin_code_id`), not by the folder's path: a copy of the folder finds the generated code
-    compiled for the first, and an edit anywhere in the folder (a helper the kernel calls) gives new code.
+    (:func:`flowtex.plugincode.plugin_code_of`), not by the folder's path: a copy of the folder finds the generated code
+    compiled for the first, and an edit anywhere in the folder (a helper the kernel calls) gives new code. An
+    installed plugin package's kernel is named by its module and its package's code id, for the same reason.
     """
     func = getattr(kernel, "py_func", kernel)
     try:
         source = inspect.getsource(func)
     except (OSError, TypeError):
         source = repr(func.__code__.co_code)
-    code = func.__globals__.get(PLUGIN_CODE) if hasattr(func, "__globals__") else None
-    module = f"plugin_{Path(func.__code__.co_filename).stem}_{code}" if isinstance(code, str) else func.__module__
+    found = plugin_code_of(func)
+    module = func.__module__ if found is None else f"{found.name}_{found.code}"
     return f"{module}.{func.__qualname__}:{hashlib.sha256(source.encode()).hexdigest()}"
 
 
