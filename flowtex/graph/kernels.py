@@ -1,4 +1,12 @@
-"""Tiny jitted helpers the generated graph code calls (inlined by numba).
+"""Tiny jitted helpers the generated graph code calls.
+
+``view``, ``fslice`` and ``islice`` are ordinary compiled functions, which
+LLVM inlines when it optimizes the module that calls them; numba's own
+``inline="always"`` would instead type and lower their bodies again at every
+call site, and a generated module has one per port and per node (some 100 in a
+15-node graph), which made a fused compile about a third slower for the same
+machine code (docs/engine.md, "What compiles when"). The rest, called at a few
+sites each, are inlined by numba.
 
 Port, parameter and state views are made with ``numba.carray`` from the
 arena's data pointer rather than by slicing: a sliced view carries the
@@ -49,19 +57,19 @@ def bytes_at(address: int, n: int) -> np.ndarray:
     return carray(_byte_ptr(address), n)
 
 
-@njit(inline="always", cache=True)
+@njit(cache=True)
 def view(base: int, offset: int, width: int, rows: int) -> np.ndarray:
     """``rows x width`` view of the float arena (data address ``base``) starting at ``offset``."""
     return carray(_float_ptr(base + offset * ITEM), (rows, width))
 
 
-@njit(inline="always", cache=True)
+@njit(cache=True)
 def fslice(base: int, start: int, stop: int) -> np.ndarray:
     """``f[start:stop]`` of the float arena at data address ``base``, without reference counting."""
     return carray(_float_ptr(base + start * ITEM), stop - start)
 
 
-@njit(inline="always", cache=True)
+@njit(cache=True)
 def islice(base: int, start: int, stop: int) -> np.ndarray:
     """``i[start:stop]`` of the int arena at data address ``base``, without reference counting."""
     return carray(_int_ptr(base + start * ITEM), stop - start)
