@@ -19,6 +19,7 @@ difference from the baseline's output (relative to the output's peak).
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import tempfile
 import time
 from pathlib import Path
@@ -98,6 +99,8 @@ def main() -> None:
     ap.add_argument("--samples", type=int, default=200_000)
     ap.add_argument("--runs", type=int, default=3)
     args = ap.parse_args()
+    if importlib.util.find_spec("rocket_fft") is None:  # numba's np.fft support, for the "rocket" column
+        raise SystemExit("bench_dft321.py compares with rocket-fft's np.fft inside numba: pip install -e '.[bench]'")
     x = np.random.default_rng(0).standard_normal((args.samples, 3))
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "g.yaml"
