@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import itertools
 import sys
 from pathlib import Path
 from typing import NamedTuple
@@ -74,14 +75,16 @@ def register_plugin_package(module: str) -> None:
     its top-level package are then filed and keyed by :func:`package_code_id`, as a plugin folder's are by
     :func:`plugin_code_id`, so that an edit to any file of an editable install (a helper a kernel calls) gives fresh
     machine code. Only the packages registered here: other numba code in the process keeps numba's own keys."""
-    _PLUGIN_PACKAGES.add(module.split(".")[0])
+    top = module.split(".")[0]
+    if top != "flowtex":  # flowtex's own kernels are keyed by its whole source tree (flowtex.cache.source_fingerprint)
+        _PLUGIN_PACKAGES.add(top)
 
 
 @functools.lru_cache(maxsize=64)
 def _package_listing(root: str) -> tuple[tuple[str, int, int], ...] | None:
     """(path within ``root``, mtime, size) of every ``.py`` file of the package folder ``root``; None if too many."""
     try:
-        files = sorted(Path(root).rglob("*.py"))
+        files = sorted(itertools.islice(Path(root).rglob("*.py"), PACKAGE_FILES_MAX + 1))  # stops at the cap
         if len(files) > PACKAGE_FILES_MAX:
             return None
         return tuple((f.relative_to(root).as_posix(), f.stat().st_mtime_ns, f.stat().st_size) for f in files)
