@@ -113,6 +113,8 @@ class FastSlcanBus(BusABC):
             self.channel_info = f"slcan {path}"
         self._parser = SlcanParser(role, channel=channel, device_timestamps=device_timestamps)
         self.is_open = role == "host"
+        self.times_opened = 0
+        """Device role: ``O``/``L`` commands received so far (an open and its close may arrive in one read)."""
         self.timestamps_on = False
         self._t_open = time.monotonic()
         self.frames_tx = 0
@@ -214,6 +216,7 @@ class FastSlcanBus(BusABC):
             k = cmd[:1]
             if k in (b"O", b"L"):
                 self.is_open = True
+                self.times_opened += 1
                 replies.append(_CR)
             elif k == b"C":
                 self.is_open = False

@@ -275,9 +275,6 @@ def run_device(bus_spec: str | None, dbc_path: str, map_path: str, recording: st
 
         pty_pair = open_pty()
         bus = FastSlcanBus(pty_pair.master_fd, role="device")
-        if announce is not None:
-            print(f"simulated device on {pty_pair.slave_path}: run the runtime with --bus flowtex_slcan:{pty_pair.slave_path}",
-                  file=announce, flush=True)
     else:
         bus = open_bus(bus_spec, bitrate)
     stop: list[bool] = [False]
@@ -288,6 +285,9 @@ def run_device(bus_spec: str | None, dbc_path: str, map_path: str, recording: st
     old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         dev = SimulatedDevice(bus, canmap, codecs, rec.arrays, rate_hz=rate, source=str(recording))
+        if pty_pair is not None and announce is not None:  # ready to serve: a runtime started now is answered at once
+            print(f"simulated device on {pty_pair.slave_path}: run the runtime with --bus flowtex_slcan:{pty_pair.slave_path}",
+                  file=announce, flush=True)
         clock = DeadlineClock(rate)
         n = int(round(duration_s * rate)) if duration_s else None
         was_open = False
@@ -295,11 +295,11 @@ def run_device(bus_spec: str | None, dbc_path: str, map_path: str, recording: st
         k = 0
         while not stop[0] and (n is None or k < n):
             dev.collect(k)
-            if exit_on_close:
+            if exit_on_close:  # a whole session (open ... close) may have come and gone within one tick
                 is_open = bool(getattr(bus, "is_open", True))
+                was_open = was_open or is_open or getattr(bus, "times_opened", 0) > 0
                 if was_open and not is_open:
                     break
-                was_open = was_open or is_open
             dev.publish(k)
             k += 1
             clock.wait()

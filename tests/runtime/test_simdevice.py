@@ -37,17 +37,26 @@ def _expected_payloads(db, rec):
     return {tp.frame_id: a, tf.frame_id: b}
 
 
-def test_two_process_session_over_a_pty(setup):  # noqa: F811
+def _pty_device(setup, duration_s: int) -> tuple[subprocess.Popen, str]:  # noqa: F811
+    """`flowtex simulate-device --pty --exit-on-close` started, and the pty path it announced."""
     cmd = [sys.executable, "-m", "flowtex", "simulate-device", str(setup / "rec.npz"), "--pty", "--exit-on-close",
-           "--duration", "60", "--dbc", str(DBC), "--map", str(setup / "m.yaml")]
+           "--duration", str(duration_s), "--dbc", str(DBC), "--map", str(setup / "m.yaml")]
     dev = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    line = dev.stdout.readline()
+    m = re.search(r"--bus flowtex_slcan:(/dev/pts/\d+)", line)
+    if m is None:
+        dev.kill()
+        raise AssertionError((line, dev.communicate()[1]))
+    return dev, m.group(1)
+
+
+def test_two_process_session_over_a_pty(setup):  # noqa: F811
+    dev, path = _pty_device(setup, 60)
     try:
-        line = dev.stdout.readline()
-        m = re.search(r"--bus (flowtex_slcan:/dev/pts/\d+)", line)
-        assert m, (line, dev.stderr.read() if dev.poll() is not None else "")
         g = load_graph(setup / "g.yaml")
         log = setup / "pty.log"
-        r = run_live(g, LiveConfig(DBC, setup / "m.yaml", bus=m.group(1), max_ticks=1500, record=log, status=None, install_signals=False))
+        r = run_live(g, LiveConfig(DBC, setup / "m.yaml", bus=f"flowtex_slcan:{path}", max_ticks=1500, record=log, status=None,
+                                   install_signals=False))
         out, err = dev.communicate(timeout=60)
     finally:
         if dev.poll() is None:
@@ -69,6 +78,25 @@ def test_two_process_session_over_a_pty(setup):  # noqa: F811
         assert bytes(f.data) in expected[f.arbitration_id]
     tx = [f for f in read_session(log) if not f.is_rx]
     assert db.decode_message(0x200, tx[-2].data)["Current"] == 0.0
+
+
+def test_a_session_opened_and_closed_within_one_tick_ends_the_device(setup):  # noqa: F811
+    """--exit-on-close after a host's open and close that the device reads in one batch (a runtime that started before
+    the device was serving, or ran while the device was stalled): the device used to miss the open and run on to
+    --duration. It announces its pty only once it can serve, and remembers every open it received."""
+    from flowtex.io.slcan_fast import FastSlcanBus
+
+    dev, path = _pty_device(setup, 30)
+    try:
+        host = FastSlcanBus(path)        # writes C, O ...
+        host.shutdown()                  # ... and C at once: all three in the device's next read
+        out, err = dev.communicate(timeout=20)
+    finally:
+        if dev.poll() is None:
+            dev.kill()
+    assert dev.returncode == 0, err
+    ticks = int(re.search(r"simulated device: (\d+) ticks", err).group(1))
+    assert ticks < 20_000  # ended by the close, not by --duration (30 s = 30,000 ticks at 1 kHz)
 
 
 def test_simulate_device_needs_bus_or_pty(setup):  # noqa: F811
