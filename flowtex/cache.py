@@ -34,6 +34,7 @@ from pathlib import Path
 
 from .config import CACHE_ENV, cache_dir, contract_enabled
 from .errors import FlowtexError
+from .interrupts import guard_compiles
 from .plugincode import PLUGIN_CODE, hash_sources, plugin_code_id, plugin_code_of
 
 __all__ = ["CACHE_ENV", "cache_dir", "configure_numba_cache", "file_by_package_path", "guard_numba_cache",
@@ -68,12 +69,14 @@ _DONE: list[bool] = []
 def configure_numba_cache() -> str:
     """Point numba's cache at a folder for this source tree (once per process); returns the fingerprint.
 
-    Runs before any flowtex module with ``@njit(cache=True)`` decorates its kernels.
+    Runs before any flowtex module with ``@njit(cache=True)`` decorates its kernels, so it is also where a Ctrl-C
+    during numba's compiles starts being kept for every caller (:func:`flowtex.interrupts.guard_compiles`).
     """
     fingerprint = source_fingerprint()
     if _DONE:
         return fingerprint
     _DONE.append(True)
+    guard_compiles()
     if os.environ.get("NUMBA_CACHE_DIR"):
         return fingerprint
     import numba

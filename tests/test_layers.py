@@ -49,7 +49,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     # (numba's cache folder must be chosen before any kernel module, dsp's included, decorates its kernels), the old import
     # paths of names that moved (flowtex.moved).
     ("config", ("flowtex.config", "flowtex.version", "flowtex.errors", "flowtex.limits", "flowtex.yamlsource", "flowtex.cache",
-                "flowtex.plugincode", "flowtex.moved")),
+                "flowtex.plugincode", "flowtex.interrupts", "flowtex.moved")),
 ]
 """Top to bottom. A module belongs to the layer of its longest matching prefix."""
 

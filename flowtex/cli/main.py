@@ -21,7 +21,7 @@ from typing import Any
 
 from .. import config
 from ..errors import FlowtexError
-from .interrupts import interrupt_was_lost, interrupts_kept
+from ..interrupts import interrupt_was_lost, interrupts_kept
 from .output import clean
 
 EXIT_OK = 0

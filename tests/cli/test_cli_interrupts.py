@@ -1,9 +1,10 @@
 """A Ctrl-C dropped inside a C callback is raised again, and an error it caused is reported as the interrupt.
 
 numba hands LLVM's object code to Python through a ctypes callback; a KeyboardInterrupt raised there is dropped by
-ctypes ("Exception ignored"). Before flowtex.cli.interrupts, a cold ``flowtex live`` interrupted at that moment either
+ctypes ("Exception ignored"). Before flowtex.interrupts, a cold ``flowtex live`` interrupted at that moment either
 ran its whole session or ended with "internal error: RuntimeError: no compiled object yet" (exit 2). Here a ctypes
-callback that raises KeyboardInterrupt stands for that moment, deterministically.
+callback that raises KeyboardInterrupt stands for that moment, deterministically. The last two tests: any caller of
+flowtex (a notebook, a script) gets the same for Ctrl-C during numba's compiles (flowtex.interrupts.guard_compiles).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import time
 
 import pytest
 
-from flowtex.cli.interrupts import RESEND_AFTER_S, interrupt_was_lost, interrupts_kept
+from flowtex.interrupts import RESEND_AFTER_S, interrupt_was_lost, interrupts_kept, keeping_interrupts
 
 cli_main = importlib.import_module("flowtex.cli.main")  # the module (flowtex.cli re-exports its main function)
 CALLBACK = ctypes.CFUNCTYPE(None)
@@ -90,8 +91,8 @@ def test_a_dropped_sigterm_is_raised_again_as_sigterm(monkeypatch):
     # SIGTERM raises Terminated (a KeyboardInterrupt) inside the CLI: dropped in a callback, it must come back as
     # SIGTERM (exit 143), not as a Ctrl-C
     raised: list[int] = []
-    monkeypatch.setattr("flowtex.cli.interrupts._raise_again", raised.append)
-    monkeypatch.setattr("flowtex.cli.interrupts.RESEND_AFTER_S", 0.0)
+    monkeypatch.setattr("flowtex.interrupts._raise_again", raised.append)
+    monkeypatch.setattr("flowtex.interrupts.RESEND_AFTER_S", 0.0)
 
     def body() -> None:
         raise cli_main.Terminated
@@ -102,3 +103,51 @@ def test_a_dropped_sigterm_is_raised_again_as_sigterm(monkeypatch):
         while not raised and time.monotonic() < deadline:
             time.sleep(0.01)
     assert raised == [signal.SIGTERM] and interrupt_was_lost()
+
+
+def _compile_calling(during_typing) -> None:
+    """Compile (not from any cache) a new function whose typing calls ``during_typing``: code run inside a numba
+    compile, as the object-code callback is."""
+    from numba import njit
+    from numba.extending import overload
+
+    def poke() -> None:
+        pass
+
+    @overload(poke)
+    def _poke():
+        during_typing()
+        return lambda: None
+
+    @njit
+    def uses_poke() -> None:
+        poke()
+
+    uses_poke()
+
+
+def test_a_library_callers_interrupt_dropped_during_a_compile_is_raised_again(sigint_raises, capsys):
+    import flowtex.dsp  # noqa: F401  (flowtex configures numba's cache, and keeps interrupts during compiles)
+
+    assert not keeping_interrupts()
+    seen: list[bool] = []
+    deadline = time.monotonic() + 10.0
+    with pytest.raises(KeyboardInterrupt):  # raised again: inside the compile (which it ends) or just after it
+        _compile_calling(lambda: (seen.append(keeping_interrupts()), _interrupted_in_callback()))
+        while time.monotonic() < deadline:
+            time.sleep(RESEND_AFTER_S / 5)
+    assert seen == [True] and sigint_raises == [signal.SIGINT]
+    assert not keeping_interrupts()  # left with the compile: no hook stays behind
+    assert "Exception ignored" not in capsys.readouterr().err
+
+
+def test_the_command_lines_keeper_is_not_replaced_during_a_compile():
+    """Inside `flowtex`, a compile keeps the command line's keeper (which also raises SIGTERM again as SIGTERM)."""
+    import flowtex.dsp  # noqa: F401
+
+    seen: list[object] = []
+    with interrupts_kept(cli_main._signal_of):
+        outer = sys.unraisablehook
+        _compile_calling(lambda: seen.append(sys.unraisablehook))
+    assert seen == [outer]
+
