@@ -208,7 +208,7 @@ def locate(tab: np.ndarray, px: float, py: float, hint: int, w: np.ndarray, v: n
     # tolerance would otherwise lend a tiny weight to the far vertex (a point on a silent hull edge would render a
     # little of an interior model's variance)
     steps = int(tab[H_WALK])
-    near = -1
+    near = np.int64(-1)  # int64 from the start: numba would also compile the callees for a literal -1
     for _ in range(steps + 1):
         lo = triangle_weights(tab, t, px, py, w)
         if lo >= 0.0:
@@ -230,7 +230,7 @@ def locate(tab: np.ndarray, px: float, py: float, hint: int, w: np.ndarray, v: n
         triangle_weights(tab, near, px, py, w)
         return _finish(tab, near, w, v)
     # 3. full scan: the triangle the point is most inside
-    best = -1
+    best = np.int64(-1)
     best_lo = -np.inf
     for u in range(ntri):
         lo = triangle_weights(tab, u, px, py, w)

@@ -39,7 +39,8 @@ def _view(slot: PortSlot, rows: str) -> str:
 
 
 def _row_view(slot: PortSlot, row: str) -> str:
-    return f"view(fb, i[{slot.offset_index}] + {row} * i[{slot.width_index}], i[{slot.width_index}], 1)"
+    """One row's view (an int64 row count: a literal 1 would make numba compile ``view`` once more for it)."""
+    return f"view(fb, i[{slot.offset_index}] + {row} * i[{slot.width_index}], i[{slot.width_index}], np.int64(1))"
 
 
 def _args(slots: NodeSlots) -> str:
