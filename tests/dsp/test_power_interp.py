@@ -42,7 +42,7 @@ def test_filter_power_is_the_impulse_response_energy(p, q, radius):
 @settings(max_examples=60, deadline=None)
 @given(p=st.integers(0, 12), q=st.integers(0, 10), radius=st.floats(0.2, 0.99), zero_radius=st.floats(0.1, 1.6),
        gain=st.floats(0.01, 100.0), seed=st.integers(0, 2**32 - 1))
-@example(p=12, q=0, radius=0.875, zero_radius=1.0, gain=1.0, seed=671)  # 6 resonance pairs within 0.15 rad (below)
+@example(p=12, q=0, radius=0.875, zero_radius=1.0, gain=1.0, seed=671)  # clustered resonances (below)
 def test_the_one_output_power_is_the_spectrum_mean_and_the_lyapunov_solution(p, q, radius, zero_radius, gain, seed):
     # arma_output_variance (the lattice's filter_power) against two references that share nothing with it. Parseval on
     # scipy.signal.freqz's 2^16-point grid: mean |g C/A|^2 is the energy of the impulse response folded every 2^16
