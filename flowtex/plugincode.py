@@ -92,12 +92,18 @@ def _package_listing(root: str) -> tuple[tuple[str, int, int], ...] | None:
         return None
 
 
+def _package_root(package: str) -> Path | None:
+    """The folder of the imported top-level ``package`` (its first ``__path__`` entry); None for a plain module."""
+    paths = list(getattr(sys.modules.get(package), "__path__", None) or [])
+    return Path(paths[0]).resolve() if paths else None
+
+
 def package_code_id(package: str) -> str | None:
     """Digest of the paths and contents of the ``.py`` files of the imported top-level ``package`` (None: not a folder
     package, or over :data:`PACKAGE_FILES_MAX` files). Computed once per process: a process runs what it imported."""
-    paths = list(getattr(sys.modules.get(package), "__path__", None) or [])
-    listing = _package_listing(str(Path(paths[0]).resolve())) if paths else None
-    return None if listing is None else _folder_digest(listing, str(Path(paths[0]).resolve()))
+    root = _package_root(package)
+    listing = None if root is None else _package_listing(str(root))
+    return None if listing is None else _folder_digest(listing, str(root))
 
 
 class PluginCode(NamedTuple):
@@ -119,15 +125,14 @@ def plugin_code_of(func: object) -> PluginCode | None:
     if isinstance(code, str):
         return PluginCode(code, f"plugin_{Path(file).stem}", ())
     module = str(glob.get("__name__", ""))
-    if not _PLUGIN_PACKAGES or module.split(".")[0] not in _PLUGIN_PACKAGES:
-        return None
     top = module.split(".")[0]
-    code = package_code_id(top)
-    roots = list(getattr(sys.modules.get(top), "__path__", None) or [])
-    if code is None or not roots:
+    if top not in _PLUGIN_PACKAGES:
+        return None
+    root, code = _package_root(top), package_code_id(top)
+    if root is None or code is None:
         return None
     try:
-        parts = Path(file).resolve().parent.relative_to(Path(roots[0]).resolve()).parts
+        parts = Path(file).resolve().parent.relative_to(root).parts
     except (OSError, ValueError):
         return None
     return PluginCode(code, module, parts)
