@@ -136,7 +136,9 @@ def test_a_library_callers_interrupt_dropped_during_a_compile_is_raised_again(si
         _compile_calling(lambda: (seen.append(keeping_interrupts()), _interrupted_in_callback()))
         while time.monotonic() < deadline:
             time.sleep(RESEND_AFTER_S / 5)
-    assert seen == [True] and sigint_raises == [signal.SIGINT]
+    # every SIGINT raised again is Ctrl-C; under load the first may land in another of the compile's callbacks, be
+    # dropped there too and be raised once more (module docstring of flowtex.interrupts), so there can be two
+    assert seen == [True] and sigint_raises and set(sigint_raises) == {signal.SIGINT}
     assert not keeping_interrupts()  # left with the compile: no hook stays behind
     assert "Exception ignored" not in capsys.readouterr().err
 
