@@ -142,14 +142,19 @@ def file_kind(path: str | Path) -> str:
 
     if suffix in (".yaml", ".yml") and (not path.exists() or path.stat().st_size > MAX_YAML_BYTES):
         return GRAPH  # the graph loader says what is missing or too large, as validate always did
-    text = _read_text(path).lstrip("\ufeff \t\r\n")
+    raw = _read_text(path).lstrip("\ufeff")
+    text = raw.lstrip(" \t\r\n")
     if suffix == ".xml" or text.startswith("<"):
         return MODEL_SET
     if suffix == ".json" or text.startswith("{"):
         try:
-            doc = json.loads(text)
-        except (ValueError, RecursionError):
-            raise DataError(f"{path}: not valid JSON (nested too deep or broken); flowtex's JSON files are objects with a "
+            doc = json.loads(raw)  # not the stripped text: the line numbers are the file's
+        except json.JSONDecodeError as exc:  # where, as every flowtex JSON reader says it (flowtex.io.jsondoc)
+            raise DataError(f"{path}:{exc.lineno}:{exc.colno}: not valid JSON ({exc.msg}); flowtex's JSON files are "
+                            f"objects with a 'format' key: {', '.join(JSON_FORMATS)}") from None
+        except (ValueError, RecursionError) as exc:  # nested too deep for the parser, or a number too long to convert
+            why = "nested too deep" if isinstance(exc, RecursionError) else str(exc).split(";")[0]
+            raise DataError(f"{path}: not valid JSON ({why}); flowtex's JSON files are objects with a "
                             f"'format' key: {', '.join(JSON_FORMATS)}") from None
         found = json_kind(doc)
         if found is None:
@@ -159,7 +164,7 @@ def file_kind(path: str | Path) -> str:
     from ..yamlsource import load_yaml
 
     check_file_size(path, "YAML file", MAX_YAML_BYTES)  # the YAML parser is slow: bounded before it starts
-    data = load_yaml(text, str(path))
+    data = load_yaml(raw, str(path))  # the whole text: its line numbers are the file's
     if isinstance(data, dict) and "flowtex_map" in data:
         return DEVICE_MAP
     if isinstance(data, dict) and "surfaces" in data:

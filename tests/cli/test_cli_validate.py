@@ -85,3 +85,16 @@ def test_a_map_needs_its_dbc_and_set_needs_a_graph(capsys):
     assert "give --dbc DEVICE.dbc" in capsys.readouterr().err
     assert main(["validate", str(DBC), "--set", "a.b=1"]) == 1
     assert "--set applies to graphs only" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name, text, where, message", [
+    ("cut.json", '\n\n{"format": "flowtex-friction",\n "mu": 0.3 "mu_ci"}\n', ":4:12: ", "not valid JSON (Expecting ',' delimiter)"),
+    ("empty.json", "", ":1:1: ", "not valid JSON (Expecting value)"),
+    ("cut.yaml", "\n\n\nflowtex: 1\nname: x\nnodes: {a: [\n", ":7:1: ", "YAML syntax error"),
+])
+def test_broken_json_and_yaml_name_the_files_own_line(tmp_path, capsys, name, text, where, message):
+    """validate points at the line and column in the file, as run and every reader do, blank lines before it included."""
+    (tmp_path / name).write_text(text)
+    assert main(["validate", str(tmp_path / name)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"{tmp_path / name}{where}") and message in err[0], err
