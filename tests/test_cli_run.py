@@ -12,6 +12,7 @@ import flowtex
 from flowtex.cli import main
 from flowtex.errors import DataError
 from flowtex.io.recordings import load_recording, save_recording
+from tests.conftest import REPO
 
 GRAPH = """
 flowtex: 1
@@ -159,3 +160,28 @@ def test_broken_plugin_is_reported_with_its_file_and_line(tmp_path, write_graph,
 def test_console_script_is_installed():
     out = subprocess.run([sys.executable, "-m", "flowtex", "--version"], capture_output=True, text=True, check=True)
     assert out.stdout.startswith("flowtex ")
+
+
+def test_set_null_swaps_a_model_sets_friction_for_a_coefficient(tmp_path, capsys):
+    """graphs/speed_force_texture.yaml's header: a fitted surface (no mu) for the lookup and a number for the friction.
+
+    The graph file names ``friction.models``; ``mu`` and ``models`` exclude each other, so a user who renders a surface
+    without mu needs ``--set friction.models=null`` to give ``--set friction.mu``: the rendered friction is then
+    HaTT's Coulomb rule with that mu (0.3 x the normal force above mu/0.004 mm/s).
+    """
+    from flowtex.datasets.model_sets import synthetic_model_set
+    from flowtex.io.modelset import save_model_set
+
+    surface = tmp_path / "surface.json"
+    save_model_set(synthetic_model_set([60.0, 120.0], [0.5, 1.5], ar_order=4, ma_order=2, mu=None), surface)
+    n = 600
+    src = tmp_path / "rig.npz"
+    save_recording(src, {"speed": np.full(n, 150.0), "normal_force": np.full(n, 2.0)}, rate=1000.0)
+    base = ["run", str(REPO / "graphs" / "speed_force_texture.yaml"), "-i", str(src), "-o", str(tmp_path / "out.npz"),
+            "--set", f"lookup.models={surface}", "--compile", "dispatch"]
+    assert main([*base, "--set", f"friction.models={surface}"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--set friction.models=null --set friction.mu=0.3" in err[0], err
+    assert main([*base, "--set", "friction.models=null", "--set", "friction.mu=0.3"]) == 0, capsys.readouterr().err
+    friction = load_recording(tmp_path / "out.npz").arrays["friction_force"]
+    assert np.allclose(friction, 0.3 * 2.0)  # 150 mm/s > 0.3/0.004 = 75 mm/s: Coulomb, mu F_n

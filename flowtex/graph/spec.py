@@ -230,7 +230,8 @@ def _nodes(c: Collector, data: LocDict, inputs: dict[str, InputSpec]) -> dict[st
 
 
 def _apply_overrides(c: Collector, spec: GraphSpec, overrides: dict[str, Any]) -> None:
-    """Apply ``--set`` values: ``rate`` (the graph's base rate, Hz) or ``NODE.PARAM``."""
+    """Apply ``--set`` values: ``rate`` (the graph's base rate, Hz) or ``NODE.PARAM``; ``NODE.PARAM=null`` removes the file's
+    value, so that a parameter that excludes another (coulomb_friction's ``models`` and ``mu``) can be swapped from the command line."""
     for key, value in overrides.items():
         where = Location(f"--set {key}")
         if key == "rate":
@@ -247,6 +248,10 @@ def _apply_overrides(c: Collector, spec: GraphSpec, overrides: dict[str, Any]) -
             if not hint and having:
                 hint = " (did you mean " + " or ".join(f"'{n}.{param}'" for n in having) + "?)"
             c.error(where, f"no node {node!r} in the graph{hint}; nodes are: {', '.join(spec.nodes) or 'none'}")
+            continue
+        if value is None:  # --set NODE.PARAM=null: as if the file did not give it (its default applies)
+            spec.nodes[node].params.pop(param, None)
+            spec.nodes[node].param_locs.pop(param, None)
             continue
         spec.nodes[node].params[param] = value
         spec.nodes[node].param_locs[param] = where

@@ -50,7 +50,9 @@ def _mu(node: Node) -> float:
         mu = ms.mu
         if mu is None or not math.isfinite(mu) or mu < 0:
             raise ParamError("models", f"{model_source(ms, node.context.files.get('models'))}: the model set has no usable "
-                                       f"friction coefficient (mu = {mu!r}); give mu instead")
+                                       f"friction coefficient (mu = {mu!r}); give mu instead (on the command line: "
+                                       f"--set {node.name}.models=null --set {node.name}.mu=0.3), or fit one into the set "
+                                       "(flowtex fit friction REC ... --into SET)")
         return float(mu)
     if mu is None:
         raise ParamError("mu", "missing friction coefficient: give mu (e.g. mu: 0.3) or models (a model set file)")
