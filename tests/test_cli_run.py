@@ -185,3 +185,23 @@ def test_set_null_swaps_a_model_sets_friction_for_a_coefficient(tmp_path, capsys
     assert main([*base, "--set", "friction.models=null", "--set", "friction.mu=0.3"]) == 0, capsys.readouterr().err
     friction = load_recording(tmp_path / "out.npz").arrays["friction_force"]
     assert np.allclose(friction, 0.3 * 2.0)  # 150 mm/s > 0.3/0.004 = 75 mm/s: Coulomb, mu F_n
+
+
+@pytest.mark.parametrize("verb", ["run", "scene"])
+def test_a_missing_or_broken_recording_is_said_before_the_graph_is_compiled(tmp_path, monkeypatch, capsys, verb):
+    """A typo in --input used to cost a whole numba compile (seconds idle, a minute under load) before one line said so."""
+    from flowtex.graph import compiled
+
+    def no_compile(*args, **kwargs):
+        raise AssertionError("the graph was compiled before the recording was read")
+
+    monkeypatch.setattr(compiled.Graph, "__init__", no_compile)
+    (tmp_path / "cut.npz").write_bytes(b"PK\x03\x04" + bytes(40))
+    graphs = REPO / "graphs"
+    argv = (["run", str(graphs / "hatt_texture.yaml")] if verb == "run"
+            else ["scene", "run", str(graphs / "scene_two_surfaces.yaml")])
+    for name, message in (("missing.npz", "recording not found"), ("cut.npz", "not a readable .npz recording")):
+        assert main([*argv, "--input", str(tmp_path / name), "-o", str(tmp_path / "out.npz")]) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"{tmp_path / name}: {message}"), err
+    assert not (tmp_path / "out.npz").exists()

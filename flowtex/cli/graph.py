@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -51,14 +52,16 @@ def report_plugins(graph_path: str | Path, args: argparse.Namespace) -> None:
         note(f"flowtex: loaded plugin code: {', '.join(str(f) for f in files)} (skip the automatic ones with --no-plugins)")
 
 
-def load_graph_from_args(args: argparse.Namespace, path: str | Path | None = None, tier: str | None = None) -> Any:
+def load_graph_from_args(args: argparse.Namespace, path: str | Path | None = None, tier: str | None = None,
+                         before_compile: Callable[[], None] | None = None) -> Any:
     """The compiled graph named by ``args.graph`` (or ``path``) with ``--set``, ``--plugins``, ``--no-plugins``,
-    compiled by ``tier`` (default ``--compile``, if the verb has it; docs/engine.md)."""
+    compiled by ``tier`` (default ``--compile``, if the verb has it; docs/engine.md); ``before_compile`` runs once
+    the graph is checked (flowtex.graph.compiled.load_graph)."""
     from ..graph.compiled import load_graph
 
     path = path if path is not None else args.graph
     tier = tier or getattr(args, "compile", None)
-    graph = load_graph(path, overrides(args.overrides), **plugin_kwargs(args), tier=tier)
+    graph = load_graph(path, overrides(args.overrides), **plugin_kwargs(args), tier=tier, before_compile=before_compile)
     report_plugins(path, args)
     return graph
 

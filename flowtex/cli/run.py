@@ -45,7 +45,15 @@ def cmd_run(args: argparse.Namespace) -> int:
     replay = kind_of(args.input) == CAN_LOG
     check_output(args.output, inputs=[args.graph, args.input, args.dbc, args.map, args.expect_audio], option="-o",
                  suffixes=(".npz", *suffixes(AUDIO), *REPLAY_SUFFIXES) if replay else (*RECORDING_SUFFIXES, *suffixes(AUDIO)))
-    graph = load_graph_from_args(args)
+    read: dict[str, Any] = {}
+
+    def read_recording() -> None:  # once the graph is checked, before its compile: a broken recording is said at once
+        from ..io.recordings import load_recording
+
+        read["recording"] = load_recording(args.input)
+
+    graph = load_graph_from_args(args, before_compile=None if replay else read_recording)
+    recording = read.get("recording")
     if replay:
         if not (args.dbc and args.map):
             raise FlowtexError(f"{args.input}: replaying a CAN session needs --dbc DEVICE.dbc and --map MAP.yaml")
@@ -62,13 +70,13 @@ def cmd_run(args: argparse.Namespace) -> int:
         from ..runtime.offline import render_recording_audio
 
         samples, rate = render_recording_audio(graph, args.input, args.output, args.map, seed=args.seed,
-                                               progress=sys.stderr.isatty(), nonfinite=args.nonfinite)
+                                               progress=sys.stderr.isatty(), nonfinite=args.nonfinite, recording=recording)
         say(f"{graph.name}: {samples.shape[0]} frames x {samples.shape[1]} channel(s) at {rate:g} Hz -> {args.output}")
         return 0
     from ..runtime.offline import nonfinite_outputs, run_recording
 
     outputs = run_recording(graph, args.input, args.output, seed=args.seed, progress=sys.stderr.isatty(),
-                            nonfinite=args.nonfinite, nonfinite_out=args.nonfinite_outputs)
+                            nonfinite=args.nonfinite, nonfinite_out=args.nonfinite_outputs, recording=recording)
     for line in nonfinite_outputs(outputs):
         note(f"warning: {line} (--nonfinite-outputs error refuses instead)")
     say(run_summary(graph, outputs, args.output))

@@ -71,6 +71,7 @@ def cmd_scene_plan(args: argparse.Namespace) -> int:
 
 def cmd_scene_run(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output
+    from ..io.recordings import load_recording
     from ..runtime.offline import run_recording
     from ..scene.build import plan_to_graph
     from ..scene.plan import explain
@@ -81,8 +82,9 @@ def cmd_scene_run(args: argparse.Namespace) -> int:
         plan = plan_to_graph(args.scene, graph_path, tuple(args.plugins), fixed=args.surface, relative=False)
         if args.explain:
             say(explain(plan))
+        recording = load_recording(args.input)  # before the compile: a missing or broken recording is said at once
         graph = load_graph_from_args(args, graph_path)
-        outputs = run_recording(graph, args.input, args.output, seed=args.seed, progress=sys.stderr.isatty())
+        outputs = run_recording(graph, args.input, args.output, seed=args.seed, progress=sys.stderr.isatty(), recording=recording)
     say(run_summary(graph, outputs, args.output))
     return 0
 

@@ -10,7 +10,7 @@ from ..dsp.nonfinite import count_nonfinite
 from ..errors import DataError, FlowtexError
 from ..graph.compiled import Graph, apply_nonfinite_policy
 from ..io.formats import format_of
-from ..io.recordings import load_recording, save_recording
+from ..io.recordings import Recording, load_recording, save_recording
 
 TIME_COLUMN = "time"
 """A recording signal of this name (unless the graph has such an input) holds sample times in seconds."""
@@ -66,8 +66,11 @@ def nonfinite_outputs(outputs: dict[str, np.ndarray]) -> list[str]:
 
 def run_recording(graph: Graph, input_path: str | Path, output_path: str | Path | None,
                   seed: int | None = None, progress: bool = True, nonfinite: str = "error",
-                  nonfinite_out: str = "warn") -> dict[str, np.ndarray]:
+                  nonfinite_out: str = "warn", recording: Recording | None = None) -> dict[str, np.ndarray]:
     """Run ``graph`` over the recording at ``input_path``; write outputs if ``output_path``.
+
+    ``recording`` is that file already read (:func:`flowtex.io.recordings.load_recording`): the command line reads
+    it before it compiles the graph, so that a missing or broken recording is said at once, not after the compile.
 
     A recording that states a sample rate different from the graph's rate is
     refused (resample it first, or fix ``rate:`` in the graph). Non-finite
@@ -78,7 +81,7 @@ def run_recording(graph: Graph, input_path: str | Path, output_path: str | Path 
     """
     if nonfinite_out not in OUTPUT_POLICIES:
         raise FlowtexError(f"unknown policy for non-finite outputs {nonfinite_out!r}; use one of {', '.join(OUTPUT_POLICIES)}")
-    rec = load_recording(input_path)
+    rec = recording if recording is not None else load_recording(input_path)
     if rec.rate is not None and abs(rec.rate - graph.rate) > 1e-9 * graph.rate:
         raise DataError(f"{input_path}: recorded at {rec.rate:g} Hz but graph {graph.name!r} runs at {graph.rate:g} Hz; "
                         "resample the recording or change the graph's rate")
@@ -115,7 +118,8 @@ AUDIO_RATE_FACTOR = 8
 
 
 def render_recording_audio(graph: Graph, input_path: str | Path, output_path: str | Path, map_path: str | Path | None = None,
-                           seed: int | None = None, progress: bool = True, nonfinite: str = "error") -> tuple[np.ndarray, float]:
+                           seed: int | None = None, progress: bool = True, nonfinite: str = "error",
+                           recording: Recording | None = None) -> tuple[np.ndarray, float]:
     """Run ``graph`` over a recording and write its audio-rate output as a float32 WAV; returns (samples, rate).
 
     The channels, rate, scales and clips come from the ``audio`` section of ``map_path``
@@ -134,7 +138,7 @@ def render_recording_audio(graph: Graph, input_path: str | Path, output_path: st
         amap = default_audio_map(widths, AUDIO_RATE_FACTOR * float(graph.rate))
         if not amap.channels:
             raise FlowtexError(f"graph {graph.name!r} has no scalar output to play; give --map MAP.yaml with an 'audio' section")
-    outputs = run_recording(graph, input_path, None, seed=seed, progress=progress, nonfinite=nonfinite)
+    outputs = run_recording(graph, input_path, None, seed=seed, progress=progress, nonfinite=nonfinite, recording=recording)
     samples = render_outputs(outputs, amap, float(graph.rate))
     write_wav(output_path, samples, amap.rate)
     return samples, amap.rate
