@@ -301,7 +301,7 @@ def surface_renders(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, f
         raise DataError(f"--seeds must be at least 1, got {opt.seeds}")
     if abs(ms.sample_rate - rate) > 1e-9 * rate:
         raise DataError(f"{where} is at {rate:g} Hz but the surface's models are for {ms.sample_rate:g} Hz; "
-                        f"resample the surface with `flowtex models resample SURFACE --rate {rate:g}`")
+                        f"resample the surface with `flowtex models resample SURFACE --rate {rate:g} -o OUT.json`")
     top = resampled_band_hz(ms)
     if top < opt.max_freq_hz:
         opt = replace(opt, max_freq_hz=top)

@@ -6,6 +6,8 @@ in creating realistic haptic virtual surfaces", section 3.3.2.
 
 from __future__ import annotations
 
+import shlex
+
 from numba import njit
 
 from ..dsp.taps import TAP_P, TAP_S, TAP_SI, initial_tap_state, tap_block, tap_params
@@ -54,7 +56,7 @@ class TapPlayer(Node):
                                  f"runs at {rate:g} Hz; resample it (flowtex.models.taps.resample_tap_library) or run the node "
                                  "at the library's rate")
             raise ParamError("library", f"{path}: tap library is sampled at {lib.sample_rate_hz:g} Hz but this node runs at {rate:g} Hz; "
-                             f"run 'flowtex models resample {path} --rate {rate:g} -o OUT.json' and load OUT.json, "
+                             f"run 'flowtex models resample {shlex.quote(str(path))} --rate {rate:g} -o OUT.json' and load OUT.json, "
                              f"or run the node at the library's rate")
         s, si = initial_tap_state(lib.length)
         return self.pack_state({"k": len(lib.speeds), "length": lib.length},

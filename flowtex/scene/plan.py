@@ -29,6 +29,7 @@ Thresholds and their sources (Culbertson & Kuchenbecker, Culbertson & Kuchenbeck
 from __future__ import annotations
 
 import math
+import shlex
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -107,7 +108,7 @@ def _check_rate(spec: SurfaceSpec, field: str, key: str, file_rate: float, scene
     if abs(file_rate - scene_rate) > 1e-9 * scene_rate:
         path = getattr(spec, field)
         raise _fail(spec, field, f"surface {key!r}: {path} is sampled at {file_rate:g} Hz but the scene runs at {scene_rate:g} Hz; "
-                                 f"run 'flowtex models resample {path} --rate {scene_rate:g} -o OUT.json' and name OUT.json here")
+                                 f"run 'flowtex models resample {shlex.quote(str(path))} --rate {scene_rate:g} -o OUT.json' and name OUT.json here")
 
 
 def plan_scene(scene: Scene, node_types: set[str] | frozenset[str] = frozenset()) -> dict[str, SurfaceData]:

@@ -153,3 +153,18 @@ def test_cli_fit_texture_holdout(recordings, tmp_path, capsys):
     assert "held out: the last 0.3 of the recording (6.0 s)" in printed and "power ratio" in printed and out.exists()
     assert main(["fit", "texture", str(path), "--speed", "speed", "--holdout", "0.3", "--out-dir", str(tmp_path)]) == 1
     assert "--holdout" in capsys.readouterr().err
+
+
+def test_cli_compare_at_another_rate_suggests_a_command_that_runs(recordings, tmp_path, capsys):
+    """The refusal names the resampling command; with the surface's path and an output file put in, it runs as given."""
+    a = recordings[0].arrays
+    n = 4000
+    path = tmp_path / "rec2k.npz"
+    save_recording(path, {k: np.repeat(a[k][:n], 2) for k in ("accel", "speed", "normal_force")}, rate=2 * RATE)
+    surface = save_model_set(recordings[0].truth["surface"], tmp_path / "truth.json")
+    assert main(["compare", str(surface), str(path), "--speed", "speed"]) == 1
+    err = capsys.readouterr().err.strip()
+    command = err.split("`")[1].replace("SURFACE", str(surface)).replace("OUT.json", str(tmp_path / "truth_2k.json"))
+    assert command.startswith("flowtex models resample ")
+    assert main(command.split()[1:]) == 0, capsys.readouterr().err
+    assert (tmp_path / "truth_2k.json").exists()
