@@ -10,7 +10,7 @@ from typing import Any
 
 from ..errors import DataError
 from .options import add_from_rate, int_at_least, number_in_range, one_motion_source, positive_hz, scheduler_address
-from .output import say
+from .output import note, say
 
 
 def register_fit(kinds: Any) -> None:
@@ -122,6 +122,7 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
         if args.report:
             write_report(fit, Path(args.report))
         say(f"-> {args.output}")
+        _note_xml_rule(args.xml, fit.model_set.rule)
         return 0
     from ..fit.batch import expand_inputs, fit_many
 
@@ -130,7 +131,12 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
         from ..io.atomic import check_output
 
         check_output(Path(args.out_dir) / "x.json", inputs=paths, option="--out-dir")
-        return fit_many(paths, job, Path(args.out_dir), args.workers, args.scheduler, args.xml is not None, args.report is not None)
+        code = fit_many(paths, job, Path(args.out_dir), args.workers, args.scheduler, args.xml is not None, args.report is not None)
+        if args.xml is not None:
+            from ..models.rendering import FITTED_RULE
+
+            _note_xml_rule(Path(args.out_dir) / "*.xml", FITTED_RULE)
+        return code
     if len(paths) != 1:
         raise DataError(f"{len(paths)} recordings given; fit several with --out-dir OUT (one surface file each), or give one with -o")
     if args.output is None:
@@ -154,7 +160,17 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
     if args.report:
         write_report(fit, Path(args.report), held)
     say(f"-> {args.output}" + (f", {args.xml}" if args.xml else ""))
+    _note_xml_rule(args.xml, fit.model_set.rule)
     return 0
+
+
+def _note_xml_rule(xml: Path | None, rule: Any) -> None:
+    """Warn that --xml could not keep the fitted set's rendering rule (flowtex.io.hatt.rule_lost_in_xml)."""
+    from ..io.hatt import rule_lost_in_xml
+
+    lost = rule_lost_in_xml(rule, xml) if xml is not None else None
+    if lost:
+        note(lost)
 
 
 def _check_holdout_options(args: argparse.Namespace) -> None:

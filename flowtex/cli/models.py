@@ -7,7 +7,7 @@ from typing import Any
 
 from ..errors import DataError
 from .options import int_at_least, positive_hz
-from .output import say
+from .output import note, say
 
 
 def register(sub: Any) -> None:
@@ -62,7 +62,7 @@ def cmd_models_resample(args: argparse.Namespace) -> int:
     from ..fit.resample import check_misses, resample_summary, tqdm_progress
     from ..fit.resample_densify import densify_summary, resample_densified
     from ..io.atomic import atomic_output, check_output
-    from ..io.hatt import write_hatt_xml
+    from ..io.hatt import rule_lost_in_xml, write_hatt_xml
     from ..io.modelset import load_model_set, save_model_set
 
     target = check_output(args.output, inputs=[args.input], option="-o")
@@ -91,6 +91,9 @@ def cmd_models_resample(args: argparse.Namespace) -> int:
     say(line)
     if warning:
         say(warning)
+    lost = rule_lost_in_xml(out.rule, target) if target.suffix.lower() == ".xml" else None
+    if lost:
+        note(lost)
     return 0
 
 

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..dsp.lsf import lsf_to_poly_new
 from ..errors import DataError
-from ..models.texture import TextureModelSet
+from ..models.texture import HATT_RULE, RenderRule, TextureModelSet
 from .xmldoc import parse_xml
 
 HATT_NAMES = {
@@ -248,6 +248,20 @@ def _orders(name: str, models: list, n_ar: int, n_ma: int) -> tuple[int, int]:
 
 def _fmt(x: float) -> str:
     return repr(float(x))
+
+
+def rule_lost_in_xml(rule: RenderRule | None, path: str | Path) -> str | None:
+    """The warning for writing a set whose file states ``rule`` to HaTT XML at ``path``, when that is not HaTT's rule.
+
+    HaTT's format has no place for the rule (docs/model-sets.md), so the file read back renders with HaTT's rule: a
+    fitted set (output-power interpolation) then renders quieter than its JSON between models of different
+    resonance (docs/texture.md). None when nothing is lost.
+    """
+    if rule is None or rule == HATT_RULE:
+        return None
+    return (f"warning: {path}: HaTT XML cannot state this set's rendering rule (interpolation {rule.interpolation}, outside "
+            f"{rule.outside}); read back it renders with HaTT's ({HATT_RULE.interpolation}, {HATT_RULE.outside}) unless "
+            f"texture_lookup is given interpolation: {rule.interpolation} and outside: {rule.outside}; flowtex's JSON format keeps it")
 
 
 def write_hatt_xml(ms: TextureModelSet, path: str | Path, texture: int = 0, digits: int | None = None) -> Path:
