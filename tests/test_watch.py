@@ -88,3 +88,18 @@ def test_plot_writes_a_png_and_max_runs_ends_the_watch(tmp_path, capsys):
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("run 1 (start): ") and out[1].startswith("  y: RMS ")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_max_runs_exits_1_when_the_last_run_failed(tmp_path, capsys):
+    """`watch --max-runs 1` in a script: a broken graph or recording used to exit 0 after printing its error."""
+    from flowtex.cli import main
+
+    np.savez(tmp_path / "r.npz", x=np.sin(np.arange(200) / 5.0), rate=1000.0)
+    (tmp_path / "cut.npz").write_bytes(b"PK\x03\x04" + bytes(40))
+    (tmp_path / "g.yaml").write_text(GRAPH.format(k=2.0))
+    (tmp_path / "bad.yaml").write_text(GRAPH.format(k="two"))
+    for graph, rec in (("g.yaml", "cut.npz"), ("bad.yaml", "r.npz")):
+        assert main(["watch", str(tmp_path / graph), "-i", str(tmp_path / rec), "--max-runs", "1"]) == 1
+        out = capsys.readouterr().out.splitlines()
+        assert out[0].startswith("run 1 (start): failed after ") and out[1].startswith("  "), out
+    assert main(["watch", str(tmp_path / "g.yaml"), "-i", str(tmp_path / "r.npz"), "--max-runs", "1"]) == 0

@@ -57,4 +57,4 @@ def cmd_watch(args: argparse.Namespace) -> int:
                       emit=_say_now, overrides=overrides(args.overrides), plugins=tuple(args.plugins),
                       auto_plugins=not args.no_plugins, tier=args.compile, plot=_png_writer(Path(args.plot)) if args.plot else None)
     watcher.loop(args.interval, args.max_runs)
-    return 0
+    return 1 if watcher.latest is not None and watcher.latest.error else 0  # --max-runs ended it: did the last run fail?

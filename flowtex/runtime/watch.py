@@ -102,6 +102,9 @@ class Watcher:
     watched: set[Path] = field(default_factory=set)
     plugin_files: list[Path] = field(default_factory=list)
     last: WatchResult | None = None
+    """The last good run's result (the report compares each run's RMS with it)."""
+    latest: WatchResult | None = None
+    """The latest run's result, failed or not (``watch --max-runs`` exits 1 when it failed)."""
     runs: int = 0
 
     def run_once(self, changed: list[Path]) -> WatchResult:
@@ -146,6 +149,7 @@ class Watcher:
             for line in stat_lines(result, self.last if self.last and not self.last.error else None):
                 self.emit(line)
             self.last = result
+        self.latest = result
         return result
 
     def loop(self, interval: float, max_runs: int | None = None) -> int:
