@@ -7,6 +7,7 @@ What ``flowtex fit texture`` (flowtex/cli/fit_texture.py) runs for one recording
 from __future__ import annotations
 
 import csv
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -92,18 +93,27 @@ def fit_grid_index(index: Path, job: TextureJob) -> TextureFit:
     check_file_size(index, "grid index")
     try:
         with index.open(newline="", encoding="utf-8") as fh:
-            rows = list(csv.DictReader(fh))
+            reader = csv.DictReader(fh)
+            rows = [(reader.line_num, row) for row in reader]
     except OSError as exc:
         raise DataError(f"{index}: cannot read the grid index ({exc.strerror or exc})") from None
-    if not rows or not {"file", "speed", "force"} <= set(rows[0]):
+    except UnicodeDecodeError as exc:
+        raise DataError(f"{index}: not UTF-8 text at byte {exc.start}; a grid index is a CSV file") from None
+    except csv.Error as exc:  # a NUL byte, a quote left open
+        raise DataError(f"{index}: not a readable CSV file ({exc})") from None
+    if not rows or not {"file", "speed", "force"} <= set(rows[0][1]):
         raise DataError(f"{index}: a grid index needs a header row with columns file, speed, force and one row per recording")
     cells = []
     rate = None
-    for k, row in enumerate(rows, start=2):
+    for k, row in rows:
         try:
             s, f = float(row["speed"]), float(row["force"])
         except (TypeError, ValueError):
             raise DataError(f"{index}:{k}: speed and force must be numbers (mm/s, N)") from None
+        if not (math.isfinite(s) and math.isfinite(f) and s >= 0 and f >= 0):
+            raise DataError(f"{index}:{k}: speed {row['speed']} and force {row['force']} must be finite and >= 0 (mm/s, N)")
+        if not row["file"]:
+            raise DataError(f"{index}:{k}: no file named in the 'file' column")
         acc, _speed, _force, r = read_signals(index.parent / row["file"], job, need_speed=False)
         if rate is not None and r != rate:
             raise DataError(f"{index}:{k}: {row['file']} is at {r:g} Hz but the others are at {rate:g} Hz")

@@ -177,6 +177,20 @@ def test_grid_cells_at_one_point_say_what_was_dropped(tmp_path, capsys):
     assert "dropped: 1 cell(s) at (250 mm/s, 0.8 N), the point of a longer cell whose model was kept" in out, out
 
 
+@pytest.mark.parametrize("index, match", [
+    (b"file,speed,force\ncell.npz,nan,1\n", "index.csv:2: speed nan and force 1 must be finite and >= 0"),
+    (b"file,speed,force\ncell.npz,60,1\ncell.npz,-60,1\n", "index.csv:3: speed -60 and force 1 must be finite and >= 0"),
+    (b"file,speed,force\n,60,1\n", "index.csv:2: no file named in the 'file' column"),
+    (bytes(range(200, 256)) * 20, "index.csv: not UTF-8 text at byte 0; a grid index is a CSV file"),
+], ids=["nan", "negative", "no-file", "binary"])
+def test_a_broken_grid_index_is_one_line_at_its_row(tmp_path, capsys, index, match):
+    # a NaN or negative speed went on to "only one distinct (speed, force) point"; binary bytes were an internal error
+    save_recording(tmp_path / "cell.npz", {"accel": np.random.default_rng(0).standard_normal(2000)}, 1000.0)
+    (tmp_path / "index.csv").write_bytes(index)
+    cli_one_line(capsys, ["fit", "texture", "--grid", str(tmp_path / "index.csv"), "-o", str(tmp_path / "g.json")], match)
+    assert not (tmp_path / "g.json").exists()
+
+
 def test_bench_on_a_dead_scheduler_is_one_line(tmp_path, capsys):
     save_recording(tmp_path / "in.npz", {"x": np.zeros(10)}, rate=1000.0)
     (tmp_path / "g.yaml").write_text("flowtex: 1\nname: g\nrate: 1000\ninputs: {x: {}}\nnodes: {k: {type: gain, params: {k: 1}}}\n"
