@@ -205,3 +205,26 @@ def test_a_missing_or_broken_recording_is_said_before_the_graph_is_compiled(tmp_
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith(f"{tmp_path / name}: {message}"), err
     assert not (tmp_path / "out.npz").exists()
+
+
+def test_set_node_every_applies_what_a_bench_knob_found(write_graph, tmp_path, rec, capsys):
+    """`bench --knob lookup.every=1,4` sweeps the node key `every`; `run --set NODE.every=K` used to refuse it as an unknown
+    parameter, so a sweep's result could not be used without editing the file. It equals `every: K` written in the file."""
+    from flowtex.graph.spec import load_spec
+
+    graph = write_graph(GRAPH)
+    src = tmp_path / "in.npz"
+    save_recording(src, rec, rate=1000.0)
+    assert main(["run", str(graph), "-i", str(src), "-o", str(tmp_path / "set.npz"), "--set", "lp.every=4"]) == 0
+    every4 = write_graph(GRAPH.replace("{type: first_order_lowpass, params: {cutoff_hz: 30}}",
+                                       "{type: first_order_lowpass, params: {cutoff_hz: 30}, every: 4}"), "every4.yaml")
+    assert load_spec(every4).nodes["lp"].every == 4 == load_spec(graph, {"lp.every": 4}).nodes["lp"].every
+    assert main(["run", str(every4), "-i", str(src), "-o", str(tmp_path / "file.npz")]) == 0
+    a, b = load_recording(tmp_path / "set.npz").arrays, load_recording(tmp_path / "file.npz").arrays
+    assert np.array_equal(a["smooth"], b["smooth"])
+    assert np.array_equal(a["smooth"][1:4], np.repeat(a["smooth"][:1], 3, axis=0))  # held for 3 ticks after tick 0
+    assert not np.array_equal(a["smooth"][4], a["smooth"][0])                          # and run again at tick 4
+    capsys.readouterr()
+    assert main(["run", str(graph), "-i", str(src), "-o", str(tmp_path / "bad.npz"), "--set", "lp.every=0"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("--set lp.every: ") and "every must be a positive integer" in err[0], err

@@ -56,7 +56,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         sizes = " x ".join(f"{len(v)} ({k})" for k, v in knobs.items())
         raise FlowtexError(f"--knob: {sizes} = {count:,} configurations; bench runs at most {MAX_CONFIGURATIONS} "
                            "(docs/bench.md): give fewer values")
-    reference = dict(parse_override(r) for r in args.reference)
+    reference = dict(parse_override(r, "--reference") for r in args.reference)
     inputs = [args.graph, args.input]
     check_output(args.output, inputs=inputs, option="-o")
     check_output(args.plot, inputs=inputs + [args.output], option="--plot")

@@ -230,8 +230,9 @@ def _nodes(c: Collector, data: LocDict, inputs: dict[str, InputSpec]) -> dict[st
 
 
 def _apply_overrides(c: Collector, spec: GraphSpec, overrides: dict[str, Any]) -> None:
-    """Apply ``--set`` values: ``rate`` (the graph's base rate, Hz) or ``NODE.PARAM``; ``NODE.PARAM=null`` removes the file's
-    value, so that a parameter that excludes another (coulomb_friction's ``models`` and ``mu``) can be swapped from the command line."""
+    """Apply ``--set`` values: ``rate`` (the graph's base rate, Hz), ``NODE.every`` (the node's rate divider) or
+    ``NODE.PARAM``; ``NODE.PARAM=null`` removes the file's value, so that a parameter that excludes another
+    (coulomb_friction's ``models`` and ``mu``) can be swapped from the command line."""
     for key, value in overrides.items():
         where = Location(f"--set {key}")
         if key == "rate":
@@ -249,6 +250,11 @@ def _apply_overrides(c: Collector, spec: GraphSpec, overrides: dict[str, Any]) -
                 hint = " (did you mean " + " or ".join(f"'{n}.{param}'" for n in having) + "?)"
             c.error(where, f"no node {node!r} in the graph{hint}; nodes are: {', '.join(spec.nodes) or 'none'}")
             continue
+        if param == "every":  # the node's rate divider, a node key beside params (as bench's knob NODE.every)
+            every = check_value(c, 1 if value is None else value, where, NODE.keys["every"], name=node)
+            if every is not INVALID:
+                spec.nodes[node].every = every
+            continue
         if value is None:  # --set NODE.PARAM=null: as if the file did not give it (its default applies)
             spec.nodes[node].params.pop(param, None)
             spec.nodes[node].param_locs.pop(param, None)
@@ -257,12 +263,15 @@ def _apply_overrides(c: Collector, spec: GraphSpec, overrides: dict[str, Any]) -
         spec.nodes[node].param_locs[param] = where
 
 
-def parse_override(text: str) -> tuple[str, Any]:
-    """``"lookup.models=x.xml"`` -> ``("lookup.models", "x.xml")`` (value read as YAML); ``"rate=2000"`` -> ``("rate", 2000)``."""
+def parse_override(text: str, option: str = "--set") -> tuple[str, Any]:
+    """``"lookup.models=x.xml"`` -> ``("lookup.models", "x.xml")`` (value read as YAML); ``"rate=2000"`` -> ``("rate", 2000)``.
+
+    ``option`` names the command-line option the text came from in an error (``bench --reference`` takes the same form).
+    """
     key, sep, value = text.partition("=")
     if not sep or not key.strip():
-        raise GraphError([Diagnostic(Location(f"--set {text}"), "expected --set NODE.PARAM=VALUE or --set rate=HZ")])
-    return key.strip(), parse_value(value, f"--set {key.strip()}")
+        raise GraphError([Diagnostic(Location(f"{option} {text}"), f"expected {option} NODE.PARAM=VALUE or {option} rate=HZ")])
+    return key.strip(), parse_value(value, f"{option} {key.strip()}")
 
 
 def _endpoint(c: Collector, text: str, pos: tuple[int, int], side: str) -> Endpoint | None:

@@ -197,3 +197,7 @@ def test_compare_seeds_and_bench_knobs_are_bounded(tmp_path, capsys):
     assert msg.startswith("--knob")
     msg = cli_one_line(capsys, ["bench", str(tmp_path / "g.yaml"), "-i", str(tmp_path / "in.npz"), "--knob", "k.k=1,2,3,4,5,6,7,8",
                                 "--knob", "k.every=" + ",".join(str(v) for v in range(1, 41))], "8 (k.k) x 40 (k.every) = 320")
+    # a --reference without '=' was reported as a '--set' the command line never had
+    msg = cli_one_line(capsys, ["bench", str(tmp_path / "g.yaml"), "-i", str(tmp_path / "in.npz"), "--knob", "k.k=1,2",
+                                "--reference", "k.k"], "expected --reference NODE.PARAM=VALUE")
+    assert msg.startswith("--reference k.k: ")
