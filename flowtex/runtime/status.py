@@ -128,7 +128,14 @@ class StatusDisplay:
     :meth:`tick` after every executed tick: prints new watchdog events at once and the
     status line every ``every`` ticks, followed by the ``shown`` values (:func:`resolve_shown`);
     :meth:`finish` prints what is left and the end summary.
+
+    On a terminal the status line is rewritten in place (``\\r``). Anywhere else (a log file, a pipe to ``tee``,
+    CI) every line ends with a newline and the status line comes every :data:`LOG_EVERY` terminal refreshes, so a
+    session's log is lines a reader can grep rather than one line of carriage returns.
     """
+
+    LOG_EVERY = 10
+    """Status lines to a non-terminal: one per this many terminal refreshes (5 s at the default 0.5 s)."""
 
     def __init__(self, out: TextIO, io: CanIO, watchdog: Watchdog, stats: TickStats, every: int, shown: Sequence[Shown] = ()) -> None:
         self.out = out
@@ -136,7 +143,9 @@ class StatusDisplay:
         self.io = io
         self.watchdog = watchdog
         self.stats = stats
-        self.every = max(1, int(every))
+        self.tty = bool(getattr(out, "isatty", lambda: False)())
+        self.every = max(1, int(every)) * (1 if self.tty else self.LOG_EVERY)
+        self._cr = "\r" if self.tty else ""
         self._shown = 0
         self._line_len = 0
         self.extra: Callable[[], str] | None = None
@@ -151,7 +160,7 @@ class StatusDisplay:
             self.stats.timeouts = self.watchdog.stale_events
             line = self.line()
             self._line_len = len(line)
-            print("\r" + line, end="", file=self.out, flush=True)
+            print(self._cr + line, end="" if self.tty else "\n", file=self.out, flush=True)
 
     def line(self) -> str:
         """The status line: timing and counters, the outputs the guard limited so far, then the shown values."""
@@ -164,11 +173,12 @@ class StatusDisplay:
         """Print the watchdog events not shown yet on their own lines, over the status line."""
         wd = self.watchdog
         for tick, reason, detail in wd.log[self._shown:]:
-            print("\r" + describe_event(self.io, wd, tick, reason, detail).ljust(self._line_len), file=self.out, flush=True)
+            event = describe_event(self.io, wd, tick, reason, detail)
+            print(self._cr + (event.ljust(self._line_len) if self.tty else event), file=self.out, flush=True)
         self._shown = len(wd.log)
 
     def finish(self, rt_granted: bool) -> None:
         """The remaining events, a last status line and the end-of-run summary."""
         self._events()
-        print("\r" + self.line(), file=self.out)
+        print(self._cr + self.line(), file=self.out)
         print(self.stats.format_summary(rt_granted), file=self.out)

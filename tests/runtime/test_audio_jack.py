@@ -227,23 +227,54 @@ def _xruns(log: Path) -> int:
 
 
 def _compare_cycles(captured: np.ndarray, recorded: np.ndarray, period: int) -> tuple[int, int]:
-    """(cycles equal to the next recorded block, cycles that are not); after the recording ends the capture must be silent."""
+    """(cycles equal to the next recorded block, cycles that are not); after the recording ends the capture must be silent.
+
+    An XRun costs one bad cycle, whichever way it went: jackd dropped blocks (the next captured cycle is a later
+    recorded block), tore one (it matches nowhere, and the capture goes on at the next block), or played a cycle
+    flowtex did not hand over (it matches nowhere, and the capture goes on at the same block: a stale or silent
+    buffer). A cycle that matches nowhere therefore leaves the place in the recording where it is, and the next
+    cycle decides between the last two."""
     c0, off, skipped = _line_up(captured, recorded, period)
     i = c0
     pos = i + off
     good, bad = 0, skipped
+    unmatched = False  # the previous cycle matched nowhere (counted bad already)
     while i + period <= captured.size and pos + period <= recorded.size:
         block = captured[i:i + period]
         skip = next((j for j in range(0, 64) if np.array_equal(block, recorded[pos + j * period:pos + (j + 1) * period])), None)
-        if skip == 0:
-            good += 1
-        else:  # jackd dropped (skip > 0) or tore (None) a block
+        if skip is None:  # torn or inserted: counted once, the place in the recording kept
             bad += 1
-            pos += (skip or 0) * period
+            unmatched = True
+        else:
+            if skip == 0 or (unmatched and skip == 1):  # in step (after an inserted or a torn cycle, too)
+                good += 1
+            else:  # jackd dropped blocks
+                bad += 1
+            pos += (skip + 1) * period
+            unmatched = False
         i += period
-        pos += period
     assert not captured[i + period:].any(), "sound after flowtex's last recorded block"
     return good, bad
+
+
+def test_compare_cycles_counts_each_xrun_once():
+    # the comparison itself, on made-up captures: one XRun of each kind costs one bad cycle, not every later one
+    period = 4
+    rec = np.arange(1, 1 + 20 * period, dtype=np.float32)
+    blocks = [rec[k * period:(k + 1) * period] for k in range(20)]
+    silent = np.zeros(period, dtype=np.float32)
+    torn = np.concatenate([blocks[5][:2], silent[:2]])
+    cases = {
+        "clean": (blocks, (20, 0)),
+        "dropped two": (blocks[:5] + blocks[7:], (17, 1)),
+        "torn": (blocks[:5] + [torn] + blocks[6:], (19, 1)),
+        "silent cycle inserted": (blocks[:5] + [silent] + blocks[5:], (20, 1)),
+        "stale cycle inserted": (blocks[:5] + [blocks[4]] + blocks[5:], (20, 1)),
+        "torn then dropped": (blocks[:5] + [torn] + blocks[8:], (16, 2)),
+    }
+    for name, (captured, expected) in cases.items():
+        cap = np.concatenate([silent, *captured, silent, silent])
+        assert _compare_cycles(cap, rec, period) == expected, name
 
 
 def _line_up(captured: np.ndarray, recorded: np.ndarray, period: int) -> tuple[int, int, int]:

@@ -109,11 +109,16 @@ def test_sensor_dropout_trips_watchdog_and_sends_safe_values(setup):
     assert cur[-1] == 0.0
 
 
-def test_watchdog_events_get_their_own_named_line_beside_the_status_line(setup, caplog):
-    import io as _io
+class _Terminal(__import__("io").StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+@pytest.mark.parametrize("terminal", [True, False], ids=["terminal", "log"])
+def test_watchdog_events_get_their_own_named_line_beside_the_status_line(setup, caplog, terminal):
     import logging
 
-    out = _io.StringIO()
+    out = _Terminal() if terminal else __import__("io").StringIO()
     g = load_graph(setup / "g.yaml")
     with caplog.at_level(logging.WARNING, logger="flowtex.runtime.safety"):
         r = run_live(g, LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=1000, status=out,
@@ -124,8 +129,14 @@ def test_watchdog_events_get_their_own_named_line_beside_the_status_line(setup, 
              "outputs safe until every sensor has sent a fresh frame")
     lines = [chunk.strip() for chunk in text.replace("\r", "\n").split("\n")]
     assert event in lines  # a line of its own, not glued to the status line
-    assert f"\r{event}" in text and text.count("watchdog: tick") == 1
+    assert text.count("watchdog: tick") == 1
     assert not caplog.records  # printed once, not also logged
+    status = [line for line in text.split("\n") if "| missed " in line]
+    if terminal:  # over the status line, rewritten in place every 0.5 s: at tick 500 and at the end
+        assert f"\r{event}" in text and text.count("\r") == 3
+    else:  # a log: newline-terminated lines only, the status line every 5 s (none in this 1-s session) and the last
+        assert "\r" not in text and len(status) == 1 and status[0].startswith("tick      1000 |"), text
+        assert text.index(event) < text.index(status[0])
 
 
 def test_bus_that_cannot_be_opened(setup):
