@@ -49,7 +49,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     inputs = [args.surface, args.recording]
     check_output(args.json, inputs=inputs, option="--json")
-    check_report_folder(args.report, inputs)
+    check_report_folder(args.report, inputs, {"--json": args.json})
     if args.report is not None:
         from ..fit.compare_report import pyplot
 

@@ -73,8 +73,9 @@ def _job(args: argparse.Namespace) -> Any:
                       allow_misses=args.allow_misses)
 
 
-def check_report_folder(report: str | None, inputs: list) -> None:
-    """--report names a folder: refuse an existing file (or an input) before any work."""
+def check_report_folder(report: str | None, inputs: list, outputs: dict[str, Any] | None = None) -> None:
+    """--report names a folder: refuse an existing file (or an input), or the name of another output of the command
+    (``outputs``: option -> file), before any work."""
     from ..io.atomic import check_output
 
     if report is None:
@@ -82,6 +83,9 @@ def check_report_folder(report: str | None, inputs: list) -> None:
     path = Path(report).expanduser()
     if path.exists() and not path.is_dir():
         raise DataError(f"--report {report}: is a file; --report names a folder to write the report into")
+    for option, file in (outputs or {}).items():
+        if file is not None and Path(file).expanduser().absolute() == path.absolute():
+            raise DataError(f"--report {report}: {option} writes that file; give the report a folder of its own")
     check_output(path / "report.md", inputs=inputs, option="--report")
 
 
@@ -95,7 +99,7 @@ def _check_outputs(args: argparse.Namespace, inputs: list) -> None:
                         f"{args.output} for HaTT's XML")
     if args.xml is not None and Path(args.xml).suffix.lower() == ".json":
         raise DataError(f"--xml {args.xml}: --xml writes HaTT's XML; name it .xml (-o writes the JSON)")
-    check_report_folder(args.report, inputs)
+    check_report_folder(args.report, inputs, {"-o": args.output, "--xml": args.xml, "--holdout-json": args.holdout_json})
 
 
 def cmd_fit_texture(args: argparse.Namespace) -> int:

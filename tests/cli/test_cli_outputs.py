@@ -144,6 +144,21 @@ def test_fit_texture_xml_onto_a_folder_and_report_onto_a_file_fail_before_the_fi
     assert not out.exists() and (tmp_path / "report.txt").read_text() == "mine\n"
 
 
+@pytest.mark.parametrize("verb, option", [("fit", "-o"), ("fit", "--xml"), ("fit", "--holdout-json"), ("compare", "--json")])
+def test_a_report_folder_named_as_another_output_fails_before_the_work(files, capsys, tmp_path, verb, option):
+    # `fit texture -o s.json --report s.json` made a folder s.json, fitted, then failed writing -o: exit 2, folder left
+    same = tmp_path / ("s.xml" if option == "--xml" else "s.json")
+    if verb == "fit":
+        extra = ["--holdout", "0.3"] if option == "--holdout-json" else []
+        out = [] if option == "-o" else ["-o", tmp_path / "fit.json"]
+        argv = ["fit", "texture", files["rec"], "--speed", "speed", *extra, *out, option, same, "--report", same]
+    else:
+        argv = ["compare", files["models"], files["rec"], "--speed", "speed", option, same, "--report", same]
+    code, err = _run(capsys, argv)
+    assert code == 1 and err == [f"--report {same}: {option} writes that file; give the report a folder of its own"], err
+    assert not same.exists() and not (tmp_path / "fit.json").exists()
+
+
 def test_fit_friction_into_a_missing_model_set_fails_before_writing_o(files, capsys, tmp_path):
     rng = np.random.default_rng(1)
     n_force = rng.uniform(0.5, 2.0, 500)
