@@ -59,7 +59,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     reference = dict(parse_override(r, "--reference") for r in args.reference)
     inputs = [args.graph, args.input]
     check_output(args.output, inputs=inputs, option="-o")
-    check_output(args.plot, inputs=inputs + [args.output], option="--plot")
+    check_output(args.plot, inputs=inputs, option="--plot", others={"-o": args.output})
     if args.plot:
         need_matplotlib()
     rec = load_recording(args.input)

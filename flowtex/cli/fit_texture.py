@@ -93,7 +93,7 @@ def _check_outputs(args: argparse.Namespace, inputs: list) -> None:
     from ..io.atomic import check_output
 
     check_output(args.output, inputs=inputs, option="-o")
-    check_output(args.xml, inputs=inputs + [args.output], option="--xml")
+    check_output(args.xml, inputs=inputs, option="--xml", others={"-o": args.output})
     if args.output is not None and Path(args.output).suffix.lower() == ".xml":
         raise DataError(f"-o {args.output}: -o writes flowtex's JSON model set; name it .json and give --xml "
                         f"{args.output} for HaTT's XML")
@@ -148,7 +148,7 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
     _check_outputs(args, list(paths))
     from ..io.atomic import check_output
 
-    check_output(args.holdout_json, inputs=list(paths) + [args.output], option="--holdout-json")
+    check_output(args.holdout_json, inputs=list(paths), option="--holdout-json", others={"-o": args.output, "--xml": args.xml})
     held = None
     if args.holdout is not None or args.folds is not None:
         fit, held = _fit_holdout(paths[0], job, args)

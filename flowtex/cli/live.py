@@ -59,8 +59,8 @@ def check_live_outputs(args: argparse.Namespace, source: str, dbc: str | None, m
 
     inputs = [source, dbc, map_, args.simulate]
     check_output(args.stats, inputs=inputs, option="--stats")
-    check_output(args.record, inputs=inputs + [args.stats], option="--record")
-    check_output(getattr(args, "record_audio", None), inputs=inputs + [args.stats, args.record], option="--record-audio",
+    check_output(args.record, inputs=inputs, option="--record", others={"--stats": args.stats})
+    check_output(getattr(args, "record_audio", None), inputs=inputs, others={"--stats": args.stats, "--record": args.record}, option="--record-audio",
                  suffixes=(".wav",))
 
 

@@ -55,7 +55,7 @@ def cmd_scene_plan(args: argparse.Namespace) -> int:
     from ..scene.plan import explain, plan_json, silent_surfaces
 
     check_output(args.output, inputs=[args.scene], option="-o", suffixes=(".yaml", ".yml"))
-    check_output(args.json, inputs=[args.scene, args.output], option="--json", suffixes=(".json",))
+    check_output(args.json, inputs=[args.scene], option="--json", suffixes=(".json",), others={"-o": args.output})
     plan = plan_to_graph(args.scene, args.output, tuple(args.plugins))
     if args.json:
         write_text_atomic(Path(args.json), json.dumps(plan_json(plan), indent=2) + "\n")

@@ -52,7 +52,7 @@ def cmd_watch(args: argparse.Namespace) -> int:
     from .run import RECORDING_SUFFIXES
 
     check_output(args.output, inputs=[args.graph, args.input], option="-o", suffixes=RECORDING_SUFFIXES)
-    check_output(args.plot, inputs=[args.graph, args.input, args.output], option="--plot", suffixes=(".png",))
+    check_output(args.plot, inputs=[args.graph, args.input], option="--plot", suffixes=(".png",), others={"-o": args.output})
     watcher = Watcher(Path(args.graph), Path(args.input), Path(args.output) if args.output else None,
                       emit=_say_now, overrides=overrides(args.overrides), plugins=tuple(args.plugins),
                       auto_plugins=not args.no_plugins, tier=args.compile, plot=_png_writer(Path(args.plot)) if args.plot else None)

@@ -21,7 +21,7 @@ import os
 import shutil
 import stat
 import tempfile
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -45,11 +45,18 @@ def _same_file(a: Path, b: Path) -> bool:
         return False
 
 
+def _same_name(a: Path, b: Path) -> bool:
+    """The same file, or, for files not written yet, the same path once folders and links are resolved."""
+    return _same_file(a, b) or os.path.realpath(a) == os.path.realpath(b)
+
+
 def check_output(path: str | Path | None, *, inputs: Iterable[str | Path | None] = (), option: str = "-o",
-                 create_folders: bool = True, suffixes: tuple[str, ...] = ()) -> Path | None:
+                 create_folders: bool = True, suffixes: tuple[str, ...] = (),
+                 others: Mapping[str, str | Path | None] | None = None) -> Path | None:
     """Check an output path before any work starts; return it (expanded), or None when ``path`` is None.
 
-    Refuses (one line naming ``option`` and the file) an output that is the same file as one of ``inputs``, an
+    Refuses (one line naming ``option`` and the file) an output that is the same file as one of ``inputs`` or as
+    another output of the command (``others``: option -> path; files that do not exist yet compared by name), an
     existing folder given as a file, and a folder that does not exist and cannot be created or is not writable.
     Missing folders are created here, before the work, so no verb fails after its work is done. ``suffixes``
     (lower case, with the dot), when given, are the formats the verb can write.
@@ -61,6 +68,9 @@ def check_output(path: str | Path | None, *, inputs: Iterable[str | Path | None]
         if item is not None and _same_file(out, Path(item).expanduser()):
             raise OutputError(f"{option} {path}: that is an input of this command ({item}); "
                               "flowtex never overwrites an input: choose another output file")
+    for other, item in (others or {}).items():  # one output written over another would be lost without a word
+        if item is not None and _same_name(out, Path(item).expanduser()):
+            raise OutputError(f"{option} {path}: {other} writes that file too; give each output its own file")
     if suffixes and out.suffix.lower() not in suffixes and not (len(suffixes) == 1 and _is_special(out)):
         # -o /dev/null (no suffix) is accepted where one format is written; where the suffix picks it, it is refused
         raise OutputError(f"{option} {path}: unknown output format {out.suffix!r}; use {', '.join(suffixes)}")

@@ -159,6 +159,21 @@ def test_a_report_folder_named_as_another_output_fails_before_the_work(files, ca
     assert not same.exists() and not (tmp_path / "fit.json").exists()
 
 
+def test_two_outputs_of_one_command_on_one_file_fail_before_the_work(files, capsys, tmp_path):
+    # `fit texture -o s.json --holdout 0.3 --holdout-json s.json` wrote the surface, then the held-out figures over it,
+    # exit 0: the surface was lost. `bench -o t.png --plot t.png` drew the plot over the table. Files not yet written
+    # were compared by name only when they existed.
+    same = tmp_path / "sub" / ".." / "s.json"
+    code, err = _run(capsys, ["fit", "texture", files["rec"], "--speed", "speed", "--holdout", "0.3", "-o", tmp_path / "s.json",
+                              "--holdout-json", same])
+    assert code == 1 and err == [f"--holdout-json {same}: -o writes that file too; give each output its own file"], err
+    assert not (tmp_path / "s.json").exists()
+    code, err = _run(capsys, ["bench", files["graph"], "-i", files["rec"], "--knob", "k.k=1,2", "-o", tmp_path / "t.png",
+                              "--plot", tmp_path / "t.png"])
+    assert code == 1 and err == [f"--plot {tmp_path / 't.png'}: -o writes that file too; give each output its own file"], err
+    assert not (tmp_path / "t.png").exists()
+
+
 def test_fit_friction_into_a_missing_model_set_fails_before_writing_o(files, capsys, tmp_path):
     rng = np.random.default_rng(1)
     n_force = rng.uniform(0.5, 2.0, 500)
