@@ -79,3 +79,12 @@ def test_installed_package_lists_its_node_and_its_tests_pass(tmp_path):
                            timeout=STEP_TIMEOUT_S, env=_env(), cwd=pkg)
     assert tests.returncode == 0, tests.stdout[-3000:]
     assert "3 passed" in tests.stdout
+
+
+def test_new_refuses_a_built_in_name_naming_it_not_a_temporary_folder(tmp_path, capsys):
+    # `plugin new gain` failed in the golden run with "/tmp/.../.gain.xxxx/package/flowtex_gain/node.py: node type 'gain'
+    # is already defined by entry point flowtex.nodes": a file the user never had
+    assert main(["plugin", "new", "gain", "-o", str(tmp_path / "gain")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["plugin new: 'gain' is a built-in node type (flowtex nodes gain); choose another name, e.g. my_gain"], err
+    assert list(tmp_path.iterdir()) == []
