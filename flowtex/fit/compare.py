@@ -289,8 +289,32 @@ def compare_surface(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, f
     """
     opt = opt or CompareOptions()
     renders, opt = surface_renders(ms, accel, speed, force, rate, opt, where)
-    return compare_highpassed(highpassed(accel, rate, opt), [highpassed(r, rate, opt) for r in renders], rate, opt,
-                              ranges, where)
+    cmp = compare_highpassed(highpassed(accel, rate, opt), [highpassed(r, rate, opt) for r in renders], rate, opt,
+                             ranges, where)
+    cmp.warnings.extend(path_range_warnings(ms, speed, force))
+    return cmp
+
+
+OUT_OF_RANGE = 2.0
+"""A recorded path whose median speed or force in contact lies this many times outside the surface's measured models'
+range is rendered by extrapolation only (or is in other units: m/s or mN give a factor of 1000): a warning says so."""
+
+
+def path_range_warnings(ms: TextureModelSet, speed: np.ndarray, force: np.ndarray) -> list[str]:
+    """Warnings for a recorded path (speed mm/s, force N) whose median in contact is far outside the measured models' range."""
+    measured = ms.variance > 0
+    contact = force >= CONTACT_ON_N
+    if not measured.any() or not contact.any():
+        return []
+    out = []
+    for name, unit, values, points in (("speed", "mm/s", speed, ms.speeds), ("normal force", "N", force, ms.forces)):
+        lo, hi = float(np.min(points[measured])), float(np.max(points[measured]))
+        median = float(np.median(values[contact]))
+        if median < lo / OUT_OF_RANGE or median > hi * OUT_OF_RANGE:
+            out.append(f"the recorded {name} in contact (median {median:.3g} {unit}) is more than {OUT_OF_RANGE:g}x outside "
+                       f"the surface's measured {name}s ({lo:.3g}-{hi:.3g} {unit}): the render there is extrapolated; "
+                       f"is the signal in {unit}?")
+    return out
 
 
 def surface_renders(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, force: np.ndarray, rate: float,

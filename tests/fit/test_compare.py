@@ -168,3 +168,19 @@ def test_cli_compare_at_another_rate_suggests_a_command_that_runs(recordings, tm
     assert command.startswith("flowtex models resample ")
     assert main(command.split()[1:]) == 0, capsys.readouterr().err
     assert (tmp_path / "truth_2k.json").exists()
+
+
+def test_a_path_far_outside_the_surface_is_warned_about(recordings):
+    """A speed in m/s (or a force in mN) rendered the surface 1000x off its measured range: -30 dB, and no word why."""
+    a = recordings[0].arrays
+    ms = recordings[0].truth["surface"]
+    n = 12000
+    ok = compare_surface(ms, a["accel"][:n], a["speed"][:n], a["normal_force"][:n], RATE, CompareOptions(seeds=1))
+    assert not [w for w in ok.warnings if "outside the surface's measured" in w]
+    slow = compare_surface(ms, a["accel"][:n], a["speed"][:n] / 1000, a["normal_force"][:n], RATE, CompareOptions(seeds=1))
+    (w,) = [w for w in slow.warnings if "outside the surface's measured" in w]
+    lo, hi = ms.speeds[ms.variance > 0].min(), ms.speeds[ms.variance > 0].max()
+    assert w.startswith(f"the recorded speed in contact (median {np.median(a['speed'][:n]) / 1000:.3g} mm/s)")
+    assert f"({lo:.3g}-{hi:.3g} mm/s)" in w and w.endswith("is the signal in mm/s?")
+    heavy = compare_surface(ms, a["accel"][:n], a["speed"][:n], a["normal_force"][:n] * 1000, RATE, CompareOptions(seeds=1))
+    assert [w for w in heavy.warnings if w.startswith("the recorded normal force in contact")]
