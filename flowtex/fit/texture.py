@@ -163,7 +163,8 @@ def find_pieces(x: np.ndarray, speed: np.ndarray, force: np.ndarray, rate: float
         if not np.any(force >= opt.min_force):
             raise DataError(f"{where}: no contact anywhere (the force never reaches {opt.min_force:g} N); "
                             "check --force names the normal force in N")
-        why = "none is moving" if any_contact else "none is in contact long enough"
+        why = (f"none is moving: every piece's median speed is below {opt.min_speed:g} mm/s; check --speed is in mm/s"
+               if any_contact else "none is in contact long enough")
         if x.shape[0] < min_len + 2 * trim:
             raise DataError(f"{where}: recording too short ({x.shape[0] / rate:.2f} s): a piece needs {opt.min_piece_s:g} s "
                             f"of steady contact plus {opt.trim_s:g} s at each end; record longer")

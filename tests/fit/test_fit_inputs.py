@@ -46,3 +46,13 @@ def test_every_fit_names_a_missing_signal_and_what_the_file_has(kind, recording,
     args = [("nope" if a == "a" else a) for a in KINDS[kind]]
     assert main(["fit", kind, str(recording), *args, "-o", str(tmp_path / "out.json")]) == 1
     assert f"{recording}: no signal 'nope' (--accel); the file has: a, f, p, v" in capsys.readouterr().err
+
+
+def test_fit_texture_on_a_speed_in_m_per_s_says_to_check_the_unit(tmp_path, capsys):
+    """A speed in m/s (0.05 for 50 mm/s) fitted nothing with "none is moving", which does not point at the unit."""
+    path = tmp_path / "ms.npz"
+    save_recording(path, {"a": np.random.default_rng(0).standard_normal(N), "f": np.full(N, 1.0), "v": np.full(N, 0.05)},
+                   rate=1000.0)
+    assert main(["fit", "texture", str(path), *KINDS["texture"], "-o", str(tmp_path / "s.json")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "every piece's median speed is below 5 mm/s; check --speed is in mm/s" in err, err
