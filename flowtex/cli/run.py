@@ -69,9 +69,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.output and kind_of(args.output) == AUDIO:
         from ..runtime.offline import render_recording_audio
 
-        samples, rate = render_recording_audio(graph, args.input, args.output, args.map, seed=args.seed,
+        samples, rate, clipped = render_recording_audio(graph, args.input, args.output, args.map, seed=args.seed,
                                                progress=sys.stderr.isatty(), nonfinite=args.nonfinite, recording=recording)
         say(f"{graph.name}: {samples.shape[0]} frames x {samples.shape[1]} channel(s) at {rate:g} Hz -> {args.output}")
+        for line in clipped:
+            note(f"warning: {line}")
         return 0
     from ..runtime.offline import nonfinite_outputs, run_recording
 

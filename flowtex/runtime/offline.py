@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -11,6 +12,9 @@ from ..errors import DataError, FlowtexError
 from ..graph.compiled import Graph, apply_nonfinite_policy
 from ..io.formats import format_of
 from ..io.recordings import Recording, load_recording, save_recording
+
+if TYPE_CHECKING:
+    from ..io.audiomap import AudioMap
 
 TIME_COLUMN = "time"
 """A recording signal of this name (unless the graph has such an input) holds sample times in seconds."""
@@ -119,8 +123,9 @@ AUDIO_RATE_FACTOR = 8
 
 def render_recording_audio(graph: Graph, input_path: str | Path, output_path: str | Path, map_path: str | Path | None = None,
                            seed: int | None = None, progress: bool = True, nonfinite: str = "error",
-                           recording: Recording | None = None) -> tuple[np.ndarray, float]:
-    """Run ``graph`` over a recording and write its audio-rate output as a float32 WAV; returns (samples, rate).
+                           recording: Recording | None = None) -> tuple[np.ndarray, float, list[str]]:
+    """Run ``graph`` over a recording and write its audio-rate output as a float32 WAV; returns (samples, rate, warnings:
+    :func:`clip_warnings`).
 
     The channels, rate, scales and clips come from the ``audio`` section of ``map_path``
     (:mod:`flowtex.io.audiomap`); without a map every scalar output is one channel at
@@ -141,4 +146,19 @@ def render_recording_audio(graph: Graph, input_path: str | Path, output_path: st
     outputs = run_recording(graph, input_path, None, seed=seed, progress=progress, nonfinite=nonfinite, recording=recording)
     samples = render_outputs(outputs, amap, float(graph.rate))
     write_wav(output_path, samples, amap.rate)
-    return samples, amap.rate
+    return samples, amap.rate, clip_warnings(outputs, amap, float(graph.rate))
+
+
+def clip_warnings(outputs: dict[str, np.ndarray], amap: AudioMap, graph_rate: float) -> list[str]:
+    """One line per audio channel whose clip changed more than CLAMP_WARN_FRACTION of its samples (as live warns of
+    clamped CAN outputs): a signal louder than its clip is played distorted, which the WAV alone does not show."""
+    from .audio_render import clip_shares
+    from .status import CLAMP_WARN_FRACTION
+
+    out = []
+    for k, (channel, share) in enumerate(zip(amap.channels, clip_shares(outputs, amap, graph_rate), strict=True)):
+        if share > CLAMP_WARN_FRACTION:
+            out.append(f"audio channel {k} (output {channel.output!r}): {100 * share:.1f} % of the samples clipped to "
+                       f"[{channel.lo:g}, {channel.hi:g}]; lower its level (or give a map whose audio section sets scale "
+                       "and clip: docs/live.md)")
+    return out
