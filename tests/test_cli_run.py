@@ -189,7 +189,8 @@ def test_set_null_swaps_a_model_sets_friction_for_a_coefficient(tmp_path, capsys
 
 @pytest.mark.parametrize("verb", ["run", "scene"])
 def test_a_missing_or_broken_recording_is_said_before_the_graph_is_compiled(tmp_path, monkeypatch, capsys, verb):
-    """A typo in --input used to cost a whole numba compile (seconds idle, a minute under load) before one line said so."""
+    """A typo in --input, or a recording of other signals or at another rate, used to cost a whole numba compile
+    (seconds idle, a minute under load) before one line said so."""
     from flowtex.graph import compiled
 
     def no_compile(*args, **kwargs):
@@ -200,7 +201,11 @@ def test_a_missing_or_broken_recording_is_said_before_the_graph_is_compiled(tmp_
     graphs = REPO / "graphs"
     argv = (["run", str(graphs / "hatt_texture.yaml")] if verb == "run"
             else ["scene", "run", str(graphs / "scene_two_surfaces.yaml")])
-    for name, message in (("missing.npz", "recording not found"), ("cut.npz", "not a readable .npz recording")):
+    save_recording(tmp_path / "other.npz", {"accel": np.zeros(100)}, rate=1000.0)       # lacks the graph's inputs
+    save_recording(tmp_path / "fast.npz", {"position": np.zeros((100, 3)), "normal_force": np.zeros(100),
+                                           "normal": np.zeros((100, 3)), "surface": np.zeros(100)}, rate=2000.0)
+    for name, message in (("missing.npz", "recording not found"), ("cut.npz", "not a readable .npz recording"),
+                          ("other.npz", "lacks graph input(s) "), ("fast.npz", "recorded at 2000 Hz but graph ")):
         assert main([*argv, "--input", str(tmp_path / name), "-o", str(tmp_path / "out.npz")]) == 1
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith(f"{tmp_path / name}: {message}"), err

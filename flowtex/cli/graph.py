@@ -53,7 +53,7 @@ def report_plugins(graph_path: str | Path, args: argparse.Namespace) -> None:
 
 
 def load_graph_from_args(args: argparse.Namespace, path: str | Path | None = None, tier: str | None = None,
-                         before_compile: Callable[[], None] | None = None) -> Any:
+                         before_compile: Callable[[Any], None] | None = None) -> Any:
     """The compiled graph named by ``args.graph`` (or ``path``) with ``--set``, ``--plugins``, ``--no-plugins``,
     compiled by ``tier`` (default ``--compile``, if the verb has it; docs/engine.md); ``before_compile`` runs once
     the graph is checked (flowtex.graph.compiled.load_graph)."""

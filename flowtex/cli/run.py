@@ -47,10 +47,12 @@ def cmd_run(args: argparse.Namespace) -> int:
                  suffixes=(".npz", *suffixes(AUDIO), *REPLAY_SUFFIXES) if replay else (*RECORDING_SUFFIXES, *suffixes(AUDIO)))
     read: dict[str, Any] = {}
 
-    def read_recording() -> None:  # once the graph is checked, before its compile: a broken recording is said at once
-        from ..io.recordings import load_recording
+    def read_recording(resolved: Any) -> None:  # once the graph is checked, before its compile: a recording that is
+        from ..io.recordings import load_recording  # broken or does not fit the graph is said at once
+        from ..runtime.offline import check_recording_fits
 
-        read["recording"] = load_recording(args.input)
+        read["recording"] = rec = load_recording(args.input)
+        check_recording_fits(rec, resolved.spec.name, resolved.spec.rate, resolved.input_specs, args.input)
 
     graph = load_graph_from_args(args, before_compile=None if replay else read_recording)
     recording = read.get("recording")

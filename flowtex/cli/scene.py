@@ -72,7 +72,7 @@ def cmd_scene_plan(args: argparse.Namespace) -> int:
 def cmd_scene_run(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output
     from ..io.recordings import load_recording
-    from ..runtime.offline import run_recording
+    from ..runtime.offline import check_recording_fits, run_recording
     from ..scene.build import plan_to_graph
     from ..scene.plan import explain
 
@@ -82,8 +82,14 @@ def cmd_scene_run(args: argparse.Namespace) -> int:
         plan = plan_to_graph(args.scene, graph_path, tuple(args.plugins), fixed=args.surface, relative=False)
         if args.explain:
             say(explain(plan))
-        recording = load_recording(args.input)  # before the compile: a missing or broken recording is said at once
-        graph = load_graph_from_args(args, graph_path)
+        read: dict[str, Any] = {}
+
+        def read_recording(resolved: Any) -> None:  # before the compile: a recording that is broken or lacks a signal
+            read["recording"] = rec = load_recording(args.input)  # the planned graph reads is said at once
+            check_recording_fits(rec, resolved.spec.name, resolved.spec.rate, resolved.input_specs, args.input)
+
+        graph = load_graph_from_args(args, graph_path, before_compile=read_recording)
+        recording = read["recording"]
         outputs = run_recording(graph, args.input, args.output, seed=args.seed, progress=sys.stderr.isatty(), recording=recording)
     say(run_summary(graph, outputs, args.output))
     return 0

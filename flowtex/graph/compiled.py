@@ -339,10 +339,10 @@ def apply_nonfinite_policy(arrays: dict[str, np.ndarray], policy: str, source: s
 
 def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
                plugins: tuple[str | Path, ...] = (), block_rows: int = DEFAULT_BLOCK_ROWS, auto_plugins: bool = True,
-               tier: str | None = None, before_compile: Callable[[], None] | None = None) -> Graph:
+               tier: str | None = None, before_compile: Callable[[ResolvedGraph], None] | None = None) -> Graph:
     """Read, check and compile the graph file at ``path``.
 
-    ``before_compile`` runs once the graph is checked and before it is compiled: ``flowtex run`` reads its
+    ``before_compile`` is called with the checked graph before it is compiled: ``flowtex run`` reads and checks its
     recording there, so that a broken graph is said first and a broken recording before the compile's wait.
 
     ``tier`` is ``fused``, ``dispatch`` or ``auto`` (docs/engine.md; default
@@ -358,7 +358,7 @@ def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
     spec = load_spec(path, dict(overrides or {}))
     resolved = resolve_graph(spec, graph_registry(path, plugins, auto_plugins, spec.plugins))
     if before_compile is not None:
-        before_compile()
+        before_compile(resolved)
     graph = Graph(resolved, block_rows, tier)
     if graph.requested_tier == "auto" and graph.tier == "dispatch":
         compile_in_background(path, dict(overrides or {}), plugins, block_rows, auto_plugins)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -15,6 +16,7 @@ from ..io.recordings import Recording, load_recording, save_recording
 
 if TYPE_CHECKING:
     from ..io.audiomap import AudioMap
+    from ..node_api import PortSpec
 
 TIME_COLUMN = "time"
 """A recording signal of this name (unless the graph has such an input) holds sample times in seconds."""
@@ -22,7 +24,7 @@ RATE_TOLERANCE = 0.01
 """Relative difference between the rate a ``time`` column implies and the graph's rate that is refused."""
 
 
-def _check_time_column(time: np.ndarray, graph: Graph, input_path: str | Path) -> None:
+def _check_time_column(time: np.ndarray, name: str, graph_rate: float, input_path: str | Path) -> None:
     """Check the rate implied by a ``time`` column (seconds; median spacing) against the graph's rate."""
     if time.ndim != 1 or time.shape[0] < 2:
         return
@@ -31,9 +33,9 @@ def _check_time_column(time: np.ndarray, graph: Graph, input_path: str | Path) -
         raise DataError(f"{input_path}: column 'time' does not increase (median step {dt:g}); "
                         "flowtex reads one row per tick, so fix or drop the time column")
     rate = 1.0 / dt
-    if abs(rate - graph.rate) > RATE_TOLERANCE * graph.rate:
-        raise DataError(f"{input_path}: column 'time' is spaced {dt:g} s ({rate:g} Hz) but graph {graph.name!r} runs at "
-                        f"{graph.rate:g} Hz; resample the recording, set the graph's rate: {rate:g}, "
+    if abs(rate - graph_rate) > RATE_TOLERANCE * graph_rate:
+        raise DataError(f"{input_path}: column 'time' is spaced {dt:g} s ({rate:g} Hz) but graph {name!r} runs at "
+                        f"{graph_rate:g} Hz; resample the recording, set the graph's rate: {rate:g}, "
                         "or drop the time column if it is not in seconds")
 
 
@@ -68,6 +70,24 @@ def nonfinite_outputs(outputs: dict[str, np.ndarray]) -> list[str]:
     return lines
 
 
+def check_recording_fits(rec: Recording, name: str, graph_rate: float, inputs: Mapping[str, PortSpec],
+                         input_path: str | Path) -> None:
+    """Refuse a recording whose stated rate or time column is not graph ``name``'s rate (Hz), or that lacks one of its
+    ``inputs``: what needs no compiled graph, so the command line checks it before the compile (flowtex run)."""
+    if rec.rate is not None and abs(rec.rate - graph_rate) > 1e-9 * graph_rate:
+        raise DataError(f"{input_path}: recorded at {rec.rate:g} Hz but graph {name!r} runs at {graph_rate:g} Hz; "
+                        "resample the recording or change the graph's rate")
+    if TIME_COLUMN in rec.arrays and TIME_COLUMN not in inputs:
+        _check_time_column(rec.arrays[TIME_COLUMN], name, graph_rate, input_path)
+    missing = [n for n in inputs if n not in rec.arrays]
+    if missing:
+        have = ", ".join(rec.arrays) or "nothing"
+        hints = "".join(_vector_hint(n, inputs[n].shape, list(rec.arrays), Path(input_path)) for n in missing)
+        raise DataError(f"{input_path}: lacks graph input(s) {', '.join(missing)} (the file has: {have}){hints}")
+    if not inputs:
+        raise FlowtexError(f"graph {name!r} has no inputs; a recording cannot drive it")
+
+
 def run_recording(graph: Graph, input_path: str | Path, output_path: str | Path | None,
                   seed: int | None = None, progress: bool = True, nonfinite: str = "error",
                   nonfinite_out: str = "warn", recording: Recording | None = None) -> dict[str, np.ndarray]:
@@ -86,18 +106,7 @@ def run_recording(graph: Graph, input_path: str | Path, output_path: str | Path 
     if nonfinite_out not in OUTPUT_POLICIES:
         raise FlowtexError(f"unknown policy for non-finite outputs {nonfinite_out!r}; use one of {', '.join(OUTPUT_POLICIES)}")
     rec = recording if recording is not None else load_recording(input_path)
-    if rec.rate is not None and abs(rec.rate - graph.rate) > 1e-9 * graph.rate:
-        raise DataError(f"{input_path}: recorded at {rec.rate:g} Hz but graph {graph.name!r} runs at {graph.rate:g} Hz; "
-                        "resample the recording or change the graph's rate")
-    if TIME_COLUMN in rec.arrays and TIME_COLUMN not in graph.inputs:
-        _check_time_column(rec.arrays[TIME_COLUMN], graph, input_path)
-    missing = [n for n in graph.inputs if n not in rec.arrays]
-    if missing:
-        have = ", ".join(rec.arrays) or "nothing"
-        hints = "".join(_vector_hint(n, graph.inputs[n].shape, list(rec.arrays), Path(input_path)) for n in missing)
-        raise DataError(f"{input_path}: lacks graph input(s) {', '.join(missing)} (the file has: {have}){hints}")
-    if not graph.inputs:
-        raise FlowtexError(f"graph {graph.name!r} has no inputs; a recording cannot drive it")
+    check_recording_fits(rec, graph.name, graph.rate, graph.inputs, input_path)
     arrays = {n: rec.arrays[n] for n in graph.inputs}
     try:
         graph.check_inputs(arrays)
