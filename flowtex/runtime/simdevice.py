@@ -104,10 +104,10 @@ class SimulatedDevice:
         sources: dict[str, list[Any]] = {}
         for b in canmap.inputs.values():
             if b.name not in arrays:
-                raise DataError(f"recording has no signal {b.name!r} for sensor input {b.name!r} (it has: {', '.join(arrays)})")
+                raise DataError(f"{source}: no signal {b.name!r} for sensor input {b.name!r} (it has: {', '.join(arrays)})")
             a = np.asarray(arrays[b.name], dtype=np.float64)
             if a.ndim == 0 or int(np.prod(a.shape[1:])) != b.width:
-                raise DataError(f"recording signal {b.name!r} has shape {a.shape}; the map binds {b.width} signal(s) per sample")
+                raise DataError(f"{source}: signal {b.name!r} has shape {a.shape}; the map binds {b.width} signal(s) per sample")
             columns.append(a.reshape(a.shape[0], b.width))
             for j, (m, s) in enumerate(b.signals):
                 c = codecs[m]

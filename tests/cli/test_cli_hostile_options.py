@@ -232,3 +232,12 @@ def test_scene_plan_warns_when_a_surface_keeps_nothing(tmp_path, capsys):
     err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning:")]
     assert len(err) == 1 and "surface 'glass' renders nothing" in err[0], err
     assert "threshold 1000" in err[0] and "threshold 5" in err[0], err
+
+
+def test_simulating_a_recording_without_a_sensor_signal_names_the_file(tmp_path, capsys):
+    # "recording has no signal 'position' ..." did not say which of the command's files it meant
+    save_recording(tmp_path / "accel_only.npz", {"accel": np.zeros(100), "speed": np.zeros(100)}, rate=1000.0)
+    msg = cli_one_line(capsys, ["live", str(REPO / "graphs" / "live_texture.yaml"), "--bus", "virtual", "--dbc", str(DBC),
+                                "--map", str(MAP), "--simulate", str(tmp_path / "accel_only.npz"), "--duration", "0.2"],
+                       "no signal 'position' for sensor input 'position' (it has: accel, speed)")
+    assert msg.startswith(f"{tmp_path / 'accel_only.npz'}: ")
