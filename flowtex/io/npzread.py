@@ -76,7 +76,8 @@ def _member(zf: zipfile.ZipFile, info: zipfile.ZipInfo, path: Path, name: str, t
             raise DataError(f"{where}: its header claims shape {excerpt(shape)}; an array's dimensions are counts (>= 0): "
                             "the file is damaged")
         count = math.prod(shape)
-        check_values(path, total + count, f"entry {excerpt(name)} (shape {excerpt(shape)})")
+        check_values(path, total + count, f"entry {excerpt(name)} (shape {excerpt(shape)})"
+                     + (", with the entries before it," if total else ""))
         need = count * dtype.itemsize
         held = info.file_size - fh.tell()
         if need > held:

@@ -241,19 +241,21 @@ def _load_h5(path: Path) -> Recording:
             arrays = {}
             units = {}
             total = 0
-            for name, item in fh.items():
-                if isinstance(item, h5py.Dataset):
-                    if item.ndim == 0:
-                        raise DataError(f"{path}: dataset {excerpt(name)} is a single number; signals need time on the first axis")
-                    if item.dtype.kind not in "biufc":
-                        raise DataError(f"{path}: dataset {excerpt(name)} holds {str(item.dtype)[:40]} values, not numbers; "
-                                        "store text (names, units) as attributes")
-                    total += int(item.size)
-                    check_values(path, total, f"dataset {excerpt(name)} (shape {item.shape})")
-                    arrays[name] = numeric_signal(item[()], path, name)
-                    if "unit" in item.attrs:
-                        unit = item.attrs["unit"]
-                        units[name] = unit.decode(errors="replace") if isinstance(unit, bytes) else str(unit)
+            datasets = [(name, item) for name, item in fh.items() if isinstance(item, h5py.Dataset)]
+            for name, item in datasets:  # every dataset's header first: nothing is read from a file that is too large
+                if item.ndim == 0:
+                    raise DataError(f"{path}: dataset {excerpt(name)} is a single number; signals need time on the first axis")
+                if item.dtype.kind not in "biufc":
+                    raise DataError(f"{path}: dataset {excerpt(name)} holds {str(item.dtype)[:40]} values, not numbers; "
+                                    "store text (names, units) as attributes")
+                check_values(path, total + int(item.size), f"dataset {excerpt(name)} (shape {item.shape})"
+                             + (", with the datasets before it," if total else ""))
+                total += int(item.size)
+            for name, item in datasets:
+                arrays[name] = numeric_signal(item[()], path, name)
+                if "unit" in item.attrs:
+                    unit = item.attrs["unit"]
+                    units[name] = unit.decode(errors="replace") if isinstance(unit, bytes) else str(unit)
     except DataError:
         raise
     except (OSError, KeyError, RuntimeError, ValueError, TypeError) as exc:  # h5py reports damaged files in all of these

@@ -349,6 +349,19 @@ def test_csv_and_h5_stop_at_the_value_limit(tmp_path, monkeypatch):
     with h5py.File(path, "w") as fh:
         fh.create_dataset("a", data=np.zeros((400, 3)))
     refused(lambda: load_recording(path), "dataset 'a' (shape (400, 3)) holds 1,200 numbers")
+    # two datasets within the limit each, over it together: the message counted the total as the second's own, and the
+    # first was read (allocated) before the second's header was looked at
+    path = tmp_path / "two.h5"
+    with h5py.File(path, "w") as fh:
+        fh.create_dataset("a", data=np.zeros(600))
+        fh.create_dataset("b", data=np.zeros(600))
+    read = []
+    monkeypatch.setattr(recordings, "numeric_signal", lambda arr, *a: read.append(arr) or arr)
+    refused(lambda: load_recording(path), "dataset 'b' (shape (600,)), with the datasets before it, holds 1,200 numbers")
+    assert read == []
+    np.savez(tmp_path / "two.npz", a=np.zeros(600), b=np.zeros(600))
+    refused(lambda: load_recording(tmp_path / "two.npz"), "entry 'b' (shape (600,)), with the entries before it, holds 1,200 "
+                                                          "numbers")
 
 
 def test_oversized_text_files_are_refused_before_reading(tmp_path, capsys):
