@@ -187,6 +187,28 @@ def test_set_null_swaps_a_model_sets_friction_for_a_coefficient(tmp_path, capsys
     assert np.allclose(friction, 0.3 * 2.0)  # 150 mm/s > 0.3/0.004 = 75 mm/s: Coulomb, mu F_n
 
 
+def test_a_replay_of_a_missing_log_or_without_its_device_files_is_said_before_the_compile(tmp_path, monkeypatch, capsys):
+    """Replaying a CAN session: a missing log, DBC or map cost a compile (25 s with an empty cache) before one line."""
+    from flowtex.graph import compiled
+
+    def no_compile(*args, **kwargs):
+        raise AssertionError("the graph was compiled before the session's files were read")
+
+    monkeypatch.setattr(compiled.Graph, "__init__", no_compile)
+    devices = REPO / "graphs" / "devices"
+    argv = ["run", str(REPO / "graphs" / "live_texture.yaml"), "-o", str(tmp_path / "out.npz")]
+    (tmp_path / "cut.blf").write_bytes(b"LOGG" + bytes(60))
+    for extra, message in (
+            (["--input", str(tmp_path / "missing.blf"), "--dbc", str(devices / "example.dbc"), "--map",
+              str(devices / "example_map.yaml")], f"{tmp_path / 'missing.blf'}: CAN log not found"),
+            (["--input", str(tmp_path / "cut.blf")], f"{tmp_path / 'cut.blf'}: replaying a CAN session needs --dbc"),
+            (["--input", str(tmp_path / "cut.blf"), "--dbc", str(devices / "example.dbc"), "--map",
+              str(devices / "example_map.yaml")], f"{tmp_path / 'cut.blf'}: ")):
+        assert main([*argv, *extra]) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(message), err
+
+
 @pytest.mark.parametrize("verb", ["run", "scene"])
 def test_a_missing_or_broken_recording_is_said_before_the_graph_is_compiled(tmp_path, monkeypatch, capsys, verb):
     """A typo in --input, or a recording of other signals or at another rate, used to cost a whole numba compile

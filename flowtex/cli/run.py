@@ -54,11 +54,18 @@ def cmd_run(args: argparse.Namespace) -> int:
         read["recording"] = rec = load_recording(args.input)
         check_recording_fits(rec, resolved.spec.name, resolved.spec.rate, resolved.input_specs, args.input)
 
-    graph = load_graph_from_args(args, before_compile=None if replay else read_recording)
-    recording = read.get("recording")
-    if replay:
+    def check_replay_files(_resolved: Any) -> None:  # the same, for a replay: the log and the device files it needs
+        from ..filecheck import DEVICE_MAP, check_file
+        from ..io.canlog import read_session_checked
+
         if not (args.dbc and args.map):
             raise FlowtexError(f"{args.input}: replaying a CAN session needs --dbc DEVICE.dbc and --map MAP.yaml")
+        read_session_checked(args.input)
+        check_file(args.map, DEVICE_MAP, args.dbc)  # the DBC too
+
+    graph = load_graph_from_args(args, before_compile=check_replay_files if replay else read_recording)
+    recording = read.get("recording")
+    if replay:
         from ..runtime.replay import replay_session
 
         report = replay_session(graph, args.input, args.dbc, args.map, args.output, seed=args.seed,
