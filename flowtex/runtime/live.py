@@ -71,7 +71,7 @@ class LiveReport:
     watchdog_events: int
     guard_events: int
     exit_reason: str
-    """``duration``, ``SIGINT``, ``SIGTERM`` or ``error``."""
+    """``duration``, ``SIGINT``, ``SIGTERM``, ``SIGHUP`` or ``error``."""
     error: str | None = None
     summary: dict = field(default_factory=dict)
     rt_message: str = ""
@@ -315,9 +315,15 @@ def _enter_rt(rt: bool, priority: int, cpu: int | None, status: TextIO | None) -
     return rt_status, message
 
 
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+"""Signals that end a running session cleanly: safe values last, exit code 0 (SIGHUP does not exist on Windows)."""
+
+
 @contextlib.contextmanager
 def _stop_signals(flag: list[str | None], install: bool) -> Iterator[None]:
-    """SIGINT/SIGTERM set ``flag[0]`` instead of interrupting the loop (main thread only)."""
+    """SIGINT, SIGTERM and SIGHUP set ``flag[0]`` instead of interrupting the loop (main thread only).
+
+    SIGHUP (the terminal or ssh session closed) would otherwise end the process at once, without the safe values."""
     if not install or threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -325,7 +331,7 @@ def _stop_signals(flag: list[str | None], install: bool) -> Iterator[None]:
     def handler(signum: int, frame: Any) -> None:
         flag[0] = signal.Signals(signum).name
 
-    old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    old = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
     try:
         yield
     finally:
