@@ -166,9 +166,14 @@ def atomic_output(path: str | Path, *, keep_mode: bool = False) -> Iterator[Path
 
 
 def write_bytes_atomic(path: str | Path, data: bytes, *, keep_mode: bool = False) -> Path:
-    """Write ``data`` to ``path`` through :func:`atomic_output`."""
-    with atomic_output(path, keep_mode=keep_mode) as tmp:
-        tmp.write_bytes(data)
+    """Write ``data`` to ``path`` through :func:`atomic_output`; a write the system refuses (a full disk) is an
+    :class:`OutputError` naming ``path``, with the older file left as it was."""
+    try:
+        with atomic_output(path, keep_mode=keep_mode) as tmp:
+            tmp.write_bytes(data)
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot write it ({exc.strerror or exc}); an older file of that name is left as it "
+                          "was") from None
     return Path(path).expanduser()
 
 

@@ -41,7 +41,7 @@ import numpy as np
 
 from ..errors import FlowtexError
 from ..graph.program import TickProgram
-from ..io.canlog import SessionWriter
+from ..io.canlog import RecordError, SessionWriter
 from ..io.dbc import one_line
 from .audio import AudioOutput, prompt_callbacks
 from .audio_timeline import check_event_ids
@@ -127,14 +127,17 @@ def run_live(graph: TickProgram, config: LiveConfig) -> LiveReport:
         bus_obj = open_bus(bus, config.bitrate)
     writer = None
     try:
-        writer = SessionWriter(record) if record is not None else None
+        writer = SessionWriter(record, "--record") if record is not None else None
         where = "the simulated device's virtual bus" if device is not None else f"bus {bus!r}"
         return _loop(graph, io, bus_obj, device, writer, n_ticks, config, stats_path, where, shown, audio)
+    except BaseException:
+        if writer is not None:  # the loop never ran or did not end (an interrupt during the compile): no log replaces the old
+            with contextlib.suppress(RecordError):
+                writer.close(keep=False)
+        raise
     finally:
         if audio is not None:
             audio.close()
-        if writer is not None:
-            writer.close()
         for b in (bus_obj, dev_bus):
             if b is not None:
                 with contextlib.suppress(Exception):
@@ -210,6 +213,8 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
                     if audio is not None:
                         for m in audio.take_events():
                             writer.write(m, False)
+                    if writer.error is not None:  # a full disk: the log would miss this session's rest, so it ends here
+                        raise RecordError(writer.error)
                 rx.clear()
                 k += 1
                 if device is not None:
@@ -247,6 +252,12 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
                 device.collect(k)
             if rt_status is not None:
                 leave_realtime(rt_status)
+    if writer is not None:  # renamed into place now that the exit block is in; a failed write discards it
+        try:
+            writer.close()
+        except RecordError as exc:
+            if error is None or str(exc) not in error:
+                error = f"{error}; {exc}" if error else str(exc)
     safe_sent = safe_error is None or not safe_error.startswith(SAFE_NOT_SENT)
     if safe_error:
         error = f"{error}; {safe_error}" if error else safe_error
@@ -258,7 +269,10 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
         display.finish(rt_granted)
     audio_summary = audio.summary() if audio is not None else None
     if stats_path is not None:
-        stats.write_json(stats_path, rt_granted, extra={"audio": audio_summary} if audio_summary is not None else None)
+        try:
+            stats.write_json(stats_path, rt_granted, extra={"audio": audio_summary} if audio_summary is not None else None)
+        except FlowtexError as exc:  # a full disk: the session is over and its safe values went out; say so in the line
+            error = f"{error}; --stats {one_line(exc)}" if error else f"--stats {one_line(exc)}"
     silent, silence = _silent_sensors(io, watchdog.last, k, stats.frames_in, where)
     return LiveReport(ticks=k, frames_in=stats.frames_in, frames_out=stats.frames_out, watchdog_events=watchdog.events,
                       guard_events=guard_events, exit_reason="error" if error else (stop[0] or "duration"), error=error,
