@@ -90,7 +90,8 @@ class TableDecoder:
     message is decoded (the watchdog's ``last`` array). Every codec must pass
     :func:`fast_ok`. Per tick: the caller stores each received payload's
     ``int.from_bytes(data, 'little', signed=True)`` in ``words[slot]`` (``slot_of``:
-    frame id -> slot, ``lengths[slot]``: the payload length required), ORs ``1 << slot``
+    frame id -> slot, ``lengths[slot]``: the payload length required, ``extended[slot]``: the
+    frame format required), ORs ``1 << slot``
     into a mask and calls :meth:`run`.
     """
 
@@ -102,11 +103,14 @@ class TableDecoder:
         marks: list[tuple[int, int]] = []
         self.slot_of: dict[int, int] = {}
         self.lengths: list[int] = []
+        self.extended: list[bool] = []
+        """Per slot: the message is an extended (29-bit) frame; a frame of the other format with its number is another message."""
         for slot, (codec, targets, wd) in enumerate(entries):
             if not fast_ok(codec):
                 raise ValueError(f"TableDecoder: message {codec.name!r} needs the Python codec")
             self.slot_of[codec.frame_id] = slot
             self.lengths.append(codec.length)
+            self.extended.append(bool(codec.is_extended))
             for s, t in zip(codec.layouts, targets, strict=True):
                 if t is not None:
                     i, f = _row(s, slot, int(t[0]), t[1], t[2])

@@ -113,14 +113,15 @@ class CanIO:
                     wd_timeouts.append(max(1, math.ceil(b.timeout_ms * rate_hz / 1000.0 - 1e-9)))
         self.watchdog_keys = wd_keys
         self.timeouts_ticks = np.array(wd_timeouts, dtype=np.int64)
-        self.decoders: dict[int, tuple[Callable[[Any], bool], tuple[int, ...]]] = {}
+        self.decoders: dict[int, tuple[Callable[[Any], bool], tuple[int, ...], bool]] = {}
+        """Frame id -> (Python decoder, watchdog entries it stamps, whether the message is an extended frame)."""
         fast_in = []
         for m, targets in per_msg.items():
             c = codecs[m]
             if c.frame_id in self.decoders:
                 raise DataError(f"two sensor messages share frame id {c.frame_id:#x}")
             entries = tuple(i for i, (_, mm) in enumerate(wd_keys) if mm == m)
-            self.decoders[c.frame_id] = (c.decoder(targets), entries)
+            self.decoders[c.frame_id] = (c.decoder(targets), entries, bool(c.is_extended))
             if fast_ok(c) and len(fast_in) < 62:
                 fast_in.append((c, per_msg_idx[m], entries))
         table_decoder = TableDecoder(fast_in) if fast_in else None
@@ -227,9 +228,10 @@ class CanIO:
         return Watchdog(self.timeouts_ticks, overrun_limit_ns, emit_log=emit_log)
 
     def decode(self, msg: can.Message, tick: int, watchdog: Watchdog) -> bool:
-        """Decode one received frame into the graph inputs; True if it was a mapped sensor frame."""
+        """Decode one received frame into the graph inputs; True if it was a mapped sensor frame (its ID in its frame
+        format: an extended frame with a standard message's number is another message, and the reverse)."""
         entry = self.decoders.get(msg.arbitration_id)
-        if entry is None or not entry[0](msg.data):
+        if entry is None or msg.is_extended_id != entry[2] or not entry[0](msg.data):
             return False
         for w in entry[1]:
             watchdog.fresh(w, tick)

@@ -1,0 +1,107 @@
+"""Live safety against hostile frames on the bus: frames that carry a sensor message's ID number but are not that message.
+
+A DBC message is a frame ID *in a frame format*: a standard (11-bit) and an extended (29-bit) ID of the same number
+are different messages on the bus. A frame of the other format must not reach the graph's inputs or stamp the input
+watchdog: a stopped sensor would otherwise stay "fresh" while another node sends frames of the other format. (A remote
+frame, which requests a message without carrying it, has no data in python-can, whatever its DLC, so it never
+decodes; the flood below sends those too.)
+"""
+
+from __future__ import annotations
+
+import threading
+
+import can
+import cantools
+import numpy as np
+from test_live import DBC, setup  # noqa: F401  (fixture; rootdir-relative import as pytest does)
+
+from flowtex.graph.compiled import load_graph
+from flowtex.runtime.live import LiveConfig, load_io, run_live
+from flowtex.runtime.tick import rx_decoder
+
+DB = cantools.database.load_file(DBC)
+FORCE = DB.get_message_by_name("ToolForce")
+BIG = bytes(FORCE.encode({"NormalForce": 60, "SurfNormalX": 0, "SurfNormalY": 0, "SurfNormalZ": 0}))
+"""A ToolForce payload of 60 N: vibration = 0.25 * 60 = 15 A, far outside the map's clamp [-1, 1]."""
+
+
+def _impostors() -> list[can.Message]:
+    """Frames with ToolForce's ID number (0x101) and length that are not ToolForce frames."""
+    return [can.Message(arbitration_id=FORCE.frame_id, is_extended_id=True, data=BIG),
+            can.Message(arbitration_id=FORCE.frame_id, is_extended_id=False, is_remote_frame=True, dlc=8, data=BIG)]
+
+
+def test_an_extended_frame_with_a_standard_sensor_id_is_not_that_sensor(setup):  # noqa: F811
+    """The live decoder (compiled slots and the Python codecs) and the replay's decoder do not take it."""
+    g = load_graph(setup / "g.yaml", block_rows=1)
+    msg = _impostors()[0]
+    io = load_io(g, DBC, setup / "m.yaml")
+    wd = io.new_watchdog(2_000_000)
+    before = wd.last.copy()
+    words = np.zeros_like(io.codec.decoder.words)
+    assert rx_decoder(io, wd)([msg], 7, words) == 0  # no compiled slot marked
+    assert not io.decode(msg, 7, wd)  # the Python codec (the replay's, and the live one for other lengths)
+    np.testing.assert_array_equal(wd.last, before)
+    # the real frame is taken, so the refusal above is not an accident of the payload
+    real = can.Message(arbitration_id=FORCE.frame_id, is_extended_id=False, data=BIG)
+    assert rx_decoder(io, wd)([real], 7, words) != 0
+    assert io.decode(real, 8, wd)
+
+
+def test_a_frame_that_decodes_nothing_leaves_the_ticks_real_frame_be(setup):  # noqa: F811
+    """A remote frame (a request for ToolForce, no data) or a short frame after the tick's real ToolForce frame: the
+    real one still counts, as in the replay, which decodes frame by frame. Before, the later frame cleared the real
+    one's slot: the sensor looked stale (outputs safe) whenever another node requested its message."""
+    g = load_graph(setup / "g.yaml", block_rows=1)
+    io = load_io(g, DBC, setup / "m.yaml")
+    wd = io.new_watchdog(2_000_000)
+    real = can.Message(arbitration_id=FORCE.frame_id, is_extended_id=False, data=BIG)
+    short = can.Message(arbitration_id=FORCE.frame_id, is_extended_id=False, data=BIG[:3])
+    j = io.codec.decoder.slot_of[FORCE.frame_id]
+    words = np.zeros_like(io.codec.decoder.words)
+    for later in (_impostors()[1], short):
+        assert rx_decoder(io, wd)([real, later], 7, words) == 1 << j
+        assert io.decode(real, 7, wd) and not io.decode(later, 7, wd)  # the replay's view of the same two frames
+
+
+def test_a_stopped_sensor_trips_the_watchdog_whatever_impostors_say(setup):  # noqa: F811
+    """End to end: ToolForce stops at tick 300 while another client floods the bus with extended and remote 0x101
+    frames; the watchdog trips and every actuator frame after it (read by a second python-can client) is safe.
+    Before, the impostors kept the sensor 'fresh' and drove the output to its clamp (15 A wanted, 1 A sent)."""
+    channel = "livesafe-impostors"
+    listener = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+    injector = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+    stop = threading.Event()
+
+    def flood() -> None:
+        while not stop.is_set():
+            for m in _impostors():
+                injector.send(m)
+            stop.wait(0.0005)
+
+    thread = threading.Thread(target=flood, daemon=True)
+    thread.start()
+    try:
+        r = run_live(load_graph(setup / "g.yaml"), LiveConfig(DBC, setup / "m.yaml", bus=f"virtual:{channel}",
+                                                              simulate=setup / "rec.npz", max_ticks=1000, status=None,
+                                                              drop={"ToolForce": (300, None)}))
+    finally:
+        stop.set()
+        thread.join()
+        injector.shutdown()
+    try:
+        sent = []
+        msg = listener.recv(0)
+        while msg is not None:
+            if msg.arbitration_id == 0x200 and not msg.is_extended_id and not msg.is_remote_frame:
+                sent.append(DB.decode_message(0x200, msg.data)["Current"])
+            msg = listener.recv(0)
+    finally:
+        listener.shutdown()
+    assert r.error is None and r.ticks == 1000 and r.watchdog_events == 1
+    assert r.summary["clamped"]["vibration"] == 0  # no 60 N impostor ever reached the graph
+    assert len(sent) == 1001  # 1000 ticks and the exit block
+    # the last ToolForce frame is tick 299's; with timeout_ms 5 at 1 kHz tick 305 is the first stale one
+    assert min(sent[:305]) > 0.4  # live values (0.25 * 2..4 N) until then, never an impostor's
+    assert sent[305:] == [0.0] * (1001 - 305)  # then safe values to the end
