@@ -45,7 +45,7 @@ from ..io.canlog import RecordError, SessionWriter
 from ..io.dbc import one_line
 from .audio import AudioOutput, prompt_callbacks
 from .audio_timeline import check_event_ids
-from .buses import BusError, open_bus, receiver, sender
+from .buses import SEND_TIMEOUT_S, BusError, open_bus, receiver, sender
 from .canio import CanIO, load_io, tick_out
 from .clock import DeadlineClock
 from .fused import fuse_tick
@@ -364,7 +364,7 @@ def _send_safe(io: CanIO, bus: can.BusABC, writer: SessionWriter | None) -> str 
     reason = ""
     for m in io.tx:
         try:
-            bus.send(m)
+            bus.send(m, SEND_TIMEOUT_S)
         except Exception as exc:  # keep trying the other messages
             failed.append(f"{m.arbitration_id:#x}")
             reason = one_line(exc)

@@ -9,18 +9,24 @@ decodes; the flood below sends those too.)
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import threading
+import tty
 
 import can
 import cantools
 import numpy as np
-from test_live import DBC, setup  # noqa: F401  (fixture; rootdir-relative import as pytest does)
+from test_live import DBC, REPO, setup  # noqa: F401  (fixture; rootdir-relative import as pytest does)
 
 from flowtex.graph.compiled import load_graph
 from flowtex.runtime.live import LiveConfig, load_io, run_live
 from flowtex.runtime.tick import rx_decoder
 
 DB = cantools.database.load_file(DBC)
+ENV = {**os.environ, "PYTHONPATH": str(REPO), "PYTHONUNBUFFERED": "1"}
+"""Subprocesses run the flowtex under test, whatever the folder they start in."""
 FORCE = DB.get_message_by_name("ToolForce")
 BIG = bytes(FORCE.encode({"NormalForce": 60, "SurfNormalX": 0, "SurfNormalY": 0, "SurfNormalZ": 0}))
 """A ToolForce payload of 60 N: vibration = 0.25 * 60 = 15 A, far outside the map's clamp [-1, 1]."""
@@ -105,3 +111,23 @@ def test_a_stopped_sensor_trips_the_watchdog_whatever_impostors_say(setup):  # n
     # the last ToolForce frame is tick 299's; with timeout_ms 5 at 1 kHz tick 305 is the first stale one
     assert min(sent[:305]) > 0.4  # live values (0.25 * 2..4 N) until then, never an impostor's
     assert sent[305:] == [0.0] * (1001 - 305)  # then safe values to the end
+
+
+def test_a_bus_that_blocks_on_send_ends_the_session_in_one_line(setup):  # noqa: F811
+    """An slcan adapter that stops reading (a pty whose other end this test holds and never reads): its buffer fills
+    and every write waits. The session ends by itself with one line that claims no safe values, exit code 1, long
+    before its --duration. Before, the send waited forever: Ctrl-C, a second Ctrl-C and SIGTERM only set the stop flag
+    of a loop that never came back to read it, so nothing but SIGKILL ended the process."""
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    try:
+        proc = subprocess.run([sys.executable, "-m", "flowtex", "live", str(setup / "g.yaml"), "--dbc", str(DBC), "--map",
+                               str(setup / "m.yaml"), "--bus", f"flowtex_slcan:{os.ttyname(slave)}", "--duration", "60",
+                               "--quiet"], capture_output=True, text=True, timeout=50, env=ENV)
+    finally:
+        os.close(slave)
+        os.close(master)
+    lines = [line for line in proc.stderr.splitlines() if not line.startswith("flowtex: compiling")]
+    assert proc.returncode == 1 and len(lines) == 1, proc.stderr
+    assert lines[0].startswith("CAN bus error at tick ") and "the other end is not reading" in lines[0], lines
+    assert "could not send the safe values (frame id 0x200, 0x201)" in lines[0] and "(safe values sent)" not in lines[0]
