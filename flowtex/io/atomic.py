@@ -172,9 +172,14 @@ def write_bytes_atomic(path: str | Path, data: bytes, *, keep_mode: bool = False
         with atomic_output(path, keep_mode=keep_mode) as tmp:
             tmp.write_bytes(data)
     except OSError as exc:
-        raise OutputError(f"{path}: cannot write it ({exc.strerror or exc}); an older file of that name is left as it "
-                          "was") from None
+        raise refused_write(path, exc) from None
     return Path(path).expanduser()
+
+
+def refused_write(path: str | Path, exc: OSError) -> OutputError:
+    """The one-line error for a write into :func:`atomic_output`'s temporary file that the system refused (a full
+    disk, a file size limit): it names ``path`` and says the older file is untouched (the temporary one is gone)."""
+    return OutputError(f"{path}: cannot write it ({exc.strerror or exc}); an older file of that name is left as it was")
 
 
 def write_text_atomic(path: str | Path, text: str, *, keep_mode: bool = False) -> Path:
