@@ -184,42 +184,55 @@ class TableEncoder:
 
 @njit(cache=True)
 def _decode_tables(words, mask, tick, itab, ftab, blen, marks, arena, stamps, scratch):  # pragma: no cover - compiled
-    f32 = scratch.view(np.float32)
-    u32 = scratch.view(np.uint32)
-    f64 = scratch.view(np.float64)
+    # a frame with a NaN or inf float signal is no measurement: the whole frame is dropped (no input written, no
+    # watchdog stamp), so that one corrupt frame cannot poison the graph's state for the rest of the session
     for r in range(itab.shape[0]):
         slot = itab[r, _C_SLOT]
-        if not (mask >> slot) & 1:
-            continue
-        w = words[slot]
-        if itab[r, _C_BIG]:
-            L = blen[slot]
-            wb = 0
-            for b in range(L):
-                wb = (wb << 8) | ((w >> (8 * b)) & 0xFF)
-            w = wb
-        n = itab[r, _C_LEN]
-        kind = itab[r, _C_KIND]
-        if kind == _KIND_F64:
-            scratch[0] = w
-            x = f64[0]
-        elif kind == _KIND_F32:
-            scratch[0] = 0
-            u32[0] = np.uint32((w >> itab[r, _C_LSB]) & 0xFFFFFFFF)
-            x = np.float64(f32[0])
-        else:
-            xi = (w >> itab[r, _C_LSB]) & ((1 << n) - 1)
-            if itab[r, _C_SIGNED]:
-                sb = 1 << (n - 1)
-                xi = (xi ^ sb) - sb
-            x = np.float64(xi)
-        v = x * ftab[r, _C_SCALE] + ftab[r, _C_OFFSET]
-        if not itab[r, _C_IDENT]:
-            v = v * ftab[r, _C_K] + ftab[r, _C_C]
-        arena[itab[r, _C_INDEX]] = v
+        if (mask >> slot) & 1 and itab[r, _C_KIND] != _KIND_INT:
+            if not np.isfinite(_row_value(words, r, itab, ftab, blen, scratch)):
+                mask &= ~(1 << slot)
+    for r in range(itab.shape[0]):
+        slot = itab[r, _C_SLOT]
+        if (mask >> slot) & 1:
+            arena[itab[r, _C_INDEX]] = _row_value(words, r, itab, ftab, blen, scratch)
     for i in range(marks.shape[0]):
         if (mask >> marks[i, 0]) & 1:
             stamps[marks[i, 1]] = tick
+
+
+@njit(cache=True, inline="always")
+def _row_value(words, r, itab, ftab, blen, scratch):  # pragma: no cover - compiled
+    """The graph value of table row ``r`` (one bound signal) from its slot's payload word."""
+    f32 = scratch.view(np.float32)
+    u32 = scratch.view(np.uint32)
+    f64 = scratch.view(np.float64)
+    slot = itab[r, _C_SLOT]
+    w = words[slot]
+    if itab[r, _C_BIG]:
+        L = blen[slot]
+        wb = 0
+        for b in range(L):
+            wb = (wb << 8) | ((w >> (8 * b)) & 0xFF)
+        w = wb
+    n = itab[r, _C_LEN]
+    kind = itab[r, _C_KIND]
+    if kind == _KIND_F64:
+        scratch[0] = w
+        x = f64[0]
+    elif kind == _KIND_F32:
+        scratch[0] = 0
+        u32[0] = np.uint32((w >> itab[r, _C_LSB]) & 0xFFFFFFFF)
+        x = np.float64(f32[0])
+    else:
+        xi = (w >> itab[r, _C_LSB]) & ((1 << n) - 1)
+        if itab[r, _C_SIGNED]:
+            sb = 1 << (n - 1)
+            xi = (xi ^ sb) - sb
+        x = np.float64(xi)
+    v = x * ftab[r, _C_SCALE] + ftab[r, _C_OFFSET]
+    if not itab[r, _C_IDENT]:
+        v = v * ftab[r, _C_K] + ftab[r, _C_C]
+    return v
 
 
 @njit(cache=True)

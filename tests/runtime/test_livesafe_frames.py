@@ -10,17 +10,21 @@ decodes; the flood below sends those too.)
 from __future__ import annotations
 
 import os
+import struct
 import subprocess
 import sys
+import textwrap
 import threading
 import tty
 
 import can
 import cantools
 import numpy as np
-from test_live import DBC, REPO, setup  # noqa: F401  (fixture; rootdir-relative import as pytest does)
+import pytest
+from test_live import DBC, GRAPH, MAP, REPO, setup  # noqa: F401  (fixture; rootdir-relative import as pytest does)
 
 from flowtex.graph.compiled import load_graph
+from flowtex.io.codec_tables import decode_packed
 from flowtex.runtime.live import LiveConfig, load_io, run_live
 from flowtex.runtime.tick import rx_decoder
 
@@ -131,3 +135,49 @@ def test_a_bus_that_blocks_on_send_ends_the_session_in_one_line(setup):  # noqa:
     assert proc.returncode == 1 and len(lines) == 1, proc.stderr
     assert lines[0].startswith("CAN bus error at tick ") and "the other end is not reading" in lines[0], lines
     assert "could not send the safe values (frame id 0x200, 0x201)" in lines[0] and "(safe values sent)" not in lines[0]
+
+
+NAN_GRAPH = (textwrap.dedent(GRAPH)
+             .replace("  v: {type: gain, params: {k: 0.25}}",
+                      "  lpf: {type: first_order_lowpass, params: {cutoff_hz: 50}}\n  v: {type: gain, params: {k: 0.01}}")
+             .replace("  - normal_force -> v.x", "  - normal_force -> lpf.x\n  - lpf.y -> v.x"))
+"""test_live's graph with a low-pass (state) between normal_force and the vibration output."""
+
+
+@pytest.mark.parametrize("bad", [float("nan"), float("inf"), float("-inf")])
+def test_a_non_finite_float_signal_is_no_measurement(setup, bad):  # noqa: F811
+    """normal_force bound to DeviceStatus.CoilTemperature (a float32 signal), through a low-pass: one NaN or inf
+    frame written into the input made the filter's state NaN, so the output was NaN (sent as its safe value) for the
+    rest of the session, with no watchdog event. The frame is dropped whole instead: no input written, no watchdog
+    stamp, in the live decoder (compiled slot and Python codec) and in the replay's."""
+    assert "lpf.y -> v.x" in NAN_GRAPH
+    (setup / "nan.yaml").write_text(NAN_GRAPH)
+    m = setup / "mnan.yaml"
+    m.write_text(textwrap.dedent(MAP).replace("normal_force: {signal: ToolForce.NormalForce, timeout_ms: 5}",
+                                              "normal_force: {signal: DeviceStatus.CoilTemperature, timeout_ms: 5}"))
+    g = load_graph(setup / "nan.yaml", block_rows=1)
+    io = load_io(g, DBC, m)
+    status = DB.get_message_by_name("DeviceStatus")
+    good = can.Message(arbitration_id=status.frame_id, is_extended_id=False, data=struct.pack("<f", 30.0) + bytes(4))
+    frame = can.Message(arbitration_id=status.frame_id, is_extended_id=False, data=struct.pack("<f", bad) + bytes(4))
+    assert not np.isfinite(DB.decode_message(status.frame_id, frame.data)["CoilTemperature"])  # cantools reads it so
+    td = io.codec.decoder
+    j = td.slot_of[status.frame_id]
+    for path in ("compiled", "python", "replay"):
+        wd = io.new_watchdog(2_000_000)
+        inp = g.input_view("normal_force")
+        inp[:] = 12.5
+        rx = rx_decoder(io, wd)
+        if path == "compiled":
+            mask = rx([good, frame], 7, td.words)  # the compiled slot: the later frame's payload is the one decoded
+            assert mask == 1 << j
+            decode_packed(td.ibuf, td.fbuf, mask, 7, io.codec.arena, wd.last)
+        elif path == "python":  # a longer frame (CAN FD padding) goes through the Python codec
+            longer = can.Message(arbitration_id=status.frame_id, is_extended_id=False, is_fd=True, data=bytes(frame.data) + bytes(4))
+            assert rx([longer], 7, td.words) == 0
+        else:
+            assert not io.decode(frame, 7, wd)
+        assert inp.tolist() == [12.5], path  # not written
+        assert (wd.last < 0).all(), path  # not stamped: a sensor sending only such frames trips the watchdog
+    g.input_view("normal_force")[:] = 0.0
+    assert io.decode(good, 8, wd) and g.input_view("normal_force").tolist() == [30.0]  # a finite one still decodes
