@@ -8,10 +8,14 @@ every interrupt dropped that way and raises the signal again a moment later, out
 interrupts the program at its next ordinary point; :func:`interrupt_was_lost` lets the command line report an error
 that a dropped interrupt caused as the interrupt it was.
 
-The command line keeps interrupts for its whole run (SIGTERM included). Any other caller (a notebook, a script
-calling :func:`flowtex.runtime.live.run_live`) gets the same for Ctrl-C during every numba compile of the process:
-:func:`guard_compiles`, installed when flowtex first configures numba's cache, keeps interrupts from the start to the
-end of each outermost compile (numba's ``numba:compile`` events), unless a caller already keeps them.
+The command line keeps interrupts for its whole run (SIGTERM included), and exits on the first Ctrl-C. Any other
+caller (a notebook, a script calling :func:`flowtex.runtime.live.run_live`) goes on in the same process after a
+Ctrl-C, so a compile cut short would leave numba's half-built code behind: every later compile that links it fails
+with "no compiled object yet" until the process restarts. For them a Ctrl-C during a compile waits for the compile's
+end and is raised there (:func:`interrupts_deferred`; a second Ctrl-C stops at once). :func:`guard_compiles`,
+installed when flowtex first configures numba's cache, does both for each outermost numba compile (numba's
+``numba:compile`` events), unless a caller already keeps interrupts; flowtex's own C-callable wrappers, which numba
+compiles without those events, defer in :func:`flowtex.graph.kcache.sealed_compile`.
 """
 
 from __future__ import annotations
@@ -79,6 +83,51 @@ def keeping_interrupts() -> bool:
     return bool(getattr(sys.unraisablehook, "flowtex_keeps_interrupts", False))
 
 
+DEFER_NOTE = ("flowtex: Ctrl-C: stopping when this compile ends (cut short, it would leave numba unable to compile in this "
+              "process until it restarts); press Ctrl-C again to stop at once\n")
+"""What the first Ctrl-C during a deferred compile prints on stderr."""
+
+_deferring: list[bool] = []
+
+
+@contextlib.contextmanager
+def interrupts_deferred() -> Iterator[None]:
+    """A Ctrl-C while the ``with`` body runs is raised when the body ends, not inside it (module docstring).
+
+    The first Ctrl-C prints :data:`DEFER_NOTE`; a second one calls the handler from before the block at once. The
+    handler from before the block is back at its end, and a deferred Ctrl-C is passed to it then (Python's default
+    raises KeyboardInterrupt). Nothing changes where it cannot work or is not needed: outside the main thread
+    (signals go to the main thread, so the body is not interrupted anyway), under a handler that is not a Python
+    function (SIGINT ignored or default), inside another deferred block, and while the command line keeps
+    interrupts (it exits on Ctrl-C, leaving nothing half-built behind)."""
+    if (_deferring or keeping_interrupts() or threading.current_thread() is not threading.main_thread()
+            or not callable(previous := signal.getsignal(signal.SIGINT))):
+        yield
+        return
+    pending: list[bool] = []
+
+    def defer(signum: int, frame: Any) -> None:
+        if pending:  # the second: now
+            pending.clear()
+            signal.signal(signal.SIGINT, previous)
+            previous(signum, frame)
+            return
+        pending.append(True)
+        with contextlib.suppress(OSError):
+            os.write(2, DEFER_NOTE.encode())  # not print(): this may run while the main thread is writing to stderr
+
+    _deferring.append(True)
+    signal.signal(signal.SIGINT, defer)
+    try:
+        yield
+    finally:
+        if signal.getsignal(signal.SIGINT) is defer:
+            signal.signal(signal.SIGINT, previous)
+        _deferring.clear()
+    if pending:
+        previous(signal.SIGINT, sys._getframe())
+
+
 _GUARDED: list[bool] = []
 
 
@@ -90,23 +139,26 @@ def guard_compiles() -> None:
     from numba.core import event
 
     class CompileInterrupts(event.Listener):
-        """Enters :func:`interrupts_kept` at the start of an outermost compile and leaves it at its end (numba's
-        compiles hold one process-wide lock, so their events nest)."""
+        """Enters :func:`interrupts_kept` and :func:`interrupts_deferred` at the start of an outermost compile and
+        leaves them at its end (numba's compiles hold one process-wide lock, so their events nest). A Ctrl-C deferred
+        to the end is raised from ``on_end``: after numba registered the compiled function, before it wrote the
+        function to its disk cache (so the next process compiles it again)."""
 
         def __init__(self) -> None:
             self.depth = 0
-            self.kept: contextlib.AbstractContextManager[None] | None = None
+            self.kept: contextlib.ExitStack | None = None
 
         def on_start(self, ev: event.Event) -> None:
             self.depth += 1
             if self.depth == 1 and not keeping_interrupts():
-                self.kept = interrupts_kept(sigint_of)
-                self.kept.__enter__()
+                self.kept = contextlib.ExitStack()
+                self.kept.enter_context(interrupts_deferred())  # first: it stands aside while interrupts are kept
+                self.kept.enter_context(interrupts_kept(sigint_of))
 
         def on_end(self, ev: event.Event) -> None:
             self.depth -= 1
             if self.depth == 0 and self.kept is not None:
                 kept, self.kept = self.kept, None
-                kept.__exit__(None, None, None)
+                kept.close()
 
     event.register("numba:compile", CompileInterrupts())

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import TypeVar
 
 from ..cache import write_cache_file
+from ..interrupts import interrupts_deferred
 
 T = TypeVar("T")
 
@@ -81,11 +82,13 @@ def sealed_compile(stem: Path, cache_files: Callable[[], list[Path]], compile_: 
     ``stem`` names the entry (``stem.seal``, ``stem.lock``); ``cache_files()``
     lists the entry's numba files as they are now on disk. Returns
     ``(compile_(), rebuilt)`` where ``rebuilt`` says a damaged or unsealed entry
-    was deleted first.
+    was deleted first. A Ctrl-C meanwhile is raised once the entry is sealed
+    (:func:`flowtex.interrupts.interrupts_deferred`: numba compiles a C-callable
+    wrapper without the events that defer it elsewhere).
     """
     seal_path = stem.with_suffix(".seal")
     stem.parent.mkdir(parents=True, exist_ok=True)
-    with locked(stem.with_suffix(".lock")):
+    with interrupts_deferred(), locked(stem.with_suffix(".lock")):
         files = cache_files()
         rebuilt = False
         if files and not entry_ok(seal_path, files):

@@ -11,10 +11,14 @@ from __future__ import annotations
 
 import argparse
 import ctypes
+import hashlib
 import importlib
+import json
+import os
 import signal
 import sys
 import time
+from collections.abc import Callable
 
 import pytest
 
@@ -153,3 +157,70 @@ def test_the_command_lines_keeper_is_not_replaced_during_a_compile():
         _compile_calling(lambda: seen.append(sys.unraisablehook))
     assert seen == [outer]
 
+
+
+def _ctrl_c(times: int = 1) -> Callable[[], None]:
+    """Code for a compile's typing: presses Ctrl-C ``times`` (a real SIGINT to this process), then goes on working
+    (Python's handler runs at the next bytecode: without deferral the KeyboardInterrupt is raised right here)."""
+
+    def press() -> None:
+        for _ in range(times):
+            os.kill(os.getpid(), signal.SIGINT)
+            sum(range(1000))
+        reached.append(True)
+
+    reached: list[bool] = []
+    press.reached = reached  # type: ignore[attr-defined]
+    return press
+
+
+def test_a_library_callers_ctrl_c_during_a_compile_is_raised_when_the_compile_ends(sigint_raises, capfd):
+    # a notebook goes on after Ctrl-C: a compile cut short would leave numba's half-built code behind ("no compiled
+    # object yet" at every later compile that links it, until a restart), so the compile finishes first
+    import flowtex.dsp  # noqa: F401
+
+    press = _ctrl_c()
+    with pytest.raises(KeyboardInterrupt):
+        _compile_calling(press)
+    assert press.reached == [True]  # the typing went on after the signal: the compile was not cut short
+    assert sigint_raises == [signal.SIGINT]  # the caller's handler got it, once, at the compile's end
+    assert signal.getsignal(signal.SIGINT) is not None and signal.getsignal(signal.SIGINT).__name__ == "handler"
+    assert capfd.readouterr().err.count("Ctrl-C: stopping when this compile ends") == 1
+
+
+def test_a_second_ctrl_c_during_a_compile_stops_it_at_once(sigint_raises):
+    import flowtex.dsp  # noqa: F401
+
+    press = _ctrl_c(times=2)
+    with pytest.raises(KeyboardInterrupt):
+        _compile_calling(press)
+    assert press.reached == [] and sigint_raises == [signal.SIGINT]  # raised inside the typing, by the second one
+    assert signal.getsignal(signal.SIGINT).__name__ == "handler"  # the caller's handler is back
+
+
+def test_the_command_line_stops_a_compile_at_the_first_ctrl_c(sigint_raises):
+    # flowtex exits on Ctrl-C, leaving nothing half-built behind: no deferral under its keeper
+    import flowtex.dsp  # noqa: F401
+
+    press = _ctrl_c()
+    with pytest.raises(KeyboardInterrupt), interrupts_kept(cli_main._signal_of):
+        _compile_calling(press)
+    assert press.reached == [] and sigint_raises == [signal.SIGINT]
+
+
+def test_ctrl_c_during_a_wrapper_compile_is_raised_once_its_entry_is_sealed(sigint_raises, tmp_path):
+    # numba compiles flowtex's C-callable wrappers without compile events: kcache.sealed_compile defers instead
+    from flowtex.graph.kcache import sealed_compile
+
+    entry = tmp_path / "w.nbi"
+    press = _ctrl_c()
+
+    def compile_() -> str:
+        press()
+        entry.write_bytes(b"compiled")  # what numba would write
+        return "cfunc"
+
+    with pytest.raises(KeyboardInterrupt):
+        sealed_compile(tmp_path / "w", lambda: [entry] if entry.exists() else [], compile_)
+    assert press.reached == [True] and sigint_raises == [signal.SIGINT]
+    assert json.loads((tmp_path / "w.seal").read_text()) == {"w.nbi": hashlib.sha256(b"compiled").hexdigest()}
