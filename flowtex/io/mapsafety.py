@@ -14,6 +14,7 @@ import math
 import struct
 from collections.abc import Callable, Sequence
 
+import numpy as np
 from cantools.database.can import Database
 
 from .dbcrange import check_value, lsb, round_trip, sendable_range
@@ -67,6 +68,16 @@ def check_transmitters(db: Database, inputs: Sequence, outputs: Sequence, add: R
                     f"ID; bind the output to a message the host transmits")
 
 
+def peak_low(lo: np.ndarray, hi: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    """Lower peak bound for a map's ``peak: {limit: L}``: the margin above HIGH mirrored below LOW, ``LOW - (L - HIGH)``.
+
+    The map's ``limit`` is the largest value a transient may reach above the clamp
+    (``|value| up to L`` for a symmetric clamp ``[-H, H]``, where this gives ``-L``);
+    for an asymmetric clamp the same margin ``L - HIGH`` is allowed below ``LOW``.
+    """
+    return np.asarray(lo, dtype=np.float64) - (np.asarray(limit, dtype=np.float64) - np.asarray(hi, dtype=np.float64))
+
+
 ROUNDING_SLACK = 0.01
 """How far beyond the clamp (a fraction of its width) the rounding to the DBC's LSB may carry a bound: a signal whose LSB
 is at most 2 % of the clamp's width. A coarser one crosses the clamp by a step a device notices."""
@@ -85,16 +96,20 @@ def check_clamps(db: Database, outputs: Sequence, add: Report) -> None:
     ``outputs``: the map's output bindings (``signals``, ``scale``, ``offset``, ``lo``, ``hi``, ``loc``, ``name``).
     """
     for b in outputs:
+        ranges = [("clamp LOW", "clamp HIGH", b.lo, b.hi)]
+        if b.peak_limit is not None:  # what the guard lets through for up to max_ms (docs/live.md, "Peak rule")
+            ranges.append(("peak range low", "peak limit", peak_low(b.lo, b.hi, b.peak_limit), b.peak_limit))
         problems = (
             (j, m, s, which, bound, _clamp_bound_problem(msg, sig, bound * float(b.scale[j]) + float(b.offset[j]), float(b.scale[j]),
-                                                         float(b.offset[j]), float(b.lo[j]), float(b.hi[j])))
+                                                         float(b.offset[j]), float(lo[j]), float(hi[j])))
+            for low_name, high_name, lo, hi in ranges
             for j, (m, s) in enumerate(b.signals)
             for msg, sig in [(db.get_message_by_name(m), db.get_message_by_name(m).get_signal_by_name(s))]
-            for which, bound in (("LOW", float(b.lo[j])), ("HIGH", float(b.hi[j]))))
+            for which, bound in ((low_name, float(lo[j])), (high_name, float(hi[j]))))
         for j, m, s, which, bound, problem in problems:
             if problem is not None:  # one line per output
                 comp = f"[{j}]" if len(b.signals) > 1 else ""
-                add((b.loc.line, b.loc.column), f"output {b.name!r}{comp}: clamp {which} {bound:g} cannot be sent in {m}.{s}: "
+                add((b.loc.line, b.loc.column), f"output {b.name!r}{comp}: {which} {bound:g} cannot be sent in {m}.{s}: "
                                                 f"{problem}; choose a clamp the DBC carries or fix the DBC")
                 break
 

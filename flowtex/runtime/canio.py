@@ -28,6 +28,7 @@ from ..io.canmap import CanMap, load_map
 from ..io.codec import MessageCodec
 from ..io.codec_tables import _NF, _NI, TableDecoder, TableEncoder, _encode_tables, fast_ok, pack_int64
 from ..io.dbc import load_dbc
+from ..io.mapsafety import peak_low
 from ..node_decl import PortSpec
 from .safety import OutputGuard, Watchdog, first_stale, guard_kernel
 
@@ -298,16 +299,6 @@ class CanIO:
         if self.guard is not None:
             self.guard.safe_values(self.out)
         self.encode()
-
-
-def peak_low(lo: np.ndarray, hi: np.ndarray, limit: np.ndarray) -> np.ndarray:
-    """Lower peak bound for a map's ``peak: {limit: L}``: the margin above HIGH mirrored below LOW, ``LOW - (L - HIGH)``.
-
-    The map's ``limit`` is the largest value a transient may reach above the clamp
-    (``|value| up to L`` for a symmetric clamp ``[-H, H]``, where this gives ``-L``);
-    for an asymmetric clamp the same margin ``L - HIGH`` is allowed below ``LOW``.
-    """
-    return np.asarray(lo, dtype=np.float64) - (np.asarray(limit, dtype=np.float64) - np.asarray(hi, dtype=np.float64))
 
 
 def _arena(graph: TickProgram, canmap: CanMap) -> np.ndarray:

@@ -151,10 +151,16 @@ MODE = ' SG_ Mode : 17|3@1+ (1,0) [0|7] "" HapticDevice'
      "it would arrive as -1.2 A"),
     # a 3-bit field with scale 1 and no range: 10 (graph 1 x map scale 10) wraps to 2, 8 to 0
     (MODE, MODE.replace("[0|7]", "[0|0]"), "{signal: VoiceCoilCmd.Mode, clamp: [0, 1], safe: 0, scale: 10}",
-     "it would arrive as 2: the bit field (3 bits, scale 1, no DBC range) wraps it around")])
+     "clamp HIGH 1 cannot be sent in VoiceCoilCmd.Mode: it would arrive as 2: the bit field (3 bits, scale 1, no DBC range) "
+     "wraps it around"),
+    # the clamp fits (0-7), the peak range the guard allows for up to 5 ms ([-3, 10], the margin mirrored below) wraps:
+    # its low end first (-3 arrives as 5)
+    (MODE, MODE.replace("[0|7]", "[0|0]"),
+     "{signal: VoiceCoilCmd.Mode, clamp: [0, 0.7], safe: 0, scale: 10, peak: {limit: 1.0, max_ms: 5}}",
+     "peak range low -0.3 cannot be sent in VoiceCoilCmd.Mode: it would arrive as 5")])
 def test_a_clamp_the_dbc_sends_beyond_the_clamp_is_refused(setup, old, new, binding, arrives):  # noqa: F811
-    """Every frame the guard let through must arrive inside the clamp: the clamp's bounds, encoded by flowtex and
-    decoded by cantools, are checked before the session. Before, both maps ran: 1.2 A sent for a [-1, 1] A clamp,
+    """Every frame the guard let through must arrive inside the clamp (or the peak range): their bounds, encoded by
+    flowtex and decoded by cantools, are checked before the session. Before, both maps ran: 1.2 A sent for a [-1, 1] A clamp,
     and commands of 0.8-1.0 sent as 0-2 (wrapped) instead of 7."""
     dbc = _dbc(setup, old, new)
     db = cantools.database.load_file(dbc)
@@ -167,7 +173,7 @@ def test_a_clamp_the_dbc_sends_beyond_the_clamp_is_refused(setup, old, new, bind
     with pytest.raises(GraphError) as e:
         run_live(load_graph(setup / "g.yaml"), LiveConfig(dbc, bad, simulate=setup / "rec.npz", max_ticks=5, status=None))
     msg = str(e.value)
-    assert "\n" not in msg and msg.startswith(f"{bad}:") and "output 'vibration': clamp " in msg and arrives in msg, msg
+    assert "\n" not in msg and msg.startswith(f"{bad}:") and "output 'vibration': " in msg and arrives in msg, msg
 
 
 def test_a_dbc_range_narrower_than_the_clamp_and_fine_rounding_pass(setup):  # noqa: F811
