@@ -303,7 +303,8 @@ def _silent_sensors(io: CanIO, last: np.ndarray, ticks: int, frames_in: int, whe
     silent = [m for m in io.map.sensor_messages() if m not in heard]
     if not silent or not ticks:
         return silent, None
-    names = ", ".join(f"{m} (id {io.codecs[m].frame_id:#x})" for m in silent)
+    # an extended message says so: a device sending it as a standard frame (or the reverse) sends another message
+    names = ", ".join(f"{m} ({'extended ' if io.codecs[m].is_extended else ''}id {io.codecs[m].frame_id:#x})" for m in silent)
     if len(silent) == len(io.map.sensor_messages()):
         other = f"; the {frames_in} frame(s) that arrived were none of them" if frames_in else ""
         return silent, (f"no sensor frame received in {ticks} ticks on {where}: expected {names}{other}. Outputs stayed at their "

@@ -181,3 +181,16 @@ def test_a_non_finite_float_signal_is_no_measurement(setup, bad):  # noqa: F811
         assert (wd.last < 0).all(), path  # not stamped: a sensor sending only such frames trips the watchdog
     g.input_view("normal_force")[:] = 0.0
     assert io.decode(good, 8, wd) and g.input_view("normal_force").tolist() == [30.0]  # a finite one still decodes
+
+
+def test_a_silent_extended_sensor_is_named_as_extended(setup):  # noqa: F811
+    """Frames of the other format are other messages, so a device that sends an extended message as a standard frame
+    is silent: the line says which format was expected."""
+    dbc = setup / "ext.dbc"
+    text = DBC.read_text()
+    assert "BO_ 257 ToolForce: 8 HapticDevice" in text
+    dbc.write_text(text.replace("BO_ 257 ToolForce: 8 HapticDevice", f"BO_ {(1 << 31) | 257} ToolForce: 8 HapticDevice"))
+    r = run_live(load_graph(setup / "g.yaml"), LiveConfig(dbc, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=50,
+                                                          status=None, drop={"ToolForce": (0, None)}))
+    assert r.error is None and r.silent_messages == ["ToolForce"]
+    assert r.silence.startswith("no frame of ToolForce (extended id 0x101) received in 50 ticks"), r.silence
