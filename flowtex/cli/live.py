@@ -16,8 +16,8 @@ from .output import note, say
 def register(sub: Any) -> None:
     p = sub.add_parser("live", help="run a graph live against a CAN device at the graph's rate",
                        description="Run GRAPH live: CAN sensor frames -> graph inputs, graph outputs -> guarded actuator frames.",
-                       epilog="Exit codes: 0 clean stop (duration, Ctrl-C, SIGTERM); 1 error (the line says whether the safe values were sent); "
-                              "3 no sensor frame arrived during the whole session (outputs stayed safe).")
+                       epilog="Exit codes: 0 clean stop (duration, Ctrl-C, SIGTERM, SIGHUP); 1 error (the line says whether the safe values "
+                              "were sent); 3 no sensor frame arrived during the whole session (outputs stayed safe).")
     p.add_argument("graph", nargs="?", help="graph YAML file")
     p.add_argument("--list-audio", action="store_true", help="list the audio devices PortAudio sees (for a map's audio.device), and exit")
     add_live_options(p, device_required=False)
@@ -40,7 +40,7 @@ def register(sub: Any) -> None:
 
 
 def cmd_live(args: argparse.Namespace) -> int:
-    """0 after a clean stop (duration, Ctrl-C, SIGTERM), 1 on errors, 3 when no sensor frame arrived."""
+    """0 after a clean stop (duration, Ctrl-C, SIGTERM, SIGHUP), 1 on errors, 3 when no sensor frame arrived."""
     if args.list_audio:
         from ..runtime.audio import list_audio_devices
 

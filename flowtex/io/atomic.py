@@ -176,10 +176,20 @@ def atomic_output(path: str | Path, *, keep_mode: bool = False) -> Iterator[Path
 
 
 def write_bytes_atomic(path: str | Path, data: bytes, *, keep_mode: bool = False) -> Path:
-    """Write ``data`` to ``path`` through :func:`atomic_output`."""
-    with atomic_output(path, keep_mode=keep_mode) as tmp:
-        tmp.write_bytes(data)
+    """Write ``data`` to ``path`` through :func:`atomic_output`; a write the system refuses (a full disk) is an
+    :class:`OutputError` naming ``path``, with the older file left as it was."""
+    try:
+        with atomic_output(path, keep_mode=keep_mode) as tmp:
+            tmp.write_bytes(data)
+    except OSError as exc:
+        raise refused_write(path, exc) from None
     return Path(path).expanduser()
+
+
+def refused_write(path: str | Path, exc: OSError) -> OutputError:
+    """The one-line error for a write into :func:`atomic_output`'s temporary file that the system refused (a full
+    disk, a file size limit): it names ``path`` and says the older file is untouched (the temporary one is gone)."""
+    return OutputError(f"{path}: cannot write it ({exc.strerror or exc}); an older file of that name is left as it was")
 
 
 def write_text_atomic(path: str | Path, text: str, *, keep_mode: bool = False) -> Path:

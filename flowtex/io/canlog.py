@@ -37,18 +37,28 @@ def check_log_path(path: str | Path, for_writing: bool) -> Path:
     return path
 
 
+class RecordError(DataError):
+    """A CAN log could not be written (disk full, file too large, device gone): one line naming the log."""
+
+
 class SessionWriter:
     """Append frames to a CAN log; marks direction (``is_rx``) in every format.
 
     The frames go to a temporary file in the log's folder, renamed over ``path`` by :meth:`close`
     (:func:`~flowtex.io.atomic.atomic_output`): an existing log is replaced only by a complete one.
+    A write the system refuses (a full disk) never raises from :meth:`write`, which runs in the live
+    loop and at its exit: the writer notes it in :attr:`error`, writes nothing more, and :meth:`close`
+    discards the temporary file and raises :class:`RecordError`.
 
     BLF files are written with zlib level 1 to keep the periodic compression
     of a 128 KiB container short (it runs inside the live loop's slack time).
     """
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, option: str | None = None):
         self.path = check_log_path(path, for_writing=True)
+        self._what = f"{option} {self.path}" if option else str(self.path)
+        self.error: str | None = None
+        """One line once a write failed (the log is then incomplete and will not be kept), else None."""
         suffix = self.path.suffix.lower()
         self._commit = atomic_output(self.path)
         tmp = self._commit.__enter__()  # a temporary file beside the log, renamed over it by close()
@@ -65,11 +75,21 @@ class SessionWriter:
 
     def write(self, msg: can.Message, is_rx: bool) -> None:
         """Log ``msg`` as received (``is_rx``) or sent by the runtime. ``msg`` may be reused afterwards."""
+        if self.error is not None or self._writer is None:
+            return
         msg.is_rx = is_rx
         if self._blf:
             msg.channel = None  # BLF stores small channel numbers; bus channel names (e.g. virtual's) do not fit
-        self._writer.on_message_received(msg)
+        try:
+            self._writer.on_message_received(msg)
+        except OSError as exc:
+            self._failed(exc)
+            return
         self.frames += 1
+
+    def _failed(self, exc: OSError) -> None:
+        self.error = (f"{self._what}: cannot write the CAN log: {exc.strerror or exc}; it was not kept (an older file of "
+                      "that name is left as it was)")
 
     def write_tick(self, received: Iterable[can.Message], sent: Iterable[can.Message]) -> None:
         """Log one tick of the live loop: the frames it received, then those it sent (stamped with the present wall time, s)."""
@@ -80,12 +100,30 @@ class SessionWriter:
             m.timestamp = ts
             self.write(m, False)
 
-    def close(self) -> None:
-        """Flush and close the log, then rename it into place (idempotent; the old file stays until then)."""
-        if self._writer is not None:
-            writer, self._writer = self._writer, None
+    def close(self, keep: bool = True) -> None:
+        """Flush and close the log, then rename it into place (idempotent; the old file stays until then).
+
+        ``keep=False`` (a session that never ran, or stopped by an exception) or a failed write (:attr:`error`)
+        discards the temporary file instead; a failed write, or a flush that fails now, raises :class:`RecordError`."""
+        if self._writer is None:
+            return
+        writer, self._writer = self._writer, None
+        try:
             writer.stop()
-            self._commit.__exit__(None, None, None)
+        except OSError as exc:
+            if self.error is None:
+                self._failed(exc)
+        if self.error is None and keep:
+            try:
+                self._commit.__exit__(None, None, None)
+                return
+            except OSError as exc:
+                self._failed(exc)
+        problem = RecordError(self.error) if self.error is not None else None
+        exc = problem or RecordError(f"{self._what}: not kept")
+        self._commit.__exit__(type(exc), exc, None)  # removes the temporary file
+        if problem is not None:
+            raise problem
 
 
 def read_session(path: str | Path) -> Iterator[can.Message]:

@@ -41,7 +41,7 @@ from ..yamlsource import LocDict, LocList, load_yaml, read_source
 from .audiomap import AudioMap, parse_audio
 from .dbc import find_signal, suggest
 from .dbcrange import check_value, sendable_range
-from .mapsafety import check_transmitters, check_unbound_signals
+from .mapsafety import check_clamps, check_transmitters, check_unbound_signals
 
 __all__ = ["DEFAULT_OVERRUN_MS", "CanMap", "InputBinding", "OutputBinding", "load_map"]
 
@@ -148,6 +148,7 @@ def load_map(path: str | Path, db: Database, dbc_path: str | Path = "DBC",
     _one_message_per_id(p, db, [*inputs.values(), *outputs.values()])
     check_transmitters(db, list(inputs.values()), list(outputs.values()), p.add)
     check_unbound_signals(db, list(outputs.values()), p.add)
+    check_clamps(db, list(outputs.values()), p.add)
     audio = parse_audio(data["audio"], data.value_pos["audio"], p, graph_outputs) if "audio" in data else None
     p.raise_if_any()
     return CanMap(path, inputs, outputs, float(overrun), audio)

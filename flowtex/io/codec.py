@@ -38,6 +38,7 @@ that importing this module loads no numba.
 
 from __future__ import annotations
 
+import math
 import struct
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -141,7 +142,9 @@ class MessageCodec:
 
         ``targets[i]`` belongs to signal ``self.signals[i]`` (None: ignore the
         signal). Returns False (and writes nothing) for a payload shorter than
-        the DBC length.
+        the DBC length, or one in which a bound float signal is NaN or inf (no
+        measurement: written into a graph input it would poison every stateful
+        node after it for the rest of the session).
         """
         if len(targets) != len(self.signals):
             raise ValueError("one target per signal")
@@ -172,6 +175,8 @@ class MessageCodec:
         if has_big:
             lines.append("    wb = _from(data, 'big')")
         results = []
+        stores = []
+        floats = []
         for i, s in enumerate(self.layouts):
             if not generic and targets[i] is None:
                 continue
@@ -190,7 +195,15 @@ class MessageCodec:
                 arr, idx, k, c = targets[i]
                 ns[f"t{i}"] = arr
                 conv = "" if (k == 1.0 and c == 0.0) else f" * {float(k)!r} + {float(c)!r}"
-                lines.append(f"    t{i}[{int(idx)}] = ({expr}){conv}")
+                lines.append(f"    v{i} = ({expr}){conv}")
+                stores.append(f"    t{i}[{int(idx)}] = v{i}")
+                if s.is_float:
+                    floats.append(f"v{i}")
+        if floats:  # a NaN or inf float signal is no measurement: the frame is dropped whole, as the compiled decoder does
+            ns["_finite"] = math.isfinite
+            lines.append(f"    if not ({' and '.join(f'_finite({v})' for v in floats)}):")
+            lines.append("        return False")
+        lines.extend(stores)
         lines.append(f"    return [{', '.join(results)}]" if generic else "    return True")
         return _build(lines, ns, "decode", self.name)
 

@@ -90,7 +90,8 @@ class TableDecoder:
     message is decoded (the watchdog's ``last`` array). Every codec must pass
     :func:`fast_ok`. Per tick: the caller stores each received payload's
     ``int.from_bytes(data, 'little', signed=True)`` in ``words[slot]`` (``slot_of``:
-    frame id -> slot, ``lengths[slot]``: the payload length required), ORs ``1 << slot``
+    frame id -> slot, ``lengths[slot]``: the payload length required, ``extended[slot]``: the
+    frame format required), ORs ``1 << slot``
     into a mask and calls :meth:`run`.
     """
 
@@ -102,11 +103,14 @@ class TableDecoder:
         marks: list[tuple[int, int]] = []
         self.slot_of: dict[int, int] = {}
         self.lengths: list[int] = []
+        self.extended: list[bool] = []
+        """Per slot: the message is an extended (29-bit) frame; a frame of the other format with its number is another message."""
         for slot, (codec, targets, wd) in enumerate(entries):
             if not fast_ok(codec):
                 raise ValueError(f"TableDecoder: message {codec.name!r} needs the Python codec")
             self.slot_of[codec.frame_id] = slot
             self.lengths.append(codec.length)
+            self.extended.append(bool(codec.is_extended))
             for s, t in zip(codec.layouts, targets, strict=True):
                 if t is not None:
                     i, f = _row(s, slot, int(t[0]), t[1], t[2])
@@ -180,42 +184,55 @@ class TableEncoder:
 
 @njit(cache=True)
 def _decode_tables(words, mask, tick, itab, ftab, blen, marks, arena, stamps, scratch):  # pragma: no cover - compiled
-    f32 = scratch.view(np.float32)
-    u32 = scratch.view(np.uint32)
-    f64 = scratch.view(np.float64)
+    # a frame with a NaN or inf float signal is no measurement: the whole frame is dropped (no input written, no
+    # watchdog stamp), so that one corrupt frame cannot poison the graph's state for the rest of the session
     for r in range(itab.shape[0]):
         slot = itab[r, _C_SLOT]
-        if not (mask >> slot) & 1:
-            continue
-        w = words[slot]
-        if itab[r, _C_BIG]:
-            L = blen[slot]
-            wb = 0
-            for b in range(L):
-                wb = (wb << 8) | ((w >> (8 * b)) & 0xFF)
-            w = wb
-        n = itab[r, _C_LEN]
-        kind = itab[r, _C_KIND]
-        if kind == _KIND_F64:
-            scratch[0] = w
-            x = f64[0]
-        elif kind == _KIND_F32:
-            scratch[0] = 0
-            u32[0] = np.uint32((w >> itab[r, _C_LSB]) & 0xFFFFFFFF)
-            x = np.float64(f32[0])
-        else:
-            xi = (w >> itab[r, _C_LSB]) & ((1 << n) - 1)
-            if itab[r, _C_SIGNED]:
-                sb = 1 << (n - 1)
-                xi = (xi ^ sb) - sb
-            x = np.float64(xi)
-        v = x * ftab[r, _C_SCALE] + ftab[r, _C_OFFSET]
-        if not itab[r, _C_IDENT]:
-            v = v * ftab[r, _C_K] + ftab[r, _C_C]
-        arena[itab[r, _C_INDEX]] = v
+        if (mask >> slot) & 1 and itab[r, _C_KIND] != _KIND_INT:
+            if not np.isfinite(_row_value(words, r, itab, ftab, blen, scratch)):
+                mask &= ~(1 << slot)
+    for r in range(itab.shape[0]):
+        slot = itab[r, _C_SLOT]
+        if (mask >> slot) & 1:
+            arena[itab[r, _C_INDEX]] = _row_value(words, r, itab, ftab, blen, scratch)
     for i in range(marks.shape[0]):
         if (mask >> marks[i, 0]) & 1:
             stamps[marks[i, 1]] = tick
+
+
+@njit(cache=True, inline="always")
+def _row_value(words, r, itab, ftab, blen, scratch):  # pragma: no cover - compiled
+    """The graph value of table row ``r`` (one bound signal) from its slot's payload word."""
+    f32 = scratch.view(np.float32)
+    u32 = scratch.view(np.uint32)
+    f64 = scratch.view(np.float64)
+    slot = itab[r, _C_SLOT]
+    w = words[slot]
+    if itab[r, _C_BIG]:
+        L = blen[slot]
+        wb = 0
+        for b in range(L):
+            wb = (wb << 8) | ((w >> (8 * b)) & 0xFF)
+        w = wb
+    n = itab[r, _C_LEN]
+    kind = itab[r, _C_KIND]
+    if kind == _KIND_F64:
+        scratch[0] = w
+        x = f64[0]
+    elif kind == _KIND_F32:
+        scratch[0] = 0
+        u32[0] = np.uint32((w >> itab[r, _C_LSB]) & 0xFFFFFFFF)
+        x = np.float64(f32[0])
+    else:
+        xi = (w >> itab[r, _C_LSB]) & ((1 << n) - 1)
+        if itab[r, _C_SIGNED]:
+            sb = 1 << (n - 1)
+            xi = (xi ^ sb) - sb
+        x = np.float64(xi)
+    v = x * ftab[r, _C_SCALE] + ftab[r, _C_OFFSET]
+    if not itab[r, _C_IDENT]:
+        v = v * ftab[r, _C_K] + ftab[r, _C_C]
+    return v
 
 
 @njit(cache=True)

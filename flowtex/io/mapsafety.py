@@ -4,16 +4,20 @@ Every actuator frame (safe and exit frames included) carries every signal of its
 bind are sent as physical 0 (:mod:`flowtex.io.codec`, rule 4), so that 0 must survive the DBC exactly as a bound
 output's safe value must (:func:`flowtex.io.dbcrange.check_value`): a DBC ``Enable [1|1]`` would otherwise send
 "enabled" in every frame meant to make the device safe. And the host must not transmit a message the DBC says the
-device itself transmits (its ``BO_`` line's transmitter): two senders on one CAN ID.
+device itself transmits (its ``BO_`` line's transmitter): two senders on one CAN ID. And what the guard lets through
+must arrive within the clamp (:func:`check_clamps`).
 """
 
 from __future__ import annotations
 
+import math
+import struct
 from collections.abc import Callable, Sequence
 
+import numpy as np
 from cantools.database.can import Database
 
-from .dbcrange import check_value, sendable_range
+from .dbcrange import check_value, lsb, round_trip, sendable_range
 
 Report = Callable[[tuple[int, int] | None, str], None]
 
@@ -62,3 +66,70 @@ def check_transmitters(db: Database, inputs: Sequence, outputs: Sequence, add: R
                     f"output {b.name!r} writes message {m!r} (CAN ID {msg.frame_id:#x}), which the DBC says {both[0]} "
                     f"transmits, as it does {device[both[0]]!r} that this map reads: the host would send on the device's own "
                     f"ID; bind the output to a message the host transmits")
+
+
+def peak_low(lo: np.ndarray, hi: np.ndarray, limit: np.ndarray) -> np.ndarray:
+    """Lower peak bound for a map's ``peak: {limit: L}``: the margin above HIGH mirrored below LOW, ``LOW - (L - HIGH)``.
+
+    The map's ``limit`` is the largest value a transient may reach above the clamp
+    (``|value| up to L`` for a symmetric clamp ``[-H, H]``, where this gives ``-L``);
+    for an asymmetric clamp the same margin ``L - HIGH`` is allowed below ``LOW``.
+    """
+    return np.asarray(lo, dtype=np.float64) - (np.asarray(limit, dtype=np.float64) - np.asarray(hi, dtype=np.float64))
+
+
+ROUNDING_SLACK = 0.01
+"""How far beyond the clamp (a fraction of its width) the rounding to the DBC's LSB may carry a bound: a signal whose LSB
+is at most 2 % of the clamp's width. A coarser one crosses the clamp by a step a device notices."""
+
+
+def check_clamps(db: Database, outputs: Sequence, add: Report) -> None:
+    """Refuse a clamp bound that the DBC sends as a value outside the clamp.
+
+    The guard keeps each output inside its clamp in graph units; the encoder then rounds to the signal's LSB, and for
+    ``scale 1`` without a DBC range wraps what the bit field cannot hold. Rounding is monotonic, so checking both bounds
+    covers every value between them. A bound must arrive (encoded with flowtex's codec, decoded with cantools, back in
+    graph units) as the DBC's range and bit width limit it (a DBC range narrower than the clamp is fine: the encoder
+    clamps to it), not wrapped around (a clamp of [0, 10] on a 3-bit field sent 10 as 2), and no further beyond the
+    clamp than :data:`ROUNDING_SLACK` of its width (a clamp of [-1, 1] A on a 0.6 A LSB sent 1.2 A; the rounding of the
+    bundled DBC, 0.0001 A against a clamp 2 A wide, passes).
+    ``outputs``: the map's output bindings (``signals``, ``scale``, ``offset``, ``lo``, ``hi``, ``loc``, ``name``).
+    """
+    for b in outputs:
+        ranges = [("clamp LOW", "clamp HIGH", b.lo, b.hi)]
+        if b.peak_limit is not None:  # what the guard lets through for up to max_ms (docs/live.md, "Peak rule")
+            ranges.append(("peak range low", "peak limit", peak_low(b.lo, b.hi, b.peak_limit), b.peak_limit))
+        problems = (
+            (j, m, s, which, bound, _clamp_bound_problem(msg, sig, bound * float(b.scale[j]) + float(b.offset[j]), float(b.scale[j]),
+                                                         float(b.offset[j]), float(lo[j]), float(hi[j])))
+            for low_name, high_name, lo, hi in ranges
+            for j, (m, s) in enumerate(b.signals)
+            for msg, sig in [(db.get_message_by_name(m), db.get_message_by_name(m).get_signal_by_name(s))]
+            for which, bound in ((low_name, float(lo[j])), (high_name, float(hi[j]))))
+        for j, m, s, which, bound, problem in problems:
+            if problem is not None:  # one line per output
+                comp = f"[{j}]" if len(b.signals) > 1 else ""
+                add((b.loc.line, b.loc.column), f"output {b.name!r}{comp}: {which} {bound:g} cannot be sent in {m}.{s}: "
+                                                f"{problem}; choose a clamp the DBC carries or fix the DBC")
+                break
+
+
+def _clamp_bound_problem(msg, sig, physical: float, scale: float, offset: float, lo: float, hi: float) -> str | None:
+    """Why ``physical`` (a clamp bound in the signal's unit) arrives outside ``[lo, hi]`` (graph units), or None."""
+    unit = f" {sig.unit}" if sig.unit else ""
+    s_lo, s_hi = sendable_range(sig)
+    try:
+        got = round_trip(msg, sig, physical)
+        limited = round_trip(msg, sig, min(max(physical, s_lo), s_hi))
+    except (OverflowError, ValueError, struct.error):
+        return f"its bit field cannot pack it ({sig.length} bits)"
+    if got != limited:
+        return (f"it would arrive as {got:g}{unit}: the bit field ({sig.length} bits, scale {sig.scale:g}, no DBC range) "
+                f"wraps it around instead of limiting it to [{s_lo:g}, {s_hi:g}]{unit}")
+    g = (got - offset) / scale
+    slack = ROUNDING_SLACK * (hi - lo) + 1e-9 * max(1.0, abs(lo), abs(hi))
+    if math.isfinite(g) and lo - slack <= g <= hi + slack:
+        return None
+    step = lsb(sig, physical)
+    return (f"it would arrive as {got:g}{unit}, {g:g} in graph units, beyond the clamp by more than {ROUNDING_SLACK:.0%} of "
+            f"its width: the DBC's LSB there is {step:g}{unit} and the encoder rounds to the nearest step")

@@ -95,11 +95,14 @@ def write_wav(path: str | Path, samples: np.ndarray, rate: float) -> None:
     path = Path(path)
     if rate != int(rate) or rate <= 0:
         raise DataError(f"{path}: a WAV file needs a whole positive number of Hz, got {rate:g}; resample to e.g. 8000 first")
-    from .atomic import atomic_output
+    from .atomic import atomic_output, refused_write
 
     path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_output(path) as tmp:  # a failure or Ctrl-C leaves no partial file
-        wavfile.write(tmp, int(rate), np.ascontiguousarray(samples, dtype=np.float32))
+    try:
+        with atomic_output(path) as tmp:  # a failure or Ctrl-C leaves no partial file
+            wavfile.write(tmp, int(rate), np.ascontiguousarray(samples, dtype=np.float32))
+    except OSError as exc:  # a full disk: one line naming the file
+        raise refused_write(path, exc) from None
 
 
 def write_signals_wav(path: str | Path, arrays: Mapping[str, np.ndarray], rate: float | None) -> None:

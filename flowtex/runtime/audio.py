@@ -304,7 +304,10 @@ class AudioOutput:
         if self.record_path is not None:
             from ..io.wav import write_wav
 
-            write_wav(self.record_path, np.concatenate(self.recorded), self.amap.rate)
+            try:
+                write_wav(self.record_path, np.concatenate(self.recorded), self.amap.rate)
+            except FlowtexError as exc:  # a full disk: the session's line names the option and the file
+                problem = "; ".join(p for p in (problem, f"--record-audio {exc}") if p)
         return problem
 
     def close(self) -> None:

@@ -9,6 +9,7 @@ one ``recv``/``send`` per frame otherwise), once, before the loop starts.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -19,6 +20,12 @@ from ..io.dbc import one_line
 
 CAN_ERR_BUSOFF = 0x40
 """Bit of a SocketCAN error frame's id that reports bus-off."""
+
+SEND_TIMEOUT_S = 0.5
+"""Longest wait for a bus to take a frame (python-can's ``send(msg, timeout)``), s. A bus whose transmit buffer stays
+full that long (an adapter that stopped reading its tty, a socket queue that no longer drains) is a bus error: without
+a bound the loop would wait in the send forever, where no Ctrl-C or SIGTERM reaches it. As long as the sound card
+may stop calling back before the session ends (flowtex.runtime.audio)."""
 
 
 class BusError(FlowtexError):
@@ -80,15 +87,16 @@ def receiver(bus: can.BusABC) -> Callable[[list[Any]], None]:
     return receive_each
 
 
-def sender(bus: can.BusABC) -> Callable[[Sequence[can.Message]], None]:
-    """``send_frames(frames)``: send the frames in order (``bus.send_many`` if the bus has it, else one ``send`` each)."""
+def sender(bus: can.BusABC, timeout_s: float = SEND_TIMEOUT_S) -> Callable[[Sequence[can.Message]], None]:
+    """``send_frames(frames)``: send the frames in order (``bus.send_many`` if the bus has it, else one ``send`` each),
+    each call waiting at most ``timeout_s`` for the bus to take a frame (then python-can raises ``CanOperationError``)."""
     send_many = getattr(bus, "send_many", None)
     if send_many is not None:
-        return send_many
+        return functools.partial(send_many, timeout=timeout_s)
     send = bus.send
 
     def send_each(frames: Sequence[can.Message]) -> None:
         for m in frames:
-            send(m)
+            send(m, timeout_s)
 
     return send_each

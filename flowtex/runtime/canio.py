@@ -28,6 +28,7 @@ from ..io.canmap import CanMap, load_map
 from ..io.codec import MessageCodec
 from ..io.codec_tables import _NF, _NI, TableDecoder, TableEncoder, _encode_tables, fast_ok, pack_int64
 from ..io.dbc import load_dbc
+from ..io.mapsafety import peak_low
 from ..node_decl import PortSpec
 from .safety import OutputGuard, Watchdog, first_stale, guard_kernel
 
@@ -113,14 +114,15 @@ class CanIO:
                     wd_timeouts.append(max(1, math.ceil(b.timeout_ms * rate_hz / 1000.0 - 1e-9)))
         self.watchdog_keys = wd_keys
         self.timeouts_ticks = np.array(wd_timeouts, dtype=np.int64)
-        self.decoders: dict[int, tuple[Callable[[Any], bool], tuple[int, ...]]] = {}
+        self.decoders: dict[int, tuple[Callable[[Any], bool], tuple[int, ...], bool]] = {}
+        """Frame id -> (Python decoder, watchdog entries it stamps, whether the message is an extended frame)."""
         fast_in = []
         for m, targets in per_msg.items():
             c = codecs[m]
             if c.frame_id in self.decoders:
                 raise DataError(f"two sensor messages share frame id {c.frame_id:#x}")
             entries = tuple(i for i, (_, mm) in enumerate(wd_keys) if mm == m)
-            self.decoders[c.frame_id] = (c.decoder(targets), entries)
+            self.decoders[c.frame_id] = (c.decoder(targets), entries, bool(c.is_extended))
             if fast_ok(c) and len(fast_in) < 62:
                 fast_in.append((c, per_msg_idx[m], entries))
         table_decoder = TableDecoder(fast_in) if fast_in else None
@@ -227,9 +229,10 @@ class CanIO:
         return Watchdog(self.timeouts_ticks, overrun_limit_ns, emit_log=emit_log)
 
     def decode(self, msg: can.Message, tick: int, watchdog: Watchdog) -> bool:
-        """Decode one received frame into the graph inputs; True if it was a mapped sensor frame."""
+        """Decode one received frame into the graph inputs; True if it was a mapped sensor frame (its ID in its frame
+        format: an extended frame with a standard message's number is another message, and the reverse)."""
         entry = self.decoders.get(msg.arbitration_id)
-        if entry is None or not entry[0](msg.data):
+        if entry is None or msg.is_extended_id != entry[2] or not entry[0](msg.data):
             return False
         for w in entry[1]:
             watchdog.fresh(w, tick)
@@ -296,16 +299,6 @@ class CanIO:
         if self.guard is not None:
             self.guard.safe_values(self.out)
         self.encode()
-
-
-def peak_low(lo: np.ndarray, hi: np.ndarray, limit: np.ndarray) -> np.ndarray:
-    """Lower peak bound for a map's ``peak: {limit: L}``: the margin above HIGH mirrored below LOW, ``LOW - (L - HIGH)``.
-
-    The map's ``limit`` is the largest value a transient may reach above the clamp
-    (``|value| up to L`` for a symmetric clamp ``[-H, H]``, where this gives ``-L``);
-    for an asymmetric clamp the same margin ``L - HIGH`` is allowed below ``LOW``.
-    """
-    return np.asarray(lo, dtype=np.float64) - (np.asarray(limit, dtype=np.float64) - np.asarray(hi, dtype=np.float64))
 
 
 def _arena(graph: TickProgram, canmap: CanMap) -> np.ndarray:

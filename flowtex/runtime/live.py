@@ -41,11 +41,11 @@ import numpy as np
 
 from ..errors import FlowtexError
 from ..graph.program import TickProgram
-from ..io.canlog import SessionWriter
+from ..io.canlog import RecordError, SessionWriter
 from ..io.dbc import one_line
 from .audio import AudioOutput, prompt_callbacks
 from .audio_timeline import check_event_ids
-from .buses import BusError, open_bus, receiver, sender
+from .buses import SEND_TIMEOUT_S, BusError, open_bus, receiver, sender
 from .canio import CanIO, load_io, tick_out
 from .clock import DeadlineClock
 from .fused import fuse_tick
@@ -71,7 +71,7 @@ class LiveReport:
     watchdog_events: int
     guard_events: int
     exit_reason: str
-    """``duration``, ``SIGINT``, ``SIGTERM`` or ``error``."""
+    """``duration``, ``SIGINT``, ``SIGTERM``, ``SIGHUP`` or ``error``."""
     error: str | None = None
     summary: dict = field(default_factory=dict)
     rt_message: str = ""
@@ -127,14 +127,17 @@ def run_live(graph: TickProgram, config: LiveConfig) -> LiveReport:
         bus_obj = open_bus(bus, config.bitrate)
     writer = None
     try:
-        writer = SessionWriter(record) if record is not None else None
+        writer = SessionWriter(record, "--record") if record is not None else None
         where = "the simulated device's virtual bus" if device is not None else f"bus {bus!r}"
         return _loop(graph, io, bus_obj, device, writer, n_ticks, config, stats_path, where, shown, audio)
+    except BaseException:
+        if writer is not None:  # the loop never ran or did not end (an interrupt during the compile): no log replaces the old
+            with contextlib.suppress(RecordError):
+                writer.close(keep=False)
+        raise
     finally:
         if audio is not None:
             audio.close()
-        if writer is not None:
-            writer.close()
         for b in (bus_obj, dev_bus):
             if b is not None:
                 with contextlib.suppress(Exception):
@@ -210,6 +213,8 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
                     if audio is not None:
                         for m in audio.take_events():
                             writer.write(m, False)
+                    if writer.error is not None:  # a full disk: the log would miss this session's rest, so it ends here
+                        raise RecordError(writer.error)
                 rx.clear()
                 k += 1
                 if device is not None:
@@ -247,6 +252,12 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
                 device.collect(k)
             if rt_status is not None:
                 leave_realtime(rt_status)
+    if writer is not None:  # renamed into place now that the exit block is in; a failed write discards it
+        try:
+            writer.close()
+        except RecordError as exc:
+            if error is None or str(exc) not in error:
+                error = f"{error}; {exc}" if error else str(exc)
     safe_sent = safe_error is None or not safe_error.startswith(SAFE_NOT_SENT)
     if safe_error:
         error = f"{error}; {safe_error}" if error else safe_error
@@ -258,7 +269,10 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
         display.finish(rt_granted)
     audio_summary = audio.summary() if audio is not None else None
     if stats_path is not None:
-        stats.write_json(stats_path, rt_granted, extra={"audio": audio_summary} if audio_summary is not None else None)
+        try:
+            stats.write_json(stats_path, rt_granted, extra={"audio": audio_summary} if audio_summary is not None else None)
+        except FlowtexError as exc:  # a full disk: the session is over and its safe values went out; say so in the line
+            error = f"{error}; --stats {one_line(exc)}" if error else f"--stats {one_line(exc)}"
     silent, silence = _silent_sensors(io, watchdog.last, k, stats.frames_in, where)
     return LiveReport(ticks=k, frames_in=stats.frames_in, frames_out=stats.frames_out, watchdog_events=watchdog.events,
                       guard_events=guard_events, exit_reason="error" if error else (stop[0] or "duration"), error=error,
@@ -289,7 +303,8 @@ def _silent_sensors(io: CanIO, last: np.ndarray, ticks: int, frames_in: int, whe
     silent = [m for m in io.map.sensor_messages() if m not in heard]
     if not silent or not ticks:
         return silent, None
-    names = ", ".join(f"{m} (id {io.codecs[m].frame_id:#x})" for m in silent)
+    # an extended message says so: a device sending it as a standard frame (or the reverse) sends another message
+    names = ", ".join(f"{m} ({'extended ' if io.codecs[m].is_extended else ''}id {io.codecs[m].frame_id:#x})" for m in silent)
     if len(silent) == len(io.map.sensor_messages()):
         other = f"; the {frames_in} frame(s) that arrived were none of them" if frames_in else ""
         return silent, (f"no sensor frame received in {ticks} ticks on {where}: expected {names}{other}. Outputs stayed at their "
@@ -315,9 +330,15 @@ def _enter_rt(rt: bool, priority: int, cpu: int | None, status: TextIO | None) -
     return rt_status, message
 
 
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+"""Signals that end a running session cleanly: safe values last, exit code 0 (SIGHUP does not exist on Windows)."""
+
+
 @contextlib.contextmanager
 def _stop_signals(flag: list[str | None], install: bool) -> Iterator[None]:
-    """SIGINT/SIGTERM set ``flag[0]`` instead of interrupting the loop (main thread only)."""
+    """SIGINT, SIGTERM and SIGHUP set ``flag[0]`` instead of interrupting the loop (main thread only).
+
+    SIGHUP (the terminal or ssh session closed) would otherwise end the process at once, without the safe values."""
     if not install or threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -325,7 +346,7 @@ def _stop_signals(flag: list[str | None], install: bool) -> Iterator[None]:
     def handler(signum: int, frame: Any) -> None:
         flag[0] = signal.Signals(signum).name
 
-    old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    old = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
     try:
         yield
     finally:
@@ -344,7 +365,7 @@ def _send_safe(io: CanIO, bus: can.BusABC, writer: SessionWriter | None) -> str 
     reason = ""
     for m in io.tx:
         try:
-            bus.send(m)
+            bus.send(m, SEND_TIMEOUT_S)
         except Exception as exc:  # keep trying the other messages
             failed.append(f"{m.arbitration_id:#x}")
             reason = one_line(exc)

@@ -42,12 +42,14 @@ def rx_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[Any], int, Any],
     A frame the compiled decoder takes has its payload stored as one integer in
     ``words[slot]`` and its bit set in the returned mask (for :func:`decode_packed`);
     any other mapped frame goes through its generated Python decoder into the graph
-    inputs and marks its watchdog entries fresh at ``tick``. An error frame reporting
-    bus-off raises :class:`BusError`.
+    inputs and marks its watchdog entries fresh at ``tick``. A frame of the other format
+    (extended or standard) than its ID number's message is another message: skipped. An
+    error frame reporting bus-off raises :class:`BusError`.
     """
     td = io.codec.decoder
     slot_get = td.slot_of.get if td is not None else {}.get
     slot_len = td.lengths if td is not None else []
+    slot_ext = td.extended if td is not None else []
     from_bytes = int.from_bytes
     decoders = io.decoders
     fresh = watchdog.fresh
@@ -61,14 +63,21 @@ def rx_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[Any], int, Any],
                 continue
             j = slot_get(msg.arbitration_id)
             if j is not None:
+                if msg.is_extended_id != slot_ext[j]:
+                    continue
                 data = msg.data
                 if len(data) == slot_len[j]:
                     words[j] = from_bytes(data, "little", signed=True)
                     mask |= 1 << j
                     continue
-                mask &= ~(1 << j)  # an odd-length frame after a regular one: the later frame wins
+                entry = decoders[msg.arbitration_id]
+                if entry[0](data):  # a longer frame the Python codec takes (CAN FD padding): the later frame wins
+                    mask &= ~(1 << j)
+                    for w in entry[1]:
+                        fresh(w, tick)
+                continue  # a shorter one (a remote frame has no data) decodes nothing and leaves an earlier frame be
             entry = decoders.get(msg.arbitration_id)
-            if entry is not None and entry[0](msg.data):
+            if entry is not None and msg.is_extended_id == entry[2] and entry[0](msg.data):
                 for w in entry[1]:
                     fresh(w, tick)
         return mask
@@ -135,7 +144,7 @@ def warmer(io: CanIO, watchdog: Watchdog, fused: FusedTick | None, decode_rx: Ca
     td = io.codec.decoder
     calls: list[Callable[[], Any]] = []
     if td is not None:
-        templates = [can.Message(arbitration_id=fid, is_extended_id=fid > 0x7FF, data=bytearray(int(td.lengths[j])))
+        templates = [can.Message(arbitration_id=fid, is_extended_id=td.extended[j], data=bytearray(int(td.lengths[j])))
                      for fid, j in td.slot_of.items()]
         scratch_words = np.zeros_like(td.words)
         calls.append(lambda: decode_rx(templates, 0, scratch_words))

@@ -7,6 +7,9 @@ from __future__ import annotations
 from .core import Field, Record
 
 DEFAULT_OVERRUN_MS = 2.0
+MAX_MAP_MS = 86_400_000.0
+"""Longest ``timeout_ms``, ``overrun_limit_ms`` and peak ``max_ms`` (one day): longer is no watchdog, and a
+duration past ~2^63 ns would not even fit the watchdog's integer nanoseconds and ticks."""
 MIN_AUDIO_RATE = 5000.0
 """Lowest audio rate accepted, Hz (the issue's and Culbertson 2012's floor)."""
 DEFAULT_AUDIO_MARGIN_MS = 10.0
@@ -43,9 +46,10 @@ INPUT_BINDING = Record(
     keys={
         **_SIGNALS,
         **_linear("graph value = DBC physical value * scale + offset."),
-        "timeout_ms": Field("number", unit="ms", min=0.0, min_exclusive=True,
+        "timeout_ms": Field("number", unit="ms", min=0.0, min_exclusive=True, max=MAX_MAP_MS,
                             doc="How old a sensor value may get before the watchdog sends safe outputs.",
-                            message="{what}: timeout_ms must be a positive number of milliseconds, got {got}",
+                            message=f"{{what}}: timeout_ms must be a positive number of milliseconds, at most {MAX_MAP_MS:.0f} "
+                                    "(one day), got {got}",
                             missing="{what}: missing 'timeout_ms' (how old, in ms, a sensor value may get before outputs go safe)"),
         "doc": Field("str", doc="Free text."),
     },
@@ -59,8 +63,9 @@ INPUT_BINDING = Record(
 PEAK = Record(
     keys={
         "limit": Field("any_of", of=PER_COMPONENT.of, doc="|value| allowed above the clamp, graph units, for at most max_ms."),
-        "max_ms": Field("number", unit="ms", min=0.0, doc="How long the peak may last.",
-                        message="{what}: peak max_ms must be a non-negative number of milliseconds, got {got}"),
+        "max_ms": Field("number", unit="ms", min=0.0, max=MAX_MAP_MS, doc="How long the peak may last.",
+                        message=f"{{what}}: peak max_ms must be a non-negative number of milliseconds, at most {MAX_MAP_MS:.0f} "
+                                "(one day), got {got}"),
     },
     required=("limit", "max_ms"),
     doc="A short excursion above the clamp.",
@@ -141,9 +146,10 @@ MAP = Record(
         "flowtex_map": Field("const", const=1, default=1, doc="The map format version.",
                              message="unsupported map format version {got} (this flowtex reads version 1)"),
         "description": Field("any", doc="Free text."),
-        "overrun_limit_ms": Field("number", unit="ms", min=0.0, min_exclusive=True, default=DEFAULT_OVERRUN_MS,
+        "overrun_limit_ms": Field("number", unit="ms", min=0.0, min_exclusive=True, max=MAX_MAP_MS, default=DEFAULT_OVERRUN_MS,
                                   doc="A tick this late forces safe values.",
-                                  message="overrun_limit_ms must be a positive number of milliseconds, got {got}"),
+                                  message=f"overrun_limit_ms must be a positive number of milliseconds, at most {MAX_MAP_MS:.0f} "
+                                          "(one day), got {got}"),
         "inputs": Field("map", values=Field("record", record=INPUT_BINDING), doc="Graph input name -> the DBC signals it reads.",
                         missing="missing 'inputs:' section (a mapping from graph input names to signals)",
                         message="'inputs' must be a mapping from graph input names to bindings"),

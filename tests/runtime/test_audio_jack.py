@@ -399,3 +399,32 @@ def test_vanished_device_ends_session_with_one_line(setup):
     assert r["rc"] == 1, r["stderr"]
     lines = [x for x in r["stderr"].strip().splitlines() if not x.startswith("flowtex: ")]  # notes: compiling, plugins
     assert len(lines) == 1 and "audio device" in lines[0] and "stopped" in lines[0], r["stderr"]
+
+
+def _files_limited_to(size: int) -> None:
+    """preexec_fn: every file the child writes is cut at ``size`` bytes (a write past it fails with EFBIG, as on a
+    full disk; SIGXFSZ ignored so that the write fails instead of killing the child)."""
+    import resource
+
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (size, resource.getrlimit(resource.RLIMIT_FSIZE)[1]))
+
+
+def test_record_audio_the_disk_refuses_is_one_line_naming_it(setup):
+    """--record-audio written at the end on a full disk: one line naming the option and the file, exit code 1, the older
+    file left as it was (before: 'audio output: OSError: [Errno 27] File too large', naming neither)."""
+    wav = setup / "live.wav"
+    cmd = [sys.executable, "-m", "flowtex", "live", str(setup / "g.yaml"), "--bus", "virtual", "--dbc", str(DBC),
+           "--map", str(_map(setup, 64)), "--simulate", str(setup / "rec.npz"), "--quiet", "--record-audio", str(wav)]
+    with jack_server(64, setup / "jackd.log") as (env, _):
+        warm = subprocess.run([*cmd, "--duration", "0.2"], capture_output=True, text=True, env=env, timeout=300)
+        assert warm.returncode == 0, warm.stderr  # compiled and cached before any file is limited
+        wav.write_bytes(b"an older recording")
+        r = subprocess.run([*cmd, "--duration", "1"], capture_output=True, text=True, env=env, timeout=120,
+                           preexec_fn=lambda: _files_limited_to(8000))  # 1 s at 8 kHz is 32 KB of float32
+    lines = [x for x in r.stderr.strip().splitlines() if not x.startswith("flowtex: ")]
+    assert r.returncode == 1 and len(lines) == 1, r.stderr
+    assert lines[0].startswith(f"--record-audio {wav}: cannot write it (File too large)"), lines
+    assert lines[0].endswith("(safe values sent)"), lines
+    assert wav.read_bytes() == b"an older recording"
+    assert sorted(p.name for p in setup.iterdir() if p.suffix == ".wav") == ["live.wav"]

@@ -148,8 +148,9 @@ def test_bus_that_cannot_be_opened(setup):
         run_live(g, LiveConfig(DBC, setup / "m.yaml", bus="nosuchbus:0", max_ticks=10, status=None))
 
 
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])
 def test_signal_leaves_safe_values_last(setup, sig):
+    """Ctrl-C, SIGTERM and SIGHUP (the terminal closed) end the session cleanly: safe values last, exit code 0."""
     rec = setup / f"s{int(sig)}.log"
     cmd = [sys.executable, "-m", "flowtex", "live", str(setup / "g.yaml"), "--dbc", str(DBC),
            "--map", str(setup / "m.yaml"), "--simulate", str(setup / "rec.npz"), "--record", str(rec), "--quiet"]

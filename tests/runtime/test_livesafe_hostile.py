@@ -112,6 +112,25 @@ def test_an_output_on_a_message_the_device_transmits_is_refused(setup):  # noqa:
     assert r.error is None
 
 
+@pytest.mark.parametrize("old,new,key", [
+    ("overrun_limit_ms: 100000", "overrun_limit_ms: 1e13", "overrun_limit_ms"),
+    ("normal_force: {signal: ToolForce.NormalForce, timeout_ms: 5}", "normal_force: {signal: ToolForce.NormalForce, timeout_ms: 1e300}",
+     "timeout_ms"),
+    ("clamp: [-1, 1], safe: 0}", "clamp: [-1, 1], safe: 0, peak: {limit: 1.5, max_ms: 1e300}}", "peak max_ms")])
+def test_an_absurd_duration_in_the_map_is_refused_naming_its_line(setup, old, new, key, capsys):  # noqa: F811
+    """Durations past what the watchdog's integer ns and ticks hold were an OverflowError: at tick 0 (overrun_limit_ms,
+    'tick 0: OverflowError: int too big to convert') or an internal error (timeout_ms, peak max_ms)."""
+    m = setup / "absurd.yaml"
+    text = textwrap.dedent(MAP)
+    assert old in text
+    m.write_text(text.replace(old, new))
+    rc = main(["live", str(setup / "g.yaml"), "--dbc", str(DBC), "--map", str(m), "--simulate", str(setup / "rec.npz"),
+               "--duration", "0.05", "--quiet"])
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip() and not line.startswith("flowtex: compiling")]
+    assert rc == 1 and len(err) == 1, err
+    assert re.match(rf"{re.escape(str(m))}:\d+:\d+: .*{key} must be .*at most 86400000 \(one day\), got \S+$", err[0]), err
+
+
 def test_stats_where_no_file_can_be_created_is_refused_before_the_session(setup):  # noqa: F811
     """As root, os.access says /sys/kernel is writable; creating a file there fails. Checked by creating one."""
     if not os.path.isdir("/sys/kernel") or not os.access("/sys/kernel", os.W_OK):

@@ -2,6 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
+import resource
+import signal
+
+import can
+import cantools
 import numpy as np
 import pytest
 from test_live import DBC, setup  # noqa: F401  (fixture; rootdir-relative import as pytest does)
@@ -100,3 +106,69 @@ def test_files_the_session_was_built_from_are_inputs_too(setup):  # noqa: F811
     with pytest.raises(OutputError, match=r"--stats .*scene\.yaml: that is an input of this command"):
         _live(setup, stats_path=scene, inputs=[scene])
     assert scene.read_text() == "flowtex_scene: 1\n"
+
+
+@contextlib.contextmanager
+def _files_limited_to(size: int):
+    """Every file this process writes is cut at ``size`` bytes: a write past it fails with EFBIG, as on a full disk
+    (RLIMIT_FSIZE; SIGXFSZ ignored so the write fails instead of killing the process)."""
+    old_limit = resource.getrlimit(resource.RLIMIT_FSIZE)
+    old_handler = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (size, old_limit[1]))
+    try:
+        yield
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, old_limit)
+        signal.signal(signal.SIGXFSZ, old_handler)
+
+
+@pytest.mark.parametrize("suffix", [".log", ".blf"])
+def test_a_record_the_disk_refuses_ends_the_session_in_one_line_with_safe_values_last(setup, suffix, capsys):  # noqa: F811
+    """--record on a disk that fills mid-session: the session stops with the safe values as the last frames on the bus
+    (read by a second python-can client, decoded with cantools), one line naming the log, exit code 1; the older log
+    of that name is left as it was and no temporary file remains. Before: 'CAN bus error', then an internal error."""
+    _live(setup)  # compiled (and cached) before any file is limited
+    rec = setup / f"s{suffix}"
+    rec.write_bytes(b"an older log")
+    channel = f"livesafe-disk-{suffix[1:]}"
+    db = cantools.database.load_file(DBC)
+    listener = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+    try:
+        with _files_limited_to(16_000):
+            rc = live_main(["live", str(setup / "g.yaml"), "--dbc", str(DBC), "--map", str(setup / "m.yaml"), "--simulate",
+                            str(setup / "rec.npz"), "--bus", f"virtual:{channel}", "--duration", "3", "--quiet",
+                            "--record", str(rec)])
+        frames = []
+        msg = listener.recv(0)
+        while msg is not None:
+            frames.append(msg)
+            msg = listener.recv(0)
+    finally:
+        listener.shutdown()
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip() and not line.startswith("flowtex: compiling")]
+    assert rc == 1 and len(err) == 1, err
+    assert f"--record {rec}: cannot write the CAN log: File too large" in err[0] and err[0].endswith("(safe values sent)"), err
+    assert "CAN bus error" not in err[0]
+    current = [db.decode_message(0x200, m.data)["Current"] for m in frames if m.arbitration_id == 0x200]
+    force = [[db.decode_message(0x201, m.data)[k] for k in ("Fx", "Fy", "Fz")] for m in frames if m.arbitration_id == 0x201]
+    assert 100 < len(current) < 3000, len(current)  # the session ran, and stopped before its 3 s
+    assert current[-1] == 0.0 and force[-1] == [0, 0, 0]
+    assert current[-2] > 0.4  # the tick before was a live one
+    assert rec.read_bytes() == b"an older log"
+    assert sorted(p.name for p in setup.iterdir() if p.name.startswith((".s", "s."))) == [rec.name]
+
+
+def test_stats_the_disk_refuses_are_one_line_after_the_session(setup, capsys):  # noqa: F811
+    """--stats written at the end on a full disk: one line naming it, exit code 1, the older file left as it was
+    (before: an internal error, and the session's summary and warnings lost)."""
+    _live(setup)  # compiled (and cached) before any file is limited
+    stats = setup / "stats.json"
+    stats.write_text("{}")
+    with _files_limited_to(300):  # the statistics are a few KB
+        rc = live_main(["live", str(setup / "g.yaml"), "--dbc", str(DBC), "--map", str(setup / "m.yaml"), "--simulate",
+                        str(setup / "rec.npz"), "--duration", "0.2", "--quiet", "--stats", str(stats)])
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip() and not line.startswith("flowtex: compiling")]
+    assert rc == 1 and len(err) == 1, err
+    assert err[0].startswith(f"--stats {stats}: cannot write it (File too large)") and err[0].endswith("(safe values sent)"), err
+    assert stats.read_text() == "{}"
+    assert sorted(p.name for p in setup.iterdir() if "stats" in p.name) == ["stats.json"]
