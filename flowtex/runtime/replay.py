@@ -16,7 +16,7 @@ has no exit block: every complete block is a tick, and the report says how many
 ticks the session had (from the BLF header's frame count) and how many were found. Frames with ids the map does not read are
 skipped, as the live loop skips them.
 
-For every tick the replay decodes the same frames with the same codecs into the
+For every tick the replay decodes the same frames with the same decoder as the live tick into the
 graph inputs, steps the graph (reset with the same seed), guards the outputs with
 the same clamps/peak allowance (never forcing safe values) and encodes them. If a
 live block differs from the replayed one, the tick is reported: as ``watchdog``
@@ -29,6 +29,7 @@ else as ``unexplained`` (a real mismatch).
 from __future__ import annotations
 
 import contextlib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -40,9 +41,12 @@ from ..errors import DataError
 from ..graph.program import TickProgram
 from ..io.atomic import atomic_output
 from ..io.canlog import SessionWriter, read_session_checked
+from ..io.codec_tables import decode_packed
 from ..io.formats import AUDIO, CAN_LOG, RECORDING, format_of
 from .audio_timeline import split_events
-from .canio import load_io
+from .canio import CanIO, load_io
+from .safety import Watchdog
+from .tick import rx_decoder
 
 
 @dataclass
@@ -180,6 +184,29 @@ def _split_ticks(frames: list[can.Message], tx_ids: list[tuple[int, bool]], path
     return ticks, exit_block
 
 
+def _tick_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[can.Message], int], None]:
+    """``decode_tick(rx, k)``: the frames one live tick received into the graph inputs, as the live tick decodes them
+    (:func:`~flowtex.runtime.tick.rx_decoder`, then the compiled decoder): the latest frame of each compiled message
+    is the one decoded, and dropped whole when a float signal in it is NaN or inf, so that an earlier frame of that
+    message in the same tick is not used either. Decoding frame by frame would differ there."""
+    mask_of = rx_decoder(io, watchdog)
+    td = io.codec.decoder
+    if td is None:  # no compiled message: mask_of decodes every frame with its Python decoder
+
+        def decode_python(rx: list[can.Message], k: int) -> None:
+            mask_of(rx, k, None)
+
+        return decode_python
+    words, arena, stamps = td.words, io.codec.arena, watchdog.last
+
+    def decode_tick(rx: list[can.Message], k: int) -> None:
+        mask = mask_of(rx, k, words)
+        if mask:
+            decode_packed(td.ibuf, td.fbuf, mask, k, arena, stamps)
+
+    return decode_tick
+
+
 def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str | Path, map_path: str | Path,
                    output_path: str | Path | None = None, seed: int | None = None,
                    expect_audio: str | Path | None = None) -> ReplayReport:
@@ -231,9 +258,9 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
         if completeness.problem and completeness.expected_frames is not None:
             report.expected_ticks = expected_ticks(completeness.expected_frames, ticks, len(io.tx))
         try:
+            decode_tick = _tick_decoder(io, watchdog)
             for k, (rx, live_block) in enumerate(ticks):
-                for msg in rx:
-                    io.decode(msg, k, watchdog)
+                decode_tick(rx, k)
                 graph.step_block(1)
                 stale = watchdog.check(k, 0)
                 io.guard_outputs(False)

@@ -194,3 +194,37 @@ def test_a_silent_extended_sensor_is_named_as_extended(setup):  # noqa: F811
                                                           status=None, drop={"ToolForce": (0, None)}))
     assert r.error is None and r.silent_messages == ["ToolForce"]
     assert r.silence.startswith("no frame of ToolForce (extended id 0x101) received in 50 ticks"), r.silence
+
+
+def test_replay_decodes_a_tick_as_live_did_when_its_last_frame_is_not_finite(setup, monkeypatch):  # noqa: F811
+    """A tick that received a finite DeviceStatus frame and then a NaN one: live keeps the latest frame of each
+    message, finds it non-finite and writes nothing (no stamp either). The replay decoded frame by frame, so it wrote
+    the finite one into the low-pass: every later output differed from what live sent (replay equality). The
+    replay now decodes a tick's frames as the live tick does (flowtex.runtime.tick.rx_decoder, then the compiled
+    decoder)."""
+    from flowtex.runtime import simdevice
+    from flowtex.runtime.replay import replay_session
+
+    (setup / "nan.yaml").write_text(NAN_GRAPH)
+    m = setup / "mnan.yaml"
+    m.write_text(textwrap.dedent(MAP).replace("normal_force: {signal: ToolForce.NormalForce, timeout_ms: 5}",
+                                              "normal_force: {signal: DeviceStatus.CoilTemperature, timeout_ms: 5}"))
+    status = DB.get_message_by_name("DeviceStatus")
+    nan = can.Message(arbitration_id=status.frame_id, is_extended_id=False, data=struct.pack("<f", float("nan")) + bytes(4))
+    publish = simdevice.SimulatedDevice.publish
+
+    def twice_at_100(self, k):  # tick 100's finite frame, then a NaN frame of the same message in the same tick
+        publish(self, k)
+        if k == 100:
+            self.bus.send(nan)
+
+    monkeypatch.setattr(simdevice.SimulatedDevice, "publish", twice_at_100)
+    log = setup / "nan.blf"
+    r = run_live(load_graph(setup / "nan.yaml"), LiveConfig(DBC, m, simulate=setup / "rec.npz", max_ticks=300, record=log,
+                                                            status=None, seed=3))
+    assert r.error is None
+    frames = [f for f in __import__("flowtex.io.canlog", fromlist=["read_session"]).read_session(log) if f.is_rx]
+    assert any(f.arbitration_id == status.frame_id and not np.isfinite(struct.unpack("<f", bytes(f.data[:4]))[0])
+               for f in frames)  # the NaN frame reached live and the log
+    rep = replay_session(load_graph(setup / "nan.yaml"), log, DBC, m, setup / "replay.log", seed=3)
+    assert rep.ticks == 300 and rep.unexplained_ticks == [] and rep.mismatched_ticks == [], rep.summary()
