@@ -5,7 +5,7 @@ Every verb lives in one module of this package with ``register(subparsers)`` add
 
 Exit codes: 0 ok; 1 user error (a one-line message naming the file, option or signal and the fix, also for a bad
 command line); 2 internal error (a bug: ``flowtex: internal error: ...``; ``FLOWTEX_DEBUG=1`` shows the traceback);
-3 ``live`` ended without one sensor frame; 130 interrupted (Ctrl-C); 143 terminated (SIGTERM) before the verb finished.
+3 ``live`` ended without one sensor frame; 130 interrupted (Ctrl-C); 143 terminated (SIGTERM), 129 hung up (SIGHUP) before the verb finished.
 """
 
 from __future__ import annotations
@@ -30,11 +30,19 @@ EXIT_INTERNAL_ERROR = 2
 EXIT_NO_SENSOR_FRAMES = 3
 EXIT_INTERRUPTED = 130
 EXIT_TERMINATED = 143
-"""128 + SIGTERM: a verb stopped by SIGTERM before it finished (``live`` stops cleanly with 0 once its loop runs)."""
+"""128 + SIGTERM: a verb stopped by SIGTERM before it finished (``live`` stops cleanly with 0 once its loop runs);
+SIGHUP (the terminal or ssh session closed) gives 128 + SIGHUP = 129 the same way."""
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
+"""Signals that raise :class:`Terminated` while a verb runs (SIGHUP does not exist on Windows)."""
 
 
 class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised where Ctrl-C would raise KeyboardInterrupt: the same clean-up runs (no ``.part`` file left)."""
+    """SIGTERM or SIGHUP (``signum``), raised where Ctrl-C would raise KeyboardInterrupt: the same clean-up runs (no
+    ``.part`` file left). Without it SIGHUP would end the process at once and leave the temporary files behind."""
+
+    def __init__(self, signum: int = signal.SIGTERM) -> None:
+        super().__init__()
+        self.signum = int(signum)
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "validate": ("flowtex.cli.graph", "check any flowtex file (graph, scene, device map, model set, pattern, tap library, "
@@ -83,7 +91,7 @@ def build_parser(command: str | None = "") -> argparse.ArgumentParser:
 
     parser = Parser(prog="flowtex", description="Dataflow graphs for haptic signal processing (every flag: docs/cli.md).",
                     epilog="Exit codes: 0 ok, 1 user error (one line), 2 internal error, 3 live without sensor frames, "
-                           "130 interrupted (Ctrl-C), 143 terminated (SIGTERM).")
+                           "130 interrupted (Ctrl-C), 143 terminated (SIGTERM), 129 hung up (SIGHUP).")
     parser.add_argument("--version", action="version", version=f"flowtex {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     chosen = COMMANDS[command][0] if command else None
@@ -100,42 +108,48 @@ def build_parser(command: str | None = "") -> argparse.ArgumentParser:
 
 @contextlib.contextmanager
 def sigterm_interrupts() -> Iterator[None]:
-    """While the ``with`` body runs, SIGTERM raises :class:`Terminated` (main thread only; the old handler comes back).
+    """While the ``with`` body runs, SIGTERM and SIGHUP raise :class:`Terminated` (main thread only; the old handlers
+    come back).
 
     Every writer already removes its temporary file on KeyboardInterrupt (:func:`flowtex.io.atomic.atomic_output`),
-    so SIGTERM leaves nothing behind either. ``live`` installs its own handlers for its loop (a clean stop).
+    so these signals leave nothing behind either. ``live`` installs its own handlers for its loop (a clean stop).
     """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
     def handler(signum: int, frame: Any) -> None:
-        raise Terminated()
+        raise Terminated(signum)
 
-    old = signal.signal(signal.SIGTERM, handler)
+    old = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, old)
+        for s, h in old.items():
+            signal.signal(s, h)
 
 
 def _signal_of(exc: BaseException) -> int | None:
-    """The signal an interrupt exception stands for (SIGTERM for :class:`Terminated`, SIGINT for Ctrl-C), else None."""
+    """The signal an interrupt exception stands for (SIGTERM or SIGHUP for :class:`Terminated`, SIGINT for Ctrl-C),
+    else None."""
     if isinstance(exc, Terminated):
-        return signal.SIGTERM
+        return exc.signum
     return signal.SIGINT if isinstance(exc, KeyboardInterrupt) else None
+
+
+def _stopped(exc: KeyboardInterrupt) -> int:
+    """The exit code and last line for a verb stopped by a signal (the terminal may be gone: SIGHUP)."""
+    with contextlib.suppress(OSError):
+        print("terminated" if isinstance(exc, Terminated) else "interrupted", file=sys.stderr)
+    return 128 + exc.signum if isinstance(exc, Terminated) else EXIT_INTERRUPTED
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     try:
         with sigterm_interrupts(), interrupts_kept(_signal_of):
             return _main(argv)
-    except Terminated:  # between the verb's own handlers (after it returned, or while the parser loads)
-        print("terminated", file=sys.stderr)
-        return EXIT_TERMINATED
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as exc:  # between the verb's own handlers (after it returned, or while the parser loads)
+        return _stopped(exc)
 
 
 def _command_of(argv: Sequence[str]) -> str | None:
@@ -159,12 +173,8 @@ def _main(argv: Sequence[str] | None) -> int:
         for line in str(exc).splitlines() or [type(exc).__name__]:
             print(clean(line), file=sys.stderr)
         return EXIT_USER_ERROR
-    except Terminated:
-        print("terminated", file=sys.stderr)
-        return EXIT_TERMINATED
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as exc:
+        return _stopped(exc)
     except BrokenPipeError:
         return EXIT_OK
     except Exception as exc:

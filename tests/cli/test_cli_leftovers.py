@@ -24,16 +24,17 @@ VERBS = {
 }
 
 
-@pytest.mark.parametrize("verb", list(VERBS))
-def test_sigterm_during_the_write_keeps_the_old_output_and_leaves_no_part_file(tmp_path, verb):
-    """numpy.savez is held after writing the temporary file (tests/cli/test_cli_sigint.py); SIGTERM then arrives."""
+@pytest.mark.parametrize("verb, signum", [("run", signal.SIGTERM), ("resample", signal.SIGTERM), ("run", signal.SIGHUP)])
+def test_sigterm_during_the_write_keeps_the_old_output_and_leaves_no_part_file(tmp_path, verb, signum):
+    """numpy.savez is held after writing the temporary file (tests/cli/test_cli_sigint.py); SIGTERM then arrives.
+    SIGHUP (the terminal closed) is the same; before, it ended the process at once and left the temporary file."""
     (tmp_path / "g.yaml").write_text(GRAPH)
     save_recording(tmp_path / "in.npz", {"x": np.arange(5000, dtype=np.float64)}, rate=1000.0)
     out = tmp_path / "out.npz"
     save_recording(out, {"y": np.full(3, 7.0)}, rate=1000.0)
     before = out.read_bytes()
-    code, stderr = signal_during_write(tmp_path, VERBS[verb](tmp_path, out), signal.SIGTERM)
-    assert code == 143 and stderr.strip().splitlines()[-1] == "terminated", stderr
+    code, stderr = signal_during_write(tmp_path, VERBS[verb](tmp_path, out), signum)
+    assert code == 128 + signum and stderr.strip().splitlines()[-1] == "terminated", stderr
     assert out.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["g.yaml", "in.npz", "out.npz", "writing"]
 
