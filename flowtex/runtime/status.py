@@ -137,7 +137,7 @@ class StatusDisplay:
     LOG_EVERY = 10
     """Status lines to a non-terminal: one per this many terminal refreshes (5 s at the default 0.5 s)."""
 
-    def __init__(self, out: TextIO, io: CanIO, watchdog: Watchdog, stats: TickStats, every: int, shown: Sequence[Shown] = ()) -> None:
+    def __init__(self, out: TextIO | None, io: CanIO, watchdog: Watchdog, stats: TickStats, every: int, shown: Sequence[Shown] = ()) -> None:
         self.out = out
         self.shown = list(shown)
         self.io = io
@@ -160,7 +160,7 @@ class StatusDisplay:
             self.stats.timeouts = self.watchdog.stale_events
             line = self.line()
             self._line_len = len(line)
-            print(self._cr + line, end="" if self.tty else "\n", file=self.out, flush=True)
+            self._write(self._cr + line + ("" if self.tty else "\n"))
 
     def line(self) -> str:
         """The status line: timing and counters, the outputs the guard limited so far, then the shown values."""
@@ -174,11 +174,22 @@ class StatusDisplay:
         wd = self.watchdog
         for tick, reason, detail in wd.log[self._shown:]:
             event = describe_event(self.io, wd, tick, reason, detail)
-            print(self._cr + (event.ljust(self._line_len) if self.tty else event), file=self.out, flush=True)
+            self._write(self._cr + (event.ljust(self._line_len) if self.tty else event) + "\n")
         self._shown = len(wd.log)
 
     def finish(self, rt_granted: bool) -> None:
         """The remaining events, a last status line and the end-of-run summary."""
         self._events()
-        print(self._cr + self.line(), file=self.out)
-        print(self.stats.format_summary(rt_granted), file=self.out)
+        self._write(self._cr + self.line() + "\n" + self.stats.format_summary(rt_granted) + "\n")
+
+    def _write(self, text: str) -> None:
+        """Write and flush ``text``; a stream that refuses (the terminal gone, a closed pipe: EIO, EPIPE) is dropped
+        for the rest of the session. The display only informs: it must not end a session, which its safety, its
+        signals (SIGHUP when the terminal closes) and --stats already cover."""
+        if self.out is None:
+            return
+        try:
+            self.out.write(text)
+            self.out.flush()
+        except (OSError, ValueError):  # ValueError: a closed file object
+            self.out = None

@@ -66,3 +66,25 @@ def test_live_session_shows_the_chosen_values_on_its_status_line(setup):  # noqa
     # the last tick (599) got sample 599 of the recording: 0.25 * (3 + sin(10 pi t)); NormalForce is sent in 0.001 N
     # steps (0.25 * 0.0005 N of error) and printed with 4 significant digits (5e-5 here)
     assert vib == pytest.approx(0.25 * (3 + math.sin(10 * math.pi * 0.599)), abs=2e-4)
+
+
+class _GoneTerminal(io.StringIO):
+    """A terminal that closes after its first write, as one does when its window or ssh session goes (EIO)."""
+
+    def isatty(self) -> bool:
+        return True
+
+    def write(self, text: str) -> int:
+        if self.getvalue():
+            raise OSError(5, "Input/output error")
+        return super().write(text)
+
+
+def test_a_status_stream_that_fails_does_not_end_the_session(setup):  # noqa: F811
+    # the display only informs: before, the session ended at the first refused write as "CAN bus error at tick 500:
+    # [Errno 5] Input/output error" (a wrong label, and a session cut short by its display)
+    out = _GoneTerminal()
+    r = run_live(load_graph(setup / "g.yaml"), LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=1200,
+                                                          status=out))
+    assert r.error is None and r.ticks == 1200, r.error
+    assert out.getvalue().startswith("\rtick       500 |")  # the one write that got through
