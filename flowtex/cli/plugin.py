@@ -10,7 +10,7 @@ from .output import note, say
 
 def register(sub: Any) -> None:
     p = sub.add_parser("plugin", help="write a plugin package for a new node type, or check a plugin's node types")
-    verbs = p.add_subparsers(dest="plugin_command", required=True, parser_class=type(p))
+    verbs = p.add_subparsers(dest="plugin_command", required=True, metavar="ACTION", parser_class=type(p))
     q = verbs.add_parser("new", help="write an installable plugin package for node type NAME (node, test, golden file, README)")
     q.add_argument("name", metavar="NAME", help="node type name, e.g. smooth_gain (lowercase letters, digits, _)")
     q.add_argument("--output", "-o", required=True, metavar="DIR", help="new (or empty) folder for the package")

@@ -21,7 +21,7 @@ def register(sub: Any) -> None:
     scene = sub.add_parser("scene", help="plan a multi-surface scene into a graph that renders only what matters",
                            description="Scenes: surfaces + a representative trajectory -> a graph with only the salient components "
                                        "(docs/scenes.md).")
-    actions = scene.add_subparsers(dest="scene_command", required=True, parser_class=type(scene))
+    actions = scene.add_subparsers(dest="scene_command", required=True, metavar="ACTION", parser_class=type(scene))
 
     p = actions.add_parser("plan", help="write the planned graph; explain what is kept and why")
     p.add_argument("scene", help="scene YAML file")

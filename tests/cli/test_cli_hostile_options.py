@@ -241,3 +241,10 @@ def test_simulating_a_recording_without_a_sensor_signal_names_the_file(tmp_path,
                                 "--map", str(MAP), "--simulate", str(tmp_path / "accel_only.npz"), "--duration", "0.2"],
                        "no signal 'position' for sensor input 'position' (it has: accel, speed)")
     assert msg.startswith(f"{tmp_path / 'accel_only.npz'}: ")
+
+
+@pytest.mark.parametrize("group, word", [("fit", "KIND"), ("models", "ACTION"), ("plugin", "ACTION"), ("scene", "ACTION")])
+def test_a_command_group_without_its_action_names_the_missing_word(capsys, group, word):
+    # 'scene' and 'plugin' named their parser's internal field ('scene_command'), which the help shows nowhere
+    line = cli_one_line(capsys, [group], f"the following arguments are required: {word} ")
+    assert "_command" not in line and f"flowtex {group} --help" in line
