@@ -58,7 +58,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
                            "(docs/bench.md): give fewer values")
     reference = dict(parse_override(r, "--reference") for r in args.reference)
     inputs = [args.graph, args.input]
-    check_output(args.output, inputs=inputs, option="-o")
+    check_output(args.output, inputs=inputs, option="-o", suffixes=(".csv",))
     check_output(args.plot, inputs=inputs, option="--plot", others={"-o": args.output})
     if args.plot:
         need_matplotlib()

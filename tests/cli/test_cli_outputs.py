@@ -168,10 +168,14 @@ def test_two_outputs_of_one_command_on_one_file_fail_before_the_work(files, caps
                               "--holdout-json", same])
     assert code == 1 and err == [f"--holdout-json {same}: -o writes that file too; give each output its own file"], err
     assert not (tmp_path / "s.json").exists()
+    code, err = _run(capsys, ["bench", files["graph"], "-i", files["rec"], "--knob", "k.k=1,2", "-o", tmp_path / "t.csv",
+                              "--plot", tmp_path / "t.csv"])
+    assert code == 1 and len(err) == 1 and err[0].startswith(f"--plot {tmp_path / 't.csv'}: "), err  # a table is no plot
+    # bench's -o writes CSV whatever the name said (a table in t.png, which --plot t.png then drew over): CSV names only
     code, err = _run(capsys, ["bench", files["graph"], "-i", files["rec"], "--knob", "k.k=1,2", "-o", tmp_path / "t.png",
                               "--plot", tmp_path / "t.png"])
-    assert code == 1 and err == [f"--plot {tmp_path / 't.png'}: -o writes that file too; give each output its own file"], err
-    assert not (tmp_path / "t.png").exists()
+    assert code == 1 and err == [f"-o {tmp_path / 't.png'}: unknown output format '.png'; use .csv"], err
+    assert not (tmp_path / "t.png").exists() and not (tmp_path / "t.csv").exists()
 
 
 def test_fit_friction_into_a_missing_model_set_fails_before_writing_o(files, capsys, tmp_path):
