@@ -1,4 +1,5 @@
-"""A JACK capture client for the audio tests: records its input port until SIGTERM, then saves the frames.
+"""A JACK capture client for the audio tests: records its input port until SIGTERM, then saves the frames (before it
+closes its stream).
 
 Run as ``python jack_capture.py OUT.npy RATE BLOCK`` with JACK_DEFAULT_SERVER naming the server. Prints
 ``ready`` once its port exists. It goes through PortAudio's JACK host API (sounddevice), like flowtex itself.
@@ -28,7 +29,9 @@ def main() -> None:
     with sd.InputStream(samplerate=rate, blocksize=block, device=device, channels=1, dtype="float32", callback=callback):
         print("ready", flush=True)
         done.wait()
-    np.save(out, np.concatenate(chunks)[:, 0] if chunks else np.zeros(0, dtype=np.float32))
+        got = list(chunks)  # saved before the stream closes: closing a JACK client can hang on a loaded machine (a
+        # client jackd found late is waited for), and the test then kills this process; what was captured is kept
+        np.save(out, np.concatenate(got)[:, 0] if got else np.zeros(0, dtype=np.float32))
 
 
 if __name__ == "__main__":
