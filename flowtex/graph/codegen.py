@@ -64,7 +64,7 @@ def block_body(rg: ResolvedGraph, slots: dict[str, NodeSlots], kernel_names: dic
     code again inside the caller's module. ``kernel_names[node]`` is the global name of its kernel (for delays in
     feedback graphs also ``node + ':emit'`` and ``node + ':absorb'``); the lines also call :data:`HELPERS`.
     """
-    lines = [f"t0 = i[{TICK}]", "fb = f.ctypes.data", "ib = i.ctypes.data"]
+    lines = [f"t0 = i[{TICK}]", "fb = np.int64(f.ctypes.data)", "ib = np.int64(i.ctypes.data)"]
     if rg.cyclic:
         lines.append("for r in range(n):")
         absorbs = []
@@ -146,9 +146,9 @@ def run(f, i, X, Y):
         total = X.shape[0] // i[{IN_WIDTH}]
     else:
         total = Y.shape[0] // i[{OUT_WIDTH}]
-    fb = f.ctypes.data
-    xd = (np.int64(X.ctypes.data) - np.int64(fb)) // 8
-    yd = (np.int64(Y.ctypes.data) - np.int64(fb)) // 8
+    fb = np.int64(f.ctypes.data)
+    xd = (np.int64(X.ctypes.data) - fb) // 8
+    yd = (np.int64(Y.ctypes.data) - fb) // 8
     rows = i[{BLOCK_ROWS}]
     t = 0
     while t < total:
