@@ -50,6 +50,7 @@ power (m/s^2)^2, frequencies Hz.
 from __future__ import annotations
 
 import math
+import shlex
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
@@ -324,8 +325,9 @@ def surface_renders(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, f
     if opt.seeds < 1:
         raise DataError(f"--seeds must be at least 1, got {opt.seeds}")
     if abs(ms.sample_rate - rate) > 1e-9 * rate:
+        surface = shlex.quote(str(ms.source)) if ms.source is not None else "SURFACE"
         raise DataError(f"{where} is at {rate:g} Hz but the surface's models are for {ms.sample_rate:g} Hz; "
-                        f"resample the surface with `flowtex models resample SURFACE --rate {rate:g} -o OUT.json`")
+                        f"resample the surface with `flowtex models resample {surface} --rate {rate:g} -o OUT.json`")
     top = resampled_band_hz(ms)
     if top < opt.max_freq_hz:
         opt = replace(opt, max_freq_hz=top)
