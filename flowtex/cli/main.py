@@ -29,11 +29,9 @@ EXIT_USER_ERROR = 1
 EXIT_INTERNAL_ERROR = 2
 EXIT_NO_SENSOR_FRAMES = 3
 EXIT_INTERRUPTED = 130
-EXIT_TERMINATED = 143
-"""128 + SIGTERM: a verb stopped by SIGTERM before it finished (``live`` stops cleanly with 0 once its loop runs);
-SIGHUP (the terminal or ssh session closed) gives 128 + SIGHUP = 129 the same way."""
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
-"""Signals that raise :class:`Terminated` while a verb runs (SIGHUP does not exist on Windows)."""
+"""Signals that raise :class:`Terminated` while a verb runs (SIGHUP does not exist on Windows); the verb then exits
+128 + the signal's number: 143 for SIGTERM, 129 for SIGHUP (``live`` stops cleanly with 0 once its loop runs)."""
 
 
 class Terminated(KeyboardInterrupt):

@@ -47,12 +47,10 @@ def cmd_run(args: argparse.Namespace) -> int:
                  suffixes=(".npz", *suffixes(AUDIO), *REPLAY_SUFFIXES) if replay else (*RECORDING_SUFFIXES, *suffixes(AUDIO)))
     read: dict[str, Any] = {}
 
-    def read_recording(resolved: Any) -> None:  # once the graph is checked, before its compile: a recording that is
-        from ..io.recordings import load_recording  # broken or does not fit the graph is said at once
-        from ..runtime.offline import check_recording_fits
+    def read_recording(resolved: Any) -> None:  # once the graph is checked, before its compile
+        from ..runtime.offline import load_recording_for
 
-        read["recording"] = rec = load_recording(args.input)
-        check_recording_fits(rec, resolved.spec.name, resolved.spec.rate, resolved.input_specs, args.input)
+        read["recording"] = load_recording_for(resolved, args.input)
 
     def check_replay_files(_resolved: Any) -> None:  # the same, for a replay: the log and the device files it needs
         from ..filecheck import DEVICE_MAP, check_file

@@ -71,8 +71,7 @@ def cmd_scene_plan(args: argparse.Namespace) -> int:
 
 def cmd_scene_run(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output
-    from ..io.recordings import load_recording
-    from ..runtime.offline import check_recording_fits, run_recording
+    from ..runtime.offline import load_recording_for, run_recording
     from ..scene.build import plan_to_graph
     from ..scene.plan import explain
 
@@ -84,9 +83,8 @@ def cmd_scene_run(args: argparse.Namespace) -> int:
             say(explain(plan))
         read: dict[str, Any] = {}
 
-        def read_recording(resolved: Any) -> None:  # before the compile: a recording that is broken or lacks a signal
-            read["recording"] = rec = load_recording(args.input)  # the planned graph reads is said at once
-            check_recording_fits(rec, resolved.spec.name, resolved.spec.rate, resolved.input_specs, args.input)
+        def read_recording(resolved: Any) -> None:  # once the planned graph is checked, before its compile
+            read["recording"] = load_recording_for(resolved, args.input)
 
         graph = load_graph_from_args(args, graph_path, before_compile=read_recording)
         recording = read["recording"]

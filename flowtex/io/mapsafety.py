@@ -99,19 +99,27 @@ def check_clamps(db: Database, outputs: Sequence, add: Report) -> None:
         ranges = [("clamp LOW", "clamp HIGH", b.lo, b.hi)]
         if b.peak_limit is not None:  # what the guard lets through for up to max_ms (docs/live.md, "Peak rule")
             ranges.append(("peak range low", "peak limit", peak_low(b.lo, b.hi, b.peak_limit), b.peak_limit))
-        problems = (
-            (j, m, s, which, bound, _clamp_bound_problem(msg, sig, bound * float(b.scale[j]) + float(b.offset[j]), float(b.scale[j]),
-                                                         float(b.offset[j]), float(lo[j]), float(hi[j])))
-            for low_name, high_name, lo, hi in ranges
-            for j, (m, s) in enumerate(b.signals)
-            for msg, sig in [(db.get_message_by_name(m), db.get_message_by_name(m).get_signal_by_name(s))]
-            for which, bound in ((low_name, float(lo[j])), (high_name, float(hi[j]))))
-        for j, m, s, which, bound, problem in problems:
-            if problem is not None:  # one line per output
-                comp = f"[{j}]" if len(b.signals) > 1 else ""
-                add((b.loc.line, b.loc.column), f"output {b.name!r}{comp}: {which} {bound:g} cannot be sent in {m}.{s}: "
-                                                f"{problem}; choose a clamp the DBC carries or fix the DBC")
-                break
+        found = _first_bound_problem(db, b, ranges)
+        if found is not None:  # one line per output
+            j, m, s, which, bound, problem = found
+            comp = f"[{j}]" if len(b.signals) > 1 else ""
+            add((b.loc.line, b.loc.column), f"output {b.name!r}{comp}: {which} {bound:g} cannot be sent in {m}.{s}: "
+                                            f"{problem}; choose a clamp the DBC carries or fix the DBC")
+
+
+def _first_bound_problem(db: Database, b, ranges: list) -> tuple | None:
+    """(component, message, signal, bound's name, bound, why) of the first bound of ``ranges`` (name of the low and
+    of the high bound, lows, highs; graph units) that output binding ``b`` cannot send, or None."""
+    for low_name, high_name, lo, hi in ranges:
+        for j, (m, s) in enumerate(b.signals):
+            msg = db.get_message_by_name(m)
+            sig = msg.get_signal_by_name(s)
+            scale, offset = float(b.scale[j]), float(b.offset[j])
+            for which, bound in ((low_name, float(lo[j])), (high_name, float(hi[j]))):
+                problem = _clamp_bound_problem(msg, sig, bound * scale + offset, scale, offset, float(lo[j]), float(hi[j]))
+                if problem is not None:
+                    return j, m, s, which, bound, problem
+    return None
 
 
 def _clamp_bound_problem(msg, sig, physical: float, scale: float, offset: float, lo: float, hi: float) -> str | None:

@@ -15,6 +15,7 @@ from ..io.formats import format_of
 from ..io.recordings import Recording, load_recording, save_recording
 
 if TYPE_CHECKING:
+    from ..graph.resolved import ResolvedGraph
     from ..io.audiomap import AudioMap
     from ..node_api import PortSpec
 
@@ -86,6 +87,15 @@ def check_recording_fits(rec: Recording, name: str, graph_rate: float, inputs: M
         raise DataError(f"{input_path}: lacks graph input(s) {', '.join(missing)} (the file has: {have}){hints}")
     if not inputs:
         raise FlowtexError(f"graph {name!r} has no inputs; a recording cannot drive it")
+
+
+def load_recording_for(resolved: ResolvedGraph, input_path: str | Path) -> Recording:
+    """The recording at ``input_path``, read and checked against the resolved graph (:func:`check_recording_fits`):
+    what the command line reads once the graph is checked and before it is compiled, so that a recording that is
+    broken or does not fit is said at once (``load_graph(..., before_compile=...)``)."""
+    rec = load_recording(input_path)
+    check_recording_fits(rec, resolved.spec.name, resolved.spec.rate, resolved.input_specs, input_path)
+    return rec
 
 
 def run_recording(graph: Graph, input_path: str | Path, output_path: str | Path | None,

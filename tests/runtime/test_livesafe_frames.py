@@ -43,7 +43,7 @@ def _impostors() -> list[can.Message]:
 
 
 def test_an_extended_frame_with_a_standard_sensor_id_is_not_that_sensor(setup):  # noqa: F811
-    """The live decoder (compiled slots and the Python codecs) and the replay's decoder do not take it."""
+    """The live decoder (compiled slots and the Python codecs; the replay decodes with it) does not take it."""
     g = load_graph(setup / "g.yaml", block_rows=1)
     msg = _impostors()[0]
     io = load_io(g, DBC, setup / "m.yaml")
@@ -51,7 +51,7 @@ def test_an_extended_frame_with_a_standard_sensor_id_is_not_that_sensor(setup): 
     before = wd.last.copy()
     words = np.zeros_like(io.codec.decoder.words)
     assert rx_decoder(io, wd)([msg], 7, words) == 0  # no compiled slot marked
-    assert not io.decode(msg, 7, wd)  # the Python codec (the replay's, and the live one for other lengths)
+    assert not io.decode(msg, 7, wd)  # the Python codec (the live one for other lengths)
     np.testing.assert_array_equal(wd.last, before)
     # the real frame is taken, so the refusal above is not an accident of the payload
     real = can.Message(arbitration_id=FORCE.frame_id, is_extended_id=False, data=BIG)
@@ -61,8 +61,8 @@ def test_an_extended_frame_with_a_standard_sensor_id_is_not_that_sensor(setup): 
 
 def test_a_frame_that_decodes_nothing_leaves_the_ticks_real_frame_be(setup):  # noqa: F811
     """A remote frame (a request for ToolForce, no data) or a short frame after the tick's real ToolForce frame: the
-    real one still counts, as in the replay, which decodes frame by frame. Before, the later frame cleared the real
-    one's slot: the sensor looked stale (outputs safe) whenever another node requested its message."""
+    real one still counts, as the Python codec, which decodes frame by frame, also has it. Before, the later frame
+    cleared the real one's slot: the sensor looked stale (outputs safe) whenever another node requested its message."""
     g = load_graph(setup / "g.yaml", block_rows=1)
     io = load_io(g, DBC, setup / "m.yaml")
     wd = io.new_watchdog(2_000_000)
@@ -72,7 +72,7 @@ def test_a_frame_that_decodes_nothing_leaves_the_ticks_real_frame_be(setup):  # 
     words = np.zeros_like(io.codec.decoder.words)
     for later in (_impostors()[1], short):
         assert rx_decoder(io, wd)([real, later], 7, words) == 1 << j
-        assert io.decode(real, 7, wd) and not io.decode(later, 7, wd)  # the replay's view of the same two frames
+        assert io.decode(real, 7, wd) and not io.decode(later, 7, wd)  # the Python codec's view of the same two frames
 
 
 def test_a_stopped_sensor_trips_the_watchdog_whatever_impostors_say(setup):  # noqa: F811
@@ -149,7 +149,7 @@ def test_a_non_finite_float_signal_is_no_measurement(setup, bad):  # noqa: F811
     """normal_force bound to DeviceStatus.CoilTemperature (a float32 signal), through a low-pass: one NaN or inf
     frame written into the input made the filter's state NaN, so the output was NaN (sent as its safe value) for the
     rest of the session, with no watchdog event. The frame is dropped whole instead: no input written, no watchdog
-    stamp, in the live decoder (compiled slot and Python codec) and in the replay's."""
+    stamp, in the live decoder (compiled slot and Python codec, which the replay uses too) and in CanIO.decode."""
     assert "lpf.y -> v.x" in NAN_GRAPH
     (setup / "nan.yaml").write_text(NAN_GRAPH)
     m = setup / "mnan.yaml"
@@ -163,7 +163,7 @@ def test_a_non_finite_float_signal_is_no_measurement(setup, bad):  # noqa: F811
     assert not np.isfinite(DB.decode_message(status.frame_id, frame.data)["CoilTemperature"])  # cantools reads it so
     td = io.codec.decoder
     j = td.slot_of[status.frame_id]
-    for path in ("compiled", "python", "replay"):
+    for path in ("compiled", "python", "CanIO.decode"):
         wd = io.new_watchdog(2_000_000)
         inp = g.input_view("normal_force")
         inp[:] = 12.5
