@@ -217,11 +217,12 @@ class CanIO:
     def _warm_up(self) -> None:
         """Compile (or load from numba's disk cache) the compiled codec calls now, not on the first live tick.
 
-        Nothing observable changes: mask 0 decodes nothing, and forced-safe guarding counts
+        Nothing observable changes: mask 0 decodes nothing, the finiteness test only reads, and forced-safe guarding counts
         nothing and refills peak budgets that start full; the frames are re-encoded before any send.
         """
         if self.table_decoder is not None:
             self.table_decoder.run(0, 0, self.arena, np.zeros(1, dtype=np.int64))
+            self.table_decoder.finite(self.table_decoder.words, 0)  # a second frame of a message in a tick (tick.rx_decoder)
         if self.guard is not None:
             self.guard_and_encode(True)
             c = self.codec

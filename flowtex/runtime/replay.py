@@ -190,9 +190,9 @@ def _split_ticks(frames: list[can.Message], tx_ids: list[tuple[int, bool]], path
 
 def _tick_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[can.Message], int], None]:
     """``decode_tick(rx, k)``: the frames one live tick received into the graph inputs, as the live tick decodes them
-    (:func:`~flowtex.runtime.tick.rx_decoder`, then the compiled decoder): the latest frame of each compiled message
-    is the one decoded, and dropped whole when a float signal in it is NaN or inf, so that an earlier frame of that
-    message in the same tick is not used either. Decoding frame by frame would differ there."""
+    (:func:`~flowtex.runtime.tick.rx_decoder`, then the compiled decoder): the latest finite frame of each compiled
+    message is the one decoded (a frame with a NaN or inf float signal is ignored). The same code as live, so that
+    whatever the decoding rule, the replay's inputs are live's by construction."""
     mask_of = rx_decoder(io, watchdog)
     td = io.codec.decoder
     if td is None:  # no compiled message: mask_of decodes every frame with its Python decoder
