@@ -67,6 +67,17 @@ def test_alternating_attack_cannot_sit_at_the_peak_limit():
     assert longest_run(beyond(outs)) == p
 
 
+def test_the_long_run_share_is_reached_by_the_worst_command():
+    """A command at the peak limit whenever a whole peak tick is left, at 0 otherwise, spends the allowance as fast as
+    it refills: its share of ticks beyond the clamp tends to P / (P + R) = 1/61 by default, the documented duty."""
+    p, ticks = 20, 122_000
+    g = OutputGuard(lo=LO, hi=HI, safe=0.0, peak_hi=PEAK, peak_max_ticks=p)
+    outs = [step(g, PEAK if g.peak_ticks_left[0] >= 1 else 0.0) for _ in range(ticks)]
+    over = int(beyond(outs).sum())
+    assert over <= window_bound(p, PEAK_RECOVER_RATIO * p, ticks)
+    assert over >= ticks / (PEAK_RECOVER_RATIO + 1) - 1  # 2000 of 122000: the bound is reached, not just respected
+
+
 def test_one_tick_inside_no_longer_rearms_and_r_ticks_inside_refill_it():
     g = OutputGuard(lo=LO, hi=HI, safe=0.0, peak_hi=3.0, peak_max_ticks=3, peak_recover_ticks=12)
     assert [step(g, 2.5) for _ in range(5)] == [2.5, 2.5, 2.5, 1.0, 1.0]
