@@ -135,7 +135,20 @@ def test_exact_mode_and_numpy_style_tolerances():
     assert compare_outputs(a, e, atol=1e-13, rms_rtol=0.0)
 
 
-def test_a_golden_mismatch_shows_its_message_not_a_long_traceback(pytester, monkeypatch):
+@pytest.fixture
+def numba_registries_loaded() -> None:
+    """numba's CPU target with its extra registries loaded (what its first compile in a process imports).
+
+    The pytester fixture removes, at its teardown, every module imported after its setup, but not what those modules
+    registered in numba: a module numba first imports inside the inner run would be imported and registered again by
+    the process's next compile ("duplicate registration for PolynomialType", every later compile of that xdist
+    worker failing). Requested before pytester, so that the modules are in its snapshot."""
+    from numba.core.registry import cpu_target
+
+    cpu_target.target_context.refresh()
+
+
+def test_a_golden_mismatch_shows_its_message_not_a_long_traceback(numba_registries_loaded, pytester, monkeypatch):
     """What pytest prints for a failing golden test (issue 9): the message, in a few lines. The inner pytest runs in
     this process (pytester): its report is the point, and it loads flowtex's plugin from its entry point as a process
     of its own would."""
