@@ -11,7 +11,7 @@ declared ``Param("path", objects=(T,))`` is read by T's reader from the format r
 from __future__ import annotations
 
 import difflib
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,12 +29,14 @@ class ParamProblem:
     given: bool = True
 
 
-def checked_params(cls: type, given: Mapping[Any, Any], base_dir: Path | None) -> tuple[dict[str, Any], list[ParamProblem]]:
+def checked_params(cls: type, given: Mapping[Any, Any], base_dir: Path | None,
+                   from_here: Collection[str] = ()) -> tuple[dict[str, Any], list[ParamProblem]]:
     """Coerced values of node type ``cls``'s parameters (defaults filled in) and the problems, in the order found.
 
     Unknown keys (with a suggestion, or the list of parameters) and invalid values come first, in ``given``'s
     order, then missing required parameters (not reported when an unknown key looks like a misspelling of one).
-    Relative paths resolve against ``base_dir``. The values are complete only when there is no problem.
+    Relative paths resolve against ``base_dir``, those of the keys in ``from_here`` (given on the command line) against
+    the current folder. The values are complete only when there is no problem.
     """
     values: dict[str, Any] = {}
     problems: list[ParamProblem] = []
@@ -47,7 +49,7 @@ def checked_params(cls: type, given: Mapping[Any, Any], base_dir: Path | None) -
             problems.append(ParamProblem(key, f"unknown parameter {key!r}{hint}"))
             continue
         try:
-            values[key] = decl.coerce(value, base_dir)
+            values[key] = decl.coerce(value, Path.cwd() if key in from_here else base_dir)
         except ValueError as exc:
             problems.append(ParamProblem(key, f"parameter {key!r} {exc} (expected {decl.describe_type()})"))
     for key, decl in cls.params.items():

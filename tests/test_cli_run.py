@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import shlex
+import shutil
 import subprocess
 import sys
 
@@ -86,6 +88,28 @@ def test_recording_rate_must_match_graph(write_graph, tmp_path, rec, capsys):
     assert main(["run", str(graph), "--input", str(src)]) == 1
     err = capsys.readouterr().err
     assert "recorded at 800 Hz but graph 't' runs at 1000 Hz" in err and "Traceback" not in err
+    # the command it suggests runs as given (OUT.npz filled in), and its output then runs through the graph
+    command = err[err.index("'flowtex ") + len("'flowtex "):err.index("' and use OUT.npz")]
+    assert "--set rate=800" in err
+    out = tmp_path / "resampled.npz"
+    assert main(shlex.split(command.replace("OUT.npz", str(out)))) == 0
+    assert load_recording(out).rate == 1000
+    assert main(["run", str(graph), "--input", str(out), "-o", str(tmp_path / "y.npz")]) == 0
+
+
+def test_a_set_path_is_read_from_the_current_folder(tmp_path, monkeypatch, capsys):
+    """Every path given on the command line is read from where the command runs (--input, -o); a --set path too. Before,
+    it was read from the graph file's folder: `--set lookup.models=surface.json` beside the user's recording was "no such
+    model file graphs/surface.json", the command the bundled graph's comment suggests for a user's own rig."""
+    shutil.copy(REPO / "graphs" / "data" / "synthetic_texture.json", tmp_path / "surface.json")
+    monkeypatch.chdir(tmp_path)
+    argv = ["run", str(REPO / "graphs" / "speed_force_texture.yaml"), "--input", str(REPO / "graphs" / "data" / "speed_force.npz"),
+            "--set", "lookup.models=surface.json", "--set", "friction.models=null", "--set", "friction.mu=0.3", "-o", "out.npz"]
+    assert main(argv) == 0, capsys.readouterr().err
+    assert (tmp_path / "out.npz").exists()
+    (tmp_path / "surface.json").unlink()  # and a missing one is named where it was looked for
+    assert main(argv) == 1
+    assert f"{tmp_path / 'surface.json'}: " in capsys.readouterr().err
 
 
 def test_missing_input_signal_is_named(write_graph, tmp_path, rec, capsys):

@@ -43,6 +43,9 @@ class NodeSpec:
     loc: Location
     type_loc: Location
     params_loc: Location
+    command_line: set[str] = field(default_factory=set)
+    """Parameters given by ``--set``: a relative path among them is read from the current folder, as every path given
+    on the command line is (the file's own paths are read from its folder)."""
 
 
 @dataclass
@@ -258,9 +261,11 @@ def _apply_overrides(c: Collector, spec: GraphSpec, overrides: dict[str, Any]) -
         if value is None:  # --set NODE.PARAM=null: as if the file did not give it (its default applies)
             spec.nodes[node].params.pop(param, None)
             spec.nodes[node].param_locs.pop(param, None)
+            spec.nodes[node].command_line.discard(param)
             continue
         spec.nodes[node].params[param] = value
         spec.nodes[node].param_locs[param] = where
+        spec.nodes[node].command_line.add(param)
 
 
 def parse_override(text: str, option: str = "--set") -> tuple[str, Any]:

@@ -34,7 +34,7 @@ def typed_nodes(ck: GraphChecker) -> dict[str, ResolvedNode]:
 
 def _check_params(ck: GraphChecker, ns: NodeSpec, cls: type[Node]) -> dict[str, Any] | None:
     """The node's coerced parameters (flowtex.node_params), or None after reporting each problem at its line."""
-    values, problems = checked_params(cls, ns.params, ck.spec.path.parent)
+    values, problems = checked_params(cls, ns.params, ck.spec.path.parent, from_here=ns.command_line)
     for problem in problems:
         loc = ns.param_locs.get(problem.key, ns.params_loc) if problem.given else ns.params_loc
         ck.error(loc, f"node {ns.name!r} ({ns.type}): {problem.message}")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shlex
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -76,8 +77,9 @@ def check_recording_fits(rec: Recording, name: str, graph_rate: float, inputs: M
     """Refuse a recording whose stated rate or time column is not graph ``name``'s rate (Hz), or that lacks one of its
     ``inputs``: what needs no compiled graph, so the command line checks it before the compile (flowtex run)."""
     if rec.rate is not None and abs(rec.rate - graph_rate) > 1e-9 * graph_rate:
-        raise DataError(f"{input_path}: recorded at {rec.rate:g} Hz but graph {name!r} runs at {graph_rate:g} Hz; "
-                        "resample the recording or change the graph's rate")
+        raise DataError(f"{input_path}: recorded at {rec.rate:g} Hz but graph {name!r} runs at {graph_rate:g} Hz; run "
+                        f"'flowtex resample {shlex.quote(str(input_path))} --rate {graph_rate:g} -o OUT.npz' and use OUT.npz, "
+                        f"or run the graph at the recording's rate (--set rate={rec.rate:g})")
     if TIME_COLUMN in rec.arrays and TIME_COLUMN not in inputs:
         _check_time_column(rec.arrays[TIME_COLUMN], name, graph_rate, input_path)
     missing = [n for n in inputs if n not in rec.arrays]
