@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from flowtex.cli import main
 from flowtex.plotting import signal_units
@@ -42,3 +43,35 @@ def test_plot_uses_the_units_a_recording_stores(tmp_path, monkeypatch):
         seen.clear()
         plotting.plot_recording(path, None, tmp_path / "p.png")
         assert seen == {"friction": "N", "accel": "g", "tool": "mm/s"}, suffix
+
+
+def _signals(n_force: int, rng):
+    """A run's outputs: ``n_force`` 3-axis forces, a vibration (a spectrogram row), a velocity (a force-speed panel)."""
+    n = 3000
+    sig = {f"force{i}" if i else "force": rng.normal(size=(n, 3)) for i in range(n_force)}
+    sig |= {"vibration": rng.normal(size=n), "velocity": rng.normal(size=(n, 3)) * 100}
+    return sig, {k: "N" if k.startswith("force") else "m/s^2" if k == "vibration" else "mm/s" for k in sig}
+
+
+@pytest.mark.parametrize("n_force", [1, 4, 12])
+def test_plot_layout_title_legends_and_fonts_on_short_and_tall_figures(n_force):
+    """The title stays clear of the first panel on a tall figure (12 forces, 16 rows: it overlapped before), legends
+    cover no data, every text is inside the figure and readable; the time panels share one time axis, 0 to the end."""
+    pytest.importorskip("matplotlib")
+    from flowtex.io.figures import agg_pyplot
+    from flowtex.plotting import signals_figure
+    from tests.figure_layout import layout_problems
+
+    plt = agg_pyplot("matplotlib")
+    sig, units = _signals(n_force, np.random.default_rng(1))
+    fig = signals_figure(sig, units, 1000.0, title="run.npz")
+    try:
+        assert layout_problems(fig) == []
+        r = fig.canvas.get_renderer()
+        time_axes = [ax for ax in fig.axes if ax.get_xlabel() == "time (s)"]
+        assert len(time_axes) == len(sig) + 1  # every signal and the vibration's spectrogram
+        extents = {(round(ax.get_window_extent(r).x0), round(ax.get_window_extent(r).x1)) for ax in time_axes}
+        assert len(extents) == 1  # same left and right edges: times line up across panels
+        assert all(ax.get_xlim() == (0.0, 3.0) for ax in time_axes)
+    finally:
+        plt.close(fig)
