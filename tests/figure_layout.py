@@ -1,7 +1,8 @@
 """Layout checks of a matplotlib figure, measured on the figure drawn by Agg: what a reader putting it in a paper sees.
 
 ``layout_problems(fig)`` lists (one line each) titles that cover an axes, axes whose labels run into another's,
-legends over data or over another panel, text outside the figure, and text smaller than :data:`MIN_FONT_PT`.
+texts of a panel that run into each other, legends over data or over another panel, text outside the figure, and
+text smaller than :data:`MIN_FONT_PT`.
 """
 
 from __future__ import annotations
@@ -49,6 +50,10 @@ def layout_problems(fig: Any) -> list[str]:
         for b in axes[i + 1:]:
             if _overlap(tight[a], tight[b]) and not (_overlap(frames[a], frames[b])):
                 problems.append(f"{_name(a)} and {_name(b)} overlap (labels or titles)")
+    for ax in axes:  # annotations and texts of one panel do not run into each other
+        texts = [(t.get_text(), t.get_window_extent(r)) for t in ax.texts if t.get_visible() and t.get_text()]
+        for i, (a, box) in enumerate(texts):
+            problems += [f"the texts {a!r} and {b!r} of {_name(ax)} overlap" for b, other in texts[i + 1:] if _overlap(box, other)]
     legends = [(ax.get_legend(), ax) for ax in fig.axes if ax.get_legend() is not None] + [(leg, None) for leg in fig.legends]
     for leg, owner in legends:
         box = leg.get_window_extent(r)
@@ -72,6 +77,7 @@ def layout_problems(fig: Any) -> list[str]:
     boxes = [(f"{_name(ax)} (with its labels)", tight[ax]) for ax in axes]
     boxes += [(f"the text {t.get_text()!r}", t.get_window_extent(r)) for t in fig.texts if t.get_text()]
     boxes += [("a legend", leg.get_window_extent(r)) for leg, _ in legends]
+    boxes += [(f"the text {t.get_text()!r} of {_name(ax)}", t.get_window_extent(r)) for ax in axes for t in ax.texts if t.get_text()]
     for what, box in boxes:
         if box.x0 < page.x0 - SLACK_PX or box.y0 < page.y0 - SLACK_PX or box.x1 > page.x1 + SLACK_PX or box.y1 > page.y1 + SLACK_PX:
             problems.append(f"{what} runs off the figure")
