@@ -187,3 +187,16 @@ def test_report_numbers_models_as_the_set_and_labels_its_plots(recording, tmp_pa
         assert ax.title.get_fontsize() >= report.FONT
     labels = [t.get_text() for t in figs["plane.png"].legends[0].get_texts()]
     assert "recorded path" in labels and any(lab.startswith("near-duplicate") for lab in labels)
+
+
+def test_holdout_mean_keeps_the_folds_shared_counts_as_integers():
+    """The mean row's "seeds" read 4.0 where every fold's read 4; averaged figures stay floats."""
+    from flowtex.fit.crossval import holdout_doc
+
+    rng = np.random.default_rng(4)
+    x = rng.standard_normal(12000)
+    folds = [compare_signals(x, [x * s, x * s], RATE) for s in (1.0, 1.5)]
+    doc = json.loads(json.dumps(holdout_doc("blocks", "folds", 2, folds)))
+    assert [r["seeds"] for r in doc["results"]] == [2, 2] and doc["mean"]["seeds"] == 2
+    assert isinstance(doc["mean"]["seeds"], int) and isinstance(doc["mean"]["seconds"], float)
+    assert doc["mean"]["power_ratio_db"] == pytest.approx(np.mean([r["power_ratio_db"] for r in doc["results"]]))
