@@ -47,6 +47,27 @@ def _raise_again(signum: int) -> None:
         os.kill(os.getpid(), signum)  # process-directed: it also wakes a blocking call in the main thread
 
 
+def signals_named(*names: str) -> tuple[int, ...]:
+    """The signals of ``names`` this platform has (SIGHUP does not exist on Windows)."""
+    return tuple(getattr(signal, name) for name in names if hasattr(signal, name))
+
+
+@contextlib.contextmanager
+def signals_handled(signums: tuple[int, ...], handler: Callable[[int, Any], None], install: bool = True) -> Iterator[None]:
+    """While the ``with`` body runs, ``handler`` handles ``signums``; the old handlers come back at its end.
+
+    Nothing is installed outside the main thread (Python accepts handlers only there) or when ``install`` is false."""
+    if not install or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {s: signal.signal(s, handler) for s in signums}
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
 @contextlib.contextmanager
 def interrupts_kept(signal_of: Callable[[BaseException], int | None]) -> Iterator[None]:
     """While the ``with`` body runs, an exception dropped by a C callback for which ``signal_of`` names a signal is

@@ -15,13 +15,12 @@ import contextlib
 import importlib
 import signal
 import sys
-import threading
 from collections.abc import Iterator, Sequence
 from typing import Any
 
 from .. import config
 from ..errors import FlowtexError
-from ..interrupts import interrupt_was_lost, interrupts_kept
+from ..interrupts import interrupt_was_lost, interrupts_kept, signals_handled, signals_named
 from .output import clean
 
 EXIT_OK = 0
@@ -29,7 +28,7 @@ EXIT_USER_ERROR = 1
 EXIT_INTERNAL_ERROR = 2
 EXIT_NO_SENSOR_FRAMES = 3
 EXIT_INTERRUPTED = 130
-STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
+STOP_SIGNALS = signals_named("SIGTERM", "SIGHUP")
 """Signals that raise :class:`Terminated` while a verb runs (SIGHUP does not exist on Windows); the verb then exits
 128 + the signal's number: 143 for SIGTERM, 129 for SIGHUP (``live`` stops cleanly with 0 once its loop runs)."""
 
@@ -112,19 +111,11 @@ def sigterm_interrupts() -> Iterator[None]:
     Every writer already removes its temporary file on KeyboardInterrupt (:func:`flowtex.io.atomic.atomic_output`),
     so these signals leave nothing behind either. ``live`` installs its own handlers for its loop (a clean stop).
     """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
     def handler(signum: int, frame: Any) -> None:
         raise Terminated(signum)
 
-    old = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
-    try:
+    with signals_handled(STOP_SIGNALS, handler):
         yield
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
 
 
 def _signal_of(exc: BaseException) -> int | None:

@@ -76,7 +76,8 @@ def read_signals(path: Path, job: TextureJob, need_speed: bool = True) -> tuple[
         nrm = signal(rec, job.normal, "--normal", (3,)) if job.normal is not None else None
         speed = speed_from_position(pos, nrm, rate)
     else:
-        raise DataError(f"{path}: give the tool's speed with --speed S (mm/s) or --position P (mm, 3 axes)")
+        have = ", ".join(sorted(rec.arrays)) or "nothing"
+        raise DataError(f"{path}: give the tool's speed with --speed S (mm/s) or --position P (mm, 3 axes); the file has: {have}")
     return acc, speed, force, rate
 
 

@@ -29,7 +29,6 @@ from __future__ import annotations
 import contextlib
 import signal
 import sys
-import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -41,6 +40,7 @@ import numpy as np
 
 from ..errors import FlowtexError
 from ..graph.program import TickProgram
+from ..interrupts import signals_handled, signals_named
 from ..io.canlog import RecordError, SessionWriter
 from ..io.dbc import one_line
 from .audio import AudioOutput, prompt_callbacks
@@ -330,7 +330,7 @@ def _enter_rt(rt: bool, priority: int, cpu: int | None, status: TextIO | None) -
     return rt_status, message
 
 
-STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+STOP_SIGNALS = signals_named("SIGINT", "SIGTERM", "SIGHUP")
 """Signals that end a running session cleanly: safe values last, exit code 0 (SIGHUP does not exist on Windows)."""
 
 
@@ -339,19 +339,11 @@ def _stop_signals(flag: list[str | None], install: bool) -> Iterator[None]:
     """SIGINT, SIGTERM and SIGHUP set ``flag[0]`` instead of interrupting the loop (main thread only).
 
     SIGHUP (the terminal or ssh session closed) would otherwise end the process at once, without the safe values."""
-    if not install or threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
     def handler(signum: int, frame: Any) -> None:
         flag[0] = signal.Signals(signum).name
 
-    old = {s: signal.signal(s, handler) for s in STOP_SIGNALS}
-    try:
+    with signals_handled(STOP_SIGNALS, handler, install):
         yield
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
 
 
 SAFE_NOT_SENT = "could not send the safe values"

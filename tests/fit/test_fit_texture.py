@@ -118,6 +118,20 @@ def test_bad_inputs(tmp_path, capsys):
     assert "too short for order" in _bad(tmp_path, capsys, {k: v[:800] for k, v in good.items()}, extra=("--order", "40,38"))
 
 
+def test_no_speed_option_names_the_signals_the_file_has(tmp_path, capsys):
+    """Neither --speed nor --position: the one line says which signals the recording holds, so the user picks one."""
+    rng = np.random.default_rng(0)
+    n = 4000
+    path = tmp_path / "rec.npz"
+    save_recording(path, {"accel": rng.standard_normal(n), "speed": np.full(n, 100.0), "normal_force": np.full(n, 1.0),
+                          "position": np.zeros((n, 3))}, RATE)
+    out = tmp_path / "s.json"
+    code = main(["fit", "texture", str(path), "-o", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert code == 1 and not out.exists() and len(err.splitlines()) == 1, err
+    assert "--speed S (mm/s) or --position P" in err and "the file has: accel, normal_force, position, speed" in err, err
+
+
 def test_render_rate_resamples_every_fitted_model(tmp_path, capsys):
     """--render-rate 2000: the written set runs at 2 kHz and each model keeps the 1 kHz fit's spectrum (the issue's 0.5 dB).
 
