@@ -80,6 +80,7 @@ def signals_figure(signals: dict[str, np.ndarray], units: dict[str, str], rate: 
     """
     import matplotlib.pyplot as plt
 
+    from .dsp.spectral import spectrogram_psd
     from .io.figures import FONT_PT
 
     vib = [n for n in signals if units[n] == "m/s^2"]
@@ -111,15 +112,14 @@ def signals_figure(signals: dict[str, np.ndarray], units: dict[str, str], rate: 
         k += 1
     for name in vib:
         ax = time_panel(k)
-        from scipy.signal import spectrogram
-
-        f, tt, S = spectrogram(_magnitude(signals[name]), fs=rate, nperseg=min(256, signals[name].shape[0]), noverlap=None)
+        f, tt, S = spectrogram_psd(_magnitude(signals[name]), rate)
         db = 10.0 * np.log10(np.maximum(S, 1e-30))
         top = float(db.max()) if S.max() > 0 else 0.0
         mesh = ax.pcolormesh(tt, f, db, shading="auto", cmap="magma", vmin=top - 60.0, vmax=top)  # 60 dB range; silence is black
         cbar = fig.colorbar(mesh, cax=fig.add_subplot(grid[k, 1]))
-        cbar.set_label("dB", fontsize=FONT_PT)
-        ax.set_ylabel(f"{name}\nfrequency (Hz)", fontsize=FONT_PT)
+        cbar.set_label(f"dB re 1 ({units[name]})^2/Hz", fontsize=FONT_PT)
+        shown = f"|{name}|" if signals[name].ndim > 1 and signals[name].reshape(signals[name].shape[0], -1).shape[1] > 1 else name
+        ax.set_ylabel(f"{shown}\nfrequency (Hz)", fontsize=FONT_PT)
         k += 1
     time_axes[0].set_xlim(0.0, duration)
     if speed and force:
