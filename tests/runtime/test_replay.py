@@ -133,3 +133,17 @@ def test_replay_errors_about_a_text_log_name_its_line(setup, capsys):  # noqa: F
         f"{log}:{at}: sent frame 0x201 where the map's actuator message 0x200 was expected; was this session recorded "
         "with the same map?")
     assert replay_with(at + 1, received).startswith(f"{log}:{at + 1}: frame 0x")
+
+    # a BLF has no lines: the frame's position in the log (1-based) is named
+    from flowtex.io.canlog import SessionWriter
+
+    frames = list(read_session(setup / "live.log"))  # the last edit: a received frame inside a block, at frame `at + 1`
+    blf = setup / "edited.blf"
+    w = SessionWriter(blf)
+    for m in frames:
+        w.write(m, m.is_rx)
+    w.close()
+    assert main([*cmd[:3], str(blf), *cmd[4:]]) == 1
+    err = [e for e in capsys.readouterr().err.splitlines() if not e.startswith("flowtex: compiling")]
+    assert err == [f"{blf} (frame {at + 1}): frame 0x{frames[at].arbitration_id:x} received in the middle of an actuator "
+                   "block; not a flowtex live session log"]
