@@ -55,12 +55,13 @@ def _by_model(fit: TextureFit) -> list[Any]:
 
 
 def table_lines(fit: TextureFit) -> list[str]:
-    """The fit table, one line per model (header first)."""
-    lines = [f"{'model':>5} {'speed':>8} {'force':>6} {'samples':>7} {'order':>7} {'GFC':>6} {'LSD dB':>7} {'power err':>9}"]
+    """The fit table, one line per model (header first, with the units of speed and force)."""
+    lines = [f"{'model':>5} {'speed mm/s':>10} {'force N':>7} {'samples':>7} {'order':>7} {'GFC':>6} {'LSD dB':>7} "
+             f"{'power err':>9}"]
     for pc in _by_model(fit):
         f = pc.fit
         assert f is not None
-        lines.append(f"{pc.model:5d} {pc.speed:8.1f} {pc.force:6.2f} {pc.samples:7d} {f.order[0]:3d},{f.order[1]:<3d} {f.gfc:6.3f} "
+        lines.append(f"{pc.model:5d} {pc.speed:10.1f} {pc.force:7.2f} {pc.samples:7d} {f'{f.order[0]},{f.order[1]}':>7} {f.gfc:6.3f} "
                      f"{pc.lsd_db:7.2f} {100 * f.power_error:8.2f}%")
     return lines
 

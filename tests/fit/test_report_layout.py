@@ -83,3 +83,14 @@ def test_fit_report_figures_are_laid_out_for_a_paper(plt, fit):
             assert _units_on_axes(fig) == [], name
         finally:
             plt.close(fig)
+
+
+def test_fit_table_names_the_units_and_its_columns_line_up(fit):
+    """The header said 'speed' and 'force' without units, which a table copied into a paper needs."""
+    from flowtex.fit.report import table_lines
+
+    header, *rows = table_lines(fit)
+    assert header.split() == ["model", "speed", "mm/s", "force", "N", "samples", "order", "GFC", "LSD", "dB", "power", "err"]
+    ends = [m.end() for m in re.finditer(r"(model|speed mm/s|force N|samples|order|GFC|LSD dB|power err)", header)]
+    for row in rows:
+        assert [m.end() for m in re.finditer(r"\S+", row)] == ends  # each value ends under its heading
