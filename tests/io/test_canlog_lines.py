@@ -167,3 +167,14 @@ def test_each_malformed_asc_frame_line_is_named_by_file_and_line(tmp_path, kind)
     except ValueError:
         return
     assert len(got) < N_FRAMES or got[2] != bytes([2, 1, 2, 3, 4, 5, 6, 7])
+
+
+@pytest.mark.parametrize("suffix", [".log", ".asc", ".blf"])
+def test_a_session_log_given_as_a_recording_says_how_to_replay_it(tmp_path, suffix):
+    """flowtex plot s.log (or fit, resample) said only "unknown recording format '.log'", a suffix flowtex does read."""
+    from flowtex.io.recordings import load_recording
+
+    path = _write_log(tmp_path / f"s{suffix}")
+    with pytest.raises(DataError, match=re.escape(f"{path}: a CAN session log, not a recording (.npz, .csv, .h5 or .wav); "
+                                                  f"replay it into one: flowtex run GRAPH.yaml --input {path} --dbc")):
+        load_recording(path)
