@@ -178,3 +178,17 @@ def test_a_session_log_given_as_a_recording_says_how_to_replay_it(tmp_path, suff
     with pytest.raises(DataError, match=re.escape(f"{path}: a CAN session log, not a recording (.npz, .csv, .h5 or .wav); "
                                                   f"replay it into one: flowtex run GRAPH.yaml --input {path} --dbc")):
         load_recording(path)
+
+
+def test_valid_candump_variants_read_as_python_can_reads_them(tmp_path):
+    """Lines the check must let through: plain candump -L (no direction), CRLF endings, extended IDs, remote frames,
+    CAN FD frames with flags, empty data, blank lines."""
+    lines = ["(1000.000100) can0 100#0A1B2C3D", "(1000.000200) can0 1FFFFFFF#00 R", "(1000.000300) can1 123#R T",
+             "(1000.000400) can0 123#R4", "", "(1000.000500) can0 321##1" + "AB" * 12 + " T", "(1000.000600) vcan0 7FF# R"]
+    path = tmp_path / "s.log"
+    path.write_bytes("\r\n".join(lines).encode() + b"\r\n")
+    frames, completeness = read_session_checked(path)
+    reference = list(can.LogReader(path))
+    assert len(frames) == 6 and [_key(m) for m in frames] == [_key(m) for m in reference]
+    assert [m.is_fd for m in frames] == [False] * 4 + [True, False] and frames[1].is_extended_id
+    assert list(completeness.lines) == [1, 2, 3, 4, 6, 7] and completeness.problem is None
