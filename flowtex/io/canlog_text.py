@@ -10,6 +10,7 @@ before python-can parses it. Any other error python-can raises is reported at th
 
 from __future__ import annotations
 
+import io
 import re
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -76,6 +77,15 @@ class NumberedLines:
 
     def close(self) -> None:
         """python-can's ``stop()`` closes its file; the file handle belongs to the caller, which closes it."""
+
+    def read(self, size: int = -1) -> str:
+        """Not called: python-can's text readers iterate. python-can before 4.6 takes an object for an open file only
+        when it has ``read`` and ``write`` (else it opens it as a path)."""
+        raise io.UnsupportedOperation("a text CAN log is read line by line")
+
+    def write(self, text: str) -> int:
+        """Not called (see :meth:`read`): the log is only read."""
+        raise io.UnsupportedOperation("a text CAN log is read, not written, here")
 
     def error(self, message: str, column: int = 0, line: int | None = None) -> DataError:
         """A DataError ``FILE:LINE[:COLUMN]: message`` at the line being read."""
