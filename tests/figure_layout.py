@@ -35,11 +35,10 @@ def layout_problems(fig: Any) -> list[str]:
     frames = {ax: ax.get_window_extent(r) for ax in axes}
     tight = {ax: ax.get_tightbbox(r) for ax in axes}
     problems = []
-    sup = fig.get_suptitle()
-    for t in fig.texts:
-        if sup and t.get_text() == sup:
-            box = t.get_window_extent(r)
-            problems += [f"the title {sup!r} overlaps {_name(ax)}" for ax in axes if _overlap(box, tight[ax])]
+    sup = getattr(fig, "_suptitle", None)  # Figure.get_suptitle() is matplotlib >= 3.8; the plot extra allows 3.7
+    if sup is not None and sup.get_text():
+        box = sup.get_window_extent(r)
+        problems += [f"the title {sup.get_text()!r} overlaps {_name(ax)}" for ax in axes if _overlap(box, tight[ax])]
     for ax in axes:
         for title in (ax.title, ax._left_title, ax._right_title):
             if title.get_text():
