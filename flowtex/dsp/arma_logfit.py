@@ -30,6 +30,8 @@ import math
 
 import numpy as np
 
+from .poly import root_power_spectrum
+
 DB = 10.0 / math.log(10.0)
 """dB per neper of power: 10 log10(x) = DB ln(x)."""
 
@@ -47,6 +49,17 @@ REL_TOL = 1e-4
 
 GOOD_DB = 0.02
 """:func:`fit_log_spectrum` stops when the RMS fit residual is below this (dB): nothing left worth a step."""
+
+
+RESTARTS = 6
+"""Most further starts of :func:`fit_log_spectrum_restarted` (each a whole fit, bounded as the first)."""
+
+RESTART_DB = 0.3
+""":func:`fit_log_spectrum_restarted` starts again while the best fit's RMS residual over the two-sided frequencies is
+above this (dB)."""
+
+RESTART_JITTER = (0.5, 0.15, 0.2)
+"""Standard deviations of a jittered start (:func:`restart_start`): ln(1 - r) of each pair, its angle (rad), each real root."""
 
 
 def split_roots(poly: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -260,3 +273,64 @@ def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, on
             break
     off, zr_, za_, zx_, pr_, pa_, px_ = lay.unpack(x)
     return _full_roots(pr_, pa_, px_), _full_roots(zr_, za_, zx_), float(off), cost
+
+
+def two_sided_rms_db(poles: np.ndarray, zeros: np.ndarray, offset_db: float, w: np.ndarray, level_db: np.ndarray,
+                     weight: np.ndarray, one_sided: np.ndarray) -> float:
+    """Weighted RMS (dB) of ``model - level`` over the two-sided frequencies of a fit's result (the LSD it minimises)."""
+    two = ~one_sided
+    if not np.any(two):
+        return 0.0
+    model = offset_db + DB * np.log(root_power_spectrum(poles, zeros, w[two]))
+    r = (model - level_db[two]) * weight[two]
+    return math.sqrt(float(r @ r) / max(float(np.sum(weight[two] ** 2)), 1e-300))
+
+
+def restart_start(a0: np.ndarray, c0: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Start ``k`` (1, 2, ...) of a restarted fit, from the first start's polynomials ``a0`` (poles) and ``c0`` (zeros).
+
+    Levenberg-Marquardt ends in the local minimum nearest its start, and the start fixes how many roots are real
+    (:func:`fit_log_spectrum` keeps them real). Start 1 joins the real roots two by two into conjugate pairs (radius
+    the pair's geometric mean, angle pi / 2 for roots of opposite signs, else 0.05 rad), so that they can move to any
+    frequency; starts 2 and on jitter every root by :data:`RESTART_JITTER`, seeded by ``k`` (the same starts on
+    every run and machine)."""
+    rng = np.random.default_rng(k)
+
+    def moved(poly: np.ndarray) -> np.ndarray:
+        rad, ang, real = split_roots(poly)
+        if k == 1:
+            real = np.sort(real)
+            while real.shape[0] >= 2:
+                x1, x2, real = real[-1], real[-2], real[:-2]
+                rad = np.r_[rad, math.sqrt(abs(x1 * x2))]
+                ang = np.r_[ang, 0.5 * math.pi if x1 * x2 < 0.0 else 0.05]
+        else:
+            du, dth, dx = RESTART_JITTER
+            u = np.log1p(-np.minimum(rad, 0.999)) + du * rng.standard_normal(rad.shape[0])
+            rad = -np.expm1(np.minimum(u, -1e-3))
+            ang = np.clip(ang + dth * rng.standard_normal(ang.shape[0]), 0.01, math.pi - 0.01)
+            real = np.clip(real + dx * rng.standard_normal(real.shape[0]), -0.95, 0.95)
+        return real_poly(_full_roots(rad, ang, real))
+
+    return moved(a0), moved(c0)
+
+
+def fit_log_spectrum_restarted(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, one_sided: np.ndarray,
+                               a0: np.ndarray, c0: np.ndarray, pole_radius: float, zero_radius: float,
+                               restarts: int | None = None, restart_db: float | None = None,
+                               offset_db: float | None = None) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """:func:`fit_log_spectrum` from (``a0``, ``c0``), then from :func:`restart_start`'s starts 1, 2, ... while the best
+    fit so far leaves more than ``restart_db`` dB RMS over the two-sided frequencies, at most ``restarts`` more fits
+    (None: :data:`RESTARTS`, :data:`RESTART_DB`). Returns the result of lowest cost, as :func:`fit_log_spectrum` does:
+    its criterion decides, so a start never trades ceilings for the band."""
+    restarts = RESTARTS if restarts is None else restarts
+    restart_db = RESTART_DB if restart_db is None else restart_db
+    best = fit_log_spectrum(w, level_db, weight, one_sided, a0, c0, pole_radius, zero_radius, offset_db=offset_db)
+    for k in range(1, restarts + 1):
+        if two_sided_rms_db(best[0], best[1], best[2], w, level_db, weight, one_sided) <= restart_db:
+            break
+        a1, c1 = restart_start(a0, c0, k)
+        found = fit_log_spectrum(w, level_db, weight, one_sided, a1, c1, pole_radius, zero_radius, offset_db=offset_db)
+        if found[3] < best[3]:
+            best = found
+    return best

@@ -70,7 +70,7 @@ import numpy as np
 
 from .anti_imaging import elliptic_lowpass, fir_lowpass
 from .arma_estimate import whittle_refine
-from .arma_logfit import fit_log_spectrum, real_poly
+from .arma_logfit import fit_log_spectrum_restarted, real_poly
 from .lsf import is_valid_lsf, lsf_to_poly_new
 from .lsf_roots import roots_to_lsf
 from .poly import MAX_RADIUS, stabilize
@@ -201,7 +201,7 @@ def _stretch(rate_from: float, rate_to: float) -> int:
 
 
 def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre: tuple[np.ndarray, np.ndarray] | None,
-              rate_pre: float, extra: int = 0) -> tuple[np.ndarray, np.ndarray]:
+              rate_pre: float, extra: int = 0, restarts: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """(poles, zeros) at ``rate`` Hz, same orders, whose spectrum times |pre|^2 is the original's below its Nyquist.
 
     ``pre``: (poles, zeros) of a filter at ``rate_pre`` Hz (the anti-imaging lowpass) or None. When it runs at
@@ -214,7 +214,8 @@ def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre
     the peak - 40 dB in the band's valleys, the band's peak from BAND_EDGE to the
     old Nyquist, and STOPBAND_CEILING x the band's mean power / (ratio - 1)
     above it (then the power above the old Nyquist is <= ~STOPBAND_CEILING of the band's).
-    Start: the original's roots mapped by z -> z^(rate_from / rate). Downsampling (``rate`` < ``rate_from``):
+    Start: the original's roots mapped by z -> z^(rate_from / rate), and up to ``restarts`` other starts while the fit
+    stays off its band (:func:`flowtex.dsp.arma_logfit.fit_log_spectrum_restarted`). Downsampling (``rate`` < ``rate_from``):
     the band ends at the new Nyquist, there is no stopband and the level is free (the new band is only part of
     the old circle, so Jensen fixes nothing).
     """
@@ -254,8 +255,9 @@ def _fit_band(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate: float, pre
         offset -= float(np.mean(pre_db[:f_in.shape[0]]))
     one_sided = np.r_[~inside, np.ones(f_tr.shape[0], dtype=bool), np.ones(f_st.shape[0], dtype=bool)]
     weight = np.r_[w_in, np.ones(f_tr.shape[0] + f_st.shape[0])]
-    poles, zeros, _, _ = fit_log_spectrum(2.0 * math.pi * f / rate, level, weight, one_sided, a0, c0,
-                                          pole_radius, MAX_RADIUS, offset_db=offset if rate > rate_from else None)
+    poles, zeros, _, _ = fit_log_spectrum_restarted(2.0 * math.pi * f / rate, level, weight, one_sided, a0, c0,
+                                                    pole_radius, MAX_RADIUS, restarts=restarts,
+                                                    offset_db=offset if rate > rate_from else None)
     return poles, zeros
 
 
@@ -291,7 +293,7 @@ def _stretched_roots(roots: np.ndarray, m: int) -> np.ndarray:
 
 
 def _upsample(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate_to: float, keep_order: bool,
-              extra: int = 0, lowpass: bool = False) -> tuple[np.ndarray, np.ndarray]:
+              extra: int = 0, lowpass: bool = False, restarts: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """(poles, zeros) at ``rate_to`` > ``rate_from``: a band fit at rate_to / M, stretched by z -> z^M and cascaded with the anti-imaging lowpass.
 
     Up to DIRECT_MAX_RATIO (M = 1) the band is fitted at ``rate_to`` itself, cascaded with the elliptic edge if ``lowpass``.
@@ -299,12 +301,12 @@ def _upsample(ar: np.ndarray, ma: np.ndarray, rate_from: float, rate_to: float, 
     m = 1 if keep_order else _stretch(rate_from, rate_to)
     if m == 1 and lowpass and not keep_order:
         lp_poles, lp_zeros = elliptic_lowpass(rate_from, rate_to, BAND_EDGE)
-        poles, zeros = _fit_band(ar, ma, rate_from, rate_to, (lp_poles, lp_zeros), rate_to, extra)
+        poles, zeros = _fit_band(ar, ma, rate_from, rate_to, (lp_poles, lp_zeros), rate_to, extra, restarts)
         return np.r_[poles, lp_poles], np.r_[zeros, lp_zeros]
     if m == 1:
-        return _fit_band(ar, ma, rate_from, rate_to, None, rate_to, 0 if keep_order else extra)
+        return _fit_band(ar, ma, rate_from, rate_to, None, rate_to, 0 if keep_order else extra, restarts)
     lp_poles, lp_zeros = fir_lowpass(rate_from, rate_to, m, BAND_EDGE)
-    poles, zeros = _fit_band(ar, ma, rate_from, rate_to / m, (lp_poles, lp_zeros), rate_to, extra)
+    poles, zeros = _fit_band(ar, ma, rate_from, rate_to / m, (lp_poles, lp_zeros), rate_to, extra, restarts)
     return np.r_[_stretched_roots(poles, m), lp_poles], np.r_[_stretched_roots(zeros, m), lp_zeros]
 
 
@@ -322,8 +324,8 @@ def _band_variance(spectrum_new: np.ndarray, ar: np.ndarray, ma: np.ndarray, var
 
 
 def resample_arma_lsf(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, rate_from: float, rate_to: float,
-                      keep_order: bool = False, grid: int = GRID, iterations: int = 40, extra: int = 0, lowpass: bool = False
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, float, float]:
+                      keep_order: bool = False, grid: int = GRID, iterations: int = 40, extra: int = 0, lowpass: bool = False,
+                      restarts: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, float, float]:
     """:func:`resample_arma` plus the new model's LSFs: (ar, ma, ar_lsf, ma_lsf, gain, variance).
 
     When upsampling the LSFs come from the fitted roots (:func:`flowtex.dsp.lsf_roots.roots_to_lsf`), exactly; they
@@ -333,9 +335,10 @@ def resample_arma_lsf(ar: np.ndarray, ma: np.ndarray, gain: float, variance: flo
     ma = np.asarray(ma, dtype=np.float64)
     _check_rates(rate_from, rate_to)
     if rate_to <= rate_from:
-        a1, c1, g, v = resample_arma(ar, ma, gain, variance, rate_from, rate_to, grid=grid, iterations=iterations, extra=extra)
+        a1, c1, g, v = resample_arma(ar, ma, gain, variance, rate_from, rate_to, grid=grid, iterations=iterations, extra=extra,
+                                     restarts=restarts)
         return a1, c1, None, None, g, v
-    poles, zeros = _upsample(ar, ma, rate_from, rate_to, keep_order, extra, lowpass)
+    poles, zeros = _upsample(ar, ma, rate_from, rate_to, keep_order, extra, lowpass, restarts)
     lsf_a = lsf_c = None
     try:
         lsf_a, lsf_c = roots_to_lsf(poles), roots_to_lsf(zeros)
@@ -354,14 +357,16 @@ def resample_arma_lsf(ar: np.ndarray, ma: np.ndarray, gain: float, variance: flo
 
 
 def resample_arma(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, rate_from: float, rate_to: float,
-                  keep_order: bool = False, grid: int = GRID, iterations: int = 40, extra: int = 0) -> tuple[np.ndarray, np.ndarray, float, float]:
+                  keep_order: bool = False, grid: int = GRID, iterations: int = 40, extra: int = 0, restarts: int = 0
+                  ) -> tuple[np.ndarray, np.ndarray, float, float]:
     """(ar, ma, gain, variance) at ``rate_to`` Hz with the same physical PSD below min(rate_from, rate_to) / 2.
 
     Downsampling keeps the orders (plus ``extra``, even: for sets too small to hold their band at the new
     rate, e.g. an AR(2)); upsampling returns the orders of
     :func:`upsampled_order` (``keep_order``: the original's, at a cost in
     accuracy beyond DIRECT_MAX_RATIO; ``extra``, even: that many more poles
-    and zeros, for models too small to fall off above the old Nyquist). The gain is kept and the variance
+    and zeros, for models too small to fall off above the old Nyquist; ``restarts``: that many more starts of a
+    log-spectral fit that stays off its band, see :func:`_fit_band`). The gain is kept and the variance
     carries the power (a silent model, variance 0, stays silent with its
     shape resampled). Rates in Hz. See the module docstring for the method and why.
     """
@@ -371,7 +376,8 @@ def resample_arma(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, 
     if rate_from == rate_to:
         return ar.copy(), ma.copy(), float(gain), float(variance)
     if rate_to > rate_from:
-        a1, c1, _, _, g, v = resample_arma_lsf(ar, ma, gain, variance, rate_from, rate_to, keep_order, grid, iterations, extra)
+        a1, c1, _, _, g, v = resample_arma_lsf(ar, ma, gain, variance, rate_from, rate_to, keep_order, grid, iterations, extra,
+                                               restarts=restarts)
         return a1, c1, g, v
     # downsampling: prediction-error fit of the band's PSD on the new grid, same order plus ``extra``
     ratio = rate_from / rate_to
@@ -385,7 +391,7 @@ def resample_arma(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, 
     band = f < 0.9 * f_lim
     wb = w[band]
     if _band_lsd(a1, c1, shape[band], wb) > DOWN_REFIT_DB:  # Whittle's criterion let the band go: fit its log spectrum
-        poles, zeros = _fit_band(ar, ma, rate_from, rate_to, None, rate_to, extra)
+        poles, zeros = _fit_band(ar, ma, rate_from, rate_to, None, rate_to, extra, restarts)
         a2, c2 = real_poly(poles), real_poly(zeros)
         if _band_lsd(a2, c2, shape[band], wb) < _band_lsd(a1, c1, shape[band], wb):
             a1, c1 = a2, c2

@@ -16,7 +16,9 @@ group delay near the band edge (docs/live.md, "Audio output").
 :mod:`flowtex.dsp.resample_stream` one tick at a time (state carried between calls, so cutting a
 run into blocks changes no sample), then clips each channel to ``[lo, hi]``
 (graph units), divides by the channel's scale (graph units per full-scale
-sample) and stores float32 samples. A NaN output enters the filter as 0.
+sample) and stores float32 samples. A NaN or inf output enters the filter as 0 (an inf would
+fill the filter's history and play at the clip for a filter length) and is counted per
+channel (:attr:`Interpolator.nonfinite`).
 """
 
 from __future__ import annotations
@@ -79,8 +81,9 @@ class Interpolator:
         self.params = stream_params(self.h, self.up, 1) if self.up > 1 else np.array([1.0, 1.0, 1.0, 1.0, 1.0])
         n_float = stream_state_sizes(self.h, self.up, 1, self.width)[0] if self.up > 1 else 3 * self.width
         self.state = np.zeros(n_float)
-        self.istate = np.zeros(4, dtype=np.int64)
-        """next tick, ring slot of the newest tick value, next audio frame, that frame's phase (up-sampled samples into its tick)"""
+        self.istate = np.zeros(4 + self.width, dtype=np.int64)
+        """next tick, ring slot of the newest tick value, next audio frame, that frame's phase (up-sampled samples into its
+        tick), then per channel the ticks whose value was NaN or inf (:attr:`nonfinite`)"""
         self.inv_scale = 1.0 / np.asarray(scale, dtype=np.float64).reshape(self.width)
         self.lo = np.asarray(lo, dtype=np.float64).reshape(self.width)
         self.hi = np.asarray(hi, dtype=np.float64).reshape(self.width)
@@ -95,8 +98,13 @@ class Interpolator:
         k = int(self.istate[0])
         return frames_before(k + n, self.up, self.down) - frames_before(k, self.up, self.down)
 
+    @property
+    def nonfinite(self) -> np.ndarray:
+        """Per channel, the ticks rendered so far whose value was NaN or inf (played as 0)."""
+        return self.istate[4:]
+
     def reset(self) -> None:
-        """Back to silence (the state of a new run)."""
+        """Back to silence (the state of a new run; counts to 0)."""
         self.state[:] = 0.0
         self.istate[:] = 0
 
@@ -129,6 +137,9 @@ def _frame(coef, s, g, pos, span, hist, up, lo, hi, inv_scale, out, m):
 def render_ticks(p, s, si, x, inv_scale, lo, hi, down, out):
     """Interpolate ``x`` (n, w) by ``up / down`` (``up = p[1]``), clip, scale, into ``out`` float32; returns the frames written.
 
+    ``si``: next tick, ring slot, next frame, phase, then one count per channel of the NaN/inf values of ``x`` (each
+    entering the filter as 0).
+
     The up-sampling path of :func:`flowtex.dsp.resample_stream.resample_block` (same parameter and state
     layout, same products summed in the same order, so for ``down == 1`` the same samples), written for one tick
     in and its frames out, with every ``down``-th up-sampled sample kept: calling ``resample_block`` once per tick
@@ -147,7 +158,9 @@ def render_ticks(p, s, si, x, inv_scale, lo, hi, down, out):
         pos = pos + 1 if pos + 1 < hist else 0
         for q in range(w):
             v = x[k, q]
-            v = v if v == v else 0.0  # a NaN output enters the filter as 0 (it would poison its history)
+            if not v - v == 0.0:  # NaN or inf (inf - inf is NaN): enters the filter as 0 (it would poison its history)
+                v = 0.0
+                si[4 + q] += 1
             s[q * span + pos] = v
             s[q * span + pos + hist] = v
         if down == 1:  # a whole ratio: a counted loop (faster than the phase test below), the same frames

@@ -14,6 +14,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..dsp.arma import arma_psd
+from ..dsp.arma_logfit import RESTARTS
 from ..dsp.arma_resample import DIRECT_MAX_RATIO, resample_arma_lsf
 from ..dsp.lsf import lsf_to_poly_new
 from ..dsp.lsf_roots import poly_to_lsf
@@ -85,8 +86,18 @@ DOWN_ATTEMPTS = ((0, False), (2, False), (4, False))
 """(extra order, edge) tried, in turn, when downsampling: the own order holds HaTT's sets; an AR(2) set's band at
 500 Hz needs 2 more poles and zeros (1.3 dB off at its own order)."""
 
-Attempt = tuple[int, bool]
-"""(extra order, elliptic edge) of one attempt at a whole set."""
+Attempt = tuple[int, bool, int]
+"""(extra order, elliptic edge, restarts) of one attempt at a whole set: ``restarts`` more starts of a model's fit while
+it stays off its band (flowtex.dsp.arma_logfit.fit_log_spectrum_restarted)."""
+
+
+def with_restarts(tries: tuple[tuple[int, bool], ...]) -> tuple[Attempt, ...]:
+    """``tries`` with one start per fit, then the same again with :data:`RESTARTS` more starts where a fit stays off.
+
+    Levenberg-Marquardt ends in the minimum nearest its start, and the mapped start of some models lies near a poor one:
+    fitted sets whose models have real roots at the old Nyquist missed at every order and edge from that start alone.
+    A set that keeps its spectrum from single starts is fitted exactly as before (same models, same time)."""
+    return tuple((e, edge, 0) for e, edge in tries) + tuple((e, edge, RESTARTS) for e, edge in tries)
 
 
 @dataclasses.dataclass
@@ -108,7 +119,8 @@ class _Model:
         return max(self.lsd / MAX_LSD_DB, abs(self.band) / MAX_BAND_ERROR, self.above / MAX_POWER_ABOVE)
 
 
-def _resample_one(ms: TextureModelSet, m: int, rate_to: float, keep_order: bool, extra: int, lowpass: bool = False) -> _Model:
+def _resample_one(ms: TextureModelSet, m: int, rate_to: float, keep_order: bool, extra: int, lowpass: bool = False,
+                  restarts: int = 0) -> _Model:
     """Model ``m`` of ``ms`` at ``rate_to`` Hz with ``extra`` more poles and zeros; quality measured as rendered (from the LSFs)."""
     rate_from = float(ms.sample_rate)
     a = lsf_to_poly_new(ms.ar_lsf[m])
@@ -118,7 +130,7 @@ def _resample_one(ms: TextureModelSet, m: int, rate_to: float, keep_order: bool,
     # is kept, so both scale out): a model's level never enters the arithmetic, whatever its size. A silent model
     # (variance 0) stays silent: its shape still matters once texture_lookup interpolates it with its neighbours.
     a2, c2, lsf_a, lsf_c, _, v_unit = resample_arma_lsf(a, c, 1.0, 1.0, rate_from, rate_to, keep_order=keep_order,
-                                                        extra=extra, lowpass=lowpass)
+                                                        extra=extra, lowpass=lowpass, restarts=restarts)
     if lsf_a is None:  # downsampling: LSFs from the (well-conditioned) polynomials
         a2 = min_phase_for_lsf(a2)
         c2 = min_phase_for_lsf(c2)
@@ -234,7 +246,8 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
     the worst LSD (dB), band-power error and power above the old Nyquist
     of the models as rendered, i.e. rebuilt from the stored LSFs (see :func:`resample_quality`), and
     ``misses``: the models that still miss those limits (index, speed, force and figures; see :func:`misses_text`),
-    ``quality``: every model's [LSD dB, band-power error, power above the old Nyquist], and ``edge_lowpass``.
+    ``quality``: every model's [LSD dB, band-power error, power above the old Nyquist], ``edge_lowpass`` and
+    ``fit_restarts`` (the attempt's restarts, :func:`with_restarts`).
     ``progress(done, total)`` is called after each model fit (the total grows if an extra order is tried).
     ``option`` names the rate in errors. The rate may change by at most :data:`MAX_RATE_RATIO` either way.
     ``cache``: fits kept from an earlier call on a set sharing models (:data:`FitCache`), reused and extended.
@@ -250,12 +263,12 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
     upsampling = rate_to > rate_from
     direct = rate_to <= DIRECT_MAX_RATIO * (1.0 + 1e-12) * rate_from
     if keep_order and upsampling:
-        tries: tuple[Attempt, ...] = ((0, False),)
+        tries = with_restarts(((0, False),))
     elif extra_order is not None:
-        tries = ((extra_order, False),)
+        tries = with_restarts(((extra_order, False),))
     else:
-        tries = DOWN_ATTEMPTS if not upsampling else EDGE_ATTEMPTS if direct else tuple((e, False) for e in EXTRA_ORDERS)
-    (best_extra, edge), models = _resample_models(ms, rate_to, keep_order, tries, _Progress(progress, ms.num_models),
+        tries = with_restarts(DOWN_ATTEMPTS if not upsampling else EDGE_ATTEMPTS if direct else tuple((e, False) for e in EXTRA_ORDERS))
+    (best_extra, edge, restarts), models = _resample_models(ms, rate_to, keep_order, tries, _Progress(progress, ms.num_models),
                                                     cache)
     p0, q0 = ms.ar_order, ms.ma_order
     p, q = models[0].ar_lsf.shape[0], models[0].ma_lsf.shape[0]
@@ -271,12 +284,14 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
             method += f"; cascaded with an order-{p - p0 - best_extra} elliptic lowpass edge at the old Nyquist"
         elif (p, q) != (p0 + best_extra, q0 + best_extra) and not keep_order:
             method += "; fitted at 1/M of the rate, stretched z -> z^M and cascaded with an FIR anti-imaging lowpass"
+    if restarts:
+        method += f"; a fit that stayed off its band restarted from up to {restarts} other starts"
     misses = [{"model": m, "speed": float(ms.speeds[m]), "force": float(ms.forces[m]), "lsd_db": r.lsd,
                "band_power_error": r.band, "power_above_old_nyquist": r.above}
               for m, r in enumerate(models) if r.violation() > 1.0]
     metadata["resample"] = {"from_hz": rate_from, "to_hz": rate_to, "method": method,
                             "from_order": [p0, q0], "to_order": [p, q], "extra_order": best_extra,
-                            "edge_lowpass": edge,
+                            "edge_lowpass": edge, "fit_restarts": restarts,
                             "worst_lsd_db": max(r.lsd for r in models),
                             "worst_band_power_error": max(abs(r.band) for r in models),
                             "worst_power_above_old_nyquist": max(r.above for r in models), "misses": misses,

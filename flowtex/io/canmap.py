@@ -16,7 +16,7 @@ The format is documented in docs/live.md. In short::
         scale: 1.0               # DBC physical value = graph value * scale + offset
         clamp: [-1.5, 1.5]       # required, in graph units
         safe: 0.0                # optional (default 0), in graph units, inside clamp; the DBC must carry it
-        peak: {limit: 2.0, max_ms: 20}   # optional: |value| up to limit for max_ms
+        peak: {limit: 2.0, max_ms: 20}   # optional: |value| up to limit for max_ms, refilled over recover_ms
     audio: {rate: 8000, block: 64, channels: [{output: vibration, scale: 1.5, clip: 1.0}]}   # optional: flowtex.io.audiomap
 
 :func:`load_map` checks the file against the DBC and (when given) the graph's
@@ -36,7 +36,7 @@ from ..errors import DataError, Diagnostic, GraphError, Location
 from ..limits import excerpt
 from ..schema import core as schema
 from ..schema.core import INVALID, Collector, check_unknown, value_of
-from ..schema.devmap import DEFAULT_OVERRUN_MS, INPUT_BINDING, MAP, OUTPUT_BINDING, PEAK, PER_COMPONENT
+from ..schema.devmap import DEFAULT_OVERRUN_MS, INPUT_BINDING, MAP, OUTPUT_BINDING, PEAK, PEAK_RECOVER_RATIO, PER_COMPONENT
 from ..yamlsource import LocDict, LocList, load_yaml, read_source
 from .audiomap import AudioMap, parse_audio
 from .dbc import find_signal, suggest
@@ -71,6 +71,9 @@ class OutputBinding(Binding):
     safe: np.ndarray = field(default_factory=lambda: np.zeros(0))
     peak_limit: np.ndarray | None = None
     peak_ms: float = 0.0
+    recover_ms: float = 0.0
+    """Time within the clamp that refills an empty peak allowance (``peak: recover_ms``, default
+    :data:`~flowtex.schema.devmap.PEAK_RECOVER_RATIO` x ``peak_ms``); 0 without ``peak``."""
 
 
 @dataclass
@@ -283,15 +286,16 @@ def _output(p: Collector, entry: LocDict, name: str, width: int, signals, scale,
         p.add(entry.value_pos.get("safe", cpos), f"{what}: safe value {safe.tolist()} lies outside clamp {clamp!r}; "
               "choose a safe value inside the clamp range")
         return None
-    peak_limit, peak_ms = None, 0.0
+    peak_limit, peak_ms, recover_ms = None, 0.0, 0.0
     if "peak" in entry:
         peak = entry["peak"]
         ppos = entry.value_pos["peak"]
-        if not isinstance(peak, LocDict) or set(peak) != set(PEAK.keys):
+        if not isinstance(peak, LocDict) or not set(PEAK.required) <= set(peak) <= set(PEAK.keys):
             p.add(ppos, OUTPUT_BINDING.keys["peak"].message.format(what=what))
             return None
         dur = value_of(p, peak, PEAK, "max_ms", what=what)
-        if dur is INVALID:
+        rec = value_of(p, peak, PEAK, "recover_ms", what=what) if "recover_ms" in peak else None
+        if dur is INVALID or rec is INVALID:
             return None
         limit = _per_component(p, peak, "limit", width, 0.0, what + " peak")
         if limit is None:
@@ -300,4 +304,6 @@ def _output(p: Collector, entry: LocDict, name: str, width: int, signals, scale,
             p.add(peak.value_pos["limit"], f"{what}: peak limit {limit.tolist()} must be at least the clamp HIGH {hi.tolist()}")
             return None
         peak_limit, peak_ms = limit, float(dur)
-    return OutputBinding(name, width, signals, scale, offset, loc, lo=lo, hi=hi, safe=safe, peak_limit=peak_limit, peak_ms=peak_ms)
+        recover_ms = PEAK_RECOVER_RATIO * peak_ms if rec is None else float(rec)
+    return OutputBinding(name, width, signals, scale, offset, loc, lo=lo, hi=hi, safe=safe, peak_limit=peak_limit, peak_ms=peak_ms,
+                         recover_ms=recover_ms)

@@ -126,6 +126,12 @@ class TableDecoder:
         self.ibuf[:8] = [n, offs[0], offs[1], offs[2], len(marks), offs[3], len(ints), offs[4]]
         self.ftab = np.array(floats, dtype=np.float64).reshape(len(floats), _NF)
         self.fbuf = self.ftab.reshape(-1)
+        self.has_float = [any(row[_C_SLOT] == slot and row[_C_KIND] != _KIND_INT for row in ints) for slot in range(len(entries))]
+        """Per slot: a bound signal is a float, so a frame may be no measurement (NaN or inf; :meth:`finite`)."""
+
+    def finite(self, words: np.ndarray, slot: int) -> bool:
+        """True when the payload ``words[slot]`` is a measurement: every bound signal finite (:func:`slot_finite`)."""
+        return bool(slot_finite(self.ibuf, self.fbuf, words, slot))
 
     def run(self, mask: int, tick: int, arena: np.ndarray, stamps: np.ndarray) -> None:
         """Decode the messages whose bit is set in ``mask`` from ``words`` into ``arena``; stamp their marks with ``tick``."""
@@ -188,9 +194,8 @@ def _decode_tables(words, mask, tick, itab, ftab, blen, marks, arena, stamps, sc
     # watchdog stamp), so that one corrupt frame cannot poison the graph's state for the rest of the session
     for r in range(itab.shape[0]):
         slot = itab[r, _C_SLOT]
-        if (mask >> slot) & 1 and itab[r, _C_KIND] != _KIND_INT:
-            if not np.isfinite(_row_value(words, r, itab, ftab, blen, scratch)):
-                mask &= ~(1 << slot)
+        if (mask >> slot) & 1 and not _row_finite(words, r, itab, ftab, blen, scratch):
+            mask &= ~(1 << slot)
     for r in range(itab.shape[0]):
         slot = itab[r, _C_SLOT]
         if (mask >> slot) & 1:
@@ -233,6 +238,27 @@ def _row_value(words, r, itab, ftab, blen, scratch):  # pragma: no cover - compi
     if not itab[r, _C_IDENT]:
         v = v * ftab[r, _C_K] + ftab[r, _C_C]
     return v
+
+
+@njit(cache=True, inline="always")
+def _row_finite(words, r, itab, ftab, blen, scratch):  # pragma: no cover - compiled
+    """False when table row ``r`` is a float signal whose graph value is NaN or inf (an integer signal always is finite)."""
+    return itab[r, _C_KIND] == _KIND_INT or np.isfinite(_row_value(words, r, itab, ftab, blen, scratch))
+
+
+@njit(cache=True)
+def slot_finite(ib, fb, words, slot):  # pragma: no cover - compiled
+    """True when every bound signal of the payload ``words[slot]`` is finite (the packed tables of :func:`decode_packed`):
+    the frame is a measurement :func:`decode_packed` would decode rather than drop."""
+    ob, oi, r, osc = ib[2], ib[5], ib[6], ib[7]
+    itab = ib[oi:oi + r * _NI].reshape((r, _NI))
+    ftab = fb[:r * _NF].reshape((r, _NF))
+    blen = ib[ob:ob + ib[0] + 1]
+    scratch = ib[osc:osc + 1]
+    for row in range(r):
+        if itab[row, _C_SLOT] == slot and not _row_finite(words, row, itab, ftab, blen, scratch):
+            return False
+    return True
 
 
 @njit(cache=True)

@@ -284,6 +284,13 @@ class AudioOutput:
     def status_text(self) -> str:
         return f"audio underruns {self.underruns}"
 
+    def nonfinite_counts(self) -> dict[str, int]:
+        """Per audio channel, the ticks whose graph value was NaN or inf (played as 0), keyed ``audio channel N (OUTPUT)``:
+        the audio side of the guard's ``nonfinite`` counts (:func:`~flowtex.runtime.status.guard_counts`). Every tick
+        the loop rendered counts, those played as safe silence while the input watchdog held the outputs too."""
+        return {f"audio channel {i} ({c.output})": int(n) for i, (c, n) in enumerate(zip(self.amap.channels, self.interp.nonfinite,
+                                                                                          strict=True))}
+
     def stop(self, timeout_s: float = 0.5) -> str | None:
         """Fade to zero, let the fade play, stop and close the stream, write the recording; returns an error text or None."""
         problem = None

@@ -60,7 +60,7 @@ class CompiledCodec:
     out_floats: np.ndarray
     """float64 tables of the output call: raw outputs | guarded outputs | guard parameters (5 x n) | encoder table."""
     guard_ints: np.ndarray | None
-    """The output guard's int64 state (peak run lengths, event counts, :attr:`OutputGuard.tables`); None: no bound output."""
+    """The output guard's int64 state (peak budgets, event counts, :attr:`OutputGuard.tables`); None: no bound output."""
     fast_frames: tuple[tuple[bytearray, memoryview], ...]
     """Per compiled actuator message, in :attr:`encoder` order: (its frame's data, its bytes in the encoder's payload);
     ``data[:] = src`` copies without allocating."""
@@ -135,7 +135,7 @@ class CanIO:
         self.raw = fbuf[:total]
         self.out = fbuf[total:2 * total]
         gather: list[int] = []
-        lo, hi, safe, plo, phi, pmax = [], [], [], [], [], []
+        lo, hi, safe, plo, phi, pmax, prec = [], [], [], [], [], [], []
         start = 0
         sources: dict[str, list[Any]] = {}
         for name, w in zip(self.out_names, widths, strict=True):
@@ -150,13 +150,18 @@ class CanIO:
             phi.extend(lim)
             plo.extend(peak_low(b.lo, b.hi, lim))
             pmax.extend([int(round(b.peak_ms * rate_hz / 1000.0)) if b.peak_limit is not None else 0] * w)
+            prec.extend([max(1, int(round(b.recover_ms * rate_hz / 1000.0)))] * w)
             for j, (m, s) in enumerate(b.signals):
                 c = codecs[m]
                 src = sources.setdefault(m, [None] * len(c.signals))
                 src[c.index[s]] = (self.out, start + j, float(b.scale[j]), float(b.offset[j]))
             start += w
-        self.guard = OutputGuard(np.array(lo), np.array(hi), np.array(safe), peak_hi=np.array(phi), peak_lo=np.array(plo),
-                                 peak_max_ticks=np.array(pmax, dtype=np.int64)) if total else None
+        try:
+            self.guard = OutputGuard(np.array(lo), np.array(hi), np.array(safe), peak_hi=np.array(phi), peak_lo=np.array(plo),
+                                     peak_max_ticks=np.array(pmax, dtype=np.int64), peak_recover_ticks=np.array(prec, dtype=np.int64)
+                                     ) if total else None
+        except ValueError as e:  # only a peak budget too large for int64 (day-long max_ms and recover_ms at a high rate)
+            raise DataError(f"{canmap.path}: {e}") from None
         # where the bound outputs are in the arena, in map order (None: no bound output)
         self._gather = np.array(gather, dtype=np.int64) if total else None
         self._gfp, gip = self.guard.tables if self.guard is not None else (None, None)
@@ -212,11 +217,12 @@ class CanIO:
     def _warm_up(self) -> None:
         """Compile (or load from numba's disk cache) the compiled codec calls now, not on the first live tick.
 
-        Nothing observable changes: mask 0 decodes nothing, and forced-safe guarding
-        leaves the peak counters alone; the frames are re-encoded before any send.
+        Nothing observable changes: mask 0 decodes nothing, the finiteness test only reads, and forced-safe guarding counts
+        nothing and refills peak budgets that start full; the frames are re-encoded before any send.
         """
         if self.table_decoder is not None:
             self.table_decoder.run(0, 0, self.arena, np.zeros(1, dtype=np.int64))
+            self.table_decoder.finite(self.table_decoder.words, 0)  # a second frame of a message in a tick (tick.rx_decoder)
         if self.guard is not None:
             self.guard_and_encode(True)
             c = self.codec

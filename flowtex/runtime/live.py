@@ -55,7 +55,7 @@ from .realtime import RealtimeStatus, enter_realtime, freeze_gc, leave_realtime
 from .safety import all_updated_after, first_stale
 from .simdevice import SimulatedDevice, in_process_device
 from .stats import TickStats
-from .status import Shown, StatusDisplay, clamp_warnings, resolve_shown
+from .status import Shown, StatusDisplay, clamp_warnings, guard_counts, resolve_shown
 from .tick import rx_decoder, tick_compute, warmer
 
 __all__ = ["BusError", "CanIO", "LiveConfig", "LiveReport", "load_io", "run_live"]
@@ -178,6 +178,7 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
     display = StatusDisplay(status, io, watchdog, stats, int(rate / 2), shown) if status is not None else None
     if display is not None and audio is not None:
         display.extra = audio.status_text
+        display.audio = audio
     wall_minus_perf = time.time_ns() - time.perf_counter_ns()  # python-can timestamps are wall-clock seconds
     graph.reset(config.seed)
     rt_status, rt_message = _enter_rt(config.rt, config.rt_priority, config.rt_cpu, status)
@@ -263,7 +264,7 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
         error = f"{error}; {safe_error}" if error else safe_error
     stats.watchdog_events = watchdog.events
     stats.timeouts = watchdog.stale_events
-    stats.guard = io.guard_counts()
+    stats.guard = guard_counts(io, audio)
     rt_granted = rt_status is not None and bool(rt_status.granted)
     if display is not None:
         display.finish(rt_granted)

@@ -18,7 +18,11 @@ skipped, as the live loop skips them.
 
 For every tick the replay decodes the same frames with the same decoder as the live tick into the
 graph inputs, steps the graph (reset with the same seed), guards the outputs with
-the same clamps/peak allowance (never forcing safe values) and encodes them. If a
+the same clamps/peak allowance (never forcing safe values) and encodes them. On a tick
+where live held the outputs safe (the replay's watchdog finds a sensor stale, or live sent
+the safe values the replay did not: the overrun watchdog) the guard's state (peak budgets,
+counts) is then moved as live's forced tick moved it, so the peak budget of the ticks after
+a watchdog trip is live's. If a
 live block differs from the replayed one, the tick is reported: as ``watchdog``
 when the replay's own input watchdog (same timeouts, tick-counted) says a sensor
 was stale then, as ``overrun`` when live sent exactly the safe values with every
@@ -195,9 +199,9 @@ def _split_ticks(frames: list[can.Message], tx_ids: list[tuple[int, bool]], plac
 
 def _tick_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[can.Message], int], None]:
     """``decode_tick(rx, k)``: the frames one live tick received into the graph inputs, as the live tick decodes them
-    (:func:`~flowtex.runtime.tick.rx_decoder`, then the compiled decoder): the latest frame of each compiled message
-    is the one decoded, and dropped whole when a float signal in it is NaN or inf, so that an earlier frame of that
-    message in the same tick is not used either. Decoding frame by frame would differ there."""
+    (:func:`~flowtex.runtime.tick.rx_decoder`, then the compiled decoder): the latest finite frame of each compiled
+    message is the one decoded (a frame with a NaN or inf float signal is ignored). The same code as live, so that
+    whatever the decoding rule, the replay's inputs are live's by construction."""
     mask_of = rx_decoder(io, watchdog)
     td = io.codec.decoder
     if td is None:  # no compiled message: mask_of decodes every frame with its Python decoder
@@ -267,22 +271,31 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
                               session_path=session_path, truncated=completeness.problem)
         if completeness.problem and completeness.expected_frames is not None:
             report.expected_ticks = expected_ticks(completeness.expected_frames, ticks, len(io.tx))
+        guard_state = io.codec.guard_ints
+        before = guard_state.copy() if guard_state is not None else None
         try:
             decode_tick = _tick_decoder(io, watchdog)
             for k, (rx, live_block) in enumerate(ticks):
                 decode_tick(rx, k)
                 graph.step_block(1)
                 stale = watchdog.check(k, 0)
+                if before is not None:
+                    before[:] = guard_state
                 io.guard_outputs(False)
                 io.encode()
+                forced = stale
                 if any(bytes(a.data) != bytes(b.data) for a, b in zip(io.tx, live_block, strict=True)):
                     report.mismatched_ticks.append(k)
                     if stale:
                         report.watchdog_ticks.append(k)
                     elif [bytes(b.data) for b in live_block] == safe:
                         report.overrun_ticks.append(k)
+                        forced = True
                     else:
                         report.unexplained_ticks.append(k)
+                if forced and before is not None:  # live held the outputs safe: its guard state moved as a forced tick's
+                    guard_state[:] = before
+                    io.guard_outputs(True)
                 if outputs is not None:
                     for name, arr in outputs.items():
                         arr[k] = graph.output_view(name).reshape(arr.shape[1:])

@@ -6,25 +6,31 @@ outputs must be forced to their safe values.
 
 OutputGuard rules (per actuator channel ``i``, applied every tick by :meth:`OutputGuard.apply`):
 
-1. ``force_safe`` -> output ``safe[i]`` for every channel (watchdog tripped, shutdown).
-   Not counted as a clamp event; the peak counter is left unchanged.
-2. Commanded value NaN, +inf or -inf -> output ``safe[i]``; counted in the return value
-   and in ``nonfinite_counts[i]``; the peak counter is left unchanged (a fault is not a
-   return to the steady range).
-3. Finite value within ``[lo[i], hi[i]]`` (bounds inclusive) -> passed through unchanged;
-   the consecutive-peak counter ``run[i]`` is reset to 0 (the channel is re-armed).
-4. Finite value outside ``[lo, hi]``: ``run[i]`` is incremented. While
-   ``run[i] <= peak_max_ticks`` the value is clamped to the peak range
-   ``[peak_lo[i], peak_hi[i]]`` (so a value inside it passes unchanged; beyond it is a
-   clamp event); once ``run[i] > peak_max_ticks`` it is clamped to ``[lo, hi]`` (a clamp
-   event) and stays so for as long as the command stays outside ``[lo, hi]``. Only a
-   finite command within ``[lo, hi]`` re-arms the peak allowance (rule 3).
+The peak allowance is a budget per channel (a token bucket, in integer units so that live, offline and replay
+compute it bit for bit): ``P = peak_max_ticks`` peak ticks when full, one spent per tick
+limited to the peak range, refilled by ``P / R`` of a tick (``R = peak_recover_ticks``) per tick that is not
+beyond ``[lo, hi]``. In units: capacity ``P * cost``, ``cost = R / g`` spent per peak tick, ``gain = P / g``
+added per refilling tick (``g = gcd(P, R)``), capped at the capacity. It starts full.
 
-   So a transient may exceed the steady limit for exactly ``peak_max_ticks``
-   consecutive ticks; the next consecutive one is clamped. ``peak_max_ticks = 0`` (or no
-   ``peak_hi``) means no peaks at all. ``peak_lo`` defaults to the mirror of the upper
-   margin, ``lo - (peak_hi - hi)``, i.e. ``-peak_hi`` for symmetric limits; pass
-   ``peak_lo=lo`` to allow peaks on the upper side only.
+1. ``force_safe`` -> output ``safe[i]`` for every channel (watchdog tripped, shutdown).
+   Not counted as a clamp event; the budget refills (the safe value lies within ``[lo, hi]``).
+2. Commanded value NaN, +inf or -inf -> output ``safe[i]``; counted in the return value
+   and in ``nonfinite_counts[i]``; the budget refills (the output is the safe value).
+3. Finite value within ``[lo[i], hi[i]]`` (bounds inclusive) -> passed through unchanged;
+   the budget refills.
+4. Finite value outside ``[lo, hi]``: while the budget holds at least one peak tick
+   (``budget >= cost``) the value is clamped to the peak range ``[peak_lo[i], peak_hi[i]]``
+   (so a value inside it passes unchanged; beyond it is a peak-limit event) and one peak
+   tick is spent; otherwise it is clamped to ``[lo, hi]`` (a clamp event), which neither
+   spends nor refills: a command that stays beyond the clamp stays clamped.
+
+   Bounds this gives, for any command sequence: at most ``P`` consecutive ticks beyond
+   ``[lo, hi]`` (a full budget holds ``P``); over any window of ``W`` ticks at most
+   ``P * (R + W) / (R + P)`` of them, so the long-run share of ticks beyond ``[lo, hi]``
+   is at most ``P / (P + R)``. ``R`` is the number of refilling ticks that refill an empty
+   budget. ``peak_max_ticks = 0`` (or no ``peak_hi``) means no peaks at all. ``peak_lo``
+   defaults to the mirror of the upper margin, ``lo - (peak_hi - hi)``, i.e. ``-peak_hi``
+   for symmetric limits; pass ``peak_lo=lo`` to allow peaks on the upper side only.
 
 The return value of :meth:`OutputGuard.apply` is the number of channels whose output
 differs from the command because of rules 2 and 4 (0 when all pass); cumulative
@@ -58,11 +64,13 @@ Watchdog rules (:class:`Watchdog`):
 from __future__ import annotations
 
 import logging
+import math
 
 import numpy as np
 from numba import njit
 
 from ..cache import configure_numba_cache
+from ..schema.devmap import PEAK_RECOVER_RATIO
 
 configure_numba_cache()  # numba binds a kernel's cache folder when it is decorated: choose it first (flowtex.cache)
 
@@ -70,21 +78,26 @@ _log = logging.getLogger(__name__)
 
 # Rows of the OutputGuard parameter matrices.
 _LO, _HI, _SAFE, _PLO, _PHI = 0, 1, 2, 3, 4
-_PMAX, _RUN, _NCLAMP, _NNONFINITE, _NPEAK = 0, 1, 2, 3, 4
+_CAP, _BUDGET, _NCLAMP, _NNONFINITE, _NPEAK, _COST, _GAIN = 0, 1, 2, 3, 4, 5, 6
+_IROWS = 7
+_MAX_UNITS = 1 << 62
+"""Largest budget capacity in units (``P * R / gcd(P, R)``): the int64 budget plus one gain cannot overflow."""
 
 
 @njit(cache=True)
 def guard_kernel(fp: np.ndarray, ip: np.ndarray, values: np.ndarray, out: np.ndarray, force_safe: bool) -> int:
     """Apply the OutputGuard rules (module docstring) to one tick; returns the event count.
 
-    ``fp`` is ``(5, n)`` float64: rows lo, hi, safe, peak_lo, peak_hi. ``ip`` is ``(5, n)``
-    int64: rows peak_max_ticks, run (consecutive out-of-range ticks), clamp count,
-    non-finite count, peak-limit count; rows 1-4 are updated in place. ``values`` and ``out`` are ``(n,)``.
+    ``fp`` is ``(5, n)`` float64: rows lo, hi, safe, peak_lo, peak_hi. ``ip`` is ``(7, n)``
+    int64: rows budget capacity, budget, clamp count, non-finite count, peak-limit count,
+    cost of a peak tick, gain of a refilling tick (budget units); rows 1-4 are updated in
+    place. ``values`` and ``out`` are ``(n,)``.
     """
     n = out.shape[0]
     if force_safe:
         for i in range(n):
             out[i] = fp[_SAFE, i]
+            ip[_BUDGET, i] = min(ip[_CAP, i], ip[_BUDGET, i] + ip[_GAIN, i])
         return 0
     events = 0
     for i in range(n):
@@ -92,18 +105,18 @@ def guard_kernel(fp: np.ndarray, ip: np.ndarray, values: np.ndarray, out: np.nda
         if not np.isfinite(v):
             out[i] = fp[_SAFE, i]
             ip[_NNONFINITE, i] += 1
+            ip[_BUDGET, i] = min(ip[_CAP, i], ip[_BUDGET, i] + ip[_GAIN, i])
             events += 1
             continue
         lo = fp[_LO, i]
         hi = fp[_HI, i]
         if v >= lo and v <= hi:
             out[i] = v
-            ip[_RUN, i] = 0
+            ip[_BUDGET, i] = min(ip[_CAP, i], ip[_BUDGET, i] + ip[_GAIN, i])
             continue
-        run = ip[_RUN, i] + 1
-        ip[_RUN, i] = run
-        peak = run <= ip[_PMAX, i]
+        peak = ip[_BUDGET, i] >= ip[_COST, i]
         if peak:
+            ip[_BUDGET, i] -= ip[_COST, i]
             lo = fp[_PLO, i]
             hi = fp[_PHI, i]
         if v > hi:
@@ -119,6 +132,31 @@ def guard_kernel(fp: np.ndarray, ip: np.ndarray, values: np.ndarray, out: np.nda
             ip[_NCLAMP, i] += 1
         events += 1
     return events
+
+
+def _ticks(name: str, x, n: int, least: int) -> np.ndarray:
+    """``x`` as an int64 vector of ``n`` tick counts, each at least ``least`` (a scalar is broadcast)."""
+    a = np.atleast_1d(np.asarray(x))
+    if a.ndim != 1 or not np.issubdtype(a.dtype, np.integer) or np.any(a < least):
+        raise ValueError(f"OutputGuard: {name} must be an int >= {least} (or one per output), got {x!r}")
+    if a.shape[0] == 1:
+        a = np.full(n, a[0])
+    if a.shape[0] != n:
+        raise ValueError(f"OutputGuard: {name} has {a.shape[0]} entries, expected {n}")
+    return a.astype(np.int64)
+
+
+def _budget_units(peak: int, recover: int) -> tuple[int, int, int]:
+    """(capacity, cost of a peak tick, gain of a refilling tick) in integer budget units for an allowance of ``peak``
+    ticks refilled from empty by ``recover`` refilling ticks: ``gain / cost = peak / recover`` exactly."""
+    if peak == 0:
+        return 0, 1, 0
+    g = math.gcd(peak, recover)
+    cost, gain = recover // g, peak // g
+    if peak * cost >= _MAX_UNITS:
+        raise ValueError(f"OutputGuard: a peak allowance of {peak} ticks refilled in {recover} ticks needs a budget of "
+                         f"{peak * cost} units, more than the guard's int64 holds: shorten peak max_ms or recover_ms")
+    return peak * cost, cost, gain
 
 
 def _vector(name: str, x, n: int) -> np.ndarray:
@@ -137,13 +175,16 @@ class OutputGuard:
     """Clamp + NaN/inf guard + bounded peak allowance for a vector of actuator outputs.
 
     ``lo``, ``hi``, ``safe``, ``peak_hi``, ``peak_lo`` are scalars or arrays with one
-    entry per actuator output (in the output's own unit, e.g. N); ``peak_max_ticks`` is
-    a scalar or per-channel int (ticks of the live rate). See the module docstring for
+    entry per actuator output (in the output's own unit, e.g. N); ``peak_max_ticks`` (the
+    allowance, ``P``) and ``peak_recover_ticks`` (refilling ticks that refill an empty
+    allowance, ``R``; default :data:`~flowtex.schema.devmap.PEAK_RECOVER_RATIO` times ``P``)
+    are scalars or per-channel ints (ticks of the live rate). See the module docstring for
     the exact rules. ``safe`` must lie within ``[lo, hi]``.
     """
 
-    def __init__(self, lo, hi, safe, peak_hi=None, peak_max_ticks=0, peak_lo=None) -> None:
-        n = max(int(np.size(x)) for x in (lo, hi, safe, peak_hi, peak_lo, peak_max_ticks) if x is not None)
+    def __init__(self, lo, hi, safe, peak_hi=None, peak_max_ticks=0, peak_lo=None, peak_recover_ticks=None) -> None:
+        sizes = (lo, hi, safe, peak_hi, peak_lo, peak_max_ticks, peak_recover_ticks)
+        n = max(int(np.size(x)) for x in sizes if x is not None)
         lo_a = _vector("lo", lo, n)
         hi_a = _vector("hi", hi, n)
         safe_a = _vector("safe", safe, n)
@@ -166,17 +207,17 @@ class OutputGuard:
             plo = _vector("peak_lo", peak_lo, n)
             if not np.all(np.isfinite(plo)) or np.any(plo > lo_a):
                 raise ValueError(f"OutputGuard: peak_lo must be finite and <= lo, got {plo.tolist()}")
-        pmax = np.atleast_1d(np.asarray(peak_max_ticks))
-        if pmax.ndim != 1 or not np.issubdtype(pmax.dtype, np.integer) or np.any(pmax < 0):
-            raise ValueError(f"OutputGuard: peak_max_ticks must be a non-negative int (or one per output), got {peak_max_ticks!r}")
-        if pmax.shape[0] == 1:
-            pmax = np.full(n, pmax[0])
-        if pmax.shape[0] != n:
-            raise ValueError(f"OutputGuard: peak_max_ticks has {pmax.shape[0]} entries, expected {n}")
+        pmax = _ticks("peak_max_ticks", peak_max_ticks, n, 0)
+        if peak_recover_ticks is None:
+            rec = pmax * int(PEAK_RECOVER_RATIO)
+        else:
+            rec = _ticks("peak_recover_ticks", peak_recover_ticks, n, 1)
         self.n = n
         self._fp = np.ascontiguousarray(np.stack([lo_a, hi_a, safe_a, plo, phi]))
-        self._ip = np.zeros((5, n), dtype=np.int64)
-        self._ip[_PMAX] = pmax
+        self._ip = np.zeros((_IROWS, n), dtype=np.int64)
+        for i in range(n):
+            self._ip[[_CAP, _COST, _GAIN], i] = _budget_units(int(pmax[i]), max(1, int(rec[i])))
+        self._ip[_BUDGET] = self._ip[_CAP]
 
     @property
     def tables(self) -> tuple[np.ndarray, np.ndarray]:
@@ -204,9 +245,19 @@ class OutputGuard:
         return self._fp[_PHI]
 
     @property
-    def run(self) -> np.ndarray:
-        """Consecutive ticks each channel's command has been outside ``[lo, hi]``."""
-        return self._ip[_RUN]
+    def peak_max_ticks(self) -> np.ndarray:
+        """Each channel's peak allowance when full, in ticks (``P``)."""
+        return self._ip[_CAP] // self._ip[_COST]
+
+    @property
+    def peak_recover_ticks(self) -> np.ndarray:
+        """Refilling ticks that refill each channel's empty allowance (``R``; 0 where there is no allowance)."""
+        return np.where(self._ip[_CAP] > 0, self._ip[_COST] * self.peak_max_ticks // np.maximum(self._ip[_GAIN], 1), 0)
+
+    @property
+    def peak_ticks_left(self) -> np.ndarray:
+        """Peak ticks each channel's budget holds now (whole ticks, rounded down)."""
+        return self._ip[_BUDGET] // self._ip[_COST]
 
     @property
     def clamp_counts(self) -> np.ndarray:
@@ -230,8 +281,9 @@ class OutputGuard:
         out[:] = self._fp[_SAFE]
 
     def reset(self) -> None:
-        """Re-arm every channel (peak counters to 0) and zero the event counts."""
-        self._ip[1:] = 0
+        """Refill every channel's peak allowance and zero the event counts."""
+        self._ip[_BUDGET] = self._ip[_CAP]
+        self._ip[_NCLAMP:_NPEAK + 1] = 0
 
 
 @njit(cache=True)

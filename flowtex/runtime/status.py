@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable, Sequence
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
 import numpy as np
 
@@ -22,6 +22,9 @@ from ..node_api import suggest
 from .canio import CanIO
 from .safety import Watchdog
 from .stats import TickStats
+
+if TYPE_CHECKING:  # the audio output is passed in; this module needs its type only
+    from .audio import AudioOutput
 
 
 def describe_event(io: CanIO, watchdog: Watchdog, tick: int, reason: str, detail: int) -> str:
@@ -89,13 +92,23 @@ GUARD_WORDS = {"clamped": "clamped", "peak_limited": "peak-limited", "nonfinite"
 """One word per guard event, the same in the status line, the end summary, ``--stats`` (its keys) and the warnings."""
 
 
-def guard_text(io: CanIO) -> str:
-    """`` | clamped NAME N, ... | peak-limited NAME N | nonfinite NAME N`` for the kinds of guard event that occurred
-    so far (one group per kind, the words of :data:`GUARD_WORDS`), else ``""``."""
+def guard_counts(io: CanIO, audio: AudioOutput | None = None) -> dict[str, dict[str, int]]:
+    """The session's guard events: :meth:`CanIO.guard_counts` per CAN output, with the audio channels' NaN/inf ticks
+    (:meth:`AudioOutput.nonfinite_counts`) added to ``nonfinite`` after them. What the status line, the end summary and
+    ``--stats`` report."""
     counts = io.guard_counts()
+    if audio is not None:
+        counts["nonfinite"].update(audio.nonfinite_counts())
+    return counts
+
+
+def guard_text(io: CanIO, audio: AudioOutput | None = None) -> str:
+    """`` | clamped NAME N, ... | peak-limited NAME N | nonfinite NAME N`` for the kinds of guard event that occurred
+    so far (one group per kind, the words of :data:`GUARD_WORDS`; :func:`guard_counts`), else ``""``."""
+    counts = guard_counts(io, audio)
     groups = []
     for key, word in GUARD_WORDS.items():
-        parts = [f"{name} {counts[key][name]}" for name in io.out_names if counts[key][name]]
+        parts = [f"{name} {n}" for name, n in counts[key].items() if n]
         if parts:
             groups.append(f" | {word} {', '.join(parts)}")
     return "".join(groups)
@@ -150,6 +163,8 @@ class StatusDisplay:
         self._line_len = 0
         self.extra: Callable[[], str] | None = None
         """Returns more counters for the status line (the audio output's underruns)."""
+        self.audio: AudioOutput | None = None
+        """The session's audio output, whose NaN/inf ticks the guard groups show (:func:`guard_counts`)."""
 
     def tick(self, k: int) -> None:
         """Called after tick ``k - 1`` ran (``k`` ticks executed)."""
@@ -164,7 +179,7 @@ class StatusDisplay:
 
     def line(self) -> str:
         """The status line: timing and counters, the outputs the guard limited so far, then the shown values."""
-        line = self.stats.status_line() + guard_text(self.io)
+        line = self.stats.status_line() + guard_text(self.io, self.audio)
         if self.extra is not None:
             line = f"{line} | {self.extra()}"
         return f"{line} | {format_values(self.shown)}" if self.shown else line

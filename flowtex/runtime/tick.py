@@ -42,14 +42,19 @@ def rx_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[Any], int, Any],
     A frame the compiled decoder takes has its payload stored as one integer in
     ``words[slot]`` and its bit set in the returned mask (for :func:`decode_packed`);
     any other mapped frame goes through its generated Python decoder into the graph
-    inputs and marks its watchdog entries fresh at ``tick``. A frame of the other format
-    (extended or standard) than its ID number's message is another message: skipped. An
-    error frame reporting bus-off raises :class:`BusError`.
+    inputs and marks its watchdog entries fresh at ``tick``. Of a message's frames in one
+    tick the latest finite one stands: a frame with a NaN or inf float signal is ignored
+    (the compiled decoder drops a slot whose stored payload is one; a later frame replaces
+    an earlier one only if finite; the Python codec writes nothing for one). A frame of the
+    other format (extended or standard) than its ID number's message is another message:
+    skipped. An error frame reporting bus-off raises :class:`BusError`.
     """
     td = io.codec.decoder
     slot_get = td.slot_of.get if td is not None else {}.get
     slot_len = td.lengths if td is not None else []
     slot_ext = td.extended if td is not None else []
+    slot_float = td.has_float if td is not None else []
+    finite = td.finite if td is not None else None
     from_bytes = int.from_bytes
     decoders = io.decoders
     fresh = watchdog.fresh
@@ -67,11 +72,17 @@ def rx_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[Any], int, Any],
                     continue
                 data = msg.data
                 if len(data) == slot_len[j]:
+                    if mask >> j & 1 and slot_float[j]:  # a later frame of the tick replaces the earlier one if finite
+                        earlier = words[j]
+                        words[j] = from_bytes(data, "little", signed=True)
+                        if not finite(words, j):
+                            words[j] = earlier
+                        continue
                     words[j] = from_bytes(data, "little", signed=True)
                     mask |= 1 << j
                     continue
                 entry = decoders[msg.arbitration_id]
-                if entry[0](data):  # a longer frame the Python codec takes (CAN FD padding): the later frame wins
+                if entry[0](data):  # a longer finite frame the Python codec takes (CAN FD padding): the later frame wins
                     mask &= ~(1 << j)
                     for w in entry[1]:
                         fresh(w, tick)

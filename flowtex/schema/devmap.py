@@ -10,6 +10,10 @@ DEFAULT_OVERRUN_MS = 2.0
 MAX_MAP_MS = 86_400_000.0
 """Longest ``timeout_ms``, ``overrun_limit_ms`` and peak ``max_ms`` (one day): longer is no watchdog, and a
 duration past ~2^63 ns would not even fit the watchdog's integer nanoseconds and ticks."""
+PEAK_RECOVER_RATIO = 60
+"""Default peak ``recover_ms`` per ms of ``max_ms``: an empty allowance refills in 60 times its length, so over any long
+run at most 1/61 of the ticks exceed the clamp, the duty of IEC 60268-5's short-term test of a loudspeaker (1 s of
+signal, 60 s of rest; docs/live.md, "Peak rule")."""
 MIN_AUDIO_RATE = 5000.0
 """Lowest audio rate accepted, Hz (the issue's and Culbertson 2012's floor)."""
 DEFAULT_AUDIO_MARGIN_MS = 10.0
@@ -63,12 +67,18 @@ INPUT_BINDING = Record(
 PEAK = Record(
     keys={
         "limit": Field("any_of", of=PER_COMPONENT.of, doc="|value| allowed above the clamp, graph units, for at most max_ms."),
-        "max_ms": Field("number", unit="ms", min=0.0, max=MAX_MAP_MS, doc="How long the peak may last.",
+        "max_ms": Field("number", unit="ms", min=0.0, max=MAX_MAP_MS, doc="How long the peak may last (the allowance, when full).",
                         message=f"{{what}}: peak max_ms must be a non-negative number of milliseconds, at most {MAX_MAP_MS:.0f} "
                                 "(one day), got {got}"),
+        "recover_ms": Field("number", unit="ms", min=0.0, min_exclusive=True, max=MAX_MAP_MS,
+                            doc="Time within the clamp that refills an empty allowance (gradually: max_ms/recover_ms of a "
+                                f"tick per tick); absent: {PEAK_RECOVER_RATIO} x max_ms. At most max_ms/(max_ms + recover_ms) "
+                                "of any long run exceeds the clamp.",
+                            message=f"{{what}}: peak recover_ms must be a positive number of milliseconds, at most {MAX_MAP_MS:.0f} "
+                                    "(one day), got {got}"),
     },
     required=("limit", "max_ms"),
-    doc="A short excursion above the clamp.",
+    doc="A short excursion above the clamp, with an allowance that refills over time.",
 )
 
 OUTPUT_BINDING = Record(
@@ -81,7 +91,8 @@ OUTPUT_BINDING = Record(
         "safe": Field("any_of", of=PER_COMPONENT.of, default=0.0, doc="Value sent when the watchdog trips and on exit, graph units.",
                       message=PER_COMPONENT.message),
         "peak": Field("record", record=PEAK, doc=PEAK.doc,
-                      message="{what}: peak must be {{limit: L, max_ms: D}} (allow |value| up to L for at most D ms)"),
+                      message="{what}: peak must be {{limit: L, max_ms: D}} or {{limit: L, max_ms: D, recover_ms: T}} "
+                              "(allow |value| up to L for at most D ms, refilled over T ms within the clamp)"),
         "doc": Field("str", doc="Free text."),
     },
     required=("clamp",),

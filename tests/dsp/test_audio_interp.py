@@ -37,6 +37,29 @@ def test_render_equals_scipy_upfirdn_clipped_and_scaled(up):
     assert out.max() <= np.float32(hi / scale) and out.min() >= np.float32(lo / scale)
 
 
+@pytest.mark.parametrize("ratio", [(8, 1), (441, 10)])
+def test_nan_and_inf_enter_as_zero_and_are_counted_per_channel(ratio):
+    """An inf used to enter the filter: its history then held inf for a filter length (samples at the clip, or NaN
+    where inf - inf met, played as 0). Now NaN and inf both enter as 0, and each channel counts its ticks."""
+    up, down = ratio
+    x = 0.3 * np.stack([_texture_like(300, seed=4), _texture_like(300, seed=5)], axis=1)
+    x[[20, 21, 150], 0] = [np.inf, np.nan, -np.inf]
+    x[[40, 41, 42, 43, 299], 1] = [np.nan, np.inf, np.inf, -np.inf, np.nan]
+    it = Interpolator(up, 2, [1.0, 1.0], [-0.5, -0.5], [0.5, 0.5], down=down)
+    out = np.zeros((frames_before(300, up, down), 2), dtype=np.float32)
+    half = frames_before(100, up, down)
+    it.render(x[:100], out[:half])  # in two calls: the counts add up
+    assert it.nonfinite.tolist() == [2, 4]
+    it.render(x[100:], out[half:])
+    assert it.nonfinite.tolist() == [3, 5]
+    for q in range(2):
+        ref_in = np.where(np.isfinite(x[:, q]), x[:, q], 0.0)
+        ref = np.clip(signal.upfirdn(up * it.h, ref_in, up, down)[:out.shape[0]], -0.5, 0.5)
+        np.testing.assert_allclose(out[:, q], ref, rtol=0, atol=4 * np.finfo(np.float32).eps)  # as in the test above
+    it.reset()
+    assert it.nonfinite.tolist() == [0, 0]
+
+
 def test_44_1_khz_from_1_khz_is_scipy_upfirdn_by_441_over_10():
     """A rational ratio: every 10th sample of the 441x up-sampled signal; ticks give 44 or 45 frames."""
     x = _texture_like(200).reshape(-1, 1)

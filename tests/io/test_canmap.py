@@ -56,7 +56,10 @@ def test_good_map_values(tmp_path):
     assert f.lo.tolist() == [-4, -4, 0] and f.hi.tolist() == [4, 4, 8] and f.safe.tolist() == [0, 0, 1]
     v = m.outputs["vibration"]
     assert v.safe.tolist() == [0.0] and v.peak_limit.tolist() == [1.5] and v.peak_ms == 20
+    assert v.recover_ms == 1200  # absent: 60 x max_ms (PEAK_RECOVER_RATIO)
     assert m.overrun_limit_ms == 2.0
+    m = load_map(_map(tmp_path, GOOD.replace("max_ms: 20}", "max_ms: 20, recover_ms: 500}")), load_dbc(DBC), DBC, GIN, GOUT)
+    assert m.outputs["vibration"].recover_ms == 500 and m.outputs["force"].recover_ms == 0
 
 
 @pytest.mark.parametrize("old,new,expect", [
@@ -72,6 +75,9 @@ def test_good_map_values(tmp_path):
     ("ToolPosition.PosZ]", "]", "3 component(s) but 2 signal(s)"),
     ("flowtex_map: 1", "flowtex_map: 1\nscael: 2", "unknown key 'scael'"),
     ("{limit: 1.5, max_ms: 20}", "{limit: 0.5, max_ms: 20}", "at least the clamp HIGH"),
+    ("{limit: 1.5, max_ms: 20}", "{limit: 1.5, max_ms: 20, recover_ms: 0}", "peak recover_ms must be a positive number"),
+    ("{limit: 1.5, max_ms: 20}", "{limit: 1.5, max_ms: 20, recover: 9}", "peak must be {limit: L, max_ms: D} or"),
+    ("{limit: 1.5, max_ms: 20}", "{limit: 1.5, recover_ms: 9}", "peak must be {limit: L, max_ms: D} or"),
 ])
 def test_errors_name_line_and_fix(tmp_path, old, new, expect):
     assert old in GOOD

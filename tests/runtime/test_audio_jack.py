@@ -428,3 +428,34 @@ def test_record_audio_the_disk_refuses_is_one_line_naming_it(setup):
     assert lines[0].endswith("(safe values sent)"), lines
     assert wav.read_bytes() == b"an older recording"
     assert sorted(p.name for p in setup.iterdir() if p.suffix == ".wav") == ["live.wav"]
+
+
+NAN_AUDIO_GRAPH = GRAPH.replace("  v: {type: gain, params: {k: 0.25}}",
+                                "  big: {type: gain, params: {k: 1.0e308}}\n  neg: {type: gain, params: {k: -1.0e308}}\n"
+                                "  v: {type: add}").replace(
+    "  - normal_force -> v.x", "  - normal_force -> big.x\n  - normal_force -> neg.x\n  - big.y -> v.a\n  - neg.y -> v.b")
+"""vibration = 1e308 f - 1e308 f: exactly 0 while 1e308 f is finite (f < 1.79), NaN (inf - inf) above."""
+
+
+def test_nan_audio_is_counted_per_channel_in_stats_and_the_summary(setup):
+    """Audio samples of a NaN graph output play as 0 and were counted nowhere: a session's stats said nothing about
+    the graph's NaN audio. Now each audio channel's NaN/inf ticks are in the guard's ``nonfinite`` counts."""
+    assert "big.y -> v.a" in NAN_AUDIO_GRAPH
+    (setup / "g.yaml").write_text(textwrap.dedent(NAN_AUDIO_GRAPH))
+    force = np.ones(4000)
+    bad = np.r_[100:150, 300:310]
+    force[bad] = 3.0  # 60 ticks of NaN vibration, well inside the 0.5 s session
+    with np.errstate(over="ignore"):
+        assert np.isfinite(1e308 * force).sum() == force.size - bad.size  # the overflow that makes them NaN
+    np.savez(setup / "rec.npz", position=np.zeros((force.size, 3)), normal_force=force, rate=np.float64(1000))
+    stats = setup / "stats.json"
+    cmd = [sys.executable, "-m", "flowtex", "live", str(setup / "g.yaml"), "--bus", "virtual", "--dbc", str(DBC), "--map",
+           str(_map(setup, 64)), "--simulate", str(setup / "rec.npz"), "--duration", "0.5", "--stats", str(stats)]
+    with jack_server(64, setup / "jackd.log") as (env, _):
+        r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(stats.read_text())
+    assert doc["ticks"] >= 400
+    assert doc["nonfinite"] == {"force": 0, "audio channel 0 (vibration)": bad.size}
+    assert f"guard     nonfinite force 0, audio channel 0 (vibration) {bad.size}" in r.stderr
+    assert f"| nonfinite audio channel 0 (vibration) {bad.size}" in r.stderr  # the last status line

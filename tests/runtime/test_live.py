@@ -430,7 +430,8 @@ def test_map_peak_limit_is_mirrored_below_the_clamp(setup):
     # above HIGH (10 - 8 = 2) mirrored below LOW (0 - 2) for the asymmetric one
     assert io.guard.peak_hi.tolist() == [1.5, 4, 4, 10]
     assert io.guard.peak_lo.tolist() == [-1.5, -4, -4, -2]
-    assert io.guard._ip[0].tolist() == [3, 2, 2, 2]  # max_ms in ticks at 1 kHz
+    assert io.guard.peak_max_ticks.tolist() == [3, 2, 2, 2]  # max_ms in ticks at 1 kHz
+    assert io.guard.peak_recover_ticks.tolist() == [180, 120, 120, 120]  # recover_ms absent: 60 x max_ms
     # a command of -3 N on z: within the peak range -2 for 2 ticks, then the clamp's 0
     fz = g.output_view("force")
     seen = []

@@ -24,14 +24,15 @@ TICKS = 300
 def test_peak_limit_and_clamp_events_are_counted_apart():
     """Rules of flowtex/runtime/safety.py: within the 2-tick allowance a value beyond the peak limit is a peak-limit
     event; after it, a clamp event; NaN is neither."""
-    g = OutputGuard(lo=[-1.0, -1.0], hi=[1.0, 1.0], safe=[0.0, 0.0], peak_hi=3.0, peak_max_ticks=2)
+    g = OutputGuard(lo=[-1.0, -1.0], hi=[1.0, 1.0], safe=[0.0, 0.0], peak_hi=3.0, peak_max_ticks=2, peak_recover_ticks=2)
     out = np.zeros(2)
     for v in ([5.0, 0.5], [2.0, 1.5], [2.0, np.nan], [0.0, 1.5], [-4.0, 1.5]):
         g.apply(np.array(v), out, False)
-    # channel 0: 5 -> 3 (peak-limited), 2 passes (tick 2 of the allowance), 2 -> 1 (clamped), 0 re-arms, -4 -> -3 (peak)
-    # channel 1: 0.5 passes, 1.5 passes (peak tick 1), NaN -> safe, 1.5 passes (tick 2), 1.5 -> 1 (clamped)
+    # channel 0: 5 -> 3 (peak-limited), 2 passes (tick 2 of the allowance), 2 -> 1 (clamped), 0 refills one peak tick
+    # (2 ticks refill the allowance of 2), -4 -> -3 (peak-limited)
+    # channel 1: 0.5 passes, 1.5 passes (peak tick 1), NaN -> safe (refills a tick), 1.5 passes, 1.5 passes, both peaks
     assert g.peak_counts.tolist() == [2, 0]
-    assert g.clamp_counts.tolist() == [1, 1]
+    assert g.clamp_counts.tolist() == [1, 0]
     assert g.nonfinite_counts.tolist() == [0, 1]
 
 

@@ -147,3 +147,20 @@ def test_replay_errors_about_a_text_log_name_its_line(setup, capsys):  # noqa: F
     err = [e for e in capsys.readouterr().err.splitlines() if not e.startswith("flowtex: compiling")]
     assert err == [f"{blf} (frame {at + 1}): frame 0x{frames[at].arbitration_id:x} received in the middle of an actuator "
                    "block; not a flowtex live session log"]
+
+
+def test_replay_equals_live_with_a_peak_budget_across_a_watchdog_trip(setup):  # noqa: F811
+    """Live's forced-safe ticks (ToolPosition dropped at ticks 200-259) refill the peak budget while the graph commands
+    more than the clamp; the replay, which guards those ticks unforced to name them, must leave its guard state as
+    live's forced ticks did, or it allows fewer peaks than live after the trip (ticks it then called unexplained)."""
+    m = setup / "peak.yaml"
+    m.write_text((setup / "m.yaml").read_text().replace(
+        "clamp: [-1, 1], safe: 0}", "clamp: [-0.6, 0.6], safe: 0, peak: {limit: 1.0, max_ms: 5, recover_ms: 20}}"))
+    live_log = setup / "live.blf"
+    r = run_live(load_graph(setup / "g.yaml"), LiveConfig(DBC, m, simulate=setup / "rec.npz", max_ticks=600, record=live_log,
+                                                          status=None, drop={"ToolPosition": (200, 260)}, seed=3))
+    assert r.error is None and r.watchdog_events == 1
+    assert r.summary["peak_limited"]["vibration"] == 0 and r.summary["clamped"]["vibration"] > 0
+    rep = replay_session(load_graph(setup / "g.yaml"), live_log, DBC, m, seed=3)
+    assert rep.unexplained_ticks == [] and rep.overrun_ticks == []
+    assert rep.mismatched_ticks == rep.watchdog_ticks == list(range(205, 260))

@@ -54,12 +54,8 @@ def test_peak_allowed_for_exactly_max_ticks_then_clamped():
     g = OutputGuard(lo=-1.0, hi=1.0, safe=0.0, peak_hi=3.0, peak_max_ticks=3)
     outs = [run(g, [2.5])[0][0] for _ in range(5)]
     assert outs == [2.5, 2.5, 2.5, 1.0, 1.0]
-    # stays clamped while the command stays out of range
+    # stays clamped while the command stays out of range (how the allowance refills: test_peak_budget.py)
     assert run(g, [2.9]) == ([1.0], 1)
-    # one tick back within range re-arms the allowance
-    assert run(g, [0.5]) == ([0.5], 0)
-    outs = [run(g, [2.0])[0][0] for _ in range(4)]
-    assert outs == [2.0, 2.0, 2.0, 1.0]
 
 
 def test_peak_beyond_peak_limit_clamps_to_peak_limit_during_allowance():
@@ -88,18 +84,6 @@ def test_peak_lo_can_disable_lower_peaks():
 def test_peak_max_zero_means_no_peaks():
     g = OutputGuard(lo=-1.0, hi=1.0, safe=0.0, peak_hi=3.0, peak_max_ticks=0)
     assert run(g, [2.0]) == ([1.0], 1)
-
-
-def test_nonfinite_and_force_safe_do_not_rearm_peak():
-    g = OutputGuard(lo=-1.0, hi=1.0, safe=0.0, peak_hi=3.0, peak_max_ticks=2)
-    assert run(g, [2.0])[0] == [2.0]
-    assert run(g, [NAN])[0] == [0.0]
-    assert run(g, [2.0])[0] == [2.0]  # second tick of the run
-    assert run(g, [2.0], force_safe=True)[0] == [0.0]
-    assert run(g, [2.0])[0] == [1.0]  # third: clamped
-    g.reset()
-    assert run(g, [2.0])[0] == [2.0]
-    assert g.clamp_counts.tolist() == [0]
 
 
 def test_per_channel_peak_settings():
