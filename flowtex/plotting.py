@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -64,48 +65,69 @@ def _magnitude(x: np.ndarray) -> np.ndarray:
 
 
 def plot_signals(signals: dict[str, np.ndarray], units: dict[str, str], rate: float, path: Path, title: str = "") -> None:
-    """Write the figure: one time-series row per signal, a spectrogram row per vibration, a force-speed panel when possible."""
+    """Write :func:`signals_figure` to the PNG ``path`` (atomically)."""
+    from .io.figures import save_png
+
+    save_png(signals_figure(signals, units, rate, title), path)
+
+
+def signals_figure(signals: dict[str, np.ndarray], units: dict[str, str], rate: float, title: str = "") -> Any:
+    """The figure: one time-series row per signal, a spectrogram row per vibration, a force-speed panel when possible.
+
+    Laid out by matplotlib's constrained layout, so the title never covers the first panel however many rows there
+    are. The time panels share one time axis from 0 to the recording's length (s); each spectrogram's colorbar has a
+    column of its own, so every time panel has the same width and their times line up.
+    """
     import matplotlib.pyplot as plt
+
+    from .dsp.spectral import spectrogram_psd
+    from .io.figures import FONT_PT
 
     vib = [n for n in signals if units[n] == "m/s^2"]
     speed = next((n for n in signals if units[n] == "mm/s"), None)
     force = "force" if units.get("force") == "N" else next((n for n in signals if units[n] == "N"), None)
     rows = len(signals) + len(vib) + (1 if speed and force else 0)
-    fig, axes = plt.subplots(rows, 1, figsize=(10, 2.0 * rows + 0.6), squeeze=False)
-    axes = axes[:, 0]
+    fig = plt.figure(figsize=(10, 2.0 * rows + 0.6), layout="constrained")
+    grid = fig.add_gridspec(rows, 2, width_ratios=(1, 0.015))
+    duration = max(x.shape[0] for x in signals.values()) / rate
+    time_axes: list[Any] = []
+
+    def time_panel(row: int) -> Any:
+        ax = fig.add_subplot(grid[row, 0], sharex=time_axes[0] if time_axes else None)
+        time_axes.append(ax)
+        ax.set_xlabel("time (s)", fontsize=FONT_PT)
+        return ax
+
     k = 0
     for name, x in signals.items():
         t = np.arange(x.shape[0]) / rate
-        ax = axes[k]
+        ax = time_panel(k)
         x2 = x.reshape(x.shape[0], -1)
         for c in range(x2.shape[1]):
             ax.plot(t, x2[:, c], lw=0.6, label="xyz"[c] if x2.shape[1] == 3 else None)
-        if x2.shape[1] == 3:
-            ax.legend(loc="upper right", fontsize=7, ncol=3)
-        ax.set_ylabel(f"{name}\n[{units[name] or '-'}]", fontsize=8)
-        ax.set_xlabel("time (s)", fontsize=8)
+        if x2.shape[1] == 3:  # beside the panel, never over its data
+            ax.legend(loc="upper left", bbox_to_anchor=(1.002, 1.0), fontsize=FONT_PT, borderaxespad=0.0, handlelength=1.2)
+        ax.set_ylabel(f"{name}\n[{units[name] or '-'}]", fontsize=FONT_PT)
         ax.grid(alpha=0.3)
         k += 1
     for name in vib:
-        ax = axes[k]
-        from scipy.signal import spectrogram
-
-        f, tt, S = spectrogram(_magnitude(signals[name]), fs=rate, nperseg=min(256, signals[name].shape[0]), noverlap=None)
+        ax = time_panel(k)
+        f, tt, S = spectrogram_psd(_magnitude(signals[name]), rate)
         db = 10.0 * np.log10(np.maximum(S, 1e-30))
         top = float(db.max()) if S.max() > 0 else 0.0
         mesh = ax.pcolormesh(tt, f, db, shading="auto", cmap="magma", vmin=top - 60.0, vmax=top)  # 60 dB range; silence is black
-        fig.colorbar(mesh, ax=ax, pad=0.01, label="dB")
-        ax.set_ylabel(f"{name}\nfrequency (Hz)", fontsize=8)
-        ax.set_xlabel("time (s)", fontsize=8)
+        cbar = fig.colorbar(mesh, cax=fig.add_subplot(grid[k, 1]))
+        cbar.set_label(f"dB re 1 ({units[name]})^2/Hz", fontsize=FONT_PT)
+        shown = f"|{name}|" if signals[name].ndim > 1 and signals[name].reshape(signals[name].shape[0], -1).shape[1] > 1 else name
+        ax.set_ylabel(f"{shown}\nfrequency (Hz)", fontsize=FONT_PT)
         k += 1
+    time_axes[0].set_xlim(0.0, duration)
     if speed and force:
-        ax = axes[k]
+        ax = fig.add_subplot(grid[k, 0])
         ax.plot(_magnitude(signals[speed]), _magnitude(signals[force]), ".", ms=1.5, alpha=0.5)
-        ax.set_xlabel(f"|{speed}| (mm/s)", fontsize=8)
-        ax.set_ylabel(f"|{force}| (N)", fontsize=8)
+        ax.set_xlabel(f"|{speed}| (mm/s)", fontsize=FONT_PT)
+        ax.set_ylabel(f"|{force}| (N)", fontsize=FONT_PT)
         ax.grid(alpha=0.3)
     if title:
-        fig.suptitle(title, fontsize=10)
-    from .io.figures import save_png
-
-    save_png(fig, path, dpi=100)
+        fig.suptitle(title, fontsize=FONT_PT + 2)
+    return fig

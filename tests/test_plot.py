@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from flowtex.cli import main
 from flowtex.plotting import signal_units
@@ -42,3 +43,62 @@ def test_plot_uses_the_units_a_recording_stores(tmp_path, monkeypatch):
         seen.clear()
         plotting.plot_recording(path, None, tmp_path / "p.png")
         assert seen == {"friction": "N", "accel": "g", "tool": "mm/s"}, suffix
+
+
+def _signals(n_force: int, rng):
+    """A run's outputs: ``n_force`` 3-axis forces, a vibration (a spectrogram row), a velocity (a force-speed panel)."""
+    n = 3000
+    sig = {f"force{i}" if i else "force": rng.normal(size=(n, 3)) for i in range(n_force)}
+    sig |= {"vibration": rng.normal(size=n), "velocity": rng.normal(size=(n, 3)) * 100}
+    return sig, {k: "N" if k.startswith("force") else "m/s^2" if k == "vibration" else "mm/s" for k in sig}
+
+
+@pytest.mark.parametrize("n_force", [1, 4, 12])
+def test_plot_layout_title_legends_and_fonts_on_short_and_tall_figures(n_force):
+    """The title stays clear of the first panel on a tall figure (12 forces, 16 rows: it overlapped before), legends
+    cover no data, every text is inside the figure and readable; the time panels share one time axis, 0 to the end."""
+    pytest.importorskip("matplotlib")
+    from flowtex.io.figures import agg_pyplot
+    from flowtex.plotting import signals_figure
+    from tests.figure_layout import layout_problems
+
+    plt = agg_pyplot("matplotlib")
+    sig, units = _signals(n_force, np.random.default_rng(1))
+    fig = signals_figure(sig, units, 1000.0, title="run.npz")
+    try:
+        assert layout_problems(fig) == []
+        r = fig.canvas.get_renderer()
+        time_axes = [ax for ax in fig.axes if ax.get_xlabel() == "time (s)"]
+        assert len(time_axes) == len(sig) + 1  # every signal and the vibration's spectrogram
+        extents = {(round(ax.get_window_extent(r).x0), round(ax.get_window_extent(r).x1)) for ax in time_axes}
+        assert len(extents) == 1  # same left and right edges: times line up across panels
+        assert all(ax.get_xlim() == (0.0, 3.0) for ax in time_axes)
+    finally:
+        plt.close(fig)
+
+
+def test_spectrogram_spans_the_whole_recording_and_keeps_its_power():
+    """The picture stopped up to a segment short of the end (1.81 s of a 2 s run was drawn), as if nothing had been
+    recorded there; its PSD integrates to the signal's variance (Parseval; white noise, 20 000 values)."""
+    pytest.importorskip("matplotlib")
+    from matplotlib.collections import QuadMesh
+
+    from flowtex.dsp.spectral import spectrogram_psd
+    from flowtex.io.figures import agg_pyplot
+    from flowtex.plotting import signals_figure
+
+    rng = np.random.default_rng(3)
+    x = 2.0 * rng.standard_normal(20000)
+    f, t, s = spectrogram_psd(x, 1000.0)
+    assert t[0] == 0.0 and t[-1] >= 19.9 and f[-1] == 500.0
+    power = np.sum(np.mean(s, axis=1)) * (f[1] - f[0])
+    assert power == pytest.approx(np.var(x), rel=0.03)  # ~2500 segments: the estimate scatters by well under 1 %
+
+    plt = agg_pyplot("matplotlib")
+    fig = signals_figure({"vibration": x[:2000]}, {"vibration": "m/s^2"}, 1000.0)
+    try:
+        mesh = next(c for ax in fig.axes for c in ax.collections if isinstance(c, QuadMesh))
+        xs = mesh.get_coordinates()[..., 0]
+        assert xs.min() <= 0.0 and xs.max() >= 2.0
+    finally:
+        plt.close(fig)

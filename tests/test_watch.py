@@ -103,3 +103,15 @@ def test_max_runs_exits_1_when_the_last_run_failed(tmp_path, capsys):
         out = capsys.readouterr().out.splitlines()
         assert out[0].startswith("run 1 (start): failed after ") and out[1].startswith("  "), out
     assert main(["watch", str(tmp_path / "g.yaml"), "-i", str(tmp_path / "r.npz"), "--max-runs", "1"]) == 0
+
+
+def test_each_output_is_reported_with_its_unit(tmp_path, capsys):
+    """'vibration: RMS 0.523, peak 9.41' gave numbers without their unit; an output without one stays bare."""
+    from flowtex.cli import main
+
+    np.savez(tmp_path / "r.npz", x=np.ones(500), rate=np.float64(1000.0))
+    graph = GRAPH.replace("inputs: {{x: {{}}}}", "inputs: {{x: {{unit: m/s^2}}}}").format(k=2.0)
+    (tmp_path / "g.yaml").write_text(graph)
+    assert main(["watch", str(tmp_path / "g.yaml"), "-i", str(tmp_path / "r.npz"), "--max-runs", "1"]) == 0
+    out = [line for line in capsys.readouterr().out.splitlines() if "RMS" in line]
+    assert out == ["  y [m/s^2]: RMS 2, peak 2, non-finite 0"]

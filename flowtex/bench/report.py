@@ -48,22 +48,29 @@ def write_csv(path: str | Path, rows: list[list[str]]) -> None:
 
 
 def pareto_plot(configs: list, output: str, metric: str, path: Path) -> None:
-    """ns/tick against error, Pareto front joined and labelled."""
+    """ns/tick against error (:func:`pareto_figure`), written to the PNG ``path``."""
     from ..io.figures import agg_pyplot, save_png
 
-    plt = agg_pyplot(NEED_MATPLOTLIB)
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    x = [c.ns_per_tick for c in configs]
-    y = [c.errors[output] for c in configs]
-    ax.scatter(x, y, color="0.6", label="configuration")
+    save_png(pareto_figure(configs, output, metric, agg_pyplot(NEED_MATPLOTLIB)), path, dpi=120)
+    print(f"Pareto plot -> {path}", file=sys.stderr)
+
+
+def pareto_figure(configs: list, output: str, metric: str, plt: Any) -> Any:
+    """ns/tick against error, the Pareto front joined; its points numbered 1, 2, ... from the fastest and named in a key
+    below the axes (their knob values written beside the points ran into each other and off the figure)."""
+    from ..io.figures import FONT_PT
+
     front = sorted((c for c in configs if c.pareto), key=lambda c: c.ns_per_tick)
+    fig, ax = plt.subplots(figsize=(7, 4.5 + 0.2 * len(front)), layout="constrained")
+    ax.scatter([c.ns_per_tick for c in configs], [c.errors[output] for c in configs], color="0.6", label="configuration")
     ax.plot([c.ns_per_tick for c in front], [c.errors[output] for c in front], "o-", color="C3", label="Pareto front")
-    for c in front:
-        ax.annotate(", ".join(f"{k}={v}" for k, v in c.values.items()), (c.ns_per_tick, c.errors[output]), fontsize=7,
-                    xytext=(4, 4), textcoords="offset points")
+    for k, c in enumerate(front, start=1):
+        ax.annotate(str(k), (c.ns_per_tick, c.errors[output]), fontsize=FONT_PT + 1, xytext=(5, 5), textcoords="offset points")
+        ax.plot([], [], " ", label=f"{k}: " + ", ".join(f"{name}={v}" for name, v in c.values.items()))
     ax.set_xlabel(f"ns/tick ({configs[0].timed_on})")
     ax.set_ylabel(f"{output} error ({ {'lsd': 'LSD, dB', 'gfc': '1 - GFC'}.get(metric, metric.upper())})")
     ax.grid(alpha=0.3)
-    ax.legend()
-    save_png(fig, path, dpi=120)
-    print(f"Pareto plot -> {path}", file=sys.stderr)
+    ax.margins(x=0.08, y=0.1)  # room for the numbers beside the points at the ends
+    handles, labels = ax.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", fontsize=FONT_PT, frameon=False, alignment="left")
+    return fig

@@ -15,6 +15,8 @@ HUBER_K = 1.345
 """Huber's tuning constant (95 % efficiency at the Gaussian)."""
 BISQUARE_C = 4.685
 """Tukey's bisquare tuning constant (95 % efficiency at the Gaussian)."""
+BATCHES = 20
+"""Consecutive blocks of :func:`batch_means_se` in :func:`irls_line`'s intervals (1 s each in 20 s of recording)."""
 
 
 @dataclass(frozen=True)
@@ -28,6 +30,28 @@ class RobustLine:
     scale: float
     weights: np.ndarray
     iterations: int
+
+
+def batch_means_se(X: np.ndarray, psi: np.ndarray, dpsi: np.ndarray, scale: float, blocks: int) -> np.ndarray | None:
+    """Standard errors of an M-estimator's coefficients (design ``X``; ``psi`` and its derivative ``dpsi`` at each
+    sample's scaled residual; residual ``scale``) by batch means.
+
+    The samples (in time order) are cut into ``blocks`` consecutive blocks whose summed scores g_b = X_b' psi_b
+    are taken as independent: the covariance is scale^2 H^-1 S H^-1 with H = X' diag(dpsi) X and
+    S = blocks / (blocks - 1) sum g_b g_b' (the M-estimator's sandwich with the blocks as clusters). Neighbouring
+    samples may be correlated, as long as blocks far apart are not. None when fewer than ``blocks`` x (columns + 1)
+    samples are given or H is singular.
+    """
+    n, k = X.shape
+    if blocks < 2 or n < blocks * (k + 1):
+        return None
+    H = X.T @ (dpsi[:, None] * X)
+    if np.linalg.matrix_rank(H) < k:
+        return None
+    g = np.array([X[idx].T @ psi[idx] for idx in np.array_split(np.arange(n), blocks)])
+    S = blocks / (blocks - 1) * (g.T @ g)
+    Hi = np.linalg.inv(H)
+    return scale * np.sqrt(np.maximum(np.diag(Hi @ S @ Hi), 0.0))
 
 
 def robust_scale(r: np.ndarray) -> float:
@@ -46,16 +70,20 @@ def _weights(u: np.ndarray, kind: str) -> np.ndarray:
 
 
 def irls_line(x: np.ndarray, y: np.ndarray, intercept: bool = False, kind: str = "bisquare", max_iter: int = 100,
-              tol: float = 1e-10) -> RobustLine:
+              tol: float = 1e-10, blocks: int = BATCHES) -> RobustLine:
     """Robust line y = slope x (+ intercept) by iteratively reweighted least squares.
 
     Starts from a Huber fit (convex: a unique solution) seeded by least
     squares, then, for ``bisquare``, continues with bisquare weights (which
     reject gross outliers such as stiction spikes completely). The scale is
     the MAD of the residuals, re-estimated every iteration. The 95 %
-    intervals use the asymptotic covariance of an M-estimator (Huber 1981,
-    eq. 7.6.4): s^2 mean(psi^2) / mean(psi')^2 (X'X)^-1, with a t quantile.
-    They assume independent samples: correlated noise makes them too narrow.
+    intervals are the wider of two: the asymptotic covariance of an
+    M-estimator (Huber 1981, eq. 7.6.4), s^2 mean(psi^2) / mean(psi')^2
+    (X'X)^-1 with a t quantile, which assumes independent samples, and batch
+    means (:func:`batch_means_se`: the M-estimator's sandwich with ``blocks``
+    consecutive blocks as independent clusters, a t quantile with blocks - 1
+    degrees of freedom), which holds for noise correlated over less than a
+    block. Samples must be in time order.
     """
     from scipy import stats
 
@@ -92,7 +120,11 @@ def irls_line(x: np.ndarray, y: np.ndarray, intercept: bool = False, kind: str =
     mean_dpsi = float(np.mean(dpsi)) or 1e-12
     cov = s * s * float(np.mean(psi ** 2)) / mean_dpsi ** 2 * np.linalg.inv(X.T @ X) * n / max(n - k, 1)
     tq = float(stats.t.ppf(0.975, max(n - k, 1)))
-    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    half = tq * np.sqrt(np.maximum(np.diag(cov), 0.0))
+    batch = batch_means_se(X, psi, dpsi, s, blocks)
+    if batch is not None:
+        half = np.maximum(half, float(stats.t.ppf(0.975, blocks - 1)) * batch)
+    se = half / tq
     slope = float(beta[0])
     icpt = float(beta[1]) if intercept else 0.0
     ici = (icpt - tq * float(se[1]), icpt + tq * float(se[1])) if intercept else (0.0, 0.0)

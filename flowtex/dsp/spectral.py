@@ -143,3 +143,24 @@ def gfc_data_model(x: np.ndarray, ar: np.ndarray, ma: np.ndarray, smooth: int = 
 
     am = np.sqrt(power_spectrum(ar, ma, 2.0 * np.pi * np.arange(n // 2 + 1) / n))
     return gfc(ad, am)
+
+
+def spectrogram_psd(x: np.ndarray, rate_hz: float, nperseg: int = 256,
+                    max_columns: int = 2000) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(frequencies Hz, segment centres s, one-sided PSD (units of x)^2/Hz per segment) of ``x``, centres from 0 to
+    the signal's end.
+
+    The signal is extended by half a segment at both ends (mirrored), so the first segment is centred on the first
+    sample and the last on the last: a plain spectrogram's segments stop up to a segment short of the end, and its
+    picture left the end of a recording blank as if nothing had been recorded there. The hop is an eighth of a
+    segment, longer when that would give more than ``max_columns`` segments.
+    """
+    from scipy.signal import spectrogram
+
+    x = np.asarray(x, dtype=np.float64).ravel()
+    nperseg = max(1, min(nperseg, x.size))
+    half = nperseg // 2
+    padded = np.pad(x, (half, nperseg - half), mode="reflect") if x.size > nperseg - half else np.pad(x, (half, nperseg - half))
+    hop = max(1, nperseg // 8, -(-x.size // max_columns))
+    f, t, s = spectrogram(padded, fs=rate_hz, nperseg=nperseg, noverlap=max(0, nperseg - hop), detrend=False)
+    return f, t - half / rate_hz, s

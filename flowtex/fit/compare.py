@@ -370,9 +370,9 @@ def summary_lines(c: Comparison) -> list[str]:
     """The comparison in a few printable lines."""
     return [f"rendered along the recorded path ({c.seconds:.1f} s, {c.seeds} render(s)):",
             f"  power ratio {c.power_ratio_db:+.2f} dB (rendered over recorded, > 12 Hz; one render scatters by "
-            f"{c.power_ratio_spread_db:.2f} dB); RMS {c.rendered_rms:.3g} vs {c.recorded_rms:.3g} m/s^2",
+            f"{c.power_ratio_spread_db:.2f} dB); RMS {c.rendered_rms:.3g} rendered, {c.recorded_rms:.3g} recorded (m/s^2)",
             f"  LSD {c.lsd_db:.2f} dB ({c.shape_lsd_db:.2f} dB with the levels matched), GFC {c.gfc:.3f}, "
-            f"centroid {c.rendered_centroid_hz:.0f} vs {c.centroid_hz:.0f} Hz "
+            f"centroid {c.rendered_centroid_hz:.0f} Hz rendered, {c.centroid_hz:.0f} Hz recorded "
             f"(band {c.band_hz[0]:g}-{c.band_hz[1]:g} Hz, {c.resolution_hz:.3g} Hz resolution"
             + ("; the set was resampled from a lower rate)" if math.isfinite(c.max_freq_hz) else ")"),
             "  octave-band power error (dB): " + ", ".join(f"{b['centre_hz']:g} Hz {b['error_db']:+.1f}" for b in c.octave_bands),

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..io.atomic import write_text_atomic
-from ..io.figures import agg_pyplot, save_png
+from ..io.figures import FONT_PT, agg_pyplot, save_png
 from .compare import Comparison, summary_lines
 
 PLOT_ERROR = "--report needs matplotlib for its plots: pip install 'flowtex[plot]' (or leave out --report)"
@@ -29,10 +29,8 @@ def write_compare_report(c: Comparison, folder: Path, title: str) -> Path:
     """Write ``folder/report.md`` with the figures, the per-window table and the plots; returns the markdown path."""
     plt = pyplot()
     folder.mkdir(parents=True, exist_ok=True)
-    _spectrum(c, folder / "spectrum.png", plt)
-    _loudness(c, folder / "loudness.png", plt)
-    _windows(c, folder / "windows.png", plt)
-    _octaves(c, folder / "octaves.png", plt)
+    for name, figure in FIGURES.items():
+        save_png(figure(c, plt), folder / name)
     md = [f"# {title}", "", "```", *summary_lines(c), "```", "",
           "![spectrum](spectrum.png)", "", "![loudness](loudness.png)", "", "![windows](windows.png)", "",
           "![octaves](octaves.png)", "",
@@ -43,45 +41,56 @@ def write_compare_report(c: Comparison, folder: Path, title: str) -> Path:
     return write_text_atomic(folder / "report.md", "\n".join(md) + "\n")
 
 
-def _spectrum(c: Comparison, path: Path, plt: Any) -> None:
-    fig, ax = plt.subplots(figsize=(7, 4))
+def _legend_beside(ax: Any) -> None:
+    """The legend to the right of the axes (constrained layout makes room): it never covers a curve."""
+    ax.legend(fontsize=FONT_PT, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, frameon=False)
+
+
+def _window_centres(c: Comparison) -> np.ndarray:
+    return np.array([w["start_s"] + 0.5 * w["seconds"] for w in c.windows])
+
+
+def spectrum_figure(c: Comparison, plt: Any) -> Any:
+    fig, ax = plt.subplots(figsize=(7.5, 4), layout="constrained")
     if c.freqs is not None:
         ax.semilogy(c.freqs, c.recorded_psd, color="0.4", lw=1.0, label="recorded")
-        ax.semilogy(c.freqs, c.rendered_psd, color="C0", lw=1.0, label=f"rendered (mean of {c.seeds})")
-    ax.set_xlabel("Hz")
-    ax.set_ylabel("(m/s^2)^2/Hz")
-    ax.set_title(f"power ratio {c.power_ratio_db:+.2f} dB, LSD {c.lsd_db:.2f} dB, GFC {c.gfc:.3f}", fontsize=9)
-    ax.legend(fontsize=8)
-    save_png(fig, path)
+        ax.semilogy(c.freqs, c.rendered_psd, color="C0", lw=1.0, label=f"rendered\n(mean of {c.seeds})")
+    ax.axvspan(c.band_hz[0], c.band_hz[1], color="0.93", zorder=0, label="compared band")
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("PSD ((m/s^2)^2/Hz)")
+    ax.set_title(f"power ratio {c.power_ratio_db:+.2f} dB, LSD {c.lsd_db:.2f} dB, GFC {c.gfc:.3f} "
+                 f"({c.band_hz[0]:g}-{c.band_hz[1]:g} Hz)", fontsize=FONT_PT + 1)
+    _legend_beside(ax)
+    return fig
 
 
-def _loudness(c: Comparison, path: Path, plt: Any) -> None:
-    t = np.array([w["start_s"] + 0.5 * w["seconds"] for w in c.windows])
-    fig, ax = plt.subplots(figsize=(7, 3.5))
+def loudness_figure(c: Comparison, plt: Any) -> Any:
+    fig, ax = plt.subplots(figsize=(7.5, 3.5), layout="constrained")
+    t = _window_centres(c)
     ax.plot(t, [w["recorded_rms"] for w in c.windows], "o-", color="0.4", ms=3, label="recorded")
     ax.plot(t, [w["rendered_rms"] for w in c.windows], "o-", color="C0", ms=3, label="rendered")
-    ax.set_xlabel("s")
+    ax.set_xlabel("time (s, window centre)")
     ax.set_ylabel("window RMS (m/s^2)")
-    ax.set_title(f"window RMS correlation {c.rms_correlation:.2f}", fontsize=9)
-    ax.legend(fontsize=8)
-    save_png(fig, path)
+    ax.set_title(f"window RMS correlation {c.rms_correlation:.2f}", fontsize=FONT_PT + 1)
+    _legend_beside(ax)
+    return fig
 
 
-def _windows(c: Comparison, path: Path, plt: Any) -> None:
-    t = np.array([w["start_s"] + 0.5 * w["seconds"] for w in c.windows])
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7, 4.5), sharex=True)
-    a1.plot(t, [w["lsd_db"] for w in c.windows], "o-", ms=3)
+def windows_figure(c: Comparison, plt: Any) -> Any:
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7.5, 4.5), sharex=True, layout="constrained")
+    t = _window_centres(c)
+    a1.plot(t, [w["lsd_db"] for w in c.windows], "o-", ms=3, color="C1", label="LSD")
     a1.set_ylabel("LSD (dB)")
     a2.plot(t, [w["centroid_hz"] for w in c.windows], "o-", color="0.4", ms=3, label="recorded")
     a2.plot(t, [w["rendered_centroid_hz"] for w in c.windows], "o-", color="C0", ms=3, label="rendered")
     a2.set_ylabel("centroid (Hz)")
-    a2.set_xlabel("s")
-    a2.legend(fontsize=8)
-    save_png(fig, path)
+    a2.set_xlabel("time (s, window centre)")
+    _legend_beside(a2)
+    return fig
 
 
-def _octaves(c: Comparison, path: Path, plt: Any) -> None:
-    fig, ax = plt.subplots(figsize=(7, 3.5))
+def octaves_figure(c: Comparison, plt: Any) -> Any:
+    fig, ax = plt.subplots(figsize=(7.5, 3.5), layout="constrained")
     bands = [b for b in c.octave_bands if np.isfinite(b["error_db"])]
     labels = [f"{b['centre_hz']:g}" for b in bands]
     errors = [b["error_db"] for b in bands]
@@ -89,5 +98,10 @@ def _octaves(c: Comparison, path: Path, plt: Any) -> None:
     ax.axhline(0.0, color="0.3", lw=0.8)
     ax.set_xlabel("octave band centre (Hz)")
     ax.set_ylabel("rendered / recorded power (dB)")
-    ax.set_title(f"power error per octave band ({c.band_hz[0]:g}-{c.band_hz[1]:g} Hz)", fontsize=9)
-    save_png(fig, path)
+    ax.set_title(f"power error per octave band ({c.band_hz[0]:g}-{c.band_hz[1]:g} Hz)", fontsize=FONT_PT + 1)
+    return fig
+
+
+FIGURES = {"spectrum.png": spectrum_figure, "loudness.png": loudness_figure, "windows.png": windows_figure,
+           "octaves.png": octaves_figure}
+"""Each plot of the report: file name -> ``figure(comparison, pyplot)``."""

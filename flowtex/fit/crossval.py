@@ -152,10 +152,13 @@ def evaluate_splits(acc: np.ndarray, speed: np.ndarray, force: np.ndarray, rate:
 
 
 def _mean(values: list[Any]) -> Any:
-    """Average of the folds' values: numbers (NaN/None left out; None when none is left), lists of dicts item by item."""
+    """Average of the folds' values: numbers (NaN/None left out; None when none is left; an integer all folds share
+    stays that integer), lists of dicts item by item."""
     first = values[0]
     if isinstance(first, bool) or isinstance(first, str):
         return first
+    if isinstance(first, int) and all(type(v) is int and v == first for v in values):
+        return first                                      # a count the folds share (seeds): still a count
     if isinstance(first, (int, float)) or first is None:
         nums = [float(v) for v in values if v is not None and np.isfinite(v)]
         return float(np.mean(nums)) if nums else None

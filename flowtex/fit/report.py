@@ -30,6 +30,7 @@ import numpy as np
 
 from ..dsp.spectral import welch_psd
 from ..io.atomic import write_text_atomic
+from ..io.figures import FONT_PT as FONT
 from ..io.figures import agg_pyplot, save_png
 from .crossval import POOLED_LINE
 from .texture import TextureFit
@@ -37,8 +38,6 @@ from .texture import TextureFit
 PLOT_HINT = "plots need matplotlib: pip install 'flowtex[plot]'"
 NEAR_DUPLICATE = 0.02
 """Two models are near-duplicates when they lie closer than this fraction of the set's max speed and max force."""
-FONT = 9
-"""Smallest font size (points) of the report's plots."""
 
 
 @dataclass
@@ -56,12 +55,13 @@ def _by_model(fit: TextureFit) -> list[Any]:
 
 
 def table_lines(fit: TextureFit) -> list[str]:
-    """The fit table, one line per model (header first)."""
-    lines = [f"{'model':>5} {'speed':>8} {'force':>6} {'samples':>7} {'order':>7} {'GFC':>6} {'LSD dB':>7} {'power err':>9}"]
+    """The fit table, one line per model (header first, with the units of speed and force)."""
+    lines = [f"{'model':>5} {'speed mm/s':>10} {'force N':>7} {'samples':>7} {'order':>7} {'GFC':>6} {'LSD dB':>7} "
+             f"{'power err':>9}"]
     for pc in _by_model(fit):
         f = pc.fit
         assert f is not None
-        lines.append(f"{pc.model:5d} {pc.speed:8.1f} {pc.force:6.2f} {pc.samples:7d} {f.order[0]:3d},{f.order[1]:<3d} {f.gfc:6.3f} "
+        lines.append(f"{pc.model:5d} {pc.speed:10.1f} {pc.force:7.2f} {pc.samples:7d} {f'{f.order[0]},{f.order[1]}':>7} {f.gfc:6.3f} "
                      f"{pc.lsd_db:7.2f} {100 * f.power_error:8.2f}%")
     return lines
 
@@ -144,33 +144,46 @@ def write_report(fit: TextureFit, folder: Path, held: HeldOut | None = None) -> 
 
 
 def _plot_spectra(fit: TextureFit, path: Path, plt: Any) -> None:
+    save_png(spectra_figure(fit, plt), path)
+
+
+def _plot_plane(fit: TextureFit, path: Path, plt: Any, dups: list[tuple[int, int]]) -> None:
+    save_png(plane_figure(fit, plt, dups), path)
+
+
+def spectra_figure(fit: TextureFit, plt: Any) -> Any:
+    """One panel per model: its PSD over its piece's Welch PSD, the model's point, LSD and GFC in the panel's title
+    (nothing drawn over the curves), one legend for all panels above them."""
     pieces = _by_model(fit)
     n = len(pieces)
     cols = min(4, n)
     rows = (n + cols - 1) // cols
-    fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 2.9 * rows), squeeze=False, sharex=True)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 3.0 * rows + 0.4), squeeze=False, sharex=True,
+                             layout="constrained")
     for k, pc in enumerate(pieces):
         ax = axes[k // cols][k % cols]
         x = fit.signal[pc.start:pc.stop]
         freqs, s = welch_psd(x, fit.rate, min(256, x.size))
-        ax.semilogy(freqs, s, color="0.55", lw=0.9, label="data")
+        ax.semilogy(freqs, s, color="0.55", lw=0.9, label="data (the piece's Welch PSD)")
         ax.semilogy(freqs, pc.fit.psd(freqs, fit.rate), color="C0", lw=1.3, label="model")
-        ax.set_title(f"model {pc.model}: {pc.speed:.0f} mm/s, {pc.force:.2f} N", fontsize=FONT)
-        ax.text(0.97, 0.95, f"LSD {pc.lsd_db:.2f} dB\nGFC {pc.fit.gfc:.3f}", transform=ax.transAxes, ha="right", va="top",
-                fontsize=FONT)
+        ax.set_title(f"model {pc.model}: {pc.speed:.0f} mm/s, {pc.force:.2f} N\nLSD {pc.lsd_db:.2f} dB, GFC {pc.fit.gfc:.3f}",
+                     fontsize=FONT)
         ax.tick_params(labelsize=FONT)
-        if k == 0:
-            ax.legend(fontsize=FONT, loc="lower left")
+        ax.tick_params(axis="x", labelbottom=True)  # every panel keeps its frequencies, not only the bottom row
     for k in range(n, rows * cols):
         axes[k // cols][k % cols].axis("off")
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside upper center", ncols=2, fontsize=FONT + 1, frameon=False)
     fig.supxlabel("frequency (Hz)", fontsize=FONT + 1)
     fig.supylabel("PSD ((m/s^2)^2/Hz)", fontsize=FONT + 1)
-    save_png(fig, path)  # lays the figure out (tight_layout) once
+    return fig
 
 
-def _plot_plane(fit: TextureFit, path: Path, plt: Any, dups: list[tuple[int, int]]) -> None:
+def plane_figure(fit: TextureFit, plt: Any, dups: list[tuple[int, int]]) -> Any:
+    """The models in the (speed, force) plane over the recorded path and the triangulation, coloured by power; the
+    legend below the axes, clear of the models."""
     ms = fit.model_set
-    fig, ax = plt.subplots(figsize=(7, 5.2))
+    fig, ax = plt.subplots(figsize=(7, 5.8), layout="constrained")
     if fit.path is not None:
         ax.plot(fit.path[:, 0], fit.path[:, 1], color="0.8", lw=0.6, zorder=1, label="recorded path")
     ax.triplot(ms.speeds, ms.forces, ms.triangles, color="0.55", lw=0.6, zorder=2)
@@ -180,7 +193,7 @@ def _plot_plane(fit: TextureFit, path: Path, plt: Any, dups: list[tuple[int, int
     pts = np.array([[pc.speed, pc.force] for pc in pieces])
     sc = ax.scatter(pts[:, 0], pts[:, 1], c=10 * np.log10(power), cmap="viridis", s=36, zorder=3)
     for pc in pieces:
-        ax.annotate(str(pc.model), (pc.speed, pc.force), fontsize=FONT - 1, xytext=(3, 3), textcoords="offset points")
+        ax.annotate(str(pc.model), (pc.speed, pc.force), fontsize=FONT, xytext=(3, 3), textcoords="offset points")
     ax.scatter(ms.speeds[~measured], ms.forces[~measured], marker="x", color="k", s=20, label="silent corner (variance 0)")
     if dups:
         idx = sorted({i for pair in dups for i in pair})
@@ -192,5 +205,6 @@ def _plot_plane(fit: TextureFit, path: Path, plt: Any, dups: list[tuple[int, int
     ax.set_xlabel("speed (mm/s)", fontsize=FONT + 1)
     ax.set_ylabel("normal force (N)", fontsize=FONT + 1)
     ax.tick_params(labelsize=FONT)
-    ax.legend(fontsize=FONT, loc="upper left")
-    save_png(fig, path)
+    handles, labels = ax.get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=FONT, loc="outside lower center", ncols=min(3, len(labels)), frameon=False)
+    return fig

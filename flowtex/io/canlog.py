@@ -8,7 +8,6 @@ keep the direction, so :func:`read_session` gives it back unchanged.
 
 from __future__ import annotations
 
-import io
 import time
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
@@ -20,6 +19,7 @@ from can.io.blf import FILE_HEADER_SIZE, FILE_HEADER_STRUCT
 from ..errors import DataError
 from ..limits import check_regular
 from .atomic import atomic_output
+from .canlog_text import read_text_log
 from .formats import CAN_LOG, suffixes
 
 WRITE_SUFFIXES = READ_SUFFIXES = suffixes(CAN_LOG)
@@ -127,11 +127,13 @@ class SessionWriter:
 
 
 def read_session(path: str | Path) -> Iterator[can.Message]:
-    """Frames of a session log in file order (with their ``is_rx`` direction)."""
-    path = check_log_path(path, for_writing=False)
-    check_regular(path, "CAN log")
-    if not path.is_file():
-        raise DataError(f"{path}: CAN log not found")
+    """Frames of a session log in file order (with their ``is_rx`` direction).
+
+    Errors in a text log (.log, .asc) name the file and line (:mod:`flowtex.io.canlog_text`)."""
+    path = _readable_log(path)
+    if path.suffix.lower() != ".blf":
+        yield from read_text_log(path, whole_only=False)[0]
+        return
     try:
         reader = can.LogReader(path)
     except Exception as exc:  # python-can raises various errors for unreadable files
@@ -148,6 +150,15 @@ def read_session(path: str | Path) -> Iterator[can.Message]:
             stop()
 
 
+def _readable_log(path: str | Path) -> Path:
+    """``path`` as a Path once it is a CAN log's suffix and an existing regular file, else DataError."""
+    path = check_log_path(path, for_writing=False)
+    check_regular(path, "CAN log")
+    if not path.is_file():
+        raise DataError(f"{path}: CAN log not found")
+    return path
+
+
 @dataclass(frozen=True)
 class LogCompleteness:
     """What a session log's own framing says about whether it holds the whole session."""
@@ -157,6 +168,8 @@ class LogCompleteness:
     """Frames the BLF header counts (None: a text log, or a BLF whose header was never written)."""
     problem: str | None = None
     """None when the log is complete as far as its format can tell; else why it is not (one phrase)."""
+    lines: tuple[int, ...] = ()
+    """A text log's line of each frame (1-based), for errors about a frame; empty for a BLF."""
 
 
 def read_session_checked(path: str | Path) -> tuple[list[can.Message], LogCompleteness]:
@@ -186,18 +199,5 @@ def read_session_checked(path: str | Path) -> tuple[list[can.Message], LogComple
 
 def _read_text_log(path: Path) -> tuple[list[can.Message], LogCompleteness]:
     """A .log/.asc session; when its last line has no newline (cut off), the frames of the lines before it."""
-    check_log_path(path, for_writing=False)
-    check_regular(path, "CAN log")
-    if not path.is_file():
-        raise DataError(f"{path}: CAN log not found")
-    data = path.read_bytes()
-    if not data or data.endswith(b"\n"):
-        frames = list(read_session(path))
-        return frames, LogCompleteness(len(frames))
-    whole = data[:data.rfind(b"\n") + 1].decode("utf-8", errors="replace")
-    reader_cls = can.ASCReader if path.suffix.lower() == ".asc" else can.CanutilsLogReader
-    try:
-        frames = list(reader_cls(io.StringIO(whole)))
-    except Exception as exc:
-        raise DataError(f"{path}: malformed CAN log: {exc}") from None
-    return frames, LogCompleteness(len(frames), None, "its last line is cut off")
+    frames, lines, cut = read_text_log(_readable_log(path), whole_only=True)
+    return frames, LogCompleteness(len(frames), None, "its last line is cut off" if cut else None, tuple(lines))

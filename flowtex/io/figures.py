@@ -31,11 +31,19 @@ def agg_pyplot(missing: str | None) -> Any:
     return plt
 
 
-def save_png(fig: Any, path: str | Path, dpi: int = 80) -> None:
-    """Lay out ``fig``, write it as a PNG to ``path`` through the one writer (no partial file), and close it."""
+FONT_PT = 9
+"""Smallest font size (points) of flowtex's figures: readable when a figure is printed at its own size."""
+
+
+def save_png(fig: Any, path: str | Path, dpi: int = 100) -> None:
+    """Lay out ``fig``, write it as a PNG to ``path`` through the one writer (no partial file), and close it.
+
+    A figure made with ``layout="constrained"`` is laid out by matplotlib as it is drawn (titles, colorbars and
+    legends outside the axes get their room); any other is laid out with ``tight_layout``."""
     import matplotlib.pyplot as plt
 
-    fig.tight_layout()
+    if fig.get_layout_engine() is None:
+        fig.tight_layout()
     with atomic_output(path) as tmp:
         fig.savefig(tmp, dpi=dpi, format="png")
     plt.close(fig)

@@ -158,8 +158,14 @@ def file_kind(path: str | Path) -> str:
                             f"'format' key: {', '.join(JSON_FORMATS)}") from None
         found = json_kind(doc)
         if found is None:
-            shown = excerpt(doc.get("format") if isinstance(doc, dict) else None)
-            raise DataError(f"{path}: key 'format' is {shown}, not a flowtex file format ({', '.join(JSON_FORMATS)})")
+            formats = ", ".join(JSON_FORMATS)
+            if not isinstance(doc, dict):
+                what = {list: "an array", str: "a string", bool: "a boolean", type(None): "null"}.get(type(doc), "a number")
+                raise DataError(f"{path}: holds {what}, not a JSON object with a 'format' key ({formats})")
+            if "format" not in doc:
+                raise DataError(f"{path}: no 'format' key: not a file flowtex reads ({formats}); the JSON that "
+                                "compare --json and fit texture --holdout-json write is a report, not an input")
+            raise DataError(f"{path}: key 'format' is {excerpt(doc['format'])}, not a flowtex file format ({formats})")
         return found
     from ..yamlsource import load_yaml
 

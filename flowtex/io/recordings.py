@@ -29,7 +29,7 @@ import numpy as np
 
 from ..errors import DataError
 from ..limits import MAX_RECORDING_VALUES, check_regular, check_values, excerpt
-from .formats import AUDIO, RECORDING, format_of, listing, suffixes
+from .formats import AUDIO, CAN_LOG, RECORDING, format_of, listing, suffixes
 from .npzread import read_npz_arrays
 from .recording_rules import check_signals, numeric_signal
 
@@ -76,6 +76,9 @@ def load_recording(path: str | Path) -> Recording:
 
         rate, arrays = read_wav(path)
         rec = Recording(arrays, rate)
+    elif fmt is not None and fmt.kind == CAN_LOG:  # the frames of a live session, not signals: replaying decodes them
+        raise DataError(f"{path}: a CAN session log, not a recording ({_USE}); replay it into one: flowtex run GRAPH.yaml "
+                        f"--input {path} --dbc DEVICE.dbc --map MAP.yaml --output OUT.npz (docs/live.md)")
     else:
         raise DataError(f"{path}: unknown recording format {path.suffix.lower()!r}; use {_USE}")
     check_signals(rec.arrays, path)

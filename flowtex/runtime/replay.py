@@ -157,10 +157,19 @@ def _ranges(ticks: list[int], n: int = 6) -> str:
     return text + (", ..." if len(runs) > n else "")
 
 
-def _split_ticks(frames: list[can.Message], tx_ids: list[tuple[int, bool]], path: Path,
+def _frame_places(path: Path, frames: list[can.Message], lines: tuple[int, ...]) -> Callable[[can.Message], str]:
+    """``place(frame)``: where a frame of the log is, for errors: ``s.log:17`` (its line in a text log) or
+    ``s.blf (frame 17)`` (its 1-based position in a BLF)."""
+    at = {id(m): (lines[i] if lines else i + 1) for i, m in enumerate(frames)}
+    if lines:
+        return lambda m: f"{path}:{at[id(m)]}"
+    return lambda m: f"{path} (frame {at[id(m)]})"
+
+
+def _split_ticks(frames: list[can.Message], tx_ids: list[tuple[int, bool]], place: Callable[[can.Message], str],
                  complete: bool = True) -> tuple[list[tuple[list, list]], bool]:
     """Group frames into ``(received, sent block)`` per tick, following the module's rule (the last block is the
-    exit block only in a ``complete`` log)."""
+    exit block only in a ``complete`` log); ``place`` locates a frame for an error (:func:`_frame_places`)."""
     ticks: list[tuple[list, list]] = []
     rx: list[can.Message] = []
     block: list[can.Message] = []
@@ -170,13 +179,13 @@ def _split_ticks(frames: list[can.Message], tx_ids: list[tuple[int, bool]], path
             continue
         if msg.is_rx:
             if block:
-                raise DataError(f"{path}: frame {msg.arbitration_id:#x} received in the middle of an actuator block; "
+                raise DataError(f"{place(msg)}: frame {msg.arbitration_id:#x} received in the middle of an actuator block; "
                                 "not a flowtex live session log")
             rx.append(msg)
             continue
         expect = tx_ids[len(block)]
         if (msg.arbitration_id, bool(msg.is_extended_id)) != expect:
-            raise DataError(f"{path}: sent frame {msg.arbitration_id:#x} where the map's actuator message {expect[0]:#x} was expected; "
+            raise DataError(f"{place(msg)}: sent frame {msg.arbitration_id:#x} where the map's actuator message {expect[0]:#x} was expected; "
                             "was this session recorded with the same map?")
         block.append(msg)
         if len(block) == k:
@@ -228,8 +237,9 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
     if not io.tx:
         raise DataError(f"{map_path}: the map binds no outputs, so the session has no actuator blocks to mark ticks")
     frames, completeness = read_session_checked(session_path)
+    place = _frame_places(session_path, frames, completeness.lines)
     timeline, frames = split_events(frames)
-    ticks, exit_block = _split_ticks(frames, io.tx_ids, session_path, completeness.problem is None)
+    ticks, exit_block = _split_ticks(frames, io.tx_ids, place, completeness.problem is None)
     if not ticks:
         ids = ", ".join(f"{fid:#x}" for fid, _ in io.tx_ids)
         what = "no frame at all" if not frames else f"{len(frames)} frame(s) but no complete tick"

@@ -38,6 +38,8 @@ class WatchResult:
 
     stats: dict[str, tuple[float, float, int]] = field(default_factory=dict)
     error: str = ""
+    units: dict[str, str] = field(default_factory=dict)
+    """Each output's unit (the graph's declaration; '' when dimensionless), shown with its name."""
 
 
 def output_stats(values: np.ndarray) -> tuple[float, float, int]:
@@ -50,7 +52,7 @@ def output_stats(values: np.ndarray) -> tuple[float, float, int]:
 
 
 def stat_lines(result: WatchResult, previous: WatchResult | None) -> list[str]:
-    """``  y: RMS 0.5 (was 0.25), peak 1, non-finite 0`` per output."""
+    """``  y [N]: RMS 0.5 (was 0.25), peak 1, non-finite 0`` per output (values in the output's unit)."""
     lines = []
     for name, (rms, peak, bad) in result.stats.items():
         was = ""
@@ -58,7 +60,9 @@ def stat_lines(result: WatchResult, previous: WatchResult | None) -> list[str]:
             was = f" (was {previous.stats[name][0]:.6g})"
         elif previous is not None and previous.stats:
             was = " (new output)"
-        lines.append(f"  {name}: RMS {rms:.6g}{was}, peak {peak:.6g}, non-finite {bad}")
+        unit = result.units.get(name, "")
+        shown = f"{name} [{unit}]" if unit else name
+        lines.append(f"  {shown}: RMS {rms:.6g}{was}, peak {peak:.6g}, non-finite {bad}")
     return lines
 
 
@@ -130,6 +134,7 @@ class Watcher:
                 self.emit(f"loaded plugin code: {', '.join(map(str, plugin_files)) or 'none'}")
             outputs = run_recording(graph, self.input_path, self.output_path, progress=False)
             result.stats = {name: output_stats(values) for name, values in outputs.items()}
+            result.units = {name: spec.unit for name, spec in graph.outputs.items()}
             tier = graph.tier
             if self.plot is not None:
                 self.plot(outputs, graph, self.runs)

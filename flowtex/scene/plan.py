@@ -39,8 +39,8 @@ from .file import Scene, SurfaceSpec
 DEFAULT_THRESHOLDS = {"texture": 1.0, "friction": 0.5, "taps": 60.0}
 """Defaults: texture (m/s^2)^2, friction mu_k (dimensionless), taps Hz (sources in the module docstring)."""
 
-UNITS = {"texture": "(m/s^2)^2", "friction": "mu_k", "taps": "Hz", "pattern": "", "stiffness": "N/mm"}
-FIGURES = {"texture": "mean vibration power", "friction": "friction coefficient", "taps": "tap spectral centroid",
+UNITS = {"texture": "(m/s^2)^2", "friction": "", "taps": "Hz", "pattern": "", "stiffness": "N/mm"}
+FIGURES = {"texture": "mean vibration power", "friction": "friction coefficient mu_k", "taps": "tap spectral centroid",
            "pattern": "pattern given", "stiffness": "base stiffness"}
 PATTERN_NODE = "patterned_texture"
 
@@ -90,17 +90,18 @@ def scene_ranges(scene: Scene) -> tuple[tuple[float, float], tuple[float, float]
 
 def _decide(component: str, salience: float, threshold: float, spec: SurfaceSpec) -> Decision:
     above = salience >= threshold
-    unit = UNITS[component]
-    figure = f"{FIGURES[component]} {salience:.3g} {unit}".rstrip()
+    unit = f" {UNITS[component]}" if UNITS[component] else ""
+    figure = f"{FIGURES[component]} {salience:.3g}{unit}"
+    limit = f"threshold {threshold:g}{unit}"  # both in the figure's unit: a reader compares them as they stand
     if component in spec.keep:
-        why = "" if above else f" ({figure} is below the threshold {threshold:g})"
+        why = "" if above else f" ({figure} is below the {limit})"
         return Decision(True, salience, threshold, f"kept: forced by keep: in the scene{why}")
     if component in spec.drop:
-        why = f" ({figure} is above the threshold {threshold:g})" if above else ""
+        why = f" ({figure} is above the {limit})" if above else ""
         return Decision(False, salience, threshold, f"dropped: forced by drop: in the scene{why}")
     if above:
-        return Decision(True, salience, threshold, f"kept: {figure} >= threshold {threshold:g}")
-    return Decision(False, salience, threshold, f"dropped: {figure} < threshold {threshold:g}")
+        return Decision(True, salience, threshold, f"kept: {figure} >= {limit}")
+    return Decision(False, salience, threshold, f"dropped: {figure} < {limit}")
 
 
 def _check_rate(spec: SurfaceSpec, field: str, key: str, file_rate: float, scene_rate: float) -> None:

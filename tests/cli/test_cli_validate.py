@@ -71,7 +71,9 @@ def test_each_kind_is_checked_by_its_reader(tmp_path, capsys):
     ("mu.json", {"format": "flowtex-friction", "version": 1, "mu": 0.4}, "key 'mu_ci' must be [low, high]"),
     ("kc.json", {"format": "flowtex-compliance", "version": 1, "k_c": 1.5, "valid": True}, "key 'k_c' must be a number from 0 to 1"),
     ("x.json", {"format": "something-else"}, "key 'format' is 'something-else', not a flowtex file format"),
-    ("x.json", [1, 2], "key 'format' is None, not a flowtex file format"),
+    ("x.json", [1, 2], "holds an array, not a JSON object with a 'format' key"),
+    # a compare --json report: the key is missing, not None as it said
+    ("cv.json", {"lsd_db": 1.2, "gfc": 0.99}, "no 'format' key: not a file flowtex reads"),
 ])
 def test_broken_files_get_one_line(tmp_path, capsys, name, text, message):
     (tmp_path / name).write_text(json.dumps(text))

@@ -152,8 +152,8 @@ def test_cli_holdout_blocks_and_option_errors(recording, tmp_path, capsys):
 
 
 def test_report_numbers_models_as_the_set_and_labels_its_plots(recording, tmp_path, monkeypatch):
-    """Model numbers in the table and the panels are the set's indices; panels carry a legend, LSD and GFC; the plane
-    plot shows the recorded path and circles near-duplicate models."""
+    """Model numbers in the table and the panels are the set's indices; the panels have a legend, and their LSD and
+    GFC; the plane plot shows the recorded path and circles near-duplicate models."""
     import flowtex.fit.report as report
     from flowtex.fit.texture import Piece, assemble_set
     from flowtex.io.modelset import load_model_set, save_model_set
@@ -180,11 +180,23 @@ def test_report_numbers_models_as_the_set_and_labels_its_plots(recording, tmp_pa
     spectra = figs["spectra.png"]
     panels = [ax for ax in spectra.axes if ax.axison]
     assert len(panels) == len(fit.pieces)
-    assert [t.get_text() for t in panels[0].get_legend().get_texts()] == ["data", "model"]
+    assert [t.get_text() for t in spectra.legends[0].get_texts()] == ["data (the piece's Welch PSD)", "model"]
     for ax, pc in zip(panels, sorted(fit.pieces, key=lambda p: (p.model, -p.samples)), strict=True):
         assert ax.get_title().startswith(f"model {pc.model}:")
-        assert any("LSD" in t.get_text() and "GFC" in t.get_text() for t in ax.texts)
+        assert f"LSD {pc.lsd_db:.2f} dB, GFC {pc.fit.gfc:.3f}" in ax.get_title()  # in the title: nothing over the curves
         assert ax.title.get_fontsize() >= report.FONT
-    plane = figs["plane.png"].axes[0]
-    labels = [t.get_text() for t in plane.get_legend().get_texts()]
+    labels = [t.get_text() for t in figs["plane.png"].legends[0].get_texts()]
     assert "recorded path" in labels and any(lab.startswith("near-duplicate") for lab in labels)
+
+
+def test_holdout_mean_keeps_the_folds_shared_counts_as_integers():
+    """The mean row's "seeds" read 4.0 where every fold's read 4; averaged figures stay floats."""
+    from flowtex.fit.crossval import holdout_doc
+
+    rng = np.random.default_rng(4)
+    x = rng.standard_normal(12000)
+    folds = [compare_signals(x, [x * s, x * s], RATE) for s in (1.0, 1.5)]
+    doc = json.loads(json.dumps(holdout_doc("blocks", "folds", 2, folds)))
+    assert [r["seeds"] for r in doc["results"]] == [2, 2] and doc["mean"]["seeds"] == 2
+    assert isinstance(doc["mean"]["seeds"], int) and isinstance(doc["mean"]["seconds"], float)
+    assert doc["mean"]["power_ratio_db"] == pytest.approx(np.mean([r["power_ratio_db"] for r in doc["results"]]))

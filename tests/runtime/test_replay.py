@@ -102,6 +102,53 @@ def test_replay_names_overrun_watchdog_ticks_and_real_mismatches_and_prints_a_su
     assert lines[5] == f"wrote {setup / 'replay.npz'}"
 
 
+def test_replay_errors_about_a_text_log_name_its_line(setup, capsys):  # noqa: F811
+    """A malformed line (checked before the compile) and a frame out of place (found while splitting ticks): one
+    line each, naming the log's line, exit code 1, no traceback."""
+    from flowtex.cli import main
+
+    log = setup / "live.log"
+    r = run_live(load_graph(setup / "g.yaml"), LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=20,
+                                                         record=log, status=None, seed=3))
+    assert r.error is None
+    lines = log.read_text().splitlines()
+    sent = [i + 1 for i, line in enumerate(lines) if line.endswith(" T")]
+    assert len(sent) == 2 * 21 and lines[sent[0] - 1].split()[2].startswith("200#")  # one block: 0x200 then 0x201
+    cmd = ["run", str(setup / "g.yaml"), "--input", str(log), "--dbc", str(DBC), "--map", str(setup / "m.yaml"),
+           "--seed", "3", "--output", str(setup / "replay.npz")]
+
+    def replay_with(number: int, text: str) -> str:
+        edited = list(lines)
+        edited[number - 1] = text
+        log.write_text("\n".join(edited) + "\n")
+        assert main(cmd) == 1
+        err = [e for e in capsys.readouterr().err.splitlines() if not e.startswith("flowtex: compiling")]  # the notice
+        assert len(err) == 1 and "Traceback" not in err[0] and not (setup / "replay.npz").exists()
+        return err[0]
+
+    at = sent[6]  # the 0x200 frame of the fourth tick; the 0x201 frame follows it
+    received = next(line for line in lines if line.endswith(" R"))
+    assert replay_with(at, lines[at - 1].replace("200#", "2G0#")).startswith(f"{log}:{at}:")
+    assert replay_with(at, lines[at]) == (
+        f"{log}:{at}: sent frame 0x201 where the map's actuator message 0x200 was expected; was this session recorded "
+        "with the same map?")
+    assert replay_with(at + 1, received).startswith(f"{log}:{at + 1}: frame 0x")
+
+    # a BLF has no lines: the frame's position in the log (1-based) is named
+    from flowtex.io.canlog import SessionWriter
+
+    frames = list(read_session(setup / "live.log"))  # the last edit: a received frame inside a block, at frame `at + 1`
+    blf = setup / "edited.blf"
+    w = SessionWriter(blf)
+    for m in frames:
+        w.write(m, m.is_rx)
+    w.close()
+    assert main([*cmd[:3], str(blf), *cmd[4:]]) == 1
+    err = [e for e in capsys.readouterr().err.splitlines() if not e.startswith("flowtex: compiling")]
+    assert err == [f"{blf} (frame {at + 1}): frame 0x{frames[at].arbitration_id:x} received in the middle of an actuator "
+                   "block; not a flowtex live session log"]
+
+
 def test_replay_equals_live_with_a_peak_budget_across_a_watchdog_trip(setup):  # noqa: F811
     """Live's forced-safe ticks (ToolPosition dropped at ticks 200-259) refill the peak budget while the graph commands
     more than the clamp; the replay, which guards those ticks unforced to name them, must leave its guard state as

@@ -172,3 +172,22 @@ def test_scene_run_unknown_surface(study, tmp_path, capsys):
     _, scene, _ = study
     assert main(["scene", "run", str(scene), "--input", str(tmp_path / "none.npz"), "--surface", "Whitebord"]) == 1
     assert "Whiteboard" in capsys.readouterr().err  # the suggestion
+
+
+def test_reasons_state_the_figure_and_its_threshold_in_one_unit(study):
+    """'tap spectral centroid 47.8 Hz < threshold 60' left the threshold's unit out, and 'friction coefficient 1.39
+    mu_k' wrote the symbol where a unit goes (the --json plan and --explain carry the same reasons)."""
+    _, _, plan = study
+    seen = set()
+    for decisions in plan.values():
+        for component, d in decisions.items():
+            if "forced" in d["reason"] or component not in ("texture", "friction", "taps"):
+                continue
+            unit = {"texture": " (m/s^2)^2", "friction": "", "taps": " Hz"}[component]
+            figure = {"texture": "mean vibration power", "friction": "friction coefficient mu_k",
+                      "taps": "tap spectral centroid"}[component]
+            sign = ">=" if d["keep"] else "<"
+            assert d["reason"] == (f"{'kept' if d['keep'] else 'dropped'}: {figure} {d['salience']:.3g}{unit} {sign} "
+                                   f"threshold {d['threshold']:g}{unit}")
+            seen.add(component)
+    assert seen == {"texture", "friction", "taps"}

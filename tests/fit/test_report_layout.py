@@ -1,0 +1,96 @@
+"""The figures of ``fit texture --report`` and ``compare --report`` as a reader sees them: titles clear of the panels,
+legends clear of the data, text inside the figure and readable (tests/figure_layout.py), axes labelled with units,
+and the printed summary saying which number is the render's and which the recording's."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from flowtex.datasets.realistic import human_exploration
+from flowtex.fit.compare import compare_signals, summary_lines
+from flowtex.fit.texture import TextureOptions, fit_texture
+from tests.figure_layout import layout_problems
+
+RATE = 1000.0
+
+
+@pytest.fixture(scope="module")
+def plt():
+    pytest.importorskip("matplotlib")
+    from flowtex.io.figures import agg_pyplot
+
+    return agg_pyplot("matplotlib")
+
+
+@pytest.fixture(scope="module")
+def comparison():
+    """A recording of slowly changing loudness and a render of it with its own noise and a 1.5x louder band."""
+    rng = np.random.default_rng(3)
+    n = int(16 * RATE)
+    x = rng.standard_normal(n) * np.repeat(1.0 + 0.5 * np.sin(np.arange(16)), 1000)
+    renders = [x + 0.3 * rng.standard_normal(n) for _ in range(2)]
+    return compare_signals(x, renders, RATE)
+
+
+def _units_on_axes(fig) -> list[str]:
+    """Axis labels without a unit in parentheses (every labelled axis of a report plot has one)."""
+    labels = [a.get_xlabel() for a in fig.axes] + [a.get_ylabel() for a in fig.axes]
+    labels += [t.get_text() for t in fig.texts if t not in (getattr(fig, "_suptitle", None),)]
+    return [s for s in labels if s and not re.search(r"\(.+\)", s)]
+
+
+def test_compare_report_figures_are_laid_out_for_a_paper(plt, comparison):
+    from flowtex.fit.compare_report import FIGURES
+
+    assert sorted(FIGURES) == ["loudness.png", "octaves.png", "spectrum.png", "windows.png"]
+    for name, figure in FIGURES.items():
+        fig = figure(comparison, plt)
+        try:
+            assert layout_problems(fig) == [], name
+            assert _units_on_axes(fig) == [], name
+            assert all(ax.get_xlabel() not in ("s", "Hz") for ax in fig.axes), name  # a bare unit is not a label
+        finally:
+            plt.close(fig)
+
+
+def test_compare_summary_says_which_rms_and_centroid_is_the_render(comparison):
+    """It printed 'RMS a vs b' and 'centroid a vs b Hz' with the render first, while the report's table puts the
+    recording first: the reader could not tell which was which."""
+    c = comparison
+    text = "\n".join(summary_lines(c))
+    assert f"RMS {c.rendered_rms:.3g} rendered, {c.recorded_rms:.3g} recorded (m/s^2)" in text
+    assert f"centroid {c.rendered_centroid_hz:.0f} Hz rendered, {c.centroid_hz:.0f} Hz recorded" in text
+    assert " vs " not in text
+
+
+@pytest.fixture(scope="module")
+def fit(tmp_path_factory):
+    rec = human_exploration(12.0, RATE, seed=2)
+    a = rec.arrays
+    return fit_texture(a["accel"], a["speed"], a["normal_force"], RATE, TextureOptions(order=(4, 2)))
+
+
+def test_fit_report_figures_are_laid_out_for_a_paper(plt, fit):
+    from flowtex.fit.report import near_duplicates, plane_figure, spectra_figure
+
+    assert len(fit.pieces) >= 5  # several rows of panels
+    for name, fig in (("spectra", spectra_figure(fit, plt)), ("plane", plane_figure(fit, plt, near_duplicates(fit.model_set)))):
+        try:
+            assert layout_problems(fig) == [], name
+            assert _units_on_axes(fig) == [], name
+        finally:
+            plt.close(fig)
+
+
+def test_fit_table_names_the_units_and_its_columns_line_up(fit):
+    """The header said 'speed' and 'force' without units, which a table copied into a paper needs."""
+    from flowtex.fit.report import table_lines
+
+    header, *rows = table_lines(fit)
+    assert header.split() == ["model", "speed", "mm/s", "force", "N", "samples", "order", "GFC", "LSD", "dB", "power", "err"]
+    ends = [m.end() for m in re.finditer(r"(model|speed mm/s|force N|samples|order|GFC|LSD dB|power err)", header)]
+    for row in rows:
+        assert [m.end() for m in re.finditer(r"\S+", row)] == ends  # each value ends under its heading
