@@ -19,7 +19,7 @@ from typing import BinaryIO
 import can
 
 from ..errors import DataError
-from ..limits import excerpt
+from ..limits import check_frames, excerpt
 
 MAX_LINE_BYTES = 64 * 1024
 """Longer lines are refused (a CAN FD line of an .asc log is a few hundred bytes): memory stays bounded on a binary file."""
@@ -207,8 +207,8 @@ def _number(text: str) -> bool:
 def read_text_log(path: Path, whole_only: bool) -> tuple[list[can.Message], list[int], bool]:
     """Frames of a .log or .asc session, the line of each, and whether its last line was cut (``whole_only``).
 
-    Raises DataError ``FILE:LINE: ...`` for a line that is not text, a .log line that is malformed, and any error
-    python-can raises while reading a line.
+    Raises DataError ``FILE:LINE: ...`` for a line that is not text, a .log line that is malformed, any error
+    python-can raises while reading a line, and a frame past :data:`~flowtex.limits.MAX_CANLOG_FRAMES`.
     """
     asc = path.suffix.lower() == ".asc"
     frames: list[can.Message] = []
@@ -222,6 +222,7 @@ def read_text_log(path: Path, whole_only: bool) -> tuple[list[can.Message], list
         reader = can.ASCReader(source) if asc else can.CanutilsLogReader(source)
         try:
             for msg in reader:
+                check_frames(f"{path}:{source.number}", len(frames) + 1)
                 frames.append(msg)
                 lines.append(source.number)
         except DataError:
