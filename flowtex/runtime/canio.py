@@ -111,7 +111,7 @@ class CanIO:
                 per_msg_idx.setdefault(m, [None] * len(c.signals))[c.index[s]] = (base + j, float(b.scale[j]), float(b.offset[j]))
                 if (b.name, m) not in wd_keys:
                     wd_keys.append((b.name, m))
-                    wd_timeouts.append(max(1, math.ceil(b.timeout_ms * rate_hz / 1000.0 - 1e-9)))
+                    wd_timeouts.append(ticks_at_least(b.timeout_ms, rate_hz))
         self.watchdog_keys = wd_keys
         self.timeouts_ticks = np.array(wd_timeouts, dtype=np.int64)
         self.decoders: dict[int, tuple[Callable[[Any], bool], tuple[int, ...], bool]] = {}
@@ -149,8 +149,8 @@ class CanIO:
             lim = b.peak_limit if b.peak_limit is not None else b.hi
             phi.extend(lim)
             plo.extend(peak_low(b.lo, b.hi, lim))
-            pmax.extend([int(round(b.peak_ms * rate_hz / 1000.0)) if b.peak_limit is not None else 0] * w)
-            prec.extend([max(1, int(round(b.recover_ms * rate_hz / 1000.0)))] * w)
+            pmax.extend([ticks_at_most(b.peak_ms, rate_hz) if b.peak_limit is not None else 0] * w)
+            prec.extend([ticks_at_least(b.recover_ms, rate_hz)] * w)
             for j, (m, s) in enumerate(b.signals):
                 c = codecs[m]
                 src = sources.setdefault(m, [None] * len(c.signals))
@@ -376,6 +376,17 @@ def load_io(graph: TickProgram, dbc_path: str | Path, map_path: str | Path) -> C
     used = set(canmap.sensor_messages()) | set(canmap.actuator_messages())
     codecs = {m.name: MessageCodec(m) for m in db.messages if m.name in used}
     return CanIO(graph, canmap, codecs, float(graph.rate))
+
+
+def ticks_at_least(ms: float, rate_hz: float) -> int:
+    """``ms`` milliseconds as whole ticks at ``rate_hz``, rounded up and at least 1: a timeout or a peak refill never
+    shorter than the map says (a duration within 1e-9 tick of a whole number of ticks is that number)."""
+    return max(1, math.ceil(ms * rate_hz / 1000.0 - 1e-9))
+
+
+def ticks_at_most(ms: float, rate_hz: float) -> int:
+    """``ms`` milliseconds as whole ticks at ``rate_hz``, rounded down: a peak allowance never longer than the map says."""
+    return max(0, math.floor(ms * rate_hz / 1000.0 + 1e-9))
 
 
 def port_widths(ports: Mapping[str, PortSpec]) -> dict[str, int]:

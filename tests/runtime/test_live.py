@@ -417,6 +417,32 @@ def test_exception_inside_the_graph_sends_safe_values_last(setup, flowtex_cli):
     assert lines == [f"tick {first}: ValueError: sensor overload (safe values sent)"]
 
 
+@pytest.mark.parametrize("rate", [1000.0, 250.0])
+def test_peak_durations_off_the_tick_grid_never_allow_more_than_the_map_says(setup, rate):
+    """max_ms and recover_ms that are not whole ticks: the allowance holds at most max_ms (whole ticks, rounded down) and
+    refills over at least recover_ms (rounded up), so 'for at most max_ms' and the long-run share max_ms / (max_ms +
+    recover_ms) of docs/live.md hold. Rounding to the nearest tick allowed 11 ms of peak for max_ms 10.6 at 1 kHz."""
+    from flowtex.io.canmap import load_map
+    from flowtex.io.codec import MessageCodec
+    from flowtex.io.dbc import load_dbc
+    from flowtex.runtime.canio import CanIO, port_widths
+
+    max_ms, recover_ms = 10.6, 16.2  # ticks: 10.6 and 16.2 at 1 kHz, 2.65 and 4.05 at 250 Hz
+    (setup / "frac.yaml").write_text(textwrap.dedent(MAP).replace(
+        "vibration: {signal: VoiceCoilCmd.Current, clamp: [-1, 1], safe: 0}",
+        f"vibration: {{signal: VoiceCoilCmd.Current, clamp: [-1, 1], safe: 0, peak: {{limit: 1.5, max_ms: {max_ms}, "
+        f"recover_ms: {recover_ms}}}}}"))
+    g = load_graph(setup / "g.yaml")
+    db = load_dbc(DBC)
+    canmap = load_map(setup / "frac.yaml", db, DBC, port_widths(g.inputs), port_widths(g.outputs))
+    io = CanIO(g, canmap, {m.name: MessageCodec(m) for m in db.messages}, rate)  # the guard at another live rate
+    p, r = int(io.guard.peak_max_ticks[0]), int(io.guard.peak_recover_ticks[0])
+    tick_ms = 1000.0 / rate
+    assert (p, r) == ((10, 17) if rate == 1000.0 else (2, 5))  # floor and ceil of the durations in ticks (nearest: 11, 16; 3, 4)
+    assert p * tick_ms <= max_ms < (p + 1) * tick_ms and r * tick_ms >= recover_ms
+    assert p / (p + r) <= max_ms / (max_ms + recover_ms)
+
+
 def test_map_peak_limit_is_mirrored_below_the_clamp(setup):
     from flowtex.runtime.live import load_io
 
