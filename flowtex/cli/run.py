@@ -61,7 +61,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         read_session_checked(args.input)
         check_file(args.map, DEVICE_MAP, args.dbc)  # the DBC too
 
-    graph = load_graph_from_args(args, before_compile=check_replay_files if replay else read_recording)
+    graph = load_graph_from_args(args, before_compile=check_replay_files if replay else read_recording,
+                                 outputs={"-o": args.output})
     recording = read.get("recording")
     if replay:
         from ..runtime.replay import replay_session
