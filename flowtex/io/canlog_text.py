@@ -126,6 +126,8 @@ def candump_problem(line: str) -> tuple[str, int] | None:
         return f"CAN ID {excerpt(can_id)} is not 1 to 8 hexadecimal digits {form}", col
     if len(can_id) <= 3 and int(can_id, 16) > 0x7FF:
         return f"standard CAN ID {can_id} is above 7FF (write an extended ID with 8 digits, e.g. {int(can_id, 16):08X})", col
+    if int(can_id, 16) > 0x1FFFFFFF:
+        return f"extended CAN ID {can_id} is above 1FFFFFFF (a CAN ID has at most 29 bits)", col
     col += len(can_id) + 1
     limit = 8
     if data.startswith("#"):  # CAN FD: one hex digit of flags, then the data
@@ -147,6 +149,8 @@ def candump_problem(line: str) -> tuple[str, int] | None:
 
 
 _ASC_FRAME = re.compile(r"\s*\d+\.\d+\s+\d+\s+(\S+)(?:\s+(Rx|Tx)(?:\s+(.*))?)?\s*\Z", re.IGNORECASE)
+_ASC_TIME = re.compile(r"\d+\.\d+\Z")
+"""The only timestamp python-can's ASCReader reads: it skips a frame line with any other (nan, 1e400, -0.5, 4)."""
 """An .asc line that starts like a classic CAN frame: TIME CHANNEL ID [Rx|Tx [d DLC BYTES... | r [DLC]]]."""
 _ASC_BASE = re.compile(r"\s*base\s+(hex|dec)\b", re.IGNORECASE)
 
@@ -167,8 +171,9 @@ class AscCheck:
         m = _ASC_FRAME.match(line)
         if m is None:
             tokens = line.split()
-            if len(tokens) >= 4 and tokens[3].lower() in ("rx", "tx") and not _number(tokens[0]):
-                return f"timestamp {excerpt(tokens[0])} is not a number of seconds", line.index(tokens[0]) + 1
+            if len(tokens) >= 4 and tokens[3].lower() in ("rx", "tx") and not _ASC_TIME.match(tokens[0]):
+                return (f"timestamp {excerpt(tokens[0])} is not a number of seconds (DIGITS.DIGITS, e.g. 12.345000; python-can "
+                        "would skip the frame)", line.index(tokens[0]) + 1)
             return None
         if m.group(1).lower().startswith("errorframe") or m.group(1).upper() == "CANFD":
             return None
@@ -176,6 +181,12 @@ class AscCheck:
         ident = m.group(1)[:-1] if m.group(1)[-1:] in "xX" else m.group(1)
         if not ident or any(c not in digits for c in ident):
             return f"CAN ID {excerpt(m.group(1))} is not a number in base {self.base} (an extended ID ends in x)", m.start(1) + 1
+        extended = ident != m.group(1)
+        top = 0x1FFFFFFF if extended else 0x7FF
+        if int(ident, self.base) > top:
+            why = "a CAN ID has at most 29 bits" if extended else "an extended ID ends in x"
+            return (f"{'extended' if extended else 'standard'} CAN ID {ident} is above {top:{'X' if self.base == 16 else 'd'}} "
+                    f"({why})"), m.start(1) + 1
         if m.group(2) is None:
             return (f"the frame line ends after {excerpt(m.group(1))}: is the line cut? (an .asc frame is "
                     "'TIME CHANNEL ID Rx|Tx d DLC BYTES...')", m.start(1) + 1)
@@ -194,14 +205,6 @@ class AscCheck:
             if any(c not in digits for c in b):
                 return f"data byte {excerpt(b)} is not a number in base {self.base}", m.start(3) + 1
         return None
-
-
-def _number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
 
 
 def read_text_log(path: Path, whole_only: bool) -> tuple[list[can.Message], list[int], bool]:

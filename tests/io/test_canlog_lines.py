@@ -57,6 +57,8 @@ LOG_CASES = {  # the line, what the error says, and where its column points (the
     "bad hex in the data": ("(1000.004000) can0 100#04010203ZZ050607 R", "is not hexadecimal (character 'Z')", "ZZ"),
     "bad CAN ID": ("(1000.004000) can0 1G0#0401020304050607 R", "CAN ID '1G0' is not 1 to 8 hexadecimal digits", "1G0"),
     "standard ID above 7FF": ("(1000.004000) can0 FFF#0401020304050607 R", "standard CAN ID FFF is above 7FF", "FFF"),
+    "extended ID above 29 bits": ("(1000.004000) can0 FFFFFFFF#0401020304050607 R", "extended CAN ID FFFFFFFF is above 1FFFFFFF",
+                                  "FFFFFFFF"),
     "truncated line": ("(1000.004000) can0", "2 field(s) where '(TIMESTAMP) CHANNEL ID#DATA' is expected: is the line cut?", "("),
     "data cut to an odd number of digits": ("(1000.004000) can0 100#040102030405060 R", "odd number of hex digits (15)", "0401"),
     "no # between ID and data": ("(1000.004000) can0 1000401020304050607 R", "has no '#' between the CAN ID and the data", "1000401"),
@@ -144,6 +146,12 @@ ASC_CASES = {
     "fewer bytes than the DLC": ("d 8 04 01", "DLC 8 announces 8 data bytes but the line holds 2: is the line cut?"),
     "bad DLC": ("d Q 04 01 02 03 04 05 06 07", "DLC 'Q' is not a number"),
     "bad timestamp": (None, "timestamp '0.0x4000' is not a number of seconds"),
+    "NaN timestamp": (None, "timestamp 'nan' is not a number of seconds"),  # a number to float(), skipped by python-can
+    "infinite timestamp": (None, "timestamp '1e400' is not a number of seconds"),
+    "negative timestamp": (None, "timestamp '-0.004' is not a number of seconds"),
+    "timestamp without a point": (None, "timestamp '4' is not a number of seconds"),
+    "standard ID above 7FF": (None, "standard CAN ID FFF is above 7FF"),
+    "extended ID above 29 bits": (None, "extended CAN ID FFFFFFFF is above 1FFFFFFF"),
 }
 
 
@@ -156,17 +164,20 @@ def test_each_malformed_asc_frame_line_is_named_by_file_and_line(tmp_path, kind)
     head = old[:old.index(" d ")]  # ' 0.004000 1  100             Rx'
     tail, says = ASC_CASES[kind]
     new = {"bad CAN ID": old.replace(" 100 ", " 1G0 "), "truncated after the ID": head[:head.index(" 100 ") + 4],
-           "bad timestamp": re.sub(r"^\s*\S+", " 0.0x4000", old)}.get(kind) or f"{head} {tail}"
+           "bad timestamp": re.sub(r"^\s*\S+", " 0.0x4000", old), "NaN timestamp": re.sub(r"^\s*\S+", " nan", old),
+           "infinite timestamp": re.sub(r"^\s*\S+", " 1e400", old), "negative timestamp": re.sub(r"^\s*\S+", " -0.004", old),
+           "timestamp without a point": re.sub(r"^\s*\S+", " 4", old), "standard ID above 7FF": old.replace(" 100 ", " FFF "),
+           "extended ID above 29 bits": old.replace(" 100 ", " FFFFFFFFx ")}.get(kind) or f"{head} {tail}"
     _replace_line(path, number, new)
     with pytest.raises(DataError) as err:
         read_session_checked(path)
     assert re.match(re.escape(f"{path}:{number}") + r"(:\d+)?: ", str(err.value)) and says in str(err.value)
     # python-can alone skips or misreads these lines without a word (or fails without saying where)
     try:
-        got = [bytes(m.data) for m in can.LogReader(path)]
+        got = [(m.arbitration_id, bytes(m.data)) for m in can.LogReader(path)]
     except ValueError:
         return
-    assert len(got) < N_FRAMES or got[2] != bytes([2, 1, 2, 3, 4, 5, 6, 7])
+    assert len(got) < N_FRAMES or got[2] != (0x100, bytes([2, 1, 2, 3, 4, 5, 6, 7]))
 
 
 @pytest.mark.parametrize("suffix", [".log", ".asc", ".blf"])
