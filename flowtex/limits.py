@@ -37,6 +37,9 @@ line of a frame is about 40 bytes, a BLF frame 48 bytes unpacked, so this is abo
 MAX_CANLOG_FRAMES = 5_000_000
 """Frames of a CAN session log: the replay holds them all (about 250 bytes each, 1.2 GiB), 20 minutes of a 1 kHz
 session with 4 frames a tick."""
+MAX_CANLOG_LINES = 2 * MAX_CANLOG_FRAMES
+"""Lines of a text CAN log (.log, .asc), frames or not: a file of blank or comment lines within :data:`MAX_CANLOG_BYTES`
+would otherwise take hours (the line reader takes ~10 us a line)."""
 MAX_BLF_CONTAINER_BYTES = 16 * 1024 * 1024
 """Size of one BLF container once unpacked, and of a frame object that spans containers (python-can and Vector write
 128 KiB containers): a zlib bomb in one container is refused at this size, never unpacked whole."""

@@ -18,6 +18,7 @@ from typing import BinaryIO
 
 import can
 
+from .. import limits
 from ..errors import DataError
 from ..limits import check_frames, excerpt
 
@@ -58,6 +59,9 @@ class NumberedLines:
             self.cut = True
             raise StopIteration
         self.number += 1
+        if self.number > limits.MAX_CANLOG_LINES:
+            raise self.error(f"more than {limits.MAX_CANLOG_LINES:,} lines; flowtex reads text CAN logs of up to that many "
+                             "(flowtex.limits.MAX_CANLOG_LINES): replay a shorter session")
         try:
             text = raw.decode("utf-8")
         except UnicodeDecodeError as exc:

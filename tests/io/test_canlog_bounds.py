@@ -170,6 +170,18 @@ def test_logs_with_more_frames_than_the_limit_are_refused_at_the_frame(tmp_path,
         read_session_checked(path)
 
 
+@pytest.mark.parametrize("suffix", [".log", ".asc"])
+def test_text_logs_with_more_lines_than_the_limit_are_refused_at_the_line(tmp_path, monkeypatch, suffix):
+    """Blank lines are no frames, yet each costs the line reader's time: they are bounded too."""
+    path = _write_log(tmp_path / f"s{suffix}")
+    lines = len(path.read_bytes().splitlines())
+    monkeypatch.setattr(limits, "MAX_CANLOG_LINES", lines)
+    assert len(_frames(path)) == FRAMES
+    path.write_bytes(path.read_bytes() + b"\n")
+    _refused(path, f"more than {lines:,} lines", "MAX_CANLOG_LINES")
+    assert str(path) + f":{lines + 1}: " in _refused(path)
+
+
 @pytest.mark.parametrize("suffix", [".blf", ".log", ".asc"])
 def test_log_larger_than_the_limit_is_refused_by_its_size(tmp_path, suffix):
     """A sparse file (it occupies a few KiB) with a real log at its start, past MAX_CANLOG_BYTES."""
