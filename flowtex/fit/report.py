@@ -163,7 +163,7 @@ def spectra_figure(fit: TextureFit, plt: Any) -> Any:
     for k, pc in enumerate(pieces):
         ax = axes[k // cols][k % cols]
         x = fit.signal[pc.start:pc.stop]
-        freqs, s = welch_psd(x, fit.rate, min(256, x.size))
+        freqs, s = welch_psd(x, fit.rate, min(256, x.size), whole=True)  # the piece as the table's LSD measures it
         ax.semilogy(freqs, s, color="0.55", lw=0.9, label="data (the piece's Welch PSD)")
         ax.semilogy(freqs, pc.fit.psd(freqs, fit.rate), color="C0", lw=1.3, label="model")
         ax.set_title(f"model {pc.model}: {pc.speed:.0f} mm/s, {pc.force:.2f} N\nLSD {pc.lsd_db:.2f} dB, GFC {pc.fit.gfc:.3f}",
