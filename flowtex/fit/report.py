@@ -192,8 +192,11 @@ def plane_figure(fit: TextureFit, plt: Any, dups: list[tuple[int, int]]) -> Any:
     power = np.array([pc.fit.output_variance for pc in pieces])
     pts = np.array([[pc.speed, pc.force] for pc in pieces])
     sc = ax.scatter(pts[:, 0], pts[:, 1], c=10 * np.log10(power), cmap="viridis", s=36, zorder=3)
+    below = {j for _i, j in dups}  # the second of a near-duplicate pair labelled below left: not over the first's number
     for pc in pieces:
-        ax.annotate(str(pc.model), (pc.speed, pc.force), fontsize=FONT, xytext=(3, 3), textcoords="offset points")
+        low = pc.model in below
+        ax.annotate(str(pc.model), (pc.speed, pc.force), fontsize=FONT, xytext=(-3, -3) if low else (3, 3),
+                    textcoords="offset points", ha="right" if low else "left", va="top" if low else "bottom")
     ax.scatter(ms.speeds[~measured], ms.forces[~measured], marker="x", color="k", s=20, label="silent corner (variance 0)")
     if dups:
         idx = sorted({i for pair in dups for i in pair})

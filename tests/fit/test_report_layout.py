@@ -94,3 +94,25 @@ def test_fit_table_names_the_units_and_its_columns_line_up(fit):
     ends = [m.end() for m in re.finditer(r"(model|speed mm/s|force N|samples|order|GFC|LSD dB|power err)", header)]
     for row in rows:
         assert [m.end() for m in re.finditer(r"\S+", row)] == ends  # each value ends under its heading
+
+
+def test_plane_labels_of_near_duplicate_models_stay_readable(plt, fit):
+    """Two models closer than 2 % were circled as near-duplicates, and their numbers were drawn at the same offset
+    from nearly the same point, one over the other: the figure pointed at them and hid which they were."""
+    import copy
+
+    from flowtex.fit.report import near_duplicates, plane_figure
+
+    f = copy.deepcopy(fit)
+    ms = f.model_set
+    a, b = sorted(f.pieces, key=lambda pc: pc.model)[:2]
+    for pc in (b,):  # model b moved to 0.5 % of the ranges from model a
+        pc.speed, pc.force = a.speed + 0.005 * ms.max_speed, a.force + 0.005 * ms.max_force
+        ms.speeds[pc.model], ms.forces[pc.model] = pc.speed, pc.force
+    dups = near_duplicates(ms)
+    assert (a.model, b.model) in dups
+    fig = plane_figure(f, plt, dups)
+    try:
+        assert layout_problems(fig) == []
+    finally:
+        plt.close(fig)
