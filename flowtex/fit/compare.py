@@ -53,6 +53,7 @@ import math
 import shlex
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -364,6 +365,21 @@ def resampled_band_hz(ms: TextureModelSet) -> float:
     if isinstance(from_hz, (int, float)) and 0 < from_hz < ms.sample_rate:
         return RESAMPLE_PASSBAND * from_hz / 2.0
     return math.inf
+
+
+def band_lost_in_xml(ms: TextureModelSet, path: str | Path) -> str | None:
+    """The warning for writing a set resampled up from a lower rate to HaTT XML at ``path`` (None for any other set).
+
+    HaTT's format has no place for the resampling record, so :func:`resampled_band_hz` cannot find the band the models
+    know in the file read back, and ``flowtex compare`` grades it up to the Nyquist frequency, where the models hold
+    only a stopband ceiling (docs/fitting.md has a measured case).
+    """
+    top = resampled_band_hz(ms)
+    if not math.isfinite(top):
+        return None
+    return (f"warning: {path}: HaTT XML cannot state that these models were resampled up from "
+            f"{ms.metadata['resample']['from_hz']:g} Hz; flowtex compare grades the file read back up to "
+            f"{ms.sample_rate / 2:g} Hz, above the {top:g} Hz its models know; compare the JSON, which keeps the record")
 
 
 def summary_lines(c: Comparison) -> list[str]:
