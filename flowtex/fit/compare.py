@@ -382,16 +382,27 @@ def band_lost_in_xml(ms: TextureModelSet, path: str | Path) -> str | None:
             f"{ms.sample_rate / 2:g} Hz, above the {top:g} Hz its models know; compare the JSON, which keeps the record")
 
 
+def correlation_text(c: Comparison) -> str:
+    """``rms_correlation`` as printed and drawn: "0.89 over 19 windows", or "null (6 windows, fewer than 10)" as the
+    JSON has it (never 'nan')."""
+    n = len(c.windows)
+    if math.isfinite(c.rms_correlation):
+        return f"{c.rms_correlation:.2f} over {n} windows"
+    why = f"fewer than {MIN_WINDOWS}" if n < MIN_WINDOWS else "the window RMS is constant"
+    return f"null ({n} windows, {why})"
+
+
 def summary_lines(c: Comparison) -> list[str]:
     """The comparison in a few printable lines."""
     return [f"rendered along the recorded path ({c.seconds:.1f} s, {c.seeds} render(s)):",
-            f"  power ratio {c.power_ratio_db:+.2f} dB (rendered over recorded, > 12 Hz; one render scatters by "
-            f"{c.power_ratio_spread_db:.2f} dB); RMS {c.rendered_rms:.3g} rendered, {c.recorded_rms:.3g} recorded (m/s^2)",
+            f"  power ratio {c.power_ratio_db:+.2f} dB (rendered over recorded, > 12 Hz; "
+            + (f"one render scatters by {c.power_ratio_spread_db:.2f} dB" if math.isfinite(c.power_ratio_spread_db)
+               else "one render: its scatter unknown, --seeds 4 measures it")
+            + f"); RMS {c.rendered_rms:.3g} rendered, {c.recorded_rms:.3g} recorded (m/s^2)",
             f"  LSD {c.lsd_db:.2f} dB ({c.shape_lsd_db:.2f} dB with the levels matched), GFC {c.gfc:.3f}, "
             f"centroid {c.rendered_centroid_hz:.0f} Hz rendered, {c.centroid_hz:.0f} Hz recorded "
             f"(band {c.band_hz[0]:g}-{c.band_hz[1]:g} Hz, {c.resolution_hz:.3g} Hz resolution"
             + ("; the set was resampled from a lower rate)" if math.isfinite(c.max_freq_hz) else ")"),
             "  octave-band power error (dB): " + ", ".join(f"{b['centre_hz']:g} Hz {b['error_db']:+.1f}" for b in c.octave_bands),
-            f"  {c.windows[0]['seconds'] if c.windows else 0:g}-s window RMS correlation {c.rms_correlation:.2f} "
-            f"over {len(c.windows)} windows",
+            f"  {c.windows[0]['seconds'] if c.windows else 0:g}-s window RMS correlation {correlation_text(c)}",
             *(f"  warning: {w}" for w in c.warnings)]
