@@ -104,8 +104,10 @@ def held_out_lines(held: HeldOut) -> list[str]:
         own = r.get("in_sample") or {}
         return (f"| {name} | {f(r['seconds'], '.1f')} | {f(r['power_ratio_db'], '+.2f')} | {f(r['lsd_db'], '.2f')} | "
                 f"{f(own.get('lsd_db'), '.2f') if own else '-'} | {f(r['gfc'], '.3f')} | {f(r['rms_correlation'], '.2f')} |")
+    windows = held.doc["results"][0].get("windows") or [{}]
+    window = f"{windows[0]['seconds']:g}-s " if "seconds" in windows[0] else ""
     md = ["## Held out", "", held.line, "",
-          "| fold | seconds | power ratio dB | LSD dB | in-sample LSD dB | GFC | window-RMS correlation |",
+          f"| fold | seconds | power ratio dB | LSD dB | in-sample LSD dB | GFC | {window}window-RMS correlation |",
           "|---|---|---|---|---|---|---|"]
     md += [row(str(k), r) for k, r in enumerate(held.doc["results"])]
     if len(held.doc["results"]) > 1:

@@ -116,3 +116,18 @@ def test_plane_labels_of_near_duplicate_models_stay_readable(plt, fit):
         assert layout_problems(fig) == []
     finally:
         plt.close(fig)
+
+
+def test_held_out_table_names_the_window_of_its_rms_correlation():
+    """fit texture's held-out comparisons use 0.5-s windows (flowtex.fit.crossval.CV_WINDOW_S), the printout said so and
+    the report's table only 'window-RMS correlation', which a reader takes for compare's 1-s figure."""
+    from flowtex.fit.compare import CompareOptions
+    from flowtex.fit.crossval import CV_WINDOW_S, holdout_doc
+    from flowtex.fit.report import HeldOut, held_out_lines
+
+    rng = np.random.default_rng(4)
+    x = rng.standard_normal(int(12 * RATE)) * np.repeat(1.0 + 0.5 * np.sin(np.arange(24)), 500)
+    c = compare_signals(x, [x + 0.2 * rng.standard_normal(x.size)], RATE, CompareOptions(window_s=CV_WINDOW_S))
+    lines = held_out_lines(HeldOut("held out: test", [c], holdout_doc("blocks", "fraction", 0.3, [c])))
+    header = next(line for line in lines if line.startswith("| fold"))
+    assert f"{CV_WINDOW_S:g}-s window-RMS correlation" in header
