@@ -122,11 +122,11 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
         _check_outputs(args, [args.grid])
         fit = fit_grid_index(Path(args.grid), job)
         print_table(fit)
-        write_outputs(fit, args.output, args.xml, job.render_rate, job.allow_misses)
+        written = write_outputs(fit, args.output, args.xml, job.render_rate, job.allow_misses)
         if args.report:
             write_report(fit, Path(args.report))
         say(f"-> {args.output}")
-        _note_xml_rule(args.xml, fit.model_set.rule)
+        _note_xml_losses(args.xml, written)
         return 0
     from ..fit.batch import expand_inputs, fit_many
 
@@ -155,7 +155,7 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
     else:
         fit = fit_recording(paths[0], job)
         print_table(fit)
-    write_outputs(fit, args.output, args.xml, job.render_rate, job.allow_misses)
+    written = write_outputs(fit, args.output, args.xml, job.render_rate, job.allow_misses)
     if held is not None and args.holdout_json is not None:
         from ..io.atomic import write_text_atomic
 
@@ -164,15 +164,28 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
     if args.report:
         write_report(fit, Path(args.report), held)
     say(f"-> {args.output}" + (f", {args.xml}" if args.xml else ""))
-    _note_xml_rule(args.xml, fit.model_set.rule)
+    _note_xml_losses(args.xml, written)
     return 0
 
 
-def _note_xml_rule(xml: Path | None, rule: Any) -> None:
-    """Warn that --xml could not keep the fitted set's rendering rule (flowtex.io.hatt.rule_lost_in_xml)."""
+def _note_xml_losses(xml: Path | None, written: Any) -> None:
+    """Warn of what --xml could not keep of the set written: its rendering rule (flowtex.io.hatt.rule_lost_in_xml)
+    and, resampled up with --render-rate, the band its models know (flowtex.fit.compare.band_lost_in_xml)."""
+    from ..fit.compare import band_lost_in_xml
     from ..io.hatt import rule_lost_in_xml
 
-    lost = rule_lost_in_xml(rule, xml) if xml is not None else None
+    if xml is None:
+        return
+    for lost in (rule_lost_in_xml(written.rule, xml), band_lost_in_xml(written, xml)):
+        if lost:
+            note(lost)
+
+
+def _note_xml_rule(xml: Path, rule: Any) -> None:
+    """Warn that --xml could not keep the fitted sets' rendering rule (flowtex.io.hatt.rule_lost_in_xml)."""
+    from ..io.hatt import rule_lost_in_xml
+
+    lost = rule_lost_in_xml(rule, xml)
     if lost:
         note(lost)
 

@@ -59,6 +59,7 @@ def _densify_value(text: str) -> int | str:
 
 
 def cmd_models_resample(args: argparse.Namespace) -> int:
+    from ..fit.compare import band_lost_in_xml
     from ..fit.resample import check_misses, resample_summary, tqdm_progress
     from ..fit.resample_densify import densify_summary, resample_densified
     from ..io.atomic import atomic_output, check_output
@@ -92,9 +93,10 @@ def cmd_models_resample(args: argparse.Namespace) -> int:
     say(line)
     if warning:
         say(warning)
-    lost = rule_lost_in_xml(out.rule, target) if target.suffix.lower() == ".xml" else None
-    if lost:
-        note(lost)
+    if target.suffix.lower() == ".xml":
+        for lost in (rule_lost_in_xml(out.rule, target), band_lost_in_xml(out, target)):
+            if lost:
+                note(lost)
     return 0
 
 

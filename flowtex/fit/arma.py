@@ -84,8 +84,9 @@ class ArmaFit:
         return arma_psd(self.ar, self.ma, self.gain, self.variance, freqs_hz, rate_hz)
 
     def lsd_db(self, x: np.ndarray, rate_hz: float, nperseg: int = 1024) -> float:
-        """LSD (dB) of the model's PSD against the Welch PSD of ``x`` (the project's definition: > 15 Hz, 40 dB range)."""
-        freqs, s_data = welch_psd(np.asarray(x, dtype=np.float64), rate_hz, nperseg)
+        """LSD (dB) of the model's PSD against the Welch PSD of ``x`` (the project's definition: > 15 Hz, 40 dB range),
+        its segments spread over all of ``x`` (``welch_psd(whole=True)``: a short piece's last samples count too)."""
+        freqs, s_data = welch_psd(np.asarray(x, dtype=np.float64), rate_hz, nperseg, whole=True)
         return lsd_db(self.psd(freqs, rate_hz), s_data, freqs)
 
 

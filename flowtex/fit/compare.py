@@ -53,6 +53,7 @@ import math
 import shlex
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -354,28 +355,57 @@ def _check_rendered(renders: list[np.ndarray], accel: np.ndarray, speed: np.ndar
 
 
 def resampled_band_hz(ms: TextureModelSet) -> float:
-    """The band (Hz) a set resampled up from a lower rate knows: ``RESAMPLE_PASSBAND`` x the old Nyquist (inf otherwise).
+    """The band (Hz) a set resampled from another rate knows: ``RESAMPLE_PASSBAND`` x the lower Nyquist (inf for a
+    set at its own rate).
 
-    Above it the models hold only a stopband ceiling, and a recording resampled up from that rate with
-    ``flowtex resample`` holds only the resampler's transition band, so comparing shapes there measures
-    neither the fit nor the recording (a resampled twin is compared in the common band).
+    Resampled up, above it the models hold only a stopband ceiling, and a recording resampled up from that rate with
+    ``flowtex resample`` holds only the resampler's transition band; resampled down, the models keep their spectrum
+    only up to 0.9 x the new Nyquist and a recording resampled down holds its passband only up to ``RESAMPLE_PASSBAND``
+    x it. Comparing shapes above measures neither the fit nor the recording (a resampled twin is compared in the
+    common band).
     """
     from_hz = (ms.metadata.get("resample") or {}).get("from_hz") if isinstance(ms.metadata, dict) else None
-    if isinstance(from_hz, (int, float)) and 0 < from_hz < ms.sample_rate:
-        return RESAMPLE_PASSBAND * from_hz / 2.0
+    if isinstance(from_hz, (int, float)) and from_hz > 0 and from_hz != ms.sample_rate:
+        return RESAMPLE_PASSBAND * min(from_hz, ms.sample_rate) / 2.0
     return math.inf
+
+
+def band_lost_in_xml(ms: TextureModelSet, path: str | Path) -> str | None:
+    """The warning for writing a set resampled from another rate to HaTT XML at ``path`` (None for any other set).
+
+    HaTT's format has no place for the resampling record, so :func:`resampled_band_hz` cannot find the band the models
+    know in the file read back, and ``flowtex compare`` grades it up to the Nyquist frequency, where the models hold
+    only a stopband ceiling (docs/fitting.md has a measured case).
+    """
+    top = resampled_band_hz(ms)
+    if not math.isfinite(top):
+        return None
+    return (f"warning: {path}: HaTT XML cannot state that these models were resampled from "
+            f"{ms.metadata['resample']['from_hz']:g} Hz; flowtex compare grades the file read back up to "
+            f"{ms.sample_rate / 2:g} Hz, above the {top:g} Hz its models know; compare the JSON, which keeps the record")
+
+
+def correlation_text(c: Comparison) -> str:
+    """``rms_correlation`` as printed and drawn: "0.89 over 19 windows", or "null (6 windows, fewer than 10)" as the
+    JSON has it (never 'nan')."""
+    n = len(c.windows)
+    if math.isfinite(c.rms_correlation):
+        return f"{c.rms_correlation:.2f} over {n} windows"
+    why = f"fewer than {MIN_WINDOWS}" if n < MIN_WINDOWS else "the window RMS is constant"
+    return f"null ({n} windows, {why})"
 
 
 def summary_lines(c: Comparison) -> list[str]:
     """The comparison in a few printable lines."""
     return [f"rendered along the recorded path ({c.seconds:.1f} s, {c.seeds} render(s)):",
-            f"  power ratio {c.power_ratio_db:+.2f} dB (rendered over recorded, > 12 Hz; one render scatters by "
-            f"{c.power_ratio_spread_db:.2f} dB); RMS {c.rendered_rms:.3g} rendered, {c.recorded_rms:.3g} recorded (m/s^2)",
+            f"  power ratio {c.power_ratio_db:+.2f} dB (rendered over recorded, > 12 Hz; "
+            + (f"one render scatters by {c.power_ratio_spread_db:.2f} dB" if math.isfinite(c.power_ratio_spread_db)
+               else "one render: its scatter unknown, --seeds 4 measures it")
+            + f"); RMS {c.rendered_rms:.3g} rendered, {c.recorded_rms:.3g} recorded (m/s^2)",
             f"  LSD {c.lsd_db:.2f} dB ({c.shape_lsd_db:.2f} dB with the levels matched), GFC {c.gfc:.3f}, "
             f"centroid {c.rendered_centroid_hz:.0f} Hz rendered, {c.centroid_hz:.0f} Hz recorded "
             f"(band {c.band_hz[0]:g}-{c.band_hz[1]:g} Hz, {c.resolution_hz:.3g} Hz resolution"
-            + ("; the set was resampled from a lower rate)" if math.isfinite(c.max_freq_hz) else ")"),
+            + ("; the set was resampled from another rate)" if math.isfinite(c.max_freq_hz) else ")"),
             "  octave-band power error (dB): " + ", ".join(f"{b['centre_hz']:g} Hz {b['error_db']:+.1f}" for b in c.octave_bands),
-            f"  {c.windows[0]['seconds'] if c.windows else 0:g}-s window RMS correlation {c.rms_correlation:.2f} "
-            f"over {len(c.windows)} windows",
+            f"  {c.windows[0]['seconds'] if c.windows else 0:g}-s window RMS correlation {correlation_text(c)}",
             *(f"  warning: {w}" for w in c.warnings)]

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..io.atomic import write_text_atomic
 from ..io.figures import FONT_PT, agg_pyplot, save_png
-from .compare import Comparison, summary_lines
+from .compare import Comparison, correlation_text, summary_lines
 
 PLOT_ERROR = "--report needs matplotlib for its plots: pip install 'flowtex[plot]' (or leave out --report)"
 
@@ -71,7 +71,7 @@ def loudness_figure(c: Comparison, plt: Any) -> Any:
     ax.plot(t, [w["rendered_rms"] for w in c.windows], "o-", color="C0", ms=3, label="rendered")
     ax.set_xlabel("time (s, window centre)")
     ax.set_ylabel("window RMS (m/s^2)")
-    ax.set_title(f"window RMS correlation {c.rms_correlation:.2f}", fontsize=FONT_PT + 1)
+    ax.set_title(f"window RMS correlation {correlation_text(c)}", fontsize=FONT_PT + 1)
     _legend_beside(ax)
     return fig
 

@@ -35,11 +35,23 @@ def recording_rate(rec: Recording, from_rate: float | None) -> float:
                         "drop --from-rate (the file's rate wins) or fix the file")
     rate = rec.rate if rec.rate is not None else from_rate
     if rate is None:
-        raise DataError(f"{rec.path}: the recording states no sample rate; pass --from-rate HZ")
+        raise DataError(f"{rec.path}: the recording states no sample rate; pass --from-rate {_rate_hint(rec)}")
     if not (np.isfinite(rate) and rate > 0):
         what = "--from-rate" if rec.rate is None else "the file's sample rate"
         raise DataError(f"{rec.path}: {what} must be a positive number of Hz, got {rate!r}")
     return float(rate)
+
+
+def _rate_hint(rec: Recording) -> str:
+    """``HZ``, or the rate its ``time`` column (s) steps at (a CSV often has one but no '# rate:' line): the file's
+    own rate, named, is the fix; it is not taken silently, as the file does not state it."""
+    t = rec.arrays.get("time")
+    if t is None or t.ndim != 1 or t.shape[0] < 2:
+        return "HZ"
+    step = float(np.median(np.diff(t)))
+    if not (np.isfinite(step) and step > 0):
+        return "HZ"
+    return f"{1.0 / step:.6g} (the median step of its 'time' column, {step:g} s)"
 
 
 def signal(rec: Recording, name: str, option: str, width: tuple[int, ...] = (1,), finite: bool = True) -> np.ndarray:

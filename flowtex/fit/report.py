@@ -104,8 +104,10 @@ def held_out_lines(held: HeldOut) -> list[str]:
         own = r.get("in_sample") or {}
         return (f"| {name} | {f(r['seconds'], '.1f')} | {f(r['power_ratio_db'], '+.2f')} | {f(r['lsd_db'], '.2f')} | "
                 f"{f(own.get('lsd_db'), '.2f') if own else '-'} | {f(r['gfc'], '.3f')} | {f(r['rms_correlation'], '.2f')} |")
+    windows = held.doc["results"][0].get("windows") or [{}]
+    window = f"{windows[0]['seconds']:g}-s " if "seconds" in windows[0] else ""
     md = ["## Held out", "", held.line, "",
-          "| fold | seconds | power ratio dB | LSD dB | in-sample LSD dB | GFC | window-RMS correlation |",
+          f"| fold | seconds | power ratio dB | LSD dB | in-sample LSD dB | GFC | {window}window-RMS correlation |",
           "|---|---|---|---|---|---|---|"]
     md += [row(str(k), r) for k, r in enumerate(held.doc["results"])]
     if len(held.doc["results"]) > 1:
@@ -163,7 +165,7 @@ def spectra_figure(fit: TextureFit, plt: Any) -> Any:
     for k, pc in enumerate(pieces):
         ax = axes[k // cols][k % cols]
         x = fit.signal[pc.start:pc.stop]
-        freqs, s = welch_psd(x, fit.rate, min(256, x.size))
+        freqs, s = welch_psd(x, fit.rate, min(256, x.size), whole=True)  # the piece as the table's LSD measures it
         ax.semilogy(freqs, s, color="0.55", lw=0.9, label="data (the piece's Welch PSD)")
         ax.semilogy(freqs, pc.fit.psd(freqs, fit.rate), color="C0", lw=1.3, label="model")
         ax.set_title(f"model {pc.model}: {pc.speed:.0f} mm/s, {pc.force:.2f} N\nLSD {pc.lsd_db:.2f} dB, GFC {pc.fit.gfc:.3f}",
@@ -192,8 +194,11 @@ def plane_figure(fit: TextureFit, plt: Any, dups: list[tuple[int, int]]) -> Any:
     power = np.array([pc.fit.output_variance for pc in pieces])
     pts = np.array([[pc.speed, pc.force] for pc in pieces])
     sc = ax.scatter(pts[:, 0], pts[:, 1], c=10 * np.log10(power), cmap="viridis", s=36, zorder=3)
+    below = {j for _i, j in dups}  # the second of a near-duplicate pair labelled below left: not over the first's number
     for pc in pieces:
-        ax.annotate(str(pc.model), (pc.speed, pc.force), fontsize=FONT, xytext=(3, 3), textcoords="offset points")
+        low = pc.model in below
+        ax.annotate(str(pc.model), (pc.speed, pc.force), fontsize=FONT, xytext=(-3, -3) if low else (3, 3),
+                    textcoords="offset points", ha="right" if low else "left", va="top" if low else "bottom")
     ax.scatter(ms.speeds[~measured], ms.forces[~measured], marker="x", color="k", s=20, label="silent corner (variance 0)")
     if dups:
         idx = sorted({i for pair in dups for i in pair})

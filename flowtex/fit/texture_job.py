@@ -16,6 +16,7 @@ import numpy as np
 
 from ..errors import DataError
 from ..limits import check_file_size
+from ..models.texture import TextureModelSet
 from .inputs import atomic_output, check_highpass, check_not_constant, check_speed_magnitude, load, signal
 from .texture import TextureFit, TextureOptions, fit_grid, fit_texture
 
@@ -124,8 +125,10 @@ def fit_grid_index(index: Path, job: TextureJob) -> TextureFit:
     return fit_grid(cells, rate, job.options, job.material or index.stem, str(index))
 
 
-def write_outputs(fit: TextureFit, output: Path, xml: Path | None, render_rate: float | None, allow_misses: bool = False) -> None:
-    """Write the native set (and HaTT XML) atomically, after resampling to ``render_rate`` if given.
+def write_outputs(fit: TextureFit, output: Path, xml: Path | None, render_rate: float | None,
+                  allow_misses: bool = False) -> TextureModelSet:
+    """Write the native set (and HaTT XML) atomically, after resampling to ``render_rate`` if given; returns the set
+    written.
 
     A resampled set with models that miss their spectrum is refused (FlowtexError naming them) unless ``allow_misses``.
     """
@@ -140,6 +143,7 @@ def write_outputs(fit: TextureFit, output: Path, xml: Path | None, render_rate: 
         if xml is not None:
             with atomic_output(xml) as tmp_xml:
                 write_hatt_xml(ms, tmp_xml)
+    return ms
 
 
 def _resample(ms: Any, rate: float, allow_misses: bool, where: str) -> Any:

@@ -68,6 +68,19 @@ def test_rms_correlation_needs_ten_windows():
     assert len(c.windows) == MIN_WINDOWS - 1 and np.isnan(c.rms_correlation)
     assert c.to_json()["rms_correlation"] is None and "fewer than 10" in c.warnings[0]
     assert any("warning: rms_correlation is null" in line for line in summary_lines(c))
+    # printed and in the report's figure as the JSON has it (null), not as 'nan': a reader copies what it shows
+    text = "\n".join(summary_lines(c))
+    assert "nan" not in text and "window RMS correlation null (9 windows" in text
+    pytest.importorskip("matplotlib")
+    from flowtex.fit.compare_report import loudness_figure
+    from flowtex.io.figures import agg_pyplot
+
+    plt = agg_pyplot("matplotlib")
+    fig = loudness_figure(c, plt)
+    try:
+        assert fig.axes[0].get_title() == "window RMS correlation null (9 windows, fewer than 10)"
+    finally:
+        plt.close(fig)
     c = compare_signals(np.r_[x, x[:1000]], [np.r_[x, x[:1000]]], 1000.0)
     assert len(c.windows) == MIN_WINDOWS and c.rms_correlation == pytest.approx(1.0) and c.warnings == []
 

@@ -112,7 +112,10 @@ def test_bad_inputs(tmp_path, capsys):
     assert "2 NaN/inf sample(s) (at sample 10, 20)" in _bad(tmp_path, capsys, {**good, "accel": nan})
     assert "no contact anywhere" in _bad(tmp_path, capsys, {**good, "normal_force": np.zeros(n)})
     assert "is constant" in _bad(tmp_path, capsys, {**good, "accel": np.ones(n)})
-    assert "states no sample rate" in _bad(tmp_path, capsys, good, rate=None)
+    assert "states no sample rate; pass --from-rate HZ" in _bad(tmp_path, capsys, good, rate=None)
+    # a CSV-like recording with a time column (s) but no rate: the message names the rate its steps give
+    timed = {**good, "time": np.arange(n) / 800.0}
+    assert "pass --from-rate 800 (the median step of its 'time' column, 0.00125 s)" in _bad(tmp_path, capsys, timed, rate=None)
     assert "--from-rate is 500" in _bad(tmp_path, capsys, good, extra=("--from-rate", "500"))
     assert "recording too short" in _bad(tmp_path, capsys, {k: v[:300] for k, v in good.items()})
     assert "too short for order" in _bad(tmp_path, capsys, {k: v[:800] for k, v in good.items()}, extra=("--order", "40,38"))

@@ -94,3 +94,40 @@ def test_fit_table_names_the_units_and_its_columns_line_up(fit):
     ends = [m.end() for m in re.finditer(r"(model|speed mm/s|force N|samples|order|GFC|LSD dB|power err)", header)]
     for row in rows:
         assert [m.end() for m in re.finditer(r"\S+", row)] == ends  # each value ends under its heading
+
+
+def test_plane_labels_of_near_duplicate_models_stay_readable(plt, fit):
+    """Two models closer than 2 % were circled as near-duplicates, and their numbers were drawn at the same offset
+    from nearly the same point, one over the other: the figure pointed at them and hid which they were."""
+    import copy
+
+    from flowtex.fit.report import near_duplicates, plane_figure
+
+    f = copy.deepcopy(fit)
+    ms = f.model_set
+    a, b = sorted(f.pieces, key=lambda pc: pc.model)[:2]
+    for pc in (b,):  # model b moved to 0.5 % of the ranges from model a
+        pc.speed, pc.force = a.speed + 0.005 * ms.max_speed, a.force + 0.005 * ms.max_force
+        ms.speeds[pc.model], ms.forces[pc.model] = pc.speed, pc.force
+    dups = near_duplicates(ms)
+    assert (a.model, b.model) in dups
+    fig = plane_figure(f, plt, dups)
+    try:
+        assert layout_problems(fig) == []
+    finally:
+        plt.close(fig)
+
+
+def test_held_out_table_names_the_window_of_its_rms_correlation():
+    """fit texture's held-out comparisons use 0.5-s windows (flowtex.fit.crossval.CV_WINDOW_S), the printout said so and
+    the report's table only 'window-RMS correlation', which a reader takes for compare's 1-s figure."""
+    from flowtex.fit.compare import CompareOptions
+    from flowtex.fit.crossval import CV_WINDOW_S, holdout_doc
+    from flowtex.fit.report import HeldOut, held_out_lines
+
+    rng = np.random.default_rng(4)
+    x = rng.standard_normal(int(12 * RATE)) * np.repeat(1.0 + 0.5 * np.sin(np.arange(24)), 500)
+    c = compare_signals(x, [x + 0.2 * rng.standard_normal(x.size)], RATE, CompareOptions(window_s=CV_WINDOW_S))
+    lines = held_out_lines(HeldOut("held out: test", [c], holdout_doc("blocks", "fraction", 0.3, [c])))
+    header = next(line for line in lines if line.startswith("| fold"))
+    assert f"{CV_WINDOW_S:g}-s window-RMS correlation" in header
