@@ -152,6 +152,8 @@ def _readable_log(path: str | Path) -> Path:
     :data:`~flowtex.limits.MAX_CANLOG_BYTES`, else DataError."""
     path = check_log_path(path, for_writing=False)
     check_file_size(path, "CAN log", MAX_CANLOG_BYTES)
+    if path.is_dir():
+        raise DataError(f"{path}: is a folder, not a CAN log")
     if not path.is_file():
         raise DataError(f"{path}: CAN log not found")
     return path

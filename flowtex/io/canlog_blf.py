@@ -39,7 +39,7 @@ def read_blf(path: Path) -> Iterator[can.Message]:
     with open(path, "rb") as fh:
         head = fh.read(FILE_HEADER_STRUCT.size)
     if len(head) < FILE_HEADER_STRUCT.size or head[:4] != b"LOGG":
-        raise DataError(f"{path}: not a BLF log (it does not start with a {FILE_HEADER_STRUCT.size}-byte 'LOGG' header)")
+        raise DataError(f"{path}: not a BLF log (it does not start with a BLF file header, 'LOGG'; {len(head)} bytes read)")
     header = FILE_HEADER_STRUCT.unpack(head)
     header_size, claimed = int(header[1]), int(header[12])
     if not FILE_HEADER_STRUCT.size <= header_size <= MAX_BLF_CONTAINER_BYTES:

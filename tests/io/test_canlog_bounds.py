@@ -183,6 +183,19 @@ def test_text_logs_with_more_lines_than_the_limit_are_refused_at_the_line(tmp_pa
 
 
 @pytest.mark.parametrize("suffix", [".blf", ".log", ".asc"])
+def test_a_folder_or_an_empty_file_named_as_a_log(tmp_path, suffix):
+    folder = tmp_path / f"f{suffix}"
+    folder.mkdir()
+    _refused(folder, "is a folder, not a CAN log")
+    empty = tmp_path / f"e{suffix}"
+    empty.write_bytes(b"")
+    if suffix == ".blf":
+        _refused(empty, "not a BLF log", "0 bytes read")
+    else:
+        assert _frames(empty) == []  # an empty text log holds no frame; the replay says there is nothing to replay
+
+
+@pytest.mark.parametrize("suffix", [".blf", ".log", ".asc"])
 def test_log_larger_than_the_limit_is_refused_by_its_size(tmp_path, suffix):
     """A sparse file (it occupies a few KiB) with a real log at its start, past MAX_CANLOG_BYTES."""
     path = _write_log(tmp_path / f"big{suffix}")
