@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -441,6 +442,31 @@ def test_peak_durations_off_the_tick_grid_never_allow_more_than_the_map_says(set
     assert (p, r) == ((10, 17) if rate == 1000.0 else (2, 5))  # floor and ceil of the durations in ticks (nearest: 11, 16; 3, 4)
     assert p * tick_ms <= max_ms < (p + 1) * tick_ms and r * tick_ms >= recover_ms
     assert p / (p + r) <= max_ms / (max_ms + recover_ms)
+
+
+def test_a_peak_budget_beyond_int64_names_the_output_and_its_line(setup):
+    """Day-long max_ms and recover_ms at 1 MHz: 86,400,000,000 and 86,399,999,000 ticks, gcd 1000, a budget of
+    86.4e9 x 86,399,999 = 7.5e18 units > 2^62. The error named only the map file and the guard's internals."""
+    from flowtex.errors import DataError
+    from flowtex.io.canmap import load_map
+    from flowtex.io.codec import MessageCodec
+    from flowtex.io.dbc import load_dbc
+    from flowtex.runtime.canio import CanIO, port_widths
+
+    (setup / "day.yaml").write_text(textwrap.dedent(MAP).replace(
+        "vibration: {signal: VoiceCoilCmd.Current, clamp: [-1, 1], safe: 0}",
+        "vibration: {signal: VoiceCoilCmd.Current, clamp: [-1, 1], safe: 0, peak: {limit: 1.5, max_ms: 86400000, "
+        "recover_ms: 86399999}}"))
+    g = load_graph(setup / "g.yaml")
+    db = load_dbc(DBC)
+    canmap = load_map(setup / "day.yaml", db, DBC, port_widths(g.inputs), port_widths(g.outputs))
+    codecs = {m.name: MessageCodec(m) for m in db.messages}
+    assert CanIO(g, canmap, codecs, 1000.0).guard is not None  # 86,400,000 x 86,399,999 units fit at 1 kHz
+    with pytest.raises(DataError) as info:
+        CanIO(g, canmap, codecs, 1e6)
+    msg = str(info.value)
+    assert re.match(re.escape(str(setup / "day.yaml")) + r":\d+:\d+: output 'vibration': peak max_ms 86400000 and "
+                    r"recover_ms 86399999 are 86400000000 and 86399999000 ticks at 1e\+06 Hz", msg), msg
 
 
 def test_map_peak_limit_is_mirrored_below_the_clamp(setup):
