@@ -63,7 +63,7 @@ class NumberedLines:
             raise self.error(f"more than {limits.MAX_CANLOG_LINES:,} lines; flowtex reads text CAN logs of up to that many "
                              "(flowtex.limits.MAX_CANLOG_LINES): replay a shorter session")
         try:
-            text = raw.decode("utf-8")
+            text = raw.decode("utf-8-sig" if self.number == 1 else "utf-8")  # a byte-order mark (Windows editors) is no text
         except UnicodeDecodeError as exc:
             raise self._not_text(raw[exc.start], exc.start) from None
         control = _CONTROL.search(text)

@@ -85,6 +85,17 @@ def test_each_malformed_log_line_is_named_by_file_line_and_column(tmp_path, kind
         list(read_session(path))
 
 
+@pytest.mark.parametrize("suffix", [".log", ".asc"])
+def test_a_byte_order_mark_is_read_past(tmp_path, suffix):
+    """A log saved by a Windows editor starts with a UTF-8 byte-order mark; the .log's first timestamp was refused
+    ('\\ufeff(1000.000000)' is not '(SECONDS)')."""
+    path = _write_log(tmp_path / f"s{suffix}")
+    plain = [_key(m) for m in read_session_checked(path)[0]]
+    path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    frames, completeness = read_session_checked(path)
+    assert [_key(m) for m in frames] == plain and len(plain) == N_FRAMES and completeness.problem is None
+
+
 def test_python_can_alone_misread_the_odd_digit_line_that_is_now_refused(tmp_path):
     """The old reader (python-can's, unchecked) took 15 hex digits for 8 bytes, the last one made up."""
     path = _write_log(tmp_path / "s.log")
