@@ -137,6 +137,9 @@ def candump_problem(line: str) -> tuple[str, int] | None:
     if data.startswith("#"):  # CAN FD: one hex digit of flags, then the data
         if len(data) < 2 or not _HEX.match(data[1]):
             return f"CAN FD frame {excerpt(frame)} needs one hex digit of flags after '##' {form}", col
+        if not data[1].isdigit():
+            return (f"CAN FD flags {data[1]!r} after '##': python-can reads flags 0 to 9 only (1 bit rate switch, 2 error "
+                    "state, 4 FD frame)"), col + 1
         data, col, limit = data[2:], col + 2, 64
     elif data[:1] in ("R", "r"):
         if data[1:] and not (data[1:].isdigit() and int(data[1:]) <= 8):

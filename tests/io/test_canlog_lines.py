@@ -64,6 +64,7 @@ LOG_CASES = {  # the line, what the error says, and where its column points (the
     "no # between ID and data": ("(1000.004000) can0 1000401020304050607 R", "has no '#' between the CAN ID and the data", "1000401"),
     "bad timestamp": ("(1000.0x4000) can0 100#0401020304050607 R", "timestamp '(1000.0x4000)' is not '(SECONDS)'", "("),
     "bad direction": ("(1000.004000) can0 100#0401020304050607 X", "direction 'X' must be R (received) or T (sent)", " X"),
+    "CAN FD flags python-can cannot read": ("(1000.004000) can0 100##F0401020304050607 R", "CAN FD flags 'F' after '##'", "F04"),
     "too many data bytes": ("(1000.004000) can0 100#040102030405060708 R", "9 data bytes; a classic CAN frame holds at most 8", "0401"),
     "NUL byte (binary)": ("(1000.004000) can0 100#04010203\x0004050607 R", "byte 0x00 is not text", "\x00"),
 }
