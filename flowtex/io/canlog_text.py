@@ -181,6 +181,8 @@ class AscCheck:
             if len(tokens) >= 4 and tokens[3].lower() in ("rx", "tx") and not _ASC_TIME.match(tokens[0]):
                 return (f"timestamp {excerpt(tokens[0])} is not a number of seconds (DIGITS.DIGITS, e.g. 12.345000; python-can "
                         "would skip the frame)", line.index(tokens[0]) + 1)
+            if len(tokens) >= 2 and tokens[1].upper() == "CANFD" and _ASC_TIME.match(tokens[0]):
+                return self._canfd(tokens)
             return None
         if m.group(1).lower().startswith("errorframe") or m.group(1).upper() == "CANFD":
             return None
@@ -211,6 +213,29 @@ class AscCheck:
         for b in have:
             if any(c not in digits for c in b):
                 return f"data byte {excerpt(b)} is not a number in base {self.base}", m.start(3) + 1
+        return None
+
+
+    def _canfd(self, tokens: list[str]) -> tuple[str, int] | None:
+        """The problem of a CAN FD line ``TIME CANFD CH Rx|Tx ID [NAME] BRS ESI DLC LENGTH BYTES...`` that python-can
+        would misread (fewer bytes than its LENGTH, which it takes as the frame's length) or fail on, or None."""
+        form = "(expected 'TIME CANFD CH Rx|Tx ID BRS ESI DLC LENGTH BYTES...')"
+        rest = tokens[2:]
+        if len(rest) < 7:
+            return f"the CAN FD line ends after {len(tokens)} fields: is the line cut? {form}", 1
+        fields = rest[3:7] if rest[3].isdigit() else rest[4:8]
+        if len(fields) < 4 or not fields[3].isdigit():
+            return f"CAN FD data length {excerpt(fields[3] if len(fields) > 3 else '')} is not a number of bytes {form}", 1
+        length = int(fields[3])
+        data = rest[(7 if rest[3].isdigit() else 8):][:length]
+        if length > 64:
+            return f"CAN FD data length {length} is more than the 64 bytes a CAN FD frame holds", 1
+        if len(data) < length:
+            return f"CAN FD data length {length} announces {length} bytes but the line holds {len(data)}: is the line cut?", 1
+        digits = "0123456789abcdefABCDEF"[: 10 if self.base == 10 else 22]
+        bad = next((b for b in data if not b or any(c not in digits for c in b)), None)
+        if bad is not None:
+            return f"data byte {excerpt(bad)} is not a number in base {self.base}", 1
         return None
 
 

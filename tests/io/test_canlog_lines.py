@@ -215,3 +215,29 @@ def test_valid_candump_variants_read_as_python_can_reads_them(tmp_path):
     assert len(frames) == 6 and [_key(m) for m in frames] == [_key(m) for m in reference]
     assert [m.is_fd for m in frames] == [False] * 4 + [True, False] and frames[1].is_extended_id
     assert list(completeness.lines) == [1, 2, 3, 4, 6, 7] and completeness.problem is None
+
+
+def test_asc_can_fd_lines_are_checked_as_classic_ones_are(tmp_path):
+    """A CAN FD line as python-can writes it reads back; cut short, python-can took the bytes left for the whole frame
+    (a 12-byte frame read as 1 byte) without a word, and a bad byte failed with no column."""
+    path = tmp_path / "s.asc"
+    w = SessionWriter(path)
+    w.write(can.Message(timestamp=1000.0, arbitration_id=0x321, is_fd=True, bitrate_switch=True, data=bytes(range(12)),
+                        is_extended_id=False), True)
+    w.close()
+    frames, _ = read_session_checked(path)
+    assert [(m.is_fd, bytes(m.data)) for m in frames] == [(True, bytes(range(12)))]
+    lines = path.read_text().split("\n")
+    number = next(i for i, s in enumerate(lines) if " CANFD " in s) + 1
+    fd = lines[number - 1]
+    data_at = fd.index(" 00 01 02")
+    cut = fd[:data_at] + " 00"
+    _replace_line(path, number, cut)
+    assert [len(m.data) for m in can.LogReader(path)] == [1]  # python-can alone
+    with pytest.raises(DataError, match=re.escape(f"{path}:{number}:1: CAN FD data length 12 announces 12 bytes but the "
+                                                  "line holds 1: is the line cut?")):
+        read_session_checked(path)
+    _replace_line(path, number, fd[:data_at] + " 00 ZZ" + fd[data_at + 6:])
+    with pytest.raises(DataError, match=re.escape(f"{path}:{number}:1: data byte 'ZZ' is not a number in base 16")):
+        read_session_checked(path)
+
