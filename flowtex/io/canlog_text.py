@@ -186,16 +186,10 @@ class AscCheck:
             return None
         if m.group(1).lower().startswith("errorframe") or m.group(1).upper() == "CANFD":
             return None
-        digits = "0123456789abcdefABCDEF"[: 10 if self.base == 10 else 22]
-        ident = m.group(1)[:-1] if m.group(1)[-1:] in "xX" else m.group(1)
-        if not ident or any(c not in digits for c in ident):
-            return f"CAN ID {excerpt(m.group(1))} is not a number in base {self.base} (an extended ID ends in x)", m.start(1) + 1
-        extended = ident != m.group(1)
-        top = 0x1FFFFFFF if extended else 0x7FF
-        if int(ident, self.base) > top:
-            why = "a CAN ID has at most 29 bits" if extended else "an extended ID ends in x"
-            return (f"{'extended' if extended else 'standard'} CAN ID {ident} is above {top:{'X' if self.base == 16 else 'd'}} "
-                    f"({why})"), m.start(1) + 1
+        digits = self.digits
+        problem = self._id_problem(m.group(1))
+        if problem is not None:
+            return problem, m.start(1) + 1
         if m.group(2) is None:
             return (f"the frame line ends after {excerpt(m.group(1))}: is the line cut? (an .asc frame is "
                     "'TIME CHANNEL ID Rx|Tx d DLC BYTES...')", m.start(1) + 1)
@@ -216,6 +210,23 @@ class AscCheck:
         return None
 
 
+    @property
+    def digits(self) -> str:
+        """The characters of a number in the log's base (``base hex`` or ``base dec``)."""
+        return "0123456789abcdefABCDEF"[: 10 if self.base == 10 else 22]
+
+    def _id_problem(self, text: str) -> str | None:
+        """What is wrong with a CAN ID of an .asc line (in the log's base; an extended one ends in x), or None."""
+        ident = text[:-1] if text[-1:] in "xX" else text
+        if not ident or any(c not in self.digits for c in ident):
+            return f"CAN ID {excerpt(text)} is not a number in base {self.base} (an extended ID ends in x)"
+        extended = ident != text
+        top = 0x1FFFFFFF if extended else 0x7FF
+        if int(ident, self.base) > top:
+            why = "a CAN ID has at most 29 bits" if extended else "an extended ID ends in x"
+            return f"{'extended' if extended else 'standard'} CAN ID {ident} is above {top:{'X' if self.base == 16 else 'd'}} ({why})"
+        return None
+
     def _canfd(self, tokens: list[str]) -> tuple[str, int] | None:
         """The problem of a CAN FD line ``TIME CANFD CH Rx|Tx ID [NAME] BRS ESI DLC LENGTH BYTES...`` that python-can
         would misread (fewer bytes than its LENGTH, which it takes as the frame's length) or fail on, or None."""
@@ -223,6 +234,9 @@ class AscCheck:
         rest = tokens[2:]
         if len(rest) < 7:
             return f"the CAN FD line ends after {len(tokens)} fields: is the line cut? {form}", 1
+        problem = self._id_problem(rest[2])
+        if problem is not None:
+            return problem, 1
         fields = rest[3:7] if rest[3].isdigit() else rest[4:8]
         if len(fields) < 4 or not fields[3].isdigit():
             return f"CAN FD data length {excerpt(fields[3] if len(fields) > 3 else '')} is not a number of bytes {form}", 1
@@ -232,8 +246,7 @@ class AscCheck:
             return f"CAN FD data length {length} is more than the 64 bytes a CAN FD frame holds", 1
         if len(data) < length:
             return f"CAN FD data length {length} announces {length} bytes but the line holds {len(data)}: is the line cut?", 1
-        digits = "0123456789abcdefABCDEF"[: 10 if self.base == 10 else 22]
-        bad = next((b for b in data if not b or any(c not in digits for c in b)), None)
+        bad = next((b for b in data if not b or any(c not in self.digits for c in b)), None)
         if bad is not None:
             return f"data byte {excerpt(bad)} is not a number in base {self.base}", 1
         return None
