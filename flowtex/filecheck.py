@@ -2,7 +2,7 @@
 
 Kinds: graph, scene and device map (YAML; a map has ``flowtex_map:``, a scene ``surfaces:``, anything else is read as a
 graph), texture model set (native JSON or HaTT XML), pattern file, tap library, friction and compliance estimates
-(JSON, by their ``format`` key), DBC files and recordings (.npz/.csv/.h5); the kind comes from the format registry
+(JSON, by their ``format`` key), DBC files, recordings (.npz/.csv/.h5) and CAN session logs (.blf/.log/.asc); the kind comes from the format registry
 (:mod:`flowtex.io.formats`). Each is checked by the same reader the
 verbs use, so a file that passes here loads there. Layer: beside flowtex.scene and flowtex.bench, below flowtex.cli.
 Graphs are checked by flowtex.graph.compiled.check_graph (the command line adds its plugin report).
@@ -14,9 +14,23 @@ import math
 from pathlib import Path
 
 from .errors import DataError, FlowtexError
-from .io.formats import COMPLIANCE, DBC, DEVICE_MAP, FRICTION, GRAPH, JSON_FORMATS, MODEL_SET, PATTERN, RECORDING, SCENE, TAP_LIBRARY, file_kind
+from .io.formats import (
+    CAN_LOG,
+    COMPLIANCE,
+    DBC,
+    DEVICE_MAP,
+    FRICTION,
+    GRAPH,
+    JSON_FORMATS,
+    MODEL_SET,
+    PATTERN,
+    RECORDING,
+    SCENE,
+    TAP_LIBRARY,
+    file_kind,
+)
 
-__all__ = ["COMPLIANCE", "DBC", "DEVICE_MAP", "FRICTION", "GRAPH", "JSON_FORMATS", "MODEL_SET", "PATTERN", "RECORDING", "SCENE",
+__all__ = ["CAN_LOG", "COMPLIANCE", "DBC", "DEVICE_MAP", "FRICTION", "GRAPH", "JSON_FORMATS", "MODEL_SET", "PATTERN", "RECORDING", "SCENE",
            "TAP_LIBRARY", "check_file", "file_kind"]
 """The kinds and :func:`file_kind` live in the one format registry, :mod:`flowtex.io.formats`."""
 
@@ -126,5 +140,14 @@ def _recording(path: Path, *_: object) -> str:
     return f"{len(rec.arrays)} signals, {rec.samples} samples{rate}"
 
 
-_CHECKS = {MODEL_SET: _model_set, PATTERN: _pattern, TAP_LIBRARY: _taps, FRICTION: _friction, COMPLIANCE: _compliance,
+def _can_log(path: Path, *_: object) -> str:
+    from .io.canlog import read_session_checked
+
+    frames, completeness = read_session_checked(path)
+    received = sum(1 for m in frames if m.is_rx)
+    cut = f"; {completeness.problem}" if completeness.problem else ""
+    return f"{len(frames)} frames, {received} received and {len(frames) - received} sent{cut}"
+
+
+_CHECKS = {CAN_LOG: _can_log, MODEL_SET: _model_set, PATTERN: _pattern, TAP_LIBRARY: _taps, FRICTION: _friction, COMPLIANCE: _compliance,
            DBC: _dbc, DEVICE_MAP: _device_map, SCENE: _scene, RECORDING: _recording}

@@ -31,6 +31,18 @@ MAX_YAML_BYTES = 1024 * 1024
 parser is pure Python (tens of KiB per second; docs/recordings.md, Limits), so this bounds the time too."""
 MAX_DBC_BYTES = 4 * 1024 * 1024
 """Size of a DBC file (cantools parses tens of KiB per second, so this bounds the time too; docs/recordings.md, Limits)."""
+MAX_CANLOG_BYTES = 1024 * 1024 * 1024
+"""Size of a CAN session log (.blf, .log, .asc) and, for a BLF, of its containers once unpacked (1 GiB): a candump
+line of a frame is about 40 bytes, a BLF frame 48 bytes unpacked, so this is above :data:`MAX_CANLOG_FRAMES` of them."""
+MAX_CANLOG_FRAMES = 5_000_000
+"""Frames of a CAN session log: the replay holds them all (about 250 bytes each, 1.2 GiB), 20 minutes of a 1 kHz
+session with 4 frames a tick."""
+MAX_CANLOG_LINES = 2 * MAX_CANLOG_FRAMES
+"""Lines of a text CAN log (.log, .asc), frames or not: a file of blank or comment lines within :data:`MAX_CANLOG_BYTES`
+would otherwise take hours (the line reader takes ~10 us a line)."""
+MAX_BLF_CONTAINER_BYTES = 16 * 1024 * 1024
+"""Size of one BLF container once unpacked, and of a frame object that spans containers (python-can and Vector write
+128 KiB containers): a zlib bomb in one container is refused at this size, never unpacked whole."""
 MAX_DEPTH = 100
 """Nesting of maps and lists in YAML and JSON, and of elements in XML (real flowtex files nest fewer than 10)."""
 MAX_YAML_NODES = 1_000_000
@@ -158,6 +170,16 @@ def check_values(path: Path | str, count: int, what: str) -> None:
     if count > MAX_RECORDING_VALUES:
         raise DataError(f"{path}: {what} holds {count:,} numbers; flowtex reads recordings of up to "
                         f"{MAX_RECORDING_VALUES:,} numbers ({MAX_RECORDING_VALUES * 8 / 1e6:,.0f} MB): split or decimate it first")
+
+
+def check_frames(where: str, count: int, claimed: bool = False) -> None:
+    """Refuse a CAN log of ``count`` frames, more than :data:`MAX_CANLOG_FRAMES`: ``where`` names the file (and line or
+    frame); ``claimed``: the count is what the log's header says, checked before reading."""
+    if count <= MAX_CANLOG_FRAMES:
+        return
+    what = f"its header counts {count:,} frames" if claimed else f"more than {MAX_CANLOG_FRAMES:,} frames"
+    raise DataError(f"{where}: {what}; flowtex reads CAN logs of up to {MAX_CANLOG_FRAMES:,} frames "
+                    "(flowtex.limits.MAX_CANLOG_FRAMES; the replay holds them all in memory): replay a shorter session")
 
 
 def depth_of(value: Any, limit: int = MAX_DEPTH) -> int:

@@ -38,6 +38,18 @@ def test_good_graph_validates(write_graph, capsys):
     assert "ok" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("word", ["off", "on", "yes", "no", "true", "null"])
+def test_a_node_named_like_a_yaml_boolean_says_to_quote_it(write_graph, word):
+    """YAML 1.1 reads an unquoted key off/on/yes/no as a boolean (null as None): 'node name False is not valid: use
+    letters, digits and _' named neither the word written nor the fix."""
+    text = GOOD.replace("  g: {type", f"  {word}: {{type").replace("lp.y -> g.x", f"lp.y -> {word}.x").replace(
+        "y: g.y", f"y: {word}.y")
+    msgs, path = problems(write_graph, text)
+    assert len(msgs) == 1 and msgs[0].startswith(f"{path}:8:3: ") and "YAML reads an unquoted" in msgs[0], msgs
+    assert "quote it (e.g. 'off': ...)" in msgs[0], msgs
+    assert check_graph(write_graph(text.replace(f"  {word}: {{type", f"  '{word}': {{type")))
+
+
 def test_yaml_syntax_error_has_line_and_column(write_graph):
     msgs, path = problems(write_graph, GOOD.replace("  g: {type: gain, params: {k: 2}}", "  g: {type: gain, params: {k: 2}"))
     assert len(msgs) == 1
@@ -207,3 +219,27 @@ def test_no_follow_on_errors_after_a_failed_node(write_graph):
 def test_dash_unit_on_an_input_means_dimensionless(write_graph):
     path = write_graph(GOOD.replace("x: {unit: N}", "x: {unit: '-'}"))
     assert check_graph(path).input_specs["x"].unit == ""
+
+
+@pytest.mark.parametrize("suffix", [".blf", ".log", ".asc"])
+def test_validate_reads_a_can_session_log_as_a_replay_does(tmp_path, capsys, suffix):
+    """validate checks any flowtex file; a BLF was 'not a text file' and a .log/.asc 'a graph file must be a mapping'."""
+    import can
+
+    from flowtex.io.canlog import SessionWriter
+
+    path = tmp_path / f"s{suffix}"
+    w = SessionWriter(path)
+    for i in range(6):
+        w.write(can.Message(timestamp=1000.0 + i * 1e-3, arbitration_id=0x100, data=bytes([i] * 8), is_extended_id=False), i < 4)
+    w.close()
+    assert main(["validate", str(path)]) == 0
+    assert capsys.readouterr().out.strip() == f"{path}: ok (CAN session log, 6 frames, 4 received and 2 sent)"
+    if suffix != ".blf":
+        text = path.read_text().splitlines()
+        number = next(i for i, line in enumerate(text) if " 100#" in line or " 100 " in line) + 1
+        text[number - 1] = text[number - 1].replace(" 100#", " FFF#").replace(" 100 ", " FFF ")
+        path.write_text("\n".join(text) + "\n")
+        assert main(["validate", str(path)]) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"{path}:{number}:") and "standard CAN ID FFF is above 7FF" in err[0], err

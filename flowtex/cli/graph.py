@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -53,15 +53,28 @@ def report_plugins(graph_path: str | Path, args: argparse.Namespace) -> None:
 
 
 def load_graph_from_args(args: argparse.Namespace, path: str | Path | None = None, tier: str | None = None,
-                         before_compile: Callable[[Any], None] | None = None) -> Any:
+                         before_compile: Callable[[Any], None] | None = None,
+                         outputs: Mapping[str, str | Path | None] | None = None) -> Any:
     """The compiled graph named by ``args.graph`` (or ``path``) with ``--set``, ``--plugins``, ``--no-plugins``,
     compiled by ``tier`` (default ``--compile``, if the verb has it; docs/engine.md); ``before_compile`` runs once
-    the graph is checked (flowtex.graph.compiled.load_graph)."""
+    the graph is checked (flowtex.graph.compiled.load_graph). ``outputs`` (option -> path) are refused, then, when one
+    is a file the graph's nodes read (a model set, a plugin's table; from the graph file or ``--set``)."""
     from ..graph.compiled import load_graph
 
     path = path if path is not None else args.graph
     tier = tier or getattr(args, "compile", None)
-    graph = load_graph(path, overrides(args.overrides), **plugin_kwargs(args), tier=tier, before_compile=before_compile)
+    check = before_compile
+    if outputs:
+        def check(resolved: Any) -> None:
+            from ..graph.resolved import files_read
+            from ..io.atomic import check_not_input
+
+            read = sorted(files_read(resolved))
+            for option, out in outputs.items():
+                check_not_input(out, read, option, what="a file the graph reads")
+            if before_compile is not None:
+                before_compile(resolved)
+    graph = load_graph(path, overrides(args.overrides), **plugin_kwargs(args), tier=tier, before_compile=check)
     report_plugins(path, args)
     return graph
 

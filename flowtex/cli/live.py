@@ -50,7 +50,7 @@ def cmd_live(args: argparse.Namespace) -> int:
     if missing:
         raise FlowtexError(f"flowtex live: missing {', '.join(missing)} (usage: flowtex live GRAPH --dbc DEVICE.dbc --map MAP.yaml ...)")
     check_live_outputs(args, args.graph, args.dbc, args.map)
-    return run_live_session(load_graph_from_args(args, tier="fused"), args)  # live keeps the fused tick
+    return run_live_session(load_graph_from_args(args, tier="fused", outputs=live_outputs(args)), args)  # live keeps the fused tick
 
 
 def check_live_outputs(args: argparse.Namespace, source: str, dbc: str | None, map_: str | None) -> None:
@@ -62,6 +62,11 @@ def check_live_outputs(args: argparse.Namespace, source: str, dbc: str | None, m
     check_output(args.record, inputs=inputs, option="--record", others={"--stats": args.stats})
     check_output(getattr(args, "record_audio", None), inputs=inputs, others={"--stats": args.stats, "--record": args.record}, option="--record-audio",
                  suffixes=(".wav",))
+
+
+def live_outputs(args: argparse.Namespace) -> dict[str, str | None]:
+    """The files a live session writes, by option (checked against the files its graph reads)."""
+    return {"--stats": args.stats, "--record": args.record, "--record-audio": getattr(args, "record_audio", None)}
 
 
 def run_live_session(graph: Any, args: argparse.Namespace, dbc: str | None = None, map_: str | None = None) -> int:

@@ -63,7 +63,7 @@ def cmd_models_resample(args: argparse.Namespace) -> int:
     from ..fit.resample import check_misses, resample_summary, tqdm_progress
     from ..fit.resample_densify import densify_summary, resample_densified
     from ..io.atomic import atomic_output, check_output
-    from ..io.hatt import rule_lost_in_xml, write_hatt_xml
+    from ..io.hatt import rule_lost_in_xml, texture_index, write_hatt_xml
     from ..io.modelset import load_model_set, save_model_set
 
     target = check_output(args.output, inputs=[args.input], option="-o")
@@ -73,6 +73,7 @@ def cmd_models_resample(args: argparse.Namespace) -> int:
         raise DataError(f"-o {args.output}: write the resampled set as .json (flowtex's format, with the resampling "
                         "record) or .xml (HaTT's format)")
     original = load_model_set(args.input)
+    texture = texture_index(original) if target.suffix.lower() == ".xml" else 0  # a bad one refused before the work
     progress, close = tqdm_progress(original.num_models, "resample")
     try:
         ms, out = resample_densified(original, args.rate, args.densify, progress, keep_order=args.keep_order,
@@ -85,7 +86,7 @@ def cmd_models_resample(args: argparse.Namespace) -> int:
     check_misses(out, args.allow_misses, str(args.input))  # refuses (FlowtexError naming the models) unless --allow-misses
     with atomic_output(target) as tmp:
         if target.suffix.lower() == ".xml":
-            write_hatt_xml(out, tmp, texture=int(out.metadata.get("texture") or 0))
+            write_hatt_xml(out, tmp, texture=texture)
         else:
             save_model_set(out, tmp)
     line, warning = resample_summary(args.input, ms, out, str(target), args.keep_order)

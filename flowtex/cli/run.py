@@ -58,16 +58,17 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         if not (args.dbc and args.map):
             raise FlowtexError(f"{args.input}: replaying a CAN session needs --dbc DEVICE.dbc and --map MAP.yaml")
-        read_session_checked(args.input)
+        read["log"] = read_session_checked(args.input)  # read once: the replay takes it
         check_file(args.map, DEVICE_MAP, args.dbc)  # the DBC too
 
-    graph = load_graph_from_args(args, before_compile=check_replay_files if replay else read_recording)
+    graph = load_graph_from_args(args, before_compile=check_replay_files if replay else read_recording,
+                                 outputs={"-o": args.output})
     recording = read.get("recording")
     if replay:
         from ..runtime.replay import replay_session
 
         report = replay_session(graph, args.input, args.dbc, args.map, args.output, seed=args.seed,
-                                expect_audio=args.expect_audio)
+                                expect_audio=args.expect_audio, log=read.get("log"))
         say(str(report))
         return 1 if report.audio_unexplained else 0
     if args.expect_audio:
@@ -77,7 +78,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         from ..runtime.offline import render_recording_audio
 
         samples, rate, clipped = render_recording_audio(graph, args.input, args.output, args.map, seed=args.seed,
-                                               progress=sys.stderr.isatty(), nonfinite=args.nonfinite, recording=recording)
+                                               progress=sys.stderr.isatty(), nonfinite=args.nonfinite, recording=recording,
+                                               nonfinite_out=args.nonfinite_outputs)
         say(f"{graph.name}: {samples.shape[0]} frames x {samples.shape[1]} channel(s) at {rate:g} Hz -> {args.output}")
         for line in clipped:
             note(f"warning: {line}")

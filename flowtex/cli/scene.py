@@ -86,7 +86,7 @@ def cmd_scene_run(args: argparse.Namespace) -> int:
         def read_recording(resolved: Any) -> None:  # once the planned graph is checked, before its compile
             read["recording"] = load_recording_for(resolved, args.input)
 
-        graph = load_graph_from_args(args, graph_path, before_compile=read_recording)
+        graph = load_graph_from_args(args, graph_path, before_compile=read_recording, outputs={"-o": args.output})
         recording = read["recording"]
         outputs = run_recording(graph, args.input, args.output, seed=args.seed, progress=sys.stderr.isatty(), recording=recording)
     say(run_summary(graph, outputs, args.output))
@@ -96,7 +96,7 @@ def cmd_scene_run(args: argparse.Namespace) -> int:
 def cmd_scene_live(args: argparse.Namespace) -> int:
     from ..scene.build import plan_to_graph
     from ..scene.file import load_scene
-    from .live import check_live_outputs, run_live_session
+    from .live import check_live_outputs, live_outputs, run_live_session
 
     scene = load_scene(args.scene)
     dbc = args.dbc or (str(scene.dbc) if scene.dbc else None)
@@ -107,5 +107,5 @@ def cmd_scene_live(args: argparse.Namespace) -> int:
     with tempfile.TemporaryDirectory(prefix="flowtex-scene-") as tmp:
         graph_path = Path(tmp) / "scene.yaml"
         plan_to_graph(args.scene, graph_path, tuple(args.plugins), fixed=args.surface, relative=False)
-        graph = load_graph_from_args(args, graph_path, tier="fused")  # live keeps the fused tick
+        graph = load_graph_from_args(args, graph_path, tier="fused", outputs=live_outputs(args))  # live keeps the fused tick
         return run_live_session(graph, args, dbc, map_)

@@ -63,6 +63,7 @@ from ..dsp.filter_design import zero_phase_highpass
 from ..dsp.resample import PASSBAND as RESAMPLE_PASSBAND
 from ..dsp.spectral import gfc, lsd_db, octave_bands, psd_band_power, psd_centroid, welch_psd
 from ..errors import DataError
+from ..limits import excerpt
 from ..models.texture import TextureModelSet
 
 MIN_WINDOWS = 10
@@ -330,6 +331,10 @@ def surface_renders(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, f
         raise DataError(f"{where} is at {rate:g} Hz but the surface's models are for {ms.sample_rate:g} Hz; "
                         f"resample the surface with `flowtex models resample {surface} --rate {rate:g} -o OUT.json`")
     top = resampled_band_hz(ms)
+    if top <= opt.min_freq_hz:
+        raise DataError(f"{ms.source or ms.material}: its resampling record (metadata resample.from_hz "
+                        f"{ms.metadata['resample']['from_hz']:g} Hz) leaves the models a band up to {top:g} Hz, below the "
+                        f"{opt.min_freq_hz:g} Hz where the comparison starts: nothing to compare (is the record right?)")
     if top < opt.max_freq_hz:
         opt = replace(opt, max_freq_hz=top)
     renders = render_along(ms, speed, force, range(opt.seeds), opt.lookup)
@@ -364,8 +369,14 @@ def resampled_band_hz(ms: TextureModelSet) -> float:
     x it. Comparing shapes above measures neither the fit nor the recording (a resampled twin is compared in the
     common band).
     """
-    from_hz = (ms.metadata.get("resample") or {}).get("from_hz") if isinstance(ms.metadata, dict) else None
-    if isinstance(from_hz, (int, float)) and from_hz > 0 and from_hz != ms.sample_rate:
+    record = ms.metadata.get("resample") if isinstance(ms.metadata, dict) else None
+    from_hz = record.get("from_hz") if isinstance(record, dict) else None
+    if record is not None and (not isinstance(record, dict) or from_hz is not None and (
+            isinstance(from_hz, bool) or not isinstance(from_hz, (int, float)) or not 0 < from_hz < math.inf)):
+        got = excerpt(record if not isinstance(record, dict) else from_hz)
+        raise DataError(f"{ms.source or ms.material}: metadata 'resample' must be the record flowtex models resample "
+                        f"writes, with from_hz the rate (Hz) the set was resampled from; got {got}: fix or remove it")
+    if from_hz is not None and from_hz != ms.sample_rate:
         return RESAMPLE_PASSBAND * min(from_hz, ms.sample_rate) / 2.0
     return math.inf
 

@@ -190,14 +190,16 @@ def store_mu(surface: str | Path, mu: float) -> None:
     A symbolic link is followed: the file it points to is updated (renamed over, keeping its mode) and the link
     stays a link, so every other user of the model set sees the new mu.
     """
-    from ..io.hatt import write_hatt_xml
+    from ..io.hatt import texture_index, write_hatt_xml
     from ..io.modelset import load_model_set, save_model_set
 
     surface = Path(os.path.realpath(surface))
     ms = load_model_set(surface)
     ms.mu = float(mu)
+    xml = ms.metadata.get("format") == "hatt-xml"
+    texture = texture_index(ms) if xml else 0
     with atomic_output(surface, keep_mode=True) as tmp:
-        if ms.metadata.get("format") == "hatt-xml":
-            write_hatt_xml(ms, tmp, texture=int(ms.metadata.get("texture") or 0))
+        if xml:
+            write_hatt_xml(ms, tmp, texture=texture)
         else:
             save_model_set(ms, tmp)

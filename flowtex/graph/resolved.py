@@ -61,6 +61,18 @@ class GraphChecker(Collector):
     fail_if_any = Collector.raise_if_any
 
 
+def files_read(resolved: ResolvedGraph) -> set[Path]:
+    """Files the kept nodes of a checked graph read: the value of every path parameter, resolved (a model set, a
+    pattern file, a tap library, a plugin's own file; the graph file and plugins are the caller's)."""
+    found: set[Path] = set()
+    for rn in resolved.nodes.values():
+        for name, decl in rn.cls.params.items():
+            value = rn.params.get(name)
+            if decl.kind == "path" and value is not None:
+                found.add(Path(value).resolve())
+    return found
+
+
 def param_loc(rn: ResolvedNode, param: str | None) -> Location:
     """Where to report a problem with parameter ``param`` of a node (its key, else its params: block, else the node)."""
     if param is not None and param in rn.spec.param_locs:

@@ -64,10 +64,7 @@ def check_output(path: str | Path | None, *, inputs: Iterable[str | Path | None]
     if path is None:
         return None
     out = Path(path).expanduser()
-    for item in inputs:  # first: "that is an input" says more than the suffix would
-        if item is not None and _same_file(out, Path(item).expanduser()):
-            raise OutputError(f"{option} {path}: that is an input of this command ({item}); "
-                              "flowtex never overwrites an input: choose another output file")
+    check_not_input(path, inputs, option)  # first: "that is an input" says more than the suffix would
     for other, item in (others or {}).items():  # one output written over another would be lost without a word
         if item is not None and _same_name(out, Path(item).expanduser()):
             raise OutputError(f"{option} {path}: {other} writes that file too; give each output its own file")
@@ -93,6 +90,20 @@ def check_output(path: str | Path | None, *, inputs: Iterable[str | Path | None]
         raise OutputError(f"{option} {path}: folder {folder} is not writable; choose another output folder")
     _probe(out, folder, f"{option} {path}")
     return out
+
+
+def check_not_input(path: str | Path | None, inputs: Iterable[str | Path | None], option: str = "-o",
+                    what: str = "an input of this command") -> None:
+    """Refuse (one line naming ``option`` and the file) an output ``path`` that is the same file as one of ``inputs``;
+    ``what`` says what the inputs are. :func:`check_output` calls it; a verb whose inputs are known only later (the
+    files a graph's nodes read, once the graph is checked) calls it again then, still before any work."""
+    if path is None:
+        return
+    out = Path(path).expanduser()
+    for item in inputs:
+        if item is not None and _same_file(out, Path(item).expanduser()):
+            raise OutputError(f"{option} {path}: that is {what} ({item}); flowtex never overwrites an input: choose "
+                              "another output file")
 
 
 def _probe(out: Path, folder: Path, what: str) -> None:

@@ -17,8 +17,9 @@ import can
 from can.io.blf import FILE_HEADER_SIZE, FILE_HEADER_STRUCT
 
 from ..errors import DataError
-from ..limits import check_regular
+from ..limits import MAX_CANLOG_BYTES, check_file_size
 from .atomic import atomic_output
+from .canlog_blf import read_blf
 from .canlog_text import read_text_log
 from .formats import CAN_LOG, suffixes
 
@@ -129,31 +130,30 @@ class SessionWriter:
 def read_session(path: str | Path) -> Iterator[can.Message]:
     """Frames of a session log in file order (with their ``is_rx`` direction).
 
-    Errors in a text log (.log, .asc) name the file and line (:mod:`flowtex.io.canlog_text`)."""
+    Errors in a text log (.log, .asc) name the file and line (:mod:`flowtex.io.canlog_text`); a BLF is read within
+    bounds on what it claims (:mod:`flowtex.io.canlog_blf`). Every log is refused beyond
+    :data:`~flowtex.limits.MAX_CANLOG_BYTES` or :data:`~flowtex.limits.MAX_CANLOG_FRAMES`."""
     path = _readable_log(path)
     if path.suffix.lower() != ".blf":
         yield from read_text_log(path, whole_only=False)[0]
         return
     try:
-        reader = can.LogReader(path)
-    except Exception as exc:  # python-can raises various errors for unreadable files
-        raise DataError(f"{path}: cannot read CAN log: {exc}") from None
-    try:
-        yield from reader
+        yield from read_blf(path)
     except DataError:
         raise
-    except Exception as exc:
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read CAN log: {exc.strerror or exc}") from None
+    except Exception as exc:  # python-can raises various errors for a malformed container
         raise DataError(f"{path}: malformed CAN log: {exc}") from None
-    finally:
-        stop = getattr(reader, "stop", None)
-        if stop is not None:
-            stop()
 
 
 def _readable_log(path: str | Path) -> Path:
-    """``path`` as a Path once it is a CAN log's suffix and an existing regular file, else DataError."""
+    """``path`` as a Path once it is a CAN log's suffix and an existing regular file of at most
+    :data:`~flowtex.limits.MAX_CANLOG_BYTES`, else DataError."""
     path = check_log_path(path, for_writing=False)
-    check_regular(path, "CAN log")
+    check_file_size(path, "CAN log", MAX_CANLOG_BYTES)
+    if path.is_dir():
+        raise DataError(f"{path}: is a folder, not a CAN log")
     if not path.is_file():
         raise DataError(f"{path}: CAN log not found")
     return path

@@ -18,8 +18,9 @@ from typing import BinaryIO
 
 import can
 
+from .. import limits
 from ..errors import DataError
-from ..limits import excerpt
+from ..limits import check_frames, excerpt
 
 MAX_LINE_BYTES = 64 * 1024
 """Longer lines are refused (a CAN FD line of an .asc log is a few hundred bytes): memory stays bounded on a binary file."""
@@ -58,8 +59,11 @@ class NumberedLines:
             self.cut = True
             raise StopIteration
         self.number += 1
+        if self.number > limits.MAX_CANLOG_LINES:
+            raise self.error(f"more than {limits.MAX_CANLOG_LINES:,} lines; flowtex reads text CAN logs of up to that many "
+                             "(flowtex.limits.MAX_CANLOG_LINES): replay a shorter session")
         try:
-            text = raw.decode("utf-8")
+            text = raw.decode("utf-8-sig" if self.number == 1 else "utf-8")  # a byte-order mark (Windows editors) is no text
         except UnicodeDecodeError as exc:
             raise self._not_text(raw[exc.start], exc.start) from None
         control = _CONTROL.search(text)
@@ -126,11 +130,16 @@ def candump_problem(line: str) -> tuple[str, int] | None:
         return f"CAN ID {excerpt(can_id)} is not 1 to 8 hexadecimal digits {form}", col
     if len(can_id) <= 3 and int(can_id, 16) > 0x7FF:
         return f"standard CAN ID {can_id} is above 7FF (write an extended ID with 8 digits, e.g. {int(can_id, 16):08X})", col
+    if int(can_id, 16) > 0x1FFFFFFF:
+        return f"extended CAN ID {can_id} is above 1FFFFFFF (a CAN ID has at most 29 bits)", col
     col += len(can_id) + 1
     limit = 8
     if data.startswith("#"):  # CAN FD: one hex digit of flags, then the data
         if len(data) < 2 or not _HEX.match(data[1]):
             return f"CAN FD frame {excerpt(frame)} needs one hex digit of flags after '##' {form}", col
+        if not data[1].isdigit():
+            return (f"CAN FD flags {data[1]!r} after '##': python-can reads flags 0 to 9 only (1 bit rate switch, 2 error "
+                    "state, 4 FD frame)"), col + 1
         data, col, limit = data[2:], col + 2, 64
     elif data[:1] in ("R", "r"):
         if data[1:] and not (data[1:].isdigit() and int(data[1:]) <= 8):
@@ -147,6 +156,8 @@ def candump_problem(line: str) -> tuple[str, int] | None:
 
 
 _ASC_FRAME = re.compile(r"\s*\d+\.\d+\s+\d+\s+(\S+)(?:\s+(Rx|Tx)(?:\s+(.*))?)?\s*\Z", re.IGNORECASE)
+_ASC_TIME = re.compile(r"\d+\.\d+\Z")
+"""The only timestamp python-can's ASCReader reads: it skips a frame line with any other (nan, 1e400, -0.5, 4)."""
 """An .asc line that starts like a classic CAN frame: TIME CHANNEL ID [Rx|Tx [d DLC BYTES... | r [DLC]]]."""
 _ASC_BASE = re.compile(r"\s*base\s+(hex|dec)\b", re.IGNORECASE)
 
@@ -167,15 +178,18 @@ class AscCheck:
         m = _ASC_FRAME.match(line)
         if m is None:
             tokens = line.split()
-            if len(tokens) >= 4 and tokens[3].lower() in ("rx", "tx") and not _number(tokens[0]):
-                return f"timestamp {excerpt(tokens[0])} is not a number of seconds", line.index(tokens[0]) + 1
+            if len(tokens) >= 4 and tokens[3].lower() in ("rx", "tx") and not _ASC_TIME.match(tokens[0]):
+                return (f"timestamp {excerpt(tokens[0])} is not a number of seconds (DIGITS.DIGITS, e.g. 12.345000; python-can "
+                        "would skip the frame)", line.index(tokens[0]) + 1)
+            if len(tokens) >= 2 and tokens[1].upper() == "CANFD" and _ASC_TIME.match(tokens[0]):
+                return self._canfd(tokens)
             return None
         if m.group(1).lower().startswith("errorframe") or m.group(1).upper() == "CANFD":
             return None
-        digits = "0123456789abcdefABCDEF"[: 10 if self.base == 10 else 22]
-        ident = m.group(1)[:-1] if m.group(1)[-1:] in "xX" else m.group(1)
-        if not ident or any(c not in digits for c in ident):
-            return f"CAN ID {excerpt(m.group(1))} is not a number in base {self.base} (an extended ID ends in x)", m.start(1) + 1
+        digits = self.digits
+        problem = self._id_problem(m.group(1))
+        if problem is not None:
+            return problem, m.start(1) + 1
         if m.group(2) is None:
             return (f"the frame line ends after {excerpt(m.group(1))}: is the line cut? (an .asc frame is "
                     "'TIME CHANNEL ID Rx|Tx d DLC BYTES...')", m.start(1) + 1)
@@ -196,19 +210,53 @@ class AscCheck:
         return None
 
 
-def _number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
+    @property
+    def digits(self) -> str:
+        """The characters of a number in the log's base (``base hex`` or ``base dec``)."""
+        return "0123456789abcdefABCDEF"[: 10 if self.base == 10 else 22]
+
+    def _id_problem(self, text: str) -> str | None:
+        """What is wrong with a CAN ID of an .asc line (in the log's base; an extended one ends in x), or None."""
+        ident = text[:-1] if text[-1:] in "xX" else text
+        if not ident or any(c not in self.digits for c in ident):
+            return f"CAN ID {excerpt(text)} is not a number in base {self.base} (an extended ID ends in x)"
+        extended = ident != text
+        top = 0x1FFFFFFF if extended else 0x7FF
+        if int(ident, self.base) > top:
+            why = "a CAN ID has at most 29 bits" if extended else "an extended ID ends in x"
+            return f"{'extended' if extended else 'standard'} CAN ID {ident} is above {top:{'X' if self.base == 16 else 'd'}} ({why})"
+        return None
+
+    def _canfd(self, tokens: list[str]) -> tuple[str, int] | None:
+        """The problem of a CAN FD line ``TIME CANFD CH Rx|Tx ID [NAME] BRS ESI DLC LENGTH BYTES...`` that python-can
+        would misread (fewer bytes than its LENGTH, which it takes as the frame's length) or fail on, or None."""
+        form = "(expected 'TIME CANFD CH Rx|Tx ID BRS ESI DLC LENGTH BYTES...')"
+        rest = tokens[2:]
+        if len(rest) < 7:
+            return f"the CAN FD line ends after {len(tokens)} fields: is the line cut? {form}", 1
+        problem = self._id_problem(rest[2])
+        if problem is not None:
+            return problem, 1
+        fields = rest[3:7] if rest[3].isdigit() else rest[4:8]
+        if len(fields) < 4 or not fields[3].isdigit():
+            return f"CAN FD data length {excerpt(fields[3] if len(fields) > 3 else '')} is not a number of bytes {form}", 1
+        length = int(fields[3])
+        data = rest[(7 if rest[3].isdigit() else 8):][:length]
+        if length > 64:
+            return f"CAN FD data length {length} is more than the 64 bytes a CAN FD frame holds", 1
+        if len(data) < length:
+            return f"CAN FD data length {length} announces {length} bytes but the line holds {len(data)}: is the line cut?", 1
+        bad = next((b for b in data if not b or any(c not in self.digits for c in b)), None)
+        if bad is not None:
+            return f"data byte {excerpt(bad)} is not a number in base {self.base}", 1
+        return None
 
 
 def read_text_log(path: Path, whole_only: bool) -> tuple[list[can.Message], list[int], bool]:
     """Frames of a .log or .asc session, the line of each, and whether its last line was cut (``whole_only``).
 
-    Raises DataError ``FILE:LINE: ...`` for a line that is not text, a .log line that is malformed, and any error
-    python-can raises while reading a line.
+    Raises DataError ``FILE:LINE: ...`` for a line that is not text, a .log line that is malformed, any error
+    python-can raises while reading a line, and a frame past :data:`~flowtex.limits.MAX_CANLOG_FRAMES`.
     """
     asc = path.suffix.lower() == ".asc"
     frames: list[can.Message] = []
@@ -222,6 +270,7 @@ def read_text_log(path: Path, whole_only: bool) -> tuple[list[can.Message], list
         reader = can.ASCReader(source) if asc else can.CanutilsLogReader(source)
         try:
             for msg in reader:
+                check_frames(f"{path}:{source.number}", len(frames) + 1)
                 frames.append(msg)
                 lines.append(source.number)
         except DataError:

@@ -135,7 +135,7 @@ def file_kind(path: str | Path) -> str:
     """
     path = Path(path)
     kind = kind_of(path)
-    if kind in (RECORDING, DBC):
+    if kind in (RECORDING, DBC, CAN_LOG):
         return kind
     suffix = path.suffix.lower()
     from ..limits import MAX_YAML_BYTES, check_file_size, excerpt

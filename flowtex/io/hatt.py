@@ -34,6 +34,7 @@ import numpy as np
 
 from ..dsp.lsf import lsf_to_poly_new
 from ..errors import DataError
+from ..limits import excerpt
 from ..models.texture import HATT_RULE, RenderRule, TextureModelSet
 from .xmldoc import parse_xml
 
@@ -262,6 +263,25 @@ def rule_lost_in_xml(rule: RenderRule | None, path: str | Path) -> str | None:
     return (f"warning: {path}: HaTT XML cannot state this set's rendering rule (interpolation {rule.interpolation}, outside "
             f"{rule.outside}); read back it renders with HaTT's ({HATT_RULE.interpolation}, {HATT_RULE.outside}) unless "
             f"texture_lookup is given interpolation: {rule.interpolation} and outside: {rule.outside}; flowtex's JSON format keeps it")
+
+
+MAX_TEXTURE_INDEX = 2**31 - 1
+"""Largest ``<modelSet texture=...>`` written (HaTT numbers its textures 1 to 100; 0: unknown)."""
+
+
+def texture_index(ms: TextureModelSet) -> int:
+    """The texture index to write as ``<modelSet texture=...>``: the set's ``metadata['texture']`` (an integer, or the
+    integer text a HaTT XML holds), 0 when absent; DataError naming the set's file when it is anything else (a JSON
+    set's free-form metadata may hold any value), checked before the work that ends in writing the XML."""
+    value = ms.metadata.get("texture") if isinstance(ms.metadata, dict) else None
+    if value is None or value == "":
+        return 0
+    if isinstance(value, str) and value.strip().isdigit() and len(value.strip()) <= 10:
+        value = int(value.strip())
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_TEXTURE_INDEX:
+        raise DataError(f"{ms.source or ms.material}: metadata 'texture' is {excerpt(value)}; the HaTT texture index written "
+                        f"as <modelSet texture=...> must be a whole number from 0 to {MAX_TEXTURE_INDEX}: fix or remove it")
+    return value
 
 
 def write_hatt_xml(ms: TextureModelSet, path: str | Path, texture: int = 0, digits: int | None = None) -> Path:

@@ -30,7 +30,7 @@ from ..io.codec_tables import _NF, _NI, TableDecoder, TableEncoder, _encode_tabl
 from ..io.dbc import load_dbc
 from ..io.mapsafety import peak_low
 from ..node_decl import PortSpec
-from .safety import OutputGuard, Watchdog, first_stale, guard_kernel
+from .safety import OutputGuard, Watchdog, budget_units, first_stale, guard_kernel
 
 configure_numba_cache()  # numba binds a kernel's cache folder when it is decorated: choose it first (flowtex.cache)
 
@@ -111,7 +111,7 @@ class CanIO:
                 per_msg_idx.setdefault(m, [None] * len(c.signals))[c.index[s]] = (base + j, float(b.scale[j]), float(b.offset[j]))
                 if (b.name, m) not in wd_keys:
                     wd_keys.append((b.name, m))
-                    wd_timeouts.append(max(1, math.ceil(b.timeout_ms * rate_hz / 1000.0 - 1e-9)))
+                    wd_timeouts.append(ticks_at_least(b.timeout_ms, rate_hz))
         self.watchdog_keys = wd_keys
         self.timeouts_ticks = np.array(wd_timeouts, dtype=np.int64)
         self.decoders: dict[int, tuple[Callable[[Any], bool], tuple[int, ...], bool]] = {}
@@ -149,19 +149,23 @@ class CanIO:
             lim = b.peak_limit if b.peak_limit is not None else b.hi
             phi.extend(lim)
             plo.extend(peak_low(b.lo, b.hi, lim))
-            pmax.extend([int(round(b.peak_ms * rate_hz / 1000.0)) if b.peak_limit is not None else 0] * w)
-            prec.extend([max(1, int(round(b.recover_ms * rate_hz / 1000.0)))] * w)
+            p_ticks, r_ticks = ticks_at_most(b.peak_ms, rate_hz) if b.peak_limit is not None else 0, ticks_at_least(b.recover_ms, rate_hz)
+            try:
+                budget_units(p_ticks, r_ticks)
+            except ValueError:
+                raise DataError(f"{b.loc}: output {name!r}: peak max_ms {b.peak_ms:.12g} and recover_ms {b.recover_ms:.12g} are "
+                                f"{p_ticks} and {r_ticks} ticks at {rate_hz:g} Hz, an allowance the guard cannot count in 64-bit "
+                                "integers; shorten max_ms or recover_ms, or make one a multiple of the other") from None
+            pmax.extend([p_ticks] * w)
+            prec.extend([r_ticks] * w)
             for j, (m, s) in enumerate(b.signals):
                 c = codecs[m]
                 src = sources.setdefault(m, [None] * len(c.signals))
                 src[c.index[s]] = (self.out, start + j, float(b.scale[j]), float(b.offset[j]))
             start += w
-        try:
-            self.guard = OutputGuard(np.array(lo), np.array(hi), np.array(safe), peak_hi=np.array(phi), peak_lo=np.array(plo),
-                                     peak_max_ticks=np.array(pmax, dtype=np.int64), peak_recover_ticks=np.array(prec, dtype=np.int64)
-                                     ) if total else None
-        except ValueError as e:  # only a peak budget too large for int64 (day-long max_ms and recover_ms at a high rate)
-            raise DataError(f"{canmap.path}: {e}") from None
+        self.guard = OutputGuard(np.array(lo), np.array(hi), np.array(safe), peak_hi=np.array(phi), peak_lo=np.array(plo),
+                                 peak_max_ticks=np.array(pmax, dtype=np.int64), peak_recover_ticks=np.array(prec, dtype=np.int64)
+                                 ) if total else None
         # where the bound outputs are in the arena, in map order (None: no bound output)
         self._gather = np.array(gather, dtype=np.int64) if total else None
         self._gfp, gip = self.guard.tables if self.guard is not None else (None, None)
@@ -376,6 +380,17 @@ def load_io(graph: TickProgram, dbc_path: str | Path, map_path: str | Path) -> C
     used = set(canmap.sensor_messages()) | set(canmap.actuator_messages())
     codecs = {m.name: MessageCodec(m) for m in db.messages if m.name in used}
     return CanIO(graph, canmap, codecs, float(graph.rate))
+
+
+def ticks_at_least(ms: float, rate_hz: float) -> int:
+    """``ms`` milliseconds as whole ticks at ``rate_hz``, rounded up and at least 1: a timeout or a peak refill never
+    shorter than the map says (a duration within 1e-9 tick of a whole number of ticks is that number)."""
+    return max(1, math.ceil(ms * rate_hz / 1000.0 - 1e-9))
+
+
+def ticks_at_most(ms: float, rate_hz: float) -> int:
+    """``ms`` milliseconds as whole ticks at ``rate_hz``, rounded down: a peak allowance never longer than the map says."""
+    return max(0, math.floor(ms * rate_hz / 1000.0 + 1e-9))
 
 
 def port_widths(ports: Mapping[str, PortSpec]) -> dict[str, int]:

@@ -144,9 +144,10 @@ AUDIO_RATE_FACTOR = 8
 
 def render_recording_audio(graph: Graph, input_path: str | Path, output_path: str | Path, map_path: str | Path | None = None,
                            seed: int | None = None, progress: bool = True, nonfinite: str = "error",
-                           recording: Recording | None = None) -> tuple[np.ndarray, float, list[str]]:
+                           recording: Recording | None = None, nonfinite_out: str = "warn") -> tuple[np.ndarray, float, list[str]]:
     """Run ``graph`` over a recording and write its audio-rate output as a float32 WAV; returns (samples, rate, warnings:
-    :func:`clip_warnings`).
+    the outputs holding NaN/inf, which play as silence, then :func:`clip_warnings`). ``nonfinite_out`` as in
+    :func:`run_recording` (``"error"``: refused, nothing written).
 
     The channels, rate, scales and clips come from the ``audio`` section of ``map_path``
     (:mod:`flowtex.io.audiomap`); without a map every scalar output is one channel at
@@ -164,10 +165,13 @@ def render_recording_audio(graph: Graph, input_path: str | Path, output_path: st
         amap = default_audio_map(widths, AUDIO_RATE_FACTOR * float(graph.rate))
         if not amap.channels:
             raise FlowtexError(f"graph {graph.name!r} has no scalar output to play; give --map MAP.yaml with an 'audio' section")
-    outputs = run_recording(graph, input_path, None, seed=seed, progress=progress, nonfinite=nonfinite, recording=recording)
+    outputs = run_recording(graph, input_path, None, seed=seed, progress=progress, nonfinite=nonfinite, recording=recording,
+                            nonfinite_out=nonfinite_out)
     samples = render_outputs(outputs, amap, float(graph.rate))
     write_wav(output_path, samples, amap.rate)
-    return samples, amap.rate, clip_warnings(outputs, amap, float(graph.rate))
+    silent = [f"{line}; played as silence (0), as flowtex live plays them (--nonfinite-outputs error refuses instead)"
+              for line in nonfinite_outputs({c.output: outputs[c.output] for c in amap.channels})]
+    return samples, amap.rate, silent + clip_warnings(outputs, amap, float(graph.rate))
 
 
 def clip_warnings(outputs: dict[str, np.ndarray], amap: AudioMap, graph_rate: float) -> list[str]:

@@ -44,7 +44,7 @@ import numpy as np
 from ..errors import DataError
 from ..graph.program import TickProgram
 from ..io.atomic import atomic_output
-from ..io.canlog import SessionWriter, read_session_checked
+from ..io.canlog import LogCompleteness, SessionWriter, read_session_checked
 from ..io.codec_tables import decode_packed
 from ..io.formats import AUDIO, CAN_LOG, RECORDING, format_of
 from .audio_timeline import split_events
@@ -222,7 +222,8 @@ def _tick_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[can.Message],
 
 def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str | Path, map_path: str | Path,
                    output_path: str | Path | None = None, seed: int | None = None,
-                   expect_audio: str | Path | None = None) -> ReplayReport:
+                   expect_audio: str | Path | None = None,
+                   log: tuple[list[can.Message], LogCompleteness] | None = None) -> ReplayReport:
     """Run ``graph`` over the frames a live session received, and compare with what it sent.
 
     ``output_path``: ``.npz`` writes the graph outputs (time first, plus ``rate``);
@@ -231,12 +232,14 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
     ``seed`` must be the live session's (``--seed``; default the graph's).
     ``expect_audio``: the session's ``--record-audio`` WAV, checked frame by frame against the stream rebuilt from the
     replay and the log's audio timeline (``report.audio_lines``, ``report.audio_unexplained``).
+    ``log``: the session log already read (:func:`~flowtex.io.canlog.read_session_checked`; the command line reads it
+    before the compile), so a long log is not read twice.
     """
     session_path = Path(session_path)
     io = load_io(graph, dbc_path, map_path)
     if not io.tx:
         raise DataError(f"{map_path}: the map binds no outputs, so the session has no actuator blocks to mark ticks")
-    frames, completeness = read_session_checked(session_path)
+    frames, completeness = log if log is not None else read_session_checked(session_path)
     place = _frame_places(session_path, frames, completeness.lines)
     timeline, frames = split_events(frames)
     ticks, exit_block = _split_ticks(frames, io.tx_ids, place, completeness.problem is None)

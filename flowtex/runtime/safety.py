@@ -146,7 +146,7 @@ def _ticks(name: str, x, n: int, least: int) -> np.ndarray:
     return a.astype(np.int64)
 
 
-def _budget_units(peak: int, recover: int) -> tuple[int, int, int]:
+def budget_units(peak: int, recover: int) -> tuple[int, int, int]:
     """(capacity, cost of a peak tick, gain of a refilling tick) in integer budget units for an allowance of ``peak``
     ticks refilled from empty by ``recover`` refilling ticks: ``gain / cost = peak / recover`` exactly."""
     if peak == 0:
@@ -216,7 +216,7 @@ class OutputGuard:
         self._fp = np.ascontiguousarray(np.stack([lo_a, hi_a, safe_a, plo, phi]))
         self._ip = np.zeros((_IROWS, n), dtype=np.int64)
         for i in range(n):
-            self._ip[[_CAP, _COST, _GAIN], i] = _budget_units(int(pmax[i]), max(1, int(rec[i])))
+            self._ip[[_CAP, _COST, _GAIN], i] = budget_units(int(pmax[i]), max(1, int(rec[i])))
         self._ip[_BUDGET] = self._ip[_CAP]
 
     @property

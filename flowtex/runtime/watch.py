@@ -28,6 +28,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import FlowtexError
+from ..graph.resolved import files_read
+from ..io.atomic import check_not_input
 
 Signature = dict[Path, tuple[int, int] | None]
 
@@ -80,13 +82,7 @@ def file_signature(paths: set[Path]) -> Signature:
 
 def dependencies(graph: Any) -> set[Path]:
     """Files a built graph depends on: path parameters of its nodes (the graph file and plugins are added by the caller)."""
-    found: set[Path] = set()
-    for rn in graph.resolved.nodes.values():
-        for name, decl in rn.cls.params.items():
-            value = rn.params.get(name)
-            if decl.kind == "path" and value is not None:
-                found.add(Path(value).resolve())
-    return found
+    return files_read(graph.resolved)
 
 
 @dataclass
@@ -126,7 +122,9 @@ class Watcher:
             if any(p.suffix == ".py" for p in changed):
                 forget_plugin_code()
             graph = load_graph(self.graph_path, dict(self.overrides), self.plugins, auto_plugins=self.auto_plugins, tier=self.tier)
-            watched |= dependencies(graph)
+            read = dependencies(graph)
+            watched |= read
+            check_not_input(self.output_path, read, "-o", what="a file the graph reads")  # each run: an edit may name it
             plugin_files = list(graph_registry(self.graph_path, self.plugins, self.auto_plugins).plugin_files)
             watched |= {Path(p).resolve() for p in plugin_files}
             if plugin_files != self.plugin_files:

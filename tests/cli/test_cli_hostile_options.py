@@ -161,6 +161,24 @@ def test_compare_on_a_recording_that_never_reaches_contact(tmp_path, capsys):
     assert "normal force reaches at most 0 N" in msg and "dB" not in msg
 
 
+@pytest.mark.parametrize("record, says", [
+    ([1], "got [1]"), ("x", "got 'x'"), ({"from_hz": True}, "got True"), ({"from_hz": "500"}, "got '500'"),
+    ({"from_hz": -5}, "got -5"), ({"from_hz": 0}, "got 0"),
+    ({"from_hz": 1e-300}, "leaves the models a band up to 4e-301 Hz"), ({"from_hz": 20}, "leaves the models a band up to 8 Hz"),  # 0.8 x Nyquist
+])
+def test_compare_with_a_broken_resampling_record_is_one_line(tmp_path, capsys, record, says):
+    """A JSON set's metadata is free-form; compare reads its 'resample' record for the band the models know. A list or
+    text ended in an internal error, a from_hz of true or 1e-300 in a comparison over '12-0.4 Hz' of nan figures."""
+    ms = synthetic_model_set(np.array([50.0, 150.0]), np.array([0.5, 1.5]), ar_order=2, ma_order=2)
+    ms.metadata = {"resample": record}
+    save_model_set(ms, tmp_path / "s.json")
+    n = 5000
+    save_recording(tmp_path / "r.npz", {"accel": np.random.default_rng(0).normal(size=n), "speed": np.full(n, 100.0),
+                                        "normal_force": np.full(n, 1.0)}, rate=1000.0)
+    msg = cli_one_line(capsys, ["compare", str(tmp_path / "s.json"), str(tmp_path / "r.npz"), "--speed", "speed"], says)
+    assert msg.startswith(f"{tmp_path / 's.json'}: ") and "nan" not in msg
+
+
 def test_grid_cells_at_one_point_say_what_was_dropped(tmp_path, capsys):
     truth = default_surface()
     cells = [(60.0, 0.8), (60.0, 2.4), (250.0, 0.8), (250.0, 0.8)]  # the last two at one (speed, force)

@@ -214,3 +214,74 @@ def test_an_unknown_output_format_is_refused_before_the_work(files, capsys, tmp_
         code, err = _run(capsys, argv)
         assert code == 1 and len(err) == 1, err  # run and resample also write .wav (audio-rate outputs)
         assert err[0].startswith(f"-o {tmp_path / 'o.xyz'}: unknown output format '.xyz'; use .npz, .csv, .h5, .hdf5"), err
+
+
+PLUGIN = '''
+import numpy as np
+from numba import njit
+from flowtex.node_api import Node, NodeState, Param, Port
+
+
+@njit(cache=True)
+def table_shift_kernel(p, s, si, x, y):
+    for t in range(x.shape[0]):
+        y[t, 0] = x[t, 0] + p[0]
+
+
+class TableShift(Node):
+    """Adds a number read from a file of the plugin's own (a path parameter no flowtex reader reads)."""
+
+    type_name = "table_shift"
+    params = {"table": Param("path", doc="a text file holding one number")}
+    inputs = {"x": Port((), "*", "signal")}
+    outputs = {"y": Port("=x", "=x", "shifted signal")}
+    kernel = table_shift_kernel
+
+    def build(self, inputs, outputs):
+        return NodeState(params=np.array([float(open(self.p["table"]).read().split()[-1])]))
+'''
+
+SHIFT_GRAPH = """flowtex: 1
+name: shift
+rate: 1000
+inputs:
+  x: {unit: N}
+nodes:
+  shift: {type: table_shift, params: {table: table.csv}}
+edges:
+  - x -> shift.x
+outputs:
+  y: shift.y
+"""
+
+
+@pytest.mark.parametrize("how", ["graph file", "--set"])
+def test_an_output_that_a_node_of_the_graph_reads_is_refused_before_the_run(tmp_path, capsys, monkeypatch, how):
+    """A path parameter names a file the graph reads (here a plugin's table, which -o can name as a CSV); writing the
+    outputs over it would lose it. Refused once the graph is checked, before the compile and the run."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "plugs").mkdir()
+    (tmp_path / "plugs" / "shift.py").write_text(PLUGIN)
+    (tmp_path / "g.yaml").write_text(SHIFT_GRAPH if how == "graph file" else SHIFT_GRAPH.replace("table.csv", "other.csv"))
+    save_recording(tmp_path / "in.npz", {"x": np.arange(100.0)}, rate=1000.0)
+    victim = tmp_path / "table.csv"
+    victim.write_text("# rate: 1000\nx\n2.5\n")
+    before = victim.read_bytes()
+    argv = ["run", "g.yaml", "--plugins", "plugs", "--input", "in.npz", "-o", "table.csv"]
+    code, err = _run(capsys, argv + (["--set", "shift.table=table.csv"] if how == "--set" else []))
+    err = [line for line in err if not line.startswith("flowtex: loaded plugin code")]
+    assert code == 1 and err == [f"-o table.csv: that is a file the graph reads ({victim}); flowtex never overwrites an "
+                                 "input: choose another output file"], err
+    assert victim.read_bytes() == before and sorted(os.listdir(tmp_path)) == ["g.yaml", "in.npz", "plugs", "table.csv"]
+
+
+def test_live_stats_over_the_model_set_the_graph_reads_is_refused_before_the_session(files, capsys, tmp_path):
+    """--stats STATS.json named like the graph's model set (a JSON file too) would replace the models with statistics."""
+    graph = tmp_path / "live.yaml"
+    graph.write_text((REPO / "graphs" / "live_texture.yaml").read_text().replace("data/synthetic_texture.json", "m.json"))
+    save_recording(tmp_path / "sim.npz", {"position": np.zeros((200, 3)), "normal_force": np.ones(200)}, rate=1000.0)
+    before = files["models"].read_bytes()
+    code, err = _run(capsys, ["live", graph, "--dbc", DBC, "--map", MAP, "--simulate", tmp_path / "sim.npz",
+                              "--duration", "0.1", "--quiet", "--stats", files["models"]])
+    assert code == 1 and len(err) == 1 and err[0].startswith(f"--stats {files['models']}: that is a file the graph reads"), err
+    assert files["models"].read_bytes() == before

@@ -57,11 +57,14 @@ LOG_CASES = {  # the line, what the error says, and where its column points (the
     "bad hex in the data": ("(1000.004000) can0 100#04010203ZZ050607 R", "is not hexadecimal (character 'Z')", "ZZ"),
     "bad CAN ID": ("(1000.004000) can0 1G0#0401020304050607 R", "CAN ID '1G0' is not 1 to 8 hexadecimal digits", "1G0"),
     "standard ID above 7FF": ("(1000.004000) can0 FFF#0401020304050607 R", "standard CAN ID FFF is above 7FF", "FFF"),
+    "extended ID above 29 bits": ("(1000.004000) can0 FFFFFFFF#0401020304050607 R", "extended CAN ID FFFFFFFF is above 1FFFFFFF",
+                                  "FFFFFFFF"),
     "truncated line": ("(1000.004000) can0", "2 field(s) where '(TIMESTAMP) CHANNEL ID#DATA' is expected: is the line cut?", "("),
     "data cut to an odd number of digits": ("(1000.004000) can0 100#040102030405060 R", "odd number of hex digits (15)", "0401"),
     "no # between ID and data": ("(1000.004000) can0 1000401020304050607 R", "has no '#' between the CAN ID and the data", "1000401"),
     "bad timestamp": ("(1000.0x4000) can0 100#0401020304050607 R", "timestamp '(1000.0x4000)' is not '(SECONDS)'", "("),
     "bad direction": ("(1000.004000) can0 100#0401020304050607 X", "direction 'X' must be R (received) or T (sent)", " X"),
+    "CAN FD flags python-can cannot read": ("(1000.004000) can0 100##F0401020304050607 R", "CAN FD flags 'F' after '##'", "F04"),
     "too many data bytes": ("(1000.004000) can0 100#040102030405060708 R", "9 data bytes; a classic CAN frame holds at most 8", "0401"),
     "NUL byte (binary)": ("(1000.004000) can0 100#04010203\x0004050607 R", "byte 0x00 is not text", "\x00"),
 }
@@ -81,6 +84,17 @@ def test_each_malformed_log_line_is_named_by_file_line_and_column(tmp_path, kind
     assert "\n" not in message
     with pytest.raises(DataError, match=re.escape(f"{path}:{line}:{column}: ")):
         list(read_session(path))
+
+
+@pytest.mark.parametrize("suffix", [".log", ".asc"])
+def test_a_byte_order_mark_is_read_past(tmp_path, suffix):
+    """A log saved by a Windows editor starts with a UTF-8 byte-order mark; the .log's first timestamp was refused
+    ('\\ufeff(1000.000000)' is not '(SECONDS)')."""
+    path = _write_log(tmp_path / f"s{suffix}")
+    plain = [_key(m) for m in read_session_checked(path)[0]]
+    path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    frames, completeness = read_session_checked(path)
+    assert [_key(m) for m in frames] == plain and len(plain) == N_FRAMES and completeness.problem is None
 
 
 def test_python_can_alone_misread_the_odd_digit_line_that_is_now_refused(tmp_path):
@@ -144,6 +158,12 @@ ASC_CASES = {
     "fewer bytes than the DLC": ("d 8 04 01", "DLC 8 announces 8 data bytes but the line holds 2: is the line cut?"),
     "bad DLC": ("d Q 04 01 02 03 04 05 06 07", "DLC 'Q' is not a number"),
     "bad timestamp": (None, "timestamp '0.0x4000' is not a number of seconds"),
+    "NaN timestamp": (None, "timestamp 'nan' is not a number of seconds"),  # a number to float(), skipped by python-can
+    "infinite timestamp": (None, "timestamp '1e400' is not a number of seconds"),
+    "negative timestamp": (None, "timestamp '-0.004' is not a number of seconds"),
+    "timestamp without a point": (None, "timestamp '4' is not a number of seconds"),
+    "standard ID above 7FF": (None, "standard CAN ID FFF is above 7FF"),
+    "extended ID above 29 bits": (None, "extended CAN ID FFFFFFFF is above 1FFFFFFF"),
 }
 
 
@@ -156,17 +176,20 @@ def test_each_malformed_asc_frame_line_is_named_by_file_and_line(tmp_path, kind)
     head = old[:old.index(" d ")]  # ' 0.004000 1  100             Rx'
     tail, says = ASC_CASES[kind]
     new = {"bad CAN ID": old.replace(" 100 ", " 1G0 "), "truncated after the ID": head[:head.index(" 100 ") + 4],
-           "bad timestamp": re.sub(r"^\s*\S+", " 0.0x4000", old)}.get(kind) or f"{head} {tail}"
+           "bad timestamp": re.sub(r"^\s*\S+", " 0.0x4000", old), "NaN timestamp": re.sub(r"^\s*\S+", " nan", old),
+           "infinite timestamp": re.sub(r"^\s*\S+", " 1e400", old), "negative timestamp": re.sub(r"^\s*\S+", " -0.004", old),
+           "timestamp without a point": re.sub(r"^\s*\S+", " 4", old), "standard ID above 7FF": old.replace(" 100 ", " FFF "),
+           "extended ID above 29 bits": old.replace(" 100 ", " FFFFFFFFx ")}.get(kind) or f"{head} {tail}"
     _replace_line(path, number, new)
     with pytest.raises(DataError) as err:
         read_session_checked(path)
     assert re.match(re.escape(f"{path}:{number}") + r"(:\d+)?: ", str(err.value)) and says in str(err.value)
     # python-can alone skips or misreads these lines without a word (or fails without saying where)
     try:
-        got = [bytes(m.data) for m in can.LogReader(path)]
+        got = [(m.arbitration_id, bytes(m.data)) for m in can.LogReader(path)]
     except ValueError:
         return
-    assert len(got) < N_FRAMES or got[2] != bytes([2, 1, 2, 3, 4, 5, 6, 7])
+    assert len(got) < N_FRAMES or got[2] != (0x100, bytes([2, 1, 2, 3, 4, 5, 6, 7]))
 
 
 @pytest.mark.parametrize("suffix", [".log", ".asc", ".blf"])
@@ -192,3 +215,29 @@ def test_valid_candump_variants_read_as_python_can_reads_them(tmp_path):
     assert len(frames) == 6 and [_key(m) for m in frames] == [_key(m) for m in reference]
     assert [m.is_fd for m in frames] == [False] * 4 + [True, False] and frames[1].is_extended_id
     assert list(completeness.lines) == [1, 2, 3, 4, 6, 7] and completeness.problem is None
+
+
+def test_asc_can_fd_lines_are_checked_as_classic_ones_are(tmp_path):
+    """A CAN FD line as python-can writes it reads back; cut short, python-can took the bytes left for the whole frame
+    (a 12-byte frame read as 1 byte) without a word, and a bad byte failed with no column."""
+    path = tmp_path / "s.asc"
+    w = SessionWriter(path)
+    w.write(can.Message(timestamp=1000.0, arbitration_id=0x321, is_fd=True, bitrate_switch=True, data=bytes(range(12)),
+                        is_extended_id=False), True)
+    w.close()
+    frames, _ = read_session_checked(path)
+    assert [(m.is_fd, bytes(m.data)) for m in frames] == [(True, bytes(range(12)))]
+    lines = path.read_text().split("\n")
+    number = next(i for i, s in enumerate(lines) if " CANFD " in s) + 1
+    fd = lines[number - 1]
+    data_at = fd.index(" 00 01 02")
+    cut = fd[:data_at] + " 00"
+    _replace_line(path, number, cut)
+    assert [len(m.data) for m in can.LogReader(path)] == [1]  # python-can alone
+    with pytest.raises(DataError, match=re.escape(f"{path}:{number}:1: CAN FD data length 12 announces 12 bytes but the "
+                                                  "line holds 1: is the line cut?")):
+        read_session_checked(path)
+    _replace_line(path, number, fd[:data_at] + " 00 ZZ" + fd[data_at + 6:])
+    with pytest.raises(DataError, match=re.escape(f"{path}:{number}:1: data byte 'ZZ' is not a number in base 16")):
+        read_session_checked(path)
+

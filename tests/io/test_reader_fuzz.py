@@ -26,7 +26,7 @@ from hypothesis import strategies as st
 from flowtex.datasets.model_sets import synthetic_model_set
 from flowtex.errors import FlowtexError
 from flowtex.graph.compiled import check_graph
-from flowtex.io.canlog import SessionWriter, read_session
+from flowtex.io.canlog import SessionWriter, read_session, read_session_checked
 from flowtex.io.canmap import load_map
 from flowtex.io.dbc import load_dbc
 from flowtex.io.hatt import write_hatt_xml
@@ -285,6 +285,41 @@ def test_blf_replay(folder, blf, data):
     path = folder / "m.blf"
     path.write_bytes(data.draw(mutated(blf, [b"LOGG", b"LOBJ", b"\xff" * 4, b"\x00" * 16, b"\x78\x9c"])))
     ends_cleanly(lambda: list(read_session(path)), path)
+
+
+TEXT_LOG_TOKENS = [b"(", b")", b"#", b"##", b"R", b"T", b" Rx ", b" Tx ", b" d ", b" r ", b"x", b"nan", b"1e400", b"-",
+                   b"FFFFFFFF", b"\n", b"\r\n", b" ", b"\t", b"\xff", b"\x00", b"CANFD", b"base dec", b"ErrorFrame", b"15"]
+
+
+@pytest.fixture(scope="module")
+def text_logs(folder):
+    """A .log and an .asc of 40 frames as flowtex records them (standard, extended and CAN FD ids, both directions)."""
+    out = {}
+    for suffix in (".log", ".asc"):
+        path = folder / f"base{suffix}"
+        w = SessionWriter(path)
+        for i in range(40):
+            w.write(can.Message(timestamp=1000.0 + i * 1e-3, arbitration_id=(0x100 + i % 3) if i % 5 else 0x1234567,
+                                is_extended_id=i % 5 == 0, data=bytes([i] * (8 if i % 7 else 12)), is_fd=i % 7 == 0), i % 2 == 0)
+        w.close()
+        out[suffix] = path.read_bytes()
+    return out
+
+
+@budget(40)
+@given(suffix=st.sampled_from([".log", ".asc"]), data=st.data())
+def test_text_log_replay(folder, text_logs, suffix, data):
+    """A mutated text log is read or refused at a line of it; what is read names a line of the file for every frame."""
+    path = folder / f"m{suffix}"
+    raw = data.draw(mutated(text_logs[suffix], TEXT_LOG_TOKENS))
+    path.write_bytes(raw)
+    got = ends_cleanly(lambda: read_session_checked(path), path)
+    if got is None:
+        return
+    frames, completeness = got
+    lines = raw.count(b"\n") + 1
+    assert len(completeness.lines) == len(frames) and all(1 <= n <= lines for n in completeness.lines)
+    assert all(m.arbitration_id <= (0x1FFFFFFF if m.is_extended_id else 0x7FF) for m in frames)
 
 
 # -- special files: FIFOs and devices under any reader's name ---------------------------------------------------------

@@ -79,6 +79,28 @@ def test_a_wav_that_clips_says_how_much(tmp_path, write_graph, capsys):
     assert abs(share - 100 * (1 - 2 / np.pi * np.arcsin(0.5))) < 0.3  # 66.7 %; 0.3: 4 s of a 5 Hz sine at 8 kHz, its ends
 
 
+def test_a_wav_of_nonfinite_outputs_says_so_or_refuses(tmp_path, write_graph, capsys):
+    """NaN/inf in an output are played as silence (0), as live plays them: -o OUT.npz warned of them (one line per
+    output) and --nonfinite-outputs error refused, but -o OUT.wav turned them into silence without a word."""
+    g = write_graph(TWO_OUTPUTS)
+    a = np.full(400, 0.25)
+    a[[10, 11, 50]] = np.nan
+    a[[200, 300]] = [np.inf, -np.inf]
+    np.savez(tmp_path / "in.npz", a=a, rate=np.float64(1000))
+    argv = ["run", str(g), "--input", str(tmp_path / "in.npz"), "--nonfinite", "pass", "--output", str(tmp_path / "o.wav")]
+    assert main(argv) == 0
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning:")]
+    assert err == [f"warning: output {name!r}: 3 NaN and 2 inf value(s), the first at tick 10; played as silence (0), as "
+                   "flowtex live plays them (--nonfinite-outputs error refuses instead)" for name in ("half", "same")], err
+    _, y = wavfile.read(tmp_path / "o.wav")
+    assert np.all(np.isfinite(y))
+    (tmp_path / "o.wav").unlink()
+    assert main(argv + ["--nonfinite-outputs", "error"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--nonfinite-outputs error: nothing written" in err[0], err
+    assert not (tmp_path / "o.wav").exists()
+
+
 def test_plot_and_resample_take_wav(tmp_path, capsys):
     t = np.arange(4000) / 8000.0
     wavfile.write(tmp_path / "a.wav", 8000, (0.5 * np.sin(2 * np.pi * 100 * t)).astype(np.float32))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -415,6 +416,57 @@ def test_exception_inside_the_graph_sends_safe_values_last(setup, flowtex_cli):
     # cache) and the list of plugin files loaded
     lines = [ln for ln in p.stderr.splitlines() if not ln.startswith(("flowtex: compiling graph", "flowtex: loaded plugin code"))]
     assert lines == [f"tick {first}: ValueError: sensor overload (safe values sent)"]
+
+
+@pytest.mark.parametrize("rate", [1000.0, 250.0])
+def test_peak_durations_off_the_tick_grid_never_allow_more_than_the_map_says(setup, rate):
+    """max_ms and recover_ms that are not whole ticks: the allowance holds at most max_ms (whole ticks, rounded down) and
+    refills over at least recover_ms (rounded up), so 'for at most max_ms' and the long-run share max_ms / (max_ms +
+    recover_ms) of docs/live.md hold. Rounding to the nearest tick allowed 11 ms of peak for max_ms 10.6 at 1 kHz."""
+    from flowtex.io.canmap import load_map
+    from flowtex.io.codec import MessageCodec
+    from flowtex.io.dbc import load_dbc
+    from flowtex.runtime.canio import CanIO, port_widths
+
+    max_ms, recover_ms = 10.6, 16.2  # ticks: 10.6 and 16.2 at 1 kHz, 2.65 and 4.05 at 250 Hz
+    (setup / "frac.yaml").write_text(textwrap.dedent(MAP).replace(
+        "vibration: {signal: VoiceCoilCmd.Current, clamp: [-1, 1], safe: 0}",
+        f"vibration: {{signal: VoiceCoilCmd.Current, clamp: [-1, 1], safe: 0, peak: {{limit: 1.5, max_ms: {max_ms}, "
+        f"recover_ms: {recover_ms}}}}}"))
+    g = load_graph(setup / "g.yaml")
+    db = load_dbc(DBC)
+    canmap = load_map(setup / "frac.yaml", db, DBC, port_widths(g.inputs), port_widths(g.outputs))
+    io = CanIO(g, canmap, {m.name: MessageCodec(m) for m in db.messages}, rate)  # the guard at another live rate
+    p, r = int(io.guard.peak_max_ticks[0]), int(io.guard.peak_recover_ticks[0])
+    tick_ms = 1000.0 / rate
+    assert (p, r) == ((10, 17) if rate == 1000.0 else (2, 5))  # floor and ceil of the durations in ticks (nearest: 11, 16; 3, 4)
+    assert p * tick_ms <= max_ms < (p + 1) * tick_ms and r * tick_ms >= recover_ms
+    assert p / (p + r) <= max_ms / (max_ms + recover_ms)
+
+
+def test_a_peak_budget_beyond_int64_names_the_output_and_its_line(setup):
+    """Day-long max_ms and recover_ms at 1 MHz: 86,400,000,000 and 86,399,999,000 ticks, gcd 1000, a budget of
+    86.4e9 x 86,399,999 = 7.5e18 units > 2^62. The error named only the map file and the guard's internals."""
+    from flowtex.errors import DataError
+    from flowtex.io.canmap import load_map
+    from flowtex.io.codec import MessageCodec
+    from flowtex.io.dbc import load_dbc
+    from flowtex.runtime.canio import CanIO, port_widths
+
+    (setup / "day.yaml").write_text(textwrap.dedent(MAP).replace(
+        "vibration: {signal: VoiceCoilCmd.Current, clamp: [-1, 1], safe: 0}",
+        "vibration: {signal: VoiceCoilCmd.Current, clamp: [-1, 1], safe: 0, peak: {limit: 1.5, max_ms: 86400000, "
+        "recover_ms: 86399999}}"))
+    g = load_graph(setup / "g.yaml")
+    db = load_dbc(DBC)
+    canmap = load_map(setup / "day.yaml", db, DBC, port_widths(g.inputs), port_widths(g.outputs))
+    codecs = {m.name: MessageCodec(m) for m in db.messages}
+    assert CanIO(g, canmap, codecs, 1000.0).guard is not None  # 86,400,000 x 86,399,999 units fit at 1 kHz
+    with pytest.raises(DataError) as info:
+        CanIO(g, canmap, codecs, 1e6)
+    msg = str(info.value)
+    assert re.match(re.escape(str(setup / "day.yaml")) + r":\d+:\d+: output 'vibration': peak max_ms 86400000 and "
+                    r"recover_ms 86399999 are 86400000000 and 86399999000 ticks at 1e\+06 Hz", msg), msg
 
 
 def test_map_peak_limit_is_mirrored_below_the_clamp(setup):

@@ -57,7 +57,7 @@ def test_replay_equals_live_and_offline(setup):  # noqa: F811
     np.testing.assert_array_equal(out["vibration"], ref["vibration"])
 
 
-def test_replay_names_overrun_watchdog_ticks_and_real_mismatches_and_prints_a_summary(setup, capsys):  # noqa: F811
+def test_replay_names_overrun_watchdog_ticks_and_real_mismatches_and_prints_a_summary(setup, capsys, monkeypatch):  # noqa: F811
     """A live log where tick 300 carries the safe values (what the overrun watchdog sends) and tick 400 other bytes."""
     from flowtex.cli import main
     from flowtex.io.canlog import SessionWriter
@@ -87,8 +87,16 @@ def test_replay_names_overrun_watchdog_ticks_and_real_mismatches_and_prints_a_su
     assert rep.watchdog_ticks == list(range(105, 130))  # last ToolPosition frame at tick 99, 5-tick timeout; back at 130
     assert rep.mismatched_ticks == sorted(rep.watchdog_ticks + rep.overrun_ticks + rep.unexplained_ticks)
 
+    from flowtex.io import canlog
+    from flowtex.runtime import replay
+
+    reads = []
+    read_once = canlog.read_session_checked
+    for module in (canlog, replay):
+        monkeypatch.setattr(module, "read_session_checked", lambda path: reads.append(path) or read_once(path))
     assert main(["run", str(setup / "g.yaml"), "--input", str(edited), "--dbc", str(DBC), "--map", str(setup / "m.yaml"),
                  "--seed", "3", "--output", str(setup / "replay.npz")]) == 0
+    assert reads == [str(edited)]  # read once, before the compile: the replay takes those frames (a log may be 1 GiB)
     out = capsys.readouterr().out
     assert "ReplayReport(" not in out and "unexplained" not in out
     lines = out.strip().splitlines()

@@ -1,0 +1,121 @@
+"""BLF CAN logs read with python-can's parser inside bounds on what the file claims.
+
+python-can's BLFReader trusts every size in the file: it unpacks a zlib container whole (a 1 MB container of zeros
+unpacks to 1 GiB), keeps the unparsed rest of every container while one frame object claims to span them (its memory
+grows with the file, its time with the square of it), and loops for ever on a frame object whose size is 0 (the same
+frame again and again). :class:`BoundedBLFReader` reads the containers itself, with the limits of
+:mod:`flowtex.limits`, and hands each unpacked container to python-can's frame parser; every refusal names the file
+and the byte offset of the object.
+"""
+
+from __future__ import annotations
+
+import zlib
+from collections.abc import Iterator
+from pathlib import Path
+
+import can
+from can.io.blf import (
+    FILE_HEADER_STRUCT,
+    LOG_CONTAINER,
+    LOG_CONTAINER_STRUCT,
+    NO_COMPRESSION,
+    OBJ_HEADER_BASE_STRUCT,
+    ZLIB_DEFLATE,
+    BLFReader,
+)
+
+from ..errors import DataError
+from ..limits import MAX_BLF_CONTAINER_BYTES, MAX_CANLOG_BYTES, check_frames
+
+MIN_FRAME_OBJECT = 48
+"""Bytes of the smallest frame object (a classic CAN message: 16-byte base header, 16-byte v1 header, 16 bytes of
+frame); a container of n bytes holds at most n // 48 frames."""
+
+
+def read_blf(path: Path) -> Iterator[can.Message]:
+    """Frames of the BLF at ``path`` in file order; DataError (naming the file) for a header, an object or a container
+    that claims more than the limits allow, or more than :data:`~flowtex.limits.MAX_CANLOG_FRAMES` frames."""
+    with open(path, "rb") as fh:
+        head = fh.read(FILE_HEADER_STRUCT.size)
+    if len(head) < FILE_HEADER_STRUCT.size or head[:4] != b"LOGG":
+        raise DataError(f"{path}: not a BLF log (it does not start with a BLF file header, 'LOGG'; {len(head)} bytes read)")
+    header = FILE_HEADER_STRUCT.unpack(head)
+    header_size, claimed = int(header[1]), int(header[12])
+    if not FILE_HEADER_STRUCT.size <= header_size <= MAX_BLF_CONTAINER_BYTES:
+        raise DataError(f"{path}: its header claims to be {header_size:,} bytes long; a BLF header is "
+                        f"{FILE_HEADER_STRUCT.size} to {MAX_BLF_CONTAINER_BYTES:,} bytes (a damaged or forged file?)")
+    check_frames(str(path), claimed, claimed=True)
+    reader = BoundedBLFReader(path)
+    try:
+        for count, msg in enumerate(reader, 1):
+            check_frames(f"{path} (frame {count:,})", count)
+            yield msg
+    finally:
+        reader.stop()
+
+
+class BoundedBLFReader(BLFReader):
+    """python-can's BLFReader with its container loop bounded: a container unpacks to at most
+    :data:`~flowtex.limits.MAX_BLF_CONTAINER_BYTES`, all containers to at most :data:`~flowtex.limits.MAX_CANLOG_BYTES`,
+    a frame object spanning containers to at most MAX_BLF_CONTAINER_BYTES, and a container yields at most as many
+    frames as its bytes can hold. A file cut inside an object header ends the frames, as a cut inside a container
+    does in python-can (the caller compares the header's size and count with what it read)."""
+
+    def __init__(self, path: Path):
+        super().__init__(path)
+        self._path = path
+
+    def __iter__(self) -> Iterator[can.Message]:
+        base = OBJ_HEADER_BASE_STRUCT.size
+        unpacked = 0
+        while True:
+            at = self.file.tell()
+            head = self.file.read(base)
+            if len(head) < base:  # end of file, or cut inside an object header
+                break
+            signature, _, _, obj_size, obj_type = OBJ_HEADER_BASE_STRUCT.unpack(head)
+            if signature != b"LOBJ":
+                raise self._error(at, f"no BLF object here (it starts with {signature!r}, not b'LOBJ')")
+            if obj_size < base:
+                raise self._error(at, f"an object claims {obj_size} bytes, less than its {base}-byte header")
+            body = self.file.read(obj_size - base)
+            self.file.read(obj_size % 4)  # padding
+            if obj_type != LOG_CONTAINER:
+                continue
+            if len(body) < LOG_CONTAINER_STRUCT.size:
+                break  # cut inside the container's header
+            method, _ = LOG_CONTAINER_STRUCT.unpack_from(body)
+            data = self._unpack(at, method, body[LOG_CONTAINER_STRUCT.size:])
+            if data is None:
+                continue
+            unpacked += len(data)
+            if unpacked > MAX_CANLOG_BYTES:
+                raise self._error(at, f"its containers unpack to more than {MAX_CANLOG_BYTES / 2**20:g} MiB; flowtex reads "
+                                      "CAN logs up to that size (flowtex.limits.MAX_CANLOG_BYTES)")
+            most = (len(self._tail) + len(data)) // MIN_FRAME_OBJECT + 1
+            for found, msg in enumerate(self._parse_container(data), 1):
+                if found > most:
+                    raise self._error(at, f"the container's {len(data):,} bytes yield more than {most - 1:,} frames of at "
+                                          f"least {MIN_FRAME_OBJECT} bytes: a frame object whose size does not move past it")
+                yield msg
+            if len(self._tail) > MAX_BLF_CONTAINER_BYTES:
+                raise self._error(at, f"a frame object spans more than {MAX_BLF_CONTAINER_BYTES / 2**20:g} MiB of containers "
+                                      "(a frame object is at most a few hundred bytes: a damaged or forged size)")
+
+    def _unpack(self, at: int, method: int, payload: bytes) -> bytes | None:
+        """The container's data (None: a compression method python-can does not know, skipped as python-can does)."""
+        if method == NO_COMPRESSION:
+            data = payload
+        elif method == ZLIB_DEFLATE:
+            unzip = zlib.decompressobj()
+            data = unzip.decompress(payload, MAX_BLF_CONTAINER_BYTES + 1)
+        else:
+            return None
+        if len(data) > MAX_BLF_CONTAINER_BYTES:
+            raise self._error(at, f"a container unpacks to more than {MAX_BLF_CONTAINER_BYTES / 2**20:g} MiB (BLF writers "
+                                  "write containers of 128 KiB; flowtex.limits.MAX_BLF_CONTAINER_BYTES): a damaged or forged file")
+        return data
+
+    def _error(self, at: int, problem: str) -> DataError:
+        return DataError(f"{self._path} (byte {at}): {problem}")
