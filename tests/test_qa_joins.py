@@ -84,7 +84,8 @@ def test_compare_of_a_resampled_set_measures_shape_below_the_old_nyquist() -> No
     from scipy.signal import butter, sosfiltfilt
 
     from flowtex.datasets.model_sets import synthetic_model_set
-    from flowtex.fit.compare import CompareOptions, compare_signals, resampled_band_hz
+    from flowtex.fit.compare import CompareOptions, compare_signals
+    from flowtex.fit.resampled_band import resampled_band_hz
 
     rate = 2000.0
     rng = np.random.default_rng(0)

@@ -170,8 +170,8 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
 
 def _note_xml_losses(xml: Path | None, written: Any) -> None:
     """Warn of what --xml could not keep of the set written: its rendering rule (flowtex.io.hatt.rule_lost_in_xml)
-    and, resampled up with --render-rate, the band its models know (flowtex.fit.compare.band_lost_in_xml)."""
-    from ..fit.compare import band_lost_in_xml
+    and, resampled up with --render-rate, the band its models know (flowtex.fit.resampled_band.band_lost_in_xml)."""
+    from ..fit.resampled_band import band_lost_in_xml
     from ..io.hatt import rule_lost_in_xml
 
     if xml is None:

@@ -59,9 +59,9 @@ def _densify_value(text: str) -> int | str:
 
 
 def cmd_models_resample(args: argparse.Namespace) -> int:
-    from ..fit.compare import band_lost_in_xml
     from ..fit.resample import check_misses, resample_summary, tqdm_progress
     from ..fit.resample_densify import densify_summary, resample_densified
+    from ..fit.resampled_band import band_lost_in_xml
     from ..io.atomic import atomic_output, check_output
     from ..io.hatt import rule_lost_in_xml, texture_index, write_hatt_xml
     from ..io.modelset import load_model_set, save_model_set

@@ -53,18 +53,16 @@ import math
 import shlex
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..dsp.contact import CONTACT_ON_N
 from ..dsp.filter_design import zero_phase_highpass
-from ..dsp.resample import PASSBAND as RESAMPLE_PASSBAND
 from ..dsp.spectral import gfc, lsd_db, octave_bands, psd_band_power, psd_centroid, welch_psd
 from ..errors import DataError
-from ..limits import excerpt
 from ..models.texture import TextureModelSet
+from .resampled_band import resampled_band_hz
 
 MIN_WINDOWS = 10
 """Fewest windows a window-RMS correlation is computed over (with 4-5, one recording scored +-1.00)."""
@@ -357,43 +355,6 @@ def _check_rendered(renders: list[np.ndarray], accel: np.ndarray, speed: np.ndar
                     f"{float(np.max(force, initial=0.0)):g} N (contact from {CONTACT_ON_N:g} N) and its speed "
                     f"{float(np.max(np.abs(speed), initial=0.0)):g} mm/s (rendered RMS {rendered:.3g} m/s^2 against {recorded:.3g} "
                     "recorded); compare on a recording of the tool moving in contact")
-
-
-def resampled_band_hz(ms: TextureModelSet) -> float:
-    """The band (Hz) a set resampled from another rate knows: ``RESAMPLE_PASSBAND`` x the lower Nyquist (inf for a
-    set at its own rate).
-
-    Resampled up, above it the models hold only a stopband ceiling, and a recording resampled up from that rate with
-    ``flowtex resample`` holds only the resampler's transition band; resampled down, the models keep their spectrum
-    only up to 0.9 x the new Nyquist and a recording resampled down holds its passband only up to ``RESAMPLE_PASSBAND``
-    x it. Comparing shapes above measures neither the fit nor the recording (a resampled twin is compared in the
-    common band).
-    """
-    record = ms.metadata.get("resample") if isinstance(ms.metadata, dict) else None
-    from_hz = record.get("from_hz") if isinstance(record, dict) else None
-    if record is not None and (not isinstance(record, dict) or from_hz is not None and (
-            isinstance(from_hz, bool) or not isinstance(from_hz, (int, float)) or not 0 < from_hz < math.inf)):
-        got = excerpt(record if not isinstance(record, dict) else from_hz)
-        raise DataError(f"{ms.source or ms.material}: metadata 'resample' must be the record flowtex models resample "
-                        f"writes, with from_hz the rate (Hz) the set was resampled from; got {got}: fix or remove it")
-    if from_hz is not None and from_hz != ms.sample_rate:
-        return RESAMPLE_PASSBAND * min(from_hz, ms.sample_rate) / 2.0
-    return math.inf
-
-
-def band_lost_in_xml(ms: TextureModelSet, path: str | Path) -> str | None:
-    """The warning for writing a set resampled from another rate to HaTT XML at ``path`` (None for any other set).
-
-    HaTT's format has no place for the resampling record, so :func:`resampled_band_hz` cannot find the band the models
-    know in the file read back, and ``flowtex compare`` grades it up to the Nyquist frequency, where the models hold
-    only a stopband ceiling (docs/fitting.md has a measured case).
-    """
-    top = resampled_band_hz(ms)
-    if not math.isfinite(top):
-        return None
-    return (f"warning: {path}: HaTT XML cannot state that these models were resampled from "
-            f"{ms.metadata['resample']['from_hz']:g} Hz; flowtex compare grades the file read back up to "
-            f"{ms.sample_rate / 2:g} Hz, above the {top:g} Hz its models know; compare the JSON, which keeps the record")
 
 
 def correlation_text(c: Comparison) -> str:

@@ -48,7 +48,7 @@ def test_xml_of_a_set_resampled_up_warns_that_compare_grades_it_to_the_nyquist_f
     """A set resampled up knows its spectrum only up to 0.8 x the old Nyquist; its JSON records that and `flowtex
     compare` grades it there, its XML cannot, and compare read it back over the whole band (LSD 2.24 dB against 1.74
     on one fitted surface, docs/fitting.md): the export says so, and what the warning says is what compare does."""
-    from flowtex.fit.compare import resampled_band_hz
+    from flowtex.fit.resampled_band import resampled_band_hz
 
     _fitted, hatt = _sets(tmp_path)
     assert main(["models", "resample", str(hatt), "--rate", "2000", "-o", str(tmp_path / "h2k.xml")]) == 0
