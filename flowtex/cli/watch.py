@@ -55,6 +55,7 @@ def cmd_watch(args: argparse.Namespace) -> int:
     check_output(args.plot, inputs=[args.graph, args.input], option="--plot", suffixes=(".png",), others={"-o": args.output})
     watcher = Watcher(Path(args.graph), Path(args.input), Path(args.output) if args.output else None,
                       emit=_say_now, overrides=overrides(args.overrides), plugins=tuple(args.plugins),
-                      auto_plugins=not args.no_plugins, tier=args.compile, plot=_png_writer(Path(args.plot)) if args.plot else None)
+                      auto_plugins=not args.no_plugins, tier=args.compile, plot=_png_writer(Path(args.plot)) if args.plot else None,
+                      plot_path=Path(args.plot) if args.plot else None)
     watcher.loop(args.interval, args.max_runs)
     return 1 if watcher.latest is not None and watcher.latest.error else 0  # --max-runs ended it: did the last run fail?

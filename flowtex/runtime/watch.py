@@ -99,6 +99,8 @@ class Watcher:
     tier: str = "auto"
     plot: Callable[[dict[str, np.ndarray], Any, int], None] | None = None
     """Called after each good run with (outputs, graph, run number), e.g. to refresh a PNG (``watch --plot``)."""
+    plot_path: Path | None = None
+    """The file ``plot`` writes (``watch --plot``): refused, as the output is, when the graph reads it."""
     watched: set[Path] = field(default_factory=set)
     plugin_files: list[Path] = field(default_factory=list)
     last: WatchResult | None = None
@@ -124,7 +126,8 @@ class Watcher:
             graph = load_graph(self.graph_path, dict(self.overrides), self.plugins, auto_plugins=self.auto_plugins, tier=self.tier)
             read = dependencies(graph)
             watched |= read
-            check_not_input(self.output_path, read, "-o", what="a file the graph reads")  # each run: an edit may name it
+            for option, written in (("-o", self.output_path), ("--plot", self.plot_path)):  # each run: an edit may name it
+                check_not_input(written, read, option, what="a file the graph reads")
             plugin_files = list(graph_registry(self.graph_path, self.plugins, self.auto_plugins).plugin_files)
             watched |= {Path(p).resolve() for p in plugin_files}
             if plugin_files != self.plugin_files:

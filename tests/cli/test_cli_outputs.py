@@ -275,6 +275,21 @@ def test_an_output_that_a_node_of_the_graph_reads_is_refused_before_the_run(tmp_
     assert victim.read_bytes() == before and sorted(os.listdir(tmp_path)) == ["g.yaml", "in.npz", "plugs", "table.csv"]
 
 
+def test_watch_plot_over_a_file_the_graph_reads_is_refused_and_the_file_kept(tmp_path, capsys, monkeypatch):
+    """watch --plot PNG named like a file a node reads (here the plugin's table) would be redrawn over it at every run."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "plugs").mkdir()
+    (tmp_path / "plugs" / "shift.py").write_text(PLUGIN)
+    (tmp_path / "g.yaml").write_text(SHIFT_GRAPH.replace("table.csv", "shot.png"))
+    save_recording(tmp_path / "in.npz", {"x": np.arange(100.0)}, rate=1000.0)
+    victim = tmp_path / "shot.png"
+    victim.write_text("2.5\n")
+    code = main(["watch", "g.yaml", "--plugins", "plugs", "-i", "in.npz", "--plot", "shot.png", "--max-runs", "1"])
+    out = capsys.readouterr().out
+    assert code == 1 and f"--plot shot.png: that is a file the graph reads ({victim})" in out, out
+    assert victim.read_text() == "2.5\n"
+
+
 def test_live_stats_over_the_model_set_the_graph_reads_is_refused_before_the_session(files, capsys, tmp_path):
     """--stats STATS.json named like the graph's model set (a JSON file too) would replace the models with statistics."""
     graph = tmp_path / "live.yaml"
