@@ -63,12 +63,13 @@ class GraphChecker(Collector):
 
 def files_read(resolved: ResolvedGraph) -> set[Path]:
     """Files the kept nodes of a checked graph read: the value of every path parameter, resolved (a model set, a
-    pattern file, a tap library, a plugin's own file; the graph file and plugins are the caller's)."""
+    pattern file, a tap library, a plugin's own file; the graph file and plugins are the caller's). A parameter given
+    a loaded object (a graph built in Python) reads no file."""
     found: set[Path] = set()
     for rn in resolved.nodes.values():
         for name, decl in rn.cls.params.items():
             value = rn.params.get(name)
-            if decl.kind == "path" and value is not None:
+            if decl.kind == "path" and isinstance(value, (str, Path)):
                 found.add(Path(value).resolve())
     return found
 

@@ -94,3 +94,18 @@ def test_builder_shape_errors_name_the_call():
     assert "GraphBuilder.node('2bad', 'gain'): node name '2bad' is not valid" in text
     assert "GraphBuilder.edge('x > y'): cannot read edge" in text
     assert "GraphBuilder('g'): outputs must be a non-empty mapping" in text
+
+
+def test_a_node_given_a_loaded_model_set_reads_no_file():
+    """files_read (what -o and --plot are checked against) lists the files a graph's path parameters name; a builder
+    graph given the loaded object names none (it raised TypeError on the object)."""
+    from flowtex.graph.resolved import files_read
+    from flowtex.io.modelset import load_model_set
+    from tests.conftest import REPO
+
+    path = REPO / "graphs" / "data" / "synthetic_texture.json"
+    for models, expected in ((load_model_set(path), set()), (str(path), {path.resolve()})):
+        resolved = (GraphBuilder("t").input("speed", unit="mm/s").input("f", unit="N")
+                    .node("lu", "texture_lookup", models=models).edge("speed -> lu.speed").edge("f -> lu.force")
+                    .output("v", "lu.variance").resolve())
+        assert files_read(resolved) == expected
