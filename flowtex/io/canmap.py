@@ -41,7 +41,7 @@ from ..yamlsource import LocDict, LocList, load_yaml, read_source
 from .audiomap import AudioMap, parse_audio
 from .dbc import find_signal, suggest
 from .dbcrange import check_value, sendable_range
-from .mapsafety import check_clamps, check_transmitters, check_unbound_signals
+from .mapsafety import GuardBounds, check_clamps, check_transmitters, check_unbound_signals
 
 __all__ = ["DEFAULT_OVERRUN_MS", "CanMap", "InputBinding", "OutputBinding", "load_map"]
 
@@ -74,6 +74,10 @@ class OutputBinding(Binding):
     recover_ms: float = 0.0
     """Time within the clamp that refills an empty peak allowance (``peak: recover_ms``, default
     :data:`~flowtex.schema.devmap.PEAK_RECOVER_RATIO` x ``peak_ms``); 0 without ``peak``."""
+    guard: GuardBounds | None = None
+    """What the output guard clamps to: ``lo``/``hi`` (the map's clamp) and the peak range with each bound the DBC
+    would send beyond them moved inward onto its grid (:func:`~flowtex.io.mapsafety.check_clamps`); set by
+    :func:`load_map`, the only bounds the runtime guards with."""
 
 
 @dataclass

@@ -5,7 +5,7 @@ bind are sent as physical 0 (:mod:`flowtex.io.codec`, rule 4), so that 0 must su
 output's safe value must (:func:`flowtex.io.dbcrange.check_value`): a DBC ``Enable [1|1]`` would otherwise send
 "enabled" in every frame meant to make the device safe. And the host must not transmit a message the DBC says the
 device itself transmits (its ``BO_`` line's transmitter): two senders on one CAN ID. And what the guard lets through
-must arrive within the clamp (:func:`check_clamps`).
+must arrive within the clamp (:func:`check_clamps`): the bounds it clamps to are moved inward onto the DBC's grid.
 """
 
 from __future__ import annotations
@@ -13,10 +13,12 @@ from __future__ import annotations
 import math
 import struct
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from cantools.database.can import Database
 
+from .codec import MessageCodec
 from .dbcrange import check_value, lsb, round_trip, sendable_range
 
 Report = Callable[[tuple[int, int] | None, str], None]
@@ -78,33 +80,55 @@ def peak_low(lo: np.ndarray, hi: np.ndarray, limit: np.ndarray) -> np.ndarray:
     return np.asarray(lo, dtype=np.float64) - (np.asarray(limit, dtype=np.float64) - np.asarray(hi, dtype=np.float64))
 
 
-ROUNDING_SLACK = 0.01
-"""How far beyond the clamp (a fraction of its width) the rounding to the DBC's LSB may carry a bound: a signal whose LSB
-is at most 2 % of the clamp's width. A coarser one crosses the clamp by a step a device notices."""
+FLOAT_NOISE = 8 * 2.0**-52
+"""Relative float64 rounding allowed when a decoded value is compared with a clamp bound: the decoder's
+``raw * scale + offset`` and the map's unit conversion each round to the nearest double (``15000 * 0.0001`` is
+1.5000000000000002, not 1.5); many orders of magnitude below any LSB the bounds are snapped for."""
+
+SNAP_STEPS = 16
+"""Tries at moving one bound inward until what it sends arrives inside (one LSB, then float steps, normally succeed)."""
+
+
+@dataclass(frozen=True)
+class GuardBounds:
+    """What the output guard clamps one output to (graph units, one value per component): the map's clamp and peak
+    range, each bound that the DBC would send beyond them moved inward onto the DBC's grid (:func:`check_clamps`)."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    peak_lo: np.ndarray
+    """Lower end of the peak range (``lo`` without ``peak``)."""
+    peak_hi: np.ndarray
+    """Upper end of the peak range (``hi`` without ``peak``)."""
 
 
 def check_clamps(db: Database, outputs: Sequence, add: Report) -> None:
-    """Refuse a clamp bound that the DBC sends as a value outside the clamp.
+    """Refuse a clamp the DBC cannot send; set each output's :class:`GuardBounds` (``guard``) to what it can.
 
     The guard keeps each output inside its clamp in graph units; the encoder then rounds to the signal's LSB, and for
-    ``scale 1`` without a DBC range wraps what the bit field cannot hold. Rounding is monotonic, so checking both bounds
-    covers every value between them. A bound must arrive (encoded with flowtex's codec, decoded with cantools, back in
-    graph units) as the DBC's range and bit width limit it (a DBC range narrower than the clamp is fine: the encoder
-    clamps to it), not wrapped around (a clamp of [0, 10] on a 3-bit field sent 10 as 2), and no further beyond the
-    clamp than :data:`ROUNDING_SLACK` of its width (a clamp of [-1, 1] A on a 0.6 A LSB sent 1.2 A; the rounding of the
-    bundled DBC, 0.0001 A against a clamp 2 A wide, passes).
-    ``outputs``: the map's output bindings (``signals``, ``scale``, ``offset``, ``lo``, ``hi``, ``loc``, ``name``).
+    ``scale 1`` without a DBC range wraps what the bit field cannot hold. A bound must arrive (encoded with flowtex's
+    codec, decoded with cantools, back in graph units) as the DBC's range and bit width limit it (a DBC range narrower
+    than the clamp is fine: the encoder clamps to it), not wrapped around (a clamp of [0, 10] on a 3-bit field sent 10
+    as 2): else the map is refused. Rounding to the nearest step would still carry a bound up to half an LSB beyond
+    the clamp (a clamp of [-1, 1] A on a 0.6 A LSB sent 1.2 A): such a bound is moved inward onto the grid
+    (:func:`snap_bound`; 1 A becomes 0.6 A), for the clamp and for the peak range alike. Encoding is monotonic (every
+    step of it is), so once both bounds arrive inside, every value the guard lets through between them does.
+    ``outputs``: the map's output bindings (``signals``, ``scale``, ``offset``, ``lo``, ``hi``, ``safe``,
+    ``peak_limit``, ``loc``, ``name``); ``guard`` is set on each that passes.
     """
+    codecs: dict[str, MessageCodec] = {}
     for b in outputs:
         ranges = [("clamp LOW", "clamp HIGH", b.lo, b.hi)]
         if b.peak_limit is not None:  # what the guard lets through for up to max_ms (docs/live.md, "Peak rule")
             ranges.append(("peak range low", "peak limit", peak_low(b.lo, b.hi, b.peak_limit), b.peak_limit))
         found = _first_bound_problem(db, b, ranges)
+        if found is None:
+            found = _guard_bounds(db, b, ranges, codecs)
         if found is not None:  # one line per output
             j, m, s, which, bound, problem = found
             comp = f"[{j}]" if len(b.signals) > 1 else ""
             add((b.loc.line, b.loc.column), f"output {b.name!r}{comp}: {which} {bound:g} cannot be sent in {m}.{s}: "
-                                            f"{problem}; choose a clamp the DBC carries or fix the DBC")
+                                            f"{problem}")
 
 
 def _first_bound_problem(db: Database, b, ranges: list) -> tuple | None:
@@ -116,14 +140,17 @@ def _first_bound_problem(db: Database, b, ranges: list) -> tuple | None:
             sig = msg.get_signal_by_name(s)
             scale, offset = float(b.scale[j]), float(b.offset[j])
             for which, bound in ((low_name, float(lo[j])), (high_name, float(hi[j]))):
-                problem = _clamp_bound_problem(msg, sig, bound * scale + offset, scale, offset, float(lo[j]), float(hi[j]))
+                problem = _clamp_bound_problem(msg, sig, bound * scale + offset)
                 if problem is not None:
-                    return j, m, s, which, bound, problem
+                    return j, m, s, which, bound, problem + _FIX_CLAMP
     return None
 
 
-def _clamp_bound_problem(msg, sig, physical: float, scale: float, offset: float, lo: float, hi: float) -> str | None:
-    """Why ``physical`` (a clamp bound in the signal's unit) arrives outside ``[lo, hi]`` (graph units), or None."""
+_FIX_CLAMP = "; choose a clamp the DBC carries or fix the DBC"
+
+
+def _clamp_bound_problem(msg, sig, physical: float) -> str | None:
+    """Why ``physical`` (a clamp bound in the signal's unit) cannot be sent (packed, or limited without wrapping), or None."""
     unit = f" {sig.unit}" if sig.unit else ""
     s_lo, s_hi = sendable_range(sig)
     try:
@@ -134,10 +161,84 @@ def _clamp_bound_problem(msg, sig, physical: float, scale: float, offset: float,
     if got != limited:
         return (f"it would arrive as {got:g}{unit}: the bit field ({sig.length} bits, scale {sig.scale:g}, no DBC range) "
                 f"wraps it around instead of limiting it to [{s_lo:g}, {s_hi:g}]{unit}")
-    g = (got - offset) / scale
-    slack = ROUNDING_SLACK * (hi - lo) + 1e-9 * max(1.0, abs(lo), abs(hi))
-    if math.isfinite(g) and lo - slack <= g <= hi + slack:
-        return None
-    step = lsb(sig, physical)
-    return (f"it would arrive as {got:g}{unit}, {g:g} in graph units, beyond the clamp by more than {ROUNDING_SLACK:.0%} of "
-            f"its width: the DBC's LSB there is {step:g}{unit} and the encoder rounds to the nearest step")
+    return None
+
+
+def _guard_bounds(db: Database, b, ranges: list, codecs: dict[str, MessageCodec]) -> tuple | None:
+    """Set ``b.guard`` to ``ranges`` (the clamp, then the peak range if any) snapped inward (:func:`snap_bound`);
+    a problem tuple as :func:`_first_bound_problem`'s when a range holds no value the DBC sends inside it, or the safe
+    value would arrive beyond the clamp. A safe value between a snapped bound and the clamp's that arrives inside widens
+    the guard's bounds to it (the guard requires ``lo <= safe <= hi``; all values between arrive inside too)."""
+    snapped = []
+    for low_name, high_name, lo, hi in ranges:
+        new_lo, new_hi = np.array(lo, dtype=np.float64), np.array(hi, dtype=np.float64)
+        for j, (m, s) in enumerate(b.signals):
+            if m not in codecs:
+                codecs[m] = MessageCodec(db.get_message_by_name(m))
+            send = Sender(codecs[m], s, float(b.scale[j]), float(b.offset[j]))
+            a, z = float(lo[j]), float(hi[j])
+            new_lo[j], new_hi[j] = snap_bound(send, a, a, z, +1), snap_bound(send, z, a, z, -1)
+            if not new_lo[j] <= new_hi[j]:  # NaN (no try succeeded) or crossed: no step of the grid inside
+                step = lsb(send.sig, float(lo[j]) * send.scale + send.offset)
+                which, bound = (high_name, z) if math.isnan(new_hi[j]) and not math.isnan(new_lo[j]) else (low_name, a)
+                return j, m, s, which, bound, (f"no value it sends arrives inside [{a:g}, {z:g}] (its LSB is {step:g}"
+                                               f"{' ' + send.sig.unit if send.sig.unit else ''}, rounded to the nearest step)" + _FIX_CLAMP)
+        snapped.append((new_lo, new_hi))
+    (lo, hi), (plo, phi) = snapped[0], snapped[-1]
+    for j, (m, s) in enumerate(b.signals):  # the guard sends the safe value as it is: it must arrive inside too
+        send = Sender(codecs[m], s, float(b.scale[j]), float(b.offset[j]))
+        safe, got = float(b.safe[j]), send.arrives(float(b.safe[j]))
+        if not send.inside(got, float(b.lo[j]), float(b.hi[j])):
+            unit = f" {send.sig.unit}" if send.sig.unit else ""
+            return j, m, s, "safe value", safe, (f"it would arrive as {got:g}{unit}, beyond the clamp [{b.lo[j]:g}, "
+                                                 f"{b.hi[j]:g}] (the DBC rounds to its LSB of {lsb(send.sig, got):g}{unit}); "
+                                                 "choose a safe value on the DBC's grid")
+        lo[j], hi[j] = min(lo[j], safe), max(hi[j], safe)  # both arrive inside, so does all between them
+    # the peak range holds the clamp: a clamp bound that stays where the peak bound moved is still sent inside both
+    b.guard = GuardBounds(lo, hi, np.minimum(plo, lo), np.maximum(phi, hi))
+    return None
+
+
+class Sender:
+    """One output component as the runtime sends it: graph value -> ``value * scale + offset`` (the map's) -> flowtex's
+    encoder of the message (the generated Python one; the compiled tables give the same bytes) -> decoded by cantools."""
+
+    def __init__(self, codec: MessageCodec, signal: str, scale: float, offset: float):
+        self.msg = codec.message
+        self.sig = self.msg.get_signal_by_name(signal)
+        self.scale, self.offset = scale, offset
+        self._value = np.zeros(1)
+        sources = [None] * len(codec.signals)
+        sources[codec.index[signal]] = (self._value, 0, scale, offset)
+        self._encode = codec.encoder(sources)
+        self._buf = bytearray(codec.length)
+
+    def arrives(self, value: float) -> float:
+        """The physical value (DBC unit) a receiver decodes when the guard lets ``value`` (graph units) through."""
+        self._value[0] = value
+        self._encode(self._buf)
+        return float(self.msg.decode(bytes(self._buf), decode_choices=False, scaling=True)[self.sig.name])
+
+    def inside(self, physical: float, lo: float, hi: float) -> bool:
+        """True if the decoded ``physical`` is, in graph units, within ``[lo, hi]`` (up to :data:`FLOAT_NOISE`)."""
+        g = (physical - self.offset) / self.scale
+        noise = FLOAT_NOISE * ((abs(physical) + abs(float(self.sig.offset)) + abs(self.offset)) / abs(self.scale)
+                               + max(abs(lo), abs(hi)))
+        return math.isfinite(g) and lo - noise <= g <= hi + noise
+
+
+def snap_bound(send: Sender, bound: float, lo: float, hi: float, inward: int) -> float:
+    """``bound`` (graph units; ``inward`` +1 for a low bound, -1 for a high one) if what it sends arrives within
+    ``[lo, hi]``; else the graph value of the DBC step one LSB inward of what it sends (nudged by float steps until it
+    does arrive inside); NaN if :data:`SNAP_STEPS` tries fail. Changes nothing for a bound on the grid."""
+    g = bound
+    for _ in range(SNAP_STEPS):
+        p = send.arrives(g)
+        if send.inside(p, lo, hi):
+            return g
+        target = p + inward * math.copysign(lsb(send.sig, p), send.scale)  # one step inward, in the signal's unit
+        nxt = (target - send.offset) / send.scale
+        g = nxt if (nxt - g) * inward > 0 else math.nextafter(g, inward * math.inf)
+        if not lo <= g <= hi:  # past the other bound: no step of the grid arrives inside
+            break
+    return math.nan

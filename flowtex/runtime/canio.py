@@ -28,7 +28,6 @@ from ..io.canmap import CanMap, load_map
 from ..io.codec import MessageCodec
 from ..io.codec_tables import _NF, _NI, TableDecoder, TableEncoder, _encode_tables, fast_ok, pack_int64
 from ..io.dbc import load_dbc
-from ..io.mapsafety import peak_low
 from ..node_decl import PortSpec
 from .safety import OutputGuard, Watchdog, budget_units, first_stale, guard_kernel
 
@@ -143,12 +142,14 @@ class CanIO:
             view = graph.output_view(name)
             base = _offset(arena, view)
             gather.extend(range(base, base + w))
-            lo.extend(b.lo)
-            hi.extend(b.hi)
+            bounds = b.guard  # the map's clamp and peak range snapped onto the DBC's grid (flowtex.io.mapsafety)
+            if bounds is None:
+                raise DataError(f"{b.loc}: output {name!r} has no guard bounds: load the map with flowtex.io.canmap.load_map")
+            lo.extend(bounds.lo)
+            hi.extend(bounds.hi)
             safe.extend(b.safe)
-            lim = b.peak_limit if b.peak_limit is not None else b.hi
-            phi.extend(lim)
-            plo.extend(peak_low(b.lo, b.hi, lim))
+            phi.extend(bounds.peak_hi)
+            plo.extend(bounds.peak_lo)
             p_ticks, r_ticks = ticks_at_most(b.peak_ms, rate_hz) if b.peak_limit is not None else 0, ticks_at_least(b.recover_ms, rate_hz)
             try:
                 budget_units(p_ticks, r_ticks)
