@@ -71,6 +71,13 @@ def build(graph_path: str | Path, values: dict[str, Any], plugins: tuple[str | P
 
 def _build_graph(graph_path: str | Path, values: dict[str, Any], plugins: tuple[str | Path, ...], tier: str):
     from ..graph.compiled import Graph
+
+    return Graph(resolve_config(graph_path, values, plugins), tier=tier)
+
+
+def resolve_config(graph_path: str | Path, values: dict[str, Any], plugins: tuple[str | Path, ...]):
+    """The checked (not compiled) graph file ``graph_path`` with the node knobs of ``values`` applied (``node.every``
+    sets the rate divider, others are params); plan knobs are the caller's (:func:`build`)."""
     from ..graph.resolve import resolve_graph
     from ..graph.spec import load_spec
     from ..registry import load_registry
@@ -85,7 +92,7 @@ def _build_graph(graph_path: str | Path, values: dict[str, Any], plugins: tuple[
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise FlowtexError(f"--knob {key}: every must be a positive integer, got {v!r}")
             spec.nodes[node].every = v
-    return Graph(resolve_graph(spec, load_registry(plugins)), tier=tier)
+    return resolve_graph(spec, load_registry(plugins))
 
 
 def graph_inputs(graph: Any, inputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -96,6 +103,17 @@ def graph_inputs(graph: Any, inputs: dict[str, np.ndarray]) -> dict[str, np.ndar
 def default_metric(unit: str) -> str:
     """LSD for vibrations (m/s^2), RMS for everything else (forces, positions)."""
     return "lsd" if unit in VIBRATION_UNITS else "rms"
+
+
+def combinations(knobs: dict[str, list[Any]]) -> list[dict[str, Any]]:
+    """Every combination of the knobs' values (knob -> value), in the sweep's order."""
+    names = list(knobs)
+    return [dict(zip(names, vals, strict=True)) for vals in itertools.product(*(knobs[n] for n in names))]
+
+
+def reference_values(knobs: dict[str, list[Any]], reference: dict[str, Any] | None) -> dict[str, Any]:
+    """The reference configuration: the first value of every knob, then ``reference`` (``--reference``)."""
+    return {**{n: v[0] for n, v in knobs.items()}, **(reference or {})}
 
 
 def sweep(graph_path: str | Path, inputs: dict[str, np.ndarray], knobs: dict[str, list[Any]], reference: dict[str, Any] | None = None,
@@ -112,10 +130,8 @@ def sweep(graph_path: str | Path, inputs: dict[str, np.ndarray], knobs: dict[str
     (``every``, ``plan``) once the node types are cached; ``fused`` compiles each
     shape (seconds each) for the fastest ticks.
     """
-    names = list(knobs)
-    combos = [dict(zip(names, vals, strict=True)) for vals in itertools.product(*(knobs[n] for n in names))]
-    ref_values = {n: knobs[n][0] for n in names}
-    ref_values.update(reference or {})
+    combos = combinations(knobs)
+    ref_values = reference_values(knobs, reference)
     ref_graph = build(graph_path, ref_values, plugins, tier)
     if outputs is None:
         outputs = list(ref_graph.outputs)

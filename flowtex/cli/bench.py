@@ -39,7 +39,7 @@ def register(sub: Any) -> None:
 
 def cmd_bench(args: argparse.Namespace) -> int:
     from ..bench.report import dask_client, need_matplotlib, pareto_plot, write_csv
-    from ..bench.sweep import build, default_metric, format_table, parse_knob, sweep, table
+    from ..bench.sweep import build, combinations, default_metric, format_table, parse_knob, reference_values, sweep, table
     from ..graph.spec import parse_override
     from ..io.atomic import check_output
     from ..io.recordings import load_recording
@@ -47,7 +47,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if not args.knob:
         raise FlowtexError("flowtex bench: give at least one --knob NODE.PARAM=V1,V2,...")
     knobs = dict(parse_knob(k) for k in args.knob)
-    for key, value in overrides(args.overrides).items():  # a --set is a knob with one value, in every configuration
+    sets = overrides(args.overrides)
+    for key, value in sets.items():  # a --set is a knob with one value, in every configuration
         if key in knobs:
             raise FlowtexError(f"--set {key}: that parameter is also a --knob; give it once")
         knobs[key] = [value]
@@ -60,6 +61,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     inputs = [args.graph, args.input]
     check_output(args.output, inputs=inputs, option="-o", suffixes=(".csv",))
     check_output(args.plot, inputs=inputs, option="--plot", others={"-o": args.output})
+    if args.output or args.plot:  # a knob may name another file to read in each configuration
+        _check_not_read(args, [reference_values(knobs, reference), *combinations(knobs)], set(sets))
     if args.plot:
         need_matplotlib()
     rec = load_recording(args.input)
@@ -80,3 +83,15 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if args.plot:
         pareto_plot(configs, outputs[0], metrics[outputs[0]], Path(args.plot))
     return 0
+
+
+def _check_not_read(args: argparse.Namespace, configs: list[dict[str, Any]], set_keys: set[str]) -> None:
+    """Refuse ``-o``/``--plot`` naming a file any configuration's graph reads, naming the knob (or ``--set``) that names it."""
+    from ..bench.reads import files_read_by_configs
+    from ..io.atomic import check_not_input
+
+    reads = files_read_by_configs(args.graph, configs, tuple(args.plugins))
+    for option, out in (("-o", args.output), ("--plot", args.plot)):
+        for path, knob in reads.items():
+            via = "" if knob is None else f" with {'--set' if knob.split('=', 1)[0] in set_keys else '--knob'} {knob}"
+            check_not_input(out, [path], option, what=f"a file the graph reads{via}")
