@@ -18,6 +18,7 @@ import numpy as np
 
 from .errors import ParamError
 from .limits import MAX_INT_PARAM, excerpt, short_number
+from .yamlsource import yaml_bool
 
 
 class _Required:
@@ -105,8 +106,9 @@ class Param:
         """
         kind = self.kind
         if kind == "bool":
-            if isinstance(value, bool):
-                return value
+            flag = yaml_bool(value)  # true/false, or a YAML 1.1 spelling (yes, off, ...) that files written for it use
+            if flag is not None:
+                return flag
             raise ValueError(f"expected true or false, got {excerpt(value)}")
         if kind == "int":
             if isinstance(value, bool) or not isinstance(value, (int, float)):

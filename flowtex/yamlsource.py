@@ -1,7 +1,9 @@
 """Safe YAML loading that remembers where every key and value came from.
 
 PyYAML's safe loader silently keeps the last of two equal keys and forgets
-positions. Here mappings become :class:`LocDict` and sequences
+positions, and reads YAML 1.1's on/off/yes/no as booleans. Here only true/false are booleans (YAML 1.2's core schema,
+:data:`BOOL_12`; :func:`yaml_bool` takes the 1.1 spellings where a bool is expected), numbers with an exponent are
+numbers as in YAML 1.2 (:data:`FLOAT_12`), Here mappings become :class:`LocDict` and sequences
 :class:`LocList`; both remember the (line, column) of each key and value so
 that later checks can say ``graph.yaml:14:7: ...``. Duplicate keys and any
 tag that would build a Python object are errors.
@@ -26,6 +28,21 @@ from .limits import MAX_DEPTH, MAX_YAML_BYTES, MAX_YAML_INT, MAX_YAML_NODES, exc
 Pos = tuple[int, int]
 FLOAT_12 = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$")
 """A float with an exponent as YAML 1.2's core schema and JSON write it (``1e6``, ``-3.5E2``, ``.5e-3``)."""
+BOOL_12 = re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$")
+"""A boolean as YAML 1.2's core schema writes it: the only unquoted words flowtex's YAML reader reads as booleans."""
+YAML11_BOOLS: dict[str, bool] = {**dict.fromkeys(("yes", "Yes", "YES", "on", "On", "ON"), True),
+                                 **dict.fromkeys(("no", "No", "NO", "off", "Off", "OFF"), False)}
+"""The other spellings PyYAML's YAML 1.1 rules read as booleans: strings to flowtex's reader, booleans where a
+parameter or key expects one (:func:`yaml_bool`)."""
+
+
+def yaml_bool(value: Any) -> bool | None:
+    """``value`` where a bool is expected: a bool as itself, a YAML 1.1 spelling (:data:`YAML11_BOOLS`) as the bool it
+    spelled; None for anything else (``1``, ``"y"``, ``"maybe"``)."""
+    if isinstance(value, bool):
+        return value
+    return YAML11_BOOLS.get(value) if isinstance(value, str) else None
+
 
 
 class LocDict(dict):
@@ -175,6 +192,13 @@ _Loader.add_constructor("tag:yaml.org,2002:int", _Loader.construct_bounded_int)
 # Numbers as YAML 1.2 and JSON write them: PyYAML's YAML 1.1 float needs a dot and a signed exponent, so ``1e6``,
 # ``3e2`` and ``3.0e2`` would be strings. (Ints, ``.inf`` and the 1.1 forms resolve as before.)
 _Loader.add_implicit_resolver("tag:yaml.org,2002:float", FLOAT_12, list("-+0123456789."))
+# Booleans as YAML 1.2's core schema and JSON write them: only true/false (True, TRUE, False, FALSE). PyYAML's YAML 1.1
+# rules also read on/off/yes/no as booleans, so a node named `on` or a choice `no` became True/False; those are strings
+# now. Where a bool is expected, the 1.1 spellings are still taken (yaml_bool), so files written for them keep working.
+_BOOL = "tag:yaml.org,2002:bool"
+_Loader.yaml_implicit_resolvers = {first: [(tag, rx) for tag, rx in resolvers if tag != _BOOL]
+                                   for first, resolvers in _Loader.yaml_implicit_resolvers.items()}
+_Loader.add_implicit_resolver(_BOOL, BOOL_12, list("tTfF"))
 _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _Loader.construct_loc_mapping)
 _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_SEQUENCE_TAG, _Loader.construct_loc_sequence)
 

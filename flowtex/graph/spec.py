@@ -155,9 +155,9 @@ def read_plugin_folders(path: str | Path) -> list[Path]:
 
 
 def _check_name(c: Collector, name: Any, pos: tuple[int, int], what: str) -> bool:
-    if isinstance(name, bool) or name is None:  # YAML 1.1: an unquoted on/off/yes/no/true/false, or null/~
-        c.error(pos, f"{what} name {excerpt(name)} is not valid: YAML reads an unquoted on, off, yes, no, true, false "
-                     "(or null, ~) as a boolean (or null); quote it (e.g. 'off': ...) or choose another name")
+    if isinstance(name, bool) or name is None:  # an unquoted true/false, or null/~ (on/off/yes/no are names: yamlsource)
+        c.error(pos, f"{what} name {excerpt(name)} is not valid: YAML reads an unquoted true, false as a boolean (and "
+                     "null, ~ as nothing); quote it (e.g. 'true': ...) or choose another name")
         return False
     if not isinstance(name, str) or not NAME_RE.match(name):
         c.error(pos, f"{what} name {excerpt(name)} is not valid: use letters, digits and '_', not starting with a digit")

@@ -23,6 +23,7 @@ from typing import Any
 
 from ..errors import DataError, Diagnostic, GraphError, Location
 from ..limits import excerpt
+from ..yamlsource import yaml_bool
 
 Pos = tuple[int, int]
 KINDS = ("number", "int", "bool", "str", "choice", "const", "list", "map", "record", "any_of", "any")
@@ -259,7 +260,7 @@ def _problem(value: Any, f: Field) -> str | None:
     if k == "choice":
         return None if isinstance(value, str) and value in f.choices else f"expected {describe(f)}"
     if k == "bool":
-        return None if isinstance(value, bool) else "expected true or false"
+        return None if yaml_bool(value) is not None else "expected true or false"
     if k == "str":
         if not isinstance(value, str):
             return "expected a string"
@@ -328,7 +329,9 @@ def _normalized(value: Any, f: Field) -> Any:
     """``value`` (which fits ``f``) with integral floats of ``int`` fields made ints, in lists and alternatives too."""
     if f.kind == "int":
         return int(value)
-    if f.kind == "list" and f.items is not None and any(_integral(v) for v in value):
+    if f.kind == "bool":
+        return yaml_bool(value)  # a YAML 1.1 spelling (yes, off, ...) as its bool
+    if f.kind == "list" and f.items is not None and (f.items.kind == "bool" or any(_integral(v) for v in value)):
         return [_normalized(v, f.items) for v in value]
     if f.kind == "any_of":
         return _normalized(value, next(o for o in f.of if fits(value, o)))

@@ -13,6 +13,7 @@ from typing import Any
 
 from ..limits import MAX_INT_PARAM
 from ..node_api import Node, Param, Port
+from ..yamlsource import YAML11_BOOLS
 from .core import NO_DEFAULT, Field, Record
 
 DIALECT = "https://json-schema.org/draft/2020-12/schema"
@@ -34,6 +35,12 @@ def _bounds(out: dict[str, Any], lo: float | None, hi: float | None, lo_ex: bool
         out["exclusiveMaximum" if hi_ex else "maximum"] = hi
 
 
+def bool_schema() -> dict[str, Any]:
+    """A bool: true or false, or a YAML 1.1 spelling flowtex still takes where a bool is expected (yes, off, ...; an
+    editor reading YAML 1.2 sees those as strings)."""
+    return {"anyOf": [{"type": "boolean"}, {"enum": list(YAML11_BOOLS)}]}
+
+
 def field_schema(f: Field) -> dict[str, Any]:
     """The JSON Schema of one declared value."""
     k = f.kind
@@ -42,7 +49,7 @@ def field_schema(f: Field) -> dict[str, Any]:
         out = {"type": "number" if k == "number" else "integer"}
         _bounds(out, f.min, f.max, f.min_exclusive, f.max_exclusive)
     elif k == "bool":
-        out = {"type": "boolean"}
+        out = bool_schema()
     elif k == "str":
         out = {"type": "string"}
         if f.pattern:
@@ -122,7 +129,7 @@ def param_schema(p: Param) -> dict[str, Any]:
         if p.kind == "int" and p.max is None:
             out["maximum"] = MAX_INT_PARAM  # Param.coerce's ceiling for an unbounded integer
     elif p.kind == "bool":
-        out = {"type": "boolean"}
+        out = bool_schema()
     elif p.kind in ("str", "path"):
         out = {"type": "string", "minLength": 1}
     elif p.kind == "choice":
