@@ -82,8 +82,8 @@ def peak_low(lo: np.ndarray, hi: np.ndarray, limit: np.ndarray) -> np.ndarray:
 
 FLOAT_NOISE = 8 * 2.0**-52
 """Relative float64 rounding allowed when a decoded value is compared with a clamp bound: the decoder's
-``raw * scale + offset`` and the map's unit conversion each round to the nearest double (``15000 * 0.0001`` is
-1.5000000000000002, not 1.5); many orders of magnitude below any LSB the bounds are snapped for."""
+``raw * scale + offset`` and the map's unit conversion each round to the nearest double (``3 * 0.1`` is
+0.30000000000000004, not 0.3); many orders of magnitude below any LSB the bounds are snapped for."""
 
 SNAP_STEPS = 16
 """Tries at moving one bound inward until what it sends arrives inside (one LSB, then float steps, normally succeed)."""

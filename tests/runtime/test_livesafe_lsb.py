@@ -158,6 +158,22 @@ def test_a_bound_on_the_grid_is_kept_and_one_off_it_moves_one_step_at_most(setup
     assert g.peak_hi[0] == pytest.approx(1.4999 / 0.0972, rel=1e-12)  # 15.432 x 0.0972 = 1.49999 A -> 1.5000 A before
 
 
+def test_a_bound_on_the_grid_that_decodes_an_ulp_beyond_is_kept(setup):  # noqa: F811
+    """A 0.1 A LSB and a clamp of [-0.3, 0.3] A: cantools decodes raw 3 as 3 * 0.1 = 0.30000000000000004 A, beyond 0.3 by
+    float64 rounding only. The bound is on the grid and kept (a strict comparison would have moved it to 0.2 A)."""
+    text = DBC.read_text()
+    line = ' SG_ Current : 0|16@1- (0.0001,0) [-2|2] "A" HapticDevice'
+    dbc = setup / "tenth.dbc"
+    dbc.write_text(text.replace(line, line.replace("(0.0001,0) [-2|2]", "(0.1,0) [0|0]")))
+    m = setup / "tenth.yaml"
+    m.write_text(textwrap.dedent(MAP).replace("clamp: [-1, 1], safe: 0}", "clamp: [-0.3, 0.3], safe: 0}"))
+    db = load_dbc(dbc)
+    cmd = db.get_message_by_name("VoiceCoilCmd")
+    assert cmd.decode(cmd.encode({"Current": 0.3, "Enable": 0, "Mode": 0}))["Current"] == 0.30000000000000004
+    g = load_map(m, db, dbc).outputs["vibration"].guard
+    assert (g.lo.tolist(), g.hi.tolist()) == ([-0.3], [0.3])
+
+
 def test_a_coarse_lsb_runs_with_the_clamp_moved_inward(setup):  # noqa: F811
     """End to end (live, simulated device, recorded session): a 0.6 A LSB and a clamp of [-1, 1] A. The map was refused
     (1.2 A would have been sent); the guard now clamps to +-0.6 A and every recorded frame decodes inside the clamp."""
