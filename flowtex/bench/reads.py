@@ -17,12 +17,13 @@ from .sweep import resolve_config
 
 
 def files_read_by_configs(graph_path: str | Path, configs: Iterable[dict[str, Any]],
-                          plugins: tuple[str | Path, ...] = ()) -> dict[Path, str | None]:
+                          plugins: tuple[str | Path, ...] = ()) -> dict[Path, tuple[str, Any] | None]:
     """Every file (resolved) a node of any configuration's graph reads (:func:`flowtex.graph.resolved.files_read`),
-    mapped to the first knob setting that names it (``"NODE.PARAM=VALUE"``), or None when the graph itself does."""
+    mapped to the first setting of a configuration that names it (``("NODE.PARAM", value)``), or None when the graph
+    itself does."""
     from ..graph.resolved import files_read
 
-    found: dict[Path, str | None] = {}
+    found: dict[Path, tuple[str, Any] | None] = {}
     scene = is_scene_file(graph_path)
     with tempfile.TemporaryDirectory(prefix="flowtex-bench-") as tmp:
         planned: dict[tuple, Path] = {}
@@ -42,8 +43,8 @@ def files_read_by_configs(graph_path: str | Path, configs: Iterable[dict[str, An
     return found
 
 
-def _naming_knob(resolved: Any, values: dict[str, Any], path: Path) -> str | None:
-    """``"NODE.PARAM=VALUE"`` of the knob in ``values`` whose path parameter is ``path`` in ``resolved``, or None."""
+def _naming_knob(resolved: Any, values: dict[str, Any], path: Path) -> tuple[str, Any] | None:
+    """``("NODE.PARAM", value)`` of the setting in ``values`` whose path parameter is ``path`` in ``resolved``, or None."""
     for key, value in values.items():
         node, _, param = key.partition(".")
         rn = resolved.nodes.get(node)
@@ -51,5 +52,5 @@ def _naming_knob(resolved: Any, values: dict[str, Any], path: Path) -> str | Non
             continue
         given = rn.params.get(param)
         if isinstance(given, (str, Path)) and Path(given).resolve() == path:
-            return f"{key}={value}"
+            return key, value
     return None

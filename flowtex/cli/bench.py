@@ -39,7 +39,7 @@ def register(sub: Any) -> None:
 
 def cmd_bench(args: argparse.Namespace) -> int:
     from ..bench.report import dask_client, need_matplotlib, pareto_plot, write_csv
-    from ..bench.sweep import build, combinations, default_metric, format_table, parse_knob, reference_values, sweep, table
+    from ..bench.sweep import build, default_metric, format_table, parse_knob, sweep, table
     from ..graph.spec import parse_override
     from ..io.atomic import check_output
     from ..io.recordings import load_recording
@@ -62,7 +62,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     check_output(args.output, inputs=inputs, option="-o", suffixes=(".csv",))
     check_output(args.plot, inputs=inputs, option="--plot", others={"-o": args.output})
     if args.output or args.plot:  # a knob may name another file to read in each configuration
-        _check_not_read(args, [reference_values(knobs, reference), *combinations(knobs)], set(sets))
+        _check_not_read(args, knobs, reference, set(sets))
     if args.plot:
         need_matplotlib()
     rec = load_recording(args.input)
@@ -85,13 +85,19 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check_not_read(args: argparse.Namespace, configs: list[dict[str, Any]], set_keys: set[str]) -> None:
-    """Refuse ``-o``/``--plot`` naming a file any configuration's graph reads, naming the knob (or ``--set``) that names it."""
+def _check_not_read(args: argparse.Namespace, knobs: dict[str, list[Any]], reference: dict[str, Any], sets: set[str]) -> None:
+    """Refuse ``-o``/``--plot`` naming a file any configuration's graph reads (the reference's too), naming the
+    ``--knob``, ``--set`` or ``--reference`` setting that makes it read that file."""
     from ..bench.reads import files_read_by_configs
+    from ..bench.sweep import combinations, reference_values
     from ..io.atomic import check_not_input
 
-    reads = files_read_by_configs(args.graph, configs, tuple(args.plugins))
+    reads = files_read_by_configs(args.graph, [*combinations(knobs), reference_values(knobs, reference)], tuple(args.plugins))
     for option, out in (("-o", args.output), ("--plot", args.plot)):
-        for path, knob in reads.items():
-            via = "" if knob is None else f" with {'--set' if knob.split('=', 1)[0] in set_keys else '--knob'} {knob}"
+        for path, setting in reads.items():
+            via = ""
+            if setting is not None:
+                key, value = setting
+                given = "--set" if key in sets else "--knob" if value in knobs.get(key, ()) else "--reference"
+                via = f" with {given} {key}={value}"
             check_not_input(out, [path], option, what=f"a file the graph reads{via}")

@@ -305,7 +305,8 @@ def test_live_stats_over_the_model_set_the_graph_reads_is_refused_before_the_ses
 @pytest.mark.parametrize("option,victim,knob", [
     ("-o", "table.csv", ["--knob", "shift.table=other.csv,table.csv"]),
     ("--plot", "shot.png", ["--knob", "shift.table=other.csv,shot.png"]),
-    ("-o", "table.csv", ["--knob", "shift.every=1,2", "--set", "shift.table=table.csv"])])
+    ("-o", "table.csv", ["--knob", "shift.every=1,2", "--set", "shift.table=table.csv"]),
+    ("-o", "table.csv", ["--knob", "shift.table=other.csv,two.csv", "--reference", "shift.table=table.csv"])])
 def test_bench_output_over_a_file_a_knob_makes_the_graph_read_is_refused(tmp_path, capsys, monkeypatch, option, victim, knob):
     """A knob names a file only some configurations read (the plugin's table): bench -o/--plot checked only the graph
     and the recording, so the sweep would write its table or plot over that file. Every configuration's reads are checked
@@ -315,12 +316,14 @@ def test_bench_output_over_a_file_a_knob_makes_the_graph_read_is_refused(tmp_pat
     (tmp_path / "plugs" / "shift.py").write_text(PLUGIN)
     (tmp_path / "g.yaml").write_text(SHIFT_GRAPH.replace("table.csv", "other.csv"))
     (tmp_path / "other.csv").write_text("1.5\n")
+    (tmp_path / "two.csv").write_text("2\n")
     save_recording(tmp_path / "in.npz", {"x": np.arange(100.0)}, rate=1000.0)
     (tmp_path / victim).write_text("2.5\n")
     before = sorted(os.listdir(tmp_path))
     code, err = _run(capsys, ["bench", "g.yaml", "--plugins", "plugs", "-i", "in.npz", *knob, option, victim])
     err = [line for line in err if not line.startswith("flowtex: loaded plugin code")]
-    via = f"--set shift.table={victim}" if "--set" in knob else f"--knob shift.table={victim}"
+    given = next((k for k in ("--set", "--reference") if k in knob), "--knob")
+    via = f"{given} shift.table={victim}"
     assert code == 1 and err == [f"{option} {victim}: that is a file the graph reads with {via} ({tmp_path / victim}); "
                                  "flowtex never overwrites an input: choose another output file"], err
     assert (tmp_path / victim).read_text() == "2.5\n" and sorted(os.listdir(tmp_path)) == before
