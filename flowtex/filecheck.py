@@ -115,9 +115,12 @@ def _device_map(path: Path, dbc: str | Path | None, *_: object) -> str:
         raise FlowtexError(f"{path}: a device map is checked against its device: give --dbc DEVICE.dbc")
     from .io.canmap import load_map
     from .io.dbc import load_dbc
+    from .io.mapsafety import moved_bounds
 
     m = load_map(path, load_dbc(dbc), dbc)
-    return f"{len(m.inputs)} inputs, {len(m.outputs)} outputs on {Path(dbc).name}"
+    moved = [text for b in m.outputs.values() if (text := moved_bounds(b)) is not None]
+    onto = f"; moved onto the DBC's LSB grid: {'; '.join(moved)}" if moved else ""
+    return f"{len(m.inputs)} inputs, {len(m.outputs)} outputs on {Path(dbc).name}{onto}"
 
 
 def _scene(path: Path, _dbc: object, plugins: tuple[str | Path, ...], _auto_plugins: bool) -> str:

@@ -199,6 +199,23 @@ def _guard_bounds(db: Database, b, ranges: list, codecs: dict[str, MessageCodec]
     return None
 
 
+def moved_bounds(b) -> str | None:
+    """What :func:`check_clamps` moved of output binding ``b``'s clamp and peak range, as ``"NAME: clamp [LOW, HIGH]
+    guarded as [LOW', HIGH']"`` (graph units; one pair per component of a vector output), or None if nothing moved."""
+    g = b.guard
+    ranges = [("clamp", b.lo, b.hi, g.lo, g.hi)]
+    if b.peak_limit is not None:
+        ranges.append(("peak range", peak_low(b.lo, b.hi, b.peak_limit), b.peak_limit, g.peak_lo, g.peak_hi))
+    parts = [f"{what} {_pairs(lo, hi)} guarded as {_pairs(glo, ghi)}" for what, lo, hi, glo, ghi in ranges
+             if not (np.array_equal(lo, glo) and np.array_equal(hi, ghi))]
+    return f"{b.name}: {'; '.join(parts)}" if parts else None
+
+
+def _pairs(lo: np.ndarray, hi: np.ndarray) -> str:
+    pairs = [f"[{a:.6g}, {z:.6g}]" for a, z in zip(lo, hi, strict=True)]
+    return pairs[0] if len(pairs) == 1 else f"[{', '.join(pairs)}]"
+
+
 class Sender:
     """One output component as the runtime sends it: graph value -> ``value * scale + offset`` (the map's) -> flowtex's
     encoder of the message (the generated Python one; the compiled tables give the same bytes) -> decoded by cantools."""

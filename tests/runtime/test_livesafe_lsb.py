@@ -214,3 +214,16 @@ def test_a_clamp_with_no_step_inside_and_a_safe_value_sent_beyond_are_refused(se
             load_map(m, db, dbc)
         msg = str(e.value)
         assert "\n" not in msg and msg.startswith(f"{m}:") and "output 'vibration'" in msg and expected in msg, msg
+
+
+def test_validate_says_which_bounds_moved(capsys):
+    """A bound moved inward changes what reaches the device (a 0.6 A LSB turns +-1 A into +-0.6 A): `flowtex validate`
+    names it; a map whose bounds are all on the grid says nothing more."""
+    from flowtex.cli import main
+
+    assert main(["validate", str(DBC.parent / "example_scene_map.yaml"), "--dbc", str(DBC)]) == 0
+    out = capsys.readouterr().out
+    assert ("moved onto the DBC's LSB grid: vibration: clamp [-10.288, 10.288] guarded as [-10.287, 10.287]; "
+            "peak range [-15.432, 15.432] guarded as [-15.4311, 15.4311])") in out, out
+    assert main(["validate", str(DBC.parent / "example_map.yaml"), "--dbc", str(DBC)]) == 0
+    assert "moved" not in capsys.readouterr().out
