@@ -117,7 +117,7 @@ def human_exploration(duration_s: float = 20.0, rate: float = 1000.0, surface: T
     accel = render_texture(ms, speed, force, rate, seed)
     rms = float(np.sqrt(np.mean(accel ** 2))) or 1.0
     measured = accel + noise * rms * rng.standard_normal(n)
-    tangential = mu * force * (1.0 + 0.05 * _smooth_noise(n, rate, rng, 1.0)) + 0.02 * mu * np.mean(force) * rng.standard_normal(n)
+    tangential = mu * force * (1.0 + 0.05 * drift_noise(n, rate, rng, 1.0)) + 0.02 * mu * np.mean(force) * rng.standard_normal(n)
     arrays = {"accel": measured, "speed": speed, "normal_force": force, "tangential_force": tangential,
               "position": circle_path(speed, rate), "normal": np.tile([0.0, 0.0, 1.0], (n, 1))}
     return SyntheticRecording(arrays, rate, {"surface": ms, "clean": accel, "mu": float(mu)})
