@@ -31,7 +31,7 @@ import numpy as np
 
 from . import SyntheticRecording
 from .graphs import FRICTION_GRAPH, run_graph
-from .realistic import drift_noise
+from .realistic import wander
 from .resonant import FORCE_RANGE, SPEED_RANGE, bounded_path
 
 
@@ -78,7 +78,7 @@ def stiction_drag(mu: float = 0.4, duration_s: float = 20.0, rate: float = 1000.
     out = run_graph(FRICTION_GRAPH, rate, {"friction.mu": float(mu)}, {"velocity": velocity, "normal_force": fn}, seed)
     kinetic = np.linalg.norm(np.asarray(out["friction_force"], float), axis=1)
     if drift:
-        kinetic = kinetic * (1.0 + drift * drift_noise(n, rate, rng, 1.0))
+        kinetic = kinetic * (1.0 + drift * wander(n, rate, rng, 1.0))
     lengths = np.round(rng.uniform(*spike_s, size=max(spikes, 1)) * rate).astype(np.int64)
     starts = spike_starts(n, rng, spikes, lengths) if spikes else np.zeros(0, np.int64)
     mask = np.zeros(n, bool)

@@ -48,7 +48,7 @@ import numpy as np
 from ..dsp.arma import arma_output_variance
 from ..models.texture import TextureModelSet
 from .model_sets import poly_from_roots, poly_to_lsf_reference
-from .realistic import drift_noise
+from .realistic import drift_noise, wander
 
 SPEED_RANGE = (130.0, 320.0)
 """Speeds (mm/s) of the default path: those of six real tool-surface recordings (docs/fitting.md)."""
@@ -162,7 +162,7 @@ def textured_exploration(duration_s: float = 20.0, rate: float = 1000.0, surface
     accel = gain * wild
     rms = float(np.sqrt(np.mean(accel ** 2))) or 1.0
     measured = accel + noise * rms * rng.standard_normal(n)
-    tangential = mu * force * (1.0 + 0.05 * drift_noise(n, rate, rng, 1.0))   # drift_noise: no swing at the ends
+    tangential = mu * force * (1.0 + 0.05 * wander(n, rate, rng, 1.0))
     arrays = {"accel": measured, "speed": speed, "normal_force": force, "tangential_force": tangential,
               "position": circle_path(speed, rate), "normal": np.tile([0.0, 0.0, 1.0], (n, 1))}
     truth = {"surface": ms, "clean": clean, "power_factor": gain ** 2 * factor, "loudness_db": level_db, "mu": float(mu)}
