@@ -17,9 +17,10 @@ heteroscedastic linear models", Ann. Statist. 10:429-441): alternate
 2. an estimate of g from that fit's residuals r_i,
 
 for ``cycles`` cycles (Carroll & Ruppert recommend two or three). Step 2 is a
-median regression of log |r_i| on a polynomial in log x_i (quadratic by default:
-a power law bent enough to follow a constant sensor floor joining noise
-proportional to x). Since log is monotone, exp of the fitted conditional
+median regression of log |r_i| on a polynomial in log x_i (degree 1 by
+default: a power law, g ~ x^theta, Carroll & Ruppert's power-of-the-mean model
+in x; a quadratic bends to slow drift in 20 s of recording, docs/fitting.md).
+Since log is monotone, exp of the fitted conditional
 median of log |r| is the conditional median of |r|: g is the MAD of the
 residuals as a function of x, the local form of the MAD scale the
 homoscedastic fit uses, and, as a median, it is barely moved by the outliers
@@ -45,7 +46,7 @@ import numpy as np
 from .robust import BISQUARE_C, MAD_TO_SIGMA, RobustLine, irls, line_from_fit
 
 SCALE_DEGREE = 1
-"""Degree of the polynomial in log x whose exp is the scale function (2: a bent power law)."""
+"""Degree of the polynomial in log x whose exp is the scale function (1: a power law in x)."""
 CYCLES = 3
 """Cycles of (robust fit, scale function) (Carroll & Ruppert 1988, sec. 2.2: two or three suffice)."""
 
@@ -118,8 +119,9 @@ def fit_scale_function(x: np.ndarray, r: np.ndarray, degree: int = SCALE_DEGREE)
 
 @dataclass(frozen=True)
 class HeteroLine:
-    """A robust line with a scale that depends on x: ``line`` (its ``scale`` is s at x_ref, its ``weights`` the final
-    IRLS weights), the ``scale_function`` s(x), and ``standardised`` residuals r_i / s(x_i)."""
+    """A robust line with a scale that depends on x: ``line`` (its ``scale`` is the scale at the median x, its
+    ``weights`` the final IRLS weights), the ``scale_function`` of the last cycle (its shape weighted the final
+    fit; :meth:`scale_at` is the final scale), and the ``standardised`` residuals r_i / scale_at(x_i)."""
 
     line: RobustLine
     scale_function: ScaleFunction

@@ -15,6 +15,13 @@ offset soaks up the whole force and leaves a mu far too small (docs/fitting.md).
 a line through the origin by b sum N / sum N^2); such a fit cannot be stored
 with ``--into``, which refuses it rather than drop b.
 
+The residual scale grows with the normal force by default (``--noise force``): real tangential-force noise
+does, and one scale for every sample rejected heavy contacts as outliers (13 % of a spike-free generated
+recording). The scale is a power law in N fitted robustly to the residuals, the line refitted on residuals
+standardised by it (flowtex.dsp.hetero, Carroll & Ruppert's robust weighted fit); ``--noise constant`` keeps one
+scale. The report says how many samples were rejected, in how many stretches, and what share noise alone would
+put past the rule (:func:`rejection_lines`).
+
 Every fit reports r2, the share of the tangential force's variance that the
 normal force explains (the IRLS-weighted squared correlation of T and N, so
 rejected stiction spikes do not count). Below ``LOW_R2`` the fit carries a
@@ -55,7 +62,14 @@ LOW_R2 = 0.25
 
 @dataclass(frozen=True)
 class FrictionFit:
-    """mu (dimensionless) with its 95 % interval, the offset (N) if fitted, r2, a warning (or None), and what was used."""
+    """mu (dimensionless) with its 95 % interval, the offset (N) if fitted, r2, a warning (or None), and what was used.
+
+    ``noise``: the noise model used (``force`` or ``constant``); ``scale_n``: the residual scale (N) at the normal
+    forces ``scale_force_n`` (N: 5th, 50th, 95th percentile in contact; ``residual_scale_n`` is the middle one);
+    ``noise_exponent``: d log scale / d log N there; ``rejected_*``: the samples with weight 0, their share of the
+    samples in contact, their runs of consecutive samples and the longest; ``false_rejection_*``: the share
+    Gaussian and Student t5 noise alone would put past the rule.
+    """
 
     mu: float
     mu_ci: tuple[float, float]
@@ -68,15 +82,15 @@ class FrictionFit:
     method: str
     r2: float
     warning: str | None
-    noise: str = "force"
-    scale_force_n: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    scale_n: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    noise_exponent: float = 0.0
-    rejected_share: float = 0.0
-    rejected_stretches: int = 0
-    longest_stretch_samples: int = 0
-    false_rejection_gaussian: float = 0.0
-    false_rejection_t5: float = 0.0
+    noise: str
+    scale_force_n: tuple[float, ...]
+    scale_n: tuple[float, ...]
+    noise_exponent: float
+    rejected_share: float
+    rejected_stretches: int
+    longest_stretch_samples: int
+    false_rejection_gaussian: float
+    false_rejection_t5: float
 
 
 def explained_share(x: np.ndarray, y: np.ndarray, weights: np.ndarray) -> float:

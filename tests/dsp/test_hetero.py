@@ -7,12 +7,15 @@ to x), Gaussian or Student t.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import stats
 
-from flowtex.dsp.hetero import (false_rejection_rate, fit_scale_function, irls_line_hetero, median_regression,
-                                rejected_stretches)
+from flowtex.dsp.hetero import false_rejection_rate, fit_scale_function, irls_line_hetero, median_regression, rejected_stretches
 from flowtex.dsp.robust import BISQUARE_C, MAD_TO_SIGMA
 
 N = 20000  # 20 s at 1 kHz, as the recordings
@@ -79,6 +82,25 @@ def test_rejected_stretches():
     assert rejected_stretches(np.zeros(5, bool)) == (0, 0)
     assert rejected_stretches(np.array([1, 1, 0, 1, 0, 0, 1, 1, 1], bool)) == (3, 3)
     assert rejected_stretches(np.ones(4, bool)) == (1, 4)
+
+
+@given(st.lists(st.booleans(), max_size=200))
+def test_rejected_stretches_are_the_runs_of_true(mask):
+    runs = [len(list(g)) for k, g in itertools.groupby(mask) if k]
+    assert rejected_stretches(np.array(mask, bool)) == (len(runs), max(runs, default=0))
+
+
+@given(st.floats(1e-3, 1e3), st.floats(1e-3, 1e3))
+@settings(max_examples=20, deadline=None)
+def test_scale_function_is_equivariant(cx, cr):
+    """Forces in other units (x cx) and residuals in other units (x cr): the scale follows the residuals' units and
+    keeps its shape (the exponent)."""
+    rng = np.random.default_rng(5)
+    x = _forces(rng)[:2000]
+    r = 0.05 * x ** 0.7 * rng.standard_normal(2000)
+    a, b = fit_scale_function(x, r), fit_scale_function(cx * x, cr * r)
+    assert b.exponent(cx * 1.0) == pytest.approx(a.exponent(1.0), abs=1e-6)
+    assert b(cx * x[:50]) == pytest.approx(cr * a(x[:50]), rel=1e-6)
 
 
 def test_line_matches_statsmodels_rlm_given_the_true_weights():
