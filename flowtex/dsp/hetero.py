@@ -76,20 +76,31 @@ class ScaleFunction:
         return float(np.polynomial.polynomial.polyval(z, deriv)) / self.span if deriv.size else 0.0
 
 
-def median_regression(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+def median_regression(A: np.ndarray, b: np.ndarray, max_iter: int = 500, tol: float = 1e-12) -> np.ndarray:
     """Coefficients c minimising sum |b - A c| (least absolute deviations: the conditional median of b).
 
-    Solved as the dual linear programme of least absolute deviations (Koenker 2005, "Quantile Regression",
-    sec. 6.2): maximise b'd subject to A'd = 0, -1 <= d <= 1, by HiGHS; c are the multipliers of A'd = 0. k
-    equality constraints instead of n: a fraction of a second for 20 000 samples.
+    Iteratively reweighted least squares with weights 1 / |r_i| (Schlossmacher 1973, "An iterative technique for
+    absolute deviations curve fitting", JASA 68:857), the residuals floored at 1e-9 of their median, until the sum
+    of absolute residuals falls by less than ``tol`` (relative) in an iteration. For a few columns and many rows
+    this reaches the optimum of the linear programme (tests/dsp/test_hetero.py checks it against one) in time
+    linear in the rows, where the programme's time grows much faster (docs/fitting.md).
     """
-    from scipy.optimize import linprog
-
-    res = linprog(-np.asarray(b, float), A_eq=np.asarray(A, float).T, b_eq=np.zeros(A.shape[1]), bounds=(-1.0, 1.0),
-                  method="highs")
-    if res.status != 0:
-        raise ValueError(f"median regression failed: {res.message}")
-    return -np.asarray(res.eqlin.marginals, float)
+    A = np.asarray(A, float)
+    b = np.asarray(b, float)
+    c = np.linalg.lstsq(A, b, rcond=None)[0]
+    total = np.inf
+    for _ in range(max_iter):
+        r = b - A @ c
+        new = float(np.sum(np.abs(r)))
+        if total - new <= tol * new:
+            break
+        total = new
+        w = 1.0 / np.maximum(np.abs(r), 1e-9 * max(float(np.median(np.abs(r))), 1e-300))
+        try:
+            c = np.linalg.solve(A.T @ (w[:, None] * A), A.T @ (w * b))
+        except np.linalg.LinAlgError:
+            break
+    return c
 
 
 def fit_scale_function(x: np.ndarray, r: np.ndarray, degree: int = SCALE_DEGREE) -> ScaleFunction:

@@ -15,12 +15,14 @@ offset soaks up the whole force and leaves a mu far too small (docs/fitting.md).
 a line through the origin by b sum N / sum N^2); such a fit cannot be stored
 with ``--into``, which refuses it rather than drop b.
 
-The residual scale grows with the normal force by default (``--noise force``): real tangential-force noise
-does, and one scale for every sample rejected heavy contacts as outliers (13 % of a spike-free generated
-recording). The scale is a power law in N fitted robustly to the residuals, the line refitted on residuals
-standardised by it (flowtex.dsp.hetero, Carroll & Ruppert's robust weighted fit); ``--noise constant`` keeps one
-scale. The report says how many samples were rejected, in how many stretches, and what share noise alone would
-put past the rule (:func:`rejection_lines`).
+The residual scale grows with the normal force by default (``--noise
+force``): real tangential-force noise does, and one scale for every sample
+rejects heavy contacts as outliers (docs/fitting.md). The scale is a power
+law in N fitted robustly to the residuals, the line refitted on residuals
+standardised by it (flowtex.dsp.hetero, Carroll & Ruppert's robust weighted
+fit); ``--noise constant`` keeps one scale. The report says how many samples
+were rejected, in how many stretches, and what share noise alone would put
+past the rule (:func:`rejection_lines`).
 
 Every fit reports r2, the share of the tangential force's variance that the
 normal force explains (the IRLS-weighted squared correlation of T and N, so
