@@ -30,6 +30,32 @@ def _se(fit) -> float:
     return (fit.mu_ci[1] - fit.mu_ci[0]) / (2 * T19)
 
 
+def test_stiction_drag_behaves_as_documented():
+    """The generator: the speeds and forces of the real recordings, in contact throughout, Coulomb friction, noise
+    growing with the force with Student t5 tails, and spikes where the truth says.
+
+    Tolerances: the noise sd of 20 000 samples estimated to ~1 % x sqrt(kurtosis 9 - 1) / sqrt(2) = 2 %; the share of
+    t5 samples beyond 3 sd (1.3 %, 260 expected) to a Poisson 4 sd.
+    """
+    rec = stiction_drag(mu=MU, seed=4, drift=0.0)
+    a, truth = rec.arrays, rec.truth
+    assert 130.0 <= a["speed"].min() and a["speed"].max() <= 320.0
+    assert a["normal_force"].min() > 0.1 and a["normal_force"].max() < 4.4      # in contact throughout
+    spike = truth["spike_mask"]
+    assert len(truth["spike_starts"]) == 20 and 0.02 * 20 * 1000 <= spike.sum() <= 0.08 * 20 * 1000
+    runs = np.diff(np.concatenate([[0], spike.astype(int), [0]]))
+    assert np.sum(runs == 1) == 20                                              # 20 separate spikes
+    noise = a["tangential_force"] - MU * a["normal_force"]                      # + MU x the normal force's sensor noise
+    sd = truth["noise_sd"]
+    z = noise[~spike] / sd[~spike]
+    assert np.std(z) == pytest.approx(1.0, rel=0.06)   # 3 x 2 %; the normal force's 0.01 N adds 0.4 x 0.01 N
+    heavy, light = sd > np.quantile(sd, 0.8), sd < np.quantile(sd, 0.2)
+    assert np.std(noise[heavy & ~spike]) > 4 * np.std(noise[light & ~spike])   # sd 0.04 N x force: 5-10 x across the range
+    expected = 2 * stats.t.sf(3 * np.sqrt(5 / 3), 5) * z.size
+    assert np.sum(np.abs(z) > 3) == pytest.approx(expected, abs=4 * np.sqrt(expected))
+    assert np.all(a["tangential_force"][spike] > 1.5 * MU * a["normal_force"][spike] - 6 * sd[spike])   # 2-3 x kinetic
+
+
 def test_no_spike_recording_is_not_rejected_as_outliers():
     """The case found last session: a generated recording without stiction spikes (friction noise proportional to
     the force, slow, Gaussian) had 12-13 % of its samples rejected, all at heavy contact.
