@@ -254,9 +254,9 @@ def rejection_lines(fit: FrictionFit) -> list[str]:
     if fit.rejected:
         lines.append(f"rejected {fit.rejected} samples ({100 * fit.rejected_share:.2f} %) in {fit.rejected_stretches} "
                      f"stretch{'es' if fit.rejected_stretches != 1 else ''} (longest {fit.longest_stretch_samples} samples): "
-                     f"residuals beyond {BISQUARE_C:g} local scales, weight 0")
+                     f"residuals beyond {BISQUARE_C:g} residual scales, weight 0")
     else:
-        lines.append(f"rejected no sample (none beyond {BISQUARE_C:g} local scales)")
+        lines.append(f"rejected no sample (none beyond {BISQUARE_C:g} residual scales)")
     lines.append(f"noise alone puts {100 * fit.false_rejection_gaussian:.4f} % of samples there if Gaussian, "
                  f"{100 * fit.false_rejection_t5:.2f} % if Student t ({TAIL_DOF:g} degrees of freedom); a share well above "
                  "that, in short stretches, is stiction or spikes, in stretches of a second or more, slow drift")
