@@ -9,7 +9,7 @@ from __future__ import annotations
 import difflib
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -138,7 +138,9 @@ class Param:
             return value
         if kind in ("str", "path"):
             if not isinstance(value, str) or not value:
-                raise ValueError(f"expected a non-empty string, got {excerpt(value)}")
+                takes = " or a loaded " + " or ".join(t.__name__ for t in self.objects) if kind == "path" and self.objects else ""
+                raise ValueError(f"expected a non-empty string{' (a file path)' if kind == 'path' else ''}{takes}, "
+                                 f"got {excerpt(value)}")
             if kind == "path":
                 try:
                     path = Path(value).expanduser()
@@ -274,6 +276,19 @@ def resolve_declared(port: Port, inputs: dict[str, PortSpec]) -> PortSpec:
     if shape is None:
         raise TypeError("output ports must declare a shape")
     return PortSpec(tuple(shape), unit)
+
+
+def expected_shape(port: Port, specs: Mapping[str, PortSpec]) -> tuple[int, ...] | None:
+    """The shape input ``port`` takes, given the specs of the inputs resolved before it; None: any shape.
+
+    A ``"=name"`` shape is that input's (any shape while ``name`` is not resolved yet). The one rule the graph's
+    resolver (:mod:`flowtex.graph.ports`) and ``Node.processor`` check arriving shapes against.
+    """
+    shape = port.shape
+    if isinstance(shape, str):
+        ref = specs.get(shape[1:])
+        return ref.shape if ref is not None else None
+    return tuple(shape) if shape is not None else None
 
 
 def unit_product(a: str, b: str) -> str:

@@ -12,7 +12,7 @@ from typing import Any
 
 from ..errors import DataError, FlowtexError, ParamError
 from ..limits import port_values_problem
-from ..node_api import BuildContext, Port, PortSpec, simplify_unit
+from ..node_api import BuildContext, Port, PortSpec, expected_shape, simplify_unit
 from ..node_params import load_files
 from ..nodecheck import is_plugin, plugin_raised
 from .resolved import GraphChecker, ResolvedNode, param_loc
@@ -28,11 +28,8 @@ def _loaded_params(rn: ResolvedNode) -> tuple[dict[str, Any], dict[str, Path]]:
 
 
 def _port_check(port: Port, name: str, got: PortSpec, specs: dict[str, PortSpec]) -> str | None:
-    shape = port.shape
-    if isinstance(shape, str):
-        ref = specs.get(shape[1:])
-        shape = ref.shape if ref is not None else None
-    if shape is not None and tuple(shape) != got.shape:
+    shape = expected_shape(port, specs)
+    if shape is not None and shape != got.shape:
         want = PortSpec(tuple(shape)).describe().split(" [")[0]
         return f"shape mismatch: {got.describe().split(' [')[0]} arrives at input {name!r}, which takes {want}"
     unit = port.unit
@@ -67,15 +64,11 @@ def resolve_ports(ck: GraphChecker, nodes: dict[str, ResolvedNode], inputs: dict
 
 def _expected(port: Port, specs: dict[str, PortSpec]) -> tuple[tuple[int, ...] | None, str]:
     """Shape (None: any) and unit ("*": any) a port takes, given the inputs resolved before it."""
-    shape = port.shape
-    if isinstance(shape, str):
-        ref = specs.get(shape[1:])
-        shape = ref.shape if ref is not None else None
     unit = port.unit
     if unit.startswith("="):
         ref = specs.get(unit[1:])
         unit = ref.unit if ref is not None else "*"
-    return (tuple(shape) if shape is not None else None), unit
+    return expected_shape(port, specs), unit
 
 
 def _resolve_pass(ck: GraphChecker, nodes: dict[str, ResolvedNode], inputs: dict[str, PortSpec],

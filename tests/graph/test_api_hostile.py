@@ -1,0 +1,112 @@
+"""The Python graph API (GraphBuilder, Graph.run/process/run_ticks) given what Python code gets wrong.
+
+Each mistake is one flowtex error naming the input, parameter or builder call; values Python computes (numpy scalars,
+arrays, paths) are taken as a graph file's values; chunked ``process`` calls equal one pass, NaN handling included.
+"""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from flowtex.errors import GraphError, InputError
+from flowtex.graph.builder import GraphBuilder
+
+
+def smoothing(rate=1000.0, seed=0, order=2, cutoff_hz=50.0, every=1) -> GraphBuilder:
+    return (GraphBuilder("g", rate=rate, seed=seed).input("x", unit="N")
+            .node("f", "butterworth", every=every, order=order, cutoff_hz=cutoff_hz)
+            .edge("x -> f.x").output("y", "f.y"))
+
+
+@pytest.fixture(scope="module")
+def graph():
+    return smoothing().build()
+
+
+@pytest.mark.parametrize(("value", "words"), [
+    (np.ones(3) + 1j, "complex"), (["a"], "text"), (np.array(["2020-01-01"], dtype="datetime64[D]"), "timestamps"),
+    (1.0, "expected a 1-D array over time, got shape ()"), (np.ones((3, 2)), "expected a 1-D array over time"),
+    ([[1.0], [2.0, 3.0]], "not an array of numbers"),
+])
+def test_run_refuses_what_is_not_a_signal_naming_the_input(graph, value, words) -> None:
+    # complex was cast silently (imaginary part lost), a scalar raised IndexError, text a bare ValueError
+    with pytest.raises(InputError) as err:
+        graph.run({"x": value})
+    assert "'x'" in str(err.value) and words in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize(("call", "words"), [
+    (lambda g: g.run(np.ones(5)), "pass the inputs as a mapping of input name to array, e.g. {'x': x}"),
+    (lambda g: g.run({"x": np.ones(5)}, seed="a"), "seed must be an integer >= 0, got 'a'"),
+    (lambda g: g.run({"x": np.ones(5)}, seed=-1), "seed must be an integer >= 0, got -1"),
+    (lambda g: g.run_ticks(-1), "n must be an integer >= 0, got -1"),
+    (lambda g: g.run_ticks(2.5), "n must be an integer >= 0, got 2.5"),
+    (lambda g: g.with_block_rows(0), "block_rows must be an integer >= 1, got 0"),
+])
+def test_wrong_arguments_are_named(graph, call, words) -> None:
+    with pytest.raises(InputError) as err:
+        call(graph)
+    assert words in str(err.value)
+
+
+def test_numpy_values_and_paths_build_the_graph_their_python_twins_build(hatt_files) -> None:
+    # rate=np.float32(1000), every=np.int64(2), order=np.int64(2) were refused ("got np.int64(2)"), a Path as models too
+    x = np.random.default_rng(5).standard_normal(400)
+    want = smoothing(every=2).build().run({"x": x})["y"]
+    got = smoothing(rate=np.float32(1000.0), seed=np.int64(0), order=np.int64(2), cutoff_hz=np.float64(50.0),
+                    every=np.int64(2)).build().run({"x": x})["y"]
+    np.testing.assert_array_equal(got, want)
+
+    def lookup(models) -> GraphBuilder:
+        return (GraphBuilder("t").input("speed", unit="mm/s").input("force", unit="N")
+                .node("l", "texture_lookup", models=models).edge("speed -> l.speed").edge("force -> l.force")
+                .output("v", "l.variance"))
+    inputs = {"speed": np.linspace(0, 300, 40), "force": np.linspace(0, 4, 40)}
+    by_path = lookup(Path(hatt_files[0])).build().run(inputs)["v"]
+    np.testing.assert_array_equal(by_path, lookup(str(hatt_files[0])).build().run(inputs)["v"])
+
+
+def test_a_model_object_of_the_wrong_kind_names_what_the_parameter_takes() -> None:
+    builder = (GraphBuilder("t").input("speed", unit="mm/s").input("force", unit="N")
+               .node("l", "texture_lookup", models={"cork": 1}).edge("speed -> l.speed").edge("force -> l.force")
+               .output("v", "l.variance"))
+    with pytest.raises(GraphError) as err:
+        builder.resolve()
+    assert "parameter 'models' expected a non-empty string (a file path) or a loaded TextureModelSet" in str(err.value)
+
+
+@pytest.mark.parametrize("again", [
+    lambda b: b.node("f", "gain", k=3.0), lambda b: b.input("x"), lambda b: b.output("y", "x"),
+])
+def test_a_name_given_twice_is_refused_not_replaced(again) -> None:
+    # a second node("f", ...) silently replaced the first, where a graph file refuses a duplicate key
+    with pytest.raises(GraphError) as err:
+        again(smoothing())
+    assert "duplicate" in str(err.value) and "first defined at GraphBuilder." in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def _cuts(n: int):
+    return st.lists(st.integers(0, n), max_size=6).map(lambda c: [0, *sorted(c), n])
+
+
+@settings(max_examples=40, deadline=None)
+@given(data=st.data())
+def test_process_in_chunks_equals_one_pass_when_holding_nan(graph, data) -> None:
+    # "hold" started each chunk from 0, so a chunk beginning with NaN differed from the one-pass run
+    n = 150
+    x = np.random.default_rng(data.draw(st.integers(0, 2**32 - 1))).standard_normal(n)
+    x[data.draw(st.lists(st.integers(0, n - 1), min_size=1, max_size=20))] = np.nan
+    one = graph.run({"x": x}, nonfinite="hold")["y"].copy()
+    graph.reset()
+    cuts = data.draw(_cuts(n))
+    parts = [graph.process({"x": x[a:b]}, nonfinite="hold")["y"].copy() for a, b in itertools.pairwise(cuts)]
+    np.testing.assert_array_equal(np.concatenate(parts), one)
+    graph.reset()
+    assert graph.process({"x": np.array([np.nan])}, nonfinite="hold")["y"][0] == 0.0  # reset forgets the held value
