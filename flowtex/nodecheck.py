@@ -22,7 +22,7 @@ import numpy as np
 
 from .errors import FlowtexError
 from .limits import MAX_NODE_PORTS, MAX_PORT_VALUES, excerpt
-from .node_api import Node, NodeState, Param, Port
+from .node_api import Node, NodeState, Param, Port, PortSpec
 
 CONTRACT = "kernel(p, s, si, inputs..., outputs...)"
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
@@ -88,6 +88,16 @@ def attr_line(cls: type[Node], attr: str) -> int | None:
         return None
     pattern = re.compile(rf"^\s*{re.escape(attr)}\s*(:[^=]*)?=")
     return next((start + k for k, text in enumerate(lines) if pattern.match(text)), None)
+
+
+def type_name_location(cls: type[Node]) -> str | None:
+    """``FILE:LINE`` of the class's ``type_name = ...`` (where a name clash is fixed), or None without its source."""
+    try:
+        path = inspect.getsourcefile(cls)
+    except TypeError:
+        path = None
+    line = attr_line(cls, "type_name") if path else None
+    return f"{shown_path(path)}:{line}" if path and line else None
 
 
 def node_where(cls: type[Node], func: Callable | None = None, line: int | None = None) -> str:
@@ -198,6 +208,11 @@ def check_declarations(cls: type[Node]) -> None:
 def check_node_class(cls: type[Node]) -> None:
     """Raise :class:`FlowtexError` (``file:line: node 'name': ...`` and the fix) if the declarations or kernel break the contract."""
     check_declarations(cls)
+    owner = next((k for k in cls.__mro__ if "seed_state" in k.__dict__), None)
+    if cls.uses_seed and (owner is None or (owner.__module__, owner.__qualname__) == ("flowtex.node_api", "Node")):
+        raise FlowtexError(f"{node_where(cls, line=attr_line(cls, 'uses_seed'))}: uses_seed = True but the node defines no "
+                           "seed_state(self, state, istate, seed); write one that fills its random state in place from the "
+                           "np.random.SeedSequence seed (the graph's seed and the node's name), or drop uses_seed")
     attrs = ["kernel"] + (["emit_kernel", "absorb_kernel"] if cls.breaks_cycles else [])
     for attr in attrs:
         kernel = _kernel_attr(cls, attr)
@@ -263,6 +278,33 @@ def checked_state(cls: type[Node], node_name: str, state: object, build: Callabl
         return state
     raise FlowtexError(f"{node_where(cls, build)}: build() of graph node {node_name!r} returned {excerpt(state)}, not a "
                        "NodeState; end build() with return NodeState(params=..., state=..., istate=...)")
+
+
+def checked_outputs(cls: type[Node], node_name: str, specs: object) -> dict[str, PortSpec]:
+    """``specs`` if :meth:`Node.resolve` returned a :class:`PortSpec` of a usable shape for each declared output (and
+    nothing else), else the plugin's error at its ``resolve`` line: the kernel is called with exactly the declared
+    outputs, so a missing or extra one would fail later, far from the mistake."""
+    declared = list(cls.outputs)
+
+    def refuse(problem: str) -> FlowtexError:
+        return FlowtexError(f"{node_where(cls, cls.resolve)}: resolve() of graph node {node_name!r} {problem}; return "
+                            f"{{name: PortSpec(shape, unit)}} for each declared output: {', '.join(declared) or 'none'}")
+    if not isinstance(specs, dict):
+        raise refuse(f"returned {excerpt(specs)}, not a dict")
+    missing = [n for n in declared if n not in specs]
+    extra = [n for n in specs if n not in cls.outputs]
+    if missing or extra:
+        raise refuse("returned " + "; ".join(part for part in (
+            f"no spec for output(s) {', '.join(map(repr, missing))}" if missing else "",
+            f"spec(s) for undeclared output(s) {', '.join(map(repr, extra))}" if extra else "") if part))
+    for name, spec in specs.items():
+        if not isinstance(spec, PortSpec):
+            raise refuse(f"returned {excerpt(spec)} for output {name!r}, not a PortSpec")
+        if not isinstance(spec.shape, tuple) or not all(isinstance(n, int) and not isinstance(n, bool) and n >= 1
+                                                        for n in spec.shape):
+            raise refuse(f"returned shape {excerpt(spec.shape)} for output {name!r}; a shape is a tuple of positive "
+                         "integers such as () or (3,)")
+    return specs
 
 
 def plugin_raised(cls: type[Node], node_name: str, method: str, exc: Exception) -> FlowtexError:

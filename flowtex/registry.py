@@ -38,7 +38,7 @@ from types import ModuleType
 from .config import PLUGIN_ENV, plugin_folders
 from .errors import FlowtexError
 from .node_api import Node
-from .nodecheck import check_node_class, error_line, shown_path
+from .nodecheck import check_node_class, error_line, shown_path, type_name_location
 from .plugincode import PLUGIN_CODE, plugin_code_id, register_plugin_package
 
 ENTRY_POINT_GROUP = "flowtex.nodes"
@@ -165,9 +165,9 @@ class Registry:
         except KeyError:  # the name of an entry point being loaded, or of one that defines no such type
             existing = None
         if existing is not None and existing is not cls:
-            raise FlowtexError(
-                f"{origin}: node type {name!r} is already defined by {self.origins[name]}; rename one of them"
-            )
+            where = type_name_location(cls)
+            raise FlowtexError(f"{where or origin}: node type {name!r} is already defined by {self.origins[name]}; "
+                               f"rename one of them{' (flowtex nodes lists the taken names)' if where else ''}")
         self.types.set(name, cls)
         self.origins[name] = origin
 

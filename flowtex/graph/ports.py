@@ -14,7 +14,7 @@ from ..errors import DataError, FlowtexError, ParamError
 from ..limits import port_values_problem
 from ..node_api import BuildContext, Port, PortSpec, expected_shape, simplify_unit
 from ..node_params import load_files
-from ..nodecheck import is_plugin, plugin_raised
+from ..nodecheck import checked_outputs, is_plugin, plugin_raised
 from .resolved import GraphChecker, ResolvedNode, param_loc
 from .spec import EdgeSpec
 
@@ -131,10 +131,7 @@ def _resolve_pass(ck: GraphChecker, nodes: dict[str, ResolvedNode], inputs: dict
                                files=files)
             rn.node = rn.cls(name, params, ctx)
             method = "resolve"
-            rn.out_specs = rn.node.resolve(specs)
-            if _too_wide(ck, rn, rn.out_specs, "output"):
-                rn.out_specs = {}
-                failed.add(name)
+            resolved = rn.node.resolve(specs)
         except ParamError as exc:
             failed.add(name)
             ck.error(param_loc(rn, exc.param), f"node {name!r} ({rn.cls.type_name}): {exc}")
@@ -145,6 +142,11 @@ def _resolve_pass(ck: GraphChecker, nodes: dict[str, ResolvedNode], inputs: dict
             if not is_plugin(rn.cls):
                 raise  # flowtex's own bug: an internal error
             raise plugin_raised(rn.cls, name, method, exc) from None
+        else:
+            rn.out_specs = checked_outputs(rn.cls, name, resolved)  # a wrong result: the plugin's error at its resolve()
+            if _too_wide(ck, rn, rn.out_specs, "output"):
+                rn.out_specs = {}
+                failed.add(name)
     for name, took in provisional.items():
         rn = nodes[name]
         for port_name, src in rn.sources.items():
