@@ -291,6 +291,27 @@ def expected_shape(port: Port, specs: Mapping[str, PortSpec]) -> tuple[int, ...]
     return tuple(shape) if shape is not None else None
 
 
+def outputs_problem(declared: Sequence[str], specs: object) -> str | None:
+    """What is wrong with ``specs`` as what :meth:`Node.resolve` returns for outputs ``declared`` (a :class:`PortSpec`
+    of a shape of positive integers for each of them, nothing else), or None. The kernel is called with exactly the
+    declared outputs, so a missing or extra one would fail later, far from the mistake."""
+    if not isinstance(specs, dict):
+        return f"returned {excerpt(specs)}, not a dict"
+    missing = [n for n in declared if n not in specs]
+    extra = [n for n in specs if n not in declared]
+    if missing or extra:
+        return "returned " + "; ".join(part for part in (
+            f"no spec for output(s) {', '.join(map(repr, missing))}" if missing else "",
+            f"spec(s) for undeclared output(s) {', '.join(map(repr, extra))}" if extra else "") if part)
+    for name, spec in specs.items():
+        if not isinstance(spec, PortSpec):
+            return f"returned {excerpt(spec)} for output {name!r}, not a PortSpec"
+        if not isinstance(spec.shape, tuple) or not all(isinstance(n, int) and not isinstance(n, bool) and n >= 1
+                                                        for n in spec.shape):
+            return f"returned shape {excerpt(spec.shape)} for output {name!r}; a shape is a tuple of positive integers such as () or (3,)"
+    return None
+
+
 def unit_product(a: str, b: str) -> str:
     """Unit of a product, simplified: dimensionless factors drop out, powers combine (``mm/s``, ``mm/s`` -> ``mm^2/s^2``)."""
     if not a:

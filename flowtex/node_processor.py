@@ -20,7 +20,7 @@ import numpy as np
 from .dsp.nonfinite import NONFINITE_POLICIES, apply_nonfinite_policy
 from .errors import FlowtexError, InputError, ParamError
 from .limits import MAX_RATE_HZ, excerpt, port_values_problem
-from .node_decl import BuildContext, PortSpec, expected_shape, suggest
+from .node_decl import BuildContext, PortSpec, expected_shape, outputs_problem, suggest
 from .node_params import checked_params, load_files
 from .pyvalues import float_signal, plain
 
@@ -117,6 +117,10 @@ class Processor:
         retried with other arrays)."""
         specs = self._specs(arrays)
         outputs = self.node.resolve(specs)
+        problem = outputs_problem(list(self.cls.outputs), outputs)
+        if problem:
+            raise FlowtexError(f"node type {self.cls.type_name!r}: resolve() {problem}; return {{name: PortSpec(shape, unit)}} "
+                               f"for each declared output: {', '.join(self.cls.outputs) or 'none'}")
         for port_name, spec in outputs.items():
             problem = port_values_problem(spec.shape)
             if problem:

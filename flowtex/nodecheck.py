@@ -23,6 +23,7 @@ import numpy as np
 from .errors import FlowtexError
 from .limits import MAX_NODE_PORTS, MAX_PORT_VALUES, excerpt
 from .node_api import Node, NodeState, Param, Port, PortSpec
+from .node_decl import outputs_problem
 
 CONTRACT = "kernel(p, s, si, inputs..., outputs...)"
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
@@ -281,30 +282,13 @@ def checked_state(cls: type[Node], node_name: str, state: object, build: Callabl
 
 
 def checked_outputs(cls: type[Node], node_name: str, specs: object) -> dict[str, PortSpec]:
-    """``specs`` if :meth:`Node.resolve` returned a :class:`PortSpec` of a usable shape for each declared output (and
-    nothing else), else the plugin's error at its ``resolve`` line: the kernel is called with exactly the declared
-    outputs, so a missing or extra one would fail later, far from the mistake."""
-    declared = list(cls.outputs)
-
-    def refuse(problem: str) -> FlowtexError:
-        return FlowtexError(f"{node_where(cls, cls.resolve)}: resolve() of graph node {node_name!r} {problem}; return "
-                            f"{{name: PortSpec(shape, unit)}} for each declared output: {', '.join(declared) or 'none'}")
-    if not isinstance(specs, dict):
-        raise refuse(f"returned {excerpt(specs)}, not a dict")
-    missing = [n for n in declared if n not in specs]
-    extra = [n for n in specs if n not in cls.outputs]
-    if missing or extra:
-        raise refuse("returned " + "; ".join(part for part in (
-            f"no spec for output(s) {', '.join(map(repr, missing))}" if missing else "",
-            f"spec(s) for undeclared output(s) {', '.join(map(repr, extra))}" if extra else "") if part))
-    for name, spec in specs.items():
-        if not isinstance(spec, PortSpec):
-            raise refuse(f"returned {excerpt(spec)} for output {name!r}, not a PortSpec")
-        if not isinstance(spec.shape, tuple) or not all(isinstance(n, int) and not isinstance(n, bool) and n >= 1
-                                                        for n in spec.shape):
-            raise refuse(f"returned shape {excerpt(spec.shape)} for output {name!r}; a shape is a tuple of positive "
-                         "integers such as () or (3,)")
-    return specs
+    """``specs`` if :meth:`Node.resolve` returned a usable spec for each declared output
+    (:func:`flowtex.node_decl.outputs_problem`), else the plugin's error at its ``resolve`` line."""
+    problem = outputs_problem(list(cls.outputs), specs)
+    if problem:
+        raise FlowtexError(f"{node_where(cls, cls.resolve)}: resolve() of graph node {node_name!r} {problem}; return "
+                           f"{{name: PortSpec(shape, unit)}} for each declared output: {', '.join(cls.outputs) or 'none'}")
+    return specs  # type: ignore[return-value]
 
 
 def plugin_raised(cls: type[Node], node_name: str, method: str, exc: Exception) -> FlowtexError:

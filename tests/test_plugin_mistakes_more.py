@@ -8,39 +8,22 @@ seed_state (passed; the graph then failed with NotImplementedError).
 
 from __future__ import annotations
 
-import contextlib
-import io
-import os
-import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from flowtex.cli import main
+from tests.test_plugin_check import _line, check_copy
 
 CASE = Path(__file__).parent / "plugin_cases" / "mistakes_more.py"
 GAIN = 'type_name = "gain"'
 RATE = 'params = {"rate"'
 
 
-def _line(path: Path, needle: str) -> int:
-    return next(k for k, line in enumerate(path.read_text().splitlines(), start=1) if needle in line)
-
-
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("pcm")
-    shutil.copy(CASE, folder / "m.py")
-    cwd = os.getcwd()
-    os.chdir(folder)
-    try:
-        out, err = io.StringIO(), io.StringIO()
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            code = main(["plugin", "check", "m.py"])
-    finally:
-        os.chdir(cwd)
-    return code, out.getvalue().strip().splitlines(), err.getvalue().strip(), folder / "m.py"
+    return check_copy(CASE, tmp_path_factory.mktemp("pcm"), "m.py")
 
 
 def test_each_mistake_is_one_problem_at_its_line(report):

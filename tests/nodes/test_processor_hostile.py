@@ -187,3 +187,17 @@ def test_a_kernel_that_raises_leaves_the_state_as_before_the_call() -> None:
         proc(x=np.array([5.0, 1e7, 3.0]))
     np.testing.assert_array_equal(proc(x=np.array([4.0]))["y"][:, 0], [7.0])
 
+
+
+class _ForgetsY(_Raising):
+    """A resolve() that returns no spec for the declared output y."""
+
+    type_name = "forgets_y_test"
+
+    def resolve(self, inputs):
+        return {}
+
+
+def test_a_resolve_missing_an_output_is_named_not_a_key_error() -> None:
+    with pytest.raises(FlowtexError, match=r"node type 'forgets_y_test': resolve\(\) returned no spec for output\(s\) 'y'"):
+        _ForgetsY.processor()(x=np.ones(3))
