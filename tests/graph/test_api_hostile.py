@@ -110,3 +110,45 @@ def test_process_in_chunks_equals_one_pass_when_holding_nan(graph, data) -> None
     np.testing.assert_array_equal(np.concatenate(parts), one)
     graph.reset()
     assert graph.process({"x": np.array([np.nan])}, nonfinite="hold")["y"][0] == 0.0  # reset forgets the held value
+
+
+@pytest.mark.parametrize(("spoil", "words"), [
+    (lambda ms: {"variance": -ms.variance}, "variance is -"),  # rendered silence without a word
+    (lambda ms: {"speeds": ms.speeds[:5]}, "has 25 values but there are 5 models"),  # a numpy concatenate message
+    (lambda ms: {"triangles": ms.triangles + 100}, "names model"),
+])
+def test_a_model_set_built_in_memory_gets_the_checks_its_file_would(spoil, words) -> None:
+    import dataclasses
+
+    from flowtex.datasets import default_surface
+    from flowtex.errors import ParamError
+    from flowtex.registry import load_registry
+
+    ms = default_surface()
+    bad = dataclasses.replace(ms, **spoil(ms))
+    with pytest.raises(ParamError) as err:
+        load_registry().types["texture_lookup"].processor(models=bad)
+    assert err.value.param == "models" and words in str(err.value) and "\n" not in str(err.value)
+    builder = (GraphBuilder("t").input("speed", unit="mm/s").input("force", unit="N")
+               .node("l", "texture_lookup", models=bad).edge("speed -> l.speed").edge("force -> l.force")
+               .output("v", "l.variance"))
+    with pytest.raises(GraphError, match=f"GraphBuilder.node.*models=.*{words[:12]}"):
+        builder.resolve()
+
+
+@pytest.mark.parametrize(("change", "words"), [
+    ({"a": [np.array([1.0, -2.5, 1.6])] * 3}, "feature 0: the filter is unstable"),  # IndexError in the node before
+    ({"amplitudes": np.array([np.nan, 7.0, 12.0])}, "must be finite"),  # NaN samples out of the node before
+    ({"axis": np.zeros(3)}, "axis must be a non-zero finite 3-vector"),  # silence before
+    ({"b": [np.array([1.0])] * 2}, "one entry per feature"),
+])
+def test_a_pattern_built_in_memory_is_checked_when_made(change, words) -> None:
+    from flowtex.datasets.patterns import resonance
+    from flowtex.models.patterns import Pattern
+
+    b, a = resonance(180.0, 0.006, 1000.0)
+    fields = {"sample_rate_hz": 1000.0, "axis": np.array([1.0, 0.0, 0.0]), "origin": np.zeros(3),
+              "positions_mm": np.array([2.0, 4.0, 6.0]), "amplitudes": np.array([10.0, 7.0, 12.0]), "b": [b] * 3, "a": [a] * 3}
+    Pattern(**fields)  # the unchanged pattern is fine
+    with pytest.raises(ValueError, match=words):
+        Pattern(**(fields | change))
