@@ -39,7 +39,7 @@ import numpy as np
 from .errors import FlowtexError
 from .node_api import REQUIRED, BuildContext, Node, Param, PortSpec
 from .node_params import load_files
-from .nodecheck import checked_outputs, checked_state, error_line
+from .nodecheck import checked_every, checked_latency, checked_outputs, checked_state, error_line
 
 TICKS = 600
 """Ticks of every probe run (enough for a block split and for a slow recursion to blow up)."""
@@ -173,7 +173,9 @@ def _probes_at(cls: type[Node], at: str, values: dict[str, Any]) -> list[Probe]:
         for name, port in cls.inputs.items():
             unit = port.unit if port.unit not in ("*",) and not port.unit.startswith("=") else ""
             in_specs[name] = PortSpec(shapes[name], unit)
+        checked_every(cls, "probe", cls.own_every(dict(params), RATE_HZ, dict.fromkeys(cls.inputs, 1)))
         node = cls("probe", dict(params), BuildContext(rate=RATE_HZ, base_dir=Path.cwd(), files=files))
+        checked_latency(cls, "probe", node.latency_samples())
         out_specs = checked_outputs(cls, "probe", node.resolve(in_specs))
         state = checked_state(cls, "probe", node.build(in_specs, out_specs), cls.build)
         label = ", ".join(f"{n}: {PortSpec(s).describe().split(' [')[0]}" for n, s in shapes.items()) or "no inputs"

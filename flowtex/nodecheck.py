@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import FlowtexError
-from .limits import MAX_NODE_PORTS, MAX_PORT_VALUES, excerpt
+from .limits import MAX_EVERY, MAX_NODE_PORTS, MAX_PORT_VALUES, excerpt
 from .node_api import Node, NodeState, Param, Port, PortSpec
 from .node_decl import outputs_problem
 
@@ -289,6 +289,25 @@ def checked_outputs(cls: type[Node], node_name: str, specs: object) -> dict[str,
         raise FlowtexError(f"{node_where(cls, cls.resolve)}: resolve() of graph node {node_name!r} {problem}; return "
                            f"{{name: PortSpec(shape, unit)}} for each declared output: {', '.join(cls.outputs) or 'none'}")
     return specs  # type: ignore[return-value]
+
+
+def checked_every(cls: type[Node], node_name: str, every: object) -> int | None:
+    """``every`` if :meth:`Node.own_every` returned None or a whole number of ticks in 1..MAX_EVERY, else the plugin's
+    error at its ``own_every`` line (0 would divide by zero in the generated schedule)."""
+    if every is None or (isinstance(every, (int, np.integer)) and not isinstance(every, bool) and 1 <= every <= MAX_EVERY):
+        return None if every is None else int(every)
+    raise FlowtexError(f"{node_where(cls, cls.own_every)}: own_every() for graph node {node_name!r} returned "
+                       f"{excerpt(every)}; return None (the graph's every: decides) or a whole number of ticks from 1 to "
+                       f"{MAX_EVERY:,}")
+
+
+def checked_latency(cls: type[Node], node_name: str, latency: object) -> int:
+    """``latency`` if :meth:`Node.latency_samples` returned a whole number of ticks >= 0, else the plugin's error at
+    its ``latency_samples`` line."""
+    if isinstance(latency, (int, np.integer)) and not isinstance(latency, bool) and latency >= 0:
+        return int(latency)
+    raise FlowtexError(f"{node_where(cls, cls.latency_samples)}: latency_samples() of graph node {node_name!r} returned "
+                       f"{excerpt(latency)}; return the delay from input to output as a whole number of ticks >= 0")
 
 
 def plugin_raised(cls: type[Node], node_name: str, method: str, exc: Exception) -> FlowtexError:

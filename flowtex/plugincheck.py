@@ -62,8 +62,13 @@ def node_types(target: str) -> dict[str, type[Node]]:
         if not path.is_file():
             raise FlowtexError(f"{target}: no such plugin file")
         module = load_plugin_file(path)
-        found = {obj.type_name: obj for obj in vars(module).values()
-                 if inspect.isclass(obj) and issubclass(obj, Node) and obj.type_name and obj.__module__ == module.__name__}
+        found: dict[str, type[Node]] = {}
+        for obj in vars(module).values():
+            if inspect.isclass(obj) and issubclass(obj, Node) and obj.type_name and obj.__module__ == module.__name__:
+                first = found.setdefault(obj.type_name, obj)
+                if first is not obj:  # a graph loading this file would refuse it at the second class
+                    raise FlowtexError(f"{type_name_location(obj) or target}: node type {obj.type_name!r} is already defined by "
+                                       f"class {first.__name__} of this file; give each class its own type_name")
         if not found:
             raise FlowtexError(f"{target}: defines no node type (a Node subclass with a type_name)")
         return found

@@ -3,7 +3,8 @@
 tests/plugin_cases/mistakes_more.py: a layout sized by a parameter its declaration lets be 0 (the probe built only at
 the defaults), a kernel writing into its input, a resolve() missing a declared output (an internal KeyError at run),
 a type named like a built-in one and a parameter named like a Node.processor keyword (both passed), uses_seed without
-seed_state (passed; the graph then failed with NotImplementedError).
+seed_state (passed; the graph then failed with NotImplementedError), a negative fractional latency (printed as is) and
+own_every() returning 0 (an internal IndentationError in the generated code, ZeroDivisionError at run).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ def report(tmp_path_factory):
 def test_each_mistake_is_one_problem_at_its_line(report):
     code, lines, err, path = report
     assert code == 1
-    assert err.startswith("m.py: 5 problem(s) in node type(s) ")
+    assert err.startswith("m.py: 7 problem(s) in node type(s) ")
     problems = [line for line in lines if ": note: " not in line]
     want = {
         "in_place": f"m.py:{_line(path, 'def inplace_kernel')}: node 'in_place_pc': kernel writes into its input 'x'",
@@ -39,6 +40,10 @@ def test_each_mistake_is_one_problem_at_its_line(report):
                  "flowtex.nodes; a graph would refuse to load this plugin: rename it"),
         "seedless": (f"m.py:{_line(path, 'uses_seed = True')}: node 'seedless_pc': uses_seed = True but the node defines "
                      "no seed_state"),
+        "latency": (f"m.py:{_line(path, 'def latency_samples')}: node 'half_latency_pc': latency_samples() of graph node "
+                    "'probe' returned -2.5; return the delay from input to output as a whole number of ticks >= 0"),
+        "every": (f"m.py:{_line(path, 'def own_every')}: node 'never_runs_pc': own_every() for graph node 'probe' returned "
+                  "0; return None"),
     }
     zero = [line for line in problems if "node 'zero_taps_pc': kernel reads or writes outside its arrays (built with x: "
             "scalar; taps=0)" in line]
@@ -93,3 +98,32 @@ def test_a_plugin_type_named_like_a_built_in_is_refused_at_its_type_name_line(tm
     assert len(err) == 1 and err[0].endswith(f"m.py:{_line(CASE, GAIN)}: node type 'gain' is already "
                                              "defined by entry point flowtex.nodes; rename one of them (flowtex nodes "
                                              "lists the taken names)"), err
+
+
+def test_own_every_returning_zero_is_the_plugins_error_at_load(tmp_path, capsys):
+    (tmp_path / "plugins").mkdir()
+    text = CASE.read_text().replace('type_name = "gain"', 'type_name = "not_gain_pc"').replace("uses_seed = True", "")
+    (tmp_path / "plugins" / "m.py").write_text(text)
+    (tmp_path / "g.yaml").write_text(GRAPH.replace("forgets_output_pc", "never_runs_pc"))
+    for argv in (["validate", str(tmp_path / "g.yaml")], ["graph", str(tmp_path / "g.yaml")]):
+        assert main(argv) == 1
+        err = [ln for ln in capsys.readouterr().err.splitlines() if not ln.startswith("flowtex: ")]
+        assert len(err) == 1 and err[0].endswith(f"m.py:{_line(CASE, 'def own_every')}: node 'never_runs_pc': own_every() "
+                                                 "for graph node 'd' returned 0; return None (the graph's every: decides) or "
+                                                 "a whole number of ticks from 1 to 1,000,000"), err
+
+
+def test_two_classes_of_one_file_with_one_type_name_are_refused_by_plugin_check(tmp_path, capsys):
+    text = CASE.read_text().replace('type_name = "never_runs_pc"', 'type_name = "half_latency_pc"')
+    (tmp_path / "twice.py").write_text(text)
+    assert main(["plugin", "check", str(tmp_path / "twice.py")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].endswith(f"twice.py:{_line_after(tmp_path / 'twice.py', 'class NeverRuns', 'type_name')}: node type "
+                            "'half_latency_pc' is already defined by class HalfLatency of this file; give each class its own "
+                            "type_name"), err
+
+
+def _line_after(path: Path, anchor: str, needle: str) -> int:
+    lines = path.read_text().splitlines()
+    start = next(k for k, text in enumerate(lines) if anchor in text)
+    return next(k for k, text in enumerate(lines[start:], start=start + 1) if needle in text)

@@ -103,4 +103,30 @@ class SeedlessNoise(Node):
         return NodeState(state=np.zeros(1))
 
 
+class HalfLatency(Node):
+    """Says its latency is -2.5 ticks."""
+    type_name = "half_latency_pc"
+    inputs = {"x": Port((), "*")}
+    outputs = {"y": Port((), "=x")}
+    kernel = copy_kernel
+
+    def build(self, inputs, outputs):
+        return NodeState(params=np.ones(1))
+
+    def latency_samples(self):
+        return -2.5
+
+
+class NeverRuns(HalfLatency):
+    """Its own_every() returns 0 ticks between runs."""
+    type_name = "never_runs_pc"
+
+    def latency_samples(self):
+        return 0
+
+    @classmethod
+    def own_every(cls, params, rate, input_every):
+        return 0
+
+
 _ = PortSpec  # resolve() of a correct node returns PortSpec values
