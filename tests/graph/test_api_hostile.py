@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from flowtex.errors import GraphError, InputError
+from flowtex.errors import FlowtexError, GraphError, InputError
 from flowtex.graph.builder import GraphBuilder
 
 
@@ -152,3 +152,19 @@ def test_a_pattern_built_in_memory_is_checked_when_made(change, words) -> None:
     Pattern(**fields)  # the unchanged pattern is fine
     with pytest.raises(ValueError, match=words):
         Pattern(**(fields | change))
+
+
+def test_step_refuses_a_vector_input_it_would_fill_or_truncate() -> None:
+    g = (GraphBuilder("v").input("p", shape=3, unit="mm").node("s", "speed_estimator").edge("p -> s.position")
+         .output("v", "s.speed").build())
+    for value, words in ((1.0, "got shape ()"),  # filled all three components
+                         (np.ones(3) + 1j, "complex128 values, not real numbers"),  # dropped the imaginary parts
+                         (["a", "b", "c"], "<U1 values, not real numbers"), (np.ones(2), "got shape (2,)")):
+        with pytest.raises(FlowtexError) as err:
+            g.step({"p": value})
+        assert str(err.value).startswith("input 'p' has shape (3,) (3 numbers); step() ") and words in str(err.value)
+    g.reset()
+    by_list = [g.step({"p": [0.1 * k, 0.0, 0.0]})["v"] for k in range(5)]
+    g.reset()
+    by_row = [g.step({"p": np.array([[0.1 * k, 0.0, 0.0]])})["v"] for k in range(5)]
+    assert by_list == by_row
