@@ -11,8 +11,9 @@ and 10 log10 K is a free offset. The residuals are
 * ``max(0, model_db - level_db)`` at "ceiling" frequencies (one-sided: only
   where the model rises above a ceiling, e.g. a stopband),
 
-each times its weight, minimised by scipy's trust-region reflective
-Levenberg-Marquardt with the analytic Jacobian.
+each times its weight, minimised by a projected Levenberg-Marquardt
+(:func:`fit_log_spectrum`) with the analytic Jacobian, both from one compiled
+pass over the roots (:func:`log_spectrum_db`).
 
 Why roots and not coefficients: every residual depends on a root through one
 factor (the Jacobian has one cheap column pair per root and is well scaled),
@@ -29,6 +30,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from .poly import root_power_spectrum
 
@@ -128,56 +130,56 @@ class _Layout:
         return (x[0], zrad, x[self.zp + 1:self.zr:2], x[self.zr:self.pp], prad, x[self.pp + 1:self.pr:2], x[self.pr:])
 
 
-def _pair_terms(cw: np.ndarray, sw: np.ndarray, u: np.ndarray, theta: np.ndarray, jac: bool):
-    """dB of each pair's |factor|^2 at w (len(w) x pairs) and, if ``jac``, its derivatives in u and theta (cw, sw: cos w, sin w)."""
-    r = -np.expm1(u)
-    ct = np.cos(theta)
-    st = np.sin(theta)
-    a = cw[:, None] * ct
-    b = sw[:, None] * st
-    cm = a + b  # cos(w - theta)
-    cp = a - b  # cos(w + theta)
-    dm = 1.0 - 2.0 * r * cm + r * r
-    dp = 1.0 - 2.0 * r * cp + r * r
-    val = DB * np.log(dm * dp)
-    if not jac:
-        return val, None, None
-    dr = DB * ((2.0 * r - 2.0 * cm) / dm + (2.0 * r - 2.0 * cp) / dp)
-    du = dr * (r - 1.0)  # dr/du = -(1 - r)
-    c = sw[:, None] * ct
-    d = cw[:, None] * st
-    dth = DB * 2.0 * r * ((c + d) / dp - (c - d) / dm)  # sin(w + theta) / dp - sin(w - theta) / dm
-    return val, du, dth
-
-
-def _real_terms(cw: np.ndarray, x: np.ndarray, jac: bool):
-    c = cw[:, None]
-    d = 1.0 - 2.0 * x[None, :] * c + x[None, :] ** 2
-    val = DB * np.log(d)
-    return val, (DB * (2.0 * x[None, :] - 2.0 * c) / d if jac else None)
-
-
-def log_spectrum_db(w: np.ndarray, x: np.ndarray, lay: _Layout, jac: bool = False):
-    """Model dB at w and (if ``jac``) its Jacobian in the parameters (len(w) x lay.size)."""
-    cw = np.cos(w)
-    sw = np.sin(w)
-    s = np.full(w.shape[0], x[0])
-    J = np.zeros((w.shape[0], lay.size)) if jac else None
+@njit(cache=True)
+def _log_spectrum_kernel(cw: np.ndarray, sw: np.ndarray, x: np.ndarray, zp: int, zr: int, pp: int, pr: int,
+                         jac: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Model dB at the frequencies whose cosines and sines are ``cw``, ``sw``, and (if ``jac``) its Jacobian
+    (len(w) x len(x); else 0 x len(x)). ``zp``, ``zr``, ``pp``, ``pr``: where the zero pairs, zero reals, pole pairs and
+    pole reals start in ``x`` (:class:`_Layout`). One pass per root over the frequencies, no temporaries: the fit
+    evaluates this hundreds of times per model."""
+    n = cw.shape[0]
+    size = x.shape[0]
+    s = np.full(n, x[0])
+    J = np.zeros((n if jac else 0, size))
     if jac:
         J[:, 0] = 1.0
-    for sign, p0, r0, npair, end in ((1.0, lay.zp, lay.zr, lay.nzp, lay.pp), (-1.0, lay.pp, lay.pr, lay.npp, lay.size)):
-        if npair:
-            val, du, dth = _pair_terms(cw, sw, x[p0:r0:2], x[p0 + 1:r0:2], jac)
-            s += sign * val.sum(axis=1)
-            if jac:
-                J[:, p0:r0:2] = sign * du
-                J[:, p0 + 1:r0:2] = sign * dth
-        if end > r0:
-            val, dx = _real_terms(cw, x[r0:end], jac)
-            s += sign * val.sum(axis=1)
-            if jac:
-                J[:, r0:end] = sign * dx
+    for sign, p0, r0, end in ((1.0, zp, zr, pp), (-1.0, pp, pr, size)):
+        for k in range(p0, r0, 2):  # conjugate pair r e^{+-j theta}, r = 1 - e^u
+            r = -math.expm1(x[k])
+            ct = math.cos(x[k + 1])
+            st = math.sin(x[k + 1])
+            for i in range(n):
+                a = cw[i] * ct
+                b = sw[i] * st
+                cm = a + b  # cos(w - theta)
+                cp = a - b  # cos(w + theta)
+                dm = 1.0 - 2.0 * r * cm + r * r
+                dp = 1.0 - 2.0 * r * cp + r * r
+                s[i] += sign * (DB * math.log(dm * dp))
+                if jac:
+                    dr = DB * ((2.0 * r - 2.0 * cm) / dm + (2.0 * r - 2.0 * cp) / dp)
+                    J[i, k] = sign * (dr * (r - 1.0))  # dr/du = -(1 - r)
+                    c = sw[i] * ct
+                    d = cw[i] * st
+                    J[i, k + 1] = sign * (DB * 2.0 * r * ((c + d) / dp - (c - d) / dm))  # sin(w+th)/dp - sin(w-th)/dm
+        for k in range(r0, end):  # real root
+            xr = x[k]
+            for i in range(n):
+                d = 1.0 - 2.0 * xr * cw[i] + xr * xr
+                s[i] += sign * (DB * math.log(d))
+                if jac:
+                    J[i, k] = sign * (DB * (2.0 * xr - 2.0 * cw[i]) / d)
     return s, J
+
+
+def log_spectrum_db(w: np.ndarray, x: np.ndarray, lay: _Layout, jac: bool = False,
+                    cs: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """Model dB at w and (if ``jac``) its Jacobian in the parameters (len(w) x lay.size, else None).
+
+    ``cs``: (cos w, sin w) when the caller has them (a fit evaluates the same frequencies many times)."""
+    cw, sw = cs if cs is not None else (np.cos(w), np.sin(w))
+    s, J = _log_spectrum_kernel(cw, sw, np.ascontiguousarray(x, dtype=np.float64), lay.zp, lay.zr, lay.pp, lay.pr, jac)
+    return s, (J if jac else None)
 
 
 def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, one_sided: np.ndarray,
@@ -222,13 +224,15 @@ def fit_log_spectrum(w: np.ndarray, level_db: np.ndarray, weight: np.ndarray, on
     two = ~one_sided
     w2 = weight * weight
 
+    cs = (np.cos(w), np.sin(w))
+
     def residual(x, jac):
         """(weighted residuals, rows that count, Jacobian or None)."""
-        s, J = log_spectrum_db(w, x, lay, jac=jac)
+        s, J = log_spectrum_db(w, x, lay, jac=jac, cs=cs)
         d = s - level_db
         return weight * np.where(one_sided, np.maximum(d, 0.0), d), (two | (d > 0.0)), J
 
-    s0, _ = log_spectrum_db(w, x, lay)
+    s0, _ = log_spectrum_db(w, x, lay, cs=cs)
     if offset_db is None:
         x[0] = float(np.sum((w2 * (level_db - s0))[two]) / max(np.sum(w2[two]), 1e-300))  # best offset for the start
     else:

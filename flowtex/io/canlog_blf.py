@@ -65,6 +65,11 @@ class BoundedBLFReader(BLFReader):
     def __init__(self, path: Path):
         super().__init__(path)
         self._path = path
+        if not callable(getattr(self, "_parse_container", None)) or not isinstance(getattr(self, "_tail", None), bytes):
+            self.stop()
+            raise DataError(f"{path}: this python-can ({getattr(can, '__version__', 'unknown version')}) has no BLF frame "
+                            "parser where flowtex's bounded BLF reader calls it (BLFReader._parse_container and _tail, "
+                            "python-can 4.3 to 4.6); install one of those versions, or convert the log to .asc")
 
     def __iter__(self) -> Iterator[can.Message]:
         base = OBJ_HEADER_BASE_STRUCT.size

@@ -38,10 +38,12 @@ that importing this module loads no numba.
 
 from __future__ import annotations
 
+import functools
 import math
 import struct
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from types import CodeType
 from typing import Any
 
 from cantools.database.can import Message
@@ -253,9 +255,16 @@ class MessageCodec:
         return _build(lines, ns, "encode", self.name)
 
 
+@functools.lru_cache(maxsize=4096)
+def _compiled(source: str, filename: str) -> CodeType:
+    """The code object of a generated codec function: the same DBC message gives the same source in every CanIO a process
+    builds (each session, replay and test opens the DBC anew), and compiling it is most of a codec's build time."""
+    return compile(source, filename, "exec")
+
+
 def _build(lines: list[str], ns: dict[str, Any], fname: str, msg: str) -> Callable:
     source = "\n".join(lines) + "\n"
-    code = compile(source, f"<flowtex codec {msg}.{fname}>", "exec")
+    code = _compiled(source, f"<flowtex codec {msg}.{fname}>")
     exec(code, ns)  # noqa: S102 - source generated above from DBC numbers only
     fn = ns[fname]
     fn.source = source

@@ -218,3 +218,15 @@ def test_replay_of_a_forged_blf_is_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert code == 1 and len(err.splitlines()) == 1 and "does not move past it" in err, err
     assert sorted(os.listdir(tmp_path)) == before  # no output, no temporary file
+
+
+def test_a_python_can_without_the_blf_frame_parser_is_one_line(tmp_path, monkeypatch):
+    """The bounded reader hands containers to python-can's private BLF frame parser; a python-can without it (another
+    major version) is named with the fix, not an AttributeError in the middle of a replay."""
+    log = _write_log(tmp_path / "s.blf")
+    assert len(_frames(log)) == FRAMES  # the installed python-can has the parser
+    monkeypatch.delattr(canlog_blf.BLFReader, "_parse_container")
+    with pytest.raises(DataError) as err:
+        _frames(log)
+    msg = str(err.value)
+    assert "\n" not in msg and msg.startswith(f"{log}: this python-can (") and "convert the log to .asc" in msg
