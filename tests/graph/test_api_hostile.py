@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
 from flowtex.errors import FlowtexError, GraphError, InputError
 from flowtex.graph.builder import GraphBuilder
@@ -168,3 +169,21 @@ def test_step_refuses_a_vector_input_it_would_fill_or_truncate() -> None:
     g.reset()
     by_row = [g.step({"p": np.array([[0.1 * k, 0.0, 0.0]])})["v"] for k in range(5)]
     assert by_list == by_row
+
+
+_DTYPES = st.one_of(hnp.scalar_dtypes(), hnp.unicode_string_dtypes(), hnp.floating_dtypes(endianness=">"))
+
+
+@settings(max_examples=150, deadline=None)
+@given(value=hnp.arrays(_DTYPES, hnp.array_shapes(min_dims=0, max_dims=3, min_side=0, max_side=6)),
+       policy=st.sampled_from(["error", "hold", "zero", "pass"]))
+def test_any_array_runs_or_is_one_flowtex_error(graph, value, policy) -> None:
+    try:
+        y = graph.run({"x": value}, nonfinite=policy)["y"]
+    except FlowtexError as exc:
+        assert "\n" not in str(exc)
+        return
+    assert y.shape == (value.shape[0],) and y.dtype == np.float64
+    finite = np.asarray(value, dtype=np.float64)
+    if policy != "pass" and np.all(np.abs(finite[np.isfinite(finite)]) <= 1e6):
+        assert np.isfinite(y).all()  # NaN/inf were held or zeroed; moderate values stay finite through a stable filter

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 from numba import njit
 
 from flowtex.errors import DataError, FlowtexError, InputError, ParamError
@@ -201,3 +202,27 @@ class _ForgetsY(_Raising):
 def test_a_resolve_missing_an_output_is_named_not_a_key_error() -> None:
     with pytest.raises(FlowtexError, match=r"node type 'forgets_y_test': resolve\(\) returned no spec for output\(s\) 'y'"):
         _ForgetsY.processor()(x=np.ones(3))
+
+
+_DTYPES = st.one_of(hnp.scalar_dtypes(), hnp.byte_string_dtypes(), hnp.unicode_string_dtypes(),
+                    hnp.floating_dtypes(endianness="<"), hnp.floating_dtypes(endianness=">"))
+
+
+@settings(max_examples=150, deadline=None)
+@given(type_name=st.sampled_from(["gain", "cross", "speed_estimator", "first_order_lowpass"]),
+       arrays=st.lists(hnp.arrays(_DTYPES, hnp.array_shapes(min_dims=0, max_dims=3, min_side=0, max_side=5)),
+                       min_size=2, max_size=2))
+def test_any_array_gives_outputs_of_its_length_or_one_flowtex_error(type_name, arrays) -> None:
+    # Whatever dtype, shape, byte order or values Python code hands in: either the node runs (every output has one
+    # row per tick) or a one-line flowtex error is raised -- never a numpy, numba or Python error, never a crash.
+    cls = node_type(type_name)
+    params = {"gain": {"k": 2.0}, "first_order_lowpass": {"cutoff_hz": 10.0}}.get(type_name, {})
+    inputs = dict(zip([n for n, p in cls.inputs.items() if not p.optional], arrays, strict=False))
+    try:
+        out = cls.processor(**params)(**inputs)
+    except FlowtexError as exc:
+        assert "\n" not in str(exc)
+        return
+    n = {np.asarray(a).shape[0] for a in inputs.values()}.pop()
+    for name, y in out.items():
+        assert y.dtype == np.float64 and y.ndim == 2 and y.shape[0] == n, name
