@@ -28,6 +28,7 @@ import hashlib
 import importlib
 import importlib.util
 import inspect
+import os
 import pkgutil
 import sys
 from collections.abc import Callable, Iterable, Iterator, Mapping
@@ -231,11 +232,16 @@ class Registry:
         return sorted(self.types)
 
 
+def folder_list(folders: Iterable[str | Path] | str | Path) -> tuple[str | Path, ...]:
+    """``folders`` as a tuple of folders; one folder given as a string or path is one folder, not its characters."""
+    return (folders,) if isinstance(folders, (str, os.PathLike)) else tuple(folders)  # type: ignore[return-value]
+
+
 def plugin_dirs(extra: Iterable[str | Path] = ()) -> list[Path]:
     """Plugin folders in search order: ``$FLOWTEX_PLUGINS``, then ``extra``."""
     dirs: list[Path] = []
     dirs.extend(plugin_folders())
-    dirs.extend(Path(d) for d in extra)
+    dirs.extend(Path(d) for d in folder_list(extra))
     unique: list[Path] = []
     for d in dirs:
         resolved = d.resolve()

@@ -24,7 +24,7 @@ from ..limits import excerpt
 from ..node_api import PortSpec, suggest
 from ..nodecheck import check_plugin_kernels
 from ..pyvalues import float_signal, plain
-from ..registry import Registry, load_registry
+from ..registry import Registry, folder_list, load_registry
 from .arena import FAULT, OUT_WIDTH, TICK, Layout, plan_layout
 from .faults import dispatch_fault, raised_fault
 from .fused import ENTRY_POINTS, EntryCompileError, FusedPlan, entry, lazy_entry
@@ -375,6 +375,7 @@ def graph_registry(path: str | Path, plugins: tuple[str | Path, ...] = (), auto_
     """The node registry a graph file is resolved with: ``plugins`` plus, with ``auto_plugins``, the graph's own plugin
     folders: its folder's ``plugins/`` (found wherever flowtex runs from) and ``own``, the folders of its ``plugins:``
     key (read from the file when None). ``.plugin_files`` lists the code it ran."""
+    plugins = folder_list(plugins)
     if not auto_plugins:
         return load_registry(plugins)
     from .spec import read_plugin_folders

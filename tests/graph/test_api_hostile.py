@@ -187,3 +187,28 @@ def test_any_array_runs_or_is_one_flowtex_error(graph, value, policy) -> None:
     finite = np.asarray(value, dtype=np.float64)
     if policy != "pass" and np.all(np.abs(finite[np.isfinite(finite)]) <= 1e6):
         assert np.isfinite(y).all()  # NaN/inf were held or zeroed; moderate values stay finite through a stable filter
+
+
+def test_overrides_from_python_code_are_taken_or_named() -> None:
+    x = np.random.default_rng(9).standard_normal(200)
+    want = smoothing(order=3, cutoff_hz=80.0).build().run({"x": x})["y"]
+    got = smoothing().build(overrides={"f.order": np.int64(3), "f.cutoff_hz": np.float32(80.0)}).run({"x": x})["y"]
+    np.testing.assert_array_equal(got, want)  # np.int64(3) was "expected an integer, got np.int64(3)"
+    for overrides, words in (({3: 1}, "an override's key is 'NODE.PARAM' or 'rate', got 3"),  # AttributeError before
+                             ([("f.order", 3)], "overrides must be a mapping")):
+        with pytest.raises(GraphError, match=words):
+            smoothing().spec(overrides)
+
+
+def test_one_plugin_folder_given_as_a_string_is_one_folder(tmp_path) -> None:
+    # plugins="folder" was read as one folder per character ("/.../f: plugin folder does not exist")
+    folder = tmp_path / "my_plugins"
+    folder.mkdir()
+    (folder / "twice_gain.py").write_text(
+        "import numpy as np\nfrom numba import njit\nfrom flowtex.node_api import Node, NodeState, Param, Port\n\n\n"
+        "@njit(cache=True)\ndef k(p, s, si, x, y):\n    for t in range(x.shape[0]):\n        y[t, 0] = 2.0 * x[t, 0]\n\n\n"
+        "class TwiceGain(Node):\n    \"\"\"Doubles.\"\"\"\n    type_name = \"twice_gain_api\"\n    inputs = {\"x\": Port((), \"*\")}\n"
+        "    outputs = {\"y\": Port((), \"=x\")}\n    kernel = k\n")
+    builder = GraphBuilder("p").input("x").node("d", "twice_gain_api").edge("x -> d.x").output("y", "d.y")
+    for folders in (str(folder), folder, (folder,)):
+        np.testing.assert_array_equal(builder.build(plugins=folders).run({"x": np.arange(4.0)})["y"], 2.0 * np.arange(4.0))
