@@ -212,3 +212,16 @@ def test_one_plugin_folder_given_as_a_string_is_one_folder(tmp_path) -> None:
     builder = GraphBuilder("p").input("x").node("d", "twice_gain_api").edge("x -> d.x").output("y", "d.y")
     for folders in (str(folder), folder, (folder,)):
         np.testing.assert_array_equal(builder.build(plugins=folders).run({"x": np.arange(4.0)})["y"], 2.0 * np.arange(4.0))
+
+
+def test_node_states_beyond_the_limit_are_refused_at_the_largest_node(monkeypatch) -> None:
+    # The limit is 1 GiB; lowered here so that a delay line of 5000 samples crosses it without allocating a gigabyte.
+    monkeypatch.setattr("flowtex.graph.resolve.MAX_STATE_VALUES", 4000)
+    builder = (GraphBuilder("s").input("x").node("small", "delay", samples=10).node("big", "delay", samples=5000)
+               .edge("x -> small.x").edge("small.y -> big.x").output("y", "big.y"))
+    with pytest.raises(GraphError) as err:
+        builder.resolve()
+    assert str(err.value).startswith("GraphBuilder.node('big', 'delay'): node 'big' (delay): its parameters and state hold ")
+    assert "flowtex allocates at most 4,000 (flowtex.limits.MAX_STATE_VALUES)" in str(err.value)
+    monkeypatch.setattr("flowtex.graph.resolve.MAX_STATE_VALUES", 10_000)
+    builder.resolve()
