@@ -20,8 +20,9 @@ import numpy as np
 from .dsp.nonfinite import NONFINITE_POLICIES, apply_nonfinite_policy
 from .errors import FlowtexError, InputError, ParamError
 from .limits import MAX_RATE_HZ, excerpt, port_values_problem
-from .node_decl import BuildContext, PortSpec, expected_shape, outputs_problem, suggest
+from .node_decl import BuildContext, PortSpec, expected_shape, suggest
 from .node_params import checked_params, load_files
+from .nodecheck import check_kernel_compiles, checked_outputs, is_plugin
 from .pyvalues import float_signal, plain
 
 
@@ -116,11 +117,9 @@ class Processor:
         """Build the node for the inputs given; nothing is kept unless every step succeeds (a failed first call can be
         retried with other arrays)."""
         specs = self._specs(arrays)
-        outputs = self.node.resolve(specs)
-        problem = outputs_problem(list(self.cls.outputs), outputs)
-        if problem:
-            raise FlowtexError(f"node type {self.cls.type_name!r}: resolve() {problem}; return {{name: PortSpec(shape, unit)}} "
-                               f"for each declared output: {', '.join(self.cls.outputs) or 'none'}")
+        outputs = checked_outputs(self.cls, self.name, self.node.resolve(specs))  # a wrong result: at its resolve() line
+        if is_plugin(self.cls):  # a kernel that does not compile: its own line and numba's reason, not a TypingError
+            check_kernel_compiles(self.cls)
         for port_name, spec in outputs.items():
             problem = port_values_problem(spec.shape)
             if problem:

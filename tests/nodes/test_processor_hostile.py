@@ -7,6 +7,7 @@ before the node is built. Chunked calls must equal one call bit for bit, NaN han
 
 from __future__ import annotations
 
+import inspect
 import itertools
 
 import numpy as np
@@ -201,8 +202,33 @@ class _ForgetsY(_Raising):
 
 
 def test_a_resolve_missing_an_output_is_named_not_a_key_error() -> None:
-    with pytest.raises(FlowtexError, match=r"node type 'forgets_y_test': resolve\(\) returned no spec for output\(s\) 'y'"):
+    with pytest.raises(FlowtexError) as err:
         _ForgetsY.processor()(x=np.ones(3))
+    line = inspect.getsourcelines(_ForgetsY.resolve)[1]
+    assert str(err.value).startswith(f"tests/nodes/test_processor_hostile.py:{line}: node 'forgets_y_test': resolve() of "
+                                     "graph node 'forgets_y_test' returned no spec for output(s) 'y'")
+
+
+@njit
+def _untyped_kernel(p, s, si, x, y):
+    for t in range(x.shape[0]):
+        y[t, 0] = x[t, 0] + "a"
+
+
+class _Untyped(_Raising):
+    """A kernel that does not compile for its ports."""
+
+    type_name = "untyped_test"
+    kernel = _untyped_kernel
+
+
+def test_a_kernel_that_does_not_compile_is_named_at_its_line_not_a_typing_error() -> None:
+    # "its kernel raised TypingError: Failed in nopython mode pipeline (step: nopython frontend)" said nothing useful
+    with pytest.raises(FlowtexError) as err:
+        _Untyped.processor()(x=np.ones(3))
+    line = inspect.getsourcelines(_untyped_kernel)[1] + 3  # the addition of a string
+    assert str(err.value).startswith(f"tests/nodes/test_processor_hostile.py:{line}: node 'untyped_test': kernel "
+                                     "_untyped_kernel does not compile for its ports")
 
 
 _DTYPES = st.one_of(hnp.scalar_dtypes(), hnp.byte_string_dtypes(), hnp.unicode_string_dtypes(),
