@@ -287,7 +287,7 @@ class Graph:
 
     def _check_inputs(self, inputs: Mapping[str, Any]) -> tuple[dict[str, np.ndarray], int]:
         """Graph inputs as float64 arrays of shape (n, width), with n checked equal."""
-        if not isinstance(inputs, Mapping):
+        if not (isinstance(inputs, Mapping) or (hasattr(inputs, "keys") and hasattr(inputs, "__getitem__"))):  # a DataFrame too
             raise InputError(f"graph {self.name!r}: pass the inputs as a mapping of input name to array, "
                              f"e.g. {{{next(iter(self.layout.in_columns), 'x')!r}: x}}; got {type(inputs).__name__}")
         unknown = [n for n in inputs if n not in self.layout.in_columns]

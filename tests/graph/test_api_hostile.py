@@ -225,3 +225,13 @@ def test_node_states_beyond_the_limit_are_refused_at_the_largest_node(monkeypatc
     assert "flowtex allocates at most 4,000 (flowtex.limits.MAX_STATE_VALUES)" in str(err.value)
     monkeypatch.setattr("flowtex.graph.resolve.MAX_STATE_VALUES", 10_000)
     builder.resolve()
+
+
+def test_a_data_frame_or_an_npz_file_is_a_mapping_of_inputs(graph, tmp_path) -> None:
+    pd = pytest.importorskip("pandas")
+    x = np.random.default_rng(11).standard_normal(50)
+    want = graph.run({"x": x})["y"].copy()
+    np.testing.assert_array_equal(graph.run(pd.DataFrame({"x": x}))["y"], want)
+    np.savez(tmp_path / "r.npz", x=x)
+    with np.load(tmp_path / "r.npz") as npz:
+        np.testing.assert_array_equal(graph.run(npz)["y"], want)
