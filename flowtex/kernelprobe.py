@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import FlowtexError
+from .errors import FlowtexError, ParamError
 from .node_api import REQUIRED, BuildContext, Node, Param, PortSpec
 from .node_params import load_files
 from .nodecheck import checked_every, checked_latency, checked_outputs, checked_state, error_line
@@ -301,10 +301,10 @@ def _probe_type(mode: str, cls: type[Node]) -> list[dict]:
     found: list[tuple[int, str]]
     try:
         found = probe_problems(cls)
-    except NoExampleValue as exc:
+    except (NoExampleValue, ParamError) as exc:  # no value to build with, or the node refuses the probe's shapes: a note
         found = [(0, f"note: {exc}")]
-    except FlowtexError as exc:  # build() or resolve() returned something unusable: the message names its file and line
-        return [{"line": 0, "message": str(exc), "located": True}]
+    except FlowtexError as exc:  # resolve(), build(), own_every() or latency_samples() broke the contract: a problem, and
+        return [{"line": 0, "message": str(exc), "located": True}]  # its message names the plugin's file and line
     except Exception as exc:  # __init__, resolve() or build() raised: the plugin's error, at its line
         found = [(error_line(exc, inspect.getsourcefile(cls) or ""), f"building the node raised {type(exc).__name__}: {exc}")]
     return [{"line": line, "message": message} for line, message in found]
