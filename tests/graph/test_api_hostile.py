@@ -235,3 +235,47 @@ def test_a_data_frame_or_an_npz_file_is_a_mapping_of_inputs(graph, tmp_path) -> 
     np.savez(tmp_path / "r.npz", x=x)
     with np.load(tmp_path / "r.npz") as npz:
         np.testing.assert_array_equal(graph.run(npz)["y"], want)
+
+
+_GARBAGE = st.one_of(
+    st.none(), st.booleans(), st.integers(-10**20, 10**20), st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=8), st.lists(st.floats(-1e3, 1e3), max_size=4), st.dictionaries(st.text(max_size=3), st.integers(), max_size=2),
+    st.sampled_from([np.int64(3), np.float32(0.5), np.bool_(True), np.array([1.0, 2.0]), np.zeros((2, 2)), Path("nowhere.json")]),
+)
+
+
+def _plain_types() -> list[str]:
+    from flowtex.registry import load_registry
+
+    types = load_registry().types
+    return sorted(t for t in types if not any(p.kind == "path" for p in types[t].params.values()))
+
+
+@settings(max_examples=300, deadline=None)  # 4000 examples found nothing more on 2026-11-27
+@given(data=st.data())
+def test_any_parameter_values_build_or_are_graph_errors(data) -> None:
+    # Every built-in node type (those without a file parameter), each parameter either left out, given a valid-looking
+    # value or garbage of any Python/numpy kind: the builder resolves or raises GraphError, one line per problem.
+    from flowtex.registry import load_registry
+
+    type_name = data.draw(st.sampled_from(_plain_types()))
+    cls = load_registry().types[type_name]
+    params = {}
+    for name, decl in cls.params.items():
+        choice = data.draw(st.sampled_from(["omit", "default", "garbage"]))
+        if choice == "garbage" or (choice == "default" and decl.required):
+            params[name] = data.draw(_GARBAGE)
+        elif choice == "default":
+            params[name] = decl.default
+    builder = GraphBuilder("fuzz")
+    for port_name, port in cls.inputs.items():
+        shape = port.shape if isinstance(port.shape, tuple) else (3,) if port.shape is None else ()
+        builder.input(f"in_{port_name}", shape=shape, unit="" if port.unit in ("*", "") or port.unit.startswith("=") else port.unit)
+        builder.edge(f"in_{port_name} -> n.{port_name}")
+    builder.node("n", type_name, **params)
+    for port_name in cls.outputs:
+        builder.output(f"out_{port_name}", f"n.{port_name}")
+    try:
+        builder.resolve()
+    except GraphError as exc:
+        assert all("\n" not in str(d) for d in exc.diagnostics)
