@@ -35,7 +35,7 @@ def highpass_option(p: argparse.ArgumentParser) -> None:
 
 
 def _friction(kinds: Any) -> None:
-    from ..fit.friction import DEFAULT_MIN_FORCE_N
+    from ..fit.friction import DEFAULT_MIN_FORCE_N, NOISE_MODELS
 
     p = kinds.add_parser("friction", help="kinetic friction coefficient mu from normal and tangential forces",
                          description="Robust line through the origin of tangential vs normal force (samples in contact only), "
@@ -51,6 +51,9 @@ def _friction(kinds: Any) -> None:
     p.add_argument("--min-force", type=nonneg("N"), default=DEFAULT_MIN_FORCE_N, help="in contact from this normal force (N, >= 0)")
     p.add_argument("--offset", choices=("yes", "no"), default="no",
                    help="no (default): HaTT's line through the origin, T = mu N; yes: T = mu N + b (cannot be stored with --into)")
+    p.add_argument("--noise", choices=NOISE_MODELS, default="force",
+                   help="force (default): the residual scale is a power law in the normal force, as real friction noise "
+                        "grows with force; constant: one scale for every sample")
     p.add_argument("-o", "--output", required=True, type=Path, help="output JSON (mu, mu_ci, ...)")
     p.add_argument("--into", metavar="SURFACE", help="also store mu in this model set (native JSON or HaTT XML), keeping its mode")
     p.set_defaults(func=cmd_fit_friction)
@@ -74,7 +77,7 @@ def cmd_fit_friction(args: argparse.Namespace) -> int:
         load_model_set(args.into)  # refuse a missing or broken model set before any work
         check_output(args.into, inputs=[args.recording], option="--into", create_folders=False)
     fit, doc = fit_friction_recording(args.recording, args.from_rate, args.normal_force, args.friction_force, force3,
-                                      args.normal, args.min_force, with_offset)
+                                      args.normal, args.min_force, with_offset, args.noise)
     for line in friction_table(fit):
         say(line)
     if args.into:

@@ -72,6 +72,16 @@ def drift_noise(n: int, rate: float, rng: np.random.Generator, corner_hz: float)
     return (x - np.mean(x)) / (np.std(x) or 1.0)
 
 
+def wander(n: int, rate: float, rng: np.random.Generator, corner_hz: float) -> np.ndarray:
+    """Unit-variance slow noise whose mean over the n samples is random, as a recording's drift is.
+
+    The middle n samples of :func:`drift_noise` over 3 n: :func:`drift_noise` itself removes the mean of what it
+    returns, so a slope fitted through a drift made by it would come out right by construction (no end swing
+    either, unlike :func:`flowtex.datasets.trajectories._smooth_noise`'s).
+    """
+    return drift_noise(3 * n, rate, rng, corner_hz)[n:2 * n]
+
+
 def human_trajectory(n: int, rate: float, rng: np.random.Generator, speed_range: tuple[float, float] = (30.0, 240.0),
                      force_range: tuple[float, float] = (0.5, 2.8), drift_hz: float = 0.25) -> tuple[np.ndarray, np.ndarray]:
     """Speed (mm/s) and normal force (N) of a hand exploring a surface: slow log-normal drifts, never stationary.
@@ -117,7 +127,7 @@ def human_exploration(duration_s: float = 20.0, rate: float = 1000.0, surface: T
     accel = render_texture(ms, speed, force, rate, seed)
     rms = float(np.sqrt(np.mean(accel ** 2))) or 1.0
     measured = accel + noise * rms * rng.standard_normal(n)
-    tangential = mu * force * (1.0 + 0.05 * _smooth_noise(n, rate, rng, 1.0)) + 0.02 * mu * np.mean(force) * rng.standard_normal(n)
+    tangential = mu * force * (1.0 + 0.05 * wander(n, rate, rng, 1.0)) + 0.02 * mu * np.mean(force) * rng.standard_normal(n)
     arrays = {"accel": measured, "speed": speed, "normal_force": force, "tangential_force": tangential,
               "position": circle_path(speed, rate), "normal": np.tile([0.0, 0.0, 1.0], (n, 1))}
     return SyntheticRecording(arrays, rate, {"surface": ms, "clean": accel, "mu": float(mu)})

@@ -48,7 +48,7 @@ import numpy as np
 from ..dsp.arma import arma_output_variance
 from ..models.texture import TextureModelSet
 from .model_sets import poly_from_roots, poly_to_lsf_reference
-from .realistic import drift_noise
+from .realistic import drift_noise, wander
 
 SPEED_RANGE = (130.0, 320.0)
 """Speeds (mm/s) of the default path: those of six real tool-surface recordings (docs/fitting.md)."""
@@ -146,7 +146,7 @@ def textured_exploration(duration_s: float = 20.0, rate: float = 1000.0, surface
     """
     from ..fit.texture_graph import texture_builder
     from . import SyntheticRecording
-    from .trajectories import _smooth_noise, circle_path
+    from .trajectories import circle_path
 
     ms = surface if surface is not None else resonant_surface(sample_rate=rate)
     rng = np.random.default_rng(seed)
@@ -162,7 +162,7 @@ def textured_exploration(duration_s: float = 20.0, rate: float = 1000.0, surface
     accel = gain * wild
     rms = float(np.sqrt(np.mean(accel ** 2))) or 1.0
     measured = accel + noise * rms * rng.standard_normal(n)
-    tangential = mu * force * (1.0 + 0.05 * _smooth_noise(n, rate, rng, 1.0))
+    tangential = mu * force * (1.0 + 0.05 * wander(n, rate, rng, 1.0))
     arrays = {"accel": measured, "speed": speed, "normal_force": force, "tangential_force": tangential,
               "position": circle_path(speed, rate), "normal": np.tile([0.0, 0.0, 1.0], (n, 1))}
     truth = {"surface": ms, "clean": clean, "power_factor": gain ** 2 * factor, "loudness_db": level_db, "mu": float(mu)}

@@ -69,30 +69,42 @@ def _weights(u: np.ndarray, kind: str) -> np.ndarray:
     raise ValueError(f"unknown weight function {kind!r}; use huber or bisquare")
 
 
-def irls_line(x: np.ndarray, y: np.ndarray, intercept: bool = False, kind: str = "bisquare", max_iter: int = 100,
-              tol: float = 1e-10, blocks: int = BATCHES) -> RobustLine:
-    """Robust line y = slope x (+ intercept) by iteratively reweighted least squares.
+@dataclass(frozen=True)
+class RobustFit:
+    """Coefficients ``beta`` of y = X beta fitted by IRLS, their standard errors ``se`` and the t quantile ``tq`` of
+    their 95 % intervals, the residual ``scale``, the final IRLS ``weights`` and the iteration count."""
+
+    beta: np.ndarray
+    se: np.ndarray
+    tq: float
+    scale: float
+    weights: np.ndarray
+    iterations: int
+
+
+def irls(X: np.ndarray, y: np.ndarray, kind: str = "bisquare", max_iter: int = 100, tol: float = 1e-10,
+         blocks: int = BATCHES) -> RobustFit:
+    """Robust linear fit y = X beta by iteratively reweighted least squares (the method of :func:`irls_line`).
 
     Starts from a Huber fit (convex: a unique solution) seeded by least
     squares, then, for ``bisquare``, continues with bisquare weights (which
     reject gross outliers such as stiction spikes completely). The scale is
-    the MAD of the residuals, re-estimated every iteration. The 95 %
-    intervals are the wider of two: the asymptotic covariance of an
+    the MAD of the residuals, re-estimated every iteration. The standard
+    errors are the larger of two: the asymptotic covariance of an
     M-estimator (Huber 1981, eq. 7.6.4), s^2 mean(psi^2) / mean(psi')^2
-    (X'X)^-1 with a t quantile, which assumes independent samples, and batch
-    means (:func:`batch_means_se`: the M-estimator's sandwich with ``blocks``
-    consecutive blocks as independent clusters, a t quantile with blocks - 1
-    degrees of freedom), which holds for noise correlated over less than a
-    block. Samples must be in time order.
+    (X'X)^-1 (used with a t quantile), which assumes independent samples,
+    and batch means (:func:`batch_means_se`: the M-estimator's sandwich with
+    ``blocks`` consecutive blocks as independent clusters, a t quantile with
+    blocks - 1 degrees of freedom), which holds for noise correlated over
+    less than a block. Rows must be in time order.
     """
     from scipy import stats
 
-    x = np.asarray(x, float)
+    X = np.asarray(X, float)
     y = np.asarray(y, float)
-    X = np.column_stack([x, np.ones_like(x)]) if intercept else x[:, None]
     n, k = X.shape
     if n <= k:
-        raise ValueError(f"need more than {k} samples for a robust line, got {n}")
+        raise ValueError(f"need more than {k} samples for a robust fit, got {n}")
     beta = np.linalg.lstsq(X, y, rcond=None)[0]
     it = 0
     w = np.ones(n)
@@ -124,11 +136,26 @@ def irls_line(x: np.ndarray, y: np.ndarray, intercept: bool = False, kind: str =
     batch = batch_means_se(X, psi, dpsi, s, blocks)
     if batch is not None:
         half = np.maximum(half, float(stats.t.ppf(0.975, blocks - 1)) * batch)
-    se = half / tq
-    slope = float(beta[0])
-    icpt = float(beta[1]) if intercept else 0.0
+    return RobustFit(beta, half / tq, tq, s, w, it)
+
+
+def line_from_fit(fit: RobustFit, intercept: bool) -> RobustLine:
+    """The :class:`RobustLine` of a fit whose design columns are (x, 1) (or x alone without ``intercept``)."""
+    slope = float(fit.beta[0])
+    icpt = float(fit.beta[1]) if intercept else 0.0
+    se, tq = fit.se, fit.tq
     ici = (icpt - tq * float(se[1]), icpt + tq * float(se[1])) if intercept else (0.0, 0.0)
-    return RobustLine(slope, icpt, (slope - tq * float(se[0]), slope + tq * float(se[0])), ici, s, w, it)
+    return RobustLine(slope, icpt, (slope - tq * float(se[0]), slope + tq * float(se[0])), ici, fit.scale, fit.weights,
+                      fit.iterations)
+
+
+def irls_line(x: np.ndarray, y: np.ndarray, intercept: bool = False, kind: str = "bisquare", max_iter: int = 100,
+              tol: float = 1e-10, blocks: int = BATCHES) -> RobustLine:
+    """Robust line y = slope x (+ intercept) by iteratively reweighted least squares (:func:`irls`), one residual
+    scale for every sample. Samples must be in time order."""
+    x = np.asarray(x, float)
+    X = np.column_stack([x, np.ones_like(x)]) if intercept else x[:, None]
+    return line_from_fit(irls(X, y, kind, max_iter, tol, blocks), intercept)
 
 
 def clamp_outliers(x: np.ndarray, k: float = 8.0, block: int = 250) -> tuple[np.ndarray, np.ndarray]:

@@ -15,6 +15,15 @@ offset soaks up the whole force and leaves a mu far too small (docs/fitting.md).
 a line through the origin by b sum N / sum N^2); such a fit cannot be stored
 with ``--into``, which refuses it rather than drop b.
 
+The residual scale grows with the normal force by default (``--noise
+force``): real tangential-force noise does, and one scale for every sample
+rejects heavy contacts as outliers (docs/fitting.md). The scale is a power
+law in N fitted robustly to the residuals, the line refitted on residuals
+standardised by it (flowtex.dsp.hetero, Carroll & Ruppert's robust weighted
+fit); ``--noise constant`` keeps one scale. The report says how many samples
+were rejected, in how many stretches, and what share noise alone would put
+past the rule (:func:`rejection_lines`).
+
 Every fit reports r2, the share of the tangential force's variance that the
 normal force explains (the IRLS-weighted squared correlation of T and N, so
 rejected stiction spikes do not count). Below ``LOW_R2`` the fit carries a
@@ -34,12 +43,19 @@ from typing import Any
 import numpy as np
 
 from ..dsp.contact import CONTACT_ON_N
-from ..dsp.robust import irls_line
+from ..dsp.hetero import false_rejection_rate, irls_line_hetero, rejected_stretches
+from ..dsp.robust import BISQUARE_C, RobustLine, irls_line
 from ..errors import DataError
 from .inputs import atomic_output, check_not_constant, load, signal
 
 DEFAULT_MIN_FORCE_N = CONTACT_ON_N
 """Samples below this normal force are out of contact (the contact node's on threshold)."""
+
+
+NOISE_MODELS = ("force", "constant")
+"""``--noise``: force (default: the residual scale is a power law in the normal force), constant (one scale)."""
+TAIL_DOF = 5.0
+"""The Student t whose false-rejection share the report quotes beside the Gaussian one (kurtosis 9: heavy tails)."""
 
 
 LOW_R2 = 0.25
@@ -48,7 +64,14 @@ LOW_R2 = 0.25
 
 @dataclass(frozen=True)
 class FrictionFit:
-    """mu (dimensionless) with its 95 % interval, the offset (N) if fitted, r2, a warning (or None), and what was used."""
+    """mu (dimensionless) with its 95 % interval, the offset (N) if fitted, r2, a warning (or None), and what was used.
+
+    ``noise``: the noise model used (``force`` or ``constant``); ``scale_n``: the residual scale (N) at the normal
+    forces ``scale_force_n`` (N: 5th, 50th, 95th percentile in contact; ``residual_scale_n`` is the middle one);
+    ``noise_exponent``: d log scale / d log N there; ``rejected_*``: the samples with weight 0, their share of the
+    samples in contact, their runs of consecutive samples and the longest; ``false_rejection_*``: the share
+    Gaussian and Student t5 noise alone would put past the rule.
+    """
 
     mu: float
     mu_ci: tuple[float, float]
@@ -61,6 +84,15 @@ class FrictionFit:
     method: str
     r2: float
     warning: str | None
+    noise: str
+    scale_force_n: tuple[float, ...]
+    scale_n: tuple[float, ...]
+    noise_exponent: float
+    rejected_share: float
+    rejected_stretches: int
+    longest_stretch_samples: int
+    false_rejection_gaussian: float
+    false_rejection_t5: float
 
 
 def explained_share(x: np.ndarray, y: np.ndarray, weights: np.ndarray) -> float:
@@ -80,12 +112,31 @@ def explained_share(x: np.ndarray, y: np.ndarray, weights: np.ndarray) -> float:
     return min(1.0, sxy * sxy / (sxx * syy))
 
 
+def _robust_line(n: np.ndarray, t: np.ndarray, offset: bool, noise: str,
+                 forces: tuple[float, ...]) -> tuple[RobustLine, str, tuple[float, ...], float]:
+    """(line, noise model used, residual scale (N) at ``forces`` (N), the scale's exponent at the middle force).
+
+    ``force`` falls back to one scale when the line explains less than ``LOW_R2`` of the tangential force: the
+    residuals are then the line's misfit, not noise, and a scale fitted to them would reweight the samples by how
+    badly the line fits them (mu would no longer be the origin line's force ratio that the warning quotes).
+    """
+    line = irls_line(n, t, intercept=bool(offset), kind="bisquare")
+    if noise == "force" and explained_share(n, t, line.weights) >= LOW_R2:
+        hetero = irls_line_hetero(n, t, intercept=bool(offset), kind="bisquare")
+        scales = tuple(float(v) for v in hetero.scale_at(np.array(forces)))
+        return hetero.line, noise, scales, hetero.scale_function.exponent(forces[len(forces) // 2])
+    return line, "constant", (line.scale,) * len(forces), 0.0
+
+
 def fit_friction(normal: np.ndarray, tangential: np.ndarray, min_force: float = DEFAULT_MIN_FORCE_N, offset: bool = False,
-                 where: str = "recording") -> FrictionFit:
+                 where: str = "recording", noise: str = "force") -> FrictionFit:
     """Robust mu from normal and tangential force (N): a line through the origin, or with an offset b when ``offset``.
 
-    See the module docstring for the choice and for r2 and the warning.
+    ``noise="force"``: the residual scale is a power law in the normal force (flowtex.dsp.hetero), ``"constant"``:
+    one scale for every sample. See the module docstring for the choices and for r2 and the warning.
     """
+    if noise not in NOISE_MODELS:
+        raise DataError(f"--noise {noise}: use one of {', '.join(NOISE_MODELS)}")
     normal = np.asarray(normal, float)
     tangential = np.asarray(tangential, float)
     keep = normal >= min_force
@@ -98,8 +149,10 @@ def fit_friction(normal: np.ndarray, tangential: np.ndarray, min_force: float = 
     n, t = normal[keep], tangential[keep]
     if offset and float(np.ptp(n)) == 0.0:
         raise DataError(f"{where}: the normal force is constant while in contact; --offset yes needs a range of forces")
-    line = irls_line(n, t, intercept=bool(offset), kind="bisquare")
+    quantiles = tuple(float(q) for q in np.quantile(n, (0.05, 0.5, 0.95)))
+    line, noise, scales, exponent = _robust_line(n, t, offset, noise, quantiles)
     rejected = int(np.sum(line.weights == 0.0))
+    stretches, longest = rejected_stretches(line.weights == 0.0)
     r2 = explained_share(n, t, line.weights)
     warning = None
     if r2 < LOW_R2:
@@ -112,8 +165,10 @@ def fit_friction(normal: np.ndarray, tangential: np.ndarray, min_force: float = 
                                         "the offset b carries the force and mu is small; the alternative, "
                                         "HaTT's line through the origin (--offset no), gives mu near the force ratio "
                                         "and can be stored with --into"))
+    method = "IRLS bisquare, line " + ("with offset" if offset else "through the origin")   # the noise model: ``noise``
     return FrictionFit(line.slope, line.slope_ci, line.intercept, line.intercept_ci, int(normal.size), count, rejected,
-                       line.scale, "IRLS bisquare, line " + ("with offset" if offset else "through the origin"), r2, warning)
+                       scales[1], method, r2, warning, noise, quantiles, scales, exponent, rejected / count, stretches,
+                       longest, false_rejection_rate(), false_rejection_rate(TAIL_DOF))
 
 
 def friction_forces(rec: Any, normal_force: str | None = None, friction_force: str | None = None,
@@ -160,13 +215,14 @@ def friction_forces(rec: Any, normal_force: str | None = None, friction_force: s
 
 def fit_friction_recording(recording: str | Path, from_rate: float | None = None, normal_force: str | None = None,
                            friction_force: str | None = None, force3: str | None = None, normal: str | None = None,
-                           min_force: float = DEFAULT_MIN_FORCE_N, offset: bool = False) -> tuple[FrictionFit, dict]:
+                           min_force: float = DEFAULT_MIN_FORCE_N, offset: bool = False,
+                           noise: str = "force") -> tuple[FrictionFit, dict]:
     """Fit mu to one recording (see :func:`friction_forces` for the signals); returns the fit and its JSON document."""
     if not (math.isfinite(min_force) and min_force >= 0.0):
         raise DataError(f"--min-force {min_force:g}: valid range is 0 N or more")
     rec, _rate = load(recording, from_rate)
     n_force, tangential = friction_forces(rec, normal_force, friction_force, force3, normal)
-    fit = fit_friction(n_force, tangential, min_force, offset, str(recording))
+    fit = fit_friction(n_force, tangential, min_force, offset, str(recording), noise)
     if not offset and not (math.isfinite(fit.mu) and fit.mu >= 0):
         raise DataError(f"{recording}: the fitted mu is {fit.mu:g}; the tangential force does not grow with the normal "
                         "force (wrong signals or sign?)")
@@ -179,8 +235,31 @@ def friction_table(fit: FrictionFit) -> list[str]:
              f"{'mu':>8} {'95% CI':>19} {'offset N':>9} {'r2':>6} {'in contact':>10} {'rejected':>8} {'scale N':>8}",
              f"{fit.mu:8.4f} [{fit.mu_ci[0]:8.4f}, {fit.mu_ci[1]:8.4f}] {fit.offset:9.4f} {fit.r2:6.3f} {fit.in_contact:10d} "
              f"{fit.rejected:8d} {fit.residual_scale_n:8.4f}"]
+    lines += rejection_lines(fit)
     if fit.warning:
         lines.append(f"warning: {fit.warning}")
+    return lines
+
+
+def rejection_lines(fit: FrictionFit) -> list[str]:
+    """What the table says about the noise model and the rejected samples (docs/fitting.md, "Rejected samples")."""
+    f5, f50, f95 = fit.scale_force_n
+    s5, s50, s95 = fit.scale_n
+    if fit.noise == "force":
+        model = (f"residual scale grows with the normal force as N^{fit.noise_exponent:.2f}: {s5:.4f} / {s50:.4f} / {s95:.4f} N "
+                 f"at {f5:.2f} / {f50:.2f} / {f95:.2f} N (5th / 50th / 95th percentile of the normal force)")
+    else:
+        model = f"one residual scale, {s50:.4f} N, at every normal force"
+    lines = [model]
+    if fit.rejected:
+        lines.append(f"rejected {fit.rejected} samples ({100 * fit.rejected_share:.2f} %) in {fit.rejected_stretches} "
+                     f"stretch{'es' if fit.rejected_stretches != 1 else ''} (longest {fit.longest_stretch_samples} samples): "
+                     f"residuals beyond {BISQUARE_C:g} residual scales, weight 0")
+    else:
+        lines.append(f"rejected no sample (none beyond {BISQUARE_C:g} residual scales)")
+    lines.append(f"noise alone puts {100 * fit.false_rejection_gaussian:.4f} % of samples there if Gaussian, "
+                 f"{100 * fit.false_rejection_t5:.2f} % if Student t ({TAIL_DOF:g} degrees of freedom); a share well above "
+                 "that, in short stretches, is stiction or spikes, in stretches of a second or more, slow drift")
     return lines
 
 

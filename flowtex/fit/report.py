@@ -28,12 +28,12 @@ from typing import Any
 
 import numpy as np
 
-from ..dsp.spectral import welch_psd
+from ..dsp.spectral import expected_lsd_db, welch_psd
 from ..io.atomic import write_text_atomic
 from ..io.figures import FONT_PT as FONT
 from ..io.figures import agg_pyplot, save_png
 from .crossval import POOLED_LINE
-from .texture import TextureFit
+from .texture import PIECE_NPERSEG, TextureFit
 
 PLOT_HINT = "plots need matplotlib: pip install 'flowtex[plot]'"
 NEAR_DUPLICATE = 0.02
@@ -54,26 +54,35 @@ def _by_model(fit: TextureFit) -> list[Any]:
     return sorted(fit.pieces, key=lambda pc: (pc.model, -pc.samples))
 
 
+def lsd_floor_db(fit: TextureFit, piece: Any) -> float:
+    """The LSD (dB) the piece's true spectrum would score against the piece's own Welch estimate (Gaussian data):
+    the part of the table's LSD that no model can remove (:func:`flowtex.dsp.spectral.expected_lsd_db`)."""
+    return expected_lsd_db(piece.samples, fit.rate, PIECE_NPERSEG)
+
+
 def table_lines(fit: TextureFit) -> list[str]:
-    """The fit table, one line per model (header first, with the units of speed and force)."""
+    """The fit table, one line per model (header first, with the units of speed and force). "LSD floor": what a
+    perfect model would score against so short a piece (:func:`lsd_floor_db`)."""
     lines = [f"{'model':>5} {'speed mm/s':>10} {'force N':>7} {'samples':>7} {'order':>7} {'GFC':>6} {'LSD dB':>7} "
-             f"{'power err':>9}"]
+             f"{'LSD floor':>9} {'power err':>9}"]
     for pc in _by_model(fit):
         f = pc.fit
         assert f is not None
         lines.append(f"{pc.model:5d} {pc.speed:10.1f} {pc.force:7.2f} {pc.samples:7d} {f'{f.order[0]},{f.order[1]}':>7} {f.gfc:6.3f} "
-                     f"{pc.lsd_db:7.2f} {100 * f.power_error:8.2f}%")
+                     f"{pc.lsd_db:7.2f} {lsd_floor_db(fit, pc):9.2f} {100 * f.power_error:8.2f}%")
     return lines
 
 
 def summary_line(fit: TextureFit) -> str:
     ms = fit.model_set
     lsd = [pc.lsd_db for pc in fit.pieces]
+    floor = np.median([lsd_floor_db(fit, pc) for pc in fit.pieces])
     dropped = ", ".join(f"{v} {k}" for k, v in fit.dropped.items() if v) or "none"
     pool = int(ms.metadata.get("pool_pieces", 1))
     pooled = f" (each model on its piece and the {pool - 1} nearest, --pool {pool})" if pool > 1 else ""
     return (f"{ms.material}: {len(fit.pieces)} pieces fitted at order {ms.ar_order},{ms.ma_order}{pooled}; {ms.num_models} models "
-            f"(with silent corners), {len(ms.triangles)} triangles; median LSD {np.median(lsd):.2f} dB; dropped: {dropped}; "
+            f"(with silent corners), {len(ms.triangles)} triangles; median LSD {np.median(lsd):.2f} dB (a perfect model: {floor:.2f}, "
+            f"the pieces' own Welch scatter); dropped: {dropped}; "
             f"clipped outliers: {fit.clipped}")
 
 
@@ -165,7 +174,7 @@ def spectra_figure(fit: TextureFit, plt: Any) -> Any:
     for k, pc in enumerate(pieces):
         ax = axes[k // cols][k % cols]
         x = fit.signal[pc.start:pc.stop]
-        freqs, s = welch_psd(x, fit.rate, min(256, x.size), whole=True)  # the piece as the table's LSD measures it
+        freqs, s = welch_psd(x, fit.rate, PIECE_NPERSEG, whole=True)  # the piece as the table's LSD measures it
         ax.semilogy(freqs, s, color="0.55", lw=0.9, label="data (the piece's Welch PSD)")
         ax.semilogy(freqs, pc.fit.psd(freqs, fit.rate), color="C0", lw=1.3, label="model")
         ax.set_title(f"model {pc.model}: {pc.speed:.0f} mm/s, {pc.force:.2f} N\nLSD {pc.lsd_db:.2f} dB, GFC {pc.fit.gfc:.3f}",

@@ -64,6 +64,9 @@ CORNERS = 8
 """Silent corner models per axis (HaTT's cork surface has 8 at speed 0 and 8 at force 0, plus the origin)."""
 POOL_PIECES = 5
 """Default of :attr:`TextureOptions.pool_pieces` (docs/fitting.md, "Pooling neighbouring pieces", has the measurements)."""
+PIECE_NPERSEG = 256
+"""Welch segment (samples) of a piece's spectrum in the fit table's LSD and the report's figures (whole pieces:
+:func:`flowtex.dsp.spectral.welch_psd` with ``whole=True``; a shorter piece is one segment)."""
 
 
 @dataclass
@@ -204,7 +207,7 @@ def fit_pieces(x: np.ndarray, pieces: Sequence[Piece], rate: float, opt: Texture
                 for f, k, v, d in zip(fits, factors, own, data, strict=True)]
     for pc, d, f in zip(pieces, data, fits, strict=True):
         pc.fit = f
-        pc.lsd_db = f.lsd_db(d, rate, min(256, d.shape[0]))
+        pc.lsd_db = f.lsd_db(d, rate, PIECE_NPERSEG)
 
 
 def distinct_points(pieces: Sequence[Piece]) -> tuple[list[Piece], list[Piece]]:

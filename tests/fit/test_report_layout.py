@@ -90,8 +90,9 @@ def test_fit_table_names_the_units_and_its_columns_line_up(fit):
     from flowtex.fit.report import table_lines
 
     header, *rows = table_lines(fit)
-    assert header.split() == ["model", "speed", "mm/s", "force", "N", "samples", "order", "GFC", "LSD", "dB", "power", "err"]
-    ends = [m.end() for m in re.finditer(r"(model|speed mm/s|force N|samples|order|GFC|LSD dB|power err)", header)]
+    assert header.split() == ["model", "speed", "mm/s", "force", "N", "samples", "order", "GFC", "LSD", "dB", "LSD", "floor",
+                              "power", "err"]
+    ends = [m.end() for m in re.finditer(r"(model|speed mm/s|force N|samples|order|GFC|LSD dB|LSD floor|power err)", header)]
     for row in rows:
         assert [m.end() for m in re.finditer(r"\S+", row)] == ends  # each value ends under its heading
 
