@@ -62,3 +62,10 @@ class ParamError(FlowtexError):
 
 class DataError(FlowtexError):
     """A data file (recording, model set, tap library, ...) is malformed."""
+
+
+class InputError(FlowtexError, ValueError):
+    """Arrays or values given to the Python API (``Graph.run``, ``Node.processor``) are wrong: shape, kind, length.
+
+    Also a ``ValueError``, as these problems were raised before they had a class of their own.
+    """

@@ -11,8 +11,10 @@ went wrong can be named:
 * **unwritten outputs**: two one-pass runs whose output buffers start filled
   with two different sentinels; an element that keeps its sentinel was never
   written (the graph would read whatever the buffer held before);
-* **finite**: at the default parameters and inputs uniform in [-1, 1], every
-  output value is finite;
+* **finite**: for inputs uniform in [-1, 1], every output value is finite;
+* **inputs untouched**: a kernel must not write into its input arrays (another node's outputs);
+* each check runs at the default parameters and again with each numeric parameter at its declared minimum
+  (:func:`parameter_sets`: a size of 0, a divisor of 0), where building must succeed or raise ``ParamError``;
 * **bounds**: this module is run in a child process with ``NUMBA_BOUNDSCHECK=1``
   (:func:`flowtex.plugincheck.runtime_problems`), so a read or write outside a
   port, ``p``, ``s`` or ``si`` raises ``IndexError`` there instead of corrupting
@@ -34,10 +36,10 @@ from typing import Any
 
 import numpy as np
 
-from .errors import FlowtexError
+from .errors import FlowtexError, ParamError
 from .node_api import REQUIRED, BuildContext, Node, Param, PortSpec
 from .node_params import load_files
-from .nodecheck import checked_state, error_line
+from .nodecheck import checked_every, checked_latency, checked_outputs, checked_state, error_line
 
 TICKS = 600
 """Ticks of every probe run (enough for a block split and for a slow recursion to blow up)."""
@@ -60,11 +62,15 @@ class Probe:
     out_specs: dict[str, PortSpec]
 
 
+class NoExampleValue(FlowtexError):
+    """A required parameter the probe cannot make a value up for (a file, a string): the runtime checks are skipped."""
+
+
 def example_value(name: str, param: Param) -> Any:
-    """A value for a required parameter (inside its bounds), or raise :class:`FlowtexError` when none can be made up."""
+    """A value for a required parameter (inside its bounds), or raise :class:`NoExampleValue` when none can be made up."""
     kind = param.kind
     if kind in ("path", "str"):
-        raise FlowtexError(f"parameter {name!r} ({kind}) is required and has no default; the runtime checks need a value")
+        raise NoExampleValue(f"parameter {name!r} ({kind}) is required and has no default; the runtime checks need a value")
     if kind == "bool":
         return False
     if kind == "choice":
@@ -96,6 +102,26 @@ def parameter_values(cls: type[Node]) -> dict[str, Any]:
     return values
 
 
+MAX_LOW_VARIANTS = 6
+"""Parameters built at their declared minimum besides the defaults (:func:`parameter_sets`), at most."""
+
+
+def parameter_sets(cls: type[Node]) -> list[tuple[str, dict[str, Any]]]:
+    """``("", the defaults)``, then per numeric parameter whose declared minimum is allowed and differs from its default
+    ``("name=min", the defaults with that one at its minimum)``: a size or a divisor of 0 is the commonest value a kernel
+    or a layout size was not written for (up to :data:`MAX_LOW_VARIANTS` of them)."""
+    base = parameter_values(cls)
+    sets = [("", base)]
+    for name, param in cls.params.items():
+        if param.kind not in ("int", "float", "floats") or param.min is None or param.min_exclusive:
+            continue
+        count = len(base[name]) if isinstance(base[name], tuple) else (param.length[0] if param.length else 1)
+        low = param.coerce([param.min] * max(count, 1) if param.kind == "floats" else param.min, Path.cwd())
+        if low != base[name] and len(sets) <= MAX_LOW_VARIANTS:
+            sets.append((f"{name}={param.min:g}", {**base, name: low}))
+    return sets
+
+
 def shape_cases(cls: type[Node]) -> list[dict[str, tuple[int, ...]]]:
     """Input shapes to build at: declared shapes as declared; inputs of any shape as a scalar, then as a 3-vector."""
     cases = []
@@ -114,20 +140,46 @@ def shape_cases(cls: type[Node]) -> list[dict[str, tuple[int, ...]]]:
     return cases
 
 
-def build_probes(cls: type[Node]) -> list[Probe]:
-    """Build ``cls`` at each of :func:`shape_cases` (FlowtexError / the plugin's own exception on failure)."""
-    params, files = load_files(cls, parameter_values(cls))  # files read into objects, as the resolver does
+def build_probes(cls: type[Node]) -> tuple[list[Probe], list[tuple[int, str]]]:
+    """Build ``cls`` at each of :func:`shape_cases` for each of :func:`parameter_sets`, and the problems of building it.
+
+    At the defaults, a failure raises (FlowtexError / the plugin's own exception). At a parameter's minimum, a
+    FlowtexError (the node refuses the value with a message: well done) skips that set, and any other exception is a
+    problem: the graph would accept the value and then fail with the plugin's traceback.
+    """
+    probes: list[Probe] = []
+    problems: list[tuple[int, str]] = []
+    for at, values in parameter_sets(cls):
+        try:
+            probes += _probes_at(cls, at, values)
+        except FlowtexError:
+            if not at:
+                raise
+        except Exception as exc:
+            if not at:
+                raise
+            problems.append((error_line(exc, inspect.getsourcefile(cls) or ""), f"building the node with {at}, the minimum "
+                             f"its declaration allows, raised {type(exc).__name__}: {exc}; raise ParamError for a value the "
+                             "node cannot take, or declare a minimum it can"))
+    return probes, problems
+
+
+def _probes_at(cls: type[Node], at: str, values: dict[str, Any]) -> list[Probe]:
+    """``cls`` built at each of :func:`shape_cases` with the parameter ``values`` (``at`` names the non-default one)."""
+    params, files = load_files(cls, values)  # files read into objects, as the resolver does
     probes = []
     for shapes in shape_cases(cls):
         in_specs = {}
         for name, port in cls.inputs.items():
             unit = port.unit if port.unit not in ("*",) and not port.unit.startswith("=") else ""
             in_specs[name] = PortSpec(shapes[name], unit)
+        checked_every(cls, "probe", cls.own_every(dict(params), RATE_HZ, dict.fromkeys(cls.inputs, 1)))
         node = cls("probe", dict(params), BuildContext(rate=RATE_HZ, base_dir=Path.cwd(), files=files))
-        out_specs = node.resolve(in_specs)
+        checked_latency(cls, "probe", node.latency_samples())
+        out_specs = checked_outputs(cls, "probe", node.resolve(in_specs))
         state = checked_state(cls, "probe", node.build(in_specs, out_specs), cls.build)
         label = ", ".join(f"{n}: {PortSpec(s).describe().split(' [')[0]}" for n, s in shapes.items()) or "no inputs"
-        probes.append(Probe(label, state, in_specs, out_specs))
+        probes.append(Probe(label + (f"; {at}" if at else ""), state, in_specs, out_specs))
     return probes
 
 
@@ -157,46 +209,66 @@ def _split() -> list[int]:
 
 def probe_problems(cls: type[Node]) -> list[tuple[int, str]]:
     """Every runtime problem of ``cls`` as (line in the kernel's file or 0, message), checked at each shape case."""
-    problems: list[tuple[int, str]] = []
     source = inspect.getsourcefile(getattr(cls.get_kernel(), "py_func", cls)) or ""
     rng = np.random.default_rng(12345)
-    for probe in build_probes(cls):
-        inputs = [rng.uniform(-1.0, 1.0, (TICKS, spec.width)) for spec in probe.in_specs.values()]
-        names = list(probe.out_specs)
-        at = f" (built with {probe.label})"
-        try:
-            one = run_blocks(cls, probe, inputs, [TICKS], SENTINELS[0])
-            other = run_blocks(cls, probe, inputs, [TICKS], SENTINELS[1])
-            chunked = run_blocks(cls, probe, inputs, _split(), SENTINELS[0])
-            ticked = run_blocks(cls, probe, inputs, [1] * TICKS, SENTINELS[0])
-        except IndexError as exc:
-            problems.append((error_line(exc, source), f"kernel reads or writes outside its arrays{at}: IndexError: {exc}; index "
-                             "only rows < x.shape[0] of each port, columns < its width, and within p, s and si as build() sized them"))
-            continue
-        except Exception as exc:
-            problems.append((error_line(exc, source), f"kernel raised {type(exc).__name__}: {exc}{at}"))
-            continue
-        for name, a, b in zip(names, one, other, strict=True):
-            stuck = np.isnan(a) & (b == SENTINELS[1])  # kept the sentinel of each run: never written
-            if stuck.any():
-                cols = sorted({int(c) for c in np.nonzero(stuck)[1]})
-                problems.append((0, f"output {name!r}: element(s) {cols} of {a.shape[1]} per tick never written{at}; write "
-                                    "every element of every row (the graph reads whatever the buffer held before)"))
-        for k, name in enumerate(names):  # one line per output: the chunked run, else the tick-by-tick one
-            for label, runs in (("chunked (blocks of " + ", ".join(map(str, BLOCKS)) + ", ...)", chunked), ("tick-by-tick", ticked)):
-                a, b = one[k], runs[k]
-                differ = ~((a == b) | (np.isnan(a) & np.isnan(b)))
-                if differ.any():
-                    tick = int(np.nonzero(differ.any(axis=1))[0][0])
-                    problems.append((0, f"output {name!r}: {label} and one-pass runs differ from tick {tick}{at}; keep every "
-                                        "value that lives from one call to the next in s or si (live runs call the kernel tick by tick)"))
-                    break
-        for name, a in zip(names, other, strict=True):  # filled with a finite sentinel: only written values can be non-finite
-            bad = ~np.isfinite(a)
-            if bad.any():
-                tick = int(np.nonzero(bad.any(axis=1))[0][0])
-                problems.append((0, f"output {name!r} is not finite from tick {tick} at the default parameters for inputs "
-                                    f"uniform in [-1, 1]{at} (value {a[bad][0]!r})"))
+    probes, problems = build_probes(cls)
+    for probe in probes:
+        problems += _problems_at(cls, probe, rng, source)
+    seen: set[tuple[int, str]] = set()
+    unique = []
+    for line, message in problems:  # a mistake found at the defaults is said once, not again at each minimum
+        key = (line, re.sub(r" \(built with [^)]*\)", "", message))
+        if key not in seen:
+            seen.add(key)
+            unique.append((line, message))
+    return unique
+
+
+def _problems_at(cls: type[Node], probe: Probe, rng: np.random.Generator, source: str) -> list[tuple[int, str]]:
+    """The runtime problems of one built instance (see :func:`probe_problems`)."""
+    problems: list[tuple[int, str]] = []
+    inputs = [rng.uniform(-1.0, 1.0, (TICKS, spec.width)) for spec in probe.in_specs.values()]
+    names = list(probe.out_specs)
+    at = f" (built with {probe.label})"
+    try:
+        given = [x.copy() for x in inputs]
+        one = run_blocks(cls, probe, given, [TICKS], SENTINELS[0])
+        written = [n for n, x, y in zip(probe.in_specs, inputs, given, strict=True) if not np.array_equal(x, y, equal_nan=True)]
+        if written:
+            problems.append((0, f"kernel writes into its input {written[0]!r}{at}; an input is another node's output "
+                                "buffer, which other nodes read too: write only the outputs, s and si"))
+            return problems
+        other = run_blocks(cls, probe, inputs, [TICKS], SENTINELS[1])
+        chunked = run_blocks(cls, probe, inputs, _split(), SENTINELS[0])
+        ticked = run_blocks(cls, probe, inputs, [1] * TICKS, SENTINELS[0])
+    except IndexError as exc:
+        problems.append((error_line(exc, source), f"kernel reads or writes outside its arrays{at}: IndexError: {exc}; index "
+                         "only rows < x.shape[0] of each port, columns < its width, and within p, s and si as build() sized them"))
+        return problems
+    except Exception as exc:
+        problems.append((error_line(exc, source), f"kernel raised {type(exc).__name__}: {exc}{at}"))
+        return problems
+    for name, a, b in zip(names, one, other, strict=True):
+        stuck = np.isnan(a) & (b == SENTINELS[1])  # kept the sentinel of each run: never written
+        if stuck.any():
+            cols = sorted({int(c) for c in np.nonzero(stuck)[1]})
+            problems.append((0, f"output {name!r}: element(s) {cols} of {a.shape[1]} per tick never written{at}; write "
+                                "every element of every row (the graph reads whatever the buffer held before)"))
+    for k, name in enumerate(names):  # one line per output: the chunked run, else the tick-by-tick one
+        for label, runs in (("chunked (blocks of " + ", ".join(map(str, BLOCKS)) + ", ...)", chunked), ("tick-by-tick", ticked)):
+            a, b = one[k], runs[k]
+            differ = ~((a == b) | (np.isnan(a) & np.isnan(b)))
+            if differ.any():
+                tick = int(np.nonzero(differ.any(axis=1))[0][0])
+                problems.append((0, f"output {name!r}: {label} and one-pass runs differ from tick {tick}{at}; keep every "
+                                    "value that lives from one call to the next in s or si (live runs call the kernel tick by tick)"))
+                break
+    for name, a in zip(names, other, strict=True):  # filled with a finite sentinel: only written values can be non-finite
+        bad = ~np.isfinite(a)
+        if bad.any():
+            tick = int(np.nonzero(bad.any(axis=1))[0][0])
+            problems.append((0, f"output {name!r} is not finite from tick {tick} for inputs uniform in [-1, 1]{at} "
+                                f"(value {a[bad][0]!r})"))
     return problems
 
 
@@ -229,8 +301,10 @@ def _probe_type(mode: str, cls: type[Node]) -> list[dict]:
     found: list[tuple[int, str]]
     try:
         found = probe_problems(cls)
-    except FlowtexError as exc:
+    except (NoExampleValue, ParamError) as exc:  # no value to build with, or the node refuses the probe's shapes: a note
         found = [(0, f"note: {exc}")]
+    except FlowtexError as exc:  # resolve(), build(), own_every() or latency_samples() broke the contract: a problem, and
+        return [{"line": 0, "message": str(exc), "located": True}]  # its message names the plugin's file and line
     except Exception as exc:  # __init__, resolve() or build() raised: the plugin's error, at its line
         found = [(error_line(exc, inspect.getsourcefile(cls) or ""), f"building the node raised {type(exc).__name__}: {exc}")]
     return [{"line": line, "message": message} for line, message in found]

@@ -69,6 +69,9 @@ after p, s and si; CPython compiles a call with more than 30 positional argument
 cannot compile."""
 MAX_BUFFER_VALUES = 1 << 27
 """Values of all port buffers of a graph together (block rows x values per tick): 1 GiB of float64."""
+MAX_STATE_VALUES = 1 << 27
+"""Values of all node parameters and states of a graph together (1 GiB of float64); built-in nodes stay far below
+(a delay of its largest 1e7 samples is 10 million), a plugin's state sized by an unbounded parameter may not."""
 MAX_SEED = 2**63 - 1
 """Largest noise seed (``--seed``, a live session's ``seed``): a non-negative integer (numpy's SeedSequence), kept within
 a signed 64-bit word."""

@@ -42,6 +42,7 @@ from .node_decl import (  # noqa: F401  (re-exported: the node API is one import
     Port,
     PortSpec,
     check,
+    expected_shape,
     resolve_declared,
     simplify_unit,
     suggest,
@@ -163,14 +164,15 @@ class Node:
 
     @classmethod
     def processor(cls, rate: float = 1000.0, seed: int = 0, name: str | None = None, base_dir: str | Path = ".",
-                  **params: Any) -> Any:
+                  nonfinite: str = "error", **params: Any) -> Any:
         """This node's build and kernel on plain arrays, state kept between calls (flowtex.node_processor).
 
         ``rate`` (Hz) and ``seed`` are the graph's; ``name`` the node's name in a graph (it seeds random
-        nodes, so a processor named like a graph's node reproduces it); ``params`` as in a graph file.
+        nodes, so a processor named like a graph's node reproduces it); ``nonfinite`` what a call does with NaN/inf
+        inputs (as ``Graph.run``'s: ``error``, ``hold``, ``zero`` or ``pass``); ``params`` as in a graph file.
         """
         from .node_processor import Processor
 
-        return Processor(cls, params, rate=rate, seed=seed, name=name, base_dir=base_dir)
+        return Processor(cls, params, rate=rate, seed=seed, name=name, base_dir=base_dir, nonfinite=nonfinite)
 
 

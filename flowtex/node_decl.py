@@ -9,7 +9,7 @@ from __future__ import annotations
 import difflib
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -140,7 +140,9 @@ class Param:
             return value
         if kind in ("str", "path"):
             if not isinstance(value, str) or not value:
-                raise ValueError(f"expected a non-empty string, got {excerpt(value)}")
+                takes = " or a loaded " + " or ".join(t.__name__ for t in self.objects) if kind == "path" and self.objects else ""
+                raise ValueError(f"expected a non-empty string{' (a file path)' if kind == 'path' else ''}{takes}, "
+                                 f"got {excerpt(value)}")
             if kind == "path":
                 try:
                     path = Path(value).expanduser()
@@ -276,6 +278,40 @@ def resolve_declared(port: Port, inputs: dict[str, PortSpec]) -> PortSpec:
     if shape is None:
         raise TypeError("output ports must declare a shape")
     return PortSpec(tuple(shape), unit)
+
+
+def expected_shape(port: Port, specs: Mapping[str, PortSpec]) -> tuple[int, ...] | None:
+    """The shape input ``port`` takes, given the specs of the inputs resolved before it; None: any shape.
+
+    A ``"=name"`` shape is that input's (any shape while ``name`` is not resolved yet). The one rule the graph's
+    resolver (:mod:`flowtex.graph.ports`) and ``Node.processor`` check arriving shapes against.
+    """
+    shape = port.shape
+    if isinstance(shape, str):
+        ref = specs.get(shape[1:])
+        return ref.shape if ref is not None else None
+    return tuple(shape) if shape is not None else None
+
+
+def outputs_problem(declared: Sequence[str], specs: object) -> str | None:
+    """What is wrong with ``specs`` as what :meth:`Node.resolve` returns for outputs ``declared`` (a :class:`PortSpec`
+    of a shape of positive integers for each of them, nothing else), or None. The kernel is called with exactly the
+    declared outputs, so a missing or extra one would fail later, far from the mistake."""
+    if not isinstance(specs, dict):
+        return f"returned {excerpt(specs)}, not a dict"
+    missing = [n for n in declared if n not in specs]
+    extra = [n for n in specs if n not in declared]
+    if missing or extra:
+        return "returned " + "; ".join(part for part in (
+            f"no spec for output(s) {', '.join(map(repr, missing))}" if missing else "",
+            f"spec(s) for undeclared output(s) {', '.join(map(repr, extra))}" if extra else "") if part)
+    for name, spec in specs.items():
+        if not isinstance(spec, PortSpec):
+            return f"returned {excerpt(spec)} for output {name!r}, not a PortSpec"
+        if not isinstance(spec.shape, tuple) or not all(isinstance(n, int) and not isinstance(n, bool) and n >= 1
+                                                        for n in spec.shape):
+            return f"returned shape {excerpt(spec.shape)} for output {name!r}; a shape is a tuple of positive integers such as () or (3,)"
+    return None
 
 
 def unit_product(a: str, b: str) -> str:

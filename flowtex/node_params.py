@@ -68,7 +68,8 @@ def load_files(cls: type, values: Mapping[str, Any]) -> tuple[dict[str, Any], di
 
     A parameter declared ``Param("path", objects=(T, ...))`` whose value is a path is read by the format registry's
     reader of T (:func:`flowtex.io.formats.object_reader`); an object given as it is, and a path parameter whose
-    types have no reader (a plugin's own file), are left alone. The node type's ``check_params`` runs first, so a
+    types have no reader (a plugin's own file), are left alone, except that an object with a ``validate()`` method (a
+    ``TextureModelSet`` built in memory) is checked by it, as its reader checks a file. The node type's ``check_params`` runs first, so a
     rule between parameters is reported before a file is read. A file that cannot be read raises
     :class:`ParamError` naming the parameter, with the reader's message (file, key or element, and the fix).
     """
@@ -79,6 +80,12 @@ def load_files(cls: type, values: Mapping[str, Any]) -> tuple[dict[str, Any], di
     files: dict[str, Path] = {}
     for key, decl in cls.params.items():
         value = values.get(key)
+        if decl.kind == "path" and decl.objects and isinstance(value, decl.objects) and callable(getattr(value, "validate", None)):
+            try:  # an object built in memory gets the checks its file would (validate() only makes its arrays float64)
+                loaded[key] = value.validate()
+            except FlowtexError as exc:
+                raise ParamError(key, str(exc)) from None
+            continue
         if decl.kind != "path" or not decl.objects or not isinstance(value, Path):
             continue
         reader = object_reader(decl.objects)

@@ -8,6 +8,9 @@ arguments ``(p, s, si, inputs..., outputs...)``) and when a graph using it is
 built (:func:`check_kernel_compiles`: the kernel compiled alone for the
 argument types the graph passes), and report ``file:line: node 'name': ...``
 with the fix.
+
+Node types are taken as classes (``type``), not imported from :mod:`flowtex.node_api`: ``Node.processor`` checks a
+plugin's kernel with this module, and the node API imports its processor.
 """
 
 from __future__ import annotations
@@ -21,15 +24,15 @@ from pathlib import Path
 import numpy as np
 
 from .errors import FlowtexError
-from .limits import MAX_NODE_PORTS, MAX_PORT_VALUES, excerpt
-from .node_api import Node, NodeState, Param, Port
+from .limits import MAX_EVERY, MAX_NODE_PORTS, MAX_PORT_VALUES, excerpt
+from .node_decl import NodeState, Param, Port, PortSpec, outputs_problem
 
 CONTRACT = "kernel(p, s, si, inputs..., outputs...)"
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
 _NUMBA_FILE_LINE = re.compile(r'File "([^"]+)", line (\d+)')
 
 
-def _kernel_attr(cls: type[Node], attr: str) -> Callable | None:
+def _kernel_attr(cls: type, attr: str) -> Callable | None:
     try:
         return cls.get_kernel(attr)
     except AttributeError:
@@ -61,7 +64,7 @@ def _def_line(func: Callable) -> int:
     return start
 
 
-def is_plugin(cls: type[Node]) -> bool:
+def is_plugin(cls: type) -> bool:
     """True for node types defined outside flowtex (plugin files and installed packages): their mistakes are theirs."""
     return not cls.__module__.startswith("flowtex.")
 
@@ -80,7 +83,7 @@ def error_line(exc: BaseException, path: str | Path) -> int:
     return line
 
 
-def attr_line(cls: type[Node], attr: str) -> int | None:
+def attr_line(cls: type, attr: str) -> int | None:
     """Line of ``attr = ...`` in the class body (where a declaration mistake is), or None."""
     try:
         lines, start = inspect.getsourcelines(cls)
@@ -90,7 +93,17 @@ def attr_line(cls: type[Node], attr: str) -> int | None:
     return next((start + k for k, text in enumerate(lines) if pattern.match(text)), None)
 
 
-def node_where(cls: type[Node], func: Callable | None = None, line: int | None = None) -> str:
+def type_name_location(cls: type) -> str | None:
+    """``FILE:LINE`` of the class's ``type_name = ...`` (where a name clash is fixed), or None without its source."""
+    try:
+        path = inspect.getsourcefile(cls)
+    except TypeError:
+        path = None
+    line = attr_line(cls, "type_name") if path else None
+    return f"{shown_path(path)}:{line}" if path and line else None
+
+
+def node_where(cls: type, func: Callable | None = None, line: int | None = None) -> str:
     target: object = func if func is not None else cls
     try:
         path = inspect.getsourcefile(target)  # type: ignore[arg-type]
@@ -110,7 +123,7 @@ def node_where(cls: type[Node], func: Callable | None = None, line: int | None =
     return f"{shown_path(path)}:{line}: node {cls.type_name!r}"
 
 
-def kernel_location(cls: type[Node], line: int | None = None, attr: str = "kernel") -> str:
+def kernel_location(cls: type, line: int | None = None, attr: str = "kernel") -> str:
     """``FILE:LINE`` of a node type's kernel (its ``def`` line unless ``line`` is given), or its module's name."""
     func = _python_function(_kernel_attr(cls, attr) or cls)
     try:
@@ -128,7 +141,7 @@ def _is_numba_dispatcher(kernel: Callable) -> bool:
     return isinstance(kernel, Dispatcher)
 
 
-def expected_arguments(cls: type[Node]) -> list[str]:
+def expected_arguments(cls: type) -> list[str]:
     """Argument names the contract expects: ``p, s, si``, then input then output port names."""
     return ["p", "s", "si", *cls.inputs, *cls.outputs]
 
@@ -167,7 +180,7 @@ def _unit_problem(port: Port, inputs: dict, output: bool) -> str | None:
     return None
 
 
-def check_declarations(cls: type[Node]) -> None:
+def check_declarations(cls: type) -> None:
     """Raise :class:`FlowtexError` at the declaring line for a port or parameter declaration flowtex cannot use."""
     for attr, kind in (("params", Param), ("inputs", Port), ("outputs", Port)):
         table = getattr(cls, attr)
@@ -195,9 +208,14 @@ def check_declarations(cls: type[Node]) -> None:
                            "(Port((n,))) instead of many scalar ones")
 
 
-def check_node_class(cls: type[Node]) -> None:
+def check_node_class(cls: type) -> None:
     """Raise :class:`FlowtexError` (``file:line: node 'name': ...`` and the fix) if the declarations or kernel break the contract."""
     check_declarations(cls)
+    owner = next((k for k in cls.__mro__ if "seed_state" in k.__dict__), None)
+    if cls.uses_seed and (owner is None or (owner.__module__, owner.__qualname__) == ("flowtex.node_api", "Node")):
+        raise FlowtexError(f"{node_where(cls, line=attr_line(cls, 'uses_seed'))}: uses_seed = True but the node defines no "
+                           "seed_state(self, state, istate, seed); write one that fills its random state in place from the "
+                           "np.random.SeedSequence seed (the graph's seed and the node's name), or drop uses_seed")
     attrs = ["kernel"] + (["emit_kernel", "absorb_kernel"] if cls.breaks_cycles else [])
     for attr in attrs:
         kernel = _kernel_attr(cls, attr)
@@ -226,7 +244,7 @@ def check_node_class(cls: type[Node]) -> None:
                 f"then the inputs ({ins}) and the outputs ({outs}) in declaration order")
 
 
-def check_kernel_compiles(cls: type[Node]) -> None:
+def check_kernel_compiles(cls: type) -> None:
     """Compile the node's kernel alone for the argument types graph code passes; blame the node's file on failure.
 
     ``p`` and ``s`` are ``float64[::1]``, ``si`` is ``int64[::1]``, every port a
@@ -243,13 +261,13 @@ def check_kernel_compiles(cls: type[Node]) -> None:
         raise FlowtexError(_compile_message(cls, kernel, str(exc))) from None
 
 
-def check_plugin_kernels(classes: Iterable[type[Node]]) -> None:
+def check_plugin_kernels(classes: Iterable[type]) -> None:
     """:func:`check_kernel_compiles` for each plugin node type among ``classes`` (flowtex's own are compiled by its tests)."""
     for cls in {cls for cls in classes if is_plugin(cls)}:
         check_kernel_compiles(cls)
 
 
-def checked_state(cls: type[Node], node_name: str, state: object, build: Callable) -> NodeState:
+def checked_state(cls: type, node_name: str, state: object, build: Callable) -> NodeState:
     """``state`` if :meth:`Node.build` returned a usable :class:`NodeState`, else the plugin's error at its ``build`` line."""
     if isinstance(state, NodeState):
         for field in ("params", "state", "istate"):
@@ -265,7 +283,36 @@ def checked_state(cls: type[Node], node_name: str, state: object, build: Callabl
                        "NodeState; end build() with return NodeState(params=..., state=..., istate=...)")
 
 
-def plugin_raised(cls: type[Node], node_name: str, method: str, exc: Exception) -> FlowtexError:
+def checked_outputs(cls: type, node_name: str, specs: object) -> dict[str, PortSpec]:
+    """``specs`` if :meth:`Node.resolve` returned a usable spec for each declared output
+    (:func:`flowtex.node_decl.outputs_problem`), else the plugin's error at its ``resolve`` line."""
+    problem = outputs_problem(list(cls.outputs), specs)
+    if problem:
+        raise FlowtexError(f"{node_where(cls, cls.resolve)}: resolve() of graph node {node_name!r} {problem}; return "
+                           f"{{name: PortSpec(shape, unit)}} for each declared output: {', '.join(cls.outputs) or 'none'}")
+    return specs  # type: ignore[return-value]
+
+
+def checked_every(cls: type, node_name: str, every: object) -> int | None:
+    """``every`` if :meth:`Node.own_every` returned None or a whole number of ticks in 1..MAX_EVERY, else the plugin's
+    error at its ``own_every`` line (0 would divide by zero in the generated schedule)."""
+    if every is None or (isinstance(every, (int, np.integer)) and not isinstance(every, bool) and 1 <= every <= MAX_EVERY):
+        return None if every is None else int(every)
+    raise FlowtexError(f"{node_where(cls, cls.own_every)}: own_every() for graph node {node_name!r} returned "
+                       f"{excerpt(every)}; return None (the graph's every: decides) or a whole number of ticks from 1 to "
+                       f"{MAX_EVERY:,}")
+
+
+def checked_latency(cls: type, node_name: str, latency: object) -> int:
+    """``latency`` if :meth:`Node.latency_samples` returned a whole number of ticks >= 0, else the plugin's error at
+    its ``latency_samples`` line."""
+    if isinstance(latency, (int, np.integer)) and not isinstance(latency, bool) and latency >= 0:
+        return int(latency)
+    raise FlowtexError(f"{node_where(cls, cls.latency_samples)}: latency_samples() of graph node {node_name!r} returned "
+                       f"{excerpt(latency)}; return the delay from input to output as a whole number of ticks >= 0")
+
+
+def plugin_raised(cls: type, node_name: str, method: str, exc: Exception) -> FlowtexError:
     """The plugin's error for an exception its ``method`` (``__init__``, ``resolve``, ``build``) raised, at the raising line."""
     func = getattr(cls, method)
     try:
@@ -277,7 +324,7 @@ def plugin_raised(cls: type[Node], node_name: str, method: str, exc: Exception) 
     return FlowtexError(f"{where}: {method}() of graph node {node_name!r} raised {type(exc).__name__}: {exc}")
 
 
-def _compile_message(cls: type[Node], kernel: Callable, text: str) -> str:
+def _compile_message(cls: type, kernel: Callable, text: str) -> str:
     func = _python_function(kernel)
     text = _ANSI.sub("", text)
     where = node_where(cls, func)

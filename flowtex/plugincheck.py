@@ -37,7 +37,7 @@ from pathlib import Path
 from .config import BACKGROUND_ENV
 from .errors import FlowtexError
 from .node_api import Node, suggest
-from .nodecheck import attr_line, check_kernel_compiles, check_node_class, node_where
+from .nodecheck import attr_line, check_kernel_compiles, check_node_class, node_where, type_name_location
 
 PROBE_TIMEOUT_S = 600.0
 """Longest a child process may take over one node type (it compiles the kernel once, then runs a few thousand ticks)."""
@@ -62,8 +62,13 @@ def node_types(target: str) -> dict[str, type[Node]]:
         if not path.is_file():
             raise FlowtexError(f"{target}: no such plugin file")
         module = load_plugin_file(path)
-        found = {obj.type_name: obj for obj in vars(module).values()
-                 if inspect.isclass(obj) and issubclass(obj, Node) and obj.type_name and obj.__module__ == module.__name__}
+        found: dict[str, type[Node]] = {}
+        for obj in vars(module).values():
+            if inspect.isclass(obj) and issubclass(obj, Node) and obj.type_name and obj.__module__ == module.__name__:
+                first = found.setdefault(obj.type_name, obj)
+                if first is not obj:  # a graph loading this file would refuse it at the second class
+                    raise FlowtexError(f"{type_name_location(obj) or target}: node type {obj.type_name!r} is already defined by "
+                                       f"class {first.__name__} of this file; give each class its own type_name")
         if not found:
             raise FlowtexError(f"{target}: defines no node type (a Node subclass with a type_name)")
         return found
@@ -72,6 +77,27 @@ def node_types(target: str) -> dict[str, type[Node]]:
     if cls is None:
         raise FlowtexError(f"{target}: neither a plugin .py file nor a known node type{suggest(target, registry.names())}")
     return {target: cls}
+
+
+def _taken_by(cls: type[Node]) -> str | None:
+    """Where flowtex's own node types and the installed ones already define ``cls``'s type name (None: free)."""
+    from .registry import load_registry
+
+    try:
+        registry = load_registry()
+        other = registry.get(cls.type_name)
+    except FlowtexError:  # another installed plugin is broken: not this one's problem
+        return None
+    if other is None or other is cls or (inspect.getsourcefile(other) == inspect.getsourcefile(cls)
+                                         and other.__qualname__ == cls.__qualname__):
+        return None
+    return registry.origins.get(cls.type_name, other.__module__)
+
+
+def _processor_settings(cls: type[Node]) -> list[str]:
+    """Parameters named like a keyword of :meth:`Node.processor` (rate, seed, ...): a processor cannot set them."""
+    own = [n for n, p in inspect.signature(Node.processor).parameters.items() if p.kind is p.POSITIONAL_OR_KEYWORD]
+    return [name for name in cls.params if name in own]
 
 
 def _unbounded(cls: type[Node]) -> list[tuple[str, str]]:
@@ -189,7 +215,7 @@ def runtime_problems(target: str, classes: list[type[Node]]) -> dict[str, list[t
     found = _children(target, classes, "runtime", {"NUMBA_BOUNDSCHECK": "1", "NUMBA_CACHE_DIR": str(folder)})
     out = {}
     for name, (items, failed) in found.items():
-        out[name] = [(int(item["line"]), str(item["message"])) for item in items]
+        out[name] = [(-1 if item.get("located") else int(item["line"]), str(item["message"])) for item in items]
         if failed:
             out[name].append((0, failed + "; look for reads or writes outside the ports, p, s and si"))
     return out
@@ -203,6 +229,13 @@ def check_in_process(cls: type[Node], report: Report) -> bool:
     except FlowtexError as exc:
         report.problems.append(str(exc))
         return False
+    clash = _taken_by(cls)
+    if clash:
+        report.problems.append(f"{type_name_location(cls) or node_where(cls)}: node type {cls.type_name!r} is already defined "
+                               f"by {clash}; a graph would refuse to load this plugin: rename it (e.g. 'my_{cls.type_name}')")
+    for name in _processor_settings(cls):
+        report.notes.append(f"{node_where(cls, line=attr_line(cls, 'params'))}: note: parameter {name!r} cannot be set "
+                            f"through Node.processor(), whose own keyword {name!r} it is; rename it to use the node on arrays")
     for name, missing in _unbounded(cls):
         report.notes.append(f"{node_where(cls, line=attr_line(cls, 'params'))}: note: parameter {name!r} has no {missing}; "
                             "any such value reaches the kernel (declare bounds, e.g. Param('float', min=0.0, max=1.0))")
@@ -230,9 +263,10 @@ def check_in_children(target: str, classes: list[type[Node]]) -> dict[str, Repor
             report.problems.append(f"{node_where(cls, func)}: kernel {func.__name__} allocates memory on every call (numba "
                                    f"generated {', '.join(found)}): np.empty/zeros, array expressions such as x[t, :] * 2 "
                                    "and copied slices allocate; size work arrays in build() and keep them in s")
-        for line, message in runtime[cls.type_name]:
+        for line, message in runtime[cls.type_name]:  # line -1: the message names its file and line itself
             where = node_where(cls, func, line or None)
-            (report.notes if message.startswith("note: ") else report.problems).append(f"{where}: {message}")
+            (report.notes if message.startswith("note: ") else report.problems).append(
+                message if line == -1 else f"{where}: {message}")
     return reports
 
 

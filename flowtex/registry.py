@@ -28,6 +28,7 @@ import hashlib
 import importlib
 import importlib.util
 import inspect
+import os
 import pkgutil
 import sys
 from collections.abc import Callable, Iterable, Iterator, Mapping
@@ -38,7 +39,7 @@ from types import ModuleType
 from .config import PLUGIN_ENV, plugin_folders
 from .errors import FlowtexError
 from .node_api import Node
-from .nodecheck import check_node_class, error_line, shown_path
+from .nodecheck import check_node_class, error_line, shown_path, type_name_location
 from .plugincode import PLUGIN_CODE, plugin_code_id, register_plugin_package
 
 ENTRY_POINT_GROUP = "flowtex.nodes"
@@ -165,9 +166,9 @@ class Registry:
         except KeyError:  # the name of an entry point being loaded, or of one that defines no such type
             existing = None
         if existing is not None and existing is not cls:
-            raise FlowtexError(
-                f"{origin}: node type {name!r} is already defined by {self.origins[name]}; rename one of them"
-            )
+            where = type_name_location(cls)
+            raise FlowtexError(f"{where or origin}: node type {name!r} is already defined by {self.origins[name]}; "
+                               f"rename one of them{' (flowtex nodes lists the taken names)' if where else ''}")
         self.types.set(name, cls)
         self.origins[name] = origin
 
@@ -231,11 +232,16 @@ class Registry:
         return sorted(self.types)
 
 
+def folder_list(folders: Iterable[str | Path] | str | Path) -> tuple[str | Path, ...]:
+    """``folders`` as a tuple of folders; one folder given as a string or path is one folder, not its characters."""
+    return (folders,) if isinstance(folders, (str, os.PathLike)) else tuple(folders)  # type: ignore[return-value]
+
+
 def plugin_dirs(extra: Iterable[str | Path] = ()) -> list[Path]:
     """Plugin folders in search order: ``$FLOWTEX_PLUGINS``, then ``extra``."""
     dirs: list[Path] = []
     dirs.extend(plugin_folders())
-    dirs.extend(Path(d) for d in extra)
+    dirs.extend(Path(d) for d in folder_list(extra))
     unique: list[Path] = []
     for d in dirs:
         resolved = d.resolve()

@@ -47,9 +47,9 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("dsp", ("flowtex.dsp",)),
     # config, and what every layer uses: error classes, input limits, the YAML reader with positions, cache folders
     # (numba's cache folder must be chosen before any kernel module, dsp's included, decorates its kernels), the old import
-    # paths of names that moved (flowtex.moved).
+    # paths of names that moved (flowtex.moved), values handed in from Python code (flowtex.pyvalues).
     ("config", ("flowtex.config", "flowtex.version", "flowtex.errors", "flowtex.limits", "flowtex.yamlsource", "flowtex.cache",
-                "flowtex.plugincode", "flowtex.interrupts", "flowtex.moved")),
+                "flowtex.plugincode", "flowtex.interrupts", "flowtex.moved", "flowtex.pyvalues")),
 ]
 """Top to bottom. A module belongs to the layer of its longest matching prefix."""
 

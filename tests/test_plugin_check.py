@@ -32,20 +32,25 @@ def _check(capsys, target: str) -> tuple[int, list[str], str]:
     return code, out.out.strip().splitlines(), out.err.strip()
 
 
-@pytest.fixture(scope="module")
-def mistakes_report(tmp_path_factory):
-    """One run of plugin check over the mistakes file (it compiles four kernels twice: once plain, once bounds-checked)."""
-    folder = tmp_path_factory.mktemp("pc")
-    shutil.copy(CASES / "mistakes.py", folder / "mistakes.py")
+def check_copy(case: Path, folder: Path, name: str) -> tuple[int, list[str], str, Path]:
+    """``plugin check NAME`` run in ``folder`` on a copy of ``case`` named ``name`` (messages then say ``NAME:LINE``):
+    exit code, stdout lines, stderr, the copy's path."""
+    shutil.copy(case, folder / name)
     cwd = os.getcwd()
     os.chdir(folder)
     try:
         out, err = io.StringIO(), io.StringIO()
         with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            code = main(["plugin", "check", "mistakes.py"])
+            code = main(["plugin", "check", name])
     finally:
         os.chdir(cwd)
-    return code, out.getvalue().strip().splitlines(), err.getvalue().strip(), folder / "mistakes.py"
+    return code, out.getvalue().strip().splitlines(), err.getvalue().strip(), folder / name
+
+
+@pytest.fixture(scope="module")
+def mistakes_report(tmp_path_factory):
+    """One run of plugin check over the mistakes file (it compiles four kernels twice: once plain, once bounds-checked)."""
+    return check_copy(CASES / "mistakes.py", tmp_path_factory.mktemp("pc"), "mistakes.py")
 
 
 def test_every_mistake_is_one_line_at_its_file_and_line(mistakes_report):

@@ -21,6 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import DataError, FlowtexError
+
 NONFINITE_POLICIES = ("error", "hold", "zero", "pass")
 
 
@@ -73,8 +75,12 @@ def count_nonfinite(a: np.ndarray) -> NonFiniteCount | None:
     return NonFiniteCount(int(nan.sum()), int(inf.sum()), int(np.argmax(rows)))
 
 
-def fill_nonfinite(a: np.ndarray, policy: str) -> np.ndarray:
-    """A copy of ``a`` (time first) with non-finite samples replaced by ``policy`` (``hold`` or ``zero``)."""
+def fill_nonfinite(a: np.ndarray, policy: str, before: np.ndarray | None = None) -> np.ndarray:
+    """A copy of ``a`` (time first) with non-finite samples replaced by ``policy`` (``hold`` or ``zero``).
+
+    ``before`` (one time step of ``a``'s shape) is what ``hold`` holds until the first finite sample (default 0): the
+    last finite values of the chunk before, so that a signal filled in chunks equals it filled in one pass.
+    """
     if policy not in ("hold", "zero"):
         raise ValueError(f"unknown non-finite policy {policy!r}; use hold or zero")
     flat = np.array(a, dtype=np.float64).reshape(a.shape[0], -1)
@@ -85,5 +91,35 @@ def fill_nonfinite(a: np.ndarray, policy: str) -> np.ndarray:
     rows = np.arange(flat.shape[0])[:, None]
     last_good = np.maximum.accumulate(np.where(bad, -1, rows), axis=0)  # index of the last finite sample, -1 if none
     filled = np.take_along_axis(flat, np.maximum(last_good, 0), axis=0)
-    filled[last_good < 0] = 0.0
+    if before is None:
+        filled[last_good < 0] = 0.0
+    else:
+        filled = np.where(last_good < 0, np.asarray(before, dtype=np.float64).reshape(1, -1), filled)
     return filled.reshape(a.shape)
+
+
+def apply_nonfinite_policy(arrays: dict[str, np.ndarray], policy: str, source: str = "",
+                           fix: str = "or pass nonfinite='hold' or 'zero'",
+                           held: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+    """``arrays`` with non-finite samples handled by ``policy`` (see :mod:`flowtex.dsp.nonfinite`).
+
+    ``error`` raises :class:`DataError` naming ``source`` (a file, if any), the signal,
+    the count and the first index; a recursive filter fed one NaN would output NaN for good.
+    ``held`` (signal -> its last time step after ``hold``), kept by a caller that feeds a signal in chunks, carries
+    the held value from one chunk into the next; it is updated in place.
+    """
+    if policy not in NONFINITE_POLICIES:
+        raise FlowtexError(f"unknown non-finite policy {policy!r}; use one of {', '.join(NONFINITE_POLICIES)}")
+    out = {}
+    for name, a in arrays.items():
+        found = find_nonfinite(a)
+        if found is None or policy == "pass":
+            out[name] = a
+        elif policy == "error":
+            prefix = f"{source}: " if source else ""
+            raise DataError(f"{prefix}input {name!r} has {found.describe()}; clean the recording {fix}")
+        else:
+            out[name] = fill_nonfinite(a, policy, held.get(name) if held is not None and policy == "hold" else None)
+        if held is not None and policy == "hold" and len(out[name]):
+            held[name] = out[name][-1].copy()
+    return out

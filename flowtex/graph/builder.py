@@ -13,12 +13,20 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from ..errors import Location
+from ..errors import Diagnostic, GraphError, Location
+from ..pyvalues import plain
 from ..schema.graph import FORMAT_VERSION
 from ..yamlsource import LocDict, LocList
 from .spec import GraphSpec, spec_from_data
 
 __all__ = ["GraphBuilder"]
+
+
+def _new_key(d: LocDict, kind: str, name: Any, where: Location) -> None:
+    """Refuse a second ``kind`` named ``name`` (a graph file refuses a duplicate key the same way)."""
+    if name in d:
+        raise GraphError([Diagnostic(where, f"duplicate {kind} {name!r} (first defined at {d.key_pos[name]}); "
+                                            "remove or rename one of them")])
 
 
 def _mapping(where: Location) -> LocDict:
@@ -28,7 +36,7 @@ def _mapping(where: Location) -> LocDict:
 
 
 def _put(d: LocDict, key: str, value: Any, where: Location) -> None:
-    d[key] = value
+    d[key] = plain(value)  # numpy scalars and arrays, paths: what a graph file would hold (flowtex.pyvalues)
     d.key_pos[key] = where  # type: ignore[assignment]
     d.value_pos[key] = where  # type: ignore[assignment]
 
@@ -61,14 +69,16 @@ class GraphBuilder:
         """A graph input: ``shape`` of one tick's value (``()`` a scalar, ``(3,)`` a 3-vector), ``unit`` such as ``"mm"``."""
         where = Location(f"GraphBuilder.input({name!r})")
         value = _mapping(where)
-        _put(value, "shape", shape if isinstance(shape, int) else list(shape), where)
+        _put(value, "shape", list(shape) if isinstance(shape, (list, tuple)) else shape, where)
         _put(value, "unit", unit, where)
+        _new_key(self._inputs, "input", name, where)
         _put(self._inputs, name, value, where)
         return self
 
     def node(self, name: str, type: str, every: int = 1, **params: Any) -> GraphBuilder:
         """A node of ``type`` (``flowtex nodes`` lists them) run every ``every`` ticks, with its parameters."""
         where = Location(f"GraphBuilder.node({name!r}, {type!r})")
+        _new_key(self._nodes, "node", name, where)
         value = _mapping(where)
         _put(value, "type", type, where)
         _put(value, "every", every, where)
@@ -87,7 +97,9 @@ class GraphBuilder:
 
     def output(self, name: str, source: str) -> GraphBuilder:
         """A graph output ``name`` read from ``source`` (``"node.port"``, or a graph input's name)."""
-        _put(self._outputs, name, source, Location(f"GraphBuilder.output({name!r}, {source!r})"))
+        where = Location(f"GraphBuilder.output({name!r}, {source!r})")
+        _new_key(self._outputs, "output", name, where)
+        _put(self._outputs, name, source, where)
         return self
 
     def spec(self, overrides: dict[str, Any] | None = None) -> GraphSpec:

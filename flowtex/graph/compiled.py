@@ -18,11 +18,13 @@ from typing import Any
 import numpy as np
 
 from ..compile.service import check_tier, compile_in_background, compile_tick, default_tier
-from ..dsp.nonfinite import NONFINITE_POLICIES, fill_nonfinite, find_nonfinite
-from ..errors import DataError, FlowtexError
+from ..dsp.nonfinite import apply_nonfinite_policy  # noqa: F401  (re-exported: its import path before it moved to dsp)
+from ..errors import FlowtexError, InputError
+from ..limits import excerpt
 from ..node_api import PortSpec, suggest
 from ..nodecheck import check_plugin_kernels
-from ..registry import Registry, load_registry
+from ..pyvalues import float_signal, plain
+from ..registry import Registry, folder_list, load_registry
 from .arena import FAULT, OUT_WIDTH, TICK, Layout, plan_layout
 from .faults import dispatch_fault, raised_fault
 from .fused import ENTRY_POINTS, EntryCompileError, FusedPlan, entry, lazy_entry
@@ -39,6 +41,7 @@ class Graph:
 
     def __init__(self, resolved: ResolvedGraph, block_rows: int = DEFAULT_BLOCK_ROWS, tier: str | None = None):
         """``tier``: ``fused``, ``dispatch`` or ``auto`` (docs/engine.md); default ``$FLOWTEX_COMPILE`` or ``fused``."""
+        block_rows = _count("block_rows", block_rows, 1)
         self.resolved = resolved
         self.spec: GraphSpec = resolved.spec
         self.layout: Layout = plan_layout(resolved, block_rows)
@@ -75,6 +78,8 @@ class Graph:
         self._py_step = make_py_step(self)
         self.step = self._py_step  # type: ignore[method-assign]  # the generated function, one call layer less
         self.seed = self.spec.seed
+        self._held: dict[str, np.ndarray] = {}
+        """Input -> its last value after ``nonfinite="hold"``, held into the next :meth:`process` chunk."""
         self._seed_nodes()  # the arenas are as placed: a reset's copies would only touch every page of them again
 
     # --- description -------------------------------------------------
@@ -104,9 +109,10 @@ class Graph:
     def reset(self, seed: int | None = None) -> None:
         """Restore the initial state; re-seed random nodes with ``seed`` (default: the graph's)."""
         if seed is not None:
-            self.seed = int(seed)
+            self.seed = _count("seed", seed, 0)
         self.layout.initial_floats(self.f)
         self.i[:] = self._i0
+        self._held = {}
         self._seed_nodes()
 
     def _seed_nodes(self) -> None:
@@ -133,7 +139,7 @@ class Graph:
     def process(self, inputs: Mapping[str, Any], progress: bool = False, nonfinite: str = "error") -> dict[str, np.ndarray]:
         """Continue from the current state over ``inputs`` (chunked runs equal one pass); ``nonfinite`` as in :meth:`run`."""
         arrays, total = self._check_inputs(inputs)
-        arrays = apply_nonfinite_policy(arrays, nonfinite)
+        arrays = apply_nonfinite_policy(arrays, nonfinite, held=self._held)
         if progress and total > PROGRESS_CHUNK:
             from tqdm import tqdm
 
@@ -281,60 +287,50 @@ class Graph:
 
     def _check_inputs(self, inputs: Mapping[str, Any]) -> tuple[dict[str, np.ndarray], int]:
         """Graph inputs as float64 arrays of shape (n, width), with n checked equal."""
+        if not (isinstance(inputs, Mapping) or (hasattr(inputs, "keys") and hasattr(inputs, "__getitem__"))):  # a DataFrame too
+            raise InputError(f"graph {self.name!r}: pass the inputs as a mapping of input name to array, "
+                             f"e.g. {{{next(iter(self.layout.in_columns), 'x')!r}: x}}; got {type(inputs).__name__}")
         unknown = [n for n in inputs if n not in self.layout.in_columns]
         if unknown:
             hints = "".join(suggest(str(n), list(self.layout.in_columns)) for n in unknown)
-            raise FlowtexError(f"graph {self.name!r} has no input(s) {', '.join(map(repr, unknown))}{hints}; "
+            raise InputError(f"graph {self.name!r} has no input(s) {', '.join(map(repr, unknown))}{hints}; "
                                f"its inputs are: {', '.join(self.layout.in_columns) or 'none'}")
         missing = [n for n in self.layout.in_columns if n not in inputs]
         if missing:
-            raise FlowtexError(f"graph {self.name!r}: recording lacks input(s) {', '.join(missing)}")
+            raise InputError(f"graph {self.name!r}: recording lacks input(s) {', '.join(missing)}")
         total = None
         arrays = {}
         for name, (_col, w) in self.layout.in_columns.items():
-            arr = np.asarray(inputs[name], dtype=np.float64)
+            arr = float_signal(name, inputs[name])
             shape = self.resolved.input_specs[name].shape
             flat_ok = arr.ndim == 2 and arr.shape[1] == w  # e.g. a CSV's name[0..k] columns
-            if arr.shape[1:] != shape and not flat_ok:
-                raise FlowtexError(
+            if arr.ndim == 0 or (arr.shape[1:] != shape and not flat_ok):
+                raise InputError(
                     f"input {name!r}: expected shape (n, {', '.join(map(str, shape))}) with time first, got {arr.shape}"
                     if shape else f"input {name!r}: expected a 1-D array over time, got shape {arr.shape}")
             if total is None:
                 total = arr.shape[0]
             elif arr.shape[0] != total:
-                raise FlowtexError(f"input {name!r} has {arr.shape[0]} samples, others have {total}")
+                raise InputError(f"input {name!r} has {arr.shape[0]} samples, others have {total}")
             arrays[name] = arr.reshape(arr.shape[0], w)
         if total is None:
-            raise FlowtexError(f"graph {self.name!r} has no inputs; pass n ticks with run_ticks(n)")
+            raise InputError(f"graph {self.name!r} has no inputs; pass n ticks with run_ticks(n)")
         return arrays, total
 
     def run_ticks(self, n: int, seed: int | None = None) -> dict[str, np.ndarray]:
         """Reset and run ``n`` ticks with every graph input held at zero (e.g. a noise generator)."""
+        n = _count("n", n, 0)
         self.reset(seed)
         zeros = {name: np.zeros((n, w)) for name, (_col, w) in self.layout.in_columns.items()}
         return self._run_chunk(zeros, n)
 
 
-def apply_nonfinite_policy(arrays: dict[str, np.ndarray], policy: str, source: str = "",
-                           fix: str = "or pass nonfinite='hold' or 'zero'") -> dict[str, np.ndarray]:
-    """``arrays`` with non-finite samples handled by ``policy`` (see :mod:`flowtex.dsp.nonfinite`).
-
-    ``error`` raises :class:`DataError` naming ``source`` (a file, if any), the signal,
-    the count and the first index; a recursive filter fed one NaN would output NaN for good.
-    """
-    if policy not in NONFINITE_POLICIES:
-        raise FlowtexError(f"unknown non-finite policy {policy!r}; use one of {', '.join(NONFINITE_POLICIES)}")
-    out = {}
-    for name, a in arrays.items():
-        found = find_nonfinite(a)
-        if found is None or policy == "pass":
-            out[name] = a
-        elif policy == "error":
-            prefix = f"{source}: " if source else ""
-            raise DataError(f"{prefix}input {name!r} has {found.describe()}; clean the recording {fix}")
-        else:
-            out[name] = fill_nonfinite(a, policy)
-    return out
+def _count(what: str, value: Any, least: int) -> int:
+    """``value`` as an int of at least ``least`` (numpy integers too), or :class:`InputError` naming ``what``."""
+    value = plain(value)
+    if isinstance(value, bool) or not isinstance(value, int) or value < least:
+        raise InputError(f"{what} must be an integer >= {least}, got {excerpt(value)}")
+    return value
 
 
 def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,
@@ -379,6 +375,7 @@ def graph_registry(path: str | Path, plugins: tuple[str | Path, ...] = (), auto_
     """The node registry a graph file is resolved with: ``plugins`` plus, with ``auto_plugins``, the graph's own plugin
     folders: its folder's ``plugins/`` (found wherever flowtex runs from) and ``own``, the folders of its ``plugins:``
     key (read from the file when None). ``.plugin_files`` lists the code it ran."""
+    plugins = folder_list(plugins)
     if not auto_plugins:
         return load_registry(plugins)
     from .spec import read_plugin_folders

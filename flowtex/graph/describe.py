@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..node_api import Node
+from ..nodecheck import checked_latency
 from ..registry import Registry
 from .compiled import Graph
 
@@ -19,7 +20,7 @@ def describe_graph(graph: Graph) -> str:
     lines.append("execution order:")
     for k, (name, rn) in enumerate(rg.nodes.items(), start=1):
         every = f" every {rn.spec.every} ticks ({graph.rate / rn.spec.every:g} Hz)" if rn.spec.every > 1 else ""
-        latency = rn.node.latency_samples() if rn.node is not None else 0
+        latency = checked_latency(rn.cls, name, rn.node.latency_samples()) if rn.node is not None else 0
         if latency:
             node_rate = graph.rate / rn.spec.every
             every += f", latency {latency} samples ({1000.0 * latency / node_rate:g} ms)"

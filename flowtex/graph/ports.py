@@ -12,9 +12,9 @@ from typing import Any
 
 from ..errors import DataError, FlowtexError, ParamError
 from ..limits import port_values_problem
-from ..node_api import BuildContext, Port, PortSpec, simplify_unit
+from ..node_api import BuildContext, Port, PortSpec, expected_shape, simplify_unit
 from ..node_params import load_files
-from ..nodecheck import is_plugin, plugin_raised
+from ..nodecheck import checked_every, checked_outputs, is_plugin, plugin_raised
 from .resolved import GraphChecker, ResolvedNode, param_loc
 from .spec import EdgeSpec
 
@@ -28,11 +28,8 @@ def _loaded_params(rn: ResolvedNode) -> tuple[dict[str, Any], dict[str, Path]]:
 
 
 def _port_check(port: Port, name: str, got: PortSpec, specs: dict[str, PortSpec]) -> str | None:
-    shape = port.shape
-    if isinstance(shape, str):
-        ref = specs.get(shape[1:])
-        shape = ref.shape if ref is not None else None
-    if shape is not None and tuple(shape) != got.shape:
+    shape = expected_shape(port, specs)
+    if shape is not None and shape != got.shape:
         want = PortSpec(tuple(shape)).describe().split(" [")[0]
         return f"shape mismatch: {got.describe().split(' [')[0]} arrives at input {name!r}, which takes {want}"
     unit = port.unit
@@ -67,15 +64,11 @@ def resolve_ports(ck: GraphChecker, nodes: dict[str, ResolvedNode], inputs: dict
 
 def _expected(port: Port, specs: dict[str, PortSpec]) -> tuple[tuple[int, ...] | None, str]:
     """Shape (None: any) and unit ("*": any) a port takes, given the inputs resolved before it."""
-    shape = port.shape
-    if isinstance(shape, str):
-        ref = specs.get(shape[1:])
-        shape = ref.shape if ref is not None else None
     unit = port.unit
     if unit.startswith("="):
         ref = specs.get(unit[1:])
         unit = ref.unit if ref is not None else "*"
-    return (tuple(shape) if shape is not None else None), unit
+    return expected_shape(port, specs), unit
 
 
 def _resolve_pass(ck: GraphChecker, nodes: dict[str, ResolvedNode], inputs: dict[str, PortSpec],
@@ -138,10 +131,7 @@ def _resolve_pass(ck: GraphChecker, nodes: dict[str, ResolvedNode], inputs: dict
                                files=files)
             rn.node = rn.cls(name, params, ctx)
             method = "resolve"
-            rn.out_specs = rn.node.resolve(specs)
-            if _too_wide(ck, rn, rn.out_specs, "output"):
-                rn.out_specs = {}
-                failed.add(name)
+            resolved = rn.node.resolve(specs)
         except ParamError as exc:
             failed.add(name)
             ck.error(param_loc(rn, exc.param), f"node {name!r} ({rn.cls.type_name}): {exc}")
@@ -152,6 +142,11 @@ def _resolve_pass(ck: GraphChecker, nodes: dict[str, ResolvedNode], inputs: dict
             if not is_plugin(rn.cls):
                 raise  # flowtex's own bug: an internal error
             raise plugin_raised(rn.cls, name, method, exc) from None
+        else:
+            rn.out_specs = checked_outputs(rn.cls, name, resolved)  # a wrong result: the plugin's error at its resolve()
+            if _too_wide(ck, rn, rn.out_specs, "output"):
+                rn.out_specs = {}
+                failed.add(name)
     for name, took in provisional.items():
         rn = nodes[name]
         for port_name, src in rn.sources.items():
@@ -195,6 +190,11 @@ def _own_schedule(ck: GraphChecker, rn: ResolvedNode, input_every: dict[str, int
     except ParamError as exc:
         ck.error(param_loc(rn, exc.param), f"node {rn.spec.name!r} ({rn.cls.type_name}): {exc}")
         return False
+    except Exception as exc:
+        if not is_plugin(rn.cls):
+            raise  # flowtex's own bug: an internal error
+        raise plugin_raised(rn.cls, rn.spec.name, "own_every", exc) from None
+    own = checked_every(rn.cls, rn.spec.name, own)
     if own is None:
         return True
     if rn.spec.every not in (1, own):

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FlowtexError
+from ..limits import excerpt
 from .arena import FAULT
 from .fused import lazy_entry
 
@@ -34,9 +35,12 @@ def make_py_step(graph: Any) -> Callable[[Mapping[str, Any] | None], dict[str, A
     for name in vector_in:
         lines.append(f"    if {name!r} in values:")
         lines.append("        try:")
-        lines.append(f"            IN_VIEWS[{name!r}][:] = np.ravel(values[{name!r}])")
+        lines.append(f"            v = np.ravel(values[{name!r}])")
         lines.append("        except (ValueError, TypeError):")
         lines.append(f"            bad_vector({name!r}, values[{name!r}])")
+        lines.append(f"        if v.size != {graph.resolved.input_specs[name].width} or v.dtype.kind not in 'biuf':")
+        lines.append(f"            bad_vector({name!r}, values[{name!r}])  # a number would fill every component, complex lose a part")
+        lines.append(f"        IN_VIEWS[{name!r}][:] = v")
         lines.append("        hits += 1")
     lines.append("    if hits != len(values):")
     lines.append("        unknown_input(values)")
@@ -77,9 +81,10 @@ def _bad_scalar(graph: Any, values: Mapping[str, Any]) -> None:
 def _bad_vector(graph: Any, name: str, value: Any) -> None:
     shape = graph.resolved.input_specs[name].shape
     try:
-        got = f"shape {np.shape(value)}"
+        arr = np.asarray(value)
+        got = f"shape {arr.shape}" + ("" if arr.dtype.kind in "biuf" else f" of {arr.dtype} values, not real numbers")
     except (ValueError, TypeError):
-        got = repr(value)
+        got = excerpt(value)
     raise FlowtexError(f"input {name!r} has shape {shape} ({graph.resolved.input_specs[name].width} numbers); "
                        f"step() got {got}")
 

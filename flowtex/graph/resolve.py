@@ -10,8 +10,10 @@ together as one :class:`GraphError`. The steps: names and connections
 from __future__ import annotations
 
 import networkx as nx
+import numpy as np
 
 from ..errors import DataError, FlowtexError, ParamError
+from ..limits import MAX_STATE_VALUES
 from ..node_api import PortSpec
 from ..nodecheck import checked_state, is_plugin, plugin_raised
 from ..registry import Registry
@@ -64,6 +66,7 @@ def resolve_graph(spec: GraphSpec, registry: Registry) -> ResolvedGraph:
     cyclic = not nx.is_directed_acyclic_graph(dataflow.subgraph(keep))
     _build_nodes(ck, kept)
     ck.fail_if_any()
+    _check_states(ck, kept)
 
     output_specs: dict[str, PortSpec] = {}
     for name, out in spec.outputs.items():
@@ -72,6 +75,21 @@ def resolve_graph(spec: GraphSpec, registry: Registry) -> ResolvedGraph:
         else:
             output_specs[name] = kept[out.src.node].out_specs[out.src.port]
     return ResolvedGraph(spec, kept, dropped, input_specs, output_specs, cyclic, dataflow)
+
+
+def _check_states(ck: GraphChecker, nodes: dict[str, ResolvedNode]) -> None:
+    """Refuse node parameters and states holding more than :data:`~flowtex.limits.MAX_STATE_VALUES` values together
+    before the arenas copy them (a graph file can size a plugin's state by a parameter its declaration does not bound),
+    at the largest node's line."""
+    sizes = {name: int(np.size(rn.state.params) + np.size(rn.state.state) + np.size(rn.state.istate))
+             for name, rn in nodes.items() if rn.state is not None}
+    if sum(sizes.values()) > MAX_STATE_VALUES:
+        name = max(sizes, key=lambda n: sizes[n])
+        ck.error(nodes[name].spec.loc, f"node {name!r} ({nodes[name].cls.type_name}): its parameters and state hold "
+                                       f"{sizes[name]:,} values, the graph's nodes {sum(sizes.values()):,}; flowtex allocates "
+                                       f"at most {MAX_STATE_VALUES:,} (flowtex.limits.MAX_STATE_VALUES): lower the parameter "
+                                       "that sizes it")
+        ck.fail_if_any()
 
 
 def _build_nodes(ck: GraphChecker, nodes: dict[str, ResolvedNode]) -> None:

@@ -7,6 +7,7 @@ that need node types (parameters, ports, units) live in ``wiring.py`` and ``port
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -14,6 +15,7 @@ from typing import Any
 from ..errors import Diagnostic, GraphError, Location
 from ..limits import excerpt, port_values_problem
 from ..node_api import suggest
+from ..pyvalues import plain
 from ..schema.core import INVALID, Collector, check_keys, check_value, fits, value_of
 from ..schema.graph import EDGE_PATTERN, FORMAT_VERSION, GRAPH, INPUT, NAME_PATTERN, NODE, RATE
 from ..yamlsource import LocDict, LocList, load_yaml, parse_value, read_source
@@ -240,8 +242,15 @@ def _apply_overrides(c: Collector, spec: GraphSpec, overrides: dict[str, Any]) -
     """Apply ``--set`` values: ``rate`` (the graph's base rate, Hz), ``NODE.every`` (the node's rate divider) or
     ``NODE.PARAM``; ``NODE.PARAM=null`` removes the file's value, so that a parameter that excludes another
     (coulomb_friction's ``models`` and ``mu``) can be swapped from the command line."""
+    if not isinstance(overrides, Mapping):
+        c.error(Location("--set"), f"overrides must be a mapping of 'NODE.PARAM' or 'rate' to a value, got {excerpt(overrides)}")
+        return
     for key, value in overrides.items():
         where = Location(f"--set {key}")
+        value = plain(value)  # numpy scalars and arrays, paths from Python code: as the command line's values
+        if not isinstance(key, str):
+            c.error(where, f"an override's key is 'NODE.PARAM' or 'rate', got {excerpt(key)}")
+            continue
         if key == "rate":
             if check_value(c, value, where, RATE) is not INVALID:
                 spec.rate = float(value)

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import DataError
 from ..limits import excerpt
-from ..models.patterns import Pattern
+from ..models.patterns import Pattern, filter_problem
 from ..schema.core import Collector, check_unknown, get
 from ..schema.datafiles import FEATURE, PATTERN, RATE_KEY
 from .atomic import write_json_atomic
@@ -17,7 +17,6 @@ from .jsondoc import read_json_document
 
 FORMAT_NAME = "flowtex-pattern"
 FORMAT_VERSION = 1
-MAX_ORDER = 32
 
 
 def write_pattern(path: str | Path, pat: Pattern) -> Path:
@@ -71,12 +70,9 @@ def read_pattern(path: str | Path) -> Pattern:
                 raise DataError(f"{path}: {where}.{key} must be a number, got {excerpt(v)}")
         b = _numbers(f.get("b"), f"{where}.b", path)
         a = _numbers(f.get("a"), f"{where}.a", path)
-        if not 1 <= b.size <= MAX_ORDER + 1 or not 1 <= a.size <= MAX_ORDER + 1:
-            raise DataError(f"{path}: {where}: b and a need 1 to {MAX_ORDER + 1} coefficients")
-        if a[0] != 1.0:
-            raise DataError(f"{path}: {where}.a[0] must be 1 (normalised denominator), got {a[0]!r}")
-        if a.size > 1 and np.max(np.abs(np.roots(a))) >= 1.0:
-            raise DataError(f"{path}: {where}: the filter is unstable (pole radius {np.max(np.abs(np.roots(a))):.6g} >= 1); refit the pattern")
+        problem = filter_problem(b, a)
+        if problem:
+            raise DataError(f"{path}: {where}: {problem}")
         xs.append(float(f["position_mm"]))
         amps.append(float(f["amplitude"]))
         bs.append(b)

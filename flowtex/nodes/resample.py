@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from ..dsp.resample import DEFAULT_ATTEN_DB
+from ..dsp.resample import DEFAULT_ATTEN_DB, MAX_FACTOR
 from ..dsp.resample_stream import (
     ISTATE,
     PARAMS,
@@ -26,6 +26,7 @@ from ..dsp.resample_stream import (
     stream_params,
 )
 from ..errors import ParamError
+from ..limits import MAX_EVERY
 from ..node_api import Memory, Node, Param, Port
 
 
@@ -36,6 +37,9 @@ def _resample(p, s, si, x, y):
 
 def _every_of(rate: float, hz: float, param: str) -> int:
     k = rate / hz
+    if k > MAX_EVERY:
+        raise ParamError(param, f"{hz:g} Hz is more than {MAX_EVERY:,} ticks of the graph's base rate {rate:g} Hz; "
+                                f"the lowest rate a node runs at is {rate / MAX_EVERY:g} Hz")
     if hz > rate or abs(k - round(k)) > 1e-9 * k:
         raise ParamError(param, f"{hz:g} Hz does not divide the graph's base rate {rate:g} Hz into whole ticks "
                                 f"(use {rate:g} / k Hz, e.g. {rate / 2:g} or {rate / 4:g})")
@@ -81,6 +85,10 @@ class Resample(Node):
         k_out = _every_of(rate, self.p["to_hz"], "to_hz")
         if k_in == k_out:
             raise ParamError("to_hz", f"the input already arrives at {rate / k_in:g} Hz; remove the resample node")
+        if max(k_in, k_out) // min(k_in, k_out) > MAX_FACTOR:  # the filter's length (and its design time) grows with it
+            raise ParamError("to_hz", f"{rate / k_in:g} Hz -> {self.p['to_hz']:g} Hz is a factor of "
+                                      f"{max(k_in, k_out) // min(k_in, k_out):,}; a resample node changes the rate by at "
+                                      f"most {MAX_FACTOR}x up or down: chain two resample nodes")
         if k_in % k_out == 0:
             return k_in // k_out, 1
         if k_out % k_in == 0:

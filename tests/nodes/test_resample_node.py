@@ -130,3 +130,16 @@ def test_bad_rates_are_one_line_errors(write_graph, every, params, extra, match)
     with pytest.raises(GraphError, match=match) as info:
         flowtex.load_graph(write_graph(BAD.format(every=every, params=params, extra=extra)))
     assert len(str(info.value).splitlines()) == 1
+
+
+@pytest.mark.parametrize(("to_hz", "words"), [
+    (0.01, "is a factor of 100,000; a resample node changes the rate by at most 1000x up or down"),  # took 2 minutes
+    (1e-300, "is more than 1,000,000 ticks of the graph's base rate"),  # numpy "Maximum allowed size exceeded"
+])
+def test_a_rate_change_beyond_the_filter_limit_is_refused_at_once(to_hz, words) -> None:
+    # refused from the rates alone, before any filter is designed (at 0.01 Hz the design took 129 s)
+    from flowtex.graph.builder import GraphBuilder
+
+    with pytest.raises(GraphError, match=words):
+        GraphBuilder("r").input("x").node("r", "resample", to_hz=to_hz).edge("x -> r.x").output("y", "r.y").resolve()
+    GraphBuilder("r").input("x").node("r", "resample", to_hz=1.0).edge("x -> r.x").output("y", "r.y").resolve()  # 1000x: allowed

@@ -1,0 +1,132 @@
+"""More first-plugin mistakes, one node type each (tests/test_plugin_mistakes_more.py runs plugin check over them)."""
+
+import numpy as np
+from numba import njit
+
+from flowtex.node_api import Field, Layout, Memory, Node, NodeState, Param, Port, PortSpec
+
+ZERO = Memory(params=Layout("float", [Field("gain", 1)]), state=Layout("float", [Field("hist", "taps")], sizes=("taps",)))
+ZERO_GAIN = ZERO.params.const("gain")
+
+
+@njit(cache=True)
+def zero_kernel(p, s, si, x, y):
+    n = s.shape[0]
+    for t in range(x.shape[0]):
+        for k in range(n - 1, 0, -1):
+            s[k] = s[k - 1]
+        s[0] = x[t, 0]
+        acc = 0.0
+        for k in range(n):
+            acc += s[k]
+        y[t, 0] = p[ZERO_GAIN] * acc / max(n, 1)
+
+
+class ZeroTaps(Node):
+    """Moving sum of the last taps samples; its declaration allows taps=0, a state of no element."""
+    type_name = "zero_taps_pc"
+    params = {"taps": Param("int", default=4, min=0, max=64)}
+    inputs = {"x": Port((), "*")}
+    outputs = {"y": Port((), "=x")}
+    kernel = zero_kernel
+    memory = ZERO
+
+    def build(self, inputs, outputs):
+        return self.pack_state({"taps": self.p["taps"]}, params={"gain": 1.0})
+
+
+@njit(cache=True)
+def inplace_kernel(p, s, si, x, y):
+    for t in range(x.shape[0]):
+        x[t, 0] = 2.0 * x[t, 0]
+        y[t, 0] = x[t, 0]
+
+
+class InPlace(Node):
+    """Doubles its input in place: the producer's buffer, which other nodes read too."""
+    type_name = "in_place_pc"
+    inputs = {"x": Port((), "*")}
+    outputs = {"y": Port((), "=x")}
+    kernel = inplace_kernel
+
+
+@njit(cache=True)
+def two_kernel(p, s, si, x, y, z):
+    for t in range(x.shape[0]):
+        y[t, 0] = x[t, 0]
+        z[t, 0] = -x[t, 0]
+
+
+class ForgetsAnOutput(Node):
+    """Its resolve() returns a spec for y only."""
+    type_name = "forgets_output_pc"
+    inputs = {"x": Port((), "*")}
+    outputs = {"y": Port((), "=x"), "z": Port((), "=x")}
+    kernel = two_kernel
+
+    def resolve(self, inputs):
+        return {"y": inputs["x"]}
+
+
+@njit(cache=True)
+def copy_kernel(p, s, si, x, y):
+    for t in range(x.shape[0]):
+        y[t, 0] = p[0] * x[t, 0]
+
+
+class Gain(Node):
+    """Named like flowtex's own gain node; its parameter rate is also Node.processor's own keyword."""
+    type_name = "gain"
+    params = {"rate": Param("float", default=1.0, min=-10.0, max=10.0)}
+    inputs = {"x": Port((), "*")}
+    outputs = {"y": Port((), "=x")}
+    kernel = copy_kernel
+
+    def build(self, inputs, outputs):
+        return NodeState(params=np.array([self.p["rate"]]))
+
+
+@njit(cache=True)
+def noise_kernel(p, s, si, y):
+    for t in range(y.shape[0]):
+        y[t, 0] = s[0]
+
+
+class SeedlessNoise(Node):
+    """Says it has random state, but defines no seed_state."""
+    type_name = "seedless_pc"
+    uses_seed = True
+    outputs = {"y": Port((), "")}
+    kernel = noise_kernel
+
+    def build(self, inputs, outputs):
+        return NodeState(state=np.zeros(1))
+
+
+class HalfLatency(Node):
+    """Says its latency is -2.5 ticks."""
+    type_name = "half_latency_pc"
+    inputs = {"x": Port((), "*")}
+    outputs = {"y": Port((), "=x")}
+    kernel = copy_kernel
+
+    def build(self, inputs, outputs):
+        return NodeState(params=np.ones(1))
+
+    def latency_samples(self):
+        return -2.5
+
+
+class NeverRuns(HalfLatency):
+    """Its own_every() returns 0 ticks between runs."""
+    type_name = "never_runs_pc"
+
+    def latency_samples(self):
+        return 0
+
+    @classmethod
+    def own_every(cls, params, rate, input_every):
+        return 0
+
+
+_ = PortSpec  # resolve() of a correct node returns PortSpec values

@@ -1,0 +1,137 @@
+"""More first-plugin mistakes, each named by ``plugin check`` (and at load) in one line at its file and line.
+
+tests/plugin_cases/mistakes_more.py: a layout sized by a parameter its declaration lets be 0 (the probe built only at
+the defaults), a kernel writing into its input, a resolve() missing a declared output (an internal KeyError at run),
+a type named like a built-in one and a parameter named like a Node.processor keyword (both passed), uses_seed without
+seed_state (passed; the graph then failed with NotImplementedError), a negative fractional latency (printed as is) and
+own_every() returning 0 (an internal IndentationError in the generated code, ZeroDivisionError at run).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flowtex.cli import main
+from tests.test_plugin_check import _line, check_copy
+
+CASE = Path(__file__).parent / "plugin_cases" / "mistakes_more.py"
+GAIN = 'type_name = "gain"'
+RATE = 'params = {"rate"'
+
+
+@pytest.fixture(scope="module")
+def report(tmp_path_factory):
+    return check_copy(CASE, tmp_path_factory.mktemp("pcm"), "m.py")
+
+
+def test_each_mistake_is_one_problem_at_its_line(report):
+    code, lines, err, path = report
+    assert code == 1
+    assert err.startswith("m.py: 7 problem(s) in node type(s) ")
+    problems = [line for line in lines if ": note: " not in line]
+    want = {
+        "in_place": f"m.py:{_line(path, 'def inplace_kernel')}: node 'in_place_pc': kernel writes into its input 'x'",
+        "forgets": (f"m.py:{_line(path, 'def resolve')}: node 'forgets_output_pc': resolve() of graph node 'probe' "
+                    "returned no spec for output(s) 'z'"),
+        "gain": (f"m.py:{_line(path, GAIN)}: node type 'gain' is already defined by entry point "
+                 "flowtex.nodes; a graph would refuse to load this plugin: rename it"),
+        "seedless": (f"m.py:{_line(path, 'uses_seed = True')}: node 'seedless_pc': uses_seed = True but the node defines "
+                     "no seed_state"),
+        "latency": (f"m.py:{_line(path, 'def latency_samples')}: node 'half_latency_pc': latency_samples() of graph node "
+                    "'probe' returned -2.5; return the delay from input to output as a whole number of ticks >= 0"),
+        "every": (f"m.py:{_line(path, 'def own_every')}: node 'never_runs_pc': own_every() for graph node 'probe' returned "
+                  "0; return None"),
+    }
+    zero = [line for line in problems if "node 'zero_taps_pc': kernel reads or writes outside its arrays (built with x: "
+            "scalar; taps=0)" in line]
+    assert len(zero) == 1, problems
+    assert _line(path, "def zero_kernel") <= int(zero[0].split(":")[1]) < _line(path, "class ZeroTaps")  # the kernel
+    for key, start in want.items():
+        assert sum(line.startswith(start) for line in problems) == 1, (key, problems)
+    assert len(problems) == len(want) + 1, problems
+
+
+def test_a_parameter_named_like_a_processor_keyword_is_a_note(report):
+    _, lines, _, path = report
+    assert (f"m.py:{_line(path, RATE)}: node 'gain': note: parameter 'rate' cannot be set through "
+            "Node.processor(), whose own keyword 'rate' it is; rename it to use the node on arrays") in lines
+
+
+GRAPH = """\
+flowtex: 1
+name: t
+rate: 1000
+inputs: {x: {}}
+nodes:
+  d: {type: forgets_output_pc}
+edges: [x -> d.x]
+outputs: {y: d.y}
+"""
+
+
+def test_a_resolve_missing_an_output_is_the_plugins_error_at_load(tmp_path, capsys):
+    # it was "internal error: KeyError: 'z'" at run, after validate said ok
+    (tmp_path / "plugins").mkdir()
+    text = CASE.read_text().replace('type_name = "gain"', 'type_name = "not_gain_pc"').replace("uses_seed = True", "")
+    (tmp_path / "plugins" / "m.py").write_text(text)
+    (tmp_path / "g.yaml").write_text(GRAPH)
+    np.savez(tmp_path / "r.npz", x=np.arange(5.0), rate=1000.0)
+    for argv in (["validate", str(tmp_path / "g.yaml")],
+                 ["run", str(tmp_path / "g.yaml"), "-i", str(tmp_path / "r.npz"), "-o", str(tmp_path / "o.npz")]):
+        assert main(argv) == 1
+        err = [ln for ln in capsys.readouterr().err.splitlines() if not ln.startswith("flowtex: ")]
+        assert len(err) == 1 and "resolve() of graph node 'd' returned no spec for output(s) 'z'" in err[0], err
+        assert err[0].startswith(f"{tmp_path / 'plugins' / 'm.py'}:{_line(CASE, 'def resolve')}: ") or \
+            err[0].startswith(f"plugins/m.py:{_line(CASE, 'def resolve')}: "), err[0]
+    assert not (tmp_path / "o.npz").exists()
+
+
+def test_a_plugin_type_named_like_a_built_in_is_refused_at_its_type_name_line(tmp_path, capsys):
+    (tmp_path / "plugins").mkdir()
+    (tmp_path / "plugins" / "m.py").write_text(CASE.read_text().replace("uses_seed = True", ""))
+    (tmp_path / "g.yaml").write_text(GRAPH)
+    assert main(["validate", str(tmp_path / "g.yaml")]) == 1
+    err = [ln for ln in capsys.readouterr().err.splitlines() if not ln.startswith("flowtex: ")]
+    assert len(err) == 1 and err[0].endswith(f"m.py:{_line(CASE, GAIN)}: node type 'gain' is already "
+                                             "defined by entry point flowtex.nodes; rename one of them (flowtex nodes "
+                                             "lists the taken names)"), err
+
+
+def test_own_every_returning_zero_is_the_plugins_error_at_load(tmp_path, capsys):
+    (tmp_path / "plugins").mkdir()
+    text = CASE.read_text().replace('type_name = "gain"', 'type_name = "not_gain_pc"').replace("uses_seed = True", "")
+    (tmp_path / "plugins" / "m.py").write_text(text)
+    (tmp_path / "g.yaml").write_text(GRAPH.replace("forgets_output_pc", "never_runs_pc"))
+    for argv in (["validate", str(tmp_path / "g.yaml")], ["graph", str(tmp_path / "g.yaml")]):
+        assert main(argv) == 1
+        err = [ln for ln in capsys.readouterr().err.splitlines() if not ln.startswith("flowtex: ")]
+        assert len(err) == 1 and err[0].endswith(f"m.py:{_line(CASE, 'def own_every')}: node 'never_runs_pc': own_every() "
+                                                 "for graph node 'd' returned 0; return None (the graph's every: decides) or "
+                                                 "a whole number of ticks from 1 to 1,000,000"), err
+
+
+def test_two_classes_of_one_file_with_one_type_name_are_refused_by_plugin_check(tmp_path, capsys):
+    text = CASE.read_text().replace('type_name = "never_runs_pc"', 'type_name = "half_latency_pc"')
+    (tmp_path / "twice.py").write_text(text)
+    assert main(["plugin", "check", str(tmp_path / "twice.py")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].endswith(f"twice.py:{_line_after(tmp_path / 'twice.py', 'class NeverRuns', 'type_name')}: node type "
+                            "'half_latency_pc' is already defined by class HalfLatency of this file; give each class its own "
+                            "type_name"), err
+
+
+def _line_after(path: Path, anchor: str, needle: str) -> int:
+    lines = path.read_text().splitlines()
+    start = next(k for k, text in enumerate(lines) if anchor in text)
+    return next(k for k, text in enumerate(lines[start:], start=start + 1) if needle in text)
+
+
+def test_a_node_that_refuses_the_probes_made_up_shapes_is_a_note_not_a_problem(capsys):
+    # dot refuses a scalar input (its ParamError): plugin check cannot build it at the scalar case, which is the
+    # probe's limit, not the node's mistake -- while a resolve() breaking the contract (above) is a problem
+    assert main(["plugin", "check", "dot"]) == 0
+    out = capsys.readouterr()
+    assert "note: input a must be a vector, got shape scalar" in out.out and out.err.strip().endswith("dot: ok (node type(s) dot; 1 note(s))")
