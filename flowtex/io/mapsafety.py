@@ -211,6 +211,28 @@ def moved_bounds(b) -> str | None:
     return f"{b.name}: {'; '.join(parts)}" if parts else None
 
 
+SHRINK_WARN_SHARE = 0.01
+"""A clamp or peak range that the DBC's grid narrows by more than this share of its width is named when a session
+starts (:func:`shrunk_bounds`): the actuator then gets visibly less than the map asks for (a [-1, 1] A clamp on a
+0.6 A LSB runs at +-0.6 A). Half an LSB of a fine grid (the bundled scene map: 0.0001 A of 2 A) stays quiet."""
+
+
+def shrunk_bounds(outputs: Sequence) -> list[str]:
+    """One line per output binding whose clamp or peak range :func:`check_clamps` narrowed by more than
+    :data:`SHRINK_WARN_SHARE` of its width (:func:`moved_bounds`' text, and the fix)."""
+    lines = []
+    for b in outputs:
+        g = b.guard
+        ranges = [(b.lo, b.hi, g.lo, g.hi)]
+        if b.peak_limit is not None:
+            ranges.append((peak_low(b.lo, b.hi, b.peak_limit), b.peak_limit, g.peak_lo, g.peak_hi))
+        lost = max(float(np.max(((glo - lo) + (hi - ghi)) / np.maximum(hi - lo, 1e-300))) for lo, hi, glo, ghi in ranges)
+        if lost > SHRINK_WARN_SHARE:
+            lines.append(f"{moved_bounds(b)}: the DBC's LSB is too coarse to send the bounds the map asks for, so the "
+                         "guard keeps to the nearest values it can send (a finer DBC signal or a clamp on its grid avoids it)")
+    return lines
+
+
 def _pairs(lo: np.ndarray, hi: np.ndarray) -> str:
     pairs = [f"[{a:.6g}, {z:.6g}]" for a, z in zip(lo, hi, strict=True)]
     return pairs[0] if len(pairs) == 1 else f"[{', '.join(pairs)}]"

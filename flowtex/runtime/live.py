@@ -43,6 +43,7 @@ from ..graph.program import TickProgram
 from ..interrupts import signals_handled, signals_named
 from ..io.canlog import RecordError, SessionWriter
 from ..io.dbc import one_line
+from ..io.mapsafety import shrunk_bounds
 from .audio import AudioOutput, prompt_callbacks
 from .audio_timeline import check_event_ids
 from .buses import SEND_TIMEOUT_S, BusError, open_bus, receiver, sender
@@ -90,7 +91,9 @@ class LiveReport:
     safe_sent: bool = True
     """Every actuator message's safe frame went out at exit (False: the bus refused at least one, see ``error``)."""
     warnings: list[str] = field(default_factory=list)
-    """One line per output clamped or peak-limited on more than 1 % of the ticks (:func:`~flowtex.runtime.status.clamp_warnings`)."""
+    """One line per output whose clamp the DBC's grid narrows noticeably (:func:`~flowtex.io.mapsafety.shrunk_bounds`;
+    also printed on the status stream before the session), then one per output clamped or peak-limited on more than
+    1 % of the ticks (:func:`~flowtex.runtime.status.clamp_warnings`)."""
 
     @property
     def ok(self) -> bool:
@@ -114,6 +117,10 @@ def run_live(graph: TickProgram, config: LiveConfig) -> LiveReport:
     record, stats_path, record_audio = preflight_live(graph, config)
     dbc_path, map_path, bus = config.dbc_path, config.map_path, config.bus
     io = load_io(graph, dbc_path, map_path)
+    shrunk = shrunk_bounds(io.map.outputs.values())
+    if shrunk and config.status is not None:  # before the session: what the actuator will get differs from the map
+        for line in shrunk:
+            print(f"flowtex live: warning: {line}", file=config.status)
     if io.map.audio is not None and record is not None:
         check_event_ids(io.tx_ids, str(map_path))
     if record_audio is not None and io.map.audio is None:
@@ -129,7 +136,9 @@ def run_live(graph: TickProgram, config: LiveConfig) -> LiveReport:
     try:
         writer = SessionWriter(record, "--record") if record is not None else None
         where = "the simulated device's virtual bus" if device is not None else f"bus {bus!r}"
-        return _loop(graph, io, bus_obj, device, writer, n_ticks, config, stats_path, where, shown, audio)
+        report = _loop(graph, io, bus_obj, device, writer, n_ticks, config, stats_path, where, shown, audio)
+        report.warnings[:0] = shrunk
+        return report
     except BaseException:
         if writer is not None:  # the loop never ran or did not end (an interrupt during the compile): no log replaces the old
             with contextlib.suppress(RecordError):

@@ -227,3 +227,25 @@ def test_validate_says_which_bounds_moved(capsys):
             "peak range [-15.432, 15.432] guarded as [-15.4311, 15.4311])") in out, out
     assert main(["validate", str(DBC.parent / "example_map.yaml"), "--dbc", str(DBC)]) == 0
     assert "moved" not in capsys.readouterr().out
+
+
+def test_a_clamp_the_grid_narrows_is_named_when_the_session_starts(setup):  # noqa: F811
+    """The coarse LSB above turns a +-1 A clamp into +-0.6 A: the session says so before it runs (status stream) and in
+    its report's warnings; the bundled scene map's half-LSB moves (0.0001 A of a 20 A-wide range) stay quiet."""
+    import io
+
+    from flowtex.io.mapsafety import shrunk_bounds
+
+    text = DBC.read_text()
+    line = ' SG_ Current : 0|16@1- (0.0001,0) [-2|2] "A" HapticDevice'
+    dbc = setup / "coarse.dbc"
+    dbc.write_text(text.replace(line, line.replace("(0.0001,0) [-2|2]", "(0.6,0) [0|0]")))
+    m = setup / "coarse.yaml"
+    m.write_text(textwrap.dedent(MAP))  # clamp [-1, 1] A, safe 0
+    status = io.StringIO()
+    r = run_live(load_graph(setup / "g.yaml"), LiveConfig(dbc, m, simulate=setup / "rec.npz", max_ticks=50, status=status))
+    assert r.error is None
+    first = status.getvalue().splitlines()[0]
+    assert first.startswith("flowtex live: warning: vibration: clamp [-1, 1] guarded as [-0.6, 0.6]") and "too coarse" in first
+    assert r.warnings[0] == first.removeprefix("flowtex live: warning: ")
+    assert shrunk_bounds(load_map(DBC.parent / "example_scene_map.yaml", load_dbc(DBC), DBC).outputs.values()) == []
