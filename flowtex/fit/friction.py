@@ -46,7 +46,7 @@ from ..dsp.contact import CONTACT_ON_N
 from ..dsp.hetero import false_rejection_rate, irls_line_hetero, rejected_stretches
 from ..dsp.robust import BISQUARE_C, RobustLine, irls_line
 from ..errors import DataError
-from .inputs import atomic_output, check_not_constant, load, signal
+from .inputs import atomic_output, check_not_constant, load, signal, signals_listed
 
 DEFAULT_MIN_FORCE_N = CONTACT_ON_N
 """Samples below this normal force are out of contact (the contact node's on threshold)."""
@@ -204,7 +204,8 @@ def friction_forces(rec: Any, normal_force: str | None = None, friction_force: s
         tangential = np.linalg.norm(f3 - fn_signed[:, None] * unit, axis=1)
     else:
         if normal_force is None or friction_force is None:
-            raise DataError(f"{where}: give --force N (normal force) --friction-force T, or --force3 F3 --normal V")
+            raise DataError(f"{where}: give --force N (normal force) --friction-force T, or --force3 F3 --normal V; "
+                            f"{signals_listed(rec)}")
         n_force = signal(rec, normal_force, "--force")
         ft = signal(rec, friction_force, "--friction-force", (1, 3))
         tangential = np.abs(ft) if ft.ndim == 1 else np.linalg.norm(ft, axis=1)

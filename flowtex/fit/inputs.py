@@ -54,6 +54,11 @@ def _rate_hint(rec: Recording) -> str:
     return f"{1.0 / step:.6g} (the median step of its 'time' column, {step:g} s)"
 
 
+def signals_listed(rec: Recording) -> str:
+    """"the file has: a, b, c": what a recording holds, for a message that asks for one of its signals."""
+    return f"the file has: {', '.join(sorted(rec.arrays)) or 'nothing'}"
+
+
 def signal(rec: Recording, name: str, option: str, width: tuple[int, ...] = (1,), finite: bool = True) -> np.ndarray:
     """The signal ``name`` (given by ``option``) as (n,) or (n, w) with w in ``width`` (1 means a 1-D signal).
 
@@ -62,8 +67,7 @@ def signal(rec: Recording, name: str, option: str, width: tuple[int, ...] = (1,)
     """
     where = rec.path
     if name not in rec.arrays:
-        have = ", ".join(sorted(rec.arrays)) or "nothing"
-        raise DataError(f"{where}: no signal {name!r} ({option}); the file has: {have}")
+        raise DataError(f"{where}: no signal {name!r} ({option}); {signals_listed(rec)}")
     a = rec.arrays[name]
     cols = 1 if a.ndim == 1 else (a.shape[1] if a.ndim == 2 else -1)
     if a.ndim == 2 and a.shape[1] == 1 and 1 in width:

@@ -17,7 +17,7 @@ import numpy as np
 from ..errors import DataError
 from ..limits import check_file_size
 from ..models.texture import TextureModelSet
-from .inputs import atomic_output, check_highpass, check_not_constant, check_speed_magnitude, load, signal
+from .inputs import atomic_output, check_highpass, check_not_constant, check_speed_magnitude, load, signal, signals_listed
 from .texture import TextureFit, TextureOptions, fit_grid, fit_texture
 
 
@@ -77,8 +77,7 @@ def read_signals(path: Path, job: TextureJob, need_speed: bool = True) -> tuple[
         nrm = signal(rec, job.normal, "--normal", (3,)) if job.normal is not None else None
         speed = speed_from_position(pos, nrm, rate)
     else:
-        have = ", ".join(sorted(rec.arrays)) or "nothing"
-        raise DataError(f"{path}: give the tool's speed with --speed S (mm/s) or --position P (mm, 3 axes); the file has: {have}")
+        raise DataError(f"{path}: give the tool's speed with --speed S (mm/s) or --position P (mm, 3 axes); {signals_listed(rec)}")
     return acc, speed, force, rate
 
 

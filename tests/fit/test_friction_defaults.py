@@ -79,3 +79,15 @@ def test_cli_prints_r2_and_the_warning_and_refuses_to_drop_an_offset(tmp_path, c
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "offset" in err and "--into" in err, err
     assert load_model_set(surface).mu is None  # nothing stored
+
+
+def test_cli_without_force_options_lists_the_signals(tmp_path, capsys):
+    """fit friction without --force/--friction-force said which options to give but not what the file holds (fit
+    texture's missing --speed lists them)."""
+    normal, tangential = _independent(seed=2, n=2000)
+    rec = tmp_path / "f.npz"
+    save_recording(rec, {"normal_force": normal, "tangential_force": tangential}, 1000.0)
+    assert main(["fit", "friction", str(rec), "-o", str(tmp_path / "mu.json")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--friction-force" in err and err.endswith("the file has: normal_force, tangential_force")
+    assert not (tmp_path / "mu.json").exists()
