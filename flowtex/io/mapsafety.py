@@ -102,6 +102,23 @@ class GuardBounds:
     """Upper end of the peak range (``hi`` without ``peak``)."""
 
 
+def map_ranges(b) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """(name, low, high) of the ranges output binding ``b``'s map asks the guard to hold, graph units: the clamp, then
+    the peak range when the map has a peak rule (what the guard lets through for up to max_ms; docs/live.md, "Peak
+    rule")."""
+    ranges = [("clamp", b.lo, b.hi)]
+    if b.peak_limit is not None:
+        ranges.append(("peak range", peak_low(b.lo, b.hi, b.peak_limit), b.peak_limit))
+    return ranges
+
+
+def _guarded(b) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """:func:`map_ranges` of ``b`` beside what its guard holds of each: (name, low, high, guarded low, guarded high)."""
+    g = b.guard
+    held = [(g.lo, g.hi), (g.peak_lo, g.peak_hi)]
+    return [(what, lo, hi, *held[k]) for k, (what, lo, hi) in enumerate(map_ranges(b))]
+
+
 def check_clamps(db: Database, outputs: Sequence, add: Report) -> None:
     """Refuse a clamp the DBC cannot send; set each output's :class:`GuardBounds` (``guard``) to what it can.
 
@@ -118,9 +135,8 @@ def check_clamps(db: Database, outputs: Sequence, add: Report) -> None:
     """
     codecs: dict[str, MessageCodec] = {}
     for b in outputs:
-        ranges = [("clamp LOW", "clamp HIGH", b.lo, b.hi)]
-        if b.peak_limit is not None:  # what the guard lets through for up to max_ms (docs/live.md, "Peak rule")
-            ranges.append(("peak range low", "peak limit", peak_low(b.lo, b.hi, b.peak_limit), b.peak_limit))
+        ends = {"clamp": ("clamp LOW", "clamp HIGH"), "peak range": ("peak range low", "peak limit")}
+        ranges = [(*ends[what], lo, hi) for what, lo, hi in map_ranges(b)]
         found = _first_bound_problem(db, b, ranges)
         if found is None:
             found = _guard_bounds(db, b, ranges, codecs)
@@ -202,11 +218,7 @@ def _guard_bounds(db: Database, b, ranges: list, codecs: dict[str, MessageCodec]
 def moved_bounds(b) -> str | None:
     """What :func:`check_clamps` moved of output binding ``b``'s clamp and peak range, as ``"NAME: clamp [LOW, HIGH]
     guarded as [LOW', HIGH']"`` (graph units; one pair per component of a vector output), or None if nothing moved."""
-    g = b.guard
-    ranges = [("clamp", b.lo, b.hi, g.lo, g.hi)]
-    if b.peak_limit is not None:
-        ranges.append(("peak range", peak_low(b.lo, b.hi, b.peak_limit), b.peak_limit, g.peak_lo, g.peak_hi))
-    parts = [f"{what} {_pairs(lo, hi)} guarded as {_pairs(glo, ghi)}" for what, lo, hi, glo, ghi in ranges
+    parts = [f"{what} {_pairs(lo, hi)} guarded as {_pairs(glo, ghi)}" for what, lo, hi, glo, ghi in _guarded(b)
              if not (np.array_equal(lo, glo) and np.array_equal(hi, ghi))]
     return f"{b.name}: {'; '.join(parts)}" if parts else None
 
@@ -222,11 +234,8 @@ def shrunk_bounds(outputs: Sequence) -> list[str]:
     :data:`SHRINK_WARN_SHARE` of its width (:func:`moved_bounds`' text, and the fix)."""
     lines = []
     for b in outputs:
-        g = b.guard
-        ranges = [(b.lo, b.hi, g.lo, g.hi)]
-        if b.peak_limit is not None:
-            ranges.append((peak_low(b.lo, b.hi, b.peak_limit), b.peak_limit, g.peak_lo, g.peak_hi))
-        lost = max(float(np.max(((glo - lo) + (hi - ghi)) / np.maximum(hi - lo, 1e-300))) for lo, hi, glo, ghi in ranges)
+        lost = max(float(np.max(((glo - lo) + (hi - ghi)) / np.maximum(hi - lo, 1e-300)))
+                   for _, lo, hi, glo, ghi in _guarded(b))
         if lost > SHRINK_WARN_SHARE:
             lines.append(f"{moved_bounds(b)}: the DBC's LSB is too coarse to send the bounds the map asks for, so the "
                          "guard keeps to the nearest values it can send (a finer DBC signal or a clamp on its grid avoids it)")
