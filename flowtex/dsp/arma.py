@@ -361,13 +361,13 @@ def arma_psd(ar: np.ndarray, ma: np.ndarray, gain: float, variance: float, freqs
 
 
 def arma_psd_rows(ar: np.ndarray, ma: np.ndarray, gain: np.ndarray, variance: np.ndarray, freqs_hz: np.ndarray,
-                  rate_hz: float, rows_per_pass: int = 8) -> np.ndarray:
+                  rate_hz: float) -> np.ndarray:
     """One-sided PSDs of many models of one order pair, one row per model: row k is :func:`arma_psd` of model k.
 
     ``ar`` (m, p + 1), ``ma`` (m, q + 1), ``gain`` and ``variance`` (m,). The same operations as :func:`arma_psd`,
-    element by element (numpy's Horner over a stack of coefficient vectors), so each row equals its
-    :func:`arma_psd` bit for bit; one numpy pass for ``rows_per_pass`` models instead of one per model, which is
-    what evaluating a set along a path costs (flowtex.fit.quality). Units: those of :func:`arma_psd`.
+    element by element (:func:`flowtex.dsp.poly.power_spectrum` over the stack), so each row equals its
+    :func:`arma_psd` bit for bit; one call for every model instead of one per model, which is what evaluating a
+    set along a path costs (flowtex.fit.quality). Units: those of :func:`arma_psd`.
     """
     ar = np.asarray(ar, dtype=np.float64)
     ma = np.asarray(ma, dtype=np.float64)
@@ -382,12 +382,7 @@ def arma_psd_rows(ar: np.ndarray, ma: np.ndarray, gain: np.ndarray, variance: np
     freqs_hz = np.asarray(freqs_hz, dtype=np.float64)
     from .poly import power_spectrum
 
-    out = np.empty((m, freqs_hz.shape[0]))
     inner = (freqs_hz > 0) & (freqs_hz < rate_hz / 2)
-    w = 2.0 * np.pi * freqs_hz / rate_hz
-    for a in range(0, m, rows_per_pass):
-        b = min(m, a + rows_per_pass)
-        psd = (variance[a:b] * gain[a:b] ** 2)[:, None] * power_spectrum(ar[a:b], ma[a:b], w) / rate_hz
-        out[a:b] = np.where(inner, 2.0 * psd, psd)
-    return out
+    psd = (variance * gain ** 2)[:, None] * power_spectrum(ar, ma, 2.0 * np.pi * freqs_hz / rate_hz) / rate_hz
+    return np.where(inner, 2.0 * psd, psd)
 

@@ -76,6 +76,17 @@ class ScaleFunction:
         return float(np.polynomial.polynomial.polyval(z, deriv)) / self.span if deriv.size else 0.0
 
 
+def _floored(r: np.ndarray) -> np.ndarray:
+    """|residuals| ``r`` floored at 1e-9 of their median (at least 1e-300): the weights 1 / r stay finite.
+
+    The median (a partial sort, most of an iteration's time) is taken only when the floor can bite: the floor is at
+    most 1e-9 of the largest |r|, so when the smallest |r| is above that, no value changes and none is needed.
+    """
+    if float(np.min(r)) >= 1e-9 * max(float(np.max(r)), 1e-300):
+        return r
+    return np.maximum(r, 1e-9 * max(float(np.median(r)), 1e-300))
+
+
 def median_regression(A: np.ndarray, b: np.ndarray, max_iter: int = 500, tol: float = 1e-12) -> np.ndarray:
     """Coefficients c minimising sum |b - A c| (least absolute deviations: the conditional median of b).
 
@@ -90,12 +101,12 @@ def median_regression(A: np.ndarray, b: np.ndarray, max_iter: int = 500, tol: fl
     c = np.linalg.lstsq(A, b, rcond=None)[0]
     total = np.inf
     for _ in range(max_iter):
-        r = b - A @ c
-        new = float(np.sum(np.abs(r)))
+        r = np.abs(b - A @ c)
+        new = float(np.sum(r))
         if total - new <= tol * new:
             break
         total = new
-        w = 1.0 / np.maximum(np.abs(r), 1e-9 * max(float(np.median(np.abs(r))), 1e-300))
+        w = 1.0 / _floored(r)
         try:
             c = np.linalg.solve(A.T @ (w[:, None] * A), A.T @ (w * b))
         except np.linalg.LinAlgError:

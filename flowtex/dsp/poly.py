@@ -31,11 +31,31 @@ fitting of time-series models", Rev. Int. Stat. Inst. 28; Kay, S. M. (1988),
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
+
+from .npmath import cabs, cmul
 
 MAX_RADIUS = 1.0 - 1e-5
 """Largest root radius kept (AR poles and MA zeros). HaTT's MA zeros sit at |z| ~ 0.9999, 10x further in; at 1 - 1e-5
 the line spectral frequencies of an isolated root pair near z = -1 are still ~1e-5 rad apart, which
 :func:`flowtex.dsp.lsf_roots.poly_to_lsf` resolves (the caller checks and pulls further in only if it does not)."""
+
+
+@njit(cache=True)
+def _step_down_kernel(a: np.ndarray, order: int) -> tuple[np.ndarray, int]:
+    """:func:`step_down`'s recursion, compiled (the same operations in the same order): (``a`` reduced to ``order``,
+    -1), or (``a`` reduced as far as it went, the order m whose reflection coefficient a[m] has |k| >= 1)."""
+    a = a.copy()
+    for m in range(a.shape[0] - 1, order, -1):
+        k = a[m]
+        if not abs(k) < 1.0:
+            return a, m
+        d = 1.0 - k * k
+        b = np.empty(m)
+        for i in range(m):
+            b[i] = (a[i] - k * a[m - i]) / d
+        a = b
+    return a, -1
 
 
 def step_down(a: np.ndarray, order: int) -> np.ndarray:
@@ -45,13 +65,10 @@ def step_down(a: np.ndarray, order: int) -> np.ndarray:
     Durbin 1960; Kay 1988 ch. 6): the order-``order`` predictor sharing A's first reflection coefficients.
     Raises ValueError if a reflection coefficient has |k| >= 1 (``a`` not minimum phase).
     """
-    a = np.asarray(a, dtype=np.float64).copy()
-    for m in range(a.shape[0] - 1, order, -1):
-        k = a[m]
-        if not abs(k) < 1.0:
-            raise ValueError(f"polynomial is not minimum phase (reflection coefficient {k:.6g} at order {m})")
-        a = (a[:m] - k * a[m:0:-1]) / (1.0 - k * k)
-    return a
+    out, m = _step_down_kernel(np.asarray(a, dtype=np.float64), int(order))
+    if m >= 0:
+        raise ValueError(f"polynomial is not minimum phase (reflection coefficient {out[m]:.6g} at order {m})")
+    return out
 
 
 def roots_inside(poly: np.ndarray, radius: float = 1.0) -> bool:
@@ -62,12 +79,7 @@ def roots_inside(poly: np.ndarray, radius: float = 1.0) -> bool:
     |reflection coefficients| < 1 exactly when they are inside the unit circle.
     """
     poly = np.asarray(poly, dtype=np.float64)
-    a = poly / poly[0] / (radius ** np.arange(poly.shape[0]))
-    try:
-        step_down(a, 0)
-    except ValueError:
-        return False
-    return True
+    return _step_down_kernel(poly / poly[0] / (radius ** np.arange(poly.shape[0])), 0)[1] < 0
 
 
 def is_stable(a: np.ndarray, radius: float = MAX_RADIUS) -> bool:
@@ -94,17 +106,71 @@ def stabilize(poly: np.ndarray, radius: float = MAX_RADIUS) -> np.ndarray:
     return np.real(np.poly(roots)) * poly[0]
 
 
+@njit(cache=True, error_model="numpy")
+def _power_spectrum_kernel(ar: np.ndarray, ma: np.ndarray, zr: np.ndarray, zi: np.ndarray, out: np.ndarray) -> None:
+    """Row r of ``out`` = |C_r(z) / A_r(z)|^2 at z^-1 = ``zr`` + j ``zi`` (e^-jw).
+
+    Horner's rule as numpy's ``polyval`` runs it, c0 <- c_k + c0 z^-1, each complex product and |.| rounded as numpy
+    rounds them (:mod:`flowtex.dsp.npmath`), so every value is numpy's bit for bit; one pass per coefficient over all
+    frequencies (the recursions of different frequencies are independent, so they pipeline) and no temporaries.
+    A stack with one row (``ar`` or ``ma``) serves every row of the other. A value of A that rounds to 0 gives
+    inf, as numpy's division does (numpy's error model: no exception).
+    """
+    m = out.shape[0]
+    nw = zr.shape[0]
+    p1 = ar.shape[1]
+    q1 = ma.shape[1]
+    re = np.empty(nw)
+    im = np.empty(nw)
+    num = np.empty(nw)
+    for r in range(m):
+        for poly, row, n1, into_num in ((ma, r if ma.shape[0] > 1 else 0, q1, True),
+                                        (ar, r if ar.shape[0] > 1 else 0, p1, False)):
+            for j in range(nw):
+                re[j] = poly[row, n1 - 1]
+                im[j] = 0.0
+            for i in range(n1 - 2, -1, -1):
+                c = poly[row, i]
+                for j in range(nw):
+                    pr, pi = cmul(re[j], im[j], zr[j], zi[j])
+                    re[j] = c + pr
+                    im[j] = 0.0 + pi
+            if into_num:
+                for j in range(nw):
+                    h = cabs(re[j], im[j])
+                    num[j] = h * h
+            else:
+                for j in range(nw):
+                    h = cabs(re[j], im[j])
+                    out[r, j] = num[j] / (h * h)
+
+
 def power_spectrum(ar: np.ndarray, ma: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """|C(e^jw) / A(e^jw)|^2 at ``w`` (rad/sample), from the coefficients (Horner).
+    """|C(e^jw) / A(e^jw)|^2 at ``w`` (rad/sample), from the coefficients (Horner's rule, compiled).
 
     ``ar`` and ``ma`` may also be stacks (m, p + 1) and (m, q + 1): then one row per model, shape (m, len(w)),
-    each row what the model alone gives. The physical PSD is :func:`flowtex.dsp.arma.arma_psd` (variance, gain
-    and rate applied).
+    each row bit for bit what the model alone gives (a stack of one row serves every row of the other). The values
+    are those of numpy's ``polyval`` over z = exp(-jw) and ``abs(num) ** 2 / abs(den) ** 2``, bit for bit
+    (:mod:`flowtex.dsp.npmath`; benchmarks/bench_fit_math.py measures the kernel against that formulation), so the
+    error of each polynomial's value is within Horner's bound, gamma_2n sum |p_k| at |z| = 1 (Higham 2002, eq. 5.3):
+    relative to |P| only where |P| is not small against sum |p_k| (tests/dsp/test_poly.py checks it against an
+    extended-precision evaluation near the unit circle). The physical PSD is :func:`flowtex.dsp.arma.arma_psd`
+    (variance, gain and rate applied).
     """
-    z = np.exp(-1j * np.asarray(w, dtype=np.float64))
-    num = np.polynomial.polynomial.polyval(z, np.asarray(ma, dtype=np.float64).T)
-    den = np.polynomial.polynomial.polyval(z, np.asarray(ar, dtype=np.float64).T)
-    return np.abs(num) ** 2 / np.abs(den) ** 2
+    w = np.asarray(w, dtype=np.float64)
+    ar = np.asarray(ar, dtype=np.float64)
+    ma = np.asarray(ma, dtype=np.float64)
+    a2 = np.ascontiguousarray(ar.reshape(1, -1) if ar.ndim == 1 else ar)
+    c2 = np.ascontiguousarray(ma.reshape(1, -1) if ma.ndim == 1 else ma)
+    if a2.ndim != 2 or c2.ndim != 2 or a2.shape[1] == 0 or c2.shape[1] == 0 or (
+            a2.shape[0] != c2.shape[0] and 1 not in (a2.shape[0], c2.shape[0])):
+        raise ValueError(f"power_spectrum: ar (p + 1,) or (m, p + 1) and ma (q + 1,) or (m, q + 1); got {ar.shape}, {ma.shape}")
+    z = np.exp(-1j * w.reshape(-1))  # numpy's exp, as before: the kernel starts from the same z
+    out = np.empty((max(a2.shape[0], c2.shape[0]), z.shape[0]))
+    _power_spectrum_kernel(a2, c2, np.ascontiguousarray(z.real), np.ascontiguousarray(z.imag), out)
+    if ar.ndim == 1 and ma.ndim == 1:
+        return out[0].reshape(w.shape)
+    return out.reshape(out.shape[:1] + w.shape)
 
 
 def root_power_spectrum(poles: np.ndarray, zeros: np.ndarray, w: np.ndarray) -> np.ndarray:

@@ -130,7 +130,7 @@ def test_psd_rows_equal_each_models_own_psd_bit_for_bit() -> None:
     ar, ma = np.array([m[0] for m in models]), np.array([m[1] for m in models])
     gain, var = np.array([0.6, 1.0, 0.0, 2.0, 0.3]), np.array([2.5, 1.0, 1.0, 0.0, 7.0])
     freqs = np.r_[0.0, np.linspace(1.0, 499.0, 300), 500.0]
-    rows = arma_psd_rows(ar, ma, gain, var, freqs, RATE, rows_per_pass=2)
+    rows = arma_psd_rows(ar, ma, gain, var, freqs, RATE)
     for k in range(5):
         np.testing.assert_array_equal(rows[k], arma_psd(ar[k], ma[k], gain[k], var[k], freqs, RATE))
     with pytest.raises(ValueError, match="ar"):
