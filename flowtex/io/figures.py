@@ -38,12 +38,19 @@ FONT_PT = 9
 def save_png(fig: Any, path: str | Path, dpi: int = 100) -> None:
     """Lay out ``fig``, write it as a PNG to ``path`` through the one writer (no partial file), and close it.
 
-    A figure made with ``layout="constrained"`` is laid out by matplotlib as it is drawn (titles, colorbars and
-    legends outside the axes get their room); any other is laid out with ``tight_layout``."""
+    A figure made with ``layout="constrained"`` is laid out by its engine (titles, colorbars and legends outside the
+    axes get their room); any other with ``tight_layout``. The engine runs here, once, and is then removed, so
+    ``savefig`` draws the figure once: with an engine it draws it twice (a pass without output that runs the layout,
+    then the drawing), and the pass without output computes every tick and text extent again (a quarter of
+    ``fit texture --report``'s many-panel figure; the PNG is the same pixel for pixel, tests/io/test_figures.py)."""
     import matplotlib.pyplot as plt
 
-    if fig.get_layout_engine() is None:
+    engine = fig.get_layout_engine()
+    if engine is None:
         fig.tight_layout()
+    else:
+        engine.execute(fig)
+        fig.set_layout_engine(None)
     with atomic_output(path) as tmp:
         fig.savefig(tmp, dpi=dpi, format="png")
     plt.close(fig)
