@@ -110,21 +110,32 @@ def _unbounded(cls: type[Node]) -> list[tuple[str, str]]:
     return found
 
 
-def _children(target: str, classes: list[type[Node]], mode: str, env: dict[str, str]) -> dict[str, tuple[list[dict], str | None]]:
-    """Run ``python -m flowtex.kernelprobe MODE TARGET TYPE...`` for ``classes``; per type name its JSON items, and None
-    or why its check failed.
+RUNTIME_ENV: dict[str, str | None] = {"NUMBA_BOUNDSCHECK": "1", "NUMBA_CACHE_DIR": None}
+"""What the runtime checks' child changes in its environment (None: unset; see :func:`runtime_problems`)."""
+
+
+def child_env(env: dict[str, str | None]) -> dict[str, str]:
+    """The environment of a checking child: this process's, with ``env`` (a value None: the variable unset), this
+    flowtex package first on ``PYTHONPATH`` and no background compiles."""
+    root = str(Path(__file__).resolve().parents[1])  # the folder holding this flowtex package
+    given = {**os.environ, **env, "PYTHONPATH": os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]),
+             BACKGROUND_ENV: "0"}
+    return {name: value for name, value in given.items() if value is not None}
+
+
+def _children(target: str, classes: list[type[Node]], mode: str,
+              env: dict[str, str | None]) -> dict[str, tuple[list[dict], str | None]]:
+    """Run ``python -m flowtex.kernelprobe MODE TARGET TYPE...`` for ``classes`` in :func:`child_env` of ``env``; per
+    type name its JSON items, and None or why its check failed.
 
     One process checks every type (a process costs about a second of imports and numba start-up before it checks
     anything). A type that crashes the process or runs longer than :data:`PROBE_TIMEOUT_S` is reported as such, and the
     types after it are checked in a new process.
     """
-    root = str(Path(__file__).resolve().parents[1])  # the folder holding this flowtex package
-    env = {**os.environ, **env, "PYTHONPATH": os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]),
-           BACKGROUND_ENV: "0"}
     results: dict[str, tuple[list[dict], str | None]] = {}
     pending = [cls.type_name for cls in classes]
     while pending:
-        items, done, current, failed = _child(mode, target, pending, env)
+        items, done, current, failed = _child(mode, target, pending, child_env(env))
         for name in pending:
             if name in done:
                 results[name] = (items.get(name, []), None)
@@ -203,16 +214,16 @@ def runtime_problems(target: str, classes: list[type[Node]]) -> dict[str, list[t
     """Per type name: (line, message) from :mod:`flowtex.kernelprobe` run in a child process with numba's bounds
     checking on.
 
-    The child compiles into its own numba cache folder (bounds-checked machine code must not
-    replace the normal one), one per flowtex source tree as the normal cache is (:func:`flowtex.cache.source_fingerprint`:
-    numba's own cache, which the child uses there, does not see an edit to a function a kernel calls in another file);
-    a crash or a timeout there is reported, not suffered here.
+    The child compiles into the bounds-checked cache folders (:func:`flowtex.cache.numba_cache_folder`: bounds-checked
+    machine code must not replace the normal one), filed and keyed as the normal cache is: by flowtex's source tree and
+    by the plugin's code id, so an edit to a helper file gives new code and a copy of the plugin folder elsewhere loads
+    what the first compiled (a caller's ``NUMBA_CACHE_DIR`` is not passed on: it would turn that filing off and receive
+    bounds-checked code). A crash or a timeout there is reported, not suffered here.
     """
-    from .cache import cache_dir, prune_other_trees, source_fingerprint
+    from .cache import numba_cache_folder, prune_cache_tree
 
-    folder = cache_dir() / "boundscheck" / source_fingerprint()
-    prune_other_trees(folder)
-    found = _children(target, classes, "runtime", {"NUMBA_BOUNDSCHECK": "1", "NUMBA_CACHE_DIR": str(folder)})
+    prune_cache_tree(numba_cache_folder(boundscheck=True))  # also checks, here, that the cache folder can be written
+    found = _children(target, classes, "runtime", RUNTIME_ENV)
     out = {}
     for name, (items, failed) in found.items():
         out[name] = [(-1 if item.get("located") else int(item["line"]), str(item["message"])) for item in items]

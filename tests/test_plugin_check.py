@@ -11,6 +11,8 @@ import contextlib
 import io
 import os
 import shutil
+import subprocess
+import sys
 import textwrap
 from pathlib import Path
 
@@ -177,13 +179,15 @@ def test_a_type_that_kills_the_checking_process_is_named_and_the_next_type_is_st
         assert len(by_type[name]) == 1 and "kernel raised ZeroDivisionError" in by_type[name][0], lines
 
 
-def test_the_bounds_checked_child_compiles_into_a_folder_of_this_source_tree(tmp_path, monkeypatch):
-    """numba's own cache (which the bounds-checked child uses) misses an edit to a function a kernel calls in another
-    file: the child's folder is per flowtex source tree, as flowtex's normal cache is, and older trees' are pruned."""
+def test_the_bounds_checked_child_compiles_into_its_own_tree_of_this_source_tree(tmp_path, monkeypatch):
+    """Bounds-checked code has its own cache tree (numba's keys do not tell it from normal code), one folder per flowtex
+    source tree as the normal cache has; older trees' folders are pruned, and a caller's NUMBA_CACHE_DIR (which would
+    turn flowtex's filing by contents off) is not passed on."""
     from flowtex import plugincheck
-    from flowtex.cache import KEEP_OLD, source_fingerprint
+    from flowtex.cache import KEEP_OLD
 
     monkeypatch.setenv("FLOWTEX_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "callers"))
     older = [tmp_path / "boundscheck" / f"tree{k}" for k in range(KEEP_OLD + 2)]
     for k, folder in enumerate(older):
         folder.mkdir(parents=True)
@@ -191,6 +195,49 @@ def test_the_bounds_checked_child_compiles_into_a_folder_of_this_source_tree(tmp
     seen = {}
     monkeypatch.setattr(plugincheck, "_children", lambda target, classes, mode, env: seen.update(env) or {})
     plugincheck.runtime_problems("any.py", [])
-    assert seen["NUMBA_BOUNDSCHECK"] == "1"
-    assert Path(seen["NUMBA_CACHE_DIR"]) == tmp_path / "boundscheck" / source_fingerprint()
+    env = plugincheck.child_env(seen)
+    assert env["NUMBA_BOUNDSCHECK"] == "1" and "NUMBA_CACHE_DIR" not in env
     assert [f.exists() for f in older] == [False, False] + [True] * KEEP_OLD  # the newest few kept
+
+
+CHECK_ONE = """
+import sys
+from flowtex import kernelprobe
+from flowtex.plugincheck import node_types
+assert kernelprobe.main(["runtime", sys.argv[1], sys.argv[2]]) == 0
+kernel = node_types(sys.argv[1])[sys.argv[2]].get_kernel()
+print(sum(kernel.stats.cache_hits.values()), sum(kernel.stats.cache_misses.values()))
+"""
+"""The runtime checks' child (``python -m flowtex.kernelprobe runtime FILE TYPE``), then its kernel's numba cache hits and
+misses."""
+
+
+def test_a_copied_plugin_folder_is_checked_bounds_checked_without_compiling(tmp_path, monkeypatch):
+    """The bounds-checked cache files a plugin's kernels by its folder's code id, as the normal cache does, so a copy of
+    the folder elsewhere (here: moved, with new file times) is checked by a child that loads what the first compiled;
+    its entries are sealed (a damaged one is rebuilt, flowtex.cache.guard_numba_cache) and stay out of the normal tree."""
+    from flowtex import plugincheck
+    from flowtex.cache import source_fingerprint
+    from flowtex.plugincode import plugin_code_id
+
+    monkeypatch.setenv("FLOWTEX_CACHE_DIR", str(tmp_path / "cache"))  # empty: the first check compiles
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "callers"))
+    first = tmp_path / "first"
+    first.mkdir()
+    shutil.copy(REPO / "plugins" / "soft_clip.py", first)
+    classes = list(plugincheck.node_types(str(first / "soft_clip.py")).values())
+    assert plugincheck.runtime_problems(str(first / "soft_clip.py"), classes) == {"soft_clip": []}
+    entry = tmp_path / "cache" / "boundscheck" / source_fingerprint() / "plugins" / plugin_code_id(first / "soft_clip.py")
+    assert sorted(f.suffix for f in entry.iterdir()) == [".nbc", ".nbi", ".sha256", ".sha256"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cache", "first"]  # nothing in the caller's NUMBA_CACHE_DIR
+    assert [p.name for p in (tmp_path / "cache").iterdir()] == ["boundscheck"]  # nor in the normal tree
+    copy = tmp_path / "elsewhere" / "copy"
+    shutil.copytree(first, copy)
+    shutil.rmtree(first)
+    os.utime(copy / "soft_clip.py", (1.0e9, 1.0e9))
+    done = subprocess.run([sys.executable, "-c", CHECK_ONE, "soft_clip.py", "soft_clip"], cwd=copy, capture_output=True,
+                          env=plugincheck.child_env(plugincheck.RUNTIME_ENV), text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    *items, counts = done.stdout.strip().splitlines()
+    assert items == ['{"start": "soft_clip"}', '{"done": "soft_clip"}']  # checked, no problem
+    assert counts == "1 0"  # one cache hit, no compile
