@@ -55,6 +55,15 @@ def test_a_bad_tick_count_is_one_line_naming_ticks(ticks) -> None:
     assert proc(ticks=np.int64(0))["y"].shape == (0, 1)
 
 
+def test_more_ticks_than_a_recording_holds_are_refused_before_allocating() -> None:
+    # ticks=10**12 asked numpy for 8 TB ("Unable to allocate"); the limit is flowtex.limits.MAX_RECORDING_VALUES
+    proc = node_type("white_noise").processor()
+    with pytest.raises(InputError, match=r"ticks=1,000,000,000,000 would fill 2,000,000,000,000 values, more than a "
+                                         r"recording may hold \(100,000,000\); run fewer ticks per call"):
+        proc(ticks=10**12)
+    assert proc(ticks=3)["y"].shape == (3, 1)
+
+
 def test_ticks_beside_input_arrays_must_agree_with_them() -> None:
     proc = node_type("gain").processor(k=2.0)
     np.testing.assert_array_equal(proc(x=np.ones(4), ticks=4)["y"][:, 0], np.full(4, 2.0))
