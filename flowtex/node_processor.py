@@ -26,7 +26,7 @@ import numpy as np
 
 from .dsp.nonfinite import NONFINITE_POLICIES, apply_nonfinite_policy
 from .errors import FlowtexError, InputError, ParamError
-from .limits import MAX_EVERY, MAX_RATE_HZ, MAX_RECORDING_VALUES, excerpt, port_values_problem
+from .limits import MAX_EVERY, MAX_RATE_HZ, check_ticks, excerpt, port_values_problem
 from .node_decl import BuildContext, PortSpec, expected_shape, suggest
 from .node_params import checked_params, load_files
 from .nodecheck import check_kernel_compiles, checked_outputs, is_plugin, scheduled_every
@@ -267,10 +267,8 @@ class Processor:
         """Refuse ``ticks=n`` whose arrays (defaulted inputs and outputs) would hold more than a recording may."""
         assert self.input_specs is not None
         per_tick = sum(spec.width for spec in self.output_specs.values()) + sum(spec.width for spec in self.input_specs.values())
-        if n * per_tick > MAX_RECORDING_VALUES:
-            raise InputError(f"node type {self.cls.type_name!r}: ticks={n:,} would fill {n * per_tick:,} values, more than "
-                             f"a recording may hold ({MAX_RECORDING_VALUES:,}); run fewer ticks per call (the state carries "
-                             "over from one call to the next)")
+        check_ticks(f"node type {self.cls.type_name!r}: ticks", n, per_tick,
+                    "run fewer ticks per call (the state carries over from one call to the next)")
 
     def _run_kernel(self, ports: list[np.ndarray], outs: dict[str, np.ndarray]) -> None:
         """One kernel call; if it raises, the state is put back as it was before the call."""

@@ -20,6 +20,7 @@ import numpy as np
 from ..compile.service import check_tier, compile_in_background, compile_tick, default_tier
 from ..dsp.nonfinite import apply_nonfinite_policy  # noqa: F401  (re-exported: its import path before it moved to dsp)
 from ..errors import FlowtexError, InputError
+from ..limits import check_ticks
 from ..node_api import PortSpec, suggest
 from ..nodecheck import check_plugin_kernels
 from ..pyvalues import float_signal, whole_count
@@ -321,6 +322,8 @@ class Graph:
     def run_ticks(self, n: int, seed: int | None = None) -> dict[str, np.ndarray]:
         """Reset and run ``n`` ticks with every graph input held at zero (e.g. a noise generator)."""
         n = whole_count("n", n, 0)
+        check_ticks(f"graph {self.name!r}: run_ticks n", n, int(self.i[OUT_WIDTH]) + sum(w for _c, w in self.layout.in_columns.values()),
+                    "run fewer ticks")
         self.reset(seed)
         zeros = {name: np.zeros((n, w)) for name, (_col, w) in self.layout.in_columns.items()}
         return self._run_chunk(zeros, n, owned=True)

@@ -58,7 +58,7 @@ def test_a_bad_tick_count_is_one_line_naming_ticks(ticks) -> None:
 def test_more_ticks_than_a_recording_holds_are_refused_before_allocating() -> None:
     # ticks=10**12 asked numpy for 8 TB ("Unable to allocate"); the limit is flowtex.limits.MAX_RECORDING_VALUES
     proc = node_type("white_noise").processor()
-    with pytest.raises(InputError, match=r"ticks=1,000,000,000,000 would fill 2,000,000,000,000 values, more than a "
+    with pytest.raises(InputError, match=r"^node type 'white_noise': ticks=1,000,000,000,000 would fill 2,000,000,000,000 values, more than a "
                                          r"recording may hold \(100,000,000\); run fewer ticks per call"):
         proc(ticks=10**12)
     assert proc(ticks=3)["y"].shape == (3, 1)
