@@ -44,14 +44,15 @@ def folder(tmp_path_factory):
     return path
 
 
-def _graph(folder, shape=()):
+def _graph(folder, shape=(), tier=None):
     return (GraphBuilder("w").input("x", shape=shape).node("n", "writes_input_test").edge("x -> n.x")
-            .output("y", "n.y").build(plugins=folder))
+            .output("y", "n.y").build(plugins=folder, tier=tier))
 
 
-@pytest.mark.parametrize("shape", [(), (3,)])
-def test_graph_run_and_process_leave_a_single_input_as_it_was(folder, shape) -> None:
-    g = _graph(folder, shape)
+@pytest.mark.parametrize(("shape", "tier"), [((), "fused"), ((3,), "fused"), ((), "dispatch")])
+def test_graph_run_and_process_leave_a_single_input_as_it_was(folder, shape, tier) -> None:
+    g = _graph(folder, shape, tier)
+    assert g.tier == tier  # both tiers' run reads the inputs in place
     x = np.random.default_rng(1).standard_normal((50, *shape))
     before = x.copy()
     y = g.run({"x": x})["y"]
