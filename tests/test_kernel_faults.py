@@ -9,7 +9,7 @@ from flowtex.cli import main
 from flowtex.graph.arena import FAULT
 from flowtex.graph.compiled import load_graph
 from flowtex.graph.faults import KernelError
-from tests.scaffold import chain_graph, plugin_project, plugin_source
+from tests.plugin_files import chain_graph, plugin_project, plugin_source
 
 PLUGIN = plugin_source("boom_fault", "boom_kernel", """
 for t in range(x.shape[0]):

@@ -7,7 +7,7 @@ import pytest
 
 from flowtex.cli import main
 from flowtex.dsp.nonfinite import count_nonfinite
-from tests.scaffold import chain_graph, plugin_project, plugin_source
+from tests.plugin_files import chain_graph, plugin_project, plugin_source
 
 PLUGIN = plugin_source("ema_power_nf", "ema_kernel", """
 for t in range(x.shape[0]):

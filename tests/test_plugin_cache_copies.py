@@ -21,7 +21,7 @@ from flowtex.cache import shares_compiled_code
 from flowtex.graph.compiled import load_graph
 from flowtex.graph.faults import KernelError
 from flowtex.registry import forget_plugin_code
-from tests.scaffold import plugin_project
+from tests.plugin_files import plugin_project
 
 IMPORTS = """
 import numpy as np

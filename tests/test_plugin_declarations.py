@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from flowtex.cli import main
-from tests.scaffold import chain_graph, plugin_project, plugin_source
+from tests.plugin_files import chain_graph, plugin_project, plugin_source
 
 PLUGIN = plugin_source("decl_TAG", "decl_kernel", """
 for t in range(x.shape[0]):

@@ -9,7 +9,7 @@ import pytest
 
 import flowtex
 from flowtex.errors import FlowtexError
-from tests.scaffold import plugin_project, plugin_source
+from tests.plugin_files import plugin_project, plugin_source
 
 POSITIONAL = plugin_source("positional_sum", "_kernel", """
 for t in range(x.shape[0]):

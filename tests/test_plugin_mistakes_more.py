@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from flowtex.cli import main
-from tests.scaffold import chain_graph, plugin_project
+from tests.plugin_files import chain_graph, plugin_project
 from tests.test_plugin_check import _line, check_copy
 
 CASE = Path(__file__).parent / "plugin_cases" / "mistakes_more.py"

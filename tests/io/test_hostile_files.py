@@ -23,7 +23,7 @@ from flowtex.io.modelset import load_model_set
 from flowtex.io.recordings import load_recording
 from flowtex.io.taplib import read_tap_library
 from flowtex.limits import MAX_DEPTH, MAX_RECORDING_VALUES, excerpt
-from tests.scaffold import chain_graph
+from tests.plugin_files import chain_graph
 
 REPO = Path(__file__).resolve().parents[2]
 MB = 2**20
