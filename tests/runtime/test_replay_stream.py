@@ -184,7 +184,8 @@ def test_replay_memory_does_not_grow_with_the_session(long_session, suffix):
     7.8 and 9.0 MB. The streamed replay's peak (0.86 MB for a BLF, 0.16 MB for a .log, at N as at 4N) moved by -2 to
     -3 KB (2026-11-27). Tolerance 5 % of the frame storage (260 KB): what may grow is only the report's lists (empty:
     no tick differs) and the readers' state (one BLF container of 128 KiB, one text line), the same at N and 4N, so
-    5 % fails on any retention of 15 bytes or more a tick while passing tracemalloc's noise of a few KB."""
+    5 % (about 60 bytes a tick over the 3N ticks: a fifth of one frame) fails on any frame kept a tick, while passing
+    tracemalloc's noise of a few KB."""
     s = long_session
     short, long = s.write(s.folder / f"n{suffix}", N), s.write(s.folder / f"4n{suffix}", 4 * N)
     graph = load_graph(s.graph)
