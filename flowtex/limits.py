@@ -37,9 +37,8 @@ line of a frame is about 40 bytes, an .asc line about 60, a BLF frame 48 bytes u
 :data:`MAX_CANLOG_FRAMES` of them. Logs are streamed, never held: this bounds time (unpacking and reading), not memory."""
 MAX_CANLOG_FRAMES = 120_000_000
 """Frames of a CAN session log: 8 hours of a 1 kHz session with 4 frames a tick. The replay streams the log and holds
-the frames of two ticks (flowtex.runtime.replay), so this bounds time, not memory: reading takes about 4 us a BLF frame
-and 10-15 us a text line (docs/recordings.md, Limits), so a log at this limit reads in minutes, and a hostile header or
-file cannot make a reader run for days."""
+the frames of two ticks (flowtex.runtime.replay), so this bounds time, not memory: a log at this limit reads in minutes
+(docs/recordings.md, Limits), and a hostile header or file cannot make a reader run for days."""
 MAX_CANLOG_LINES = 2 * MAX_CANLOG_FRAMES
 """Lines of a text CAN log (.log, .asc), frames or not: a file of blank or comment lines within :data:`MAX_CANLOG_BYTES`
 would otherwise take hours; twice the frames a log may hold, so it costs at most what a log at the frame limit does."""
