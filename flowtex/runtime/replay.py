@@ -1,4 +1,4 @@
-"""Replay a recorded live session (.blf/.log) offline through the same graph.
+"""Replay a recorded live session (.blf/.log/.asc) offline through the same graph.
 
 Tick boundaries come from the runtime's own frames. The live loop sends exactly
 one frame per actuator message every tick, in the map's order, after decoding the
@@ -11,7 +11,7 @@ every complete block closes one tick; the frames received (``is_rx=True``) since
 the previous block are that tick's inputs. The **last** block is the safe values
 sent at exit and is not a graph tick; received frames after the last regular
 block (a tick that failed) are ignored. A log cut short (a truncated file, a BLF
-whose header was never written; :func:`~flowtex.io.canlog.read_session_checked`)
+whose header was never written; :attr:`~flowtex.io.canlog.SessionFrames.completeness`)
 has no exit block: every complete block is a tick, and the report says how many
 ticks the session had (from the BLF header's frame count) and how many were found. Frames with ids the map does not read are
 skipped, as the live loop skips them.
