@@ -12,12 +12,14 @@ import can
 import numpy as np
 import pytest
 from can.io.blf import FILE_HEADER_STRUCT
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from long_session import FRAMES_PER_TICK, LongSession
 from replay_whole_list import replay_whole_list
 from test_live import DBC, GRAPH, MAP
 
 from flowtex import limits
-from flowtex.errors import DataError
+from flowtex.errors import DataError, FlowtexError
 from flowtex.graph.compiled import load_graph
 from flowtex.io.canlog import SessionWriter, open_session, read_session, read_session_checked
 from flowtex.runtime.live import LiveConfig, run_live
@@ -200,3 +202,26 @@ def test_replay_memory_does_not_grow_with_the_session(long_session, suffix):
     growth = _peak(lambda: replay(long)) - _peak(lambda: replay(short))
     frame_storage = 3 * N * FRAMES_PER_TICK * held
     assert growth < 0.05 * frame_storage, (growth, frame_storage)
+
+
+@settings(max_examples=20, deadline=None)
+@given(suffix=st.sampled_from([".blf", ".log", ".asc"]), cut=st.floats(0.0, 1.0),
+       flips=st.lists(st.tuples(st.floats(0.0, 1.0), st.integers(1, 255)), max_size=3))
+def test_any_cut_or_corrupted_log_replays_as_the_whole_list_replay_did(logs, suffix, cut, flips):
+    """Fuzz (hypothesis): a log cut anywhere, with a few bytes changed, gives the streamed replay the report the
+    whole-list replay gave, or makes both fail in one line naming the file (which line may differ: the whole-list
+    replay read every frame before splitting ticks, the streamed one meets a frame out of place before a later bad
+    line)."""
+    data = bytearray((logs / f"s{suffix}").read_bytes())
+    for where, x in flips:
+        data[int(where * (len(data) - 1))] ^= x
+    path = logs / f"fuzz{suffix}"
+    path.write_bytes(bytes(data[:int(cut * len(data))]))
+    outcomes = []
+    for fn in (replay_session, replay_whole_list):
+        try:
+            outcomes.append(dataclasses.asdict(fn(load_graph(logs / "g.yaml"), path, DBC, logs / "m.yaml", seed=3)))
+        except FlowtexError as exc:
+            assert "\n" not in str(exc) and str(path) in str(exc)
+            outcomes.append("refused")
+    assert outcomes[0] == outcomes[1]
