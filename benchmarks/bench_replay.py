@@ -15,26 +15,17 @@ import argparse
 import sys
 import tempfile
 import time
-import tracemalloc
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "runtime"))
-from long_session import FRAMES_PER_TICK, LongSession  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "runtime")]  # this tree's flowtex, and the tests' session writer and oracle
+from long_session import FRAMES_PER_TICK, LongSession, peak_bytes  # noqa: E402
 from replay_whole_list import replay_whole_list  # noqa: E402
 
 from flowtex.graph.compiled import load_graph  # noqa: E402
 from flowtex.runtime.replay import replay_session  # noqa: E402
 
 REPLAYS = {"whole list": replay_whole_list, "streamed": replay_session}
-
-
-def _peak(fn) -> int:
-    tracemalloc.start()
-    try:
-        fn()
-        return tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
 
 
 def main() -> None:
@@ -62,7 +53,7 @@ def main() -> None:
                 t0 = time.perf_counter()
                 run(fn, n)
                 best[name] = min(best[name], time.perf_counter() - t0)
-        peaks = {name: [_peak(lambda fn=fn, t=t: run(fn, t)) for t in (n, 4 * n)] for name, fn in REPLAYS.items()}
+        peaks = {name: [peak_bytes(lambda fn=fn, t=t: run(fn, t)) for t in (n, 4 * n)] for name, fn in REPLAYS.items()}
         size = logs[n].stat().st_size / 2**20
         print(f"{suffix} ({size:.1f} MiB for {n} ticks)")
         for name in REPLAYS:

@@ -3,12 +3,14 @@
 The graph is stateless (two gains) and only the ticks that received one frame of each sensor are repeated, so each
 repeated tick's actuator block is what live would send for its received frames, wherever it is placed: the long log
 replays with every tick equal, as a real session of that length would. Used by tests/runtime/test_replay_stream.py
-and benchmarks/bench_replay.py.
+and benchmarks/bench_replay.py, with :func:`peak_bytes`.
 """
 
 from __future__ import annotations
 
 import textwrap
+import tracemalloc
+from collections.abc import Callable
 from pathlib import Path
 
 import can
@@ -18,24 +20,7 @@ from test_live import DBC, MAP
 from flowtex.graph.compiled import load_graph
 from flowtex.io.canlog import SessionWriter, read_session
 from flowtex.runtime.live import LiveConfig, run_live
-
-STATELESS_GRAPH = """\
-flowtex: 1
-name: gains
-rate: 1000
-inputs:
-  position: {shape: [3], unit: mm}
-  normal_force: {unit: N}
-nodes:
-  k: {type: gain, params: {k: 0.01}}
-  v: {type: gain, params: {k: 0.25}}
-edges:
-  - position -> k.x
-  - normal_force -> v.x
-outputs:
-  force: k.y
-  vibration: v.y
-"""
+from tests.cli.gain_graph import MAP_GRAPH
 
 FRAMES_PER_TICK = 4
 """Two sensor frames received and two actuator frames sent a tick."""
@@ -47,7 +32,7 @@ class LongSession:
     def __init__(self, folder: Path, ticks: int = 200):
         self.folder, self.dbc = folder, DBC
         self.graph, self.map = folder / "g.yaml", folder / "m.yaml"
-        self.graph.write_text(STATELESS_GRAPH)
+        self.graph.write_text(MAP_GRAPH)
         self.map.write_text(textwrap.dedent(MAP))
         t = np.arange(ticks + 100) / 1000.0
         pos = np.stack([100 * np.sin(2 * np.pi * t), 50 * np.cos(6 * np.pi * t), 10 + 0 * t], axis=1)
@@ -82,3 +67,13 @@ class LongSession:
             w.write(m, False)
         w.close()
         return path
+
+
+def peak_bytes(fn: Callable[[], object]) -> int:
+    """Peak bytes Python allocated while ``fn()`` ran (tracemalloc, which slows Python: time it in a run of its own)."""
+    tracemalloc.start()
+    try:
+        fn()
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()

@@ -6,7 +6,6 @@ from __future__ import annotations
 import dataclasses
 import re
 import textwrap
-import tracemalloc
 
 import can
 import numpy as np
@@ -14,7 +13,7 @@ import pytest
 from can.io.blf import FILE_HEADER_STRUCT
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from long_session import FRAMES_PER_TICK, LongSession
+from long_session import FRAMES_PER_TICK, LongSession, peak_bytes
 from replay_whole_list import replay_whole_list
 from test_live import DBC, GRAPH, MAP
 
@@ -165,16 +164,6 @@ def long_session(tmp_path_factory):
     return LongSession(tmp_path_factory.mktemp("long"))
 
 
-def _peak(fn) -> int:
-    """Peak bytes Python allocated while ``fn()`` ran (tracemalloc)."""
-    tracemalloc.start()
-    try:
-        fn()
-        return tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
-
-
 N = 1500
 
 
@@ -197,9 +186,9 @@ def test_replay_memory_does_not_grow_with_the_session(long_session, suffix):
         assert rep.identical and rep.exit_block and rep.ticks in (N, 4 * N)
 
     replay(short)  # first call: the map's codecs and the decoder tables are built and cached
-    held = _peak(lambda: read_session_checked(short)) / (N * FRAMES_PER_TICK + 2)
+    held = peak_bytes(lambda: read_session_checked(short)) / (N * FRAMES_PER_TICK + 2)
     assert 150 < held < 1000  # a python-can Message and its data: the storage the whole-list replay needed a frame
-    growth = _peak(lambda: replay(long)) - _peak(lambda: replay(short))
+    growth = peak_bytes(lambda: replay(long)) - peak_bytes(lambda: replay(short))
     frame_storage = 3 * N * FRAMES_PER_TICK * held
     assert growth < 0.05 * frame_storage, (growth, frame_storage)
 
