@@ -229,8 +229,9 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
         events, counts = TimelineEvents(), _Counts()
         received = 0  # frames received in the ticks replayed
         pending: Tick | None = None  # the last block read: a tick, or the exit block if the log ends after it
+        ticks = stack.enter_context(contextlib.closing(_ticks(frames, io.tx_ids, events, counts)))  # the log closed on error
         try:
-            for tick in _ticks(frames, io.tx_ids, events, counts):
+            for tick in ticks:
                 if pending is not None:
                     replay_tick(report.ticks, *pending)
                     report.ticks += 1
