@@ -20,7 +20,7 @@ import stat
 from pathlib import Path
 from typing import Any
 
-from .errors import DataError
+from .errors import DataError, InputError
 
 MAX_RECORDING_VALUES = 100_000_000
 """Numbers a recording may hold, all signals together (800 MB as float64; 9 hours of 3 axes at 1 kHz)."""
@@ -180,6 +180,15 @@ def check_values(path: Path | str, count: int, what: str) -> None:
     if count > MAX_RECORDING_VALUES:
         raise DataError(f"{path}: {what} holds {count:,} numbers; flowtex reads recordings of up to "
                         f"{MAX_RECORDING_VALUES:,} numbers ({MAX_RECORDING_VALUES * 8 / 1e6:,.0f} MB): split or decimate it first")
+
+
+def check_ticks(what: str, ticks: int, per_tick: int, fix: str) -> None:
+    """Refuse running ``ticks`` ticks at once whose arrays hold ``per_tick`` values each tick, more than
+    :data:`MAX_RECORDING_VALUES` together: an :class:`InputError` naming ``what`` (e.g. ``ticks``) before anything is
+    allocated, with ``fix``."""
+    if ticks * per_tick > MAX_RECORDING_VALUES:
+        raise InputError(f"{what}={ticks:,} would fill {ticks * per_tick:,} values, more than a recording may hold "
+                         f"({MAX_RECORDING_VALUES:,}); {fix}")
 
 
 def check_frames(where: str, count: int, claimed: bool = False) -> None:

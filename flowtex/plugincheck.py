@@ -95,9 +95,17 @@ def _taken_by(cls: type[Node]) -> str | None:
 
 
 def _processor_settings(cls: type[Node]) -> list[str]:
-    """Parameters named like a keyword of :meth:`Node.processor` (rate, seed, ...): a processor cannot set them."""
+    """Parameters named like a keyword of :meth:`Node.processor` (rate, seed, ...): only ``params={...}`` sets them."""
     own = [n for n, p in inspect.signature(Node.processor).parameters.items() if p.kind is p.POSITIONAL_OR_KEYWORD]
     return [name for name in cls.params if name in own]
+
+
+def _processor_call_keywords(cls: type[Node]) -> list[str]:
+    """Inputs named like a keyword of a processor's call (``ticks``): a processor cannot be given them."""
+    from .node_processor import Processor
+
+    own = [n for n, p in inspect.signature(Processor.__call__).parameters.items() if p.kind is p.KEYWORD_ONLY]
+    return [name for name in cls.inputs if name in own]
 
 
 def _unbounded(cls: type[Node]) -> list[tuple[str, str]]:
@@ -234,8 +242,12 @@ def check_in_process(cls: type[Node], report: Report) -> bool:
         report.problems.append(f"{type_name_location(cls) or node_where(cls)}: node type {cls.type_name!r} is already defined "
                                f"by {clash}; a graph would refuse to load this plugin: rename it (e.g. 'my_{cls.type_name}')")
     for name in _processor_settings(cls):
-        report.notes.append(f"{node_where(cls, line=attr_line(cls, 'params'))}: note: parameter {name!r} cannot be set "
-                            f"through Node.processor(), whose own keyword {name!r} it is; rename it to use the node on arrays")
+        report.notes.append(f"{node_where(cls, line=attr_line(cls, 'params'))}: note: parameter {name!r} is named like "
+                            f"Node.processor()'s own keyword {name!r}: a processor sets it only as params={{{name!r}: ...}}")
+    for name in _processor_call_keywords(cls):
+        report.notes.append(f"{node_where(cls, line=attr_line(cls, 'inputs'))}: note: input {name!r} is named like a "
+                            f"processor call's own keyword {name!r}: Node.processor() cannot feed it; rename it to use "
+                            "the node on arrays")
     for name, missing in _unbounded(cls):
         report.notes.append(f"{node_where(cls, line=attr_line(cls, 'params'))}: note: parameter {name!r} has no {missing}; "
                             "any such value reaches the kernel (declare bounds, e.g. Param('float', min=0.0, max=1.0))")

@@ -2,7 +2,8 @@
 
 tests/plugin_cases/mistakes_more.py: a layout sized by a parameter its declaration lets be 0 (the probe built only at
 the defaults), a kernel writing into its input, a resolve() missing a declared output (an internal KeyError at run),
-a type named like a built-in one and a parameter named like a Node.processor keyword (both passed), uses_seed without
+a type named like a built-in one and a parameter named like a Node.processor keyword (both passed; the keyword, or an
+input named like a processor call's ``ticks``, is a note), uses_seed without
 seed_state (passed; the graph then failed with NotImplementedError), a negative fractional latency (printed as is) and
 own_every() returning 0 (an internal IndentationError in the generated code, ZeroDivisionError at run).
 """
@@ -56,9 +57,16 @@ def test_each_mistake_is_one_problem_at_its_line(report):
 
 def test_a_parameter_named_like_a_processor_keyword_is_a_note(report):
     _, lines, _, path = report
-    assert (f"m.py:{_line(path, RATE)}: node 'gain': note: parameter 'rate' cannot be set through "
-            "Node.processor(), whose own keyword 'rate' it is; rename it to use the node on arrays") in lines
+    assert (f"m.py:{_line(path, RATE)}: node 'gain': note: parameter 'rate' is named like Node.processor()'s own "
+            "keyword 'rate': a processor sets it only as params={'rate': ...}") in lines
 
+
+
+def test_an_input_named_like_a_processor_call_keyword_is_a_note(report):
+    _, lines, _, path = report
+    line = _line(path, 'inputs = {"ticks"')
+    assert (f"m.py:{line}: node 'ticks_input_pc': note: input 'ticks' is named like a processor call's own keyword "
+            "'ticks': Node.processor() cannot feed it; rename it to use the node on arrays") in lines
 
 GRAPH = """\
 flowtex: 1
