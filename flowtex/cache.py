@@ -155,7 +155,7 @@ SEAL_SUFFIX = ".sha256"
 """Beside each numba index (``.nbi``) and data (``.nbc``) file: the sha256 of its bytes, written after numba wrote it."""
 
 
-def _in_package(py_file: str) -> Path | None:
+def folder_in_package(py_file: str) -> Path | None:
     """The folder of ``py_file`` relative to the flowtex package, or None for a file outside it (a plugin's)."""
     try:
         return Path(py_file).resolve().parent.relative_to(PACKAGE)
@@ -177,7 +177,7 @@ def shares_compiled_code(compiled_from: str | Path, func: object) -> bool:
     here, there = Path(code.co_filename).resolve(), Path(compiled_from).resolve()
     if here == there:
         return True
-    inside = _in_package(str(here))
+    inside = folder_in_package(str(here))
     if inside is not None:
         return there.parent.parts[-len(inside.parts) - 1:] == ("flowtex", *inside.parts) and there.name == here.name
     found = plugin_code_of(func)
@@ -217,7 +217,7 @@ def file_by_package_path() -> None:
 
         @classmethod
         def get_suitable_cache_subpath(cls, py_file: str) -> str:
-            inside = _in_package(py_file)
+            inside = folder_in_package(py_file)
             return os.path.join("flowtex", *inside.parts) if inside is not None else super().get_suitable_cache_subpath(py_file)
 
         def __init__(self, py_func, py_file):  # type: ignore[no-untyped-def]
@@ -228,7 +228,7 @@ def file_by_package_path() -> None:
 
         @classmethod
         def from_function(cls, py_func, py_file):  # type: ignore[no-untyped-def]
-            ours = _in_package(py_file) is not None or plugin_code_of(py_func) is not None
+            ours = folder_in_package(py_file) is not None or plugin_code_of(py_func) is not None
             return super().from_function(py_func, py_file) if ours else None
 
     impl._locator_classes = [PackageCacheLocator, *impl._locator_classes]

@@ -210,12 +210,71 @@ def allocations(target: str, classes: list[type[Node]]) -> dict[str, tuple[list[
     numba cache, and None or why the check failed.
 
     numba cannot show the LLVM IR of code it loaded from its disk cache (and a plugin kernel is usually cached), so the
-    child compiles the kernel and every function it calls afresh.
+    child compiles the kernel and every function it calls afresh. What it found is kept beside the compiled code, keyed
+    as that code is (:func:`allocation_key`), so the same kernel is not compiled afresh again to say the same.
     """
-    with tempfile.TemporaryDirectory(prefix="flowtex-alloc-") as tmp:
-        found = _children(target, classes, "allocations", {"NUMBA_CACHE_DIR": tmp})
-    return {name: (sorted({str(call) for item in items for call in item.get("allocations", [])}), failed)
-            for name, (items, failed) in found.items()}
+    keys = {cls.type_name: allocation_key(cls) for cls in classes}
+    known = {name: (calls, None) for name, key in keys.items() if (calls := _kept_allocations(key)) is not None}
+    fresh = [cls for cls in classes if cls.type_name not in known]
+    if fresh:
+        with tempfile.TemporaryDirectory(prefix="flowtex-alloc-") as tmp:
+            found = _children(target, fresh, "allocations", {"NUMBA_CACHE_DIR": tmp})
+        for name, (items, failed) in found.items():
+            calls = sorted({str(call) for item in items for call in item.get("allocations", [])})
+            known[name] = (calls, failed)
+            if failed is None:
+                _keep_allocations(keys[name], calls)
+    return {cls.type_name: known[cls.type_name] for cls in classes}
+
+
+def allocation_key(cls: type[Node]) -> Path | None:
+    """Where the allocation check of ``cls``'s kernel is kept: a file named by a digest of everything its compiled code
+    depends on, as the compile cache keys it (flowtex's source tree, the plugin's code id: any edit to the plugin's
+    folder or package, numba and llvmlite's versions, the ``NUMBA_*`` settings), plus the type and kernel names.
+    None (never kept) for a kernel from neither flowtex nor a plugin folder or registered plugin package: nothing
+    tells when its code changes."""
+    import hashlib
+
+    import llvmlite
+    import numba
+
+    from .cache import folder_in_package, numba_cache_folder, source_fingerprint
+    from .plugincode import plugin_code_of
+
+    kernel = cls.get_kernel()
+    func = getattr(kernel, "py_func", kernel)
+    code = plugin_code_of(func)
+    if code is None and folder_in_package(getattr(getattr(func, "__code__", None), "co_filename", "")) is None:
+        return None
+    settings = sorted((k, v) for k, v in os.environ.items() if k.startswith("NUMBA_") and k != "NUMBA_CACHE_DIR")
+    what = [source_fingerprint(), numba.__version__, llvmlite.__version__, tuple(code) if code else None, settings,
+            cls.type_name, getattr(func, "__module__", ""), getattr(func, "__qualname__", "")]
+    digest = hashlib.sha256(repr(what).encode()).hexdigest()[:32]
+    return numba_cache_folder() / "allocation-checks" / f"{digest}.json"
+
+
+def _kept_allocations(path: Path | None) -> list[str] | None:
+    """The allocator calls kept at ``path``; None when there is no such record or it is unreadable (checked afresh)."""
+    if path is None:
+        return None
+    try:
+        calls = json.loads(path.read_text(encoding="utf-8"))["allocations"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return calls if isinstance(calls, list) and all(isinstance(c, str) for c in calls) else None
+
+
+def _keep_allocations(path: Path | None, calls: list[str]) -> None:
+    """Keep a finished allocation check at ``path`` (atomically; a cache that cannot be written is only slower)."""
+    from .cache import write_cache_file
+
+    if path is None:
+        return
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_cache_file(path, json.dumps({"allocations": calls}).encode())
+    except OSError:
+        pass
 
 
 def runtime_problems(target: str, classes: list[type[Node]]) -> dict[str, list[tuple[int, str]]]:

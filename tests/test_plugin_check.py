@@ -126,8 +126,46 @@ def test_allocation_is_found_in_a_cached_kernel_too(mistakes_report, monkeypatch
 
     monkeypatch.chdir(mistakes_report[3].parent)
     alloc = plugincheck.node_types("mistakes.py")["alloc_pc"]
+    kept = plugincheck.allocation_key(alloc)
+    assert kept is not None and kept.is_file()  # the fixture's check kept what it found ...
+    kept.unlink()  # ... forgotten here, so the child compiles the (cached) kernel afresh
     found, failed = plugincheck.allocations("mistakes.py", [alloc])["alloc_pc"]
     assert failed is None and found and all(call.startswith("NRT_") for call in found), found
+    assert plugincheck._kept_allocations(kept) == found
+
+
+def test_a_kept_allocation_check_is_used_for_the_same_code_only(mistakes_report, tmp_path, monkeypatch):
+    """The allocation step compiles every kernel afresh in a child (about 2 s a plugin file). What it found is kept,
+    keyed as the compiled code is: checking the same code again starts no child, a copy of the plugin folder loaded
+    elsewhere (a fresh process, as a user's next ``plugin check``) finds the same record, and any edit to the folder
+    (here a helper file added) has a record of its own. A damaged record counts as none."""
+    from flowtex import plugincheck
+
+    started = []
+    children = plugincheck._children
+    monkeypatch.setattr(plugincheck, "_children", lambda target, classes, mode, env: started.append(mode) or
+                        children(target, classes, mode, env))
+    monkeypatch.chdir(mistakes_report[3].parent)
+    alloc = plugincheck.node_types("mistakes.py")["alloc_pc"]
+    assert plugincheck.allocations("mistakes.py", [alloc])["alloc_pc"][0] and started == []  # the fixture's record
+    kept = plugincheck.allocation_key(alloc)
+    for name, extra in (("copy", False), ("edited", True)):
+        (tmp_path / name).mkdir()
+        shutil.copy(CASES / "mistakes.py", tmp_path / name / "mistakes.py")
+        if extra:
+            (tmp_path / name / "helper.py").write_text("SCALE = 2.0\n")
+    probe = ("import sys; from flowtex import plugincheck\n"
+             "for folder in sys.argv[1:]:\n"
+             "    print(plugincheck.allocation_key(plugincheck.node_types(folder + '/mistakes.py')['alloc_pc']))\n")
+    out = subprocess.run([sys.executable, "-c", probe, str(tmp_path / "copy"), str(tmp_path / "edited")],
+                         capture_output=True, text=True, check=True).stdout.split()
+    assert out[0] == str(kept) and out[1] != str(kept)
+    good = kept.read_bytes()
+    for damaged in (b"", b'{"allocations": [1]}', b"\xff\xfe", b"[]"):
+        kept.write_bytes(damaged)
+        assert plugincheck._kept_allocations(kept) is None
+    kept.write_bytes(good)
+
 
 KILLS = """\
 import os
