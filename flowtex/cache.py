@@ -11,6 +11,9 @@ instantly. Inside that folder, a kernel's entries are filed by its module's path
 within the package (:func:`file_by_package_path`), not by where the package lies
 on disk, so another checkout or a reinstall of the same sources (a fresh clone,
 a CI run, a branch switched away and back) finds the compiled code of the first.
+A process compiling with numba's bounds checking (``NUMBA_BOUNDSCHECK=1``: the
+runtime checks of ``flowtex plugin check``) uses a sibling tree of folders
+(:func:`numba_cache_folder`), filed and guarded the same way.
 Setting ``NUMBA_CACHE_DIR`` yourself turns this off.
 
 numba binds a function's cache folder when the function is decorated, so
@@ -38,7 +41,8 @@ from .interrupts import guard_compiles
 from .plugincode import PLUGIN_CODE, hash_sources, plugin_code_id, plugin_code_of
 
 __all__ = ["CACHE_ENV", "cache_dir", "configure_numba_cache", "file_by_package_path", "guard_numba_cache",
-           "prune_numba_cache", "prune_other_trees", "shares_compiled_code", "source_fingerprint", "write_cache_file"]
+           "numba_cache_folder", "prune_cache_tree", "prune_numba_cache", "shares_compiled_code", "source_fingerprint",
+           "write_cache_file"]
 
 KEEP_OLD = 3
 IN_USE_S = 3600.0
@@ -59,6 +63,14 @@ def source_fingerprint() -> str:
     h = hash_sources(PACKAGE, sorted(PACKAGE.rglob("*.py")))
     h.update(f"contract={contract_enabled()};".encode())  # flowtex.dsp.fastmath's setting changes the machine code
     return h.hexdigest()[:16]
+
+
+def numba_cache_folder(boundscheck: bool = False) -> Path:
+    """The numba cache folder of this source tree: ``numba/<fingerprint>`` in :func:`cache_dir`, or
+    ``boundscheck/<fingerprint>`` for code compiled with numba's bounds checking (``NUMBA_BOUNDSCHECK=1``, as
+    ``flowtex plugin check`` runs kernels), which numba's cache keys do not tell apart: bounds-checked machine code
+    must never be loaded by a normal run. Both are filed and guarded alike (:func:`configure_numba_cache`)."""
+    return cache_dir() / ("boundscheck" if boundscheck else "numba") / source_fingerprint()
 
 
 _CONFIGURED: list[Path] = []
@@ -84,7 +96,7 @@ def configure_numba_cache() -> str:
     guard_numba_cache()
     file_by_package_path()
     try:
-        folder = cache_dir() / "numba" / fingerprint
+        folder = numba_cache_folder(boundscheck=bool(numba.config.BOUNDSCHECK))
         folder.mkdir(parents=True, exist_ok=True)
     except (OSError, FlowtexError):
         return fingerprint  # no usable cache folder: numba falls back to its own default; the verbs say why (cache_dir)
@@ -100,18 +112,16 @@ once more."""
 
 
 def prune_numba_cache() -> None:
-    """Delete numba cache folders of older source trees (kept: the newest few, and any used in the last hour), and
-    plugin code folders of the current one left unwritten for :data:`PLUGIN_KEEP_S`."""
-    if not _CONFIGURED:
-        return
-    current = _CONFIGURED[0]
+    """:func:`prune_cache_tree` of the numba cache folder this process chose (none: nothing to do)."""
+    if _CONFIGURED:
+        prune_cache_tree(_CONFIGURED[0])
+
+
+def prune_cache_tree(current: Path) -> None:
+    """Delete the siblings of the numba cache folder ``current`` (one per flowtex source tree) but the newest few, and
+    any used in the last hour (another checkout may be compiling into it), and the plugin code folders of ``current``
+    left unwritten for :data:`PLUGIN_KEEP_S`."""
     _prune_plugin_code(current / "plugins", time.time() - PLUGIN_KEEP_S)
-    prune_other_trees(current)
-
-
-def prune_other_trees(current: Path) -> None:
-    """Delete the siblings of the folder ``current`` (one per flowtex source tree) but the newest few, and any used in
-    the last hour (another checkout may be compiling into it)."""
     root = current.parent
     try:
         others = sorted((p for p in root.iterdir() if p.is_dir() and p != current), key=lambda p: p.stat().st_mtime)
@@ -145,7 +155,7 @@ SEAL_SUFFIX = ".sha256"
 """Beside each numba index (``.nbi``) and data (``.nbc``) file: the sha256 of its bytes, written after numba wrote it."""
 
 
-def _in_package(py_file: str) -> Path | None:
+def folder_in_package(py_file: str) -> Path | None:
     """The folder of ``py_file`` relative to the flowtex package, or None for a file outside it (a plugin's)."""
     try:
         return Path(py_file).resolve().parent.relative_to(PACKAGE)
@@ -167,7 +177,7 @@ def shares_compiled_code(compiled_from: str | Path, func: object) -> bool:
     here, there = Path(code.co_filename).resolve(), Path(compiled_from).resolve()
     if here == there:
         return True
-    inside = _in_package(str(here))
+    inside = folder_in_package(str(here))
     if inside is not None:
         return there.parent.parts[-len(inside.parts) - 1:] == ("flowtex", *inside.parts) and there.name == here.name
     found = plugin_code_of(func)
@@ -207,7 +217,7 @@ def file_by_package_path() -> None:
 
         @classmethod
         def get_suitable_cache_subpath(cls, py_file: str) -> str:
-            inside = _in_package(py_file)
+            inside = folder_in_package(py_file)
             return os.path.join("flowtex", *inside.parts) if inside is not None else super().get_suitable_cache_subpath(py_file)
 
         def __init__(self, py_func, py_file):  # type: ignore[no-untyped-def]
@@ -218,7 +228,7 @@ def file_by_package_path() -> None:
 
         @classmethod
         def from_function(cls, py_func, py_file):  # type: ignore[no-untyped-def]
-            ours = _in_package(py_file) is not None or plugin_code_of(py_func) is not None
+            ours = folder_in_package(py_file) is not None or plugin_code_of(py_func) is not None
             return super().from_function(py_func, py_file) if ours else None
 
     impl._locator_classes = [PackageCacheLocator, *impl._locator_classes]

@@ -144,12 +144,13 @@ def _recording(path: Path, *_: object) -> str:
 
 
 def _can_log(path: Path, *_: object) -> str:
-    from .io.canlog import read_session_checked
+    from .io.canlog import SessionFrames
 
-    frames, completeness = read_session_checked(path)
-    received = sum(1 for m in frames if m.is_rx)
-    cut = f"; {completeness.problem}" if completeness.problem else ""
-    return f"{len(frames)} frames, {received} received and {len(frames) - received} sent{cut}"
+    session = SessionFrames(path)  # streamed: a log of any length is checked in bounded memory
+    received = sum(1 for m in session if m.is_rx)
+    problem = session.completeness.problem if session.completeness is not None else None
+    cut = f"; {problem}" if problem else ""
+    return f"{session.number} frames, {received} received and {session.number - received} sent{cut}"
 
 
 _CHECKS = {CAN_LOG: _can_log, MODEL_SET: _model_set, PATTERN: _pattern, TAP_LIBRARY: _taps, FRICTION: _friction, COMPLIANCE: _compliance,

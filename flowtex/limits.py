@@ -20,7 +20,7 @@ import stat
 from pathlib import Path
 from typing import Any
 
-from .errors import DataError
+from .errors import DataError, InputError
 
 MAX_RECORDING_VALUES = 100_000_000
 """Numbers a recording may hold, all signals together (800 MB as float64; 9 hours of 3 axes at 1 kHz)."""
@@ -31,15 +31,22 @@ MAX_YAML_BYTES = 1024 * 1024
 parser is pure Python (tens of KiB per second; docs/recordings.md, Limits), so this bounds the time too."""
 MAX_DBC_BYTES = 4 * 1024 * 1024
 """Size of a DBC file (cantools parses tens of KiB per second, so this bounds the time too; docs/recordings.md, Limits)."""
-MAX_CANLOG_BYTES = 1024 * 1024 * 1024
-"""Size of a CAN session log (.blf, .log, .asc) and, for a BLF, of its containers once unpacked (1 GiB): a candump
-line of a frame is about 40 bytes, a BLF frame 48 bytes unpacked, so this is above :data:`MAX_CANLOG_FRAMES` of them."""
-MAX_CANLOG_FRAMES = 5_000_000
-"""Frames of a CAN session log: the replay holds them all (about 250 bytes each, 1.2 GiB), 20 minutes of a 1 kHz
-session with 4 frames a tick."""
+MAX_CANLOG_BYTES = 16 * 1024 * 1024 * 1024
+"""Size of a CAN session log (.blf, .log, .asc) and, for a BLF, of its containers once unpacked (16 GiB): a candump
+line of a frame is about 40 bytes, an .asc line about 60, a BLF frame 48 bytes unpacked, so this is above
+:data:`MAX_CANLOG_FRAMES` of them. Logs are streamed, never held: this bounds time (unpacking and reading), not memory."""
+MAX_CANLOG_FRAMES = 120_000_000
+"""Frames of a CAN session log: 8 hours of a 1 kHz session with 4 frames a tick. The replay streams the log and holds
+the frames of two ticks (flowtex.runtime.replay), so this bounds time, not memory: a log at this limit reads in minutes
+(docs/recordings.md, Limits), and a hostile header or file cannot make a reader run for days."""
 MAX_CANLOG_LINES = 2 * MAX_CANLOG_FRAMES
 """Lines of a text CAN log (.log, .asc), frames or not: a file of blank or comment lines within :data:`MAX_CANLOG_BYTES`
-would otherwise take hours (the line reader takes ~10 us a line)."""
+would otherwise take hours; twice the frames a log may hold, so it costs at most what a log at the frame limit does."""
+MAX_TICK_FRAMES = 100_000
+"""Frames one tick of a replayed session may have received (between two actuator blocks): the replay holds a tick's
+frames, so a log of received frames without a block is refused here rather than held whole. A 1 Mbit/s bus carries
+at most about 20,000 frames a second, and the live loop reads a few a tick; 100,000 (about 25 MB held) is 5 seconds
+of a saturated bus in one tick."""
 MAX_BLF_CONTAINER_BYTES = 16 * 1024 * 1024
 """Size of one BLF container once unpacked, and of a frame object that spans containers (python-can and Vector write
 128 KiB containers): a zlib bomb in one container is refused at this size, never unpacked whole."""
@@ -175,6 +182,15 @@ def check_values(path: Path | str, count: int, what: str) -> None:
                         f"{MAX_RECORDING_VALUES:,} numbers ({MAX_RECORDING_VALUES * 8 / 1e6:,.0f} MB): split or decimate it first")
 
 
+def check_ticks(what: str, ticks: int, per_tick: int, fix: str) -> None:
+    """Refuse running ``ticks`` ticks at once whose arrays hold ``per_tick`` values each tick, more than
+    :data:`MAX_RECORDING_VALUES` together: an :class:`InputError` naming ``what`` (e.g. ``ticks``) before anything is
+    allocated, with ``fix``."""
+    if ticks * per_tick > MAX_RECORDING_VALUES:
+        raise InputError(f"{what}={ticks:,} would fill {ticks * per_tick:,} values, more than a recording may hold "
+                         f"({MAX_RECORDING_VALUES:,}); {fix}")
+
+
 def check_frames(where: str, count: int, claimed: bool = False) -> None:
     """Refuse a CAN log of ``count`` frames, more than :data:`MAX_CANLOG_FRAMES`: ``where`` names the file (and line or
     frame); ``claimed``: the count is what the log's header says, checked before reading."""
@@ -182,7 +198,7 @@ def check_frames(where: str, count: int, claimed: bool = False) -> None:
         return
     what = f"its header counts {count:,} frames" if claimed else f"more than {MAX_CANLOG_FRAMES:,} frames"
     raise DataError(f"{where}: {what}; flowtex reads CAN logs of up to {MAX_CANLOG_FRAMES:,} frames "
-                    "(flowtex.limits.MAX_CANLOG_FRAMES; the replay holds them all in memory): replay a shorter session")
+                    "(flowtex.limits.MAX_CANLOG_FRAMES, 8 hours at 1 kHz): split the session or replay a shorter one")
 
 
 def depth_of(value: Any, limit: int = MAX_DEPTH) -> int:

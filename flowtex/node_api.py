@@ -25,7 +25,7 @@ runs once per graph build: load files, design filters, size the state.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -164,15 +164,20 @@ class Node:
 
     @classmethod
     def processor(cls, rate: float = 1000.0, seed: int = 0, name: str | None = None, base_dir: str | Path = ".",
-                  nonfinite: str = "error", **params: Any) -> Any:
+                  nonfinite: str = "error", every: int = 1, input_every: Mapping[str, int] | None = None,
+                  params: Mapping[str, Any] | None = None, **keyword_params: Any) -> Any:
         """This node's build and kernel on plain arrays, state kept between calls (flowtex.node_processor).
 
         ``rate`` (Hz) and ``seed`` are the graph's; ``name`` the node's name in a graph (it seeds random
         nodes, so a processor named like a graph's node reproduces it); ``nonfinite`` what a call does with NaN/inf
-        inputs (as ``Graph.run``'s: ``error``, ``hold``, ``zero`` or ``pass``); ``params`` as in a graph file.
+        inputs (as ``Graph.run``'s: ``error``, ``hold``, ``zero`` or ``pass``); ``every`` the node's rate divider (a
+        graph's ``every:``) and ``input_every`` each input's producer's (input name -> ticks, default 1).
+        The node's parameters, as in a graph file: ``params={...}`` (any name, ``rate`` or ``seed`` too) and/or
+        keywords (any name but the settings above).
         """
-        from .node_processor import Processor
+        from .node_processor import Processor, given_params
 
-        return Processor(cls, params, rate=rate, seed=seed, name=name, base_dir=base_dir, nonfinite=nonfinite)
+        return Processor(cls, given_params(cls, params, keyword_params), rate=rate, seed=seed, name=name,
+                         base_dir=base_dir, nonfinite=nonfinite, every=every, input_every=input_every)
 
 

@@ -4,14 +4,21 @@ The same Python build and the same compiled kernel that a graph runs, without a
 graph: call the processor with arrays (one row per tick) and get the node's
 outputs back; its state carries over to the next call, as an ezmsg processor's
 does. Offline graphs, live graphs and processors all call one kernel, so they
-cannot drift apart: a processor built with the graph's node name, rate and seed
-gives that node's output in the graph bit for bit.
+cannot drift apart: a processor built with the graph's node name, rate, seed,
+``every`` and input rates gives that node's output in the graph bit for bit. A
+node that runs every k ticks runs its kernel on the ticks a graph runs it on and
+holds its outputs in between, as the graph's generated schedule does.
+
+The kernel gets the processor's own copy of every input, never the caller's
+array: a kernel that writes its input (a plugin mistake) cannot change the
+caller's data.
 """
 
 from __future__ import annotations
 
 import math
 import zlib
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -19,11 +26,11 @@ import numpy as np
 
 from .dsp.nonfinite import NONFINITE_POLICIES, apply_nonfinite_policy
 from .errors import FlowtexError, InputError, ParamError
-from .limits import MAX_RATE_HZ, excerpt, port_values_problem
+from .limits import MAX_EVERY, MAX_RATE_HZ, check_ticks, excerpt, port_values_problem
 from .node_decl import BuildContext, PortSpec, expected_shape, suggest
 from .node_params import checked_params, load_files
-from .nodecheck import check_kernel_compiles, checked_outputs, is_plugin
-from .pyvalues import float_signal, plain
+from .nodecheck import check_kernel_compiles, checked_outputs, is_plugin, scheduled_every
+from .pyvalues import float_signal, plain, whole_count
 
 
 def _params(cls: type, given: dict[str, Any], base_dir: Path) -> tuple[dict[str, Any], dict[str, Path]]:
@@ -33,6 +40,22 @@ def _params(cls: type, given: dict[str, Any], base_dir: Path) -> tuple[dict[str,
     if problems:
         raise ParamError(problems[0].key, f"node type {cls.type_name!r}: {problems[0].message}")
     return load_files(cls, values)
+
+
+def given_params(cls: type, mapping: Any, keywords: dict[str, Any]) -> dict[str, Any]:
+    """Node parameters given as ``params={...}`` and as keywords, merged; a parameter given both ways, or a ``params``
+    that is not a mapping, is a :class:`ParamError`. ``params=`` reaches every parameter, including one named like a
+    processor setting (``rate``, ``seed``, ...), which the keyword form cannot set."""
+    if mapping is None:
+        return keywords
+    where = f"node type {cls.type_name!r} processor"
+    if not isinstance(mapping, Mapping):
+        raise ParamError("params", f"{where}: params must be a mapping of parameter name to value, e.g. "
+                                   f"params={{'k': 2.0}}; got {excerpt(mapping)}")
+    twice = [k for k in keywords if k in mapping]
+    if twice:
+        raise ParamError(twice[0], f"{where}: parameter {twice[0]!r} is given twice, as a keyword and in params=; give it once")
+    return {**mapping, **keywords}
 
 
 def _settings(cls: type, rate: Any, seed: Any, name: Any, nonfinite: Any) -> tuple[float, int, str]:
@@ -50,40 +73,83 @@ def _settings(cls: type, rate: Any, seed: Any, name: Any, nonfinite: Any) -> tup
     return float(rate), seed, name or cls.type_name
 
 
+def _ticks_every(cls: type, what: str, value: Any) -> int:
+    """A rate divider (``every``, an ``input_every`` value): whole ticks in 1..MAX_EVERY, as a graph's ``every:``."""
+    value = plain(value)
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_EVERY:
+        raise ParamError(what.split("[")[0], f"node type {cls.type_name!r} processor: {what} must be a whole number of ticks "
+                                             f"from 1 to {MAX_EVERY:,} (as a graph's every:), got {excerpt(value)}")
+    return value
+
+
+def _schedule(cls: type, name: str, values: dict[str, Any], rate: float, every: Any,
+              input_every: Any) -> tuple[int, dict[str, int]]:
+    """The node's ``every`` and its inputs' ``every`` (port -> the producer's divider, 1 for the base rate), as a
+    graph resolves them: the node's own schedule (:meth:`Node.own_every`) wins over ``every=1``, and contradicts any
+    other ``every`` in one error."""
+    every = _ticks_every(cls, "every", every)
+    if input_every is None:
+        input_every = {}
+    if not isinstance(input_every, Mapping):
+        raise ParamError("input_every", f"node type {cls.type_name!r} processor: input_every must map input names to "
+                                        f"their producer's every, e.g. {{'x': 4}}; got {excerpt(input_every)}")
+    unknown = [k for k in input_every if k not in cls.inputs]
+    if unknown:
+        raise ParamError("input_every", f"node type {cls.type_name!r} has no input {unknown[0]!r}"
+                                        f"{suggest(str(unknown[0]), list(cls.inputs))}; its inputs are: {', '.join(cls.inputs) or 'none'}")
+    ports = {port: _ticks_every(cls, f"input_every[{port!r}]", input_every.get(port, 1)) for port in cls.inputs}
+    own = scheduled_every(cls, name, values, rate, ports)
+    if own is not None and every not in (1, own):
+        raise ParamError("every", f"node type {cls.type_name!r} processor: its parameters make it run every {own} ticks, "
+                                  f"but every={every} was given; drop every=")
+    return own or every, ports
+
+
 def _as_rows(name: str, value: Any) -> np.ndarray:
-    """A port's array as (ticks, width) float64, C-contiguous (a 1-D array is one value per tick)."""
+    """A port's array as a new (ticks, width) float64 C-contiguous array (a 1-D array is one value per tick)."""
     x = float_signal(name, value)
     if x.ndim == 1:
         x = x[:, None]
     if x.ndim != 2:
         raise InputError(f"input {name!r}: pass one row per tick, shape (ticks,) or (ticks, width); got shape {x.shape}")
-    return np.ascontiguousarray(x)
+    return np.array(x, dtype=np.float64, order="C")  # a copy: the kernel never gets the caller's memory
 
 
 class Processor:
     """A built node on plain arrays. Call it with one array per input (keyword = port name); it returns a dict
-    of output arrays (ticks, width). Unconnected optional inputs read their declared default.
+    of output arrays (ticks, width). Unconnected optional inputs read their declared default; a call without input
+    arrays runs ``ticks=`` ticks (default 1).
 
     The node is built on the first call, for the widths of the arrays given then; each later call must give the same
     inputs with the same widths. ``nonfinite`` is what a call does with NaN/inf input samples, as in ``Graph.run``:
     ``error`` (refuse, naming the input; the default), ``zero``, ``hold`` (the last finite value, held from one call
     into the next) or ``pass``.
+    Rows are ticks of the base ``rate``, as in a graph. ``every`` is the node's rate divider (a graph's ``every:``) and
+    ``input_every`` each input's producer's (1: the input changes every tick); a node that runs every k ticks, by
+    ``every`` or by its own schedule (``Node.own_every``), runs its kernel on ticks 0, k, 2k, ... counted from the
+    first call (or :meth:`reset`) and holds its outputs in between, as a graph does.
     A call that raises leaves the state as it was before the call (a kernel that raised part-way included).
     """
 
     def __init__(self, cls: type, params: dict[str, Any], rate: float = 1000.0, seed: int = 0,
-                 name: str | None = None, base_dir: str | Path = ".", nonfinite: str = "error"):
+                 name: str | None = None, base_dir: str | Path = ".", nonfinite: str = "error", every: int = 1,
+                 input_every: Mapping[str, int] | None = None):
         self.cls = cls
         rate, self.seed, self.name = _settings(cls, rate, seed, name, nonfinite)
         self.nonfinite = nonfinite
         values, files = _params(cls, params, Path(base_dir))
-        self.context = BuildContext(rate=rate, base_dir=Path(base_dir), files=files)
+        self.every, ports_every = _schedule(cls, self.name, values, rate, every, input_every)
+        self.context = BuildContext(rate=rate, base_dir=Path(base_dir), every=self.every, input_every=ports_every, files=files)
         self.node = cls(self.name, values, self.context)
         self.kernel = cls.get_kernel()
         self.input_specs: dict[str, PortSpec] | None = None
         self.output_specs: dict[str, PortSpec] = {}
         self._held: dict[str, np.ndarray] = {}
         """Input -> its last value after ``nonfinite="hold"``, held into the next call."""
+        self._tick = 0
+        """Ticks run since the build or the last reset: the schedule's phase for ``every`` > 1."""
+        self._holds: dict[str, np.ndarray] = {}
+        """Output -> its value at the node's last run (``every`` > 1), held over the ticks it does not run."""
 
     def _specs(self, arrays: dict[str, np.ndarray]) -> dict[str, PortSpec]:
         """Every input's spec, as the graph's resolver gives them: a given array's width checked against the declared
@@ -135,14 +201,19 @@ class Processor:
         self.output_specs = outputs
         self._provided = set(arrays)
         self.input_specs = specs
+        self._holds = {k: np.zeros(spec.width) for k, spec in outputs.items()}
 
     def reset(self) -> None:
-        """Back to the state right after build (as a graph's ``reset()``)."""
+        """Back to the state right after build (as a graph's ``reset()``): the schedule starts again at tick 0."""
         self._held = {}
+        self._tick = 0
         if self.input_specs is not None:
             self.s[:], self.si[:] = self._initial
+            self._holds = {k: np.zeros(spec.width) for k, spec in self.output_specs.items()}
 
-    def __call__(self, *args: Any, **inputs: Any) -> dict[str, np.ndarray]:
+    def __call__(self, *args: Any, ticks: int | None = None, **inputs: Any) -> dict[str, np.ndarray]:
+        """Run the node over ``inputs`` (port name -> array, one row per tick), or over ``ticks`` ticks when no input
+        array is given (a generator; default 1); returns output name -> (ticks, width) array."""
         if args:
             raise InputError(f"node type {self.cls.type_name!r}: pass each input by its port name, e.g. "
                              f"{self.cls.inputs and next(iter(self.cls.inputs)) or 'x'}=array; its inputs are: "
@@ -151,19 +222,26 @@ class Processor:
         if unknown:
             raise InputError(f"node type {self.cls.type_name!r} has no input {unknown[0]!r}"
                              f"{suggest(unknown[0], list(self.cls.inputs))}; its inputs are: {', '.join(self.cls.inputs) or 'none'}")
+        if ticks is not None:
+            ticks = whole_count(f"node type {self.cls.type_name!r}: ticks (the number of ticks to run)", ticks, 0)
         arrays = apply_nonfinite_policy({k: _as_rows(k, v) for k, v in inputs.items()}, self.nonfinite,
                                         fix="or build the processor with nonfinite='hold' or 'zero'", held=self._held)
         lengths = {a.shape[0] for a in arrays.values()}
         if len(lengths) > 1:
             raise InputError(f"node type {self.cls.type_name!r}: inputs have different numbers of ticks: "
                              + ", ".join(f"{k} {a.shape[0]}" for k, a in arrays.items()))
+        if lengths and ticks is not None and ticks not in lengths:
+            raise InputError(f"node type {self.cls.type_name!r}: ticks={ticks}, but the inputs have {next(iter(lengths))} "
+                             "rows; drop ticks= (the inputs' rows are the ticks)")
         if self.input_specs is None:
             self._build(arrays)
         elif set(arrays) != self._provided:
             raise InputError(f"node type {self.cls.type_name!r}: call with the same inputs as the first call: "
                              f"{', '.join(sorted(self._provided)) or 'none'}")
         assert self.input_specs is not None
-        n = lengths.pop() if lengths else 1
+        n = lengths.pop() if lengths else 1 if ticks is None else ticks
+        if not lengths and n > 1:
+            self._check_ticks(n)
         ports = []
         for port_name in self.cls.inputs:
             spec = self.input_specs[port_name]
@@ -174,7 +252,26 @@ class Processor:
                 ports.append(arrays[port_name])
             else:
                 ports.append(np.tile(self.node.input_default(port_name, spec), (n, 1)))
-        outs = {k: np.zeros((n, spec.width)) for k, spec in self.output_specs.items()}
+        runs = None if self.every == 1 else np.flatnonzero((self._tick + np.arange(n)) % self.every == 0)
+        if runs is not None:  # the ticks the node runs on: the kernel sees those rows only, as in a graph
+            ports = [port[runs] for port in ports]
+        rows = n if runs is None else runs.size
+        outs = {k: np.zeros((rows, spec.width)) for k, spec in self.output_specs.items()}
+        self._run_kernel(ports, outs)
+        if runs is not None:
+            outs = self._held_between_runs(outs, runs, n)
+        self._tick += n
+        return outs
+
+    def _check_ticks(self, n: int) -> None:
+        """Refuse ``ticks=n`` whose arrays (defaulted inputs and outputs) would hold more than a recording may."""
+        assert self.input_specs is not None
+        per_tick = sum(spec.width for spec in self.output_specs.values()) + sum(spec.width for spec in self.input_specs.values())
+        check_ticks(f"node type {self.cls.type_name!r}: ticks", n, per_tick,
+                    "run fewer ticks per call (the state carries over from one call to the next)")
+
+    def _run_kernel(self, ports: list[np.ndarray], outs: dict[str, np.ndarray]) -> None:
+        """One kernel call; if it raises, the state is put back as it was before the call."""
         before = (self.s.copy(), self.si.copy())
         try:
             self.kernel(self.p, self.s, self.si, *ports, *(outs[k] for k in self.cls.outputs))
@@ -184,4 +281,15 @@ class Processor:
                 raise
             raise FlowtexError(f"node type {self.cls.type_name!r}: its kernel raised {type(exc).__name__}: "
                                f"{str(exc).splitlines()[0] if str(exc) else ''}; the processor's state is as before this call") from exc
-        return outs
+
+    def _held_between_runs(self, outs: dict[str, np.ndarray], runs: np.ndarray, n: int) -> dict[str, np.ndarray]:
+        """Outputs for all ``n`` ticks from those of the ``runs`` ticks: each tick shows the node's last run up to it
+        (before this call's first run, the value held from the previous call), as the graph's schedule copies it."""
+        last = np.searchsorted(runs, np.arange(n), side="right") - 1
+        full = {}
+        for k, ran in outs.items():
+            held = np.vstack([self._holds[k][None, :], ran])
+            full[k] = held[last + 1]
+            if runs.size:
+                self._holds[k] = ran[-1].copy()
+        return full

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import FlowtexError
+from .errors import FlowtexError, ParamError
 from .limits import MAX_EVERY, MAX_NODE_PORTS, MAX_PORT_VALUES, excerpt
 from .node_decl import NodeState, Param, Port, PortSpec, outputs_problem
 
@@ -301,6 +301,21 @@ def checked_every(cls: type, node_name: str, every: object) -> int | None:
     raise FlowtexError(f"{node_where(cls, cls.own_every)}: own_every() for graph node {node_name!r} returned "
                        f"{excerpt(every)}; return None (the graph's every: decides) or a whole number of ticks from 1 to "
                        f"{MAX_EVERY:,}")
+
+
+def scheduled_every(cls: type, node_name: str, params: dict, rate: float, input_every: dict[str, int]) -> int | None:
+    """The node's own schedule (:meth:`Node.own_every` for ``params`` at base ``rate`` Hz), checked by
+    :func:`checked_every`: None when the graph's ``every:`` decides. A :class:`ParamError` is the caller's to place (it
+    names a parameter); anything else a plugin's ``own_every`` raises becomes its error at its line."""
+    try:
+        own = cls.own_every(params, rate, input_every)
+    except ParamError:
+        raise
+    except Exception as exc:
+        if not is_plugin(cls):
+            raise  # flowtex's own bug: an internal error
+        raise plugin_raised(cls, node_name, "own_every", exc) from None
+    return checked_every(cls, node_name, own)
 
 
 def checked_latency(cls: type, node_name: str, latency: object) -> int:

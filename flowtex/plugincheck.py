@@ -95,9 +95,17 @@ def _taken_by(cls: type[Node]) -> str | None:
 
 
 def _processor_settings(cls: type[Node]) -> list[str]:
-    """Parameters named like a keyword of :meth:`Node.processor` (rate, seed, ...): a processor cannot set them."""
+    """Parameters named like a keyword of :meth:`Node.processor` (rate, seed, ...): only ``params={...}`` sets them."""
     own = [n for n, p in inspect.signature(Node.processor).parameters.items() if p.kind is p.POSITIONAL_OR_KEYWORD]
     return [name for name in cls.params if name in own]
+
+
+def _processor_call_keywords(cls: type[Node]) -> list[str]:
+    """Inputs named like a keyword of a processor's call (``ticks``): a processor cannot be given them."""
+    from .node_processor import Processor
+
+    own = [n for n, p in inspect.signature(Processor.__call__).parameters.items() if p.kind is p.KEYWORD_ONLY]
+    return [name for name in cls.inputs if name in own]
 
 
 def _unbounded(cls: type[Node]) -> list[tuple[str, str]]:
@@ -110,21 +118,32 @@ def _unbounded(cls: type[Node]) -> list[tuple[str, str]]:
     return found
 
 
-def _children(target: str, classes: list[type[Node]], mode: str, env: dict[str, str]) -> dict[str, tuple[list[dict], str | None]]:
-    """Run ``python -m flowtex.kernelprobe MODE TARGET TYPE...`` for ``classes``; per type name its JSON items, and None
-    or why its check failed.
+RUNTIME_ENV: dict[str, str | None] = {"NUMBA_BOUNDSCHECK": "1", "NUMBA_CACHE_DIR": None}
+"""What the runtime checks' child changes in its environment (None: unset; see :func:`runtime_problems`)."""
+
+
+def child_env(env: dict[str, str | None]) -> dict[str, str]:
+    """The environment of a checking child: this process's, with ``env`` (a value None: the variable unset), this
+    flowtex package first on ``PYTHONPATH`` and no background compiles."""
+    root = str(Path(__file__).resolve().parents[1])  # the folder holding this flowtex package
+    given = {**os.environ, **env, "PYTHONPATH": os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]),
+             BACKGROUND_ENV: "0"}
+    return {name: value for name, value in given.items() if value is not None}
+
+
+def _children(target: str, classes: list[type[Node]], mode: str,
+              env: dict[str, str | None]) -> dict[str, tuple[list[dict], str | None]]:
+    """Run ``python -m flowtex.kernelprobe MODE TARGET TYPE...`` for ``classes`` in :func:`child_env` of ``env``; per
+    type name its JSON items, and None or why its check failed.
 
     One process checks every type (a process costs about a second of imports and numba start-up before it checks
     anything). A type that crashes the process or runs longer than :data:`PROBE_TIMEOUT_S` is reported as such, and the
     types after it are checked in a new process.
     """
-    root = str(Path(__file__).resolve().parents[1])  # the folder holding this flowtex package
-    env = {**os.environ, **env, "PYTHONPATH": os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]),
-           BACKGROUND_ENV: "0"}
     results: dict[str, tuple[list[dict], str | None]] = {}
     pending = [cls.type_name for cls in classes]
     while pending:
-        items, done, current, failed = _child(mode, target, pending, env)
+        items, done, current, failed = _child(mode, target, pending, child_env(env))
         for name in pending:
             if name in done:
                 results[name] = (items.get(name, []), None)
@@ -191,28 +210,87 @@ def allocations(target: str, classes: list[type[Node]]) -> dict[str, tuple[list[
     numba cache, and None or why the check failed.
 
     numba cannot show the LLVM IR of code it loaded from its disk cache (and a plugin kernel is usually cached), so the
-    child compiles the kernel and every function it calls afresh.
+    child compiles the kernel and every function it calls afresh. What it found is kept beside the compiled code, keyed
+    as that code is (:func:`allocation_key`), so the same kernel is not compiled afresh again to say the same.
     """
-    with tempfile.TemporaryDirectory(prefix="flowtex-alloc-") as tmp:
-        found = _children(target, classes, "allocations", {"NUMBA_CACHE_DIR": tmp})
-    return {name: (sorted({str(call) for item in items for call in item.get("allocations", [])}), failed)
-            for name, (items, failed) in found.items()}
+    keys = {cls.type_name: allocation_key(cls) for cls in classes}
+    known = {name: (calls, None) for name, key in keys.items() if (calls := _kept_allocations(key)) is not None}
+    fresh = [cls for cls in classes if cls.type_name not in known]
+    if fresh:
+        with tempfile.TemporaryDirectory(prefix="flowtex-alloc-") as tmp:
+            found = _children(target, fresh, "allocations", {"NUMBA_CACHE_DIR": tmp})
+        for name, (items, failed) in found.items():
+            calls = sorted({str(call) for item in items for call in item.get("allocations", [])})
+            known[name] = (calls, failed)
+            if failed is None:
+                _keep_allocations(keys[name], calls)
+    return {cls.type_name: known[cls.type_name] for cls in classes}
+
+
+def allocation_key(cls: type[Node]) -> Path | None:
+    """Where the allocation check of ``cls``'s kernel is kept: a file named by a digest of everything its compiled code
+    depends on, as the compile cache keys it (flowtex's source tree, the plugin's code id: any edit to the plugin's
+    folder or package, numba and llvmlite's versions, the ``NUMBA_*`` settings), plus the type and kernel names.
+    None (never kept) for a kernel from neither flowtex nor a plugin folder or registered plugin package: nothing
+    tells when its code changes."""
+    import hashlib
+
+    import llvmlite
+    import numba
+
+    from .cache import folder_in_package, numba_cache_folder, source_fingerprint
+    from .plugincode import plugin_code_of
+
+    kernel = cls.get_kernel()
+    func = getattr(kernel, "py_func", kernel)
+    code = plugin_code_of(func)
+    if code is None and folder_in_package(getattr(getattr(func, "__code__", None), "co_filename", "")) is None:
+        return None
+    settings = sorted((k, v) for k, v in os.environ.items() if k.startswith("NUMBA_") and k != "NUMBA_CACHE_DIR")
+    what = [source_fingerprint(), numba.__version__, llvmlite.__version__, tuple(code) if code else None, settings,
+            cls.type_name, getattr(func, "__module__", ""), getattr(func, "__qualname__", "")]
+    digest = hashlib.sha256(repr(what).encode()).hexdigest()[:32]
+    return numba_cache_folder() / "allocation-checks" / f"{digest}.json"
+
+
+def _kept_allocations(path: Path | None) -> list[str] | None:
+    """The allocator calls kept at ``path``; None when there is no such record or it is unreadable (checked afresh)."""
+    if path is None:
+        return None
+    try:
+        calls = json.loads(path.read_text(encoding="utf-8"))["allocations"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return calls if isinstance(calls, list) and all(isinstance(c, str) for c in calls) else None
+
+
+def _keep_allocations(path: Path | None, calls: list[str]) -> None:
+    """Keep a finished allocation check at ``path`` (atomically; a cache that cannot be written is only slower)."""
+    from .cache import write_cache_file
+
+    if path is None:
+        return
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_cache_file(path, json.dumps({"allocations": calls}).encode())
+    except OSError:
+        pass
 
 
 def runtime_problems(target: str, classes: list[type[Node]]) -> dict[str, list[tuple[int, str]]]:
     """Per type name: (line, message) from :mod:`flowtex.kernelprobe` run in a child process with numba's bounds
     checking on.
 
-    The child compiles into its own numba cache folder (bounds-checked machine code must not
-    replace the normal one), one per flowtex source tree as the normal cache is (:func:`flowtex.cache.source_fingerprint`:
-    numba's own cache, which the child uses there, does not see an edit to a function a kernel calls in another file);
-    a crash or a timeout there is reported, not suffered here.
+    The child compiles into the bounds-checked cache folders (:func:`flowtex.cache.numba_cache_folder`: bounds-checked
+    machine code must not replace the normal one), filed and keyed as the normal cache is: by flowtex's source tree and
+    by the plugin's code id, so an edit to a helper file gives new code and a copy of the plugin folder elsewhere loads
+    what the first compiled (a caller's ``NUMBA_CACHE_DIR`` is not passed on: it would turn that filing off and receive
+    bounds-checked code). A crash or a timeout there is reported, not suffered here.
     """
-    from .cache import cache_dir, prune_other_trees, source_fingerprint
+    from .cache import numba_cache_folder, prune_cache_tree
 
-    folder = cache_dir() / "boundscheck" / source_fingerprint()
-    prune_other_trees(folder)
-    found = _children(target, classes, "runtime", {"NUMBA_BOUNDSCHECK": "1", "NUMBA_CACHE_DIR": str(folder)})
+    prune_cache_tree(numba_cache_folder(boundscheck=True))  # also checks, here, that the cache folder can be written
+    found = _children(target, classes, "runtime", RUNTIME_ENV)
     out = {}
     for name, (items, failed) in found.items():
         out[name] = [(-1 if item.get("located") else int(item["line"]), str(item["message"])) for item in items]
@@ -234,8 +312,12 @@ def check_in_process(cls: type[Node], report: Report) -> bool:
         report.problems.append(f"{type_name_location(cls) or node_where(cls)}: node type {cls.type_name!r} is already defined "
                                f"by {clash}; a graph would refuse to load this plugin: rename it (e.g. 'my_{cls.type_name}')")
     for name in _processor_settings(cls):
-        report.notes.append(f"{node_where(cls, line=attr_line(cls, 'params'))}: note: parameter {name!r} cannot be set "
-                            f"through Node.processor(), whose own keyword {name!r} it is; rename it to use the node on arrays")
+        report.notes.append(f"{node_where(cls, line=attr_line(cls, 'params'))}: note: parameter {name!r} is named like "
+                            f"Node.processor()'s own keyword {name!r}: a processor sets it only as params={{{name!r}: ...}}")
+    for name in _processor_call_keywords(cls):
+        report.notes.append(f"{node_where(cls, line=attr_line(cls, 'inputs'))}: note: input {name!r} is named like a "
+                            f"processor call's own keyword {name!r}: Node.processor() cannot feed it; rename it to use "
+                            "the node on arrays")
     for name, missing in _unbounded(cls):
         report.notes.append(f"{node_where(cls, line=attr_line(cls, 'params'))}: note: parameter {name!r} has no {missing}; "
                             "any such value reaches the kernel (declare bounds, e.g. Param('float', min=0.0, max=1.0))")

@@ -40,6 +40,14 @@ def plain(value: Any) -> Any:
     return value
 
 
+def whole_count(what: str, value: Any, least: int) -> int:
+    """``value`` as an int of at least ``least`` (numpy integers too), or :class:`InputError` naming ``what``."""
+    value = plain(value)
+    if isinstance(value, bool) or not isinstance(value, int) or value < least:
+        raise InputError(f"{what} must be an integer >= {least}, got {excerpt(value)}")
+    return value
+
+
 _REFUSED_KINDS = {"c": "complex", "M": "timestamps (datetime64)", "m": "durations (timedelta64)",
                   "U": "text", "S": "bytes", "V": "structured records", "O": "Python objects"}
 """numpy dtype kinds a signal may not have, and what to call them."""

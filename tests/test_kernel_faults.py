@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import textwrap
-
 import numpy as np
 import pytest
 
@@ -11,54 +9,23 @@ from flowtex.cli import main
 from flowtex.graph.arena import FAULT
 from flowtex.graph.compiled import load_graph
 from flowtex.graph.faults import KernelError
+from tests.plugin_files import chain_graph, plugin_project, plugin_source
 
-PLUGIN = textwrap.dedent('''
-    import numpy as np
-    from numba import njit
+PLUGIN = plugin_source("boom_fault", "boom_kernel", """
+for t in range(x.shape[0]):
+    if x[t, 0] > 99.5:
+        raise ValueError("x too large")
+    y[t, 0] = x[t, 0]
+""", doc="Copies x; raises above 99.5.", cls="Boom")
 
-    from flowtex.node_api import Node, NodeState, Port
-
-
-    @njit(cache=True)
-    def boom_kernel(p, s, si, x, y):
-        for t in range(x.shape[0]):
-            if x[t, 0] > 99.5:
-                raise ValueError("x too large")
-            y[t, 0] = x[t, 0]
-
-
-    class Boom(Node):
-        """Copies x; raises above 99.5."""
-
-        type_name = "boom_fault"
-        inputs = {"x": Port((), "*")}
-        outputs = {"y": Port((), "=x")}
-        kernel = boom_kernel
-    ''')
-
-GRAPH = """\
-flowtex: 1
-name: t
-rate: 1000
-inputs: {x: {}}
-nodes:
-  b: {type: boom_fault}
-  g: {type: gain, params: {k: 2.0}}
-edges: [x -> b.x, b.y -> g.x]
-outputs: {y: g.y}
-"""
+GRAPH = chain_graph("b: {type: boom_fault}", "g: {type: gain, params: {k: 2.0}}")
 
 
 @pytest.fixture(scope="module")
 def project(tmp_path_factory):
     """The plugin, graph and recording, shared by the tests (they read them and must write nothing): one plugin file
     compiles its kernel once, and the fused structure once."""
-    folder = tmp_path_factory.mktemp("faults")
-    (folder / "plugins").mkdir()
-    (folder / "plugins" / "boom_fault.py").write_text(PLUGIN)
-    (folder / "g.yaml").write_text(GRAPH)
-    np.savez(folder / "r.npz", x=np.arange(300.0), rate=1000.0)
-    return folder
+    return plugin_project(tmp_path_factory.mktemp("faults"), {"boom_fault.py": PLUGIN}, GRAPH, np.arange(300.0))
 
 
 def _raise_line() -> int:

@@ -9,6 +9,7 @@ shrinks.
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 from tests.conftest import REPO
@@ -103,13 +104,19 @@ def _is_module(name: str) -> bool:
     return (REPO / rel).with_suffix(".py").is_file() or (REPO / rel / "__init__.py").is_file()
 
 
-def all_imports() -> dict[tuple[str, str], tuple[int, int]]:
+@functools.lru_cache(maxsize=1)  # two tests walk the same files: parse them once per worker
+def _import_edges() -> tuple[tuple[tuple[str, str], tuple[int, int]], ...]:
     edges = {}
     for path in sorted(PACKAGE.rglob("*.py")):
         module = module_name(path)
         for target in imports_of(path, module):
             edges[(module, target)] = (layer_of(module), layer_of(target))
-    return edges
+    return tuple(edges.items())
+
+
+def all_imports() -> dict[tuple[str, str], tuple[int, int]]:
+    """(importing module, imported module) -> (their layers), for every flowtex module's flowtex imports."""
+    return dict(_import_edges())
 
 
 def test_every_module_has_a_layer_and_imports_point_down():

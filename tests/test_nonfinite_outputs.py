@@ -7,44 +7,17 @@ import pytest
 
 from flowtex.cli import main
 from flowtex.dsp.nonfinite import count_nonfinite
+from tests.plugin_files import chain_graph, plugin_project, plugin_source
 
-PLUGIN = '''
-import numpy as np
-from numba import njit
+PLUGIN = plugin_source("ema_power_nf", "ema_kernel", """
+for t in range(x.shape[0]):
+    s[0] = s[0] + p[0] * (x[t, 0] * x[t, 0] - s[0])
+    y[t, 0] = s[0]
+""", doc="Exponential moving power; alpha has no bounds (the mistake under test).", cls="EmaPower",
+    params='{"alpha": Param("float", default=0.01)}', outputs='{"y": Port((), "")}',
+    build='NodeState(params=np.array([self.p["alpha"]]), state=np.zeros(1))')
 
-from flowtex.node_api import Node, NodeState, Param, Port
-
-
-@njit(cache=True)
-def ema_kernel(p, s, si, x, y):
-    for t in range(x.shape[0]):
-        s[0] = s[0] + p[0] * (x[t, 0] * x[t, 0] - s[0])
-        y[t, 0] = s[0]
-
-
-class EmaPower(Node):
-    """Exponential moving power; alpha has no bounds (the mistake under test)."""
-
-    type_name = "ema_power_nf"
-    params = {"alpha": Param("float", default=0.01)}
-    inputs = {"x": Port((), "*")}
-    outputs = {"y": Port((), "")}
-    kernel = ema_kernel
-
-    def build(self, inputs, outputs):
-        return NodeState(params=np.array([self.p["alpha"]]), state=np.zeros(1))
-'''
-
-GRAPH = """\
-flowtex: 1
-name: t
-rate: 1000
-inputs: {x: {}}
-nodes:
-  e: {type: ema_power_nf, params: {alpha: -5}}
-edges: [x -> e.x]
-outputs: {y: e.y, x: x}
-"""
+GRAPH = chain_graph("e: {type: ema_power_nf, params: {alpha: -5}}", outputs="x: x")
 
 
 def _expected(x: np.ndarray) -> str:
@@ -64,13 +37,8 @@ def _expected(x: np.ndarray) -> str:
 def project(tmp_path_factory):
     """The plugin, graph and recording, shared by the tests (they only read them; each writes into its own tmp_path):
     one plugin file compiles its kernel once."""
-    folder = tmp_path_factory.mktemp("nonfinite")
-    (folder / "plugins").mkdir()
-    (folder / "plugins" / "ema_nf.py").write_text(PLUGIN)
-    (folder / "g.yaml").write_text(GRAPH)
     x = np.sin(np.arange(2000) / 7.0)
-    np.savez(folder / "r.npz", x=x, rate=1000.0)
-    return folder, x
+    return plugin_project(tmp_path_factory.mktemp("nonfinite"), {"ema_nf.py": PLUGIN}, GRAPH, x), x
 
 
 def test_run_warns_per_output(project, tmp_path, capsys):

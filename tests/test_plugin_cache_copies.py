@@ -21,6 +21,7 @@ from flowtex.cache import shares_compiled_code
 from flowtex.graph.compiled import load_graph
 from flowtex.graph.faults import KernelError
 from flowtex.registry import forget_plugin_code
+from tests.plugin_files import plugin_project
 
 IMPORTS = """
 import numpy as np
@@ -89,10 +90,7 @@ class _Compiles(event.Listener):
 def _project(root: Path, factor: float = 2.0) -> Path:
     """A graph and its plugin folder under ``root``. The tests use the same factor (the same sources) where they can:
     what one compiles, the next loads, wherever its folder lies."""
-    (root / "plugins").mkdir(parents=True)
-    (root / "plugins" / "copied_scale.py").write_text(textwrap.dedent(PLUGIN).replace("FACTOR", repr(factor)))
-    (root / "g.yaml").write_text(textwrap.dedent(GRAPH))
-    return root
+    return plugin_project(root, {"copied_scale.py": textwrap.dedent(PLUGIN).replace("FACTOR", repr(factor))}, textwrap.dedent(GRAPH))
 
 
 def _run(project: Path, tier: str) -> tuple[np.ndarray, list[str]]:

@@ -11,6 +11,8 @@ import contextlib
 import io
 import os
 import shutil
+import subprocess
+import sys
 import textwrap
 from pathlib import Path
 
@@ -115,13 +117,55 @@ def test_declaration_mistakes_are_reported_by_plugin_check(tmp_path, capsys):
     assert lines == [f"{tmp_path / 'badport.py'}:16: node 'badport_pc': output 'y': shape '=nope' names no input; inputs are: x"]
 
 
-def test_allocation_is_found_in_a_cached_kernel_too(mistakes_report, capsys, monkeypatch):
-    # numba shows no LLVM IR for code loaded from its disk cache: a second check of the mistakes file (its kernels
-    # cached by the fixture's check) must still see the allocation
+def test_allocation_is_found_in_a_cached_kernel_too(mistakes_report, monkeypatch):
+    # numba shows no LLVM IR for code loaded from its disk cache: a second allocation check of the mistakes file (its
+    # kernels cached by the fixture's check) must still see the allocation. Only the allocation step's child runs, for
+    # the one type asserted on (the message it becomes is the fixture tests'): the runtime child and the other kernels'
+    # compiles would cost CPU this assertion does not look at.
+    from flowtex import plugincheck
+
     monkeypatch.chdir(mistakes_report[3].parent)
-    code, lines, _ = _check(capsys, "mistakes.py")
-    assert code == 1
-    assert any("kernel alloc_kernel allocates memory on every call (numba generated NRT_" in line for line in lines)
+    alloc = plugincheck.node_types("mistakes.py")["alloc_pc"]
+    kept = plugincheck.allocation_key(alloc)
+    assert kept is not None and kept.is_file()  # the fixture's check kept what it found ...
+    kept.unlink()  # ... forgotten here, so the child compiles the (cached) kernel afresh
+    found, failed = plugincheck.allocations("mistakes.py", [alloc])["alloc_pc"]
+    assert failed is None and found and all(call.startswith("NRT_") for call in found), found
+    assert plugincheck._kept_allocations(kept) == found
+
+
+def test_a_kept_allocation_check_is_used_for_the_same_code_only(mistakes_report, tmp_path, monkeypatch):
+    """The allocation step compiles every kernel afresh in a child (about 2 s a plugin file). What it found is kept,
+    keyed as the compiled code is: checking the same code again starts no child, a copy of the plugin folder loaded
+    elsewhere (a fresh process, as a user's next ``plugin check``) finds the same record, and any edit to the folder
+    (here a helper file added) has a record of its own. A damaged record counts as none."""
+    from flowtex import plugincheck
+
+    started = []
+    children = plugincheck._children
+    monkeypatch.setattr(plugincheck, "_children", lambda target, classes, mode, env: started.append(mode) or
+                        children(target, classes, mode, env))
+    monkeypatch.chdir(mistakes_report[3].parent)
+    alloc = plugincheck.node_types("mistakes.py")["alloc_pc"]
+    assert plugincheck.allocations("mistakes.py", [alloc])["alloc_pc"][0] and started == []  # the fixture's record
+    kept = plugincheck.allocation_key(alloc)
+    for name, extra in (("copy", False), ("edited", True)):
+        (tmp_path / name).mkdir()
+        shutil.copy(CASES / "mistakes.py", tmp_path / name / "mistakes.py")
+        if extra:
+            (tmp_path / name / "helper.py").write_text("SCALE = 2.0\n")
+    probe = ("import sys; from flowtex import plugincheck\n"
+             "for folder in sys.argv[1:]:\n"
+             "    print(plugincheck.allocation_key(plugincheck.node_types(folder + '/mistakes.py')['alloc_pc']))\n")
+    out = subprocess.run([sys.executable, "-c", probe, str(tmp_path / "copy"), str(tmp_path / "edited")],
+                         capture_output=True, text=True, check=True).stdout.split()
+    assert out[0] == str(kept) and out[1] != str(kept)
+    good = kept.read_bytes()
+    for damaged in (b"", b'{"allocations": [1]}', b"\xff\xfe", b"[]"):
+        kept.write_bytes(damaged)
+        assert plugincheck._kept_allocations(kept) is None
+    kept.write_bytes(good)
+
 
 KILLS = """\
 import os
@@ -177,13 +221,15 @@ def test_a_type_that_kills_the_checking_process_is_named_and_the_next_type_is_st
         assert len(by_type[name]) == 1 and "kernel raised ZeroDivisionError" in by_type[name][0], lines
 
 
-def test_the_bounds_checked_child_compiles_into_a_folder_of_this_source_tree(tmp_path, monkeypatch):
-    """numba's own cache (which the bounds-checked child uses) misses an edit to a function a kernel calls in another
-    file: the child's folder is per flowtex source tree, as flowtex's normal cache is, and older trees' are pruned."""
+def test_the_bounds_checked_child_compiles_into_its_own_tree_of_this_source_tree(tmp_path, monkeypatch):
+    """Bounds-checked code has its own cache tree (numba's keys do not tell it from normal code), one folder per flowtex
+    source tree as the normal cache has; older trees' folders are pruned, and a caller's NUMBA_CACHE_DIR (which would
+    turn flowtex's filing by contents off) is not passed on."""
     from flowtex import plugincheck
-    from flowtex.cache import KEEP_OLD, source_fingerprint
+    from flowtex.cache import KEEP_OLD
 
     monkeypatch.setenv("FLOWTEX_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "callers"))
     older = [tmp_path / "boundscheck" / f"tree{k}" for k in range(KEEP_OLD + 2)]
     for k, folder in enumerate(older):
         folder.mkdir(parents=True)
@@ -191,6 +237,49 @@ def test_the_bounds_checked_child_compiles_into_a_folder_of_this_source_tree(tmp
     seen = {}
     monkeypatch.setattr(plugincheck, "_children", lambda target, classes, mode, env: seen.update(env) or {})
     plugincheck.runtime_problems("any.py", [])
-    assert seen["NUMBA_BOUNDSCHECK"] == "1"
-    assert Path(seen["NUMBA_CACHE_DIR"]) == tmp_path / "boundscheck" / source_fingerprint()
+    env = plugincheck.child_env(seen)
+    assert env["NUMBA_BOUNDSCHECK"] == "1" and "NUMBA_CACHE_DIR" not in env
     assert [f.exists() for f in older] == [False, False] + [True] * KEEP_OLD  # the newest few kept
+
+
+CHECK_ONE = """
+import sys
+from flowtex import kernelprobe
+from flowtex.plugincheck import node_types
+assert kernelprobe.main(["runtime", sys.argv[1], sys.argv[2]]) == 0
+kernel = node_types(sys.argv[1])[sys.argv[2]].get_kernel()
+print(sum(kernel.stats.cache_hits.values()), sum(kernel.stats.cache_misses.values()))
+"""
+"""The runtime checks' child (``python -m flowtex.kernelprobe runtime FILE TYPE``), then its kernel's numba cache hits and
+misses."""
+
+
+def test_a_copied_plugin_folder_is_checked_bounds_checked_without_compiling(tmp_path, monkeypatch):
+    """The bounds-checked cache files a plugin's kernels by its folder's code id, as the normal cache does, so a copy of
+    the folder elsewhere (here: moved, with new file times) is checked by a child that loads what the first compiled;
+    its entries are sealed (a damaged one is rebuilt, flowtex.cache.guard_numba_cache) and stay out of the normal tree."""
+    from flowtex import plugincheck
+    from flowtex.cache import source_fingerprint
+    from flowtex.plugincode import plugin_code_id
+
+    monkeypatch.setenv("FLOWTEX_CACHE_DIR", str(tmp_path / "cache"))  # empty: the first check compiles
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "callers"))
+    first = tmp_path / "first"
+    first.mkdir()
+    shutil.copy(REPO / "plugins" / "soft_clip.py", first)
+    classes = list(plugincheck.node_types(str(first / "soft_clip.py")).values())
+    assert plugincheck.runtime_problems(str(first / "soft_clip.py"), classes) == {"soft_clip": []}
+    entry = tmp_path / "cache" / "boundscheck" / source_fingerprint() / "plugins" / plugin_code_id(first / "soft_clip.py")
+    assert sorted(f.suffix for f in entry.iterdir()) == [".nbc", ".nbi", ".sha256", ".sha256"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cache", "first"]  # nothing in the caller's NUMBA_CACHE_DIR
+    assert [p.name for p in (tmp_path / "cache").iterdir()] == ["boundscheck"]  # nor in the normal tree
+    copy = tmp_path / "elsewhere" / "copy"
+    shutil.copytree(first, copy)
+    shutil.rmtree(first)
+    os.utime(copy / "soft_clip.py", (1.0e9, 1.0e9))
+    done = subprocess.run([sys.executable, "-c", CHECK_ONE, "soft_clip.py", "soft_clip"], cwd=copy, capture_output=True,
+                          env=plugincheck.child_env(plugincheck.RUNTIME_ENV), text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    *items, counts = done.stdout.strip().splitlines()
+    assert items == ['{"start": "soft_clip"}', '{"done": "soft_clip"}']  # checked, no problem
+    assert counts == "1 0"  # one cache hit, no compile

@@ -2,49 +2,18 @@
 
 from __future__ import annotations
 
-import textwrap
-
 import numpy as np
 import pytest
 
 from flowtex.cli import main
+from tests.plugin_files import chain_graph, plugin_project, plugin_source
 
-PLUGIN = textwrap.dedent('''\
-    import numpy as np
-    from numba import njit
+PLUGIN = plugin_source("decl_TAG", "decl_kernel", """
+for t in range(x.shape[0]):
+    y[t, 0] = p[0] * x[t, 0]
+""", doc="Gain.", cls="Decl", params='{"k": Param("float", default=1.0)}', build='NodeState(params=np.array([self.p["k"]]))')
 
-    from flowtex.node_api import Node, NodeState, Param, Port
-
-
-    @njit(cache=True)
-    def decl_kernel(p, s, si, x, y):
-        for t in range(x.shape[0]):
-            y[t, 0] = p[0] * x[t, 0]
-
-
-    class Decl(Node):
-        """Gain."""
-
-        type_name = "decl_TAG"
-        params = {"k": Param("float", default=1.0)}
-        inputs = {"x": Port((), "*")}
-        outputs = {"y": Port((), "=x")}
-        kernel = decl_kernel
-
-        def build(self, inputs, outputs):
-            return NodeState(params=np.array([self.p["k"]]))
-    ''')
-
-GRAPH = """\
-flowtex: 1
-name: t
-rate: 1000
-inputs: {x: {}}
-nodes:
-  d: {type: decl_TAG}
-edges: [x -> d.x]
-outputs: {y: d.y}
-"""
+GRAPH = chain_graph("d: {type: decl_TAG}")
 
 # (case, edit of the plugin, text of the line the error must point at, words of the message)
 CASES = [
@@ -72,10 +41,7 @@ def _setup(tmp_path, case: str, edit: tuple[str, str]) -> str:
     tag = case
     text = PLUGIN.replace("TAG", tag).replace(*edit)
     assert text != PLUGIN.replace("TAG", tag)
-    (tmp_path / "plugins").mkdir()
-    (tmp_path / "plugins" / f"decl_{tag}.py").write_text(text)
-    (tmp_path / "g.yaml").write_text(GRAPH.replace("TAG", tag))
-    np.savez(tmp_path / "r.npz", x=np.arange(5.0), rate=1000.0)
+    plugin_project(tmp_path, {f"decl_{tag}.py": text}, GRAPH.replace("TAG", tag), np.arange(5.0))
     return text
 
 
@@ -101,9 +67,7 @@ def test_a_node_with_too_many_ports_is_refused_with_the_limit(tmp_path, monkeypa
     text = PLUGIN.replace("TAG", "many").replace('inputs = {"x": Port((), "*")}', "inputs = {" + ", ".join(
         f'"{n}": Port((), "*", optional=True)' for n in ["x", *names]) + "}").replace(
         "def decl_kernel(p, s, si, x, y)", f"def decl_kernel(p, s, si, x, {', '.join(names)}, y)")
-    (tmp_path / "plugins").mkdir()
-    (tmp_path / "plugins" / "decl_many.py").write_text(text)
-    (tmp_path / "g.yaml").write_text(GRAPH.replace("TAG", "many"))
+    plugin_project(tmp_path, {"decl_many.py": text}, GRAPH.replace("TAG", "many"))
     monkeypatch.chdir(tmp_path)
     assert main(["validate", "g.yaml"]) == 1
     err = _errors(capsys)
@@ -123,9 +87,7 @@ def test_a_node_at_the_port_limit_runs_on_both_tiers(tmp_path):
         "def decl_kernel(p, s, si, x, y)", f"def decl_kernel(p, s, si, {', '.join(names)}, y)").replace(
         "y[t, 0] = p[0] * x[t, 0]", f"y[t, 0] = p[0] * x0[t, 0] + {names[-1]}[t, 0]").replace(
         "range(x.shape[0])", "range(y.shape[0])")
-    (tmp_path / "plugins").mkdir()
-    (tmp_path / "plugins" / "decl_limit.py").write_text(text)
-    (tmp_path / "g.yaml").write_text(GRAPH.replace("TAG", "limit").replace("x -> d.x", "x -> d.x0"))
+    plugin_project(tmp_path, {"decl_limit.py": text}, GRAPH.replace("TAG", "limit").replace("x -> d.x", "x -> d.x0"))
     x = np.arange(5.0)
     for tier in ("dispatch", "fused"):
         y = load_graph(tmp_path / "g.yaml", tier=tier).run({"x": x})["y"]

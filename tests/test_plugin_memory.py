@@ -9,32 +9,16 @@ import pytest
 
 import flowtex
 from flowtex.errors import FlowtexError
+from tests.plugin_files import plugin_project, plugin_source
 
-POSITIONAL = '''
-import numpy as np
-from numba import njit
-from flowtex.node_api import Node, NodeState, Param, Port
-
-
-@njit(cache=True)
-def _kernel(p, s, si, x, y):
-    for t in range(x.shape[0]):
-        s[0] += p[0] * x[t, 0]
-        si[0] += 1
-        y[t, 0] = s[0] + si[0]
-
-
-class Positional(Node):
-    """Running sum of k x plus the tick count, p/s/si indexed by position."""
-    type_name = "positional_sum"
-    params = {"k": Param("float", default=2.0, min=-10.0, max=10.0)}
-    inputs = {"x": Port((), "*")}
-    outputs = {"y": Port((), "")}
-    kernel = _kernel
-
-    def build(self, inputs, outputs):
-        return NodeState(params=np.array([self.p["k"]]), state=np.zeros(1), istate=np.zeros(1, np.int64))
-'''
+POSITIONAL = plugin_source("positional_sum", "_kernel", """
+for t in range(x.shape[0]):
+    s[0] += p[0] * x[t, 0]
+    si[0] += 1
+    y[t, 0] = s[0] + si[0]
+""", doc="Running sum of k x plus the tick count, p/s/si indexed by position.", cls="Positional",
+    params='{"k": Param("float", default=2.0, min=-10.0, max=10.0)}', outputs='{"y": Port((), "")}',
+    build='NodeState(params=np.array([self.p["k"]]), state=np.zeros(1), istate=np.zeros(1, np.int64))')
 
 DECLARED = '''
 from numba import njit
@@ -83,12 +67,7 @@ outputs: {a: a.y, b: b.y}
 
 @pytest.fixture
 def graph_path(tmp_path):
-    (tmp_path / "plugins").mkdir()
-    (tmp_path / "plugins" / "positional.py").write_text(POSITIONAL)
-    (tmp_path / "plugins" / "declared.py").write_text(DECLARED)
-    path = tmp_path / "g.yaml"
-    path.write_text(textwrap.dedent(GRAPH))
-    return path
+    return plugin_project(tmp_path, {"positional.py": POSITIONAL, "declared.py": DECLARED}, textwrap.dedent(GRAPH)) / "g.yaml"
 
 
 def test_positional_and_declared_plugins_give_the_reference(graph_path):

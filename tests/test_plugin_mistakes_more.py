@@ -2,7 +2,8 @@
 
 tests/plugin_cases/mistakes_more.py: a layout sized by a parameter its declaration lets be 0 (the probe built only at
 the defaults), a kernel writing into its input, a resolve() missing a declared output (an internal KeyError at run),
-a type named like a built-in one and a parameter named like a Node.processor keyword (both passed), uses_seed without
+a type named like a built-in one and a parameter named like a Node.processor keyword (both passed; the keyword, or an
+input named like a processor call's ``ticks``, is a note), uses_seed without
 seed_state (passed; the graph then failed with NotImplementedError), a negative fractional latency (printed as is) and
 own_every() returning 0 (an internal IndentationError in the generated code, ZeroDivisionError at run).
 """
@@ -15,6 +16,7 @@ import numpy as np
 import pytest
 
 from flowtex.cli import main
+from tests.plugin_files import chain_graph, plugin_project
 from tests.test_plugin_check import _line, check_copy
 
 CASE = Path(__file__).parent / "plugin_cases" / "mistakes_more.py"
@@ -56,29 +58,24 @@ def test_each_mistake_is_one_problem_at_its_line(report):
 
 def test_a_parameter_named_like_a_processor_keyword_is_a_note(report):
     _, lines, _, path = report
-    assert (f"m.py:{_line(path, RATE)}: node 'gain': note: parameter 'rate' cannot be set through "
-            "Node.processor(), whose own keyword 'rate' it is; rename it to use the node on arrays") in lines
+    assert (f"m.py:{_line(path, RATE)}: node 'gain': note: parameter 'rate' is named like Node.processor()'s own "
+            "keyword 'rate': a processor sets it only as params={'rate': ...}") in lines
 
 
-GRAPH = """\
-flowtex: 1
-name: t
-rate: 1000
-inputs: {x: {}}
-nodes:
-  d: {type: forgets_output_pc}
-edges: [x -> d.x]
-outputs: {y: d.y}
-"""
+def test_an_input_named_like_a_processor_call_keyword_is_a_note(report):
+    _, lines, _, path = report
+    line = _line(path, 'inputs = {"ticks"')
+    assert (f"m.py:{line}: node 'ticks_input_pc': note: input 'ticks' is named like a processor call's own keyword "
+            "'ticks': Node.processor() cannot feed it; rename it to use the node on arrays") in lines
+
+
+GRAPH = chain_graph("d: {type: forgets_output_pc}")
 
 
 def test_a_resolve_missing_an_output_is_the_plugins_error_at_load(tmp_path, capsys):
     # it was "internal error: KeyError: 'z'" at run, after validate said ok
-    (tmp_path / "plugins").mkdir()
     text = CASE.read_text().replace('type_name = "gain"', 'type_name = "not_gain_pc"').replace("uses_seed = True", "")
-    (tmp_path / "plugins" / "m.py").write_text(text)
-    (tmp_path / "g.yaml").write_text(GRAPH)
-    np.savez(tmp_path / "r.npz", x=np.arange(5.0), rate=1000.0)
+    plugin_project(tmp_path, {"m.py": text}, GRAPH, np.arange(5.0))
     for argv in (["validate", str(tmp_path / "g.yaml")],
                  ["run", str(tmp_path / "g.yaml"), "-i", str(tmp_path / "r.npz"), "-o", str(tmp_path / "o.npz")]):
         assert main(argv) == 1
@@ -90,9 +87,7 @@ def test_a_resolve_missing_an_output_is_the_plugins_error_at_load(tmp_path, caps
 
 
 def test_a_plugin_type_named_like_a_built_in_is_refused_at_its_type_name_line(tmp_path, capsys):
-    (tmp_path / "plugins").mkdir()
-    (tmp_path / "plugins" / "m.py").write_text(CASE.read_text().replace("uses_seed = True", ""))
-    (tmp_path / "g.yaml").write_text(GRAPH)
+    plugin_project(tmp_path, {"m.py": CASE.read_text().replace("uses_seed = True", "")}, GRAPH)
     assert main(["validate", str(tmp_path / "g.yaml")]) == 1
     err = [ln for ln in capsys.readouterr().err.splitlines() if not ln.startswith("flowtex: ")]
     assert len(err) == 1 and err[0].endswith(f"m.py:{_line(CASE, GAIN)}: node type 'gain' is already "
@@ -101,10 +96,8 @@ def test_a_plugin_type_named_like_a_built_in_is_refused_at_its_type_name_line(tm
 
 
 def test_own_every_returning_zero_is_the_plugins_error_at_load(tmp_path, capsys):
-    (tmp_path / "plugins").mkdir()
     text = CASE.read_text().replace('type_name = "gain"', 'type_name = "not_gain_pc"').replace("uses_seed = True", "")
-    (tmp_path / "plugins" / "m.py").write_text(text)
-    (tmp_path / "g.yaml").write_text(GRAPH.replace("forgets_output_pc", "never_runs_pc"))
+    plugin_project(tmp_path, {"m.py": text}, GRAPH.replace("forgets_output_pc", "never_runs_pc"))
     for argv in (["validate", str(tmp_path / "g.yaml")], ["graph", str(tmp_path / "g.yaml")]):
         assert main(argv) == 1
         err = [ln for ln in capsys.readouterr().err.splitlines() if not ln.startswith("flowtex: ")]

@@ -54,11 +54,11 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     def check_replay_files(_resolved: Any) -> None:  # the same, for a replay: the log and the device files it needs
         from ..filecheck import DEVICE_MAP, check_file
-        from ..io.canlog import read_session_checked
+        from ..io.canlog import open_session
 
         if not (args.dbc and args.map):
             raise FlowtexError(f"{args.input}: replaying a CAN session needs --dbc DEVICE.dbc and --map MAP.yaml")
-        read["log"] = read_session_checked(args.input)  # read once: the replay takes it
+        read["log"] = open_session(args.input)  # its start checked: the replay streams it
         check_file(args.map, DEVICE_MAP, args.dbc)  # the DBC too
 
     graph = load_graph_from_args(args, before_compile=check_replay_files if replay else read_recording,

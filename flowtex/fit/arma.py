@@ -18,6 +18,7 @@ GFC (Culbertson et al. 2012's definition) and the LSD are reported beside it.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -78,6 +79,14 @@ class ArmaFit:
         if self.data_variance == 0.0:
             return 0.0
         return self.output_variance / self.data_variance - 1.0
+
+    @property
+    def power_error_db(self) -> float:
+        """The model's output power over the data's variance in dB (0 dB = the same power; -inf for a silent model)."""
+        if self.data_variance == 0.0:
+            return 0.0
+        ratio = self.output_variance / self.data_variance
+        return 10.0 * math.log10(ratio) if ratio > 0.0 else -math.inf
 
     def psd(self, freqs_hz: np.ndarray, rate_hz: float) -> np.ndarray:
         """One-sided PSD S(f) in (units of x)^2 / Hz at ``freqs_hz`` for a signal sampled at ``rate_hz``."""

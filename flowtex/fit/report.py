@@ -64,12 +64,12 @@ def table_lines(fit: TextureFit) -> list[str]:
     """The fit table, one line per model (header first, with the units of speed and force). "LSD floor": what a
     perfect model would score against so short a piece (:func:`lsd_floor_db`)."""
     lines = [f"{'model':>5} {'speed mm/s':>10} {'force N':>7} {'samples':>7} {'order':>7} {'GFC':>6} {'LSD dB':>7} "
-             f"{'LSD floor':>9} {'power err':>9}"]
+             f"{'LSD floor':>9} {'power dB':>8}"]
     for pc in _by_model(fit):
         f = pc.fit
         assert f is not None
         lines.append(f"{pc.model:5d} {pc.speed:10.1f} {pc.force:7.2f} {pc.samples:7d} {f'{f.order[0]},{f.order[1]}':>7} {f.gfc:6.3f} "
-                     f"{pc.lsd_db:7.2f} {lsd_floor_db(fit, pc):9.2f} {100 * f.power_error:8.2f}%")
+                     f"{pc.lsd_db:7.2f} {lsd_floor_db(fit, pc):9.2f} {f.power_error_db:+8.2f}")
     return lines
 
 

@@ -12,6 +12,7 @@ import sys
 from collections.abc import Callable
 
 import numpy as np
+from scipy.integrate import trapezoid
 
 from ..dsp.arma import arma_psd
 from ..dsp.arma_logfit import RESTARTS
@@ -46,7 +47,7 @@ def resample_quality(ar1, ma1, g1, v1, rate1, ar2, ma2, g2, v2, rate2) -> tuple[
                         _resonances_hz(np.asarray(ar2), rate2, f_max)])
     s1 = arma_psd(ar1, ma1, g1, v1, f, rate1)
     s2 = arma_psd(ar2, ma2, g2, v2, f, rate2)
-    band = float(np.trapezoid(s2, f) / np.trapezoid(s1, f) - 1.0)
+    band = float(trapezoid(s2, f) / trapezoid(s1, f) - 1.0)
     return lsd_db(s2, s1, f, min_freq_hz=0.0), band
 
 
@@ -54,7 +55,7 @@ def power_above(ar: np.ndarray, ma: np.ndarray, rate: float, f_hz: float) -> flo
     """Fraction of a model's power above ``f_hz`` (Hz) at ``rate`` Hz (dense trapezoid of its PSD; gain and variance cancel)."""
     f = np.linspace(0.0, 0.5 * rate, 40001)
     s = arma_psd(ar, ma, 1.0, 1.0, f, rate)
-    return float(np.trapezoid(s[f >= f_hz], f[f >= f_hz]) / np.trapezoid(s, f))
+    return float(trapezoid(s[f >= f_hz], f[f >= f_hz]) / trapezoid(s, f))
 
 
 MAX_LSD_DB = 0.5

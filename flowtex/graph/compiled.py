@@ -20,10 +20,10 @@ import numpy as np
 from ..compile.service import check_tier, compile_in_background, compile_tick, default_tier
 from ..dsp.nonfinite import apply_nonfinite_policy  # noqa: F401  (re-exported: its import path before it moved to dsp)
 from ..errors import FlowtexError, InputError
-from ..limits import excerpt
+from ..limits import check_ticks
 from ..node_api import PortSpec, suggest
 from ..nodecheck import check_plugin_kernels
-from ..pyvalues import float_signal, plain
+from ..pyvalues import float_signal, whole_count
 from ..registry import Registry, folder_list, load_registry
 from .arena import FAULT, OUT_WIDTH, TICK, Layout, plan_layout
 from .faults import dispatch_fault, raised_fault
@@ -41,7 +41,7 @@ class Graph:
 
     def __init__(self, resolved: ResolvedGraph, block_rows: int = DEFAULT_BLOCK_ROWS, tier: str | None = None):
         """``tier``: ``fused``, ``dispatch`` or ``auto`` (docs/engine.md); default ``$FLOWTEX_COMPILE`` or ``fused``."""
-        block_rows = _count("block_rows", block_rows, 1)
+        block_rows = whole_count("block_rows", block_rows, 1)
         self.resolved = resolved
         self.spec: GraphSpec = resolved.spec
         self.layout: Layout = plan_layout(resolved, block_rows)
@@ -109,7 +109,7 @@ class Graph:
     def reset(self, seed: int | None = None) -> None:
         """Restore the initial state; re-seed random nodes with ``seed`` (default: the graph's)."""
         if seed is not None:
-            self.seed = _count("seed", seed, 0)
+            self.seed = whole_count("seed", seed, 0)
         self.layout.initial_floats(self.f)
         self.i[:] = self._i0
         self._held = {}
@@ -152,11 +152,13 @@ class Graph:
             return {name: np.concatenate([p[name] for p in parts]) for name in self.layout.out_columns}
         return self._run_chunk(arrays, total)
 
-    def _run_chunk(self, arrays: dict[str, np.ndarray], total: int) -> dict[str, np.ndarray]:
-        if len(arrays) == 1:  # one input: its own memory is already the layout run() reads
-            X = np.ascontiguousarray(next(iter(arrays.values()))).reshape(-1)
-            if not X.flags.aligned:  # run() addresses X in 8-byte steps from the arena: an unaligned array would be read shifted
-                X = X.copy()  # (e.g. an array Dask deserialized on a worker from a frame at an odd offset)
+    def _run_chunk(self, arrays: dict[str, np.ndarray], total: int, owned: bool = False) -> dict[str, np.ndarray]:
+        """Run ``total`` ticks over ``arrays``. Kernels read graph inputs in place in ``X``, through raw pointers that no
+        read-only flag guards, so ``X`` is always flowtex's own copy unless ``owned`` says the arrays already are: a
+        kernel that writes its input (a plugin mistake) then never reaches the caller's data."""
+        if len(arrays) == 1:  # one input: its copy (aligned, C order) is already the layout run() reads
+            only = next(iter(arrays.values()))
+            X = np.ascontiguousarray(only).reshape(-1) if owned else np.array(only, dtype=np.float64, order="C").reshape(-1)
         else:
             X = np.concatenate([np.ascontiguousarray(arrays[name]).reshape(-1) for name in self.layout.in_columns]) \
                 if arrays else np.empty(0)
@@ -319,18 +321,12 @@ class Graph:
 
     def run_ticks(self, n: int, seed: int | None = None) -> dict[str, np.ndarray]:
         """Reset and run ``n`` ticks with every graph input held at zero (e.g. a noise generator)."""
-        n = _count("n", n, 0)
+        n = whole_count("n", n, 0)
+        check_ticks(f"graph {self.name!r}: run_ticks n", n, int(self.i[OUT_WIDTH]) + sum(w for _c, w in self.layout.in_columns.values()),
+                    "run fewer ticks")
         self.reset(seed)
         zeros = {name: np.zeros((n, w)) for name, (_col, w) in self.layout.in_columns.items()}
-        return self._run_chunk(zeros, n)
-
-
-def _count(what: str, value: Any, least: int) -> int:
-    """``value`` as an int of at least ``least`` (numpy integers too), or :class:`InputError` naming ``what``."""
-    value = plain(value)
-    if isinstance(value, bool) or not isinstance(value, int) or value < least:
-        raise InputError(f"{what} must be an integer >= {least}, got {excerpt(value)}")
-    return value
+        return self._run_chunk(zeros, n, owned=True)
 
 
 def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,

@@ -14,7 +14,7 @@ from ..errors import DataError, FlowtexError, ParamError
 from ..limits import port_values_problem
 from ..node_api import BuildContext, Port, PortSpec, expected_shape, simplify_unit
 from ..node_params import load_files
-from ..nodecheck import checked_every, checked_outputs, is_plugin, plugin_raised
+from ..nodecheck import checked_outputs, is_plugin, plugin_raised, scheduled_every
 from .resolved import GraphChecker, ResolvedNode, param_loc
 from .spec import EdgeSpec
 
@@ -186,15 +186,10 @@ def _hint_from_mismatch(rn: ResolvedNode, port: Port, port_name: str, got: PortS
 def _own_schedule(ck: GraphChecker, rn: ResolvedNode, input_every: dict[str, int]) -> bool:
     """Apply a node's own schedule (:meth:`Node.own_every`) to ``rn.spec.every``; False after an error."""
     try:
-        own = rn.cls.own_every(rn.params, ck.spec.rate, input_every)
+        own = scheduled_every(rn.cls, rn.spec.name, rn.params, ck.spec.rate, input_every)
     except ParamError as exc:
         ck.error(param_loc(rn, exc.param), f"node {rn.spec.name!r} ({rn.cls.type_name}): {exc}")
         return False
-    except Exception as exc:
-        if not is_plugin(rn.cls):
-            raise  # flowtex's own bug: an internal error
-        raise plugin_raised(rn.cls, rn.spec.name, "own_every", exc) from None
-    own = checked_every(rn.cls, rn.spec.name, own)
     if own is None:
         return True
     if rn.spec.every not in (1, own):

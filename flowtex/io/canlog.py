@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import can
@@ -20,7 +20,7 @@ from ..errors import DataError
 from ..limits import MAX_CANLOG_BYTES, check_file_size
 from .atomic import atomic_output
 from .canlog_blf import read_blf
-from .canlog_text import read_text_log
+from .canlog_text import TextLogFrames
 from .formats import CAN_LOG, suffixes
 
 WRITE_SUFFIXES = READ_SUFFIXES = suffixes(CAN_LOG)
@@ -128,23 +128,12 @@ class SessionWriter:
 
 
 def read_session(path: str | Path) -> Iterator[can.Message]:
-    """Frames of a session log in file order (with their ``is_rx`` direction).
+    """Frames of a session log in file order (with their ``is_rx`` direction), read as they are iterated.
 
     Errors in a text log (.log, .asc) name the file and line (:mod:`flowtex.io.canlog_text`); a BLF is read within
     bounds on what it claims (:mod:`flowtex.io.canlog_blf`). Every log is refused beyond
     :data:`~flowtex.limits.MAX_CANLOG_BYTES` or :data:`~flowtex.limits.MAX_CANLOG_FRAMES`."""
-    path = _readable_log(path)
-    if path.suffix.lower() != ".blf":
-        yield from read_text_log(path, whole_only=False)[0]
-        return
-    try:
-        yield from read_blf(path)
-    except DataError:
-        raise
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read CAN log: {exc.strerror or exc}") from None
-    except Exception as exc:  # python-can raises various errors for a malformed container
-        raise DataError(f"{path}: malformed CAN log: {exc}") from None
+    yield from SessionFrames(path, whole_only=False)
 
 
 def _readable_log(path: str | Path) -> Path:
@@ -169,35 +158,101 @@ class LogCompleteness:
     problem: str | None = None
     """None when the log is complete as far as its format can tell; else why it is not (one phrase)."""
     lines: tuple[int, ...] = ()
-    """A text log's line of each frame (1-based), for errors about a frame; empty for a BLF."""
+    """A text log's line of each frame (1-based), for errors about a frame; empty for a BLF and from
+    :class:`SessionFrames` (which names the frame being read instead: :meth:`SessionFrames.place`)."""
+
+
+class SessionFrames:
+    """The frames of a session log in file order, read one at a time as they are iterated: memory stays bounded
+    whatever the log's length (the readers hold one text line, or one BLF container of at most
+    :data:`~flowtex.limits.MAX_BLF_CONTAINER_BYTES`). Iterating again reads the file again.
+
+    While iterating, :meth:`place` names the frame last yielded (``s.log:17``, ``s.blf (frame 17)``); once every frame
+    is read, :attr:`completeness` says whether the file was cut short (see :func:`read_session_checked`).
+    ``whole_only``: a text log's last line without a newline (cut off) is not read (else it is read, and named if malformed).
+    """
+
+    def __init__(self, path: str | Path, whole_only: bool = True):
+        self.path = _readable_log(path)
+        self._whole_only = whole_only
+        self.number = 0
+        """1-based position in the log of the frame last yielded."""
+        self.line = 0
+        """Line of the frame last yielded in a text log (0 in a BLF)."""
+        self.completeness: LogCompleteness | None = None
+        """None until every frame was read."""
+
+    def __iter__(self) -> Iterator[can.Message]:
+        self.number, self.line, self.completeness = 0, 0, None
+        if self.path.suffix.lower() != ".blf":
+            text = TextLogFrames(self.path, self._whole_only)
+            for msg in text:
+                self.number += 1
+                self.line = text.line
+                yield msg
+            self.completeness = LogCompleteness(self.number, None, "its last line is cut off" if text.cut else None)
+            return
+        try:
+            for msg in read_blf(self.path):
+                self.number += 1
+                yield msg
+        except DataError:
+            raise
+        except OSError as exc:
+            raise DataError(f"{self.path}: cannot read CAN log: {exc.strerror or exc}") from None
+        except Exception as exc:  # python-can raises various errors for a malformed container
+            raise DataError(f"{self.path}: malformed CAN log: {exc}") from None
+        self.completeness = _blf_completeness(self.path, self.number)
+
+    def place(self) -> str:
+        """Where the frame last yielded is, for errors: ``s.log:17`` (its line) or ``s.blf (frame 17)`` (its position)."""
+        return f"{self.path}:{self.line}" if self.line else f"{self.path} (frame {self.number})"
+
+    def check_start(self, frames: int = 1000) -> None:
+        """Read the log's header and its first ``frames`` frames, and drop them: a file that is no log, a header
+        claiming more than the limits or a malformed first line fails here, in one line, before a long compile."""
+        for n, _ in enumerate(self, 1):
+            if n >= frames:
+                break
+
+
+def open_session(path: str | Path) -> SessionFrames:
+    """The session log at ``path``, checked at its start (:meth:`SessionFrames.check_start`: a bad log fails fast) and
+    ready to be streamed once more, from its first frame, by the replay."""
+    session = SessionFrames(path)
+    session.check_start()
+    return session
 
 
 def read_session_checked(path: str | Path) -> tuple[list[can.Message], LogCompleteness]:
-    """Every frame of a session log (:func:`read_session`) and whether the file was cut short.
+    """Every frame of a session log (:func:`read_session`), held in a list, and whether the file was cut short.
 
     python-can reads a truncated BLF silently up to the cut (zlib returns what it can), so the file's
     header is compared with what was read: the header's file size and frame count (written when the
     log is closed) against the file's size and the frames found. A header never written (size
     144 bytes, no frames, a longer file) means the writer was killed. A text log (.log, .asc) is cut
-    when its last line has no newline.
+    when its last line has no newline: the frames of the lines before it are read.
+    The replay streams the log instead (:class:`SessionFrames`); this holds every frame, for small logs and tests.
     """
-    path = Path(path)
-    if path.suffix.lower() != ".blf":
-        return _read_text_log(path)
-    frames = list(read_session(path))
-    found, size = len(frames), path.stat().st_size
+    session = SessionFrames(path)
+    frames: list[can.Message] = []
+    lines: list[int] = []
+    for msg in session:
+        frames.append(msg)
+        lines.append(session.line)
+    assert session.completeness is not None  # set once the frames are all read
+    return frames, replace(session.completeness, lines=tuple(lines) if session.line else ())
+
+
+def _blf_completeness(path: Path, found: int) -> LogCompleteness:
+    """A BLF's header (size and frame count, written when the log is closed) against its file and the ``found`` frames."""
+    size = path.stat().st_size
     with open(path, "rb") as fh:
         header = FILE_HEADER_STRUCT.unpack(fh.read(FILE_HEADER_STRUCT.size))
     stated_size, count = int(header[10]), int(header[12])
     if stated_size == FILE_HEADER_SIZE and count == 0 and size > FILE_HEADER_SIZE:
-        return frames, LogCompleteness(found, None, "its header was never written (was the recording session killed?)")
+        return LogCompleteness(found, None, "its header was never written (was the recording session killed?)")
     if size < stated_size or found < count:
-        return frames, LogCompleteness(found, count, f"{size} of the {stated_size} bytes and {found} of the {count} frames its "
-                                                     "header states are in the file")
-    return frames, LogCompleteness(found, count)
-
-
-def _read_text_log(path: Path) -> tuple[list[can.Message], LogCompleteness]:
-    """A .log/.asc session; when its last line has no newline (cut off), the frames of the lines before it."""
-    frames, lines, cut = read_text_log(_readable_log(path), whole_only=True)
-    return frames, LogCompleteness(len(frames), None, "its last line is cut off" if cut else None, tuple(lines))
+        return LogCompleteness(found, count, f"{size} of the {stated_size} bytes and {found} of the {count} frames its "
+                                             "header states are in the file")
+    return LogCompleteness(found, count)

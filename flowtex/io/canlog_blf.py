@@ -25,6 +25,7 @@ from can.io.blf import (
     BLFReader,
 )
 
+from .. import limits
 from ..errors import DataError
 from ..limits import MAX_BLF_CONTAINER_BYTES, MAX_CANLOG_BYTES, check_frames
 
@@ -49,7 +50,8 @@ def read_blf(path: Path) -> Iterator[can.Message]:
     reader = BoundedBLFReader(path)
     try:
         for count, msg in enumerate(reader, 1):
-            check_frames(f"{path} (frame {count:,})", count)
+            if count > limits.MAX_CANLOG_FRAMES:
+                check_frames(f"{path} (frame {count:,})", count)
             yield msg
     finally:
         reader.stop()

@@ -252,31 +252,42 @@ class AscCheck:
         return None
 
 
-def read_text_log(path: Path, whole_only: bool) -> tuple[list[can.Message], list[int], bool]:
-    """Frames of a .log or .asc session, the line of each, and whether its last line was cut (``whole_only``).
+class TextLogFrames:
+    """The frames of a .log or .asc session, read one line at a time as they are iterated (memory bounded whatever the
+    log's length); :attr:`line` is the line of the frame last yielded and, once every frame is read, :attr:`cut` says
+    whether the last line had no newline (``whole_only``: that line is then not read).
 
     Raises DataError ``FILE:LINE: ...`` for a line that is not text, a .log line that is malformed, any error
     python-can raises while reading a line, and a frame past :data:`~flowtex.limits.MAX_CANLOG_FRAMES`.
     """
-    asc = path.suffix.lower() == ".asc"
-    frames: list[can.Message] = []
-    lines: list[int] = []
-    try:
-        fh = open(path, "rb")
-    except OSError as exc:
-        raise DataError(f"{path}: cannot read CAN log: {exc.strerror or exc}") from None
-    with fh:
-        source = NumberedLines(fh, path, whole_only, AscCheck() if asc else candump_problem)
-        reader = can.ASCReader(source) if asc else can.CanutilsLogReader(source)
+
+    def __init__(self, path: Path, whole_only: bool):
+        self.path, self._whole_only = path, whole_only
+        self.line = 0
+        self.cut = False
+
+    def __iter__(self) -> Iterator[can.Message]:
+        path = self.path
+        asc = path.suffix.lower() == ".asc"
         try:
-            for msg in reader:
-                check_frames(f"{path}:{source.number}", len(frames) + 1)
-                frames.append(msg)
-                lines.append(source.number)
-        except DataError:
-            raise
+            fh = open(path, "rb")
         except OSError as exc:
             raise DataError(f"{path}: cannot read CAN log: {exc.strerror or exc}") from None
-        except Exception as exc:  # python-can raises ValueError, IndexError, ... on a line it cannot parse
-            raise source.error(f"malformed {'ASC' if asc else 'CAN log'} line ({exc})") from None
-    return frames, lines, source.cut
+        with fh:
+            source = NumberedLines(fh, path, self._whole_only, AscCheck() if asc else candump_problem)
+            reader = can.ASCReader(source) if asc else can.CanutilsLogReader(source)
+            count = 0
+            try:
+                for msg in reader:
+                    count += 1
+                    if count > limits.MAX_CANLOG_FRAMES:
+                        check_frames(f"{path}:{source.number}", count)
+                    self.line = source.number
+                    yield msg
+            except DataError:
+                raise
+            except OSError as exc:
+                raise DataError(f"{path}: cannot read CAN log: {exc.strerror or exc}") from None
+            except Exception as exc:  # python-can raises ValueError, IndexError, ... on a line it cannot parse
+                raise source.error(f"malformed {'ASC' if asc else 'CAN log'} line ({exc})") from None
+            self.cut = source.cut

@@ -23,7 +23,7 @@ never sent on the bus. A live session refuses a map that sends on these IDs
 from __future__ import annotations
 
 import struct
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import can
@@ -74,27 +74,33 @@ class AudioTimeline:
     played: int | None = None
 
 
-def split_events(frames: Sequence[can.Message]) -> tuple[AudioTimeline | None, list[can.Message]]:
-    """The timeline held by ``frames`` (None if they hold no START event) and the other frames, in order."""
-    timeline: AudioTimeline | None = None
-    rest = []
-    for m in frames:
+class TimelineEvents:
+    """Collects the timeline events of a session log's frames fed in order, one at a time (the replay streams the log).
+
+    :meth:`take` says whether a frame is an event (then kept here, else left to the caller); :attr:`timeline` is the
+    timeline found so far (None until a START event). Its lists grow with the events (a few per stall), not the frames."""
+
+    def __init__(self) -> None:
+        self.timeline: AudioTimeline | None = None
+
+    def take(self, m: can.Message) -> bool:
+        """True when ``m`` is a timeline event (an event before START is taken and ignored: not a timeline flowtex wrote)."""
         if not is_event(m):
-            rest.append(m)
-            continue
+            return False
         kind = m.arbitration_id - AUDIO_EVENT_BASE
         a, b, c = _PACK.unpack(bytes(m.data))
+        timeline = self.timeline
         if kind == START:
-            timeline = AudioTimeline(lead=a, fade=b, margin=c)
+            self.timeline = AudioTimeline(lead=a, fade=b, margin=c)
         elif timeline is None:
-            continue  # an event before START: not a timeline flowtex wrote
+            pass
         elif kind == RESYNC:
             timeline.resyncs.append((a, b))
         elif kind == SILENCE:
             timeline.silences.append((a, b, c))
         else:
             timeline.total, timeline.played = a, b
-    return timeline, rest
+        return True
 
 
 class SilenceRuns:

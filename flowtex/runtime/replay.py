@@ -1,4 +1,4 @@
-"""Replay a recorded live session (.blf/.log) offline through the same graph.
+"""Replay a recorded live session (.blf/.log/.asc) offline through the same graph.
 
 Tick boundaries come from the runtime's own frames. The live loop sends exactly
 one frame per actuator message every tick, in the map's order, after decoding the
@@ -11,10 +11,15 @@ every complete block closes one tick; the frames received (``is_rx=True``) since
 the previous block are that tick's inputs. The **last** block is the safe values
 sent at exit and is not a graph tick; received frames after the last regular
 block (a tick that failed) are ignored. A log cut short (a truncated file, a BLF
-whose header was never written; :func:`~flowtex.io.canlog.read_session_checked`)
+whose header was never written; :attr:`~flowtex.io.canlog.SessionFrames.completeness`)
 has no exit block: every complete block is a tick, and the report says how many
 ticks the session had (from the BLF header's frame count) and how many were found. Frames with ids the map does not read are
 skipped, as the live loop skips them.
+
+The log is streamed (:class:`~flowtex.io.canlog.SessionFrames`): a tick is replayed once the block after it is read
+(the last block may be the exit block, which only the end of the log tells), so the frames held are those of two ticks,
+whatever the session's length. What grows with the session: the ``.npz``/audio outputs (8 bytes a value a tick, in
+arrays that double when full) and the lists of mismatched ticks (one int each).
 
 For every tick the replay decodes the same frames with the same decoder as the live tick into the
 graph inputs, steps the graph (reset with the same seed), guards the outputs with
@@ -33,168 +38,94 @@ else as ``unexplained`` (a real mismatch).
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import can
 import numpy as np
 
+from .. import limits
 from ..errors import DataError
 from ..graph.program import TickProgram
 from ..io.atomic import atomic_output
-from ..io.canlog import LogCompleteness, SessionWriter, read_session_checked
+from ..io.canlog import SessionFrames, SessionWriter
 from ..io.codec_tables import decode_packed
 from ..io.formats import AUDIO, CAN_LOG, RECORDING, format_of
-from .audio_timeline import split_events
+from .audio_timeline import TimelineEvents
 from .canio import CanIO, load_io
+from .replay_report import ReplayReport, expected_ticks
 from .safety import Watchdog
 from .tick import rx_decoder
 
+__all__ = ["ReplayReport", "replay_session"]
 
-@dataclass
-class ReplayReport:
-    """Outcome of :func:`replay_session`; ``str(report)`` is :meth:`summary`, what ``flowtex run --input SESSION`` prints.
-
-    Every tick whose live actuator frames differ from the replayed ones is in
-    ``mismatched_ticks`` and in exactly one of ``watchdog_ticks`` (a stale sensor),
-    ``overrun_ticks`` (the overrun watchdog) or ``unexplained_ticks`` (neither).
-    """
-
-    ticks: int
-    frames_in: int
-    frames_out: int
-    exit_block: bool
-    """True when the log ends with the exit block of safe values (a clean live exit)."""
-    mismatched_ticks: list[int] = field(default_factory=list)
-    watchdog_ticks: list[int] = field(default_factory=list)
-    """Mismatched ticks at which the replay's input watchdog finds a stale sensor: live sent the safe values."""
-    overrun_ticks: list[int] = field(default_factory=list)
-    """Mismatched ticks with every sensor fresh at which live sent exactly the safe values: the overrun watchdog
-    (a tick that started more than ``overrun_limit_ms`` late, skipped deadlines included, and the ticks after it
-    until every sensor had sent a fresh frame). The live run logged each such event; the log of frames cannot
-    show the lateness, so the replay recognises them by the safe values."""
-    unexplained_ticks: list[int] = field(default_factory=list)
-    """Mismatched ticks no watchdog explains: live sent values other than the safe ones. A real difference: was the
-    session run with another graph, parameters, ``--seed``, DBC or map?"""
-    output_path: Path | None = None
-    session_path: Path | None = None
-    audio_lines: list[str] = field(default_factory=list)
-    """With ``expect_audio``: one line per class of audio frames (:func:`~flowtex.runtime.audio_check.check_audio`)."""
-    audio_unexplained: int = 0
-    """Audio frames that differ from the live WAV and that the session's audio timeline does not explain."""
-    truncated: str | None = None
-    """Why the log does not hold the whole session (:func:`~flowtex.io.canlog.read_session_checked`), or None.
-    A truncated log has no exit block: its last complete block is replayed as a tick."""
-    expected_ticks: float | None = None
-    """Ticks the whole session had, from the frames the BLF header counts (None: the log does not say)."""
-
-    @property
-    def identical(self) -> bool:
-        return not self.mismatched_ticks
-
-    def summary(self) -> str:
-        """A few lines for the terminal: what was replayed, which ticks match, and why the others differ."""
-        source = f" of {self.session_path}" if self.session_path is not None else ""
-        ending = "ends with the exit block of safe values" if self.exit_block else "has no exit block (was the session killed?)"
-        if self.truncated:
-            ending = f"is TRUNCATED: {self.truncated}"
-        lines = [f"replayed {self.ticks} ticks{source} ({self.frames_in} frames received, {self.frames_out} sent live; the log {ending})"]
-        if self.truncated:
-            said = (f"expected {_expected(self.expected_ticks)} ticks, found {self.ticks}" if self.expected_ticks is not None
-                    else f"found {self.ticks} ticks; the log does not say how many the session had")
-            lines.append(f"{said}: the rest of the session is not in the log, so nothing can be said about it")
-        same = self.ticks - len(self.mismatched_ticks)
-        lines.append(f"{_count(same)}: actuator frames equal to the live ones byte for byte"
-                     + (" (all of them)" if self.identical and self.ticks and not self.truncated else ""))
-        if self.watchdog_ticks:
-            lines.append(f"{_count(len(self.watchdog_ticks))} ({_ranges(self.watchdog_ticks)}): live sent the safe values because a sensor "
-                         "was stale (input watchdog, recomputed by the replay)")
-        if self.overrun_ticks:
-            lines.append(f"{_count(len(self.overrun_ticks))} ({_ranges(self.overrun_ticks)}): live sent the safe values with every sensor "
-                         "fresh: the overrun watchdog (a tick started more than overrun_limit_ms late, or the ticks after it until "
-                         "every sensor sent a fresh frame; the live run logged it)")
-        if self.unexplained_ticks:
-            lines.append(f"{_count(len(self.unexplained_ticks))} ({_ranges(self.unexplained_ticks)}): DIFFER from the live frames and no "
-                         "watchdog explains it: was the session run with another graph, parameters, --seed, DBC or map?")
-        lines.extend(self.audio_lines)
-        if self.output_path is not None:
-            lines.append(f"wrote {self.output_path}")
-        return "\n".join(lines)
-
-    __str__ = summary
+Tick = tuple[list[can.Message], list[can.Message]]
+"""One tick of a session log: the frames received, then the actuator block sent."""
 
 
-def _expected(ticks: float) -> str:
-    """``2000``, or ``about 1999`` when the frames per tick were not constant."""
-    n = round(ticks)
-    return f"{n}" if abs(ticks - n) < 1e-9 else f"about {n}"
+class _Counts:
+    """Frames of the log seen by :func:`_ticks`: all but the timeline events, received and sent (error frames aside)."""
+
+    def __init__(self) -> None:
+        self.frames = self.received = self.sent = 0
 
 
-def expected_ticks(expected_frames: int, ticks: list[tuple[list, list]], block: int) -> float | None:
-    """Ticks a whole session had, from the frame count of its log's header: each tick is its received frames
-    and one block of ``block`` actuator frames, plus one exit block; received frames a tick as in the ``ticks`` found."""
-    if not ticks:
-        return None
-    per_tick = block + sum(len(rx) for rx, _ in ticks) / len(ticks)
-    return max(float(len(ticks)), (expected_frames - block) / per_tick)
-
-
-def _count(n: int) -> str:
-    return f"{n} tick" + ("" if n == 1 else "s")
-
-
-def _ranges(ticks: list[int], n: int = 6) -> str:
-    """``[3, 4, 5, 9]`` -> ``"3-5, 9"`` (the first ``n`` runs, then ``...``)."""
-    runs: list[list[int]] = []
-    for t in ticks:
-        if runs and t == runs[-1][1] + 1:
-            runs[-1][1] = t
-        else:
-            runs.append([t, t])
-    text = ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in runs[:n])
-    return text + (", ..." if len(runs) > n else "")
-
-
-def _frame_places(path: Path, frames: list[can.Message], lines: tuple[int, ...]) -> Callable[[can.Message], str]:
-    """``place(frame)``: where a frame of the log is, for errors: ``s.log:17`` (its line in a text log) or
-    ``s.blf (frame 17)`` (its 1-based position in a BLF)."""
-    at = {id(m): (lines[i] if lines else i + 1) for i, m in enumerate(frames)}
-    if lines:
-        return lambda m: f"{path}:{at[id(m)]}"
-    return lambda m: f"{path} (frame {at[id(m)]})"
-
-
-def _split_ticks(frames: list[can.Message], tx_ids: list[tuple[int, bool]], place: Callable[[can.Message], str],
-                 complete: bool = True) -> tuple[list[tuple[list, list]], bool]:
-    """Group frames into ``(received, sent block)`` per tick, following the module's rule (the last block is the
-    exit block only in a ``complete`` log); ``place`` locates a frame for an error (:func:`_frame_places`)."""
-    ticks: list[tuple[list, list]] = []
+def _ticks(frames: SessionFrames, tx_ids: list[tuple[int, bool]], events: TimelineEvents, counts: _Counts) -> Iterator[Tick]:
+    """Every complete ``(received, sent block)`` of the log in order, yielded as its block completes (the module's rule;
+    which block is the exit block the caller decides at the end). Timeline events go to ``events``; ``counts`` counts
+    the other frames. A frame out of place is a DataError naming it (:meth:`~flowtex.io.canlog.SessionFrames.place`)."""
     rx: list[can.Message] = []
     block: list[can.Message] = []
     k = len(tx_ids)
     for msg in frames:
+        if events.take(msg):
+            continue
+        counts.frames += 1
         if msg.is_error_frame:
             continue
         if msg.is_rx:
+            counts.received += 1
             if block:
-                raise DataError(f"{place(msg)}: frame {msg.arbitration_id:#x} received in the middle of an actuator block; "
+                raise DataError(f"{frames.place()}: frame {msg.arbitration_id:#x} received in the middle of an actuator block; "
                                 "not a flowtex live session log")
+            if len(rx) >= limits.MAX_TICK_FRAMES:
+                raise DataError(f"{frames.place()}: more than {limits.MAX_TICK_FRAMES:,} frames received in one tick (since the "
+                                "last actuator block); flowtex replays up to that many (flowtex.limits.MAX_TICK_FRAMES): is "
+                                "this a flowtex live session log?")
             rx.append(msg)
             continue
+        counts.sent += 1
         expect = tx_ids[len(block)]
         if (msg.arbitration_id, bool(msg.is_extended_id)) != expect:
-            raise DataError(f"{place(msg)}: sent frame {msg.arbitration_id:#x} where the map's actuator message {expect[0]:#x} was expected; "
+            raise DataError(f"{frames.place()}: sent frame {msg.arbitration_id:#x} where the map's actuator message {expect[0]:#x} was expected; "
                             "was this session recorded with the same map?")
         block.append(msg)
         if len(block) == k:
-            ticks.append((rx, block))
+            yield rx, block
             rx, block = [], []
-    exit_block = bool(ticks) and complete
-    if exit_block:
-        ticks.pop()
-    return ticks, exit_block
+
+
+class _Rows:
+    """One graph output's value at every replayed tick, in a float64 array that doubles when full: 8 bytes a value a
+    tick, at most twice that once grown (three times while it is copied)."""
+
+    def __init__(self, shape: tuple[int, ...]):
+        self._data = np.zeros((256, *shape))
+        self.n = 0
+
+    def append(self, row: np.ndarray) -> None:
+        if self.n == self._data.shape[0]:
+            grown = np.zeros((2 * self.n, *self._data.shape[1:]))
+            grown[:self.n] = self._data
+            self._data = grown
+        self._data[self.n] = row.reshape(self._data.shape[1:])
+        self.n += 1
+
+    @property
+    def array(self) -> np.ndarray:
+        """The rows appended so far (a view)."""
+        return self._data[:self.n]
 
 
 def _tick_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[can.Message], int], None]:
@@ -222,32 +153,24 @@ def _tick_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[can.Message],
 
 def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str | Path, map_path: str | Path,
                    output_path: str | Path | None = None, seed: int | None = None,
-                   expect_audio: str | Path | None = None,
-                   log: tuple[list[can.Message], LogCompleteness] | None = None) -> ReplayReport:
+                   expect_audio: str | Path | None = None, log: SessionFrames | None = None) -> ReplayReport:
     """Run ``graph`` over the frames a live session received, and compare with what it sent.
 
     ``output_path``: ``.npz`` writes the graph outputs (time first, plus ``rate``);
     ``.blf``/``.log``/``.asc`` writes the actuator frames the graph would have sent
-    (timestamps copied from the live frames); None writes nothing.
+    (timestamps copied from the live frames); None writes nothing. Written atomically: an error
+    found anywhere in the log leaves no partial file (and an older one as it was).
     ``seed`` must be the live session's (``--seed``; default the graph's).
     ``expect_audio``: the session's ``--record-audio`` WAV, checked frame by frame against the stream rebuilt from the
     replay and the log's audio timeline (``report.audio_lines``, ``report.audio_unexplained``).
-    ``log``: the session log already read (:func:`~flowtex.io.canlog.read_session_checked`; the command line reads it
-    before the compile), so a long log is not read twice.
+    ``log``: the session log already opened and checked at its start (:func:`~flowtex.io.canlog.open_session`; the
+    command line does so before the compile). The log is read once, streamed (see the module docstring).
     """
     session_path = Path(session_path)
     io = load_io(graph, dbc_path, map_path)
     if not io.tx:
         raise DataError(f"{map_path}: the map binds no outputs, so the session has no actuator blocks to mark ticks")
-    frames, completeness = log if log is not None else read_session_checked(session_path)
-    place = _frame_places(session_path, frames, completeness.lines)
-    timeline, frames = split_events(frames)
-    ticks, exit_block = _split_ticks(frames, io.tx_ids, place, completeness.problem is None)
-    if not ticks:
-        ids = ", ".join(f"{fid:#x}" for fid, _ in io.tx_ids)
-        what = "no frame at all" if not frames else f"{len(frames)} frame(s) but no complete tick"
-        raise DataError(f"{session_path}: nothing to replay: the log holds {what} (a tick ends with one frame of each actuator "
-                        f"message of {map_path}: {ids}); is it a session recorded with this map and DBC?")
+    frames = log if log is not None else SessionFrames(session_path)
     fmt = format_of(output_path) if output_path is not None else None
     out_kind = fmt.kind if fmt is not None and (fmt.name in ("npz", "wav") or fmt.kind == CAN_LOG) else None
     if output_path is not None and out_kind is None:
@@ -262,59 +185,86 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
     with contextlib.ExitStack() as stack:  # outputs go through the one writer: atomic, the old file kept on failure
         target = stack.enter_context(atomic_output(output_path)) if output_path is not None and out_kind != AUDIO else None
         writer = SessionWriter(target) if out_kind == CAN_LOG else None
-        outputs = ({name: np.zeros((len(ticks), *spec.shape)) for name, spec in graph.outputs.items()}
+        outputs = ({name: _Rows(spec.shape) for name, spec in graph.outputs.items()}
                    if out_kind == RECORDING or audio else None)
         io.encode_safe()
         safe = [bytes(m.data) for m in io.tx]
         """The actuator payloads of the safe values: what live sends while the watchdog holds the outputs."""
         graph.reset(seed)
         watchdog = io.new_watchdog(1 << 62, emit_log=False)
-        report = ReplayReport(ticks=len(ticks), frames_in=sum(1 for m in frames if m.is_rx and not m.is_error_frame),
-                              frames_out=sum(1 for m in frames if not m.is_rx and not m.is_error_frame), exit_block=exit_block,
-                              session_path=session_path, truncated=completeness.problem)
-        if completeness.problem and completeness.expected_frames is not None:
-            report.expected_ticks = expected_ticks(completeness.expected_frames, ticks, len(io.tx))
+        report = ReplayReport(ticks=0, frames_in=0, frames_out=0, exit_block=False, session_path=session_path)
         guard_state = io.codec.guard_ints
         before = guard_state.copy() if guard_state is not None else None
-        try:
-            decode_tick = _tick_decoder(io, watchdog)
-            for k, (rx, live_block) in enumerate(ticks):
-                decode_tick(rx, k)
-                graph.step_block(1)
-                stale = watchdog.check(k, 0)
-                if before is not None:
-                    before[:] = guard_state
-                io.guard_outputs(False)
-                io.encode()
-                forced = stale
-                if any(bytes(a.data) != bytes(b.data) for a, b in zip(io.tx, live_block, strict=True)):
-                    report.mismatched_ticks.append(k)
-                    if stale:
-                        report.watchdog_ticks.append(k)
-                    elif [bytes(b.data) for b in live_block] == safe:
-                        report.overrun_ticks.append(k)
-                        forced = True
-                    else:
-                        report.unexplained_ticks.append(k)
-                if forced and before is not None:  # live held the outputs safe: its guard state moved as a forced tick's
-                    guard_state[:] = before
-                    io.guard_outputs(True)
-                if outputs is not None:
-                    for name, arr in outputs.items():
-                        arr[k] = graph.output_view(name).reshape(arr.shape[1:])
-                if writer is not None:
-                    for m, live in zip(io.tx, live_block, strict=True):
-                        m.timestamp = live.timestamp
-                        writer.write(m, False)
-        finally:
+        decode_tick = _tick_decoder(io, watchdog)
+
+        def replay_tick(k: int, rx: list[can.Message], live_block: list[can.Message]) -> None:
+            decode_tick(rx, k)
+            graph.step_block(1)
+            stale = watchdog.check(k, 0)
+            if before is not None:
+                before[:] = guard_state
+            io.guard_outputs(False)
+            io.encode()
+            forced = stale
+            if any(bytes(a.data) != bytes(b.data) for a, b in zip(io.tx, live_block, strict=True)):
+                report.mismatched_ticks.append(k)
+                if stale:
+                    report.watchdog_ticks.append(k)
+                elif [bytes(b.data) for b in live_block] == safe:
+                    report.overrun_ticks.append(k)
+                    forced = True
+                else:
+                    report.unexplained_ticks.append(k)
+            if forced and before is not None:  # live held the outputs safe: its guard state moved as a forced tick's
+                guard_state[:] = before
+                io.guard_outputs(True)
+            if outputs is not None:
+                for name, rows in outputs.items():
+                    rows.append(graph.output_view(name))
             if writer is not None:
-                writer.close()
-        if outputs is not None and audio:
-            _replay_audio(graph, io.map.audio, outputs, timeline, output_path if out_kind == AUDIO else None,
+                for m, live in zip(io.tx, live_block, strict=True):
+                    m.timestamp = live.timestamp
+                    writer.write(m, False)
+
+        events, counts = TimelineEvents(), _Counts()
+        received = 0  # frames received in the ticks replayed
+        pending: Tick | None = None  # the last block read: a tick, or the exit block if the log ends after it
+        ticks = stack.enter_context(contextlib.closing(_ticks(frames, io.tx_ids, events, counts)))  # the log closed on error
+        try:
+            for tick in ticks:
+                if pending is not None:
+                    replay_tick(report.ticks, *pending)
+                    report.ticks += 1
+                    received += len(pending[0])
+                pending = tick
+            completeness = frames.completeness
+            assert completeness is not None  # the frames are all read
+            report.exit_block = pending is not None and completeness.problem is None
+            if pending is not None and not report.exit_block:  # a log cut short: its last complete block is a tick
+                replay_tick(report.ticks, *pending)
+                report.ticks += 1
+                received += len(pending[0])
+            if not report.ticks:
+                ids = ", ".join(f"{fid:#x}" for fid, _ in io.tx_ids)
+                what = "no frame at all" if not counts.frames else f"{counts.frames} frame(s) but no complete tick"
+                raise DataError(f"{session_path}: nothing to replay: the log holds {what} (a tick ends with one frame of each "
+                                f"actuator message of {map_path}: {ids}); is it a session recorded with this map and DBC?")
+        except BaseException:
+            if writer is not None:
+                writer.close(keep=False)
+            raise
+        if writer is not None:
+            writer.close()
+        report.frames_in, report.frames_out, report.truncated = counts.received, counts.sent, completeness.problem
+        if completeness.problem and completeness.expected_frames is not None:
+            report.expected_ticks = expected_ticks(completeness.expected_frames, report.ticks, received, len(io.tx))
+        arrays = {name: rows.array for name, rows in outputs.items()} if outputs is not None else None
+        if arrays is not None and audio:
+            _replay_audio(graph, io.map.audio, arrays, events.timeline, output_path if out_kind == AUDIO else None,
                           live_audio, report)
-        if outputs is not None and out_kind == RECORDING:
+        if arrays is not None and out_kind == RECORDING:
             with open(target, "wb") as fh:
-                np.savez(fh, rate=np.float64(graph.rate), **outputs)
+                np.savez(fh, rate=np.float64(graph.rate), **arrays)
     if output_path is not None:
         report.output_path = Path(output_path)
     return report

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import signal
 
 from flowtex.dsp.audio_interp import Interpolator, frames_before, interpolation_filter, low_frequency_delay
@@ -105,3 +107,22 @@ def test_minimum_phase_delay_is_a_fraction_of_the_linear_phase_delay():
     db = 20 * np.log10(np.abs(resp))
     assert np.all(np.abs(db[:2]) < 0.01)  # passband flat to 400 Hz (Kaiser ripple at 60 dB: 0.0087 dB)
     assert np.all(db[2:] < -59.0)  # images (from 500 Hz up) 60 dB down
+
+
+@settings(max_examples=60)
+@given(up=st.integers(1, 12), scale=st.floats(1e-3, 1e3), lo_share=st.floats(0.0, 1.0), hi_share=st.floats(0.0, 1.0),
+       values=st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64), min_size=1, max_size=40))
+def test_no_sample_passes_full_scale_and_the_clip_only_by_float32_rounding(up, scale, lo_share, hi_share, values):
+    """The safety rule for audio: whatever the graph outputs (huge, NaN, inf, a step into the filter's overshoot), no
+    played sample is beyond full scale (|s| <= 1), even with a clip the map accepts at its limit (scale x (1 + 1e-12),
+    io.audiomap's check), and none passes its clip by more than the float32 rounding of clip / scale (half a float32
+    ulp; a sample has no coarser grid, unlike a CAN signal's LSB)."""
+    lo, hi = -lo_share * scale * (1 + 1e-12), hi_share * scale * (1 + 1e-12)
+    x = np.array(values + [hi * 10, lo * 10, hi, lo], dtype=np.float64).reshape(-1, 1)
+    it = Interpolator(up, 1, [scale], [lo], [hi])
+    out = np.zeros((x.shape[0] * up, 1), dtype=np.float32)
+    it.render(x, out)
+    assert np.all(np.abs(out) <= 1.0)
+    s = out[:, 0].astype(np.float64)
+    rounding = np.finfo(np.float32).eps / 2  # float32 round-to-nearest: relative error at most 2**-24
+    assert np.all(s <= (hi / scale) * (1 + rounding)) and np.all(s >= (lo / scale) * (1 + rounding))

@@ -68,7 +68,7 @@ def test_cli_end_to_end_renders(tmp_path, capsys):
                  "--force", "normal_force", "--max-order", "3", "-o", str(out), "--xml", str(xml), "--report", str(tmp_path / "rep")])
     printed = capsys.readouterr().out
     assert code == 0, printed
-    assert "GFC" in printed and "LSD" in printed and "power err" in printed
+    assert "GFC" in printed and "LSD" in printed and "power dB" in printed
     ms = load_model_set(out)
     back = read_hatt_xml(xml)
     # written with repr: the reader gets the same numbers (its printed precision is exact)

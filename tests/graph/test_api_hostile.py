@@ -48,6 +48,8 @@ def test_run_refuses_what_is_not_a_signal_naming_the_input(graph, value, words) 
     (lambda g: g.run({"x": np.ones(5)}, seed=-1), "seed must be an integer >= 0, got -1"),
     (lambda g: g.run_ticks(-1), "n must be an integer >= 0, got -1"),
     (lambda g: g.run_ticks(2.5), "n must be an integer >= 0, got 2.5"),
+    (lambda g: g.run_ticks(10**12), "graph 'g': run_ticks n=1,000,000,000,000 would fill 2,000,000,000,000 values, more "
+                                    "than a recording may hold (100,000,000); run fewer ticks"),  # numpy's MemoryError
     (lambda g: g.with_block_rows(0), "block_rows must be an integer >= 1, got 0"),
 ])
 def test_wrong_arguments_are_named(graph, call, words) -> None:

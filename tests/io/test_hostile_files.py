@@ -23,6 +23,7 @@ from flowtex.io.modelset import load_model_set
 from flowtex.io.recordings import load_recording
 from flowtex.io.taplib import read_tap_library
 from flowtex.limits import MAX_DEPTH, MAX_RECORDING_VALUES, excerpt
+from tests.plugin_files import chain_graph
 
 REPO = Path(__file__).resolve().parents[2]
 MB = 2**20
@@ -174,17 +175,7 @@ def test_bench_on_a_zero_length_recording(tmp_path, capsys):
 
 # -- YAML: alias bombs, nesting, NUL bytes, ranges ---------------------------------------------------------------------
 
-GRAPH = """\
-flowtex: 1
-name: g
-rate: 1000
-inputs: {x: {}}
-nodes:
-  g: {type: gain, params: {k: 2}}
-  echo_delay: {type: delay, params: {samples: 3}}
-edges: ["x -> g.x", "g.y -> echo_delay.x"]
-outputs: {y: echo_delay.y}
-"""
+GRAPH = chain_graph("g: {type: gain, params: {k: 2}}", "echo_delay: {type: delay, params: {samples: 3}}", name="g")
 
 
 def _graph(tmp_path, text: str) -> Path:

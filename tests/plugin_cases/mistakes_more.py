@@ -86,6 +86,17 @@ class Gain(Node):
         return NodeState(params=np.array([self.p["rate"]]))
 
 
+class TicksInput(Node):
+    """Its input is named ticks, a processor call's own keyword (the number of ticks to run)."""
+    type_name = "ticks_input_pc"
+    inputs = {"ticks": Port((), "*")}
+    outputs = {"y": Port((), "=ticks")}
+    kernel = copy_kernel
+
+    def build(self, inputs, outputs):
+        return NodeState(params=np.array([1.0]))
+
+
 @njit(cache=True)
 def noise_kernel(p, s, si, y):
     for t in range(y.shape[0]):

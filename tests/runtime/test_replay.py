@@ -88,15 +88,14 @@ def test_replay_names_overrun_watchdog_ticks_and_real_mismatches_and_prints_a_su
     assert rep.mismatched_ticks == sorted(rep.watchdog_ticks + rep.overrun_ticks + rep.unexplained_ticks)
 
     from flowtex.io import canlog
-    from flowtex.runtime import replay
 
-    reads = []
-    read_once = canlog.read_session_checked
-    for module in (canlog, replay):
-        monkeypatch.setattr(module, "read_session_checked", lambda path: reads.append(path) or read_once(path))
+    reads, held = [], []
+    open_once = canlog.open_session
+    monkeypatch.setattr(canlog, "open_session", lambda path: reads.append(path) or open_once(path))
+    monkeypatch.setattr(canlog, "read_session_checked", lambda path: held.append(path))  # holds every frame: not used
     assert main(["run", str(setup / "g.yaml"), "--input", str(edited), "--dbc", str(DBC), "--map", str(setup / "m.yaml"),
                  "--seed", "3", "--output", str(setup / "replay.npz")]) == 0
-    assert reads == [str(edited)]  # read once, before the compile: the replay takes those frames (a log may be 1 GiB)
+    assert reads == [str(edited)] and held == []  # opened once, its start checked before the compile: the replay streams it
     out = capsys.readouterr().out
     assert "ReplayReport(" not in out and "unexplained" not in out
     lines = out.strip().splitlines()
