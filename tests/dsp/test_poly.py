@@ -148,3 +148,18 @@ def test_power_spectrum_stack_rows_are_each_models_own_bit_for_bit():
         np.testing.assert_array_equal(power_spectrum(ar, ma[k:k + 1], w)[k], rows[k])  # one row serves every row
     with pytest.raises(ValueError, match="power_spectrum"):
         power_spectrum(ar, np.ones((3, 2)), w)
+
+
+def test_step_down_is_the_numpy_recursion_bit_for_bit():
+    """The compiled recursion does numpy's operations in numpy's order (the reduced models of flowtex.dsp.order)."""
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        n = int(rng.integers(1, 30))
+        a = _poly(rng.uniform(0.0, 0.999, n) * np.exp(1j * rng.uniform(-np.pi, np.pi, n)))  # complex roots, real part
+        a = stabilize(a)
+        order = int(rng.integers(0, n))
+        ref = a.copy()
+        for m in range(a.size - 1, order, -1):
+            k = ref[m]
+            ref = (ref[:m] - k * ref[m:0:-1]) / (1.0 - k * k)
+        np.testing.assert_array_equal(step_down(a, order), ref)
