@@ -6,8 +6,9 @@ spectrum can send a fit to another, equally good optimum (a resampled model set 
 when only power_spectrum's rounding changed; docs/fitting.md). Replacing numpy by a kernel must therefore not change
 the rounding.
 
-What numpy 2 does on x86-64 with AVX2 or AVX-512 and on arm64 (checked bit for bit by tests/dsp/test_npmath.py
-against numpy on the machine it runs on):
+What numpy 2 does on x86-64 with AVX2 and FMA3 (checked bit for bit by tests/dsp/test_npmath.py there; numpy picks
+its loops per CPU, and where it does not fuse, as on a CPU without FMA, these stay within two roundings of numpy's
+values, which the same tests check on every CPU):
 
 - complex multiplication (a + jb)(c + jd) = fma(a, c, -(b d)) + j fma(a, d, b c): one fused multiply-add each;
 - |a + jb| = L sqrt(fma(r, r, 1)) with L = max(|a|, |b|), r = min(|a|, |b|) / L (0 when L = 0), inf when either

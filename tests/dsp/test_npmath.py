@@ -1,8 +1,6 @@
-"""flowtex.dsp.npmath rounds as numpy does: complex products and |.| bit for bit against numpy's own arrays.
-
-numpy chooses its loops for the CPU it runs on; this file checks, on this machine, what the module docstring states
-(a failure on another CPU means numpy rounds differently there, and the kernels built on npmath no longer give
-numpy's bits there, though they stay within the same error bounds).
+"""flowtex.dsp.npmath rounds as numpy does: complex products and |.| bit for bit against numpy's own arrays where
+numpy's loops fuse as npmath does (tests/dsp/numpy_rounding.py: x86-64 with AVX2 and FMA3), and within two roundings
+of numpy's values on every CPU (numpy picks its loops for the CPU it runs on).
 """
 
 from __future__ import annotations
@@ -11,6 +9,9 @@ import numpy as np
 from numba import njit
 
 from flowtex.dsp.npmath import cabs, cmul
+from tests.dsp.numpy_rounding import NUMPY_ROUNDS_AS_NPMATH
+
+EPS = np.finfo(np.float64).eps / 2  # one rounding, relative
 
 
 @njit(cache=True)
@@ -44,7 +45,14 @@ def test_complex_products_are_numpys_bit_for_bit():
         a, b = rng.standard_normal(n) + 1j * rng.standard_normal(n), rng.standard_normal(n) + 1j * rng.standard_normal(n)
         out = np.empty(n, complex)
         _products(a, b, out)
-        np.testing.assert_array_equal(out.view(float), (a * b).view(float))
+        ref = a * b
+        # each part is a sum of two products: fused or not, two roundings of at most EPS x (|ar br| + |ai bi|) each
+        scale_re = np.abs(a.real * b.real) + np.abs(a.imag * b.imag)
+        scale_im = np.abs(a.real * b.imag) + np.abs(a.imag * b.real)
+        assert np.all(np.abs(out.real - ref.real) <= 4 * EPS * scale_re)
+        assert np.all(np.abs(out.imag - ref.imag) <= 4 * EPS * scale_im)
+        if NUMPY_ROUNDS_AS_NPMATH:
+            np.testing.assert_array_equal(out.view(float), ref.view(float))
 
 
 def test_complex_abs_is_numpys_bit_for_bit():
@@ -54,4 +62,11 @@ def test_complex_abs_is_numpys_bit_for_bit():
         out = np.empty(n)
         _abs(a, out)
         with np.errstate(all="ignore"):
-            np.testing.assert_array_equal(out, np.abs(a))
+            ref = np.abs(a)
+            same_class = (np.isnan(out) == np.isnan(ref)) & (np.isinf(out) == np.isinf(ref))
+            finite = np.isfinite(ref) & (ref > 1e-300)  # below, subnormal results carry fewer digits
+            assert same_class.all()
+            # a scaled sqrt(1 + r^2) and libm's hypot: a few roundings each, 4 EPS relative apart at most
+            assert np.all(np.abs(out[finite] - ref[finite]) <= 4 * EPS * ref[finite])
+            if NUMPY_ROUNDS_AS_NPMATH:
+                np.testing.assert_array_equal(out, ref)

@@ -10,6 +10,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from flowtex.dsp.poly import MAX_RADIUS, impulse_response, is_stable, power_spectrum, root_power_spectrum, roots_inside, stabilize, step_down
+from tests.dsp.numpy_rounding import NUMPY_ROUNDS_AS_NPMATH
 
 
 def _poly(roots):
@@ -129,8 +130,12 @@ def test_power_spectrum_within_horners_bound_of_an_extended_precision_value(mode
     # circle: |A(1)| ~ 1e-20 rounds to 0 and both paths give inf); every other frequency is checked
     digits = bound < 0.5
     assert np.all(error[digits] <= bound[digits])
-    # and it is numpy's polyval formulation (the code it replaced) bit for bit, inf where A rounds to 0 included
-    np.testing.assert_array_equal(got, old)
+    # and it is numpy's polyval formulation (the code it replaced) bit for bit, inf where A rounds to 0 included, where
+    # numpy rounds as npmath does (tests/dsp/numpy_rounding.py); elsewhere both lie within the bound of the reference
+    if NUMPY_ROUNDS_AS_NPMATH:
+        np.testing.assert_array_equal(got, old)
+    else:
+        assert np.all(np.abs(old / ref - 1.0)[digits] <= bound[digits])
 
 
 def test_power_spectrum_stack_rows_are_each_models_own_bit_for_bit():
