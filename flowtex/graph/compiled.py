@@ -316,17 +316,30 @@ class Graph:
                 raise InputError(f"input {name!r} has {arr.shape[0]} samples, others have {total}")
             arrays[name] = arr.reshape(arr.shape[0], w)
         if total is None:
-            raise InputError(f"graph {self.name!r} has no inputs; pass n ticks with run_ticks(n)")
+            raise InputError(f"graph {self.name!r} has no inputs; pass n ticks with run_ticks(n) (or process_ticks(n) to continue)")
         return arrays, total
 
     def run_ticks(self, n: int, seed: int | None = None) -> dict[str, np.ndarray]:
         """Reset and run ``n`` ticks with every graph input held at zero (e.g. a noise generator)."""
-        n = whole_count("n", n, 0)
-        check_ticks(f"graph {self.name!r}: run_ticks n", n, int(self.i[OUT_WIDTH]) + sum(w for _c, w in self.layout.in_columns.values()),
-                    "run fewer ticks")
+        n = self._tick_count("run_ticks", n)
         self.reset(seed)
+        return self.process_ticks(n)
+
+    def process_ticks(self, n: int) -> dict[str, np.ndarray]:
+        """Continue from the current state for ``n`` ticks with every graph input held at zero: to :meth:`run_ticks`
+        what :meth:`process` is to :meth:`run` (``run_ticks(a)`` then ``process_ticks(b)`` equals ``run_ticks(a + b)``
+        bit for bit), so a graph without inputs can be rendered in blocks."""
+        n = self._tick_count("process_ticks", n)
         zeros = {name: np.zeros((n, w)) for name, (_col, w) in self.layout.in_columns.items()}
         return self._run_chunk(zeros, n, owned=True)
+
+    def _tick_count(self, method: str, n: Any) -> int:
+        """``n`` as a tick count for ``method``, refused in one line when it is not a whole number >= 0 or would not fit
+        in memory."""
+        n = whole_count("n", n, 0)
+        check_ticks(f"graph {self.name!r}: {method} n", n, int(self.i[OUT_WIDTH]) + sum(w for _c, w in self.layout.in_columns.values()),
+                    "run fewer ticks")
+        return n
 
 
 def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,

@@ -109,3 +109,21 @@ def test_a_node_given_a_loaded_model_set_reads_no_file():
                     .node("lu", "texture_lookup", models=models).edge("speed -> lu.speed").edge("f -> lu.force")
                     .output("v", "lu.variance").resolve())
         assert files_read(resolved) == expected
+
+
+def test_a_graph_without_inputs_continues_in_blocks_as_one_run():
+    """A graph without inputs (a noise source, a 3-tick decimated noise feeding a filter) could only run_ticks, which
+    resets: it could not be rendered in blocks. process_ticks continues, and blocks equal one run bit for bit."""
+    graph = (GraphBuilder("blocks", rate=1000, seed=4)
+             .node("w", "white_noise", every=3, variance=0.5)
+             .node("lp", "butterworth", order=2, cutoff_hz=40.0)
+             .edge("w.y -> lp.x").output("y", "lp.y").output("raw", "w.y").build())
+    whole = graph.run_ticks(1000)
+    first = graph.run_ticks(301)
+    parts = [first] + [graph.process_ticks(n) for n in (1, 0, 97, 601)]
+    for name in ("y", "raw"):
+        np.testing.assert_array_equal(np.concatenate([p[name] for p in parts]), whole[name])
+    again = graph.run_ticks(1000)  # run_ticks still starts over
+    np.testing.assert_array_equal(again["y"], whole["y"])
+    with pytest.raises(flowtex.errors.InputError, match=r"^n must be an integer >= 0, got -1"):
+        graph.process_ticks(-1)
