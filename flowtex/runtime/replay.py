@@ -197,7 +197,10 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
         before = guard_state.copy() if guard_state is not None else None
         decode_tick = _tick_decoder(io, watchdog)
 
-        def replay_tick(k: int, rx: list[can.Message], live_block: list[can.Message]) -> None:
+        def replay_tick(rx: list[can.Message], live_block: list[can.Message]) -> None:
+            """Replay the next tick (``report.ticks``) from the frames received in it, and compare with ``live_block``."""
+            nonlocal received
+            k = report.ticks
             decode_tick(rx, k)
             graph.step_block(1)
             stale = watchdog.check(k, 0)
@@ -225,6 +228,8 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
                 for m, live in zip(io.tx, live_block, strict=True):
                     m.timestamp = live.timestamp
                     writer.write(m, False)
+            report.ticks += 1
+            received += len(rx)
 
         events, counts = TimelineEvents(), _Counts()
         received = 0  # frames received in the ticks replayed
@@ -233,17 +238,13 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
         try:
             for tick in ticks:
                 if pending is not None:
-                    replay_tick(report.ticks, *pending)
-                    report.ticks += 1
-                    received += len(pending[0])
+                    replay_tick(*pending)
                 pending = tick
             completeness = frames.completeness
             assert completeness is not None  # the frames are all read
             report.exit_block = pending is not None and completeness.problem is None
             if pending is not None and not report.exit_block:  # a log cut short: its last complete block is a tick
-                replay_tick(report.ticks, *pending)
-                report.ticks += 1
-                received += len(pending[0])
+                replay_tick(*pending)
             if not report.ticks:
                 ids = ", ".join(f"{fid:#x}" for fid, _ in io.tx_ids)
                 what = "no frame at all" if not counts.frames else f"{counts.frames} frame(s) but no complete tick"
