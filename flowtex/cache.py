@@ -212,12 +212,21 @@ def is_generated(py_func: object) -> bool:
 
 def source_stamp(py_file: str) -> bytes:
     """numba's source stamp of an entry filed by :func:`file_by_package_path`: the sha256 of the source file's bytes
-    (what numba >= 0.61 stamps too; older numba used the file's modification time and size, which a copy changes).
+    (what numba 0.68 stamps too; numba 0.67 and older stamped the file's modification time and size, which a copy
+    changes). Hashed once per file version in a process (many kernels share a file).
 
     numba drops an entry whose stamp differs from its source's and compiles again, and keys an entry only by its
     function's bytecode, which leaves out the constants: the stamp is what keeps an edited file from loading the
     machine code of the old one."""
-    with open(py_file, "rb") as fh:
+    st = os.stat(py_file)
+    return _content_hash(py_file, (st.st_ino, st.st_mtime_ns, st.st_ctime_ns, st.st_size))
+
+
+@functools.lru_cache(maxsize=512)
+def _content_hash(path: str, version: tuple[int, ...]) -> bytes:
+    """sha256 of the file ``path``; ``version`` (inode, modification and change times, size) only keys the memo: a file
+    written again, or replaced, is hashed again."""
+    with open(path, "rb") as fh:
         return hashlib.sha256(fh.read()).digest()
 
 
