@@ -18,8 +18,11 @@ import pytest
 import flowtex.runtime.fused as fused_tick
 from flowtex.cache import GENERATED_FOLDER, cache_dir, source_fingerprint
 from flowtex.graph.compiled import load_graph
+from flowtex.graph.dispatch import dispatch_run
 from flowtex.graph.jit import import_source, load_generated
 from flowtex.graph.kcache import locked
+from flowtex.graph.wrappers import load_wrapper
+from flowtex.nodes.arith import Gain
 from flowtex.runtime.canio import load_io, tick_out
 from tests.cli.gain_graph import GAIN_GRAPH, MAP_GRAPH
 
@@ -45,23 +48,30 @@ class Compiles(event.Listener):
 event.register("numba:compile", Compiles())
 import flowtex
 from flowtex.graph.compiled import load_graph
+from flowtex.nodes.arith import Gain
 from flowtex.runtime.canio import load_io, tick_out
 from flowtex.runtime.fused import fuse_tick
+from flowtex.graph import wrappers
 
 gain, mapped, dbc, canmap = sys.argv[1:]
 y = load_graph(gain, tier="fused").run({"x": np.arange(4.0)})["y"].tolist()
 g = load_graph(mapped, tier="fused", block_rows=1)
 io = load_io(g, dbc, canmap)
 assert fuse_tick(g, io, tick_out, io.new_watchdog(1).last) is not None
-print(json.dumps({"flowtex": flowtex.__file__, "y": y, "compiled": compiled}))
+y_dispatch = load_graph(gain, tier="dispatch").run({"x": np.arange(4.0)})["y"].tolist()
+(wrapper,) = wrappers._LOADED.values()
+print(json.dumps({"flowtex": flowtex.__file__, "y": y, "y_dispatch": y_dispatch, "compiled": compiled,
+                  "wrapper_loaded": wrapper.cache_hits}))
 """
-"""Runs the gain graph on the fused tier and builds the live tick of the mapped graph; prints every numba compile
-(``numba:compile`` fires for compiles only, not for loads from the disk cache)."""
+"""Runs the gain graph on the fused tier, builds the live tick of the mapped graph and runs the gain graph on the
+dispatch tier; prints every numba compile (``numba:compile`` fires for compiles only, not for loads from the disk
+cache; a C-callable wrapper's compile fires none: its cache hits are printed)."""
 
 
 def _compile_here(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> tuple[Path, Path, list[Any]]:
-    """Compile (or load) both graphs in this process, into the suite's cache; their graph files and the compiled
-    functions of the generated modules (the gain graph's ``run``, the mapped graph's live tick)."""
+    """Compile (or load) what the child runs in this process, into the suite's cache; the graph files and the compiled
+    functions of the generated modules (the gain graph's ``run``, the mapped graph's live tick, the dispatch tier's
+    ``run`` and the gain kernel's wrapper)."""
     gain, mapped = tmp_path / "gain.yaml", tmp_path / "mapped.yaml"
     gain.write_text(GAIN_GRAPH)
     mapped.write_text(MAP_GRAPH)
@@ -81,6 +91,8 @@ def _compile_here(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> tuple[Path
     io = load_io(g, DBC, MAP)
     assert fused_tick.fuse_tick(g, io, tick_out, io.new_watchdog(1).last) is not None
     assert len(functions) == 2
+    assert load_graph(gain, tier="dispatch").run({"x": [1.0]})["y"].tolist() == [2.0]
+    functions += [dispatch_run(), load_wrapper(Gain.get_kernel(), len(Gain.inputs), len(Gain.outputs))]
     return gain, mapped, functions
 
 
@@ -91,14 +103,16 @@ def _copy_cache(dest: Path, functions: list[Any]) -> None:
     numba_here = Path(numba.config.CACHE_DIR)
     numba_there = dest / "numba" / source_fingerprint()
     shutil.copytree(numba_here / "flowtex", numba_there / "flowtex", copy_function=shutil.copy,
-                    ignore_dangling_symlinks=True)
-    (dest / "codegen").mkdir()
+                    ignore=shutil.ignore_patterns("*.tmp.*", ".*.tmp"))  # files another worker is writing: not entries
     for fn in functions:
-        stem = Path(fn.py_func.__code__.co_filename).stem  # g_<digest>
-        with locked(cache_dir() / "codegen" / f"{stem}.lock"):  # no other worker writes the entry meanwhile
-            for path in (cache_dir() / "codegen").glob(f"{stem}.*"):
+        py_func = getattr(fn, "py_func", None) or fn._pyfunc  # a dispatcher's, or a C-callable wrapper's
+        source = Path(py_func.__code__.co_filename)  # <cache>/codegen/g_<digest>.py, <cache>/kernels/w_<digest>.py
+        stem, folder = source.stem, dest / source.parent.relative_to(cache_dir())
+        folder.mkdir(exist_ok=True)
+        with locked(source.with_suffix(".lock")):  # no other worker writes the entry meanwhile
+            for path in source.parent.glob(f"{stem}.*"):
                 if path.suffix in (".py", ".seal"):
-                    shutil.copy(path, dest / "codegen" / path.name)
+                    shutil.copy(path, folder / path.name)
             entries = Path(fn._cache._cache_path)
             there = numba_there / entries.relative_to(numba_here)
             there.mkdir(parents=True, exist_ok=True)
@@ -115,7 +129,7 @@ def _child(cache: Path, gain: Path, mapped: Path) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def test_a_copied_then_moved_cache_loads_the_fused_graph_and_live_tick_without_compiling(tmp_path, monkeypatch):
+def test_a_copied_then_moved_cache_loads_fused_graph_live_tick_and_dispatch_tier_without_compiling(tmp_path, monkeypatch):
     gain, mapped, functions = _compile_here(tmp_path, monkeypatch)
     copy = tmp_path / "copy"
     _copy_cache(copy, functions)
@@ -123,12 +137,13 @@ def test_a_copied_then_moved_cache_loads_the_fused_graph_and_live_tick_without_c
     assert Path(result["flowtex"]).is_relative_to(REPO)
     assert result["y"] == [0.0, 2.0, 4.0, 6.0]
     assert result["compiled"] == []  # before: numba filed them by the cache's path (and older numba by file times)
+    assert result["y_dispatch"] == [0.0, 2.0, 4.0, 6.0] and result["wrapper_loaded"] == 1
     moved = tmp_path / "elsewhere" / "moved"
     moved.parent.mkdir()
     os.rename(copy, moved)  # what `mv` does: the same files, times kept, at another path
     result = _child(moved, gain, mapped)
-    assert result["y"] == [0.0, 2.0, 4.0, 6.0]
-    assert result["compiled"] == []
+    assert result["y"] == result["y_dispatch"] == [0.0, 2.0, 4.0, 6.0]
+    assert result["compiled"] == [] and result["wrapper_loaded"] == 1
 
 
 TINY = "from numba import njit\n\n\n@njit(cache=True)\ndef f(x):\n    return x + {}\n"
