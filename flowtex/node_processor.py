@@ -243,8 +243,8 @@ class Processor:
             raise InputError(f"node type {self.cls.type_name!r}: call with the same inputs as the first call: "
                              f"{', '.join(sorted(self._provided)) or 'none'}")
         assert self.input_specs is not None
-        n = lengths.pop() if lengths else 1 if ticks is None else ticks
-        if not lengths and n > 1:
+        n = next(iter(lengths)) if lengths else 1 if ticks is None else ticks
+        if n > 1:  # n rows of outputs (and of defaulted inputs), whether the rows come from the inputs or from ticks=
             self._check_ticks(n)
         ports = []
         for port_name in self.cls.inputs:
@@ -268,7 +268,8 @@ class Processor:
         return outs
 
     def _check_ticks(self, n: int) -> None:
-        """Refuse ``ticks=n`` whose arrays (defaulted inputs and outputs) would hold more than a recording may."""
+        """Refuse a call of ``n`` ticks (``ticks=n`` or inputs of ``n`` rows) whose arrays (defaulted inputs and outputs)
+        would hold more than a recording may."""
         assert self.input_specs is not None
         per_tick = sum(spec.width for spec in self.output_specs.values()) + sum(spec.width for spec in self.input_specs.values())
         check_ticks(f"node type {self.cls.type_name!r}: ticks", n, per_tick,
