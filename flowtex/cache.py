@@ -46,7 +46,7 @@ from .errors import FlowtexError
 from .interrupts import guard_compiles
 from .plugincode import PLUGIN_CODE, hash_sources, plugin_code_id, plugin_code_of
 
-__all__ = ["CACHE_ENV", "GENERATED", "cache_dir", "configure_numba_cache", "file_by_package_path", "guard_numba_cache",
+__all__ = ["CACHE_ENV", "GENERATED", "GENERATED_FOLDER", "cache_dir", "configure_numba_cache", "file_by_package_path", "guard_numba_cache",
            "numba_cache_folder", "prune_cache_tree", "prune_numba_cache", "shares_compiled_code", "source_fingerprint",
            "write_cache_file"]
 
