@@ -91,6 +91,11 @@ _NO_UNIT = ("", "-", "*")
 """Units that state nothing: a dimensionless signal or input, or a port that takes any unit."""
 
 
+def _plain(unit: str) -> str:
+    """``unit`` without spaces, with superscript powers written ``^n`` (``m/s²`` is ``m/s^2``, as HDF5 writers put it)."""
+    return unit.replace(" ", "").replace("\u00b2", "^2").replace("\u00b3", "^3")
+
+
 def check_stated_unit(units: Mapping[str, str], name: str, unit: str, path: Path | str, consumer: str) -> None:
     """Refuse signal ``name`` when the file states a unit (``units``, ``Recording.units``) other than ``unit``.
 
@@ -99,8 +104,8 @@ def check_stated_unit(units: Mapping[str, str], name: str, unit: str, path: Path
     either side (absent, ``-``) passes. flowtex converts no unit: a speed stated in m/s fed to an input in mm/s
     rendered 1000x too slow, silently; a fit of an acceleration in g gave a surface 20 dB too quiet.
     """
-    stated = simplify_unit(str(units.get(name, "")).strip())
-    want = simplify_unit(unit.strip())
+    stated = simplify_unit(_plain(str(units.get(name, ""))))
+    want = simplify_unit(_plain(unit))
     if stated in _NO_UNIT or want in _NO_UNIT or stated == want:
         return
     factor = UNIT_FACTORS.get((stated, want))
