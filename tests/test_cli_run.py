@@ -297,6 +297,6 @@ def test_a_recording_stating_another_unit_than_an_input_is_refused(write_graph, 
     save_recording(src, rec, rate=1000, units={"f": "kg*m/s^2/kg*kg"})  # no rule converts kg m/s^2 to N: no factor named
     assert main(["run", str(graph), "--input", str(src), "-o", str(out)]) == 1
     assert "graph 't' input 'f' takes N; flowtex converts no unit: convert it to N and state that unit" in capsys.readouterr().err
-    for units in ({"p": "mm", "f": "N"}, {"p": "mm*s/s"}, {"p": "mm*mm²/mm^2"}, {"f": "-"}, {}):
+    for units in ({"p": "mm", "f": "N"}, {"p": "mm*s/s"}, {"p": "mm*mm²/mm^2"}, {"p": "mm s / s", "f": " N "}, {"f": "-"}, {}):
         save_recording(src, rec, rate=1000, units=units)
         assert main(["run", str(graph), "--input", str(src), "-o", str(out)]) == 0, (units, capsys.readouterr().err)

@@ -20,6 +20,7 @@ flowtex converts no unit.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -92,8 +93,10 @@ _NO_UNIT = ("", "-", "*")
 
 
 def _plain(unit: str) -> str:
-    """``unit`` without spaces, with superscript powers written ``^n`` (``m/s²`` is ``m/s^2``, as HDF5 writers put it)."""
-    return unit.replace(" ", "").replace("\u00b2", "^2").replace("\u00b3", "^3")
+    """``unit`` as :func:`~flowtex.node_decl.simplify_unit` reads it: superscript powers written ``^n`` (``m/s²``, as HDF5
+    writers put it, is ``m/s^2``) and a space between two factors a product (``mm s^-1`` is ``mm*s^-1``)."""
+    unit = re.sub(r"\s*([*/^])\s*", r"\1", unit.strip().replace("\u00b2", "^2").replace("\u00b3", "^3"))
+    return re.sub(r"\s+", "*", unit)
 
 
 def check_stated_unit(units: Mapping[str, str], name: str, unit: str, path: Path | str, consumer: str) -> None:
@@ -104,12 +107,13 @@ def check_stated_unit(units: Mapping[str, str], name: str, unit: str, path: Path
     either side (absent, ``-``) passes. flowtex converts no unit: a speed stated in m/s fed to an input in mm/s
     rendered 1000x too slow, silently; a fit of an acceleration in g gave a surface 20 dB too quiet.
     """
-    stated = simplify_unit(_plain(str(units.get(name, ""))))
+    raw = str(units.get(name, ""))
+    stated = simplify_unit(_plain(raw))
     want = simplify_unit(_plain(unit))
     if stated in _NO_UNIT or want in _NO_UNIT or stated == want:
         return
     factor = UNIT_FACTORS.get((stated, want))
     fix = (f"multiply it by {factor:g} and state its unit as {want}" if factor is not None
            else f"convert it to {want} and state that unit")
-    raise DataError(f"{path}: signal {excerpt(name)} is in {excerpt(stated)} (the file's units) but {consumer} takes "
+    raise DataError(f"{path}: signal {excerpt(name)} is in {excerpt(raw.strip())} (the file's units) but {consumer} takes "
                     f"{want}; flowtex converts no unit: {fix}")
