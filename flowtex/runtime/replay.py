@@ -97,13 +97,21 @@ def _ticks(frames: SessionFrames, tx_ids: list[tuple[int, bool]], events: Timeli
             continue
         counts.sent += 1
         expect = tx_ids[len(block)]
-        if (msg.arbitration_id, bool(msg.is_extended_id)) != expect:
-            raise DataError(f"{frames.place()}: sent frame {msg.arbitration_id:#x} where the map's actuator message {expect[0]:#x} was expected; "
-                            "was this session recorded with the same map?")
+        got = (msg.arbitration_id, bool(msg.is_extended_id))
+        if got != expect:
+            raise DataError(f"{frames.place()}: sent frame {_frame_id(*got, expect)} where the map's actuator message "
+                            f"{_frame_id(*expect, got)} was expected; was this session recorded with the same map?")
         block.append(msg)
         if len(block) == k:
             yield rx, block
             rx, block = [], []
+
+
+def _frame_id(number: int, extended: bool, other: tuple[int, bool]) -> str:
+    """``0x200``, or ``0x200 (extended ID)`` when ``other`` has the same number in the other format."""
+    if number != other[0] or extended == other[1]:
+        return f"{number:#x}"
+    return f"{number:#x} ({'extended' if extended else 'standard'} ID)"
 
 
 class _Rows:
