@@ -9,6 +9,8 @@ import re
 import can
 import pytest
 from can.io.blf import LOG_CONTAINER_STRUCT, OBJ_HEADER_BASE_STRUCT
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_canlog_bounds import FRAMES, _blf_parts, _container, _frames, _refused
 
 from flowtex import limits
@@ -105,3 +107,20 @@ def test_a_container_python_can_cannot_parse_is_named_at_its_byte(tmp_path):
     path.write_bytes(header + _container(bytes(2**16)) + _container(inner))
     _refused(path, f"(byte {len(header)})", "Could not find next object")
     assert limits.MAX_BLF_CONTAINER_BYTES > 2**16
+
+
+HEADER_LINES = ["date Fri Nov 27 13:25:23.102 2026", "base hex  timestamps absolute", "base hex  timestamps relative",
+                "// a comment", "", "internal events logged", "no internal events logged",
+                "Begin Triggerblock Fri Nov 27 13:25:23.102 2026", " 0.000000 Start of measurement", "a line of other text"]
+
+
+@settings(max_examples=60, deadline=None)
+@given(head=st.lists(st.sampled_from(HEADER_LINES), max_size=6))
+def test_any_asc_header_keeps_every_frame(tmp_path_factory, head):
+    """Whatever header lines come before the frames (in any order, or none), every frame is read: the line that ends
+    python-can's header is never a frame."""
+    path = tmp_path_factory.mktemp("asc") / "s.asc"
+    path.write_text("".join(line + "\n" for line in head) + ASC_FRAMES)
+    frames, _ = read_session_checked(path)
+    assert [(m.arbitration_id, m.is_rx, bytes(m.data)) for m in frames] == [(0x100, True, bytes(range(8))),
+                                                                          (0x200, False, bytes(4))]
