@@ -70,6 +70,14 @@ class _Counts:
     def __init__(self) -> None:
         self.frames = self.received = self.sent = 0
 
+    def none_sent(self) -> str:
+        """A sentence for errors when frames were received but none was sent (a log without directions), else ""."""
+        if self.sent or not self.received:
+            return ""
+        return (f" (the {self.received:,} frames read are all marked received and none is marked sent: a log without "
+                "directions, as candump -L writes? The replay needs the frames live sent: record the session with flowtex "
+                "live --record)")
+
 
 def _ticks(frames: SessionFrames, tx_ids: list[tuple[int, bool]], events: TimelineEvents, counts: _Counts) -> Iterator[Tick]:
     """Every complete ``(received, sent block)`` of the log in order, yielded as its block completes (the module's rule;
@@ -92,7 +100,7 @@ def _ticks(frames: SessionFrames, tx_ids: list[tuple[int, bool]], events: Timeli
             if len(rx) >= limits.MAX_TICK_FRAMES:
                 raise DataError(f"{frames.place()}: more than {limits.MAX_TICK_FRAMES:,} frames received in one tick (since the "
                                 "last actuator block); flowtex replays up to that many (flowtex.limits.MAX_TICK_FRAMES): is "
-                                "this a flowtex live session log?")
+                                f"this a flowtex live session log?{counts.none_sent()}")
             rx.append(msg)
             continue
         counts.sent += 1
@@ -257,7 +265,8 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
                 ids = ", ".join(f"{fid:#x}" for fid, _ in io.tx_ids)
                 what = "no frame at all" if not counts.frames else f"{counts.frames} frame(s) but no complete tick"
                 raise DataError(f"{session_path}: nothing to replay: the log holds {what} (a tick ends with one frame of each "
-                                f"actuator message of {map_path}: {ids}); is it a session recorded with this map and DBC?")
+                                f"actuator message of {map_path}: {ids}); is it a session recorded with this map and DBC?"
+                                f"{counts.none_sent()}")
         except BaseException:
             if writer is not None:
                 writer.close(keep=False)
