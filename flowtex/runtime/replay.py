@@ -315,6 +315,12 @@ def _replay_audio(graph: TickProgram, amap: Any, outputs: dict[str, np.ndarray],
     rate = float(graph.rate)
     up, down = samples_per_tick(amap, rate)
     n_ticks = next(iter(outputs.values())).shape[0]
+    most = limits.MAX_RECORDING_VALUES // len(amap.channels)
+    problem = timeline.problem(most) if timeline is not None else None
+    if problem is not None:
+        raise DataError(f"{report.session_path}: its audio timeline's {problem} is out of bounds (negative, or more than "
+                        f"{most:,}, the frames a recording of {len(amap.channels)} channel(s) may hold: "
+                        "flowtex.limits.MAX_RECORDING_VALUES): a damaged log? The replay rebuilds the played stream from it")
     if timeline is not None:
         stream, klass = rebuild_live(render_outputs(outputs, amap, rate), n_ticks, up, down, timeline)
     else:
