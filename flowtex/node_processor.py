@@ -267,6 +267,7 @@ class Processor:
         """Refuse ``ticks=n`` whose arrays (defaulted inputs and outputs) would hold more than a recording may."""
         assert self.input_specs is not None
         per_tick = sum(spec.width for spec in self.output_specs.values()) + sum(spec.width for spec in self.input_specs.values())
+        per_tick = max(per_tick, 1)  # a node without ports still schedules its ticks (every > 1: an index per run)
         check_ticks(f"node type {self.cls.type_name!r}: ticks", n, per_tick,
                     "run fewer ticks per call (the state carries over from one call to the next)")
 

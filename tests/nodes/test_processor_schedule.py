@@ -201,3 +201,25 @@ def test_a_decimated_call_holds_no_more_than_its_outputs(every) -> None:
     # measures 1.00 n * 8, and the old schedule 3.0 n * 8 at k = 1000, 4.5 n * 8 at k = 2
     assert peak < (n + 5 * n // every) * 8 + 2**16
     assert out["y"].shape == (n, 1) and np.all(out["y"] == 2.0)  # held from tick 0's run, then each run's
+
+
+def test_ticks_of_a_node_without_ports_are_bounded_too() -> None:
+    """A node with neither inputs nor outputs holds no values a tick, so check_ticks let any count through; run every k
+    ticks, the schedule's runs (n / k of them) were numpy's 'Unable to allocate 7.28 TiB' for ticks=10**15."""
+
+    @njit
+    def kernel(p, s, si):
+        pass
+
+    class NoPorts(Node):
+        """No ports."""
+
+        type_name = "no_ports_sched"
+        inputs = {}
+        outputs = {}
+
+    NoPorts.kernel = kernel
+    proc = NoPorts.processor(every=1000)
+    assert proc(ticks=10) == {}
+    with pytest.raises(InputError, match="ticks=1,000,000,000,000,000 would fill"):
+        proc(ticks=10**15)
