@@ -199,8 +199,8 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
         live_audio = _live_wav(expect_audio, io.map.audio, map_path)
     audio = out_kind == AUDIO or live_audio is not None
     with contextlib.ExitStack() as stack:  # outputs go through the one writer: atomic, the old file kept on failure
-        target = stack.enter_context(atomic_output(output_path)) if output_path is not None and out_kind != AUDIO else None
-        writer = SessionWriter(target) if out_kind == CAN_LOG else None
+        target = stack.enter_context(atomic_output(output_path)) if out_kind == RECORDING else None
+        writer = SessionWriter(output_path, "-o") if out_kind == CAN_LOG else None  # atomic itself; errors name -o PATH
         outputs = ({name: _Rows(spec.shape) for name, spec in graph.outputs.items()}
                    if out_kind == RECORDING or audio else None)
         io.encode_safe()

@@ -124,3 +124,27 @@ def test_any_asc_header_keeps_every_frame(tmp_path_factory, head):
     frames, _ = read_session_checked(path)
     assert [(m.arbitration_id, m.is_rx, bytes(m.data)) for m in frames] == [(0x100, True, bytes(range(8))),
                                                                           (0x200, False, bytes(4))]
+
+
+@pytest.mark.parametrize("suffix", [".blf", ".asc"])
+@pytest.mark.parametrize("stamp", [1e300, 1e308, -1e300])
+def test_a_frame_time_a_writer_cannot_date_is_one_line_and_no_file(tmp_path, suffix, stamp):
+    """python-can's .asc and .blf writers turn frame times into dates: a replay of a .log whose times are out of a
+    date's range (1e300 s) into an .asc or .blf output was an internal error (OverflowError: timestamp out of range for
+    platform time_t). The .log writer writes any time."""
+    from flowtex.io.canlog import RecordError
+
+    path = tmp_path / f"out{suffix}"
+    path.write_bytes(b"an older log")
+    w = SessionWriter(path)
+    for i in range(3):
+        w.write(can.Message(timestamp=stamp + i, arbitration_id=0x200, is_extended_id=False, data=bytes(4)), False)
+    try:
+        w.close()
+    except RecordError as exc:
+        msg = str(exc)
+        assert msg.startswith(f"{path}: ") and "frame time" in msg and "a .log" in msg and "\n" not in msg, msg
+    else:  # a writer that takes it (python-can's BLF keeps times relative to the first frame) must read back
+        assert len(read_session(path).__next__().data) == 4
+        return
+    assert path.read_bytes() == b"an older log" and [p.name for p in tmp_path.iterdir()] == [path.name]
