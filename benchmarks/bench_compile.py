@@ -203,8 +203,10 @@ def renamed(tree: Path, tag: str) -> Path:
 def forget_fused_code(cache: Path) -> Path:
     """``cache`` without its generated (fused) modules and their machine code; node kernels and wrappers kept."""
     shutil.rmtree(cache / "codegen", ignore_errors=True)
-    for folder in (cache / "numba").glob("*/codegen_*"):
+    for folder in (cache / "numba").glob("*/codegen_*"):  # numba's entries filed by the cache's path (trees before)
         shutil.rmtree(folder)
+    for entry in (cache / "numba").glob("*/generated/g_*"):  # filed by the module's digest (flowtex.cache.GENERATED)
+        entry.unlink()
     return cache
 
 

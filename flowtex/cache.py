@@ -11,6 +11,12 @@ instantly. Inside that folder, a kernel's entries are filed by its module's path
 within the package (:func:`file_by_package_path`), not by where the package lies
 on disk, so another checkout or a reinstall of the same sources (a fresh clone,
 a CI run, a branch switched away and back) finds the compiled code of the first.
+The modules flowtex generates (the fused tier's graphs, the live tick, the
+dispatch tier's driver and wrappers: :data:`GENERATED`) are filed under
+``generated/`` by their file's name, a digest of everything their code depends
+on, so a cache copied or moved elsewhere (a CI cache restored in another
+workspace, a cache baked into a container image) loads them too. Every entry
+these locators file is stamped with its source file's contents, never its time.
 A process compiling with numba's bounds checking (``NUMBA_BOUNDSCHECK=1``: the
 runtime checks of ``flowtex plugin check``) uses a sibling tree of folders
 (:func:`numba_cache_folder`), filed and guarded the same way.
@@ -40,7 +46,7 @@ from .errors import FlowtexError
 from .interrupts import guard_compiles
 from .plugincode import PLUGIN_CODE, hash_sources, plugin_code_id, plugin_code_of
 
-__all__ = ["CACHE_ENV", "cache_dir", "configure_numba_cache", "file_by_package_path", "guard_numba_cache",
+__all__ = ["CACHE_ENV", "GENERATED", "GENERATED_FOLDER", "cache_dir", "configure_numba_cache", "file_by_package_path", "guard_numba_cache",
            "numba_cache_folder", "prune_cache_tree", "prune_numba_cache", "shares_compiled_code", "source_fingerprint",
            "write_cache_file"]
 
@@ -189,16 +195,54 @@ def shares_compiled_code(compiled_from: str | Path, func: object) -> bool:
     return there.parts[-tail:] == here.parts[-tail:]
 
 
+GENERATED = "__flowtex_generated__"
+"""Global of a module flowtex generated and imported from its cache (set by :func:`flowtex.graph.jit.import_source`
+before the module runs). Its file's name is a digest of its source and of everything its code calls, so numba's
+entries of its functions are filed by that name under ``generated/`` of the numba cache folder
+(:func:`file_by_package_path`), not by the folder the cache lies in."""
+
+GENERATED_FOLDER = "generated"
+"""Subfolder of the numba cache folder holding the entries of :data:`GENERATED` modules."""
+
+
+def is_generated(py_func: object) -> bool:
+    """True when ``py_func`` is defined in a module flowtex generated (:data:`GENERATED`)."""
+    return getattr(py_func, "__globals__", {}).get(GENERATED) is True
+
+
+def source_stamp(py_file: str) -> bytes:
+    """numba's source stamp of an entry filed by :func:`file_by_package_path`: the sha256 of the source file's bytes
+    (what numba 0.68 stamps too; numba 0.67 and older stamped the file's modification time and size, which a copy
+    changes). Hashed once per file version in a process (many kernels share a file).
+
+    numba drops an entry whose stamp differs from its source's and compiles again, and keys an entry only by its
+    function's bytecode, which leaves out the constants: the stamp is what keeps an edited file from loading the
+    machine code of the old one."""
+    st = os.stat(py_file)
+    return _content_hash(py_file, (st.st_ino, st.st_mtime_ns, st.st_ctime_ns, st.st_size))
+
+
+@functools.lru_cache(maxsize=512)
+def _content_hash(path: str, version: tuple[int, ...]) -> bytes:
+    """sha256 of the file ``path``; ``version`` (inode, modification and change times, size) only keys the memo: a file
+    written again, or replaced, is hashed again."""
+    with open(path, "rb") as fh:
+        return hashlib.sha256(fh.read()).digest()
+
+
 def file_by_package_path() -> None:
     """Make numba file the cache entries of flowtex's own kernels under ``flowtex/<subpackage>`` of its cache folder,
     and those of plugin files and registered plugin packages under ``plugins/<code id>`` (numba's own locator names the
     folder after the absolute path of the source, so every checkout, and every copy of a plugin folder, compiled anew,
     and keys an entry by its own file only, so an edited helper in another file of a package left stale code).
 
-    Entries stay keyed by numba's content hash of the source file, the folder by :func:`source_fingerprint`, and a
-    plugin's subfolder by :func:`plugin_code_id`: two copies share an entry only when their sources are the same.
-    Other numba functions outside the package keep numba's own locators. Once per process;
-    numba's ``NUMBA_CACHE_LOCATOR_CLASSES``, when set, still rules.
+    Generated modules (:data:`GENERATED`) are filed under ``generated/`` by their file's name (a digest of their
+    contents), so a copied or moved cache loads them: numba's locator named their folder after the cache's own path.
+
+    Entries stay keyed by the content hash of the source file (:func:`source_stamp`), the folder by
+    :func:`source_fingerprint`, and a plugin's subfolder by :func:`plugin_code_id`: two copies share an entry only
+    when their sources are the same. Other numba functions outside the package keep numba's own locators. Once per
+    process; numba's ``NUMBA_CACHE_LOCATOR_CLASSES``, when set, still rules.
     """
     import numba
     from numba.core import caching
@@ -211,7 +255,8 @@ def file_by_package_path() -> None:
         return
 
     class PackageCacheLocator(numba_locator):  # type: ignore[misc, valid-type]
-        """numba's locator for ``numba.config.CACHE_DIR``, with a subfolder named by the path within flowtex."""
+        """numba's locator for ``numba.config.CACHE_DIR``, with a subfolder named by the path within flowtex, the plugin
+        code id or ``generated/``, and a stamp of the source's contents."""
 
         flowtex_package = True
 
@@ -223,12 +268,17 @@ def file_by_package_path() -> None:
         def __init__(self, py_func, py_file):  # type: ignore[no-untyped-def]
             super().__init__(py_func, py_file)
             found = plugin_code_of(py_func)
-            if found is not None:
+            if is_generated(py_func):
+                self._cache_path = os.path.join(numba.config.CACHE_DIR, GENERATED_FOLDER)
+            elif found is not None:
                 self._cache_path = os.path.join(numba.config.CACHE_DIR, "plugins", found.code, *found.parts)
+
+        def get_source_stamp(self) -> bytes:
+            return source_stamp(self._py_file)
 
         @classmethod
         def from_function(cls, py_func, py_file):  # type: ignore[no-untyped-def]
-            ours = folder_in_package(py_file) is not None or plugin_code_of(py_func) is not None
+            ours = folder_in_package(py_file) is not None or plugin_code_of(py_func) is not None or is_generated(py_func)
             return super().from_function(py_func, py_file) if ours else None
 
     impl._locator_classes = [PackageCacheLocator, *impl._locator_classes]

@@ -1,4 +1,5 @@
-"""Documented limits every reader checks before it allocates, and :func:`excerpt` for quoting user values.
+"""Documented limits every reader checks before it allocates, :func:`excerpt` for quoting user values and
+:func:`suggest` for naming what they may have meant.
 
 A hostile or broken file costs the user one line of text, never the machine's
 memory: each reader compares what a file *claims* (an npy header's shape, a
@@ -13,10 +14,12 @@ YAML loader, the graph checker and every reader in ``flowtex.io`` share it.
 
 from __future__ import annotations
 
+import difflib
 import math
 import os
 import reprlib
 import stat
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -225,3 +228,11 @@ def too_deep(path: Path | str, kind: str) -> DataError:
     """The error for a document nested deeper than :data:`MAX_DEPTH`."""
     return DataError(f"{path}: {kind} nests lists or maps more than {MAX_DEPTH} levels deep; flowtex files nest a few levels "
                      "(is this the right file?)")
+
+
+def suggest(word: str, candidates: Sequence[str]) -> str:
+    """A ``" (did you mean 'x'?)"`` hint, or ``""`` when nothing is close."""
+    close = difflib.get_close_matches(word, list(candidates), n=3, cutoff=0.6)
+    if not close:
+        return ""
+    return " (did you mean " + " or ".join(repr(c) for c in close) + "?)"

@@ -6,7 +6,6 @@ graph (:mod:`flowtex.node_processor`) needs the declarations, not the Node class
 
 from __future__ import annotations
 
-import difflib
 import math
 import re
 from collections.abc import Mapping, Sequence
@@ -17,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from .errors import ParamError
-from .limits import MAX_INT_PARAM, excerpt, short_number
+from .limits import MAX_INT_PARAM, excerpt, short_number, suggest
 from .yamlsource import yaml_bool
 
 
@@ -356,14 +355,6 @@ def simplify_unit(unit: str) -> str:
     if not top and not bottom:
         return ""
     return (top or "1") + bottom
-
-
-def suggest(word: str, candidates: Sequence[str]) -> str:
-    """A ``" (did you mean 'x'?)"`` hint, or ``""`` when nothing is close."""
-    close = difflib.get_close_matches(word, list(candidates), n=3, cutoff=0.6)
-    if not close:
-        return ""
-    return " (did you mean " + " or ".join(repr(c) for c in close) + "?)"
 
 
 def check(condition: bool, param: str | None, message: str) -> None:

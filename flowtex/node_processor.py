@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import zlib
 from collections.abc import Mapping
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -26,11 +27,13 @@ import numpy as np
 
 from .dsp.nonfinite import NONFINITE_POLICIES, apply_nonfinite_policy
 from .errors import FlowtexError, InputError, ParamError
-from .limits import MAX_EVERY, MAX_RATE_HZ, check_ticks, excerpt, port_values_problem
+from .limits import check_ticks, excerpt, port_values_problem
 from .node_decl import BuildContext, PortSpec, expected_shape, suggest
 from .node_params import checked_params, load_files
 from .nodecheck import check_kernel_compiles, checked_outputs, is_plugin, scheduled_every
 from .pyvalues import float_signal, plain, whole_count
+from .schema.core import Field, checked
+from .schema.graph import GRAPH, NODE
 
 
 def _params(cls: type, given: dict[str, Any], base_dir: Path) -> tuple[dict[str, Any], dict[str, Path]]:
@@ -58,14 +61,20 @@ def given_params(cls: type, mapping: Any, keywords: dict[str, Any]) -> dict[str,
     return {**mapping, **keywords}
 
 
+def _graph_setting(cls: type, key: str, value: Any, declared: Field, **fmt: Any) -> Any:
+    """``value`` as a graph file's ``declared`` field reads it (flowtex.schema.graph: its kind, bounds and message), or a
+    :class:`ParamError` naming ``key`` and the node type."""
+    value, problem = checked(plain(value), declared, key=key, **fmt)
+    if problem is not None:
+        raise ParamError(key.split("[")[0], f"node type {cls.type_name!r} processor: {problem}")
+    return value
+
+
 def _settings(cls: type, rate: Any, seed: Any, name: Any, nonfinite: Any) -> tuple[float, int, str]:
     """``rate`` (Hz), ``seed`` and ``name`` checked as a graph file's ``rate``, ``seed`` and node name are."""
-    rate, seed = plain(rate), plain(seed)
+    rate = _graph_setting(cls, "rate", rate, GRAPH.keys["rate"])
+    seed = _graph_setting(cls, "seed", seed, GRAPH.keys["seed"])
     where = f"node type {cls.type_name!r} processor"
-    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0 < rate <= MAX_RATE_HZ:
-        raise ParamError("rate", f"{where}: rate must be a number of Hz in (0, {MAX_RATE_HZ:g}], got {excerpt(rate)}")
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ParamError("seed", f"{where}: seed must be a non-negative integer, got {excerpt(seed)}")
     if name is not None and (not isinstance(name, str) or not name):
         raise ParamError("name", f"{where}: name must be a non-empty string (the node's name in a graph), got {excerpt(name)}")
     if nonfinite not in NONFINITE_POLICIES:
@@ -73,13 +82,8 @@ def _settings(cls: type, rate: Any, seed: Any, name: Any, nonfinite: Any) -> tup
     return float(rate), seed, name or cls.type_name
 
 
-def _ticks_every(cls: type, what: str, value: Any) -> int:
-    """A rate divider (``every``, an ``input_every`` value): whole ticks in 1..MAX_EVERY, as a graph's ``every:``."""
-    value = plain(value)
-    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_EVERY:
-        raise ParamError(what.split("[")[0], f"node type {cls.type_name!r} processor: {what} must be a whole number of ticks "
-                                             f"from 1 to {MAX_EVERY:,} (as a graph's every:), got {excerpt(value)}")
-    return value
+INPUT_EVERY = replace(NODE.keys["every"], message="")
+"""An ``input_every`` value: its producer's ``every``, bounded as a graph node's (the generic message names the input)."""
 
 
 def _schedule(cls: type, name: str, values: dict[str, Any], rate: float, every: Any,
@@ -87,7 +91,7 @@ def _schedule(cls: type, name: str, values: dict[str, Any], rate: float, every: 
     """The node's ``every`` and its inputs' ``every`` (port -> the producer's divider, 1 for the base rate), as a
     graph resolves them: the node's own schedule (:meth:`Node.own_every`) wins over ``every=1``, and contradicts any
     other ``every`` in one error."""
-    every = _ticks_every(cls, "every", every)
+    every = _graph_setting(cls, "every", every, NODE.keys["every"], name=name)
     if input_every is None:
         input_every = {}
     if not isinstance(input_every, Mapping):
@@ -97,7 +101,7 @@ def _schedule(cls: type, name: str, values: dict[str, Any], rate: float, every: 
     if unknown:
         raise ParamError("input_every", f"node type {cls.type_name!r} has no input {unknown[0]!r}"
                                         f"{suggest(str(unknown[0]), list(cls.inputs))}; its inputs are: {', '.join(cls.inputs) or 'none'}")
-    ports = {port: _ticks_every(cls, f"input_every[{port!r}]", input_every.get(port, 1)) for port in cls.inputs}
+    ports = {port: _graph_setting(cls, f"input_every[{port!r}]", input_every.get(port, 1), INPUT_EVERY) for port in cls.inputs}
     own = scheduled_every(cls, name, values, rate, ports)
     if own is not None and every not in (1, own):
         raise ParamError("every", f"node type {cls.type_name!r} processor: its parameters make it run every {own} ticks, "
@@ -239,8 +243,8 @@ class Processor:
             raise InputError(f"node type {self.cls.type_name!r}: call with the same inputs as the first call: "
                              f"{', '.join(sorted(self._provided)) or 'none'}")
         assert self.input_specs is not None
-        n = lengths.pop() if lengths else 1 if ticks is None else ticks
-        if not lengths and n > 1:
+        n = next(iter(lengths)) if lengths else 1 if ticks is None else ticks
+        if n > 1:  # n rows of outputs (and of defaulted inputs), whether the rows come from the inputs or from ticks=
             self._check_ticks(n)
         ports = []
         for port_name in self.cls.inputs:
@@ -264,7 +268,8 @@ class Processor:
         return outs
 
     def _check_ticks(self, n: int) -> None:
-        """Refuse ``ticks=n`` whose arrays (defaulted inputs and outputs) would hold more than a recording may."""
+        """Refuse a call of ``n`` ticks (``ticks=n`` or inputs of ``n`` rows) whose arrays (defaulted inputs and outputs)
+        would hold more than a recording may."""
         assert self.input_specs is not None
         per_tick = sum(spec.width for spec in self.output_specs.values()) + sum(spec.width for spec in self.input_specs.values())
         per_tick = max(per_tick, 1)  # a node without ports still schedules its ticks (every > 1: an index per run)

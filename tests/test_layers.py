@@ -21,9 +21,10 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("cli", ("flowtex.cli",)),
     # Not in DESIGN.md's list: what only the CLI and the tests use. Generators and oracles users want too
     # (datasets), the golden fixture (testing), the any-file checker behind `flowtex validate` (it reads scenes), and
-    # the plugin author's tools (scaffold, plugin check and its kernel probe).
+    # the plugin author's tools (scaffold, plugin check and its kernel probe), and the editors' JSON Schemas made from the
+    # file declarations and the node types' Param declarations (`flowtex schema`).
     ("tools", ("flowtex.datasets", "flowtex.testing", "flowtex.filecheck", "flowtex.scaffold", "flowtex.plugincheck",
-               "flowtex.kernelprobe")),
+               "flowtex.kernelprobe", "flowtex.schema.jsonschema")),
     ("scene, bench", ("flowtex.scene", "flowtex.bench")),
     ("fit", ("flowtex.fit",)),
     ("runtime", ("flowtex.runtime",)),
@@ -35,11 +36,12 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
                  "flowtex.graph.builder")),
     ("graph", ("flowtex.graph",)),
     ("nodes", ("flowtex.nodes",)),
-    # The declarative schema of every file kind (keys, kinds, bounds, units, docs) sits under graph, io and scene, which
-    # declare their files with it; it uses the node API's parameter kinds.
-    ("schema", ("flowtex.schema",)),
     ("node API", ("flowtex.node_api", "flowtex.node_decl", "flowtex.node_params", "flowtex.node_processor", "flowtex.nodecheck",
                   "flowtex.registry")),
+    # The declarative schema of every file kind (keys, kinds, bounds, units, docs) sits under graph, io and scene, which
+    # declare their files with it, and under the node API, whose processor checks its graph settings (rate, seed,
+    # every) against the graph file's declarations.
+    ("schema", ("flowtex.schema",)),
     # The format registry is a table of names (suffix or content -> kind, "module:function" readers and writers, imported
     # only when used, as the node registry imports node modules), so it sits under the graph/io boundary that uses it:
     # flowtex.node_params reads a path parameter into its object with it, for the graph's resolver and Node.processor.

@@ -157,9 +157,9 @@ def test_a_kept_allocation_check_is_used_for_the_same_code_only(mistakes_report,
     probe = ("import sys; from flowtex import plugincheck\n"
              "for folder in sys.argv[1:]:\n"
              "    print(plugincheck.allocation_key(plugincheck.node_types(folder + '/mistakes.py')['alloc_pc']))\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}  # this checkout's flowtex
     out = subprocess.run([sys.executable, "-c", probe, str(tmp_path / "copy"), str(tmp_path / "edited")],
-                         capture_output=True, text=True, check=True,  # this tree's flowtex, not an installed one
-                         env=plugincheck.child_env({})).stdout.split()
+                         capture_output=True, text=True, check=True, env=env).stdout.split()
     assert out[0] == str(kept) and out[1] != str(kept)
     good = kept.read_bytes()
     # nested past Python's recursion limit, json.loads raises RecursionError, which is not a ValueError

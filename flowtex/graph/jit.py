@@ -3,9 +3,10 @@
 The source is written once to ``<cache>/codegen/g_<hash>.py``, where the hash
 covers the source text, the identity and source of every kernel it calls,
 and the numba and flowtex versions. numba's own ``cache=True`` then stores the
-machine code beside it, so a second process building a graph of the same
-structure (whatever its parameter values or model files) loads instead of
-compiling.
+machine code, filed by that file name and stamped with its contents
+(:data:`flowtex.cache.GENERATED`), so a second process building a graph of the
+same structure (whatever its parameter values or model files) loads instead of
+compiling, from this cache or from a copy of it elsewhere.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from typing import Any
 
 import numba
 
-from ..cache import cache_dir, source_fingerprint, write_cache_file
+from ..cache import GENERATED, cache_dir, source_fingerprint, write_cache_file
 from ..plugincode import plugin_code_of
 
 
@@ -69,8 +70,12 @@ def load_generated(source: str, kernels: dict[str, Callable], extra_key: str = "
 
 
 def import_source(path: Path, source: str, namespace: dict[str, Any], mod_name: str) -> ModuleType:
-    """Write ``source`` to ``path`` (atomically, only if it differs: numba's cache checks the file's time stamp)
-    and import it as ``mod_name`` with ``namespace`` added to its globals."""
+    """Write ``source`` to ``path`` (atomically, only if it differs) and import it as ``mod_name`` with ``namespace``
+    added to its globals.
+
+    The module is marked :data:`~flowtex.cache.GENERATED`: numba files its functions' cache entries by ``path``'s
+    name alone, so that name must be a digest of everything the code depends on (a different source under the same
+    name is still never given the old machine code: entries are stamped with the file's contents)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     if not path.exists() or path.read_text() != source:
         write_cache_file(path, source.encode())
@@ -78,6 +83,7 @@ def import_source(path: Path, source: str, namespace: dict[str, Any], mod_name: 
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     module.__dict__.update(namespace)
+    module.__dict__[GENERATED] = True
     sys.modules[mod_name] = module
     spec.loader.exec_module(module)
     return module

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import DataError, Diagnostic, GraphError, Location
-from ..limits import excerpt
+from ..limits import excerpt, suggest
 from ..yamlsource import yaml_bool
 
 Pos = tuple[int, int]
@@ -181,8 +181,6 @@ def is_number(v: Any) -> bool:
 
 
 def _hint(record: Record, name: str) -> str:
-    from ..node_api import suggest
-
     known = list(record.keys)
     hint = suggest(name, record.allowed())
     if not hint and record.suggest == "close_or_known" and known:
@@ -346,18 +344,27 @@ def _bounds(value: float, f: Field) -> str | None:
     return None
 
 
+def checked(value: Any, f: Field, **fmt: Any) -> tuple[Any, str | None]:
+    """(``value`` as ``f`` reads it, None) if it fits ``f``; else (INVALID, the field's message).
+
+    ``fmt`` fills the message template (``{got}`` is always the value's excerpt). For values that come from Python
+    rather than a file (``Node.processor``'s graph settings), with no position to collect them at.
+    """
+    problem = _problem(value, f)
+    if problem is None:
+        return _normalized(value, f), None
+    got = ("true" if value else "false") if isinstance(value, bool) else excerpt(value)  # as the file spells it
+    if f.message:
+        return INVALID, f.message.format(got=got, **fmt)
+    return INVALID, f"{fmt.get('key', 'value')}: {problem}, got {got}"
+
+
 def check_value(c: Collector, value: Any, pos: Pos | Location | None, f: Field, **fmt: Any) -> Any:
     """``value`` if it fits ``f``; else the field's message is collected at ``pos`` and INVALID returned.
 
     ``fmt`` fills the message template (``{got}`` is always the value's excerpt).
     """
-    problem = _problem(value, f)
-    if problem is None:
-        return _normalized(value, f)
-    got = ("true" if value else "false") if isinstance(value, bool) else excerpt(value)  # as the file spells it
-    if f.message:
-        c.error(pos, f.message.format(got=got, **fmt))
-    else:
-        what = fmt.get("key", "value")
-        c.error(pos, f"{what}: {problem}, got {got}")
-    return INVALID
+    value, problem = checked(value, f, **fmt)
+    if problem is not None:
+        c.error(pos, problem)
+    return value

@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import inspect
 import itertools
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
@@ -109,6 +111,48 @@ def test_rate_seed_name_and_policy_are_checked_and_named(settings_, words) -> No
     with pytest.raises(ParamError) as err:
         node_type("butterworth").processor(order=2, cutoff_hz=50.0, **settings_)
     assert words in str(err.value) and err.value.param == next(iter(settings_))
+
+
+GRAPH_WITH = """flowtex: 1
+rate: {rate}
+seed: {seed}
+inputs: {{x: {{}}}}
+nodes:
+  f: {{type: gain, params: {{k: 2.0}}, every: {every}}}
+edges: [x -> f.x]
+outputs: {{y: f.y}}
+"""
+
+
+@pytest.mark.parametrize(("setting", "value"), [
+    *[("rate", v) for v in (0, -5, 1e7, "fast", True, 500, 4.0e3, 1e6)],
+    *[("seed", v) for v in (-1, 2.5, 4.0, "a", 7, 10**20, False)],
+    *[("every", v) for v in (0, 2.5, 3.0, 2_000_000, True, 2, "2")],
+])
+def test_a_processor_setting_is_read_by_the_graph_files_declaration(setting, value) -> None:
+    """One rule for a graph's rate, seed and a node's every: a processor refuses exactly what a graph file refuses, with
+    the graph file's message (flowtex.schema.graph), and reads what it accepts the same way (4.0 is the integer 4)."""
+    from flowtex.errors import GraphError
+    from flowtex.graph.spec import parse_spec
+
+    given = {"rate": 1000, "seed": 0, "every": 1, setting: value}
+    text = GRAPH_WITH.format(**{k: yaml.safe_dump(v, default_flow_style=True).strip().removesuffix("...").strip()
+                                for k, v in given.items()})
+    try:
+        spec = parse_spec(text, Path("g.yaml"))
+        graph_message = None
+    except GraphError as e:
+        graph_message = str(e).split(": ", 1)[1]  # after g.yaml:line:col
+    try:
+        proc = node_type("gain").processor(k=2.0, name="f", **given)
+    except ParamError as e:
+        assert graph_message is not None, f"the graph file takes {setting}: {value!r}, the processor refused: {e}"
+        assert str(e).endswith(": " + graph_message) and e.param == setting
+        return
+    assert graph_message is None, f"the graph file refuses {setting}: {value!r} ({graph_message}), the processor took it"
+    read = {"rate": spec.rate, "seed": spec.seed, "every": spec.nodes["f"].every}[setting]
+    got = {"rate": proc.context.rate, "seed": proc.seed, "every": proc.every}[setting]
+    assert got == read and type(got) is type(read)
 
 
 def test_inputs_are_passed_by_port_name() -> None:

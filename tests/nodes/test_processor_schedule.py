@@ -121,9 +121,9 @@ def test_a_random_node_every_k_ticks_equals_its_graph_node() -> None:
 
 
 @pytest.mark.parametrize(("kwargs", "param", "words"), [
-    ({"every": 0}, "every", "every must be a whole number of ticks from 1 to 1,000,000 (as a graph's every:), got 0"),
+    ({"every": 0}, "every", "node 'resample': every must be a positive integer up to 1,000,000 (run every k ticks), got 0"),
     ({"every": 2.5}, "every", "got 2.5"),
-    ({"input_every": {"x": 0}}, "input_every", "input_every['x'] must be a whole number of ticks"),
+    ({"input_every": {"x": 0}}, "input_every", "input_every['x']: must be >= 1, got 0"),
     ({"input_every": {"y": 2}}, "input_every", "node type 'resample' has no input 'y'; its inputs are: x"),
     ({"input_every": [2]}, "input_every", "input_every must map input names to their producer's every"),
     ({"input_every": {"x": 4}, "to_hz": 125.0, "every": 3}, "every",
