@@ -14,7 +14,7 @@ import io
 import re
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import BinaryIO
 
 import can
 from can.io.canutils import CAN_ERR_BUSERROR, CAN_ERR_FLAG
@@ -188,11 +188,14 @@ class AscCheck:
 
     def __init__(self) -> None:
         self.base = 16
+        self.in_header = True
+        """Set False by :class:`AscLines` where python-can's header ends: a ``base`` line after it is ignored, as there."""
 
     def __call__(self, line: str) -> tuple[str, int] | None:
         base = _ASC_BASE.match(line)
         if base is not None:
-            self.base = 16 if base.group(1).lower() == "hex" else 10
+            if self.in_header:
+                self.base = 16 if base.group(1).lower() == "hex" else 10
             return None
         m = _ASC_FRAME.match(line)
         if m is None:
@@ -281,11 +284,12 @@ class AscLines(NumberedLines):
     """:class:`NumberedLines` of an .asc log for python-can's ASCReader, which reads header lines (date, base, comments)
     until ``internal events logged`` and takes whatever line comes first instead as the header's end, unread: a log
     without that line lost its first frame. Here such a header gets the line python-can expects (``no internal events
-    logged``, which is what it says) before its first other line, so that line is read as any other is."""
+    logged``, which is what it says) before its first other line, so that line is read as any other is. Where the header
+    ends the line check stops taking ``base`` lines, as python-can does."""
 
-    def __init__(self, *args: Any, **kwargs: Any):
-        super().__init__(*args, **kwargs)
-        self._header = True
+    def __init__(self, fh: BinaryIO, path: Path, whole_only: bool):
+        self._asc = AscCheck()
+        super().__init__(fh, path, whole_only, self._asc)
         self._held: str | None = None
 
     def __next__(self) -> str:
@@ -293,8 +297,8 @@ class AscLines(NumberedLines):
             text, self._held = self._held, None
             return text
         text = super().__next__()
-        if self._header and not _ASC_HEADER.match(text.strip()):
-            self._header = False
+        if self._asc.in_header and not _ASC_HEADER.match(text.strip()):
+            self._asc.in_header = False
             if not _ASC_HEADER_END.match(text.strip()):
                 self._held = text
                 return "no internal events logged\n"
@@ -323,8 +327,7 @@ class TextLogFrames:
         except OSError as exc:
             raise DataError(f"{path}: cannot read CAN log: {exc.strerror or exc}") from None
         with fh:
-            source = (AscLines(fh, path, self._whole_only, AscCheck()) if asc
-                      else NumberedLines(fh, path, self._whole_only, candump_problem))
+            source = AscLines(fh, path, self._whole_only) if asc else NumberedLines(fh, path, self._whole_only, candump_problem)
             reader = can.ASCReader(source) if asc else can.CanutilsLogReader(source)
             count = 0
             try:

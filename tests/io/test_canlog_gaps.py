@@ -148,3 +148,14 @@ def test_a_frame_time_a_writer_cannot_date_is_one_line_and_no_file(tmp_path, suf
         assert len(read_session(path).__next__().data) == 4
         return
     assert path.read_bytes() == b"an older log" and [p.name for p in tmp_path.iterdir()] == [path.name]
+
+
+def test_a_base_line_after_the_header_is_ignored_as_python_can_ignores_it(tmp_path):
+    """python-can reads 'base hex|dec' in the header only; the line check took one anywhere, and refused the hex bytes
+    after a stray 'base dec' line ('data byte 'F3' is not a number in base 10') that python-can reads as hex."""
+    path = tmp_path / "s.asc"
+    path.write_text(ASC_HEAD + "internal events logged\n" + ASC_FRAMES + "base dec  timestamps absolute\n"
+                    + " 0.000300 1  100             Rx   d 2 F3 0C\n")
+    frames, _ = read_session_checked(path)
+    assert [bytes(m.data) for m in frames] == [bytes(m.data) for m in can.LogReader(path)] == [
+        bytes(range(8)), bytes(4), b"\xf3\x0c"]
