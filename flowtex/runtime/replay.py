@@ -321,10 +321,11 @@ def _replay_audio(graph: TickProgram, amap: Any, outputs: dict[str, np.ndarray],
         raise DataError(f"{report.session_path}: its audio timeline's {problem} is out of bounds (negative, or more than "
                         f"{most:,}, the frames a recording of {len(amap.channels)} channel(s) may hold: "
                         "flowtex.limits.MAX_RECORDING_VALUES): a damaged log? The replay rebuilds the played stream from it")
+    what = str(path) if path is not None else f"--expect-audio {live[1] if live else ''}"  # the file the stream is for
     if timeline is not None:
-        stream, klass = rebuild_live(render_outputs(outputs, amap, rate), n_ticks, up, down, timeline)
+        stream, klass = rebuild_live(render_outputs(outputs, amap, rate, what=what), n_ticks, up, down, timeline)
     else:
-        stream = render_outputs(outputs, amap, rate, lead=lead_frames(amap))
+        stream = render_outputs(outputs, amap, rate, lead=lead_frames(amap), what=what)
     if path is not None:
         write_wav(path, stream, amap.rate)  # atomic itself (flowtex.io.wav.write_wav)
     if live is None:

@@ -61,3 +61,17 @@ def test_a_timeline_event_out_of_bounds_is_one_line_naming_the_log(session, star
     msg = str(info.value)
     assert msg.startswith(f"{log}: its audio timeline's {says}") and "\n" not in msg, msg
     assert not out.exists()
+
+
+def test_a_replayed_stream_longer_than_a_recording_may_be_is_refused(session, monkeypatch):
+    """The replay renders every tick's samples (8 a tick at 8 kHz): a session within the log limits (8 hours) played
+    at 48 kHz is billions of frames. 300 values stand for 10^8 here; 60 ticks are 480 frames."""
+    from flowtex import limits
+
+    s, _frames = session
+    out = s.folder / "long.wav"
+    monkeypatch.setattr(limits, "MAX_RECORDING_VALUES", 300)
+    with pytest.raises(DataError) as info:
+        replay_session(load_graph(s.graph), s.folder / "plain.blf", s.dbc, s.folder / "ma.yaml", out, seed=3)
+    assert str(info.value).startswith(f"{out}: 60 ticks play as ") and "MAX_RECORDING_VALUES" in str(info.value)
+    assert not out.exists()
