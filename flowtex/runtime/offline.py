@@ -171,7 +171,7 @@ def render_recording_audio(graph: Graph, input_path: str | Path, output_path: st
             raise FlowtexError(f"graph {graph.name!r} has no scalar output to play; give --map MAP.yaml with an 'audio' section")
     outputs = run_recording(graph, input_path, None, seed=seed, progress=progress, nonfinite=nonfinite, recording=recording,
                             nonfinite_out=nonfinite_out)
-    samples = render_outputs(outputs, amap, float(graph.rate))
+    samples = render_outputs(outputs, amap, float(graph.rate), what=str(output_path))
     write_wav(output_path, samples, amap.rate)
     silent = [f"{line}; played as silence (0), as flowtex live plays them (--nonfinite-outputs error refuses instead)"
               for line in nonfinite_outputs({c.output: outputs[c.output] for c in amap.channels})]
