@@ -256,7 +256,7 @@ class Processor:
                 ports.append(arrays[port_name])
             else:
                 ports.append(np.tile(self.node.input_default(port_name, spec), (n, 1)))
-        runs = None if self.every == 1 else np.flatnonzero((self._tick + np.arange(n)) % self.every == 0)
+        runs = None if self.every == 1 else np.arange((-self._tick) % self.every, n, self.every)  # ticks % every == 0
         if runs is not None:  # the ticks the node runs on: the kernel sees those rows only, as in a graph
             ports = [port[runs] for port in ports]
         rows = n if runs is None else runs.size
@@ -272,6 +272,7 @@ class Processor:
         would hold more than a recording may."""
         assert self.input_specs is not None
         per_tick = sum(spec.width for spec in self.output_specs.values()) + sum(spec.width for spec in self.input_specs.values())
+        per_tick = max(per_tick, 1)  # a node without ports still schedules its ticks (every > 1: an index per run)
         check_ticks(f"node type {self.cls.type_name!r}: ticks", n, per_tick,
                     "run fewer ticks per call (the state carries over from one call to the next)")
 
@@ -290,11 +291,10 @@ class Processor:
     def _held_between_runs(self, outs: dict[str, np.ndarray], runs: np.ndarray, n: int) -> dict[str, np.ndarray]:
         """Outputs for all ``n`` ticks from those of the ``runs`` ticks: each tick shows the node's last run up to it
         (before this call's first run, the value held from the previous call), as the graph's schedule copies it."""
-        last = np.searchsorted(runs, np.arange(n), side="right") - 1
+        spans = np.diff(runs, prepend=0, append=n)  # ticks showing the held value, then each run's (n rows in all)
         full = {}
         for k, ran in outs.items():
-            held = np.vstack([self._holds[k][None, :], ran])
-            full[k] = held[last + 1]
+            full[k] = np.repeat(np.vstack([self._holds[k][None, :], ran]), spans, axis=0)
             if runs.size:
                 self._holds[k] = ran[-1].copy()
         return full

@@ -259,7 +259,7 @@ def _kept_allocations(path: Path | None) -> list[str] | None:
         return None
     try:
         calls = json.loads(path.read_text(encoding="utf-8"))["allocations"]
-    except (OSError, ValueError, KeyError, TypeError):
+    except (OSError, ValueError, KeyError, TypeError, RecursionError):  # RecursionError: a damaged file nested deep
         return None
     return calls if isinstance(calls, list) and all(isinstance(c, str) for c in calls) else None
 

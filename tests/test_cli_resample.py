@@ -79,3 +79,19 @@ def test_nan_signal_is_named_and_nothing_is_written(tmp_path, capsys) -> None:
     assert main(["resample", str(tmp_path / "in.npz"), "--rate", "500", "-o", str(tmp_path / "out.npz")]) == 1
     assert "'bad'" in capsys.readouterr().err
     assert not (tmp_path / "out.npz").exists()
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".csv", ".h5"])
+def test_the_units_a_recording_states_are_kept(tmp_path, suffix) -> None:
+    """A resampled recording states the units its source stated (they were dropped before, so a speed stated in m/s
+    lost the statement that makes `flowtex run` and the fits refuse it for an input in mm/s)."""
+    if suffix == ".h5":
+        pytest.importorskip("h5py")
+    src = tmp_path / f"in{suffix}"
+    out = tmp_path / f"out{suffix}"
+    n = 2000
+    units = {"speed": "m/s", "normal_force": "N"}
+    save_recording(src, {"speed": np.full(n, 0.1), "normal_force": np.ones(n), "trigger": np.zeros(n)}, rate=1000.0, units=units)
+    assert main(["resample", str(src), "--rate", "2000", "-o", str(out)]) == 0
+    got = load_recording(out)
+    assert got.rate == 2000.0 and got.units == units

@@ -279,3 +279,24 @@ def test_set_node_every_applies_what_a_bench_knob_found(write_graph, tmp_path, r
     assert main(["run", str(graph), "-i", str(src), "-o", str(tmp_path / "bad.npz"), "--set", "lp.every=0"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("--set lp.every: ") and "every must be a positive integer" in err[0], err
+
+
+def test_a_recording_stating_another_unit_than_an_input_is_refused(write_graph, tmp_path, rec, capsys):
+    """A recording that states its units (docs/recordings.md) is refused where one differs from the graph input's:
+    flowtex converts no unit, and before a position in m ran through an input in mm as if it were mm (1000x too
+    small), silently. The same unit written another way, or a unit the file leaves unstated, runs."""
+    graph = write_graph(GRAPH)
+    src = tmp_path / "in.npz"
+    out = tmp_path / "out.npz"
+    save_recording(src, rec, rate=1000, units={"p": "m", "f": "N"})
+    assert main(["run", str(graph), "--input", str(src), "-o", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert (f"{src}: signal 'p' is in 'm' (the file's units) but graph 't' input 'p' takes mm; flowtex converts no unit: "
+            "multiply it by 1000 and state its unit as mm") in err
+    assert not out.exists()
+    save_recording(src, rec, rate=1000, units={"f": "kg*m/s^2/kg*kg"})  # no rule converts kg m/s^2 to N: no factor named
+    assert main(["run", str(graph), "--input", str(src), "-o", str(out)]) == 1
+    assert "graph 't' input 'f' takes N; flowtex converts no unit: convert it to N and state that unit" in capsys.readouterr().err
+    for units in ({"p": "mm", "f": "N"}, {"p": "mm*s/s"}, {"p": "mm*mm²/mm^2"}, {"p": "mm s / s", "f": " N "}, {"f": "-"}, {}):
+        save_recording(src, rec, rate=1000, units=units)
+        assert main(["run", str(graph), "--input", str(src), "-o", str(out)]) == 0, (units, capsys.readouterr().err)

@@ -82,3 +82,27 @@ def test_docs_cite_papers_not_internal_files():
     for path in list((REPO / "flowtex").rglob("*.py")) + list((REPO / "docs").glob("*.md")):
         for k, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
             assert not CITATION.search(line), f"{path}:{k}: {line}"
+
+
+SECTION_REFERENCE = re.compile(r"(docs/[a-z0-9-]+\.md),?\s+(?:section\s+)?[\"“']([^\"”'`]{3,80})[\"”']")
+"""A reference to a section of a doc file: ``docs/texture.md, "How a set renders"``."""
+
+
+def test_every_named_doc_section_exists():
+    """A file that sends the reader to a section of docs/ names one that is there: a heading, or a paragraph that opens
+    with those words (bold or not). graphs/speed_force_texture.yaml sent its users to a section "Speed and force only"
+    that docs/texture.md never had."""
+    sources = [*(REPO / "docs").glob("*.md"), REPO / "README.md", *(REPO / "graphs").glob("*.yaml"),
+               *(REPO / "flowtex").rglob("*.py"), *(REPO / "benchmarks").glob("*.py"), *(REPO / "tests").rglob("*.py")]
+    openings: dict[str, list[str]] = {}
+    missing = []
+    for src in sources:
+        for m in SECTION_REFERENCE.finditer(src.read_text(encoding="utf-8")):
+            doc, section = m.group(1), " ".join(m.group(2).split())
+            if doc not in openings:
+                path = REPO / doc
+                openings[doc] = ([" ".join(line.lstrip("#*- ").split()) for line in path.read_text(encoding="utf-8").splitlines()]
+                                 if path.exists() else [])
+            if not any(line.startswith(section) for line in openings[doc]):
+                missing.append(f"{src.relative_to(REPO)}: {doc}, {section!r}")
+    assert not missing, "sections named but not in the doc:\n" + "\n".join(missing)

@@ -22,6 +22,8 @@ import numpy as np
 
 from ..dsp.errors import pareto_front, signal_error
 from ..errors import FlowtexError
+from ..io.recordings import Recording
+from ..runtime.offline import check_recording_fits
 from ..yamlsource import parse_value
 from .scenes import PLAN_KNOB, check_plan_knob, is_plan_knob, is_scene_file, write_planned_graph
 
@@ -116,11 +118,14 @@ def reference_values(knobs: dict[str, list[Any]], reference: dict[str, Any] | No
     return {**{n: v[0] for n, v in knobs.items()}, **(reference or {})}
 
 
-def sweep(graph_path: str | Path, inputs: dict[str, np.ndarray], knobs: dict[str, list[Any]], reference: dict[str, Any] | None = None,
+def sweep(graph_path: str | Path, inputs: dict[str, np.ndarray] | Recording, knobs: dict[str, list[Any]], reference: dict[str, Any] | None = None,
           outputs: list[str] | None = None, metric: str | None = None, repeats: int = 5, seed: int | None = None,
           plugins: tuple[str | Path, ...] = (), client: Any = None, tier: str = "dispatch") -> tuple[list[Config], list[str]]:
     """Run every combination of ``knobs``; returns the configurations (with ns/tick, errors, Pareto flag) and the outputs compared.
 
+    ``inputs``: the signals, or the :class:`~flowtex.io.recordings.Recording` they come from, which is then checked
+    against the reference configuration's graph as ``flowtex run`` checks it (its stated rate, its inputs, the units
+    it states: :func:`flowtex.runtime.offline.check_recording_fits`) before anything runs.
     The reference is ``reference`` (default: the first value of every knob).
     The Pareto front is over (ns/tick, error of the first compared output).
     With a Dask ``client`` each configuration is compiled, run and timed on a
@@ -133,6 +138,9 @@ def sweep(graph_path: str | Path, inputs: dict[str, np.ndarray], knobs: dict[str
     combos = combinations(knobs)
     ref_values = reference_values(knobs, reference)
     ref_graph = build(graph_path, ref_values, plugins, tier)
+    if isinstance(inputs, Recording):
+        check_recording_fits(inputs, ref_graph.name, ref_graph.rate, ref_graph.inputs, inputs.path or "the recording")
+        inputs = dict(inputs.arrays)
     if outputs is None:
         outputs = list(ref_graph.outputs)
     missing = [o for o in outputs if o not in ref_graph.outputs]

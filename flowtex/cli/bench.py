@@ -69,7 +69,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if rec.samples < 2:
         raise DataError(f"{args.input}: the recording has {rec.samples} sample(s); bench needs at least 2")
     with dask_client(args.workers, args.scheduler) as client:
-        configs, outputs = sweep(args.graph, dict(rec.arrays), knobs, reference, args.outputs, args.metric, args.repeats,
+        configs, outputs = sweep(args.graph, rec, knobs, reference, args.outputs, args.metric, args.repeats,
                                  args.seed, tuple(args.plugins), client=client, tier=args.compile)
     if not configs:
         raise DataError("no configuration to run")

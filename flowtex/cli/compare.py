@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from ..limits import MAX_SEEDS
-from .options import add_from_rate, int_at_least
+from .options import add_from_rate, int_at_least, one_motion_source
 from .output import say
 
 
@@ -47,6 +47,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from ..io.atomic import check_output, write_text_atomic
     from .fit_texture import check_report_folder
 
+    one_motion_source(args)
     inputs = [args.surface, args.recording]
     check_output(args.json, inputs=inputs, option="--json")
     check_report_folder(args.report, inputs, {"--json": args.json})

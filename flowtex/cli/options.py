@@ -118,10 +118,14 @@ def cpu_index(text: str) -> int:
 
 
 def one_motion_source(args: argparse.Namespace) -> None:
-    """``--speed`` and ``--position`` both say how fast the tool moves: refuse both rather than silently use one."""
+    """``--speed`` and ``--position`` both say how fast the tool moves: refuse both rather than silently use one; and
+    ``--normal`` (the surface normal for ``--position``) without ``--position``, which nothing would read."""
     if getattr(args, "speed", None) is not None and getattr(args, "position", None) is not None:
         raise FlowtexError(f"--speed {args.speed} and --position {args.position}: give one (the speed signal, or the position "
                            "the speed is computed from), not both")
+    if getattr(args, "normal", None) is not None and getattr(args, "position", None) is None:
+        raise FlowtexError(f"--normal {args.normal}: the surface normal the speed is computed from with --position; give "
+                           "--position P with it, or drop --normal")
 
 
 _SCHEMES = ("tcp", "tls", "ws", "wss", "ucx", "inproc")

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..errors import DataError
 from ..io.atomic import atomic_output  # noqa: F401 -- the one writer, re-exported for the fit modules
+from ..io.recording_rules import check_stated_unit
 from ..io.recordings import Recording, load_recording
 
 
@@ -62,12 +63,15 @@ def signals_listed(rec: Recording) -> str:
 def signal(rec: Recording, name: str, option: str, width: tuple[int, ...] = (1,), finite: bool = True) -> np.ndarray:
     """The signal ``name`` (given by ``option``) as (n,) or (n, w) with w in ``width`` (1 means a 1-D signal).
 
-    Raises DataError when it is missing, has another shape, or (``finite``)
-    holds NaN/inf samples.
+    Raises DataError when it is missing, is stated in the file in another unit than ``option`` takes, has another
+    shape, or (``finite``) holds NaN/inf samples.
     """
     where = rec.path
     if name not in rec.arrays:
         raise DataError(f"{where}: no signal {name!r} ({option}); {signals_listed(rec)}")
+    quantity = QUANTITY_OF_OPTION.get(option)
+    if quantity is not None:  # a unit the file states must be the one the option takes (flowtex converts none)
+        check_stated_unit(rec.units, name, PLAUSIBLE[quantity][0], where, option)
     a = rec.arrays[name]
     cols = 1 if a.ndim == 1 else (a.shape[1] if a.ndim == 2 else -1)
     if a.ndim == 2 and a.shape[1] == 1 and 1 in width:

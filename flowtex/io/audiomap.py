@@ -132,6 +132,12 @@ def _channels(raw: LocDict, c: Collector, graph_outputs: dict[str, int] | None) 
             c.error(entry.value_pos["clip"], f"audio.channels[{i}]: clip [{lo:g}, {hi:g}] exceeds full scale +-{scale:g} (scale); "
                                              f"raise scale to {max(abs(lo), abs(hi)):g} or narrow the clip")
             continue
+        if not lo <= 0.0 <= hi:
+            c.error(entry.value_pos["clip"], f"audio.channels[{i}]: clip [{lo:g}, {hi:g}] does not contain 0, so an output of "
+                                             f"0 (a tool at rest) would play as a constant {lo if lo > 0 else hi:g} (a DC offset "
+                                             "the speaker or voice coil carries for as long as it rests): give a clip from LOW <= 0 "
+                                             "to HIGH >= 0")
+            continue
         out.append(AudioChannel(name, float(scale), lo, hi))
     return out
 

@@ -86,7 +86,16 @@ class SessionWriter:
         except OSError as exc:
             self._failed(exc)
             return
+        except (OverflowError, ValueError) as exc:  # python-can's .asc and .blf writers turn a frame's time into a date
+            self._undated(msg.timestamp, exc)
+            return
         self.frames += 1
+
+    def _undated(self, stamp: float | None, exc: Exception) -> None:
+        what = f"frame time {stamp:g} s" if stamp is not None else "a frame time"
+        self.error = (f"{self._what}: {what} cannot be written in a {self.path.suffix} log, which dates every frame "
+                      f"({exc}); write a .log, which takes any time; it was not kept (an older file of that name is left "
+                      "as it was)")
 
     def _failed(self, exc: OSError) -> None:
         self.error = (f"{self._what}: cannot write the CAN log: {exc.strerror or exc}; it was not kept (an older file of "
@@ -114,6 +123,9 @@ class SessionWriter:
         except OSError as exc:
             if self.error is None:
                 self._failed(exc)
+        except (OverflowError, ValueError) as exc:  # the header's dates (a BLF's first and last frame times)
+            if self.error is None:
+                self._undated(None, exc)
         if self.error is None and keep:
             try:
                 self._commit.__exit__(None, None, None)

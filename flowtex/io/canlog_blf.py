@@ -34,6 +34,11 @@ MIN_FRAME_OBJECT = 48
 frame); a container of n bytes holds at most n // 48 frames."""
 
 
+MAX_CONTAINER_OBJECT = MAX_BLF_CONTAINER_BYTES + MAX_BLF_CONTAINER_BYTES // 64 + 4096
+"""Bytes a container object may claim: its data stored uncompressed, or zlib's worst case for incompressible data
+(5 bytes a 16 KiB block and a few more), and its headers. A larger claim is refused before it is read."""
+
+
 def read_blf(path: Path) -> Iterator[can.Message]:
     """Frames of the BLF at ``path`` in file order; DataError (naming the file) for a header, an object or a container
     that claims more than the limits allow, or more than :data:`~flowtex.limits.MAX_CANLOG_FRAMES` frames."""
@@ -86,10 +91,15 @@ class BoundedBLFReader(BLFReader):
                 raise self._error(at, f"no BLF object here (it starts with {signature!r}, not b'LOBJ')")
             if obj_size < base:
                 raise self._error(at, f"an object claims {obj_size} bytes, less than its {base}-byte header")
+            if obj_type != LOG_CONTAINER:  # no frames in it (python-can skips it too): passed over, not read
+                self.file.seek(obj_size - base + obj_size % 4, 1)
+                continue
+            if obj_size > MAX_CONTAINER_OBJECT:
+                raise self._error(at, f"a container claims {obj_size:,} bytes; one of at most "
+                                      f"{MAX_BLF_CONTAINER_BYTES / 2**20:g} MiB unpacked (flowtex.limits.MAX_BLF_CONTAINER_BYTES) "
+                                      "is smaller even stored uncompressed: a damaged or forged size")
             body = self.file.read(obj_size - base)
             self.file.read(obj_size % 4)  # padding
-            if obj_type != LOG_CONTAINER:
-                continue
             if len(body) < LOG_CONTAINER_STRUCT.size:
                 break  # cut inside the container's header
             method, _ = LOG_CONTAINER_STRUCT.unpack_from(body)
@@ -101,7 +111,7 @@ class BoundedBLFReader(BLFReader):
                 raise self._error(at, f"its containers unpack to more than {MAX_CANLOG_BYTES / 2**20:g} MiB; flowtex reads "
                                       "CAN logs up to that size (flowtex.limits.MAX_CANLOG_BYTES)")
             most = (len(self._tail) + len(data)) // MIN_FRAME_OBJECT + 1
-            for found, msg in enumerate(self._parse_container(data), 1):
+            for found, msg in enumerate(self._frames_of(at, data), 1):
                 if found > most:
                     raise self._error(at, f"the container's {len(data):,} bytes yield more than {most - 1:,} frames of at "
                                           f"least {MIN_FRAME_OBJECT} bytes: a frame object whose size does not move past it")
@@ -109,6 +119,13 @@ class BoundedBLFReader(BLFReader):
             if len(self._tail) > MAX_BLF_CONTAINER_BYTES:
                 raise self._error(at, f"a frame object spans more than {MAX_BLF_CONTAINER_BYTES / 2**20:g} MiB of containers "
                                       "(a frame object is at most a few hundred bytes: a damaged or forged size)")
+
+    def _frames_of(self, at: int, data: bytes) -> Iterator[can.Message]:
+        """python-can's frames of one unpacked container; what its parser raises is named at the container's byte."""
+        try:
+            yield from self._parse_container(data)
+        except Exception as exc:  # BLFParseError, struct.error, ... on objects it cannot read
+            raise self._error(at, f"malformed frame object in this container: {exc}") from None
 
     def _unpack(self, at: int, method: int, payload: bytes) -> bytes | None:
         """The container's data (None: a compression method python-can does not know, skipped as python-can does)."""

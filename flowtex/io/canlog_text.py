@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 import can
+from can.io.canutils import CAN_ERR_BUSERROR, CAN_ERR_FLAG
 
 from .. import limits
 from ..errors import DataError
@@ -102,7 +103,8 @@ def candump_problem(line: str) -> tuple[str, int] | None:
 
     Checks what python-can's CanutilsLogReader parses: ``(TIMESTAMP) CHANNEL ID#DATA [R|T]`` with a finite
     timestamp, a hexadecimal ID (3 digits: standard, at most 0x7FF; up to 8: extended), and DATA as two hex digits a
-    byte (at most 8 bytes; 64 in a CAN FD ``ID##F...`` frame) or ``R[DLC]`` for a remote frame.
+    byte (at most 8 bytes; 64 in a CAN FD ``ID##F...`` frame) or ``R[DLC]`` for a remote frame. An 8-digit ID with
+    CAN_ERR_FLAG (20000000) is an error frame, as python-can writes one received (``20000080#`` and up to 8 bytes).
     """
     fields = line.split()
     if not fields:
@@ -130,6 +132,8 @@ def candump_problem(line: str) -> tuple[str, int] | None:
         return f"CAN ID {excerpt(can_id)} is not 1 to 8 hexadecimal digits {form}", col
     if len(can_id) <= 3 and int(can_id, 16) > 0x7FF:
         return f"standard CAN ID {can_id} is above 7FF (write an extended ID with 8 digits, e.g. {int(can_id, 16):08X})", col
+    if int(can_id, 16) >> 29 == CAN_ERR_FLAG >> 29 and len(can_id) == 8:  # the error flag, no other flag bit
+        return _error_frame_problem(int(can_id, 16), data, form, col)
     if int(can_id, 16) > 0x1FFFFFFF:
         return f"extended CAN ID {can_id} is above 1FFFFFFF (a CAN ID has at most 29 bits)", col
     col += len(can_id) + 1
@@ -155,6 +159,21 @@ def candump_problem(line: str) -> tuple[str, int] | None:
     return None
 
 
+def _error_frame_problem(can_id: int, data: str, form: str, col: int) -> tuple[str, int] | None:
+    """The problem of a candump error frame ``2xxxxxxx#DATA`` (``can_id`` holds CAN_ERR_FLAG), or None: python-can reads
+    it as an error frame only with the bus-error class bit (its own writer's ``20000080#``), else as a data frame."""
+    if not can_id & CAN_ERR_BUSERROR:
+        return (f"error frame {can_id:08X} (CAN_ERR_FLAG 20000000 with class {can_id & 0x1FFFFFFF:X}): python-can reads an "
+                f"error frame only with the bus-error class bit 80 and would take this one for a data frame of ID "
+                f"{can_id & 0x1FFFFFFF:#x}; delete the line or set that bit (e.g. {can_id | CAN_ERR_BUSERROR:08X})"), col
+    col += 9
+    if data and not _HEX.match(data):
+        return f"error frame data {excerpt(data)} is not hexadecimal {form}", col
+    if len(data) % 2 or len(data) > 16:
+        return f"error frame data {excerpt(data)} is not 0 to 8 bytes of two hex digits each {form}", col
+    return None
+
+
 _ASC_FRAME = re.compile(r"\s*\d+\.\d+\s+\d+\s+(\S+)(?:\s+(Rx|Tx)(?:\s+(.*))?)?\s*\Z", re.IGNORECASE)
 _ASC_TIME = re.compile(r"\d+\.\d+\Z")
 """The only timestamp python-can's ASCReader reads: it skips a frame line with any other (nan, 1e400, -0.5, 4)."""
@@ -169,11 +188,14 @@ class AscCheck:
 
     def __init__(self) -> None:
         self.base = 16
+        self.in_header = True
+        """Set False by :class:`AscLines` where python-can's header ends: a ``base`` line after it is ignored, as there."""
 
     def __call__(self, line: str) -> tuple[str, int] | None:
         base = _ASC_BASE.match(line)
         if base is not None:
-            self.base = 16 if base.group(1).lower() == "hex" else 10
+            if self.in_header:
+                self.base = 16 if base.group(1).lower() == "hex" else 10
             return None
         m = _ASC_FRAME.match(line)
         if m is None:
@@ -252,6 +274,37 @@ class AscCheck:
         return None
 
 
+_ASC_HEADER = re.compile(r"date\s+\w+\s+.+|base\s+(hex|dec)|//", re.IGNORECASE)
+_ASC_HEADER_END = re.compile(r"(no)?\s*internal\s+events\s+logged", re.IGNORECASE)
+"""The header lines python-can's ASCReader reads (``_extract_header``: matched at the start of the stripped line), and
+the line that ends its header."""
+
+
+class AscLines(NumberedLines):
+    """:class:`NumberedLines` of an .asc log for python-can's ASCReader, which reads header lines (date, base, comments)
+    until ``internal events logged`` and takes whatever line comes first instead as the header's end, unread: a log
+    without that line lost its first frame. Here such a header gets the line python-can expects (``no internal events
+    logged``, which is what it says) before its first other line, so that line is read as any other is. Where the header
+    ends the line check stops taking ``base`` lines, as python-can does."""
+
+    def __init__(self, fh: BinaryIO, path: Path, whole_only: bool):
+        self._asc = AscCheck()
+        super().__init__(fh, path, whole_only, self._asc)
+        self._held: str | None = None
+
+    def __next__(self) -> str:
+        if self._held is not None:
+            text, self._held = self._held, None
+            return text
+        text = super().__next__()
+        if self._asc.in_header and not _ASC_HEADER.match(text.strip()):
+            self._asc.in_header = False
+            if not _ASC_HEADER_END.match(text.strip()):
+                self._held = text
+                return "no internal events logged\n"
+        return text
+
+
 class TextLogFrames:
     """The frames of a .log or .asc session, read one line at a time as they are iterated (memory bounded whatever the
     log's length); :attr:`line` is the line of the frame last yielded and, once every frame is read, :attr:`cut` says
@@ -274,7 +327,7 @@ class TextLogFrames:
         except OSError as exc:
             raise DataError(f"{path}: cannot read CAN log: {exc.strerror or exc}") from None
         with fh:
-            source = NumberedLines(fh, path, self._whole_only, AscCheck() if asc else candump_problem)
+            source = AscLines(fh, path, self._whole_only) if asc else NumberedLines(fh, path, self._whole_only, candump_problem)
             reader = can.ASCReader(source) if asc else can.CanutilsLogReader(source)
             count = 0
             try:

@@ -1,7 +1,7 @@
 """Bring every signal of a recording to another rate (any rational ratio): what ``flowtex resample`` does.
 
 Zero delay (signals stay aligned in time), length n * r2 / r1 rounded, Kaiser
-polyphase filter (flowtex.dsp.resample). The output states its new rate.
+polyphase filter (flowtex.dsp.resample). The output states its new rate and the units the source states.
 """
 
 from __future__ import annotations
@@ -51,6 +51,6 @@ def resample_recording(src: str | Path, out: str | Path, rate_hz: float, from_ra
             arrays[name] = resample_signal(a, rate_in, rate_hz, atten_db=atten_db)
         except ValueError as exc:
             raise FlowtexError(f"{src}: signal {name!r}: {exc}") from None
-    save_recording(out, arrays, rate=rate_hz)
+    save_recording(out, arrays, rate=rate_hz, units=rec.units)
     return (f"{out}: {len(arrays)} signal(s), {rec.samples} samples at {rate_in:g} Hz -> "
             f"{next(iter(arrays.values())).shape[0] if arrays else 0} at {rate_hz:g} Hz (x {up}/{down})")

@@ -12,16 +12,23 @@ the signal and the fix:
 * every signal has the same number of samples;
 * a 1-D signal named ``time`` increases strictly, with no step longer than
   :data:`~flowtex.limits.TIME_GAP_TOLERANCE` median steps (samples are missing there).
+
+One rule applies where a signal is used, not where it is read: a signal whose unit the file states
+(``Recording.units``) is refused by a consumer that takes another unit (:func:`check_stated_unit`), since
+flowtex converts no unit.
 """
 
 from __future__ import annotations
 
+import re
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import DataError
 from ..limits import MAX_SIGNAL_WIDTH, TIME_GAP_TOLERANCE, excerpt
+from ..node_decl import simplify_unit
 
 TIME_SIGNAL = "time"
 """A signal of this name holds sample times (seconds) and is checked for order and gaps."""
@@ -76,3 +83,37 @@ def check_time(time: np.ndarray, path: Path | str) -> None:
         raise DataError(f"{path}: signal 'time' jumps from {time[i]:g} to {time[i + 1]:g} at sample {i + 1}, "
                         f"{step[i] / median:.3g} times its median step of {median:g} (at most {TIME_GAP_TOLERANCE:g}; "
                         f"{gaps.size} gap(s)): samples are missing; cut the recording at the gap or fill it")
+
+
+UNIT_FACTORS = {("m/s", "mm/s"): 1e3, ("cm/s", "mm/s"): 10.0, ("m", "mm"): 1e3, ("cm", "mm"): 10.0, ("um", "mm"): 1e-3,
+                ("g", "m/s^2"): 9.80665, ("mm/s^2", "m/s^2"): 1e-3, ("mN", "N"): 1e-3, ("kN", "N"): 1e3}
+"""(stated unit, unit taken) -> the factor that converts the first into the second, for the fix a refusal names."""
+_NO_UNIT = ("", "-", "*")
+"""Units that state nothing: a dimensionless signal or input, or a port that takes any unit."""
+
+
+def _plain(unit: str) -> str:
+    """``unit`` as :func:`~flowtex.node_decl.simplify_unit` reads it: superscript powers written ``^n`` (``m/s²``, as HDF5
+    writers put it, is ``m/s^2``) and a space between two factors a product (``mm s^-1`` is ``mm*s^-1``)."""
+    unit = re.sub(r"\s*([*/^])\s*", r"\1", unit.strip().replace("\u00b2", "^2").replace("\u00b3", "^3"))
+    return re.sub(r"\s+", "*", unit)
+
+
+def check_stated_unit(units: Mapping[str, str], name: str, unit: str, path: Path | str, consumer: str) -> None:
+    """Refuse signal ``name`` when the file states a unit (``units``, ``Recording.units``) other than ``unit``.
+
+    ``consumer`` names who takes ``unit`` (``"graph 'g' input 'speed'"``, ``"--speed"``). Units are compared as
+    :func:`~flowtex.node_decl.simplify_unit` writes them (``m/s/s`` is ``m/s^2``); a unit that states nothing on
+    either side (absent, ``-``) passes. flowtex converts no unit: a speed stated in m/s fed to an input in mm/s
+    rendered 1000x too slow, silently; a fit of an acceleration in g gave a surface 20 dB too quiet.
+    """
+    raw = str(units.get(name, ""))
+    stated = simplify_unit(_plain(raw))
+    want = simplify_unit(_plain(unit))
+    if stated in _NO_UNIT or want in _NO_UNIT or stated == want:
+        return
+    factor = UNIT_FACTORS.get((stated, want))
+    fix = (f"multiply it by {factor:g} and state its unit as {want}" if factor is not None
+           else f"convert it to {want} and state that unit")
+    raise DataError(f"{path}: signal {excerpt(name)} is in {excerpt(raw.strip())} (the file's units) but {consumer} takes "
+                    f"{want}; flowtex converts no unit: {fix}")

@@ -12,8 +12,9 @@ sample rate in Hz; a graph refuses a recording whose stated rate is not its own.
 * ``.h5``: one dataset per signal at the file's root; an optional root
   attribute ``rate``; an optional attribute ``unit`` on each dataset.
 
-Units are written by ``flowtex run`` (the graph's output units) and are
-informational: reading a file ignores them except to fill ``Recording.units``.
+Units are written by ``flowtex run`` (the graph's output units). Reading a file only fills ``Recording.units``;
+what uses a signal refuses one stated in another unit than it takes
+(:func:`flowtex.io.recording_rules.check_stated_unit`: a graph input, a fit's option), and nothing converts units.
 """
 
 from __future__ import annotations

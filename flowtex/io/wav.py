@@ -14,6 +14,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -88,13 +89,18 @@ def data_values(path: Path) -> int | None:
     return None
 
 
+def _check_rate(path: Path, rate: float) -> None:
+    """Refuse a rate a WAV header cannot hold (a whole positive number of Hz)."""
+    if rate != int(rate) or rate <= 0:
+        raise DataError(f"{path}: a WAV file needs a whole positive number of Hz, got {rate:g}; resample to e.g. 8000 first")
+
+
 def write_wav(path: str | Path, samples: np.ndarray, rate: float) -> None:
     """Write ``samples`` (n, channels) or (n,) as a float32 WAV at ``rate`` Hz (a whole number)."""
     from scipy.io import wavfile
 
     path = Path(path)
-    if rate != int(rate) or rate <= 0:
-        raise DataError(f"{path}: a WAV file needs a whole positive number of Hz, got {rate:g}; resample to e.g. 8000 first")
+    _check_rate(path, rate)
     from .atomic import atomic_output, refused_write
 
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -118,3 +124,84 @@ def write_signals_wav(path: str | Path, arrays: Mapping[str, np.ndarray], rate: 
     if not cols:
         raise DataError(f"{path}: no signals to write")
     write_wav(path, np.stack(cols, axis=1), rate)
+
+
+RIFF_LIMIT = 0xFFFFFFFF
+"""Largest RIFF or data chunk size a plain WAV header holds (4 GiB); a longer :class:`WavWriter` file becomes RF64."""
+_JUNK = b"JUNK" + struct.pack("<I", 28) + bytes(28)
+"""Room for RF64's ``ds64`` chunk (its 64-bit sizes), written as a JUNK chunk that every reader skips."""
+
+
+class WavWriter:
+    """A float32 WAV written as its frames come, so that a long recording is never held in memory: the frames go to a
+    temporary file beside ``path`` (:func:`~flowtex.io.atomic.atomic_output`), whose header :meth:`close` fills in
+    before renaming it over ``path`` (an older file stays as it was until then). Past 4 GiB the header becomes RF64's,
+    as scipy writes one. A write the system refuses (a full disk) does not raise from :meth:`write`, which runs in the
+    live loop: it is noted in :attr:`error`, nothing more is written, and :meth:`close` raises it."""
+
+    def __init__(self, path: str | Path, rate: float, channels: int):
+        from .atomic import atomic_output
+
+        self.path = Path(path)
+        _check_rate(self.path, rate)
+        self.rate, self.channels, self.frames = int(rate), int(channels), 0
+        self.error: OSError | None = None
+        self._commit = atomic_output(self.path)
+        tmp = self._commit.__enter__()
+        try:
+            self._fh: Any = open(tmp, "wb")
+            self._fh.write(self._header())
+        except OSError as exc:
+            self._commit.__exit__(type(exc), exc, None)
+            self._refused(exc)
+
+    def _header(self) -> bytes:
+        """The file's header for the frames written so far (RF64 past :data:`RIFF_LIMIT`)."""
+        data = self.frames * self.channels * 4
+        fmt = b"fmt " + struct.pack("<IHHIIHH", 16, 3, self.channels, self.rate, self.rate * self.channels * 4,
+                                    self.channels * 4, 32)  # 3: IEEE float
+        riff = 4 + len(_JUNK) + len(fmt) + 8 + data
+        if riff <= RIFF_LIMIT:
+            return b"RIFF" + struct.pack("<I", riff) + b"WAVE" + _JUNK + fmt + b"data" + struct.pack("<I", data)
+        ds64 = b"ds64" + struct.pack("<IQQQI", 28, riff, data, self.frames, 0)
+        return b"RF64" + struct.pack("<I", RIFF_LIMIT) + b"WAVE" + ds64 + fmt + b"data" + struct.pack("<I", RIFF_LIMIT)
+
+    def write(self, frames: np.ndarray) -> None:
+        """Append ``frames`` (n, channels), as float32."""
+        if self.error is not None or self._fh is None:
+            return
+        try:
+            self._fh.write(np.ascontiguousarray(frames, dtype=np.float32).reshape(-1, self.channels).tobytes())
+        except OSError as exc:
+            self.error = exc
+            return
+        self.frames += len(frames)
+
+    def close(self, keep: bool = True) -> None:
+        """Fill in the header and rename the file into place (``keep=False``: discard it). Idempotent; a failed write,
+        or one that fails now, raises :class:`~flowtex.io.atomic.OutputError` naming the file (an older one is kept)."""
+        fh, self._fh = self._fh, None
+        if fh is None:
+            return
+        try:
+            if self.error is None and keep:
+                fh.seek(0)
+                fh.write(self._header())
+            fh.close()
+        except OSError as exc:
+            self.error = self.error or exc
+        if self.error is None and keep:
+            try:
+                self._commit.__exit__(None, None, None)
+                return
+            except OSError as exc:
+                self.error = exc
+        problem = self.error
+        self._commit.__exit__(RuntimeError, RuntimeError("not kept"), None)  # removes the temporary file
+        if problem is not None:
+            self._refused(problem)
+
+    def _refused(self, exc: OSError) -> None:
+        from .atomic import refused_write
+
+        raise refused_write(self.path, exc) from None

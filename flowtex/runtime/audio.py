@@ -123,7 +123,10 @@ class AudioOutput:
         self.cb_ns = 0
         self._pace_err = 0.0
         self.record_path = Path(record) if record is not None else None
-        self.recorded: list[np.ndarray] = []
+        self._wav: Any = None
+        """The ``--record-audio`` file being written (:class:`~flowtex.io.wav.WavWriter`), opened at the first drain: the
+        frames go to disk as they are drained, so a session of any length records in bounded memory."""
+        self._wav_error: FlowtexError | None = None
         self.log_timeline = False
         """Set by the live loop when the session is recorded: keep the timeline events (:meth:`take_events`)."""
         self._runs = SilenceRuns()
@@ -261,8 +264,16 @@ class AudioOutput:
     def _drain(self) -> None:
         """Move the frames handed over since the last drain to the recording, and their runs of silence to the events."""
         position, frames, classes = self.ring.drain()
-        if self.record_path is not None:
-            self.recorded.append(frames)
+        if self.record_path is not None and self._wav_error is None:
+            if self._wav is None:
+                from ..io.wav import WavWriter
+
+                try:
+                    self._wav = WavWriter(self.record_path, self.amap.rate, len(self.amap.channels))
+                except FlowtexError as exc:  # said when the session ends (this runs in the live loop)
+                    self._wav_error = exc
+            if self._wav is not None:
+                self._wav.write(frames)
         if self.log_timeline:
             self._events.extend(event_frame(SILENCE, *run) for run in self._runs.feed(position, classes))
 
@@ -303,16 +314,23 @@ class AudioOutput:
                 time.sleep(self.amap.block / self.amap.rate / 4)
             if ring.istate[FADED] < target:
                 problem = f"audio device {self.device_name}: the fade to silence was not played"
-        self.close()
-        self._drain()
+        try:
+            self.close()
+            self._drain()
+        except BaseException:  # the recording is incomplete: its temporary file goes, an older file stays
+            if self._wav is not None:
+                with contextlib.suppress(FlowtexError):
+                    self._wav.close(keep=False)
+            raise
         if self.log_timeline:
             self._events.extend(event_frame(SILENCE, *run) for run in self._runs.close())
             self._events.append(event_frame(END, int(ring.istate[RECORDED]), int(ring.istate[PLAYED])))
         if self.record_path is not None:
-            from ..io.wav import write_wav
-
             try:
-                write_wav(self.record_path, np.concatenate(self.recorded), self.amap.rate)
+                if self._wav_error is not None:
+                    raise self._wav_error
+                if self._wav is not None:
+                    self._wav.close()
             except FlowtexError as exc:  # a full disk: the session's line names the option and the file
                 problem = "; ".join(p for p in (problem, f"--record-audio {exc}") if p)
         return problem

@@ -15,9 +15,10 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from .. import limits
 from ..dsp.audio_interp import Interpolator, frames_before
 from ..dsp.resample import rational_ratio
-from ..errors import FlowtexError
+from ..errors import DataError, FlowtexError
 from ..io.audiomap import AudioMap
 
 
@@ -50,14 +51,24 @@ def interpolator(amap: AudioMap, ratio: tuple[int, int]) -> Interpolator:
     return Interpolator(ratio[0], len(amap.channels), scale, lo, hi, down=ratio[1])
 
 
-def render_outputs(outputs: Mapping[str, np.ndarray], amap: AudioMap, graph_rate: float, lead: int = 0) -> np.ndarray:
-    """Audio samples (lead + n * up, channels) float32 for the graph outputs of ``n`` ticks (``lead`` zero frames first)."""
+def render_outputs(outputs: Mapping[str, np.ndarray], amap: AudioMap, graph_rate: float, lead: int = 0,
+                   what: str = "audio") -> np.ndarray:
+    """Audio samples (lead + n * up, channels) float32 for the graph outputs of ``n`` ticks (``lead`` zero frames first).
+    A stream of more values than a recording may hold (:data:`~flowtex.limits.MAX_RECORDING_VALUES`) is refused before
+    it is allocated: a DataError starting with ``what`` (the file it is for)."""
     ratio = samples_per_tick(amap, graph_rate)
     missing = [c.output for c in amap.channels if c.output not in outputs]
     if missing:
         raise FlowtexError(f"audio channels play output(s) {', '.join(missing)} that the graph does not produce")
+    n = len(outputs[amap.channels[0].output])
+    frames = lead + frames_before(n, *ratio)
+    values = frames * len(amap.channels)
+    if values > limits.MAX_RECORDING_VALUES:
+        raise DataError(f"{what}: {n:,} ticks play as {frames:,} audio frames x {len(amap.channels)} channel(s), {values:,} "
+                        f"values, more than a recording may hold ({limits.MAX_RECORDING_VALUES:,}: "
+                        "flowtex.limits.MAX_RECORDING_VALUES); render fewer ticks or at a lower audio rate")
     x = np.stack([np.asarray(outputs[c.output], dtype=np.float64).reshape(-1) for c in amap.channels], axis=1)
-    out = np.zeros((lead + frames_before(x.shape[0], *ratio), x.shape[1]), dtype=np.float32)
+    out = np.zeros((frames, x.shape[1]), dtype=np.float32)
     interpolator(amap, ratio).render(np.ascontiguousarray(x), out[lead:])
     return out
 

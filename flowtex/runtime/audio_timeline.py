@@ -73,6 +73,29 @@ class AudioTimeline:
     """Frames handed to the sound card (None: the log has no END event; the session did not end cleanly)."""
     played: int | None = None
 
+    def problem(self, most: int) -> str | None:
+        """The first event whose values no live session writes (negative, or more than ``most`` frames: the stream
+        the replay rebuilds from them would be longer than a recording may be), as a phrase; None if there is none."""
+        if not 0 <= self.lead <= most:
+            return f"START event: a lead of {self.lead:,} frames"
+        if not 1 <= self.fade <= most:
+            return f"START event: a fade of {self.fade:,} frames"
+        if not 0 <= self.margin <= most:
+            return f"START event: a margin of {self.margin:,} frames"
+        inserted = 0
+        for tick, gap in self.resyncs:
+            inserted += gap
+            if tick < 0 or not 0 <= gap <= most or self.lead + inserted > most:
+                return f"RESYNC event: {gap:,} frames of silence before tick {tick:,}"
+        for a, b, _ in self.silences:
+            if not 0 <= a <= b <= most:
+                return f"SILENCE event: frames {a:,} to {b:,}"
+        if self.total is not None and not 0 <= self.total <= most:
+            return f"END event: {self.total:,} frames handed to the sound card"
+        if self.played is not None and not 0 <= self.played <= most:
+            return f"END event: {self.played:,} frames that played a tick's sample"
+        return None
+
 
 class TimelineEvents:
     """Collects the timeline events of a session log's frames fed in order, one at a time (the replay streams the log).

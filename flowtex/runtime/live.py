@@ -129,7 +129,7 @@ def run_live(graph: TickProgram, config: LiveConfig) -> LiveReport:
     device = dev_bus = None
     if config.simulate is not None:
         bus_obj, dev_bus, device = in_process_device(bus, io.map, io.codecs, config.simulate, float(graph.rate), config.drop,
-                                                     graph.name)
+                                                     graph.name, {n: spec.unit for n, spec in graph.inputs.items()})
     else:
         bus_obj = open_bus(bus, config.bitrate)
     writer = None

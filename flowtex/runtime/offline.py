@@ -13,6 +13,7 @@ from ..dsp.nonfinite import count_nonfinite
 from ..errors import DataError, FlowtexError
 from ..graph.compiled import Graph, apply_nonfinite_policy
 from ..io.formats import format_of
+from ..io.recording_rules import check_stated_unit
 from ..io.recordings import Recording, load_recording, save_recording
 
 if TYPE_CHECKING:
@@ -74,8 +75,9 @@ def nonfinite_outputs(outputs: dict[str, np.ndarray]) -> list[str]:
 
 def check_recording_fits(rec: Recording, name: str, graph_rate: float, inputs: Mapping[str, PortSpec],
                          input_path: str | Path) -> None:
-    """Refuse a recording whose stated rate or time column is not graph ``name``'s rate (Hz), or that lacks one of its
-    ``inputs``: what needs no compiled graph, so the command line checks it before the compile (flowtex run)."""
+    """Refuse a recording whose stated rate or time column is not graph ``name``'s rate (Hz), that lacks one of its
+    ``inputs``, or that states a unit for one other than the input's: what needs no compiled graph, so the command line
+    checks it before the compile (flowtex run)."""
     if rec.rate is not None and abs(rec.rate - graph_rate) > 1e-9 * graph_rate:
         raise DataError(f"{input_path}: recorded at {rec.rate:g} Hz but graph {name!r} runs at {graph_rate:g} Hz; run "
                         f"'flowtex resample {shlex.quote(str(input_path))} --rate {graph_rate:g} -o OUT.npz' and use OUT.npz, "
@@ -89,6 +91,8 @@ def check_recording_fits(rec: Recording, name: str, graph_rate: float, inputs: M
         raise DataError(f"{input_path}: lacks graph input(s) {', '.join(missing)} (the file has: {have}){hints}")
     if not inputs:
         raise FlowtexError(f"graph {name!r} has no inputs; a recording cannot drive it")
+    for n, spec in inputs.items():
+        check_stated_unit(rec.units, n, spec.unit, input_path, f"graph {name!r} input {n!r}")
 
 
 def load_recording_for(resolved: ResolvedGraph, input_path: str | Path) -> Recording:
@@ -167,7 +171,7 @@ def render_recording_audio(graph: Graph, input_path: str | Path, output_path: st
             raise FlowtexError(f"graph {graph.name!r} has no scalar output to play; give --map MAP.yaml with an 'audio' section")
     outputs = run_recording(graph, input_path, None, seed=seed, progress=progress, nonfinite=nonfinite, recording=recording,
                             nonfinite_out=nonfinite_out)
-    samples = render_outputs(outputs, amap, float(graph.rate))
+    samples = render_outputs(outputs, amap, float(graph.rate), what=str(output_path))
     write_wav(output_path, samples, amap.rate)
     silent = [f"{line}; played as silence (0), as flowtex live plays them (--nonfinite-outputs error refuses instead)"
               for line in nonfinite_outputs({c.output: outputs[c.output] for c in amap.channels})]

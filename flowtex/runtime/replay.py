@@ -70,6 +70,14 @@ class _Counts:
     def __init__(self) -> None:
         self.frames = self.received = self.sent = 0
 
+    def none_sent(self) -> str:
+        """A sentence for errors when frames were received but none was sent (a log without directions), else ""."""
+        if self.sent or not self.received:
+            return ""
+        return (f" (the {self.received:,} frames read are all marked received and none is marked sent: a log without "
+                "directions, as candump -L writes? The replay needs the frames live sent: record the session with flowtex "
+                "live --record)")
+
 
 def _ticks(frames: SessionFrames, tx_ids: list[tuple[int, bool]], events: TimelineEvents, counts: _Counts) -> Iterator[Tick]:
     """Every complete ``(received, sent block)`` of the log in order, yielded as its block completes (the module's rule;
@@ -92,18 +100,26 @@ def _ticks(frames: SessionFrames, tx_ids: list[tuple[int, bool]], events: Timeli
             if len(rx) >= limits.MAX_TICK_FRAMES:
                 raise DataError(f"{frames.place()}: more than {limits.MAX_TICK_FRAMES:,} frames received in one tick (since the "
                                 "last actuator block); flowtex replays up to that many (flowtex.limits.MAX_TICK_FRAMES): is "
-                                "this a flowtex live session log?")
+                                f"this a flowtex live session log?{counts.none_sent()}")
             rx.append(msg)
             continue
         counts.sent += 1
         expect = tx_ids[len(block)]
-        if (msg.arbitration_id, bool(msg.is_extended_id)) != expect:
-            raise DataError(f"{frames.place()}: sent frame {msg.arbitration_id:#x} where the map's actuator message {expect[0]:#x} was expected; "
-                            "was this session recorded with the same map?")
+        got = (msg.arbitration_id, bool(msg.is_extended_id))
+        if got != expect:
+            raise DataError(f"{frames.place()}: sent frame {_frame_id(*got, expect)} where the map's actuator message "
+                            f"{_frame_id(*expect, got)} was expected; was this session recorded with the same map?")
         block.append(msg)
         if len(block) == k:
             yield rx, block
             rx, block = [], []
+
+
+def _frame_id(number: int, extended: bool, other: tuple[int, bool]) -> str:
+    """``0x200``, or ``0x200 (extended ID)`` when ``other`` has the same number in the other format."""
+    if number != other[0] or extended == other[1]:
+        return f"{number:#x}"
+    return f"{number:#x} ({'extended' if extended else 'standard'} ID)"
 
 
 class _Rows:
@@ -183,8 +199,8 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
         live_audio = _live_wav(expect_audio, io.map.audio, map_path)
     audio = out_kind == AUDIO or live_audio is not None
     with contextlib.ExitStack() as stack:  # outputs go through the one writer: atomic, the old file kept on failure
-        target = stack.enter_context(atomic_output(output_path)) if output_path is not None and out_kind != AUDIO else None
-        writer = SessionWriter(target) if out_kind == CAN_LOG else None
+        target = stack.enter_context(atomic_output(output_path)) if out_kind == RECORDING else None
+        writer = SessionWriter(output_path, "-o") if out_kind == CAN_LOG else None  # atomic itself; errors name -o PATH
         outputs = ({name: _Rows(spec.shape) for name, spec in graph.outputs.items()}
                    if out_kind == RECORDING or audio else None)
         io.encode_safe()
@@ -249,7 +265,8 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
                 ids = ", ".join(f"{fid:#x}" for fid, _ in io.tx_ids)
                 what = "no frame at all" if not counts.frames else f"{counts.frames} frame(s) but no complete tick"
                 raise DataError(f"{session_path}: nothing to replay: the log holds {what} (a tick ends with one frame of each "
-                                f"actuator message of {map_path}: {ids}); is it a session recorded with this map and DBC?")
+                                f"actuator message of {map_path}: {ids}); is it a session recorded with this map and DBC?"
+                                f"{counts.none_sent()}")
         except BaseException:
             if writer is not None:
                 writer.close(keep=False)
@@ -298,10 +315,17 @@ def _replay_audio(graph: TickProgram, amap: Any, outputs: dict[str, np.ndarray],
     rate = float(graph.rate)
     up, down = samples_per_tick(amap, rate)
     n_ticks = next(iter(outputs.values())).shape[0]
+    most = limits.MAX_RECORDING_VALUES // len(amap.channels)
+    problem = timeline.problem(most) if timeline is not None else None
+    if problem is not None:
+        raise DataError(f"{report.session_path}: its audio timeline's {problem} is out of bounds (negative, or more than "
+                        f"{most:,}, the frames a recording of {len(amap.channels)} channel(s) may hold: "
+                        "flowtex.limits.MAX_RECORDING_VALUES): a damaged log? The replay rebuilds the played stream from it")
+    what = str(path) if path is not None else f"--expect-audio {live[1] if live else ''}"  # the file the stream is for
     if timeline is not None:
-        stream, klass = rebuild_live(render_outputs(outputs, amap, rate), n_ticks, up, down, timeline)
+        stream, klass = rebuild_live(render_outputs(outputs, amap, rate, what=what), n_ticks, up, down, timeline)
     else:
-        stream = render_outputs(outputs, amap, rate, lead=lead_frames(amap))
+        stream = render_outputs(outputs, amap, rate, lead=lead_frames(amap), what=what)
     if path is not None:
         write_wav(path, stream, amap.rate)  # atomic itself (flowtex.io.wav.write_wav)
     if live is None:

@@ -39,6 +39,7 @@ from ..errors import DataError, FlowtexError
 from ..io.canmap import CanMap, load_map
 from ..io.codec import MessageCodec
 from ..io.dbc import load_dbc
+from ..io.recording_rules import check_stated_unit
 from ..io.recordings import Recording, load_recording
 from .buses import open_bus, parse_bus_spec
 from .clock import DeadlineClock
@@ -214,17 +215,21 @@ class SimulatedDevice:
 
 
 def in_process_device(bus_spec: str | None, canmap: CanMap, codecs: Mapping[str, MessageCodec], recording: Any, rate_hz: float,
-                      drop: Mapping[str, tuple[int, int | None]] | None = None,
-                      graph_name: str = "graph") -> tuple[can.BusABC, can.BusABC, SimulatedDevice]:
+                      drop: Mapping[str, tuple[int, int | None]] | None = None, graph_name: str = "graph",
+                      units: Mapping[str, str] | None = None) -> tuple[can.BusABC, can.BusABC, SimulatedDevice]:
     """``flowtex live --simulate``: a private ``virtual`` bus pair and a :class:`SimulatedDevice` on one end of it.
 
     ``recording``: a path or :class:`~flowtex.io.recordings.Recording` whose stated
-    rate (if any) must equal ``rate_hz``; ``bus_spec`` must be None or ``virtual[:CHANNEL]``.
+    rate (if any) must equal ``rate_hz`` and whose stated units (if any) must be ``units``, the graph inputs' units by
+    name (:func:`~flowtex.io.recording_rules.check_stated_unit`, as ``flowtex run`` checks them); ``bus_spec`` must be
+    None or ``virtual[:CHANNEL]``.
     Returns (the runtime's bus, the device's bus, the device); the caller shuts both buses down.
     """
     rec = recording if isinstance(recording, Recording) else load_recording(recording)
     if rec.rate is not None and abs(rec.rate - rate_hz) > 1e-9 * rate_hz:
         raise DataError(f"{recording}: the recording states rate {rec.rate:g} Hz but graph {graph_name!r} runs at {rate_hz:g} Hz")
+    for name, unit in (units or {}).items():
+        check_stated_unit(rec.units, name, unit, recording, f"graph {graph_name!r} input {name!r}")
     interface, channel, _ = parse_bus_spec(bus_spec or "virtual")
     if interface != "virtual":  # a user's --bus is checked by LiveConfig; this is a caller's mistake
         raise ValueError(f"in_process_device: bus_spec must be None or virtual[:CHANNEL], got {bus_spec!r}")

@@ -108,7 +108,7 @@ CHANNEL = Record(
         "scale": Field("number", default=1.0, min=0.0, min_exclusive=True, doc="Graph units per full-scale sample (sample = value / scale).",
                        message="audio.channels[{i}]: scale must be a positive number of graph units per full-scale sample, got {got}"),
         "clip": Field("any_of", of=(Field("number", min=0.0, min_exclusive=True), _PAIR),
-                      doc="Graph units: a number C means [-C, C]; or [LOW, HIGH].",
+                      doc="Graph units: a number C means [-C, C]; or [LOW, HIGH] with LOW <= 0 <= HIGH (0 plays as silence).",
                       message="audio.channels[{i}]: clip is required: a number C (clip to [-C, C]) or [LOW, HIGH] in graph units, got {got}"),
         "doc": Field("str", doc="Free text."),
     },

@@ -56,3 +56,26 @@ def test_sweep_every_knob_end_to_end(tmp_path, capsys):
     held = 2.0 * x[np.arange(1000) // 2 * 2]
     assert float(rows[2][2]) == pytest.approx(np.sqrt(np.mean((held - 2.0 * x) ** 2)), rel=1e-3)  # CSV keeps 4 digits
     assert "Pareto front" in capsys.readouterr().out
+
+
+def test_a_recording_flowtex_run_refuses_is_refused_by_bench_too(tmp_path, capsys):
+    """bench checks its recording as 'flowtex run' does (tests/test_cli_run.py): before, a 2 kHz recording ran through a
+    1 kHz graph, and a speed stated in m/s through an input in mm/s, timed and scored as if they fitted."""
+    from flowtex.cli import main
+    from flowtex.io.recordings import save_recording
+
+    graph = tmp_path / "g.yaml"
+    graph.write_text("flowtex: 1\nname: tiny\nrate: 1000\ninputs:\n  x: {unit: N}\nnodes:\n  g: {type: gain, params: {k: 2.0}}\n"
+                     "edges:\n  - x -> g.x\noutputs:\n  y: g.y\n")
+    x = np.sin(0.05 * np.arange(1000))
+    src = tmp_path / "in.npz"
+    argv = ["bench", str(graph), "--input", str(src), "--knob", "g.every=1,2", "--repeats", "1"]
+    for rate, units, message in ((2000.0, None, f"{src}: recorded at 2000 Hz but graph 'tiny' runs at 1000 Hz"),
+                                 (1000.0, {"x": "kN"}, f"{src}: signal 'x' is in 'kN' (the file's units) but graph 'tiny' "
+                                                       "input 'x' takes N; flowtex converts no unit: multiply it by 1000")):
+        save_recording(src, {"x": x}, rate=rate, units=units)
+        assert main(argv) == 1
+        err = capsys.readouterr().err
+        assert message in err, err
+    save_recording(src, {"x": x}, rate=1000.0, units={"x": "N"})
+    assert main(argv) == 0, capsys.readouterr().err

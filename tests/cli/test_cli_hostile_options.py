@@ -267,3 +267,20 @@ def test_a_command_group_without_its_action_names_the_missing_word(capsys, group
     # 'scene' and 'plugin' named their parser's internal field ('scene_command'), which the help shows nowhere
     line = cli_one_line(capsys, [group], f"the following arguments are required: {word} ")
     assert "_command" not in line and f"flowtex {group} --help" in line
+
+
+@pytest.mark.parametrize("command", ["fit texture R --accel accel --force normal_force -o OUT",
+                                     "fit taps R --accel accel --force normal_force -o OUT",
+                                     "compare SURFACE R --accel accel --force normal_force"])
+def test_motion_options_that_would_be_ignored_are_refused(rec, tmp_path, capsys, command):
+    """--speed with --position: compare used --speed and dropped --position without a word (fit texture and fit taps
+    refused it); --normal without --position (it is the surface normal the speed is computed from) was dropped by all
+    three."""
+    ms = synthetic_model_set(np.array([50.0, 150.0]), np.array([0.5, 1.5]), ar_order=2, ma_order=2)
+    save_model_set(ms, tmp_path / "s0.json")
+    names = {"R": str(rec), "OUT": str(tmp_path / "out.json"), "SURFACE": str(tmp_path / "s0.json")}
+    argv = [names.get(a, a) for a in command.split()]
+    cli_one_line(capsys, [*argv, "--speed", "speed", "--position", "position"], "give one")
+    cli_one_line(capsys, [*argv, "--speed", "speed", "--normal", "position"],
+                 "--normal position: the surface normal the speed is computed from with --position; give --position P")
+    assert not (tmp_path / "out.json").exists()

@@ -62,6 +62,11 @@ def test_device_by_name_and_asymmetric_clip(tmp_path):
     ("audio:\n  rate: 8000\n  channels: [{output: vibraton, scale: 1, clip: 1}]\n", 9, "no output 'vibraton' (did you mean 'vibration'"),
     ("audio:\n  rate: 8000\n  channels: [{output: vibration, scale: 1}]\n", 9, "clip is required"),
     ("audio:\n  rate: 8000\n  channels: [{output: vibration, scale: 1.0, clip: 1.5}]\n", 9, "exceeds full scale +-1 (scale)"),
+    # a clip without 0 played a graph output of 0 (at rest) as a constant offset: 0.5 of full scale, for ever
+    ("audio:\n  rate: 8000\n  channels: [{output: vibration, scale: 1.0, clip: [0.5, 1.0]}]\n", 9,
+     "clip [0.5, 1] does not contain 0"),
+    ("audio:\n  rate: 8000\n  channels: [{output: vibration, scale: 1.0, clip: [-1, -0.25]}]\n", 9,
+     "clip [-1, -0.25] does not contain 0"),
     ("audio:\n  rate: 8000\n  block: 0\n  channels: [{output: vibration, scale: 1, clip: 1}]\n", 9, "audio.block must be a whole number"),
     ("audio:\n  rate: 8000\n  margin_ms: 0\n  channels: [{output: vibration, scale: 1, clip: 1}]\n", 9, "number of ms in (0, 250]"),
     ("audio:\n  rate: 8000\n  margin_ms: 300\n  channels: [{output: vibration, scale: 1, clip: 1}]\n", 9, "audio.margin_ms must be"),

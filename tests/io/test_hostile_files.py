@@ -307,6 +307,36 @@ def test_fit_texture_accel_scaled_absurdly(tmp_path, capsys, factor, match):
     assert not out.exists()
 
 
+
+@pytest.mark.parametrize(("verb", "units", "match"), [
+    ("texture", {"speed": "m/s"}, "signal 'speed' is in 'm/s' (the file's units) but --speed takes mm/s; flowtex converts no "
+                                  "unit: multiply it by 1000 and state its unit as mm/s"),
+    ("texture", {"accel": "g"}, "signal 'accel' is in 'g' (the file's units) but --accel takes m/s^2; flowtex converts no "
+                                "unit: multiply it by 9.80665 and state its unit as m/s^2"),
+    ("friction", {"force": "mN"}, "signal 'force' is in 'mN' (the file's units) but --force takes N; flowtex converts no "
+                                  "unit: multiply it by 0.001 and state its unit as N")])
+def test_fit_signal_the_file_states_in_another_unit_is_refused(tmp_path, capsys, verb, units, match):
+    """The fits take m/s^2, N and mm/s; a recording that states another unit for a signal is refused naming it and the
+    factor (before, an acceleration stated in g was fitted as m/s^2, a surface 20 dB too quiet, and a speed in m/s was
+    "no piece is moving ... check --speed is in mm/s" although the file said m/s). The unit written another way passes."""
+    from flowtex.io.recordings import save_recording
+
+    rng = np.random.default_rng(0)
+    n = 8000
+    force = np.repeat([0.5, 0.5, 2.0, 2.0], n // 4)  # four plateaus of 2 s: a model set needs a spread of points
+    arrays = {"accel": rng.normal(size=n), "speed": np.repeat([60.0, 240.0, 60.0, 240.0], n // 4), "force": force,
+              "friction": 0.3 * force + 0.01 * rng.normal(size=n)}
+    path = tmp_path / "r.npz"
+    out = tmp_path / "o.json"
+    argv = (["fit", "texture", str(path), "--speed", "speed", "--force", "force", "--max-order", "4", "-o", str(out)] if verb == "texture" else
+            ["fit", "friction", str(path), "--force", "force", "--friction-force", "friction", "-o", str(out)])
+    save_recording(path, arrays, 1000.0, units=units)
+    cli_one_line(capsys, argv, match)
+    assert not out.exists()
+    save_recording(path, arrays, 1000.0, units={"accel": "m/s/s", "speed": "mm/s", "force": "N", "friction": "N"})
+    assert main(argv) == 0, capsys.readouterr().err
+    assert out.exists()
+
 def test_fit_compliance_zero_accel_and_force_1e30(tmp_path, capsys):
     from flowtex.datasets.patterns import stroking_recording
     from flowtex.io.recordings import save_recording

@@ -183,3 +183,43 @@ def test_wrong_params_are_named(call, param, words) -> None:
     with pytest.raises(ParamError) as err:
         call(node_type("butterworth"))
     assert err.value.param == param and words in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("every", [2, 1000])
+def test_a_decimated_call_holds_no_more_than_its_outputs(every) -> None:
+    """A call of n ticks of a node run every k ticks allocates the outputs' n rows and O(n / k) more, as every=1 does:
+    limits.check_ticks bounds n by the outputs' and inputs' values, and the schedule's index arrays (an int64 a tick,
+    several of them: three times the output of a one-output node) went past that bound."""
+    from tests.memory import peak_bytes
+
+    proc = load_registry().types["constant"].processor(value=2.0, every=every)
+    proc(ticks=3)  # built: the kernel compiled, the state allocated
+    n = 1_000_000
+    out = {}
+    peak = peak_bytes(lambda: out.update(proc(ticks=n)))
+    # the (n, 1) output, and per run its row, its index, its span and two copies of its row (stacked, repeated): every=1
+    # measures 1.00 n * 8, and the old schedule 3.0 n * 8 at k = 1000, 4.5 n * 8 at k = 2
+    assert peak < (n + 5 * n // every) * 8 + 2**16
+    assert out["y"].shape == (n, 1) and np.all(out["y"] == 2.0)  # held from tick 0's run, then each run's
+
+
+def test_ticks_of_a_node_without_ports_are_bounded_too() -> None:
+    """A node with neither inputs nor outputs holds no values a tick, so check_ticks let any count through; run every k
+    ticks, the schedule's runs (n / k of them) were numpy's 'Unable to allocate 7.28 TiB' for ticks=10**15."""
+
+    @njit
+    def kernel(p, s, si):
+        pass
+
+    class NoPorts(Node):
+        """No ports."""
+
+        type_name = "no_ports_sched"
+        inputs = {}
+        outputs = {}
+
+    NoPorts.kernel = kernel
+    proc = NoPorts.processor(every=1000)
+    assert proc(ticks=10) == {}
+    with pytest.raises(InputError, match="ticks=1,000,000,000,000,000 would fill"):
+        proc(ticks=10**15)

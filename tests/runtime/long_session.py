@@ -3,14 +3,12 @@
 The graph is stateless (two gains) and only the ticks that received one frame of each sensor are repeated, so each
 repeated tick's actuator block is what live would send for its received frames, wherever it is placed: the long log
 replays with every tick equal, as a real session of that length would. Used by tests/runtime/test_replay_stream.py
-and benchmarks/bench_replay.py, with :func:`peak_bytes`.
+and benchmarks/bench_replay.py, with :func:`~tests.memory.peak_bytes`.
 """
 
 from __future__ import annotations
 
 import textwrap
-import tracemalloc
-from collections.abc import Callable
 from pathlib import Path
 
 import can
@@ -21,6 +19,7 @@ from flowtex.graph.compiled import load_graph
 from flowtex.io.canlog import SessionWriter, read_session
 from flowtex.runtime.live import LiveConfig, run_live
 from tests.cli.gain_graph import MAP_GRAPH
+from tests.memory import peak_bytes  # noqa: F401  (the replay tests and benchmark take it from here)
 
 FRAMES_PER_TICK = 4
 """Two sensor frames received and two actuator frames sent a tick."""
@@ -68,12 +67,3 @@ class LongSession:
         w.close()
         return path
 
-
-def peak_bytes(fn: Callable[[], object]) -> int:
-    """Peak bytes Python allocated while ``fn()`` ran (tracemalloc, which slows Python: time it in a run of its own)."""
-    tracemalloc.start()
-    try:
-        fn()
-        return tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()

@@ -65,6 +65,23 @@ def test_wav_without_map_plays_every_scalar_output_at_8x(tmp_path, write_graph):
     np.testing.assert_allclose(y[-8:], np.tile([0.25, 0.5], (8, 1)), rtol=1e-3)
 
 
+def test_a_wav_longer_than_a_recording_may_be_is_refused_before_it_is_rendered(tmp_path, write_graph, capsys, monkeypatch):
+    """A recording within the limits rendered at 8x (48x at 48 kHz) fills 8x the values: 10^8 samples became a 4 * 8 *
+    10^8-byte stream (and again for the clip count), past any memory. 1000 values stand for 10^8 here: 100 ticks read
+    (200 values) play as 800 frames x 2 channels."""
+    from flowtex import limits
+
+    g = write_graph(TWO_OUTPUTS)
+    np.savez(tmp_path / "in.npz", a=np.full(100, 0.5), rate=np.float64(1000))
+    monkeypatch.setattr(limits, "MAX_RECORDING_VALUES", 1000)
+    out = tmp_path / "o.wav"
+    assert main(["run", str(g), "--input", str(tmp_path / "in.npz"), "--output", str(out)]) == 1
+    err = [e for e in capsys.readouterr().err.splitlines() if not e.startswith("flowtex: compiling")]
+    assert err == [f"{out}: 100 ticks play as 800 audio frames x 2 channel(s), 1,600 values, more than a recording may hold "
+                   "(1,000: flowtex.limits.MAX_RECORDING_VALUES); render fewer ticks or at a lower audio rate"]
+    assert not out.exists()
+
+
 def test_a_wav_that_clips_says_how_much(tmp_path, write_graph, capsys):
     """-o OUT.wav clips every channel to its clip ([-1, 1] without a map): the bundled texture (+-4 m/s^2) lost 2.7 % of
     its samples to it without a word. A sine of amplitude 2 is beyond 1 for 1 - (2/pi) asin(1/2) = 2/3 of the time;

@@ -517,3 +517,19 @@ def test_one_silent_sensor_message_is_named_but_not_an_error(setup):
     assert r.silence.startswith("no frame of ToolForce (id 0x101) received in 200 ticks on the simulated device's virtual bus")
     r = run_live(g, LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=50, status=None))
     assert r.silent_messages == [] and r.silence is None and not r.no_sensor_frames
+
+
+def test_a_simulated_recording_stating_another_unit_is_refused_before_the_session(setup):
+    """--simulate checks the units its recording states against the graph inputs', as flowtex run does
+    (tests/test_cli_run.py): before, a normal force stated in mN drove an input in N, 1000x too strong, silently."""
+    from flowtex.errors import DataError
+
+    d = dict(np.load(setup / "rec.npz"))
+    np.savez(setup / "rec.npz", **d, units=np.array('{"position": "mm", "normal_force": "mN"}'))
+    g = load_graph(setup / "g.yaml")
+    with pytest.raises(DataError, match=r"rec.npz: signal 'normal_force' is in 'mN' \(the file's units\) but graph '.*' input "
+                                        r"'normal_force' takes N; flowtex converts no unit: multiply it by 0.001"):
+        run_live(g, LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=20, status=None))
+    np.savez(setup / "rec.npz", **d, units=np.array('{"position": "mm", "normal_force": "N"}'))
+    r = run_live(g, LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=20, status=None))
+    assert r.error is None and r.ticks == 20

@@ -181,7 +181,7 @@ def test_ctrl_c_during_start_up_says_interrupted_and_exits_130(setup):  # noqa: 
         assert proc.returncode in (130, -signal.SIGINT, 0), err
         if proc.returncode != 0:
             assert err.strip().splitlines()[-1] == "interrupted", err
-        else:  # the SIGINT stopped the loop: the session did not run its 30 s (docs/testing.md, "A Ctrl-C lost at start-up")
+        else:  # the SIGINT stopped the loop: the session did not run its 30 s (docs/testing.md, "A Ctrl-C lost in a test's child")
             sent = sum(1 for m in read_session(session) if not m.is_rx)
             assert sent < 30_000, f"the SIGINT was lost ({sent} frames sent); signal state when it was sent: {state}; {err}"
 

@@ -139,6 +139,10 @@ def test_replay_errors_about_a_text_log_name_its_line(setup, capsys):  # noqa: F
     assert replay_with(at, lines[at]) == (
         f"{log}:{at}: sent frame 0x201 where the map's actuator message 0x200 was expected; was this session recorded "
         "with the same map?")
+    # the right number as an extended ID: the message said 'sent frame 0x200 where ... 0x200 was expected'
+    assert replay_with(at, lines[at - 1].replace("200#", "00000200#")) == (
+        f"{log}:{at}: sent frame 0x200 (extended ID) where the map's actuator message 0x200 (standard ID) was expected; "
+        "was this session recorded with the same map?")
     assert replay_with(at + 1, received).startswith(f"{log}:{at + 1}: frame 0x")
 
     # a BLF has no lines: the frame's position in the log (1-based) is named

@@ -144,6 +144,33 @@ def test_the_start_check_fails_fast_and_the_replay_names_a_bad_line_at_the_end(l
         open_session(early)
 
 
+def test_a_replay_whose_output_log_cannot_hold_the_frame_times_names_the_output(logs):
+    """The replay's actuator frames keep live's times; an .asc output dates them, and a .log recorded with times out of a
+    date's range made that an internal error (OverflowError), then a line naming the writer's temporary file."""
+    far = logs / "far.log"
+    far.write_text(re.sub(r"^\(\d+\.\d+\)", "(1e300)", (logs / "s.log").read_text(), flags=re.M))
+    out = logs / "far_out.asc"
+    with pytest.raises(DataError) as info:
+        replay_session(load_graph(logs / "g.yaml"), far, DBC, logs / "m.yaml", out, seed=3)
+    assert str(info.value).startswith(f"-o {out}: frame time 1e+300 s cannot be written in a .asc log") and not out.exists()
+    assert replay_session(load_graph(logs / "g.yaml"), far, DBC, logs / "m.yaml", logs / "far_out.log", seed=3).ticks
+
+
+def test_a_log_without_directions_says_so(logs, monkeypatch):
+    """A candump -L log has no R/T direction, so python-can reads every frame as received: the replay found no tick
+    and said only 'no complete tick' (or, past MAX_TICK_FRAMES, 'is this a flowtex live session log?')."""
+    plain = logs / "plain.log"
+    plain.write_text("".join(line[:-2] + "\n" for line in (logs / "s.log").read_text().splitlines(keepends=True)
+                             if line.endswith((" R\n", " T\n"))))
+    hint = "are all marked received and none is marked sent: a log without directions, as candump -L writes?"
+    with pytest.raises(DataError, match=re.escape(hint)):
+        replay_session(load_graph(logs / "g.yaml"), plain, DBC, logs / "m.yaml", seed=3)
+    monkeypatch.setattr(limits, "MAX_TICK_FRAMES", 50)
+    with pytest.raises(DataError) as info:
+        replay_session(load_graph(logs / "g.yaml"), plain, DBC, logs / "m.yaml", seed=3)
+    assert str(info.value).startswith(f"{plain}:51: more than 50 frames received in one tick") and hint in str(info.value)
+
+
 def test_received_frames_without_a_block_are_refused_at_the_tick_limit(logs, monkeypatch):
     """The replay holds one tick's received frames: a log of received frames and no block is refused at the frame past
     MAX_TICK_FRAMES, naming it (the whole-list replay held them all and said there was nothing to replay)."""

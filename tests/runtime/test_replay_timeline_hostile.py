@@ -1,0 +1,77 @@
+"""A session log's audio timeline is what the replay rebuilds the played stream from: a damaged or forged event (a
+size of terabytes, a negative position) is one line naming the log, not numpy's 'Unable to allocate 4.00 TiB' as an
+internal error, nor a WAV whose samples a negative index put at the stream's end."""
+
+from __future__ import annotations
+
+import pytest
+from long_session import LongSession
+
+from flowtex.errors import DataError
+from flowtex.graph.compiled import load_graph
+from flowtex.io.canlog import SessionWriter, read_session
+from flowtex.runtime.audio_timeline import END, RESYNC, SILENCE, START, event_frame
+from flowtex.runtime.replay import replay_session
+
+AUDIO = "audio:\n  rate: 8000\n  block: 64\n  channels:\n    - {output: vibration, scale: 1.0, clip: 1.0}\n"
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("timeline")
+    s = LongSession(folder, ticks=100)
+    (folder / "ma.yaml").write_text(s.map.read_text() + AUDIO)
+    return s, list(read_session(s.write(folder / "plain.blf", 60)))
+
+
+def _replay(session, name, start, after):
+    s, frames = session
+    log = s.folder / f"{name}.blf"
+    w = SessionWriter(log)
+    w.write(event_frame(START, *start), False)
+    for m in frames:
+        w.write(m, m.is_rx)
+    for event in after:
+        w.write(event_frame(*event), False)
+    w.close()
+    out = s.folder / f"{name}.wav"
+    return log, out, lambda: replay_session(load_graph(s.graph), log, s.dbc, s.folder / "ma.yaml", out, seed=3)
+
+
+def test_a_consistent_timeline_is_rebuilt(session):
+    _log, out, replay = _replay(session, "sane", (100, 16, 80), [(END, 100 + 60 * 8, 60 * 8, 0)])
+    assert replay().ticks == 60 and out.is_file()
+
+
+@pytest.mark.parametrize(("start", "after", "says"), [
+    ((100, 16, 80), [(END, 2**40, 480, 0)], "END event: 1,099,511,627,776 frames handed to the sound card"),
+    ((100, 16, 80), [(END, -5, 480, 0)], "END event: -5 frames handed to the sound card"),
+    ((2**40, 16, 80), [], "START event: a lead of 1,099,511,627,776 frames"),
+    ((-50, 16, 80), [(END, 580, 480, 0)], "START event: a lead of -50 frames"),
+    ((100, 0, 80), [(END, 580, 480, 0)], "START event: a fade of 0 frames"),
+    ((100, 16, 80), [(RESYNC, 5, 2**40, 0)], "RESYNC event: 1,099,511,627,776 frames of silence before tick 5"),
+    ((100, 16, 80), [(RESYNC, 5, -1000, 0), (END, 580, 480, 0)], "RESYNC event: -1,000 frames of silence before tick 5"),
+    ((100, 16, 80), [(SILENCE, 0, 2**40, 1)], "SILENCE event: frames 0 to 1,099,511,627,776"),
+    ((100, 16, 80), [(SILENCE, 50, 10, 1)], "SILENCE event: frames 50 to 10"),
+])
+def test_a_timeline_event_out_of_bounds_is_one_line_naming_the_log(session, start, after, says):
+    log, out, replay = _replay(session, "bad", start, after)
+    with pytest.raises(DataError) as info:
+        replay()
+    msg = str(info.value)
+    assert msg.startswith(f"{log}: its audio timeline's {says}") and "\n" not in msg, msg
+    assert not out.exists()
+
+
+def test_a_replayed_stream_longer_than_a_recording_may_be_is_refused(session, monkeypatch):
+    """The replay renders every tick's samples (8 a tick at 8 kHz): a session within the log limits (8 hours) played
+    at 48 kHz is billions of frames. 300 values stand for 10^8 here; 60 ticks are 480 frames."""
+    from flowtex import limits
+
+    s, _frames = session
+    out = s.folder / "long.wav"
+    monkeypatch.setattr(limits, "MAX_RECORDING_VALUES", 300)
+    with pytest.raises(DataError) as info:
+        replay_session(load_graph(s.graph), s.folder / "plain.blf", s.dbc, s.folder / "ma.yaml", out, seed=3)
+    assert str(info.value).startswith(f"{out}: 60 ticks play as ") and "MAX_RECORDING_VALUES" in str(info.value)
+    assert not out.exists()
