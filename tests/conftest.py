@@ -51,9 +51,9 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "flowtex"))
 SLOW_FIRST = (
     "test_examples.py", "test_engine_tiers.py", "test_audio_jack.py", "test_live.py", "test_plugin_check.py",
     "test_plugin_declarations.py", "test_engine_cache.py", "test_plugin_new.py", "test_cli_hostile_options.py",
-    "test_golden_portability.py", "test_fused.py", "test_livesafe_hostile.py", "test_hatt_parity.py", "test_scene_live.py",
-    "test_texture_examples.py", "test_hostile_bounds.py", "test_crossval.py", "test_fit_batch.py", "test_arma_resample.py",
-    "test_kernel_faults.py", "test_resample_corpus.py",
+    "test_golden_portability.py", "test_fused.py", "test_friction_noise.py", "test_replay_stream.py", "test_livesafe_hostile.py",
+    "test_hatt_parity.py", "test_scene_live.py", "test_texture_examples.py", "test_hostile_bounds.py", "test_fit_batch.py",
+    "test_arma_resample.py", "test_kernel_faults.py", "test_resample_corpus.py", "test_crossval.py",
 )
 """The test files that take longest (CPU and real time of a fresh-clone run, docs/testing.md), slowest first.
 

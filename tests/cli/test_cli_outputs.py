@@ -255,36 +255,41 @@ outputs:
 """
 
 
+@pytest.fixture(scope="module")
+def plugs(tmp_path_factory):
+    """One plugin folder for the module's tests: a second copy of it loaded in the same process would be a module of
+    its own, filed by its path (flowtex.registry), and compile its kernel again at every run of the suite."""
+    folder = tmp_path_factory.mktemp("plugs")
+    (folder / "shift.py").write_text(PLUGIN)
+    return folder
+
+
 @pytest.mark.parametrize("how", ["graph file", "--set"])
-def test_an_output_that_a_node_of_the_graph_reads_is_refused_before_the_run(tmp_path, capsys, monkeypatch, how):
+def test_an_output_that_a_node_of_the_graph_reads_is_refused_before_the_run(tmp_path, plugs, capsys, monkeypatch, how):
     """A path parameter names a file the graph reads (here a plugin's table, which -o can name as a CSV); writing the
     outputs over it would lose it. Refused once the graph is checked, before the compile and the run."""
     monkeypatch.chdir(tmp_path)
-    (tmp_path / "plugs").mkdir()
-    (tmp_path / "plugs" / "shift.py").write_text(PLUGIN)
     (tmp_path / "g.yaml").write_text(SHIFT_GRAPH if how == "graph file" else SHIFT_GRAPH.replace("table.csv", "other.csv"))
     save_recording(tmp_path / "in.npz", {"x": np.arange(100.0)}, rate=1000.0)
     victim = tmp_path / "table.csv"
     victim.write_text("# rate: 1000\nx\n2.5\n")
     before = victim.read_bytes()
-    argv = ["run", "g.yaml", "--plugins", "plugs", "--input", "in.npz", "-o", "table.csv"]
+    argv = ["run", "g.yaml", "--plugins", plugs, "--input", "in.npz", "-o", "table.csv"]
     code, err = _run(capsys, argv + (["--set", "shift.table=table.csv"] if how == "--set" else []))
     err = [line for line in err if not line.startswith("flowtex: loaded plugin code")]
     assert code == 1 and err == [f"-o table.csv: that is a file the graph reads ({victim}); flowtex never overwrites an "
                                  "input: choose another output file"], err
-    assert victim.read_bytes() == before and sorted(os.listdir(tmp_path)) == ["g.yaml", "in.npz", "plugs", "table.csv"]
+    assert victim.read_bytes() == before and sorted(os.listdir(tmp_path)) == ["g.yaml", "in.npz", "table.csv"]
 
 
-def test_watch_plot_over_a_file_the_graph_reads_is_refused_and_the_file_kept(tmp_path, capsys, monkeypatch):
+def test_watch_plot_over_a_file_the_graph_reads_is_refused_and_the_file_kept(tmp_path, plugs, capsys, monkeypatch):
     """watch --plot PNG named like a file a node reads (here the plugin's table) would be redrawn over it at every run."""
     monkeypatch.chdir(tmp_path)
-    (tmp_path / "plugs").mkdir()
-    (tmp_path / "plugs" / "shift.py").write_text(PLUGIN)
     (tmp_path / "g.yaml").write_text(SHIFT_GRAPH.replace("table.csv", "shot.png"))
     save_recording(tmp_path / "in.npz", {"x": np.arange(100.0)}, rate=1000.0)
     victim = tmp_path / "shot.png"
     victim.write_text("2.5\n")
-    code = main(["watch", "g.yaml", "--plugins", "plugs", "-i", "in.npz", "--plot", "shot.png", "--max-runs", "1"])
+    code = main(["watch", "g.yaml", "--plugins", str(plugs), "-i", "in.npz", "--plot", "shot.png", "--max-runs", "1"])
     out = capsys.readouterr().out
     assert code == 1 and f"--plot shot.png: that is a file the graph reads ({victim})" in out, out
     assert victim.read_text() == "2.5\n"
@@ -307,20 +312,18 @@ def test_live_stats_over_the_model_set_the_graph_reads_is_refused_before_the_ses
     ("--plot", "shot.png", ["--knob", "shift.table=other.csv,shot.png"]),
     ("-o", "table.csv", ["--knob", "shift.every=1,2", "--set", "shift.table=table.csv"]),
     ("-o", "table.csv", ["--knob", "shift.table=other.csv,two.csv", "--reference", "shift.table=table.csv"])])
-def test_bench_output_over_a_file_a_knob_makes_the_graph_read_is_refused(tmp_path, capsys, monkeypatch, option, victim, knob):
+def test_bench_output_over_a_file_a_knob_makes_the_graph_read_is_refused(tmp_path, plugs, capsys, monkeypatch, option, victim, knob):
     """A knob names a file only some configurations read (the plugin's table): bench -o/--plot checked only the graph
     and the recording, so the sweep would write its table or plot over that file. Every configuration's reads are checked
     before anything runs; the line names the option, the knob and the file."""
     monkeypatch.chdir(tmp_path)
-    (tmp_path / "plugs").mkdir()
-    (tmp_path / "plugs" / "shift.py").write_text(PLUGIN)
     (tmp_path / "g.yaml").write_text(SHIFT_GRAPH.replace("table.csv", "other.csv"))
     (tmp_path / "other.csv").write_text("1.5\n")
     (tmp_path / "two.csv").write_text("2\n")
     save_recording(tmp_path / "in.npz", {"x": np.arange(100.0)}, rate=1000.0)
     (tmp_path / victim).write_text("2.5\n")
     before = sorted(os.listdir(tmp_path))
-    code, err = _run(capsys, ["bench", "g.yaml", "--plugins", "plugs", "-i", "in.npz", *knob, option, victim])
+    code, err = _run(capsys, ["bench", "g.yaml", "--plugins", plugs, "-i", "in.npz", *knob, option, victim])
     err = [line for line in err if not line.startswith("flowtex: loaded plugin code")]
     given = next((k for k in ("--set", "--reference") if k in knob), "--knob")
     via = f"{given} shift.table={victim}"

@@ -22,7 +22,7 @@ BAND = "HaTT XML cannot state that these models were resampled from"
 
 
 def _sets(tmp_path: Path) -> tuple[Path, Path]:
-    ms = synthetic_model_set(np.array([60.0, 120.0]), np.array([0.5, 1.5]), ar_order=4, ma_order=2)
+    ms = synthetic_model_set(np.array([60.0]), np.array([0.5]), ar_order=4, ma_order=2)  # one measured model: the warnings are the point
     hatt = write_hatt_xml(ms, tmp_path / "hatt.xml")
     ms.rule = FITTED_RULE
     return save_model_set(ms, tmp_path / "fitted.json"), hatt

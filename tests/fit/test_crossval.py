@@ -109,7 +109,19 @@ def recording(tmp_path_factory):
     return human_exploration(12.0, RATE, seed=2).save(path)
 
 
-def test_cli_folds_writes_json_and_report(recording, tmp_path, capsys):
+def test_cli_folds_writes_json_and_report(recording, tmp_path, capsys, monkeypatch):
+    """The report's figures are built but not drawn: only report.md is read here (drawing them is
+    tests/fit/test_fit_texture.py's end-to-end run, their pixels tests/io/test_figures.py's, their layout
+    tests/fit/test_report_layout.py's)."""
+    import flowtex.fit.report as report
+
+    drawn = []
+
+    def keep(fig, path):
+        drawn.append(path.name)
+        report.agg_pyplot(None).close(fig)
+
+    monkeypatch.setattr(report, "save_png", keep)
     out, js, rep = tmp_path / "fit.json", tmp_path / "cv.json", tmp_path / "rep"
     assert main(["fit", "texture", str(recording), "--speed", "speed", "--order", "4,2", "--folds", "2", "-o", str(out),
                  "--holdout-json", str(js), "--report", str(rep)]) == 0
@@ -131,6 +143,8 @@ def test_cli_folds_writes_json_and_report(recording, tmp_path, capsys):
     assert doc["mean"]["octave_bands"][0]["error_db"] == pytest.approx(
         np.mean([r["octave_bands"][0]["error_db"] for r in doc["results"]]))
     md = (rep / "report.md").read_text()
+    if report.agg_pyplot(None) is not None:  # the plot extra installed
+        assert drawn == ["spectra.png", "plane.png"] and "![spectra](spectra.png)" in md
     assert "## Held out" in md and "2-fold cross-validation" in md and "| mean |" in md and "| pooled |" in md
     # the set written is the fit of the whole recording, its models numbered as in the report
     ms = json.loads(out.read_text())

@@ -8,6 +8,7 @@ flowtex.dsp.hetero.false_rejection_rate(dof) of its samples there (2.8e-6 Gaussi
 
 from __future__ import annotations
 
+import functools
 import json
 
 import numpy as np
@@ -22,6 +23,14 @@ from flowtex.fit.friction import fit_friction
 
 MU = 0.4
 T19 = stats.t.ppf(0.975, 19)   # the batch-means interval's t quantile (20 blocks)
+
+
+@functools.cache
+def _drag_fit(seed: int):
+    """stiction_drag(mu=MU, seed=seed) with its defaults (20 spikes, 5 % drift) and its fit: the planted-stiction test
+    and the mu test both check seeds 0-2, each its own assertions on one fit."""
+    rec = stiction_drag(mu=MU, seed=seed)
+    return rec, fit_friction(rec.arrays["normal_force"], rec.arrays["tangential_force"])
 
 
 def _se(fit) -> float:
@@ -108,11 +117,10 @@ def test_planted_stiction_is_found():
     rate (drift is Gaussian and only thins the tails of the sum) plus 4 binomial sd, over ~19 000 clean samples.
     """
     for seed in range(3):
-        rec = stiction_drag(seed=seed)
+        rec, fit = _drag_fit(seed)
         n, t = rec.arrays["normal_force"], rec.arrays["tangential_force"]
         spike = rec.truth["spike_mask"]
         rejected = irls_line_hetero(n, t).line.weights == 0.0
-        fit = fit_friction(n, t)
         assert fit.rejected == int(rejected.sum())
         assert np.sum(rejected & spike) / spike.sum() >= 0.99
         clean = int((~spike).sum())
@@ -132,8 +140,7 @@ def test_mu_and_its_interval_over_seeds():
     sm = pytest.importorskip("statsmodels.api")
     held = 0
     for seed in range(8):
-        rec = stiction_drag(mu=MU, seed=seed)
-        fit = fit_friction(rec.arrays["normal_force"], rec.arrays["tangential_force"])
+        _rec, fit = _drag_fit(seed)
         assert abs(fit.mu - MU) <= 4 * _se(fit)
         held += fit.mu_ci[0] <= MU <= fit.mu_ci[1]
     assert held >= 6

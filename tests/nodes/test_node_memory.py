@@ -28,27 +28,29 @@ FLOAT_GUARDS = (np.nan, -3.5e300)
 INT_GUARDS = (-(2**62), 2**61 + 12345)
 
 
-def _files(tmp_path: Path) -> dict[str, Path]:
+def _pattern(tmp_path: Path) -> Path:
     pattern = Pattern(RATE_HZ, np.array([1.0, 0.0, 0.0]), np.zeros(3), np.array([-0.5, 0.0, 0.5]), np.array([1.0, 0.5, 2.0]),
                       [np.array([1.0, 0.5]), np.array([1.0]), np.array([0.5, 0.2, 0.1])],
                       [np.array([1.0, -0.5]), np.array([1.0]), np.array([1.0, -0.3, 0.02])])
-    return {"pattern": write_pattern(tmp_path / "p.json", pattern),
-            "library": write_tap_library(tmp_path / "taps.json", synthetic_tap_library(sample_rate_hz=RATE_HZ))}
+    return write_pattern(tmp_path / "p.json", pattern)
+
+
+GIVEN = {  # type -> its parameters (made when that type is built: a model set costs 30 ms, made for every type before)
+    "texture_lookup": lambda tmp_path: {"models": cork_like_model_set()},
+    "patterned_texture": lambda tmp_path: {"pattern": str(_pattern(tmp_path))},
+    "tap_player": lambda tmp_path: {"library": str(write_tap_library(tmp_path / "taps.json",
+                                                                     synthetic_tap_library(sample_rate_hz=RATE_HZ)))},
+    "coulomb_friction": lambda tmp_path: {"mu": 0.5},
+    "dahl_friction": lambda tmp_path: {"mu": 0.5},
+    "butterworth": lambda tmp_path: {"order": 3, "cutoff_hz": [50.0]},
+    "resample": lambda tmp_path: {"to_hz": 500.0},
+    "select": lambda tmp_path: {"index": 0},
+}
 
 
 def _params(cls: type[Node], tmp_path: Path) -> dict[str, Any]:
     """Valid parameters: kernelprobe's made-up values, with a real model set or file where a type needs one."""
-    files = _files(tmp_path)
-    given: dict[str, Any] = {
-        "texture_lookup": {"models": cork_like_model_set()},
-        "patterned_texture": {"pattern": str(files["pattern"])},
-        "tap_player": {"library": str(files["library"])},
-        "coulomb_friction": {"mu": 0.5},
-        "dahl_friction": {"mu": 0.5},
-        "butterworth": {"order": 3, "cutoff_hz": [50.0]},
-        "resample": {"to_hz": 500.0},
-        "select": {"index": 0},
-    }.get(cls.type_name, {})
+    given = GIVEN[cls.type_name](tmp_path) if cls.type_name in GIVEN else {}
     values = {}
     for name, param in cls.params.items():
         if name in given:
