@@ -10,6 +10,7 @@ and the byte offset of the object.
 
 from __future__ import annotations
 
+import re
 import zlib
 from collections.abc import Iterator
 from pathlib import Path
@@ -122,6 +123,10 @@ class BoundedBLFReader(BLFReader):
 
     def _frames_of(self, at: int, data: bytes) -> Iterator[can.Message]:
         """python-can's frames of one unpacked container; what its parser raises is named at the container's byte."""
+        smaller = _object_smaller_than_its_header(self._tail + data)
+        if smaller is not None:
+            raise self._error(at, f"an object in this container claims {smaller} bytes, less than its "
+                                  f"{OBJ_HEADER_BASE_STRUCT.size}-byte header (a damaged or forged size)")
         try:
             yield from self._parse_container(data)
         except Exception as exc:  # BLFParseError, struct.error, ... on objects it cannot read
@@ -143,3 +148,29 @@ class BoundedBLFReader(BLFReader):
 
     def _error(self, at: int, problem: str) -> DataError:
         return DataError(f"{self._path} (byte {at}): {problem}")
+
+
+_SMALL_OBJECT = re.compile(rb"LOBJ.{4}[\x00-\x0f]\x00\x00\x00", re.DOTALL)
+"""An object header whose size (bytes 8-11, little-endian) is below the 16 bytes of the header itself."""
+
+
+def _object_smaller_than_its_header(buffer: bytes) -> int | None:
+    """The size an object of ``buffer`` (python-can's unpacked container data) claims when it is below its header's,
+    found at the object boundaries python-can's parser walks; None when there is none.
+
+    python-can steps from an object to the one ``obj_size`` bytes on: an object of size 0 whose header version it does
+    not know is skipped onto itself, for ever and without a frame to count. The byte pattern is looked for first (at C
+    speed); only where it occurs are the objects walked as python-can walks them (a frame's data bytes may hold it).
+    """
+    if _SMALL_OBJECT.search(buffer) is None:
+        return None
+    base = OBJ_HEADER_BASE_STRUCT.size
+    pos = 0
+    while True:
+        found = buffer.find(b"LOBJ", pos, pos + 8)  # python-can's search, past an object's padding
+        if found < 0 or found + base > len(buffer):
+            return None  # python-can stops here (or raises, which _frames_of names)
+        obj_size = OBJ_HEADER_BASE_STRUCT.unpack_from(buffer, found)[3]
+        if obj_size < base:
+            return obj_size
+        pos = found + obj_size
