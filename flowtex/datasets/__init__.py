@@ -38,6 +38,12 @@ __all__ = ["Plateau", "SyntheticRecording", "default_surface", "free_exploration
            "tap_session"]
 
 
+SIGNAL_UNITS = {"accel": "m/s^2", "position": "mm", "speed": "mm/s", "velocity": "mm/s", "normal_force": "N",
+                "tangential_force": "N", "force": "N"}
+"""The unit of each signal the generators record, stated in the files they save (``normal`` is a unit vector, and
+states none): flowtex checks a stated unit against the graph input or the fit option that takes the signal."""
+
+
 @dataclass
 class SyntheticRecording:
     """Signals (time first) at ``rate`` Hz and the ground truth that made them."""
@@ -47,8 +53,10 @@ class SyntheticRecording:
     truth: dict[str, Any] = field(default_factory=dict)
 
     def save(self, path: str | Path) -> Path:
-        """Write the recording (.npz, .csv or .h5) with its rate; returns the path."""
-        save_recording(path, self.arrays, rate=self.rate)
+        """Write the recording (.npz, .csv or .h5) with its rate and its signals' units (:data:`SIGNAL_UNITS`), as a
+        real rig's files state them; returns the path."""
+        save_recording(path, self.arrays, rate=self.rate,
+                       units={name: SIGNAL_UNITS[name] for name in self.arrays if name in SIGNAL_UNITS})
         return Path(path)
 
 

@@ -159,3 +159,16 @@ def test_render_rate_resamples_every_fitted_model(tmp_path, capsys):
         s1 = arma_psd(lsf_to_poly_new(native.ar_lsf[m]), lsf_to_poly_new(native.ma_lsf[m]), native.gain[m], native.variance[m], f, RATE)
         s2 = arma_psd(lsf_to_poly_new(fast.ar_lsf[m]), lsf_to_poly_new(fast.ma_lsf[m]), fast.gain[m], fast.variance[m], f, 2000.0)
         assert lsd_db(s2, s1, f, min_freq_hz=0.0) <= 0.5
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".csv", ".h5"])
+def test_generated_recordings_state_their_units_as_a_rig_would(tmp_path, suffix):
+    """A saved generated recording states each signal's unit (flowtex.datasets.SIGNAL_UNITS), so the chain run on it
+    meets the stated-unit checks a real rig's file meets; the unit vector ``normal`` states none."""
+    from flowtex.io.recordings import load_recording
+
+    if suffix == ".h5":
+        pytest.importorskip("h5py")
+    rec = free_exploration(1.0, RATE, seed=1)
+    back = load_recording(rec.save(tmp_path / f"rec{suffix}"))
+    assert back.units == {"accel": "m/s^2", "position": "mm", "normal_force": "N", "speed": "mm/s"}
