@@ -95,3 +95,33 @@ def test_the_units_a_recording_states_are_kept(tmp_path, suffix) -> None:
     assert main(["resample", str(src), "--rate", "2000", "-o", str(out)]) == 0
     got = load_recording(out)
     assert got.rate == 2000.0 and got.units == units
+
+
+@pytest.mark.parametrize(("rate_in", "rate_out"), [(1000.0, 2000.0), (1000.0, 300.0), (1000.0, 44100.0), (2500.0, 1000.0)])
+def test_flags_and_indices_keep_their_values_and_their_edges(tmp_path, capsys, rate_in, rate_out) -> None:
+    """A 0/1 contact flag and a 0..2 surface index are held, not filtered: they keep their values (a filter rang to
+    -0.13 and 1.13 around each step), and each change lands on the output sample nearest to it, within half an
+    output period; a waveform beside them is still filtered."""
+    rng = np.random.default_rng(3)
+    n = 3000
+    flag = np.zeros(n)
+    for start in rng.integers(0, n - 200, 6):
+        flag[start:start + rng.integers(20, 200)] = 1.0
+    index = np.repeat(rng.integers(0, 3, 30), n // 30).astype(float)
+    wave = np.sin(2 * np.pi * 37.0 * np.arange(n) / rate_in)
+    src, out = tmp_path / "in.npz", tmp_path / "out.npz"
+    save_recording(src, {"in_contact": flag, "surface": index, "wave": wave}, rate=rate_in)
+    assert main(["resample", str(src), "--rate", str(rate_out), "-o", str(out)]) == 0
+    assert "held, not filtered (whole numbers of at most 16 values): in_contact, surface" in capsys.readouterr().out
+    back = load_recording(out).arrays
+    np.testing.assert_array_equal(back["wave"], resample_signal(wave, rate_in, rate_out))
+    for name, x in (("in_contact", flag), ("surface", index)):
+        y = back[name]
+        assert len(y) == len(back["wave"]) and set(np.unique(y)) <= set(np.unique(x))
+        # independently of the index arithmetic: the input samples before and after each output time, in seconds
+        t_out, t_in = np.arange(len(y)) / rate_out, np.arange(n) / rate_in
+        after = np.clip(np.searchsorted(t_in, t_out), 1, n - 1)
+        d_before, d_after = t_out - t_in[after - 1], t_in[after] - t_out
+        nearest = np.where(d_after < d_before, x[after], x[after - 1])
+        tie = np.isclose(d_before, d_after, rtol=0, atol=1e-12)  # halves go to the later sample; either is nearest
+        assert np.all((y == nearest) | (tie & (y == x[after]))), name

@@ -48,6 +48,25 @@ def resampled_length(n: int, up: int, down: int) -> int:
     return (2 * n * up + down) // (2 * down)
 
 
+def hold_signal(x: np.ndarray, rate_in: float, rate_out: float) -> np.ndarray:
+    """``x`` (samples along axis 0) at ``rate_out`` Hz by taking, at each output time, the input sample nearest to it.
+
+    For signals that are states, not waveforms (a contact flag, a surface index): they keep their values, and each
+    change moves by at most half an output period, where a filter would ring around the step and leave values the
+    signal never had. Length round(n * rate_out / rate_in), as :func:`resample_signal`, so the two align sample for
+    sample; output time k / rate_out takes input sample round(k * rate_in / rate_out) (halves up, clipped to the last).
+    """
+    x = np.asarray(x, dtype=np.float64)
+    if x.ndim == 0:
+        raise ValueError("hold_signal needs samples along axis 0, got a scalar")
+    up, down = rational_ratio(rate_in, rate_out)
+    n_out = resampled_length(x.shape[0], up, down)
+    if x.shape[0] == 0:
+        return np.zeros((0,) + x.shape[1:])
+    nearest = (2 * np.arange(n_out, dtype=np.int64) * down + up) // (2 * up)
+    return np.ascontiguousarray(x[np.minimum(nearest, x.shape[0] - 1)])
+
+
 def resample_signal(x: np.ndarray, rate_in: float, rate_out: float, atten_db: float = DEFAULT_ATTEN_DB,
                     passband: float = PASSBAND) -> np.ndarray:
     """Resample ``x`` (samples along axis 0, any trailing shape, any unit) from ``rate_in`` to ``rate_out`` Hz.

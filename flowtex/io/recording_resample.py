@@ -1,7 +1,9 @@
 """Bring every signal of a recording to another rate (any rational ratio): what ``flowtex resample`` does.
 
 Zero delay (signals stay aligned in time), length n * r2 / r1 rounded, Kaiser
-polyphase filter (flowtex.dsp.resample). The output states its new rate and the units the source states.
+polyphase filter (flowtex.dsp.resample). A signal that is a state rather than a waveform (:func:`is_state_signal`:
+a contact flag, a surface index) is held instead, sample by nearest sample, so it keeps its values. The output
+states its new rate and the units the source states.
 """
 
 from __future__ import annotations
@@ -10,13 +12,26 @@ from pathlib import Path
 
 import numpy as np
 
-from ..dsp.resample import DEFAULT_ATTEN_DB, rational_ratio, resample_signal
+from ..dsp.resample import DEFAULT_ATTEN_DB, hold_signal, rational_ratio, resample_signal
 from ..errors import DataError, FlowtexError
 from .formats import AUDIO, RECORDING, kind_of
 from .recordings import load_recording, save_recording
 
 MAX_RATE_RATIO = 64.0
 """Largest change of rate (up or down) in one call: the polyphase filter's length grows with the ratio."""
+
+STATE_LEVELS = 16
+"""A signal whose samples are whole numbers taking at most this many values is a state (a flag, an index), not a
+waveform: :func:`is_state_signal`."""
+
+
+def is_state_signal(a: np.ndarray) -> bool:
+    """True when every sample of ``a`` is a whole number and ``a`` takes at most :data:`STATE_LEVELS` values.
+
+    Such a signal is held, not filtered: a filter rings around each step (docs/recordings.md has the overshoot of a
+    0/1 flag) and leaves values a flag or an index never takes.
+    """
+    return a.size > 0 and bool(np.all(a == np.round(a))) and np.unique(a).size <= STATE_LEVELS
 
 
 def resample_recording(src: str | Path, out: str | Path, rate_hz: float, from_rate: float | None = None,
@@ -43,14 +58,20 @@ def resample_recording(src: str | Path, out: str | Path, rate_hz: float, from_ra
         up, down = rational_ratio(rate_in, rate_hz)
     except ValueError as exc:
         raise FlowtexError(f"{src}: {exc}") from None
-    arrays = {}
+    arrays: dict[str, np.ndarray] = {}
+    held: list[str] = []
     for name, a in rec.arrays.items():
         if not np.all(np.isfinite(a)):
             raise DataError(f"{src}: signal {name!r} has NaN or inf values; clean it before resampling")
         try:
-            arrays[name] = resample_signal(a, rate_in, rate_hz, atten_db=atten_db)
+            if is_state_signal(a):
+                held.append(name)
+                arrays[name] = hold_signal(a, rate_in, rate_hz)
+            else:
+                arrays[name] = resample_signal(a, rate_in, rate_hz, atten_db=atten_db)
         except ValueError as exc:
             raise FlowtexError(f"{src}: signal {name!r}: {exc}") from None
     save_recording(out, arrays, rate=rate_hz, units=rec.units)
+    states = f"; held, not filtered (whole numbers of at most {STATE_LEVELS} values): {', '.join(held)}" if held else ""
     return (f"{out}: {len(arrays)} signal(s), {rec.samples} samples at {rate_in:g} Hz -> "
-            f"{next(iter(arrays.values())).shape[0] if arrays else 0} at {rate_hz:g} Hz (x {up}/{down})")
+            f"{next(iter(arrays.values())).shape[0] if arrays else 0} at {rate_hz:g} Hz (x {up}/{down}){states}")
