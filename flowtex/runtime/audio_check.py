@@ -147,9 +147,9 @@ def _placed(samples: Iterable[np.ndarray], n_ticks: int, up: int, down: int, tim
 
 
 def rebuild_blocks(samples: Iterable[np.ndarray], n_ticks: int, up: int, down: int, timeline: AudioTimeline,
-                   width: int, block: int = BLOCK_FRAMES) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+                   width: int, block: int | None = None) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """The stream a live session handed to its sound card, from the replay's tick samples and the session's timeline,
-    as consecutive blocks of ``block`` frames (the last shorter): (frames float32, each frame's class: ``CLASS_PLAYED``,
+    as consecutive blocks of ``block`` frames (default :data:`BLOCK_FRAMES`; the last shorter): (frames float32, each frame's class: ``CLASS_PLAYED``,
     a silence reason, or :data:`UNKNOWN`). Memory of a block whatever the stream's length.
 
     ``samples``: the ``n_ticks`` ticks' samples back to back, no lead, in blocks of any size
@@ -157,6 +157,7 @@ def rebuild_blocks(samples: Iterable[np.ndarray], n_ticks: int, up: int, down: i
     silence of every resync up to it; every frame of a silence run, and every frame no tick reaches, plays the
     callback's fade from the sample before it (then zeros)."""
     total = stream_frames(n_ticks, up, down, timeline)
+    block = max(1, int(block if block is not None else BLOCK_FRAMES))
     starts = np.array([a for a, _, _ in timeline.silences], dtype=np.int64)
     ends = np.array([b for _, b, _ in timeline.silences], dtype=np.int64)
     pieces = _placed(samples, n_ticks, up, down, timeline, width)
@@ -229,8 +230,8 @@ class AudioChecker:
         """Per class, the first differing frame: (index, live values, replay values)."""
 
     def feed(self, live: np.ndarray, rebuilt: np.ndarray, klass: np.ndarray) -> None:
-        """Compare the next frames (as many of each as the shorter gives)."""
-        live = live.reshape(live.shape[0], -1)
+        """Compare the next frames (as many of each as the shorter gives; none once the live WAV has ended)."""
+        live = live.reshape(live.shape[0], -1) if live.ndim < 2 else live
         n = min(live.shape[0], rebuilt.shape[0])
         same = (live[:n] == rebuilt[:n]).all(axis=1)
         k = klass[:n]

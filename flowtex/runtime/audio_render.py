@@ -80,13 +80,14 @@ def check_length(frames: int, amap: AudioMap, n: int, what: str) -> None:
 
 
 def render_blocks(outputs: Mapping[str, np.ndarray], amap: AudioMap, graph_rate: float, lead: int = 0,
-                  what: str = "audio", ticks: int = BLOCK_TICKS, free: bool = False) -> Iterator[np.ndarray]:
+                  what: str = "audio", ticks: int | None = None, free: bool = False) -> Iterator[np.ndarray]:
     """The audio samples of :func:`render_outputs`, as consecutive float32 blocks (frames, channels) of at most
-    ``ticks`` ticks' frames (the ``lead`` zero frames first, in blocks of at most that many): the same samples bit for
+    ``ticks`` (default :data:`BLOCK_TICKS`) ticks' frames (the ``lead`` zero frames first, in blocks of at most that many): the same samples bit for
     bit (the interpolator keeps its state from block to block), in memory of one block whatever the stream's length.
     ``free``: scale 1 and no clip (:func:`clip_shares`). Refused before the first block past
     :func:`check_length`."""
     ratio = samples_per_tick(amap, graph_rate)
+    ticks = max(1, int(ticks if ticks is not None else BLOCK_TICKS))
     columns, n = _tick_values(outputs, amap)
     width = len(amap.channels)
     check_length(lead + frames_before(n, *ratio), amap, n, what)
@@ -94,11 +95,11 @@ def render_blocks(outputs: Mapping[str, np.ndarray], amap: AudioMap, graph_rate:
         interp = Interpolator(ratio[0], width, np.ones(width), np.full(width, -np.inf), np.full(width, np.inf), down=ratio[1])
     else:
         interp = interpolator(amap, ratio)
-    step = max(1, int(ticks)) * interp.max_frames
+    step = ticks * interp.max_frames
     for a in range(0, lead, step):
         yield np.zeros((min(step, lead - a), width), dtype=np.float32)
-    for a in range(0, n, max(1, int(ticks))):
-        b = min(n, a + max(1, int(ticks)))
+    for a in range(0, n, ticks):
+        b = min(n, a + ticks)
         x = np.empty((b - a, width))
         for q, column in enumerate(columns):
             x[:, q] = column[a:b]
