@@ -1,9 +1,11 @@
 """Prove what a live session played: its ``--record-audio`` against the replay of its ``--record`` log.
 
 With the session's audio timeline (:mod:`flowtex.runtime.audio_timeline`, in every log this
-version records), :func:`rebuild_live` rebuilds the whole stream live handed to the sound card,
-silence included, from the replay's tick samples; :func:`check_audio` compares it with the
-live WAV, one line per class of frames (``flowtex run ... --expect-audio LIVE.wav``).
+version records), :func:`rebuild_blocks` rebuilds the whole stream live handed to the sound card,
+silence included, from the replay's tick samples, block by block; :class:`AudioChecker` compares it with the
+live WAV as the blocks come, one line per class of frames (``flowtex run ... --expect-audio LIVE.wav``), so a
+session of any length is checked in memory of a block (:func:`rebuild_live` and :func:`check_audio`: the same on
+whole arrays).
 For a log without a timeline, :func:`compare_audio` is the older, weaker check:
 
 The replay WAV (``flowtex run GRAPH --input SESSION.blf ... --output REPLAY.wav``)
