@@ -102,6 +102,74 @@ def compare_audio(live: np.ndarray, replay: np.ndarray, lead: int, up: int, resy
                            first_unexplained=first)
 
 
+class AudioComparer:
+    """:func:`compare_audio` (no resyncs: a log without an audio timeline) fed block by block: :meth:`feed` the live
+    frames in order with the replay's frames at the same positions (lead included; as many as it has), then
+    :meth:`finish`. Live frames ``[lead, known_end)`` are those on which live played a replayed tick; each run of
+    differing frames (which may span blocks) is safe silence when it is the callback's fade from the frame before it."""
+
+    def __init__(self, known_end: int, lead: int, fade: int, width: int):
+        self.lead, self.known_end, self.fade = lead, known_end, fade
+        self.position = self.compared = self.equal = self.silence = self.unexplained = 0
+        self.first: int | None = None
+        self.previous = np.zeros(width)
+        """The last live frame fed."""
+        self.run: list | None = None
+        """The run of differing frames still open at the end of the last block: [first, frames, before it, fade so far]."""
+
+    def feed(self, live: np.ndarray, replay: np.ndarray) -> None:
+        """The next live frames (frames, channels) and the replay's at the same positions (fewer where it ends)."""
+        m = live.shape[0]
+        if not m:
+            return
+        live = live.astype(np.float64)
+        idx = self.position + np.arange(m)
+        known = (idx >= self.lead) & (idx < self.known_end)
+        known[replay.shape[0]:] = False
+        same = known.copy()
+        n = min(m, replay.shape[0])
+        same[:n] &= (replay[:n] == live[:n]).all(axis=1)
+        self.compared += int(known.sum())
+        self.equal += int(same.sum())
+        differ = np.concatenate(([False], ~same, [False]))
+        edges = np.flatnonzero(np.diff(differ.astype(np.int8)))
+        for a, b in zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True):
+            if a > 0 or self.run is None:
+                self._close()
+                self.run = [self.position + a, 0, live[a - 1] if a else self.previous, True]
+            run = self.run
+            run[3] = run[3] and np.array_equal(live[a:b], fade_from(run[2], b - a, self.fade, run[1]))
+            run[1] += b - a
+            if b < m:
+                self._close()
+        if same[-1]:
+            self._close()
+        self.previous = live[-1].copy()
+        self.position += m
+
+    def _close(self) -> None:
+        run, self.run = self.run, None
+        if run is None:
+            return
+        if run[3]:
+            self.silence += run[1]
+        else:
+            self.unexplained += run[1]
+            self.first = run[0] if self.first is None else self.first
+
+    def finish(self) -> AudioComparison:
+        self._close()
+        return AudioComparison(compared=self.compared, equal=self.equal, silence=self.silence,
+                               unexplained=self.unexplained, first_unexplained=self.first)
+
+
+def known_end(n_live: int, n_ticks: int, lead: int, up: int, down: int = 1) -> int:
+    """End of the live frames :func:`compare_audio` checks: the lead, then every whole tick live's WAV holds."""
+    room = n_live - lead
+    ticks = min(n_ticks, room * down // up) if room >= 0 else 0
+    return lead + frames_before(ticks, up, down)
+
+
 UNKNOWN = 255
 """Class of a rebuilt frame the timeline neither places a tick on nor marks as silence."""
 REASONS = {CLASS_LEAD: "the lead before tick 0", CLASS_HELD: "ticks held by the input watchdog (a stale sensor)",

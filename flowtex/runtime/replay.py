@@ -46,7 +46,6 @@ import can
 import numpy as np
 
 from .. import limits
-from ..dsp.audio_interp import frames_before
 from ..errors import DataError
 from ..graph.program import TickProgram
 from ..io.atomic import atomic_output
@@ -361,31 +360,44 @@ def _replay_audio(graph: TickProgram, amap: Any, outputs: dict[str, np.ndarray],
 def _check_without_timeline(amap: Any, outputs: dict[str, np.ndarray], rate: float, path: str | Path | None,
                             live: tuple[Any, str], report: ReplayReport, what: str) -> None:
     """``--expect-audio`` of a log without an audio timeline (recorded before flowtex logged it): the older check
-    (:func:`~flowtex.runtime.audio_check.compare_audio`) on whole arrays, so both streams are held, each refused past
-    :data:`~flowtex.limits.MAX_RECORDING_VALUES`."""
-    from ..io.wav import write_wav
-    from .audio_check import compare_audio
-    from .audio_render import lead_frames, render_outputs, samples_per_tick
+    (:class:`~flowtex.runtime.audio_check.AudioComparer`, :func:`~flowtex.runtime.audio_check.compare_audio` block by
+    block) of the live WAV against the lead and every tick's samples, which are written to ``path`` as they come."""
+    from ..io.wav import WavWriter
+    from .audio_check import BLOCK_FRAMES, AudioComparer, known_end
+    from .audio_render import lead_frames, render_blocks, samples_per_tick
 
     reader, name = live
     up, down = samples_per_tick(amap, rate)
-    n_ticks = next(iter(outputs.values())).shape[0]
-    frames = lead_frames(amap) + frames_before(n_ticks, up, down)
-    for file, count in ((what, frames), (name, reader.frames)):
-        if count * len(amap.channels) > limits.MAX_RECORDING_VALUES:
-            raise DataError(f"{file}: {count:,} audio frames x {len(amap.channels)} channel(s), more than a recording may "
-                            f"hold ({limits.MAX_RECORDING_VALUES:,}: flowtex.limits.MAX_RECORDING_VALUES); a session log "
-                            "without an audio timeline is checked whole: record the session again with this version")
-    stream = render_outputs(outputs, amap, rate, lead=lead_frames(amap), what=what)
-    if path is not None:
-        write_wav(path, stream, amap.rate)  # atomic itself (flowtex.io.wav.write_wav)
-    data = reader.read(reader.frames)
+    n_ticks, lead = next(iter(outputs.values())).shape[0], lead_frames(amap)
     fade = max(1, int(round(0.002 * amap.rate)))
-    cmp = compare_audio(data, stream, lead_frames(amap), up, [], fade, down)
-    report.audio_unexplained = cmp.unexplained
+    cmp = AudioComparer(known_end(reader.frames, n_ticks, lead, up, down), lead, fade, len(amap.channels))
+    writer = WavWriter(path, amap.rate, len(amap.channels)) if path is not None else None
+    pending: list[np.ndarray] = []  # replay frames rendered and not yet compared
+    try:
+        for block in render_blocks(outputs, amap, rate, lead=lead, what=what):
+            if writer is not None:
+                writer.write(block)
+            pending.append(block)
+            while sum(b.shape[0] for b in pending) >= BLOCK_FRAMES or (pending and reader.position >= reader.frames):
+                replay = np.concatenate(pending)
+                cmp.feed(reader.read(replay.shape[0]), replay)
+                pending = []
+        if pending:
+            replay = np.concatenate(pending)
+            cmp.feed(reader.read(replay.shape[0]), replay)
+        while reader.position < reader.frames:  # live frames after the replay's end
+            cmp.feed(reader.read(BLOCK_FRAMES), np.zeros((0, len(amap.channels)), dtype=np.float32))
+    except BaseException:
+        if writer is not None:
+            writer.close(keep=False)
+        raise
+    if writer is not None:
+        writer.close()
+    result = cmp.finish()
+    report.audio_unexplained = result.unexplained
     report.audio_lines = [f"audio: the session log holds no audio timeline (recorded before flowtex logged it): {name} checked "
                           "where live played a tick",
-                          f"{cmp.equal} frames: the ticks' samples, equal to {name} sample for sample",
-                          f"{cmp.silence} frames: the callback's fade to silence (where live had no tick to play)"]
-    if cmp.unexplained:
-        report.audio_lines.append(f"{cmp.unexplained} frames DIFFER, first at frame {cmp.first_unexplained}: unexplained")
+                          f"{result.equal} frames: the ticks' samples, equal to {name} sample for sample",
+                          f"{result.silence} frames: the callback's fade to silence (where live had no tick to play)"]
+    if result.unexplained:
+        report.audio_lines.append(f"{result.unexplained} frames DIFFER, first at frame {result.first_unexplained}: unexplained")

@@ -204,3 +204,65 @@ def test_memory_of_an_offline_render_does_not_grow_with_the_stream(tmp_path, mon
     small, large = peak(40_000), peak(160_000)
     assert large < 1.25 * small, (small, large)  # flat, as above
     assert large - _design_peak(1) < 160_000 * 8 * 4 / 8, large  # an eighth of the 5 MB stream
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.sampled_from(RATIOS), st.integers(1, 25), st.integers(0, 40), st.integers(1, 20), st.integers(-60, 60),
+       st.integers(1, 50), st.integers(0, 2**32 - 1), st.integers(0, 4))
+def test_blocks_compare_a_log_without_timeline_as_the_whole_arrays_did(ratio, n_ticks, lead, fade, longer, block, seed,
+                                                                        changes):
+    """A log recorded before the timeline: the live WAV is the replay with fades where live had no tick (a stall, the
+    end) and a few frames off; AudioComparer over blocks of any size counts what compare_audio counts on whole arrays."""
+    from flowtex.runtime.audio_check import AudioComparer, compare_audio, fade_from, known_end
+
+    up, down = ratio
+    rng = np.random.default_rng(seed)
+    replay = np.zeros((lead + frames_before(n_ticks, up, down), 1), dtype=np.float32)
+    replay[lead:] = rng.uniform(-1, 1, (replay.shape[0] - lead, 1)).astype(np.float32)
+    live = np.zeros((max(1, replay.shape[0] + longer), 1))
+    n = min(live.shape[0], replay.shape[0])
+    live[:n] = replay[:n]
+    for _ in range(changes):  # a fade in place of some frames (safe silence), or a frame off (unexplained)
+        a = int(rng.integers(0, live.shape[0]))
+        b = min(live.shape[0], a + int(rng.integers(1, 30)))
+        live[a:b] = fade_from(live[a - 1] if a else np.zeros(1), b - a, fade) if rng.random() < 0.6 else live[a:b] + 0.5
+    if live.shape[0] > n:
+        live[n:] = fade_from(live[n - 1] if n else np.zeros(1), live.shape[0] - n, fade)
+    old = compare_audio(live, replay, lead, up, [], fade, down)
+    cmp = AudioComparer(known_end(live.shape[0], n_ticks, lead, up, down), lead, fade, 1)
+    for a in range(0, live.shape[0], block):
+        cmp.feed(live[a:a + block], replay[a:a + block])
+    assert cmp.finish() == old
+
+
+def test_expect_audio_of_a_log_without_timeline_past_the_old_limit(session, monkeypatch):
+    """A log recorded before the timeline (plain.blf): its replay WAV and --expect-audio stream too (300 values stand for
+    10^8, 37 frames a block): the report of a live WAV with one frame off and a longer tail of fade is compare_audio's on
+    the whole arrays."""
+    from flowtex.runtime.audio_check import compare_audio, fade_from
+
+    s, _log, samples = session
+    monkeypatch.setattr(limits, "MAX_RECORDING_VALUES", 300)
+    monkeypatch.setattr(audio_render, "BLOCK_TICKS", 3)
+    monkeypatch.setattr(audio_check, "BLOCK_FRAMES", 37)
+    out = s.folder / "plain_replay.wav"
+    replay_session(load_graph(s.graph), s.folder / "plain.blf", s.dbc, s.folder / "ma.yaml", out, seed=3)
+    rate, replay = wavfile.read(out)
+    lead = replay.shape[0] - 480
+    assert rate == 8000 and replay[:lead].tobytes() == bytes(4 * lead) and replay[lead:].tobytes() == samples.tobytes()
+    live = np.concatenate([replay, fade_from(replay[-1:], 40, 16)[:, 0].astype(np.float32)]).reshape(-1, 1)
+    live[lead + 200, 0] += np.float32(0.125)
+    w = WavWriter(s.folder / "plain_live.wav", 8000, 1)
+    w.write(live)
+    w.close()
+    report = replay_session(load_graph(s.graph), s.folder / "plain.blf", s.dbc, s.folder / "ma.yaml", seed=3,
+                            expect_audio=s.folder / "plain_live.wav")
+    old = compare_audio(live.astype(np.float64), replay, lead, 8, [], 16, 1)
+    assert old.unexplained == 1 and old.silence == lead + 40 and old.first_unexplained == lead + 200  # the lead: zeros
+    name = str(s.folder / "plain_live.wav")
+    assert report.audio_lines == [
+        f"audio: the session log holds no audio timeline (recorded before flowtex logged it): {name} checked where live "
+        "played a tick",
+        f"{old.equal} frames: the ticks' samples, equal to {name} sample for sample",
+        f"{old.silence} frames: the callback's fade to silence (where live had no tick to play)",
+        f"1 frames DIFFER, first at frame {lead + 200}: unexplained"]
