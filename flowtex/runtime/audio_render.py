@@ -120,18 +120,14 @@ def write_render(path: str | Path, outputs: Mapping[str, np.ndarray], amap: Audi
                  lead: int = 0) -> int:
     """Write the samples of :func:`render_blocks` as a float32 WAV at ``path`` block by block
     (:class:`~flowtex.io.wav.WavWriter`: atomic, an older file kept on failure); returns the frames written."""
+    from ..io.atomic import kept_on_success
     from ..io.wav import WavWriter
 
     blocks = render_blocks(outputs, amap, graph_rate, lead, what=str(path))
     first = next(blocks, None)  # refused (too long, a missing output) before any file is opened
-    writer = WavWriter(path, amap.rate, len(amap.channels))
-    try:
+    with kept_on_success(WavWriter(path, amap.rate, len(amap.channels))) as writer:
         for block in itertools.chain([first] if first is not None else [], blocks):
             writer.write(block)
-    except BaseException:
-        writer.close(keep=False)
-        raise
-    writer.close()
     return writer.frames
 
 

@@ -48,7 +48,7 @@ import numpy as np
 from .. import limits
 from ..errors import DataError
 from ..graph.program import TickProgram
-from ..io.atomic import atomic_output
+from ..io.atomic import atomic_output, kept_on_success
 from ..io.canlog import SessionFrames, SessionWriter
 from ..io.codec_tables import decode_packed
 from ..io.formats import AUDIO, CAN_LOG, RECORDING, format_of
@@ -253,7 +253,7 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
         received = 0  # frames received in the ticks replayed
         pending: Tick | None = None  # the last block read: a tick, or the exit block if the log ends after it
         ticks = stack.enter_context(contextlib.closing(_ticks(frames, io.tx_ids, events, counts)))  # the log closed on error
-        try:
+        with kept_on_success(writer):  # the CAN log output: nothing partial left on an error
             for tick in ticks:
                 if pending is not None:
                     replay_tick(*pending)
@@ -269,12 +269,6 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
                 raise DataError(f"{session_path}: nothing to replay: the log holds {what} (a tick ends with one frame of each "
                                 f"actuator message of {map_path}: {ids}); is it a session recorded with this map and DBC?"
                                 f"{counts.none_sent()}")
-        except BaseException:
-            if writer is not None:
-                writer.close(keep=False)
-            raise
-        if writer is not None:
-            writer.close()
         report.frames_in, report.frames_out, report.truncated = counts.received, counts.sent, completeness.problem
         if completeness.problem and completeness.expected_frames is not None:
             report.expected_ticks = expected_ticks(completeness.expected_frames, report.ticks, received, len(io.tx))
@@ -338,20 +332,13 @@ def _replay_audio(graph: TickProgram, amap: Any, outputs: dict[str, np.ndarray],
     check_length(total, amap, n_ticks, what)
     width = len(amap.channels)
     stream = rebuild_blocks(render_blocks(outputs, amap, rate, what=what), n_ticks, up, down, timeline, width)
-    writer = WavWriter(path, amap.rate, width) if path is not None else None
     checker = AudioChecker(timeline, live[1], amap.rate) if live is not None else None
-    try:
+    with kept_on_success(WavWriter(path, amap.rate, width) if path is not None else None) as writer:
         for block, klass in stream:
             if writer is not None:
                 writer.write(block)
             if checker is not None and live is not None:
                 checker.feed(live[0].read(block.shape[0]), block, klass)
-    except BaseException:
-        if writer is not None:
-            writer.close(keep=False)
-        raise
-    if writer is not None:
-        writer.close()
     if checker is not None and live is not None:
         check = checker.finish(live[0].frames, total)
         report.audio_lines, report.audio_unexplained = check.lines, check.unexplained
@@ -371,9 +358,8 @@ def _check_without_timeline(amap: Any, outputs: dict[str, np.ndarray], rate: flo
     n_ticks, lead = next(iter(outputs.values())).shape[0], lead_frames(amap)
     fade = max(1, int(round(0.002 * amap.rate)))
     cmp = AudioComparer(known_end(reader.frames, n_ticks, lead, up, down), lead, fade, len(amap.channels))
-    writer = WavWriter(path, amap.rate, len(amap.channels)) if path is not None else None
     pending: list[np.ndarray] = []  # replay frames rendered and not yet compared
-    try:
+    with kept_on_success(WavWriter(path, amap.rate, len(amap.channels)) if path is not None else None) as writer:
         for block in render_blocks(outputs, amap, rate, lead=lead, what=what):
             if writer is not None:
                 writer.write(block)
@@ -387,12 +373,6 @@ def _check_without_timeline(amap: Any, outputs: dict[str, np.ndarray], rate: flo
             cmp.feed(reader.read(replay.shape[0]), replay)
         while reader.position < reader.frames:  # live frames after the replay's end
             cmp.feed(reader.read(BLOCK_FRAMES), np.zeros((0, len(amap.channels)), dtype=np.float32))
-    except BaseException:
-        if writer is not None:
-            writer.close(keep=False)
-        raise
-    if writer is not None:
-        writer.close()
     result = cmp.finish()
     report.audio_unexplained = result.unexplained
     report.audio_lines = [f"audio: the session log holds no audio timeline (recorded before flowtex logged it): {name} checked "
