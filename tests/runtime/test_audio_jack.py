@@ -81,6 +81,19 @@ def _ports(env: dict) -> set[str]:
     return set(out.stdout.split()) if out.returncode == 0 else set()
 
 
+def _capture_port(env: dict, before: set[str]) -> str:
+    """The capture client's input port, once jack_lsp lists it. Usually at once; on a loaded machine jack_lsp itself
+    can fail or list the ports before the new one (a suite run saw no port there), so it is asked again, a few times a
+    second, for up to 20 s."""
+    end = time.monotonic() + 20
+    while True:
+        found = sorted(p for p in _ports(env) - before if ":in" in p)
+        if found:
+            return found[0]
+        assert time.monotonic() < end, "the capture client's JACK port did not appear within 20 s"
+        time.sleep(0.2)
+
+
 class _PortEvents:
     """``jack_evmon``'s event lines: wakes the wait for a client's port at its registration, instead of polling
     ``jack_lsp`` (a JACK client of its own, and work for jackd: docs/testing.md) every few milliseconds while flowtex
@@ -173,7 +186,7 @@ def _session(setup: Path, env: dict, block: int, duration: float, sigint_after: 
                            text=True, env=env)
     try:
         assert cap.stdout.readline().strip() == "ready"
-        cap_in = sorted(p for p in _ports(env) - before if ":in" in p)[0]
+        cap_in = _capture_port(env, before)
         base = _ports(env)
         wav, blf, stats = setup / f"live{block}.wav", setup / f"s{block}.blf", setup / f"stats{block}.json"
         cmd = [sys.executable, *(("-c", STALL) if stall else ("-m", "flowtex")), "live", str(setup / "g.yaml"), "--bus", "virtual", "--dbc", str(DBC),
