@@ -44,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .robust import BISQUARE_C, MAD_TO_SIGMA, RobustLine, irls, line_from_fit
+from .robust_kernels import median
 
 SCALE_DEGREE = 1
 """Degree of the polynomial in log x whose exp is the scale function (1: a power law in x)."""
@@ -84,7 +85,7 @@ def _floored(r: np.ndarray) -> np.ndarray:
     """
     if float(np.min(r)) >= 1e-9 * max(float(np.max(r)), 1e-300):
         return r
-    return np.maximum(r, 1e-9 * max(float(np.median(r)), 1e-300))
+    return np.maximum(r, 1e-9 * max(median(r), 1e-300))
 
 
 def median_regression(A: np.ndarray, b: np.ndarray, max_iter: int = 500, tol: float = 1e-12) -> np.ndarray:
