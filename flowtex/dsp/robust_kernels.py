@@ -121,18 +121,18 @@ def _bracketed(src: np.ndarray, buf: np.ndarray, depth: int) -> tuple[float, int
     hi = smp[ks + gap]
     below = 0
     inside = 0
+    nans = 0
     max_below = -math.inf
-    for i in range(n):
+    for i in range(n):  # without branches (the data decide them at random): write always, advance when inside
         v = src[i]
-        if v < lo:
-            below += 1
-            if v > max_below:
-                max_below = v
-        elif v <= hi:
-            buf[inside] = v
-            inside += 1
-        elif math.isnan(v):
-            return math.nan, 1
+        under = v < lo
+        below += under
+        max_below = max(max_below, v if under else -math.inf)
+        buf[inside] = v
+        inside += (v >= lo) & (v <= hi)
+        nans += v != v
+    if nans:
+        return math.nan, 1
     if not below <= h < below + inside:
         return 0.0, 0
     part = buf[:inside]
