@@ -101,15 +101,16 @@ def median_regression(A: np.ndarray, b: np.ndarray, max_iter: int = 500, tol: fl
     b = np.asarray(b, float)
     c = np.linalg.lstsq(A, b, rcond=None)[0]
     total = np.inf
+    r, w, wb, wA = np.empty(b.shape), np.empty(b.shape), np.empty(b.shape), np.empty(A.shape)  # for every iteration
     for _ in range(max_iter):
-        r = np.abs(b - A @ c)
+        np.abs(np.subtract(b, np.matmul(A, c, out=r), out=r), out=r)  # |b - A c|
         new = float(np.sum(r))
         if total - new <= tol * new:
             break
         total = new
-        w = 1.0 / _floored(r)
+        np.divide(1.0, _floored(r), out=w)
         try:
-            c = np.linalg.solve(A.T @ (w[:, None] * A), A.T @ (w * b))
+            c = np.linalg.solve(A.T @ np.multiply(w[:, None], A, out=wA), A.T @ np.multiply(w, b, out=wb))
         except np.linalg.LinAlgError:
             break
     return c

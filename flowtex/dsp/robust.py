@@ -105,11 +105,11 @@ def irls(X: np.ndarray, y: np.ndarray, kind: str = "bisquare", max_iter: int = 1
     it = 0
     w = np.ones(n)
     s = 1.0
-    work, Xw, yw = np.empty((2, n)), np.empty((n, k)), np.empty(n)  # one allocation for every iteration
+    work, Xw, yw, r = np.empty((2, n)), np.empty((n, k)), np.empty(n), np.empty(n)  # for every iteration
     for stage in ("huber", kind) if kind != "huber" else ("huber",):
         for _ in range(max_iter):
             it += 1
-            r = y - X @ beta
+            np.subtract(y, np.matmul(X, beta, out=r), out=r)  # y - X beta
             s = robust_scale(r, work) or float(np.std(r)) or 1.0
             if stage not in _KINDS:
                 raise ValueError(f"unknown weight function {stage!r}; use huber or bisquare")
