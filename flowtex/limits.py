@@ -27,6 +27,11 @@ from .errors import DataError, InputError
 
 MAX_RECORDING_VALUES = 100_000_000
 """Numbers a recording may hold, all signals together (800 MB as float64; 9 hours of 3 axes at 1 kHz)."""
+MAX_AUDIO_SECONDS = 10 * 3600
+"""Length of an audio stream flowtex renders, rebuilds or checks (``run --output OUT.wav``, a replay's ``.wav`` and
+``--expect-audio``): 10 hours at the stream's rate, longer than a CAN log may last (:data:`MAX_CANLOG_FRAMES`, 8 hours).
+Streams are rendered and compared block by block, so this bounds time and disk (10 hours of 48 kHz stereo float32 is
+14 GB), not memory."""
 MAX_TEXT_BYTES = 64 * 1024 * 1024
 """Size of a JSON or XML file (model set, pattern, tap library), read by C parsers (64 MiB)."""
 MAX_YAML_BYTES = 1024 * 1024
@@ -183,6 +188,11 @@ def check_values(path: Path | str, count: int, what: str) -> None:
     if count > MAX_RECORDING_VALUES:
         raise DataError(f"{path}: {what} holds {count:,} numbers; flowtex reads recordings of up to "
                         f"{MAX_RECORDING_VALUES:,} numbers ({MAX_RECORDING_VALUES * 8 / 1e6:,.0f} MB): split or decimate it first")
+
+
+def max_audio_frames(rate: float) -> int:
+    """Frames of :data:`MAX_AUDIO_SECONDS` at ``rate`` Hz."""
+    return int(MAX_AUDIO_SECONDS * float(rate))
 
 
 def check_ticks(what: str, ticks: int, per_tick: int, fix: str) -> None:

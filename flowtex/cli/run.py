@@ -77,10 +77,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.output and kind_of(args.output) == AUDIO:
         from ..runtime.offline import render_recording_audio
 
-        samples, rate, clipped = render_recording_audio(graph, args.input, args.output, args.map, seed=args.seed,
+        shape, rate, clipped = render_recording_audio(graph, args.input, args.output, args.map, seed=args.seed,
                                                progress=sys.stderr.isatty(), nonfinite=args.nonfinite, recording=recording,
                                                nonfinite_out=args.nonfinite_outputs)
-        say(f"{graph.name}: {samples.shape[0]} frames x {samples.shape[1]} channel(s) at {rate:g} Hz -> {args.output}")
+        say(f"{graph.name}: {shape[0]} frames x {shape[1]} channel(s) at {rate:g} Hz -> {args.output}")
         for line in clipped:
             note(f"warning: {line}")
         return 0

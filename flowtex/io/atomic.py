@@ -186,6 +186,21 @@ def atomic_output(path: str | Path, *, keep_mode: bool = False) -> Iterator[Path
         tmp.unlink(missing_ok=True)
 
 
+@contextlib.contextmanager
+def kept_on_success(writer: Any) -> Iterator[Any]:
+    """Around the writing of a streamed output (:class:`~flowtex.io.wav.WavWriter`,
+    :class:`~flowtex.io.canlog.SessionWriter`, or None for no output): ``writer.close()`` (kept) when the block ends,
+    ``writer.close(keep=False)`` (nothing partial left, an older file kept) when it raises, Ctrl-C included."""
+    try:
+        yield writer
+    except BaseException:
+        if writer is not None:
+            writer.close(keep=False)
+        raise
+    if writer is not None:
+        writer.close()
+
+
 def write_bytes_atomic(path: str | Path, data: bytes, *, keep_mode: bool = False) -> Path:
     """Write ``data`` to ``path`` through :func:`atomic_output`; a write the system refuses (a full disk) is an
     :class:`OutputError` naming ``path``, with the older file left as it was."""

@@ -48,14 +48,66 @@ def read_wav(path: str | Path) -> tuple[float, dict[str, np.ndarray]]:
         raise DataError(f"{path}: cannot read: {exc.strerror or exc}") from None
     except Exception as exc:  # scipy reports a broken header with ValueError, EOFError or even UnboundLocalError
         raise DataError(f"{path}: not a WAV file scipy can read ({type(exc).__name__}: {exc}); write PCM or float WAV") from None
+    x = full_scale(data)
+    return float(rate), {n: x[:, i] for i, n in enumerate(channel_names(x.shape[1]))}
+
+
+def full_scale(data: np.ndarray) -> np.ndarray:
+    """WAV samples as scipy reads them -> (frames, channels) float64 in full-scale units (see the module docstring)."""
     if data.dtype.kind == "f":
         x = data.astype(np.float64)
     elif data.dtype == np.uint8:
         x = (data.astype(np.float64) - 128.0) / 128.0
     else:
         x = data.astype(np.float64) / float(2 ** (8 * data.dtype.itemsize - 1))
-    x = x.reshape(x.shape[0], -1)
-    return float(rate), {n: x[:, i] for i, n in enumerate(channel_names(x.shape[1]))}
+    return x.reshape(x.shape[0], -1) if x.ndim < 2 else x
+
+
+class WavReader:
+    """A WAV file read block by block (:meth:`read`), as :func:`read_wav` reads it whole: the same float64 samples in
+    full-scale units, in memory of the block asked for whatever the file's length (``--expect-audio`` of a long
+    session). The data chunk is memory-mapped (scipy's ``mmap=True``: pages of the file, not allocations, read as the
+    blocks are converted); 24-bit PCM, which scipy cannot map, is read whole within
+    :data:`~flowtex.limits.MAX_RECORDING_VALUES` as :func:`read_wav` reads it. Attributes: ``rate`` (Hz), ``channels``,
+    ``frames`` (in the file), ``position`` (frames read)."""
+
+    def __init__(self, path: str | Path):
+        from scipy.io import wavfile
+
+        self.path = Path(path)
+        claimed = data_values(self.path)
+        if claimed == 0:
+            raise DataError(f"{self.path}: the WAV file has no samples (its data chunk is empty)")
+        try:
+            try:
+                rate, data = wavfile.read(self.path, mmap=True)
+            except ValueError as exc:
+                if "24-bit" not in str(exc):
+                    raise
+                rate, whole = read_wav(self.path)  # within MAX_RECORDING_VALUES, refused in one line past it
+                data = np.stack(list(whole.values()), axis=1)
+        except OSError as exc:
+            raise DataError(f"{self.path}: cannot read: {exc.strerror or exc}") from None
+        except DataError:
+            raise
+        except Exception as exc:  # as read_wav: a broken header is ValueError, EOFError or even UnboundLocalError
+            raise DataError(f"{self.path}: not a WAV file scipy can read ({type(exc).__name__}: {exc}); write PCM or float "
+                            "WAV") from None
+        self._data: Any = data.reshape(data.shape[0], -1)
+        self.rate, self.channels, self.frames, self.position = float(rate), self._data.shape[1], self._data.shape[0], 0
+
+    def read(self, n: int) -> np.ndarray:
+        """The next ``n`` frames (fewer at the end of the file) as (frames, channels) float64 in full-scale units."""
+        a = self.position
+        self.position = min(self.frames, a + max(0, int(n)))
+        return full_scale(np.asarray(self._data[a:self.position]))
+
+    def close(self) -> None:
+        """Release the file (its memory map)."""
+        mm = getattr(self._data, "_mmap", None)
+        self._data = self._data[:0]
+        if mm is not None:
+            mm.close()
 
 
 def data_values(path: Path) -> int | None:

@@ -148,8 +148,9 @@ AUDIO_RATE_FACTOR = 8
 
 def render_recording_audio(graph: Graph, input_path: str | Path, output_path: str | Path, map_path: str | Path | None = None,
                            seed: int | None = None, progress: bool = True, nonfinite: str = "error",
-                           recording: Recording | None = None, nonfinite_out: str = "warn") -> tuple[np.ndarray, float, list[str]]:
-    """Run ``graph`` over a recording and write its audio-rate output as a float32 WAV; returns (samples, rate, warnings:
+                           recording: Recording | None = None, nonfinite_out: str = "warn") -> tuple[tuple[int, int], float, list[str]]:
+    """Run ``graph`` over a recording and write its audio-rate output as a float32 WAV, block by block (memory of a block
+    whatever its length); returns ((frames, channels) written, rate, warnings:
     the outputs holding NaN/inf, which play as silence, then :func:`clip_warnings`). ``nonfinite_out`` as in
     :func:`run_recording` (``"error"``: refused, nothing written).
 
@@ -159,8 +160,7 @@ def render_recording_audio(graph: Graph, input_path: str | Path, output_path: st
     The samples equal what ``flowtex live`` plays for the same outputs, without the live lead of silence.
     """
     from ..io.audiomap import default_audio_map, load_audio_section
-    from ..io.wav import write_wav
-    from .audio_render import render_outputs
+    from .audio_render import write_render
 
     widths = {n: int(np.prod(spec.shape)) for n, spec in graph.outputs.items()}
     if map_path is not None:
@@ -171,11 +171,10 @@ def render_recording_audio(graph: Graph, input_path: str | Path, output_path: st
             raise FlowtexError(f"graph {graph.name!r} has no scalar output to play; give --map MAP.yaml with an 'audio' section")
     outputs = run_recording(graph, input_path, None, seed=seed, progress=progress, nonfinite=nonfinite, recording=recording,
                             nonfinite_out=nonfinite_out)
-    samples = render_outputs(outputs, amap, float(graph.rate), what=str(output_path))
-    write_wav(output_path, samples, amap.rate)
+    frames = write_render(output_path, outputs, amap, float(graph.rate))
     silent = [f"{line}; played as silence (0), as flowtex live plays them (--nonfinite-outputs error refuses instead)"
               for line in nonfinite_outputs({c.output: outputs[c.output] for c in amap.channels})]
-    return samples, amap.rate, silent + clip_warnings(outputs, amap, float(graph.rate))
+    return (frames, len(amap.channels)), amap.rate, silent + clip_warnings(outputs, amap, float(graph.rate))
 
 
 def clip_warnings(outputs: dict[str, np.ndarray], amap: AudioMap, graph_rate: float) -> list[str]:

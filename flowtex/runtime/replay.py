@@ -48,7 +48,7 @@ import numpy as np
 from .. import limits
 from ..errors import DataError
 from ..graph.program import TickProgram
-from ..io.atomic import atomic_output
+from ..io.atomic import atomic_output, kept_on_success
 from ..io.canlog import SessionFrames, SessionWriter
 from ..io.codec_tables import decode_packed
 from ..io.formats import AUDIO, CAN_LOG, RECORDING, format_of
@@ -199,6 +199,8 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
         live_audio = _live_wav(expect_audio, io.map.audio, map_path)
     audio = out_kind == AUDIO or live_audio is not None
     with contextlib.ExitStack() as stack:  # outputs go through the one writer: atomic, the old file kept on failure
+        if live_audio is not None:
+            stack.callback(live_audio[0].close)
         target = stack.enter_context(atomic_output(output_path)) if out_kind == RECORDING else None
         writer = SessionWriter(output_path, "-o") if out_kind == CAN_LOG else None  # atomic itself; errors name -o PATH
         outputs = ({name: _Rows(spec.shape) for name, spec in graph.outputs.items()}
@@ -251,7 +253,7 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
         received = 0  # frames received in the ticks replayed
         pending: Tick | None = None  # the last block read: a tick, or the exit block if the log ends after it
         ticks = stack.enter_context(contextlib.closing(_ticks(frames, io.tx_ids, events, counts)))  # the log closed on error
-        try:
+        with kept_on_success(writer):  # the CAN log output: nothing partial left on an error
             for tick in ticks:
                 if pending is not None:
                     replay_tick(*pending)
@@ -267,12 +269,6 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
                 raise DataError(f"{session_path}: nothing to replay: the log holds {what} (a tick ends with one frame of each "
                                 f"actuator message of {map_path}: {ids}); is it a session recorded with this map and DBC?"
                                 f"{counts.none_sent()}")
-        except BaseException:
-            if writer is not None:
-                writer.close(keep=False)
-            raise
-        if writer is not None:
-            writer.close()
         report.frames_in, report.frames_out, report.truncated = counts.received, counts.sent, completeness.problem
         if completeness.problem and completeness.expected_frames is not None:
             report.expected_ticks = expected_ticks(completeness.expected_frames, report.ticks, received, len(io.tx))
@@ -288,59 +284,100 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
     return report
 
 
-def _live_wav(path: str | Path, amap: Any, map_path: str | Path) -> tuple[np.ndarray, str]:
-    """The live ``--record-audio`` WAV to check the replay against, as (frames, channels) float32."""
-    from ..io.wav import read_wav
+def _live_wav(path: str | Path, amap: Any, map_path: str | Path) -> tuple[Any, str]:
+    """The live ``--record-audio`` WAV to check the replay against, opened to be read block by block
+    (:class:`~flowtex.io.wav.WavReader`), and its name."""
+    from ..io.wav import WavReader
 
     if amap is None:
         raise DataError(f"--expect-audio {path}: {map_path} has no 'audio' section, so the session played no audio")
-    rate, channels = read_wav(path)
-    data = np.stack(list(channels.values()), axis=1)  # float32 samples, exact in float64
-    if rate != amap.rate or data.shape[1] != len(amap.channels):
-        raise DataError(f"--expect-audio {path}: {data.shape[1]} channel(s) at {rate:g} Hz, but {map_path}'s audio section "
-                        f"plays {len(amap.channels)} at {amap.rate:g} Hz: is this the session's --record-audio?")
-    return data, str(path)
+    reader = WavReader(path)
+    if reader.rate != amap.rate or reader.channels != len(amap.channels):
+        reader.close()
+        raise DataError(f"--expect-audio {path}: {reader.channels} channel(s) at {reader.rate:g} Hz, but {map_path}'s audio "
+                        f"section plays {len(amap.channels)} at {amap.rate:g} Hz: is this the session's --record-audio?")
+    return reader, str(path)
 
 
 def _replay_audio(graph: TickProgram, amap: Any, outputs: dict[str, np.ndarray], timeline: Any, path: str | Path | None,
-                  live: tuple[np.ndarray, str] | None, report: ReplayReport) -> None:
+                  live: tuple[Any, str] | None, report: ReplayReport) -> None:
     """The stream the session handed to the sound card, rebuilt from the replayed ticks and the log's audio timeline
-    (:func:`~flowtex.runtime.audio_check.rebuild_live`): written to ``path`` (a WAV equal to the live ``--record-audio``
-    sample for sample over its whole length) and checked against ``live``. A log without a timeline gives the lead of
-    silence and every tick's samples, and the older check (:func:`~flowtex.runtime.audio_check.compare_audio`)."""
-    from ..io.wav import write_wav
-    from .audio_check import check_audio, compare_audio, rebuild_live
-    from .audio_render import lead_frames, render_outputs, samples_per_tick
+    (:func:`~flowtex.runtime.audio_check.rebuild_blocks`), block by block: written to ``path`` (a WAV equal to the live
+    ``--record-audio`` sample for sample over its whole length) and checked against ``live`` (a
+    :class:`~flowtex.io.wav.WavReader`), in memory of a block whatever the session's length. A log without a timeline
+    gives the lead of silence and every tick's samples, and the older check
+    (:func:`~flowtex.runtime.audio_check.compare_audio`, on whole arrays)."""
+    from ..io.wav import WavWriter
+    from .audio_check import AudioChecker, rebuild_blocks, stream_frames
+    from .audio_render import check_length, lead_frames, render_blocks, samples_per_tick, write_render
 
     rate = float(graph.rate)
     up, down = samples_per_tick(amap, rate)
     n_ticks = next(iter(outputs.values())).shape[0]
-    most = limits.MAX_RECORDING_VALUES // len(amap.channels)
+    most = limits.max_audio_frames(amap.rate)
     problem = timeline.problem(most) if timeline is not None else None
     if problem is not None:
         raise DataError(f"{report.session_path}: its audio timeline's {problem} is out of bounds (negative, or more than "
-                        f"{most:,}, the frames a recording of {len(amap.channels)} channel(s) may hold: "
-                        "flowtex.limits.MAX_RECORDING_VALUES): a damaged log? The replay rebuilds the played stream from it")
+                        f"{most:,}, the frames of {limits.MAX_AUDIO_SECONDS / 3600:g} hours at {amap.rate:g} Hz: "
+                        "flowtex.limits.MAX_AUDIO_SECONDS): a damaged log? The replay rebuilds the played stream from it")
     what = str(path) if path is not None else f"--expect-audio {live[1] if live else ''}"  # the file the stream is for
-    if timeline is not None:
-        stream, klass = rebuild_live(render_outputs(outputs, amap, rate, what=what), n_ticks, up, down, timeline)
-    else:
-        stream = render_outputs(outputs, amap, rate, lead=lead_frames(amap), what=what)
-    if path is not None:
-        write_wav(path, stream, amap.rate)  # atomic itself (flowtex.io.wav.write_wav)
-    if live is None:
+    if timeline is None:
+        if live is None:
+            if path is not None:
+                write_render(path, outputs, amap, rate, lead=lead_frames(amap))
+            return
+        _check_without_timeline(amap, outputs, rate, path, live, report, what)
         return
-    data, name = live
-    if timeline is not None:
-        check = check_audio(data, stream, klass, timeline, name, amap.rate)
+    total = stream_frames(n_ticks, up, down, timeline)
+    check_length(total, amap, n_ticks, what)
+    width = len(amap.channels)
+    stream = rebuild_blocks(render_blocks(outputs, amap, rate, what=what), n_ticks, up, down, timeline, width)
+    checker = AudioChecker(timeline, live[1], amap.rate) if live is not None else None
+    with kept_on_success(WavWriter(path, amap.rate, width) if path is not None else None) as writer:
+        for block, klass in stream:
+            if writer is not None:
+                writer.write(block)
+            if checker is not None and live is not None:
+                checker.feed(live[0].read(block.shape[0]), block, klass)
+    if checker is not None and live is not None:
+        check = checker.finish(live[0].frames, total)
         report.audio_lines, report.audio_unexplained = check.lines, check.unexplained
-        return
+
+
+def _check_without_timeline(amap: Any, outputs: dict[str, np.ndarray], rate: float, path: str | Path | None,
+                            live: tuple[Any, str], report: ReplayReport, what: str) -> None:
+    """``--expect-audio`` of a log without an audio timeline (recorded before flowtex logged it): the older check
+    (:class:`~flowtex.runtime.audio_check.AudioComparer`, :func:`~flowtex.runtime.audio_check.compare_audio` block by
+    block) of the live WAV against the lead and every tick's samples, which are written to ``path`` as they come."""
+    from ..io.wav import WavWriter
+    from .audio_check import BLOCK_FRAMES, AudioComparer, known_end
+    from .audio_render import lead_frames, render_blocks, samples_per_tick
+
+    reader, name = live
+    up, down = samples_per_tick(amap, rate)
+    n_ticks, lead = next(iter(outputs.values())).shape[0], lead_frames(amap)
     fade = max(1, int(round(0.002 * amap.rate)))
-    cmp = compare_audio(data, stream, lead_frames(amap), up, [], fade, down)
-    report.audio_unexplained = cmp.unexplained
+    cmp = AudioComparer(known_end(reader.frames, n_ticks, lead, up, down), lead, fade, len(amap.channels))
+    pending: list[np.ndarray] = []  # replay frames rendered and not yet compared
+    with kept_on_success(WavWriter(path, amap.rate, len(amap.channels)) if path is not None else None) as writer:
+        for block in render_blocks(outputs, amap, rate, lead=lead, what=what):
+            if writer is not None:
+                writer.write(block)
+            pending.append(block)
+            while sum(b.shape[0] for b in pending) >= BLOCK_FRAMES or (pending and reader.position >= reader.frames):
+                replay = np.concatenate(pending)
+                cmp.feed(reader.read(replay.shape[0]), replay)
+                pending = []
+        if pending:
+            replay = np.concatenate(pending)
+            cmp.feed(reader.read(replay.shape[0]), replay)
+        while reader.position < reader.frames:  # live frames after the replay's end
+            cmp.feed(reader.read(BLOCK_FRAMES), np.zeros((0, len(amap.channels)), dtype=np.float32))
+    result = cmp.finish()
+    report.audio_unexplained = result.unexplained
     report.audio_lines = [f"audio: the session log holds no audio timeline (recorded before flowtex logged it): {name} checked "
                           "where live played a tick",
-                          f"{cmp.equal} frames: the ticks' samples, equal to {name} sample for sample",
-                          f"{cmp.silence} frames: the callback's fade to silence (where live had no tick to play)"]
-    if cmp.unexplained:
-        report.audio_lines.append(f"{cmp.unexplained} frames DIFFER, first at frame {cmp.first_unexplained}: unexplained")
+                          f"{result.equal} frames: the ticks' samples, equal to {name} sample for sample",
+                          f"{result.silence} frames: the callback's fade to silence (where live had no tick to play)"]
+    if result.unexplained:
+        report.audio_lines.append(f"{result.unexplained} frames DIFFER, first at frame {result.first_unexplained}: unexplained")

@@ -150,6 +150,12 @@ class StatusDisplay:
     LOG_EVERY = 10
     """Status lines to a non-terminal: one per this many terminal refreshes (5 s at the default 0.5 s)."""
 
+    EVENT_LINES = 3
+    """Watchdog events printed one by one per status period (``every`` ticks). A machine too loaded to keep time trips
+    the overrun watchdog again and again (hundreds of lines in a few seconds buried the status line); the period's other
+    events are counted into one line when the period ends (:meth:`_held_back`). The status line, the end summary and
+    ``--stats`` count every event."""
+
     def __init__(self, out: TextIO | None, io: CanIO, watchdog: Watchdog, stats: TickStats, every: int, shown: Sequence[Shown] = ()) -> None:
         self.out = out
         self.shown = list(shown)
@@ -165,12 +171,16 @@ class StatusDisplay:
         """Returns more counters for the status line (the audio output's underruns)."""
         self.audio: AudioOutput | None = None
         """The session's audio output, whose NaN/inf ticks the guard groups show (:func:`guard_counts`)."""
+        self._lines_left = self.EVENT_LINES
+        self._held: list[int] = []
+        """Ticks of this period's events past :data:`EVENT_LINES`, printed as one line when the period ends."""
 
     def tick(self, k: int) -> None:
         """Called after tick ``k - 1`` ran (``k`` ticks executed)."""
         if len(self.watchdog.log) != self._shown:
             self._events()
         if k % self.every == 0:
+            self._held_back()
             self.stats.watchdog_events = self.watchdog.events
             self.stats.timeouts = self.watchdog.stale_events
             line = self.line()
@@ -185,16 +195,34 @@ class StatusDisplay:
         return f"{line} | {format_values(self.shown)}" if self.shown else line
 
     def _events(self) -> None:
-        """Print the watchdog events not shown yet on their own lines, over the status line."""
+        """Print the watchdog events not shown yet on their own lines, over the status line: at most
+        :data:`EVENT_LINES` a period, the others held back for :meth:`_held_back`."""
         wd = self.watchdog
         for tick, reason, detail in wd.log[self._shown:]:
-            event = describe_event(self.io, wd, tick, reason, detail)
-            self._write(self._cr + (event.ljust(self._line_len) if self.tty else event) + "\n")
+            if self._lines_left > 0:
+                self._lines_left -= 1
+                self._over_status(describe_event(self.io, wd, tick, reason, detail))
+            else:
+                self._held.append(tick)
         self._shown = len(wd.log)
+
+    def _held_back(self) -> None:
+        """One line for the events of the period ending now that were not printed one by one; a new period begins."""
+        if self._held:
+            first, last, n = self._held[0], self._held[-1], len(self._held)
+            self._over_status(f"watchdog: {n} more event{'s' if n > 1 else ''} in ticks {first}-{last} (outputs safe at "
+                              f"each; at most {self.EVENT_LINES} shown one by one each {self.every} ticks; the status line "
+                              "and the summary count them all)")
+        self._held, self._lines_left = [], self.EVENT_LINES
+
+    def _over_status(self, line: str) -> None:
+        """``line`` on a line of its own, over the status line on a terminal."""
+        self._write(self._cr + (line.ljust(self._line_len) if self.tty else line) + "\n")
 
     def finish(self, rt_granted: bool) -> None:
         """The remaining events, a last status line and the end-of-run summary."""
         self._events()
+        self._held_back()
         self._write(self._cr + self.line() + "\n" + self.stats.format_summary(rt_granted) + "\n")
 
     def _write(self, text: str) -> None:

@@ -65,21 +65,43 @@ def test_wav_without_map_plays_every_scalar_output_at_8x(tmp_path, write_graph):
     np.testing.assert_allclose(y[-8:], np.tile([0.25, 0.5], (8, 1)), rtol=1e-3)
 
 
-def test_a_wav_longer_than_a_recording_may_be_is_refused_before_it_is_rendered(tmp_path, write_graph, capsys, monkeypatch):
-    """A recording within the limits rendered at 8x (48x at 48 kHz) fills 8x the values: 10^8 samples became a 4 * 8 *
-    10^8-byte stream (and again for the clip count), past any memory. 1000 values stand for 10^8 here: 100 ticks read
-    (200 values) play as 800 frames x 2 channels."""
+def test_a_wav_longer_than_a_recording_may_be_is_rendered_block_by_block(tmp_path, write_graph, capsys, monkeypatch):
+    """The render was built whole in memory and refused past MAX_RECORDING_VALUES (10^8 values, 17 minutes of 48 kHz
+    stereo), after the graph had run. It streams now: 1000 values stand for 10^8 here, 100 ticks play as 800 frames x 2
+    channels, rendered 7 ticks a block; the samples are the ones one interpolator call gives for all 100 ticks."""
+    from flowtex import limits
+    from flowtex.runtime import audio_render
+
+    g = write_graph(TWO_OUTPUTS)
+    a = np.sin(np.arange(100) / 7.0)
+    np.savez(tmp_path / "in.npz", a=a, rate=np.float64(1000))
+    monkeypatch.setattr(limits, "MAX_RECORDING_VALUES", 1000)
+    monkeypatch.setattr(audio_render, "BLOCK_TICKS", 7)
+    out = tmp_path / "o.wav"
+    assert main(["run", str(g), "--input", str(tmp_path / "in.npz"), "--output", str(out)]) == 0
+    assert "800 frames x 2 channel(s) at 8000 Hz" in capsys.readouterr().out
+    rate, y = wavfile.read(out)
+    x = np.stack([0.5 * a, a], axis=1)  # TWO_OUTPUTS: half and whole of a, each clipped to [-1, 1] at scale 1
+    whole = np.zeros((800, 2), dtype=np.float32)
+    Interpolator(8, 2, np.ones(2), -np.ones(2), np.ones(2)).render(x, whole)
+    assert rate == 8000 and y.dtype == np.float32 and np.array_equal(y, whole)
+
+
+def test_a_wav_longer_than_flowtex_renders_is_refused_and_an_older_file_kept(tmp_path, write_graph, capsys, monkeypatch):
+    """The length limit is a time bound now (flowtex.limits.MAX_AUDIO_SECONDS, 10 hours): 0.05 s stands for it here, and
+    100 ticks at 8 kHz are 0.1 s. One line, no temporary file, the older OUT.wav as it was."""
     from flowtex import limits
 
     g = write_graph(TWO_OUTPUTS)
     np.savez(tmp_path / "in.npz", a=np.full(100, 0.5), rate=np.float64(1000))
-    monkeypatch.setattr(limits, "MAX_RECORDING_VALUES", 1000)
+    monkeypatch.setattr(limits, "MAX_AUDIO_SECONDS", 0.05)
     out = tmp_path / "o.wav"
+    out.write_bytes(b"older")
     assert main(["run", str(g), "--input", str(tmp_path / "in.npz"), "--output", str(out)]) == 1
     err = [e for e in capsys.readouterr().err.splitlines() if not e.startswith("flowtex: compiling")]
-    assert err == [f"{out}: 100 ticks play as 800 audio frames x 2 channel(s), 1,600 values, more than a recording may hold "
-                   "(1,000: flowtex.limits.MAX_RECORDING_VALUES); render fewer ticks or at a lower audio rate"]
-    assert not out.exists()
+    assert err == [f"{out}: 100 ticks play as 800 audio frames (0.0 hours at 8000 Hz), more than flowtex renders (400 "
+                   "frames, 1.38889e-05 hours: flowtex.limits.MAX_AUDIO_SECONDS); render fewer ticks"]
+    assert out.read_bytes() == b"older" and sorted(p.name for p in tmp_path.iterdir()) == ["g.yaml", "in.npz", "o.wav"]
 
 
 def test_a_wav_that_clips_says_how_much(tmp_path, write_graph, capsys):

@@ -63,15 +63,40 @@ def test_a_timeline_event_out_of_bounds_is_one_line_naming_the_log(session, star
     assert not out.exists()
 
 
-def test_a_replayed_stream_longer_than_a_recording_may_be_is_refused(session, monkeypatch):
-    """The replay renders every tick's samples (8 a tick at 8 kHz): a session within the log limits (8 hours) played
-    at 48 kHz is billions of frames. 300 values stand for 10^8 here; 60 ticks are 480 frames."""
+def test_a_replayed_stream_longer_than_a_recording_may_be_is_written_block_by_block(session, monkeypatch):
+    """The replay rendered every tick's samples whole and refused past MAX_RECORDING_VALUES (17 minutes of 48 kHz
+    stereo). It streams now: 300 values stand for 10^8 here, and the 60 ticks (the lead, then 480 frames) are written,
+    the lead of silence then the samples one interpolator call gives for the replayed outputs."""
+    import numpy as np
+    from scipy.io import wavfile
+
     from flowtex import limits
+    from flowtex.dsp.audio_interp import Interpolator
+    from flowtex.io.audiomap import load_audio_section
+    from flowtex.runtime.audio_render import lead_frames
 
     s, _frames = session
     out = s.folder / "long.wav"
+    replay_session(load_graph(s.graph), s.folder / "plain.blf", s.dbc, s.folder / "ma.yaml", s.folder / "o.npz", seed=3)
+    vib = np.load(s.folder / "o.npz")["vibration"].reshape(-1, 1)
     monkeypatch.setattr(limits, "MAX_RECORDING_VALUES", 300)
+    assert replay_session(load_graph(s.graph), s.folder / "plain.blf", s.dbc, s.folder / "ma.yaml", out, seed=3).ticks == 60
+    lead = lead_frames(load_audio_section(s.folder / "ma.yaml", {"vibration": 1}))
+    whole = np.zeros((lead + 480, 1), dtype=np.float32)
+    Interpolator(8, 1, np.ones(1), -np.ones(1), np.ones(1)).render(vib, whole[lead:])
+    rate, y = wavfile.read(out)
+    assert rate == 8000 and np.array_equal(y.reshape(-1, 1), whole)
+
+
+def test_a_replayed_stream_longer_than_flowtex_renders_is_refused(session, monkeypatch):
+    """The bound on a stream's length is one of time now (flowtex.limits.MAX_AUDIO_SECONDS, 10 hours; a session within
+    the log limits played at 48 kHz is billions of frames): 0.05 s (400 frames at 8 kHz) stands for it here."""
+    from flowtex import limits
+
+    s, _frames = session
+    out = s.folder / "refused.wav"
+    monkeypatch.setattr(limits, "MAX_AUDIO_SECONDS", 0.05)
     with pytest.raises(DataError) as info:
         replay_session(load_graph(s.graph), s.folder / "plain.blf", s.dbc, s.folder / "ma.yaml", out, seed=3)
-    assert str(info.value).startswith(f"{out}: 60 ticks play as ") and "MAX_RECORDING_VALUES" in str(info.value)
-    assert not out.exists()
+    assert str(info.value).startswith(f"{out}: 60 ticks play as ") and "MAX_AUDIO_SECONDS" in str(info.value)
+    assert "\n" not in str(info.value) and not out.exists()

@@ -88,3 +88,42 @@ def test_a_status_stream_that_fails_does_not_end_the_session(setup):  # noqa: F8
                                                           status=out))
     assert r.error is None and r.ticks == 1200, r.error
     assert out.getvalue().startswith("\rtick       500 |")  # the one write that got through
+
+
+@pytest.mark.parametrize("terminal", [True, False], ids=["terminal", "log"])
+def test_a_flood_of_watchdog_events_prints_a_few_lines_and_counts_the_rest(setup, terminal):  # noqa: F811
+    """A machine too loaded to keep time trips the overrun watchdog again and again: each status period prints its first
+    EVENT_LINES events one by one and the others as one line, and every event is counted (the old display printed
+    200 lines here, one per event)."""
+    from flowtex.runtime.canio import load_io
+    from flowtex.runtime.stats import TickStats
+    from flowtex.runtime.status import StatusDisplay
+
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return terminal
+
+    g = load_graph(setup / "g.yaml")
+    cio = load_io(g, DBC, setup / "m.yaml")
+    wd = cio.new_watchdog(overrun_limit_ns=1_000_000, emit_log=False)
+    out = Terminal()
+    display = StatusDisplay(out, cio, wd, TickStats(100), 50)
+    period = display.every  # 50 ticks on a terminal, 500 in a log
+    ticks, late_every = 2000, 10
+    for tick in range(ticks):
+        for i in range(len(wd.timeouts)):
+            wd.fresh(i, tick)  # every sensor fresh: only the late ticks trip it, and it recovers at the next tick
+        wd.check(tick, 2_000_000 if tick % late_every == late_every - 1 else 0)  # ticks 9, 19, ...: shown at k = 10, 20, ...
+        display.tick(tick + 1)
+    display.finish(False)
+    assert wd.events == ticks // late_every  # 200 events, each a new trip
+    lines = [line.strip() for line in out.getvalue().replace("\r", "\n").split("\n")]
+    one_by_one = [line for line in lines if line.startswith("watchdog: tick ")]
+    held = [line for line in lines if line.startswith("watchdog: ") and " more event" in line]
+    periods = ticks // period
+    per_period = period // late_every  # events in one period
+    assert len(one_by_one) == periods * StatusDisplay.EVENT_LINES and len(held) == periods
+    counted = [int(re.match(r"watchdog: (\d+) more events in ticks (\d+)-(\d+)", line).group(1)) for line in held]
+    assert counted == [per_period - StatusDisplay.EVENT_LINES] * periods and sum(counted) + len(one_by_one) == wd.events
+    first_held = int(re.match(r"watchdog: \d+ more events in ticks (\d+)-", held[0]).group(1))
+    assert first_held == (StatusDisplay.EVENT_LINES + 1) * late_every - 1  # the 4th event of the first period: tick 39
