@@ -44,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .robust import BISQUARE_C, MAD_TO_SIGMA, RobustLine, irls, line_from_fit
+from .robust_kernels import median
 
 SCALE_DEGREE = 1
 """Degree of the polynomial in log x whose exp is the scale function (1: a power law in x)."""
@@ -84,7 +85,7 @@ def _floored(r: np.ndarray) -> np.ndarray:
     """
     if float(np.min(r)) >= 1e-9 * max(float(np.max(r)), 1e-300):
         return r
-    return np.maximum(r, 1e-9 * max(float(np.median(r)), 1e-300))
+    return np.maximum(r, 1e-9 * max(median(r), 1e-300))
 
 
 def median_regression(A: np.ndarray, b: np.ndarray, max_iter: int = 500, tol: float = 1e-12) -> np.ndarray:
@@ -100,15 +101,16 @@ def median_regression(A: np.ndarray, b: np.ndarray, max_iter: int = 500, tol: fl
     b = np.asarray(b, float)
     c = np.linalg.lstsq(A, b, rcond=None)[0]
     total = np.inf
+    r, w, wb, wA = np.empty(b.shape), np.empty(b.shape), np.empty(b.shape), np.empty(A.shape)  # for every iteration
     for _ in range(max_iter):
-        r = np.abs(b - A @ c)
+        np.abs(np.subtract(b, np.matmul(A, c, out=r), out=r), out=r)  # |b - A c|
         new = float(np.sum(r))
         if total - new <= tol * new:
             break
         total = new
-        w = 1.0 / _floored(r)
+        np.divide(1.0, _floored(r), out=w)
         try:
-            c = np.linalg.solve(A.T @ (w[:, None] * A), A.T @ (w * b))
+            c = np.linalg.solve(A.T @ np.multiply(w[:, None], A, out=wA), A.T @ np.multiply(w, b, out=wb))
         except np.linalg.LinAlgError:
             break
     return c

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import robust_kernels
+
 MAD_TO_SIGMA = 1.4826
 """MAD of a Gaussian sample times this is its standard deviation."""
 HUBER_K = 1.345
@@ -48,25 +50,19 @@ def batch_means_se(X: np.ndarray, psi: np.ndarray, dpsi: np.ndarray, scale: floa
     H = X.T @ (dpsi[:, None] * X)
     if np.linalg.matrix_rank(H) < k:
         return None
-    g = np.array([X[idx].T @ psi[idx] for idx in np.array_split(np.arange(n), blocks)])
+    g = np.array([Xb.T @ pb for Xb, pb in zip(np.array_split(X, blocks), np.array_split(psi, blocks), strict=True)])
     S = blocks / (blocks - 1) * (g.T @ g)
     Hi = np.linalg.inv(H)
     return scale * np.sqrt(np.maximum(np.diag(Hi @ S @ Hi), 0.0))
 
 
-def robust_scale(r: np.ndarray) -> float:
-    """MAD-based standard deviation of residuals ``r`` (about their median)."""
-    r = np.asarray(r, float)
-    return float(MAD_TO_SIGMA * np.median(np.abs(r - np.median(r))))
+def robust_scale(r: np.ndarray, work: np.ndarray | None = None) -> float:
+    """MAD-based standard deviation of residuals ``r`` (about their median); ``work``: optional scratch (2, len(r))
+    reused between calls (:func:`flowtex.dsp.robust_kernels.mad`)."""
+    return float(MAD_TO_SIGMA * robust_kernels.mad(np.asarray(r, float), work))
 
 
-def _weights(u: np.ndarray, kind: str) -> np.ndarray:
-    if kind == "huber":
-        a = np.abs(u)
-        return np.where(a <= HUBER_K, 1.0, HUBER_K / np.maximum(a, 1e-300))
-    if kind == "bisquare":
-        return np.where(np.abs(u) < BISQUARE_C, (1.0 - (u / BISQUARE_C) ** 2) ** 2, 0.0)
-    raise ValueError(f"unknown weight function {kind!r}; use huber or bisquare")
+_KINDS = {"huber": robust_kernels.HUBER, "bisquare": robust_kernels.BISQUARE}
 
 
 @dataclass(frozen=True)
@@ -109,14 +105,16 @@ def irls(X: np.ndarray, y: np.ndarray, kind: str = "bisquare", max_iter: int = 1
     it = 0
     w = np.ones(n)
     s = 1.0
+    work, Xw, yw, r = np.empty((2, n)), np.empty((n, k)), np.empty(n), np.empty(n)  # for every iteration
     for stage in ("huber", kind) if kind != "huber" else ("huber",):
         for _ in range(max_iter):
             it += 1
-            r = y - X @ beta
-            s = robust_scale(r) or float(np.std(r)) or 1.0
-            w = _weights(r / s, stage)
-            sw = np.sqrt(w)
-            new = np.linalg.lstsq(X * sw[:, None], y * sw, rcond=None)[0]
+            np.subtract(y, np.matmul(X, beta, out=r), out=r)  # y - X beta
+            s = robust_scale(r, work) or float(np.std(r)) or 1.0
+            if stage not in _KINDS:
+                raise ValueError(f"unknown weight function {stage!r}; use huber or bisquare")
+            robust_kernels.weighted_rows(X, y, r, s, _KINDS[stage], HUBER_K, BISQUARE_C, w, Xw, yw)
+            new = np.linalg.lstsq(Xw, yw, rcond=None)[0]
             done = np.max(np.abs(new - beta)) <= tol * (1.0 + np.max(np.abs(beta)))
             beta = new
             if done:
