@@ -125,3 +125,18 @@ def test_flags_and_indices_keep_their_values_and_their_edges(tmp_path, capsys, r
         nearest = np.where(d_after < d_before, x[after], x[after - 1])
         tie = np.isclose(d_before, d_after, rtol=0, atol=1e-12)  # halves go to the later sample; either is nearest
         assert np.all((y == nearest) | (tie & (y == x[after]))), name
+
+
+def test_a_short_recordings_integer_ramps_stay_ramps(tmp_path, capsys) -> None:
+    """Time 0, 1, ..., 9 s and a position in whole mm are whole numbers of at most 16 values, but they change at every
+    step: waveforms, filtered (exact for a ramp), not held into staircases (the held time column did not increase, and
+    the output could not be read back)."""
+    src, out = tmp_path / "short.npz", tmp_path / "out.npz"
+    save_recording(src, {"time": np.arange(10.0), "position": np.arange(10.0) * 3.0, "flag": np.r_[np.zeros(6), np.ones(4)]},
+                   rate=1.0)
+    assert main(["resample", str(src), "--rate", "2", "-o", str(out)]) == 0
+    assert "held, not filtered (whole numbers of at most 16 values): flag" in capsys.readouterr().out
+    back = load_recording(out).arrays  # reads: the time column increases
+    np.testing.assert_allclose(back["time"], np.arange(20) / 2.0, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(back["position"], 3.0 * np.arange(20) / 2.0, rtol=0, atol=1e-12)
+    assert set(np.unique(back["flag"])) == {0.0, 1.0}

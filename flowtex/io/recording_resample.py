@@ -15,23 +15,30 @@ import numpy as np
 from ..dsp.resample import DEFAULT_ATTEN_DB, hold_signal, rational_ratio, resample_signal
 from ..errors import DataError, FlowtexError
 from .formats import AUDIO, RECORDING, kind_of
+from .recording_rules import TIME_SIGNAL
 from .recordings import load_recording, save_recording
 
 MAX_RATE_RATIO = 64.0
 """Largest change of rate (up or down) in one call: the polyphase filter's length grows with the ratio."""
 
 STATE_LEVELS = 16
-"""A signal whose samples are whole numbers taking at most this many values is a state (a flag, an index), not a
-waveform: :func:`is_state_signal`."""
+"""A signal whose samples are whole numbers taking at most this many values, and that holds its value over most
+steps, is a state (a flag, an index), not a waveform: :func:`is_state_signal`."""
 
 
-def is_state_signal(a: np.ndarray) -> bool:
-    """True when every sample of ``a`` is a whole number and ``a`` takes at most :data:`STATE_LEVELS` values.
+def is_state_signal(name: str, a: np.ndarray) -> bool:
+    """True when every sample of ``a`` is a whole number, ``a`` takes at most :data:`STATE_LEVELS` values and changes
+    value on at most half of its steps; never for the time column (a ramp, which the filter keeps exact).
 
-    Such a signal is held, not filtered: a filter rings around each step (docs/recordings.md has the overshoot of a
-    0/1 flag) and leaves values a flag or an index never takes.
+    Such a signal is held, not filtered: a filter rings around each step (docs/cli.md has the overshoot of a 0/1 flag)
+    and leaves values a flag or an index never takes. A short recording's integer ramp (time 0, 1, 2, ... s; a position
+    in whole mm) changes at every step: it is a waveform, and held it would become a staircase.
     """
-    return a.size > 0 and bool(np.all(a == np.round(a))) and np.unique(a).size <= STATE_LEVELS
+    if name == TIME_SIGNAL or a.size == 0 or not np.all(a == np.round(a)) or np.unique(a).size > STATE_LEVELS:
+        return False
+    steps = a.shape[0] - 1
+    changes = int(np.count_nonzero(np.any((a[1:] != a[:-1]).reshape(steps, -1), axis=1))) if steps > 0 else 0
+    return 2 * changes <= steps
 
 
 def resample_recording(src: str | Path, out: str | Path, rate_hz: float, from_rate: float | None = None,
@@ -64,7 +71,7 @@ def resample_recording(src: str | Path, out: str | Path, rate_hz: float, from_ra
         if not np.all(np.isfinite(a)):
             raise DataError(f"{src}: signal {name!r} has NaN or inf values; clean it before resampling")
         try:
-            if is_state_signal(a):
+            if is_state_signal(name, a):
                 held.append(name)
                 arrays[name] = hold_signal(a, rate_in, rate_hz)
             else:
