@@ -31,10 +31,10 @@ import json
 import statistics
 import tempfile
 import time
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
+from baseline import cpu_per_call, swapped  # a script beside this one
 
 import flowtex.dsp.anti_imaging as anti_imaging
 import flowtex.dsp.arma_estimate as arma_estimate
@@ -45,6 +45,9 @@ import flowtex.dsp.poly as poly
 import flowtex.fit.compare_report as compare_report
 import flowtex.fit.report as report
 from flowtex.cli.main import main as flowtex_main
+
+MIN_S = 0.2
+"""CPU seconds each round of a function's timing repeats it for at least."""
 
 
 def numpy_power_spectrum(ar, ma, w):
@@ -94,34 +97,13 @@ def savefig_png(fig, path, dpi=100):
     plt.close(fig)
 
 
-@contextmanager
 def old_math():
     """Every replaced formulation swapped in where the fits call it (module globals and their aliases)."""
     saved = [(poly, "power_spectrum"), (arma_resample, "_model_power_spectrum"), (anti_imaging, "power_spectrum"),
              (poly, "step_down"), (order, "step_down"), (poly, "roots_inside"), (arma_estimate, "roots_inside"),
              (hetero, "_floored"), (report, "save_png"), (compare_report, "save_png")]
-    old = dict(zip(saved, [numpy_power_spectrum] * 3 + [numpy_step_down] * 2 + [numpy_roots_inside] * 2 + [median_floored]
-                   + [savefig_png] * 2, strict=True))
-    kept = {k: getattr(*k) for k in saved}
-    try:
-        for (mod, name), fn in old.items():
-            setattr(mod, name, fn)
-        yield
-    finally:
-        for (mod, name), fn in kept.items():
-            setattr(mod, name, fn)
-
-
-def _cpu(fn, args: tuple, rounds: int, min_s: float = 0.2) -> float:
-    """Best over ``rounds`` of the CPU seconds per call of ``fn(*args)`` (each round repeats it for at least ``min_s``)."""
-    best = np.inf
-    for _ in range(rounds):
-        t, k = time.process_time(), 0
-        while time.process_time() - t < min_s or k == 0:
-            fn(*args)
-            k += 1
-        best = min(best, (time.process_time() - t) / k)
-    return best
+    return swapped(dict(zip(saved, [numpy_power_spectrum] * 3 + [numpy_step_down] * 2 + [numpy_roots_inside] * 2
+                            + [median_floored] + [savefig_png] * 2, strict=True)))
 
 
 def _model(rng, pairs: int) -> np.ndarray:
@@ -144,13 +126,13 @@ def part_functions(rounds: int) -> None:
             ar, ma = ar[0], ma[0]
         old, new = numpy_power_spectrum(ar, ma, w), poly.power_spectrum(ar, ma, w)
         same = "bit-identical" if np.array_equal(old, new) else f"max rel. diff {np.max(np.abs(new / old - 1.0)):.1e}"
-        t_old = _cpu(numpy_power_spectrum, (ar, ma, w), rounds)
-        t_new = _cpu(poly.power_spectrum, (ar, ma, w), rounds)
+        t_old = cpu_per_call(numpy_power_spectrum, (ar, ma, w), rounds, MIN_S)
+        t_new = cpu_per_call(poly.power_spectrum, (ar, ma, w), rounds, MIN_S)
         print(f"| power_spectrum | {case} | {1e3 * t_old:.3f} | {1e3 * t_new:.3f} | {t_old / t_new:.1f} | {same} |")
     for p in (4, 18, 40):
         a = _model(rng, p // 2)
-        t_old = _cpu(numpy_roots_inside, (a, poly.MAX_RADIUS), rounds)
-        t_new = _cpu(poly.roots_inside, (a, poly.MAX_RADIUS), rounds)
+        t_old = cpu_per_call(numpy_roots_inside, (a, poly.MAX_RADIUS), rounds, MIN_S)
+        t_new = cpu_per_call(poly.roots_inside, (a, poly.MAX_RADIUS), rounds, MIN_S)
         assert numpy_roots_inside(a, poly.MAX_RADIUS) == poly.roots_inside(a, poly.MAX_RADIUS)
         print(f"| roots_inside | order {p} | {1e3 * t_old:.4f} | {1e3 * t_new:.4f} | {t_old / t_new:.1f} | the same answer |")
     x = rng.uniform(10.0, 400.0, 20000)
@@ -158,11 +140,11 @@ def part_functions(rounds: int) -> None:
     kept = hetero._floored
     hetero._floored = median_floored
     try:
-        t_old = _cpu(hetero.fit_scale_function, (x, r), rounds)
+        t_old = cpu_per_call(hetero.fit_scale_function, (x, r), rounds, MIN_S)
         old = hetero.fit_scale_function(x, r)
     finally:
         hetero._floored = kept
-    t_new = _cpu(hetero.fit_scale_function, (x, r), rounds)
+    t_new = cpu_per_call(hetero.fit_scale_function, (x, r), rounds, MIN_S)
     same = "bit-identical" if hetero.fit_scale_function(x, r) == old else "DIFFERENT"
     print(f"| median_regression | fit_scale_function, 20,000 samples | {1e3 * t_old:.1f} | {1e3 * t_new:.1f} | "
           f"{t_old / t_new:.1f} | {same} |")

@@ -26,44 +26,26 @@ import statistics
 import sys
 import tempfile
 import time
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT)]  # this tree's flowtex and the tests' oracle
+from baseline import cpu_per_call, swapped  # noqa: E402  (a script beside this one)
+
 from flowtex.cli.main import main as flowtex_main  # noqa: E402
 from flowtex.dsp import hetero, robust  # noqa: E402
 from tests.dsp import robust_old  # noqa: E402
 
+MIN_S = 0.3
+"""CPU seconds each round of a function's timing repeats it for at least."""
 
-@contextmanager
+
 def old_code():
     """The old irls, MAD scale and median-regression floor swapped in wherever the fits call them."""
-    saved = {(robust, "irls"): robust_old.irls, (hetero, "irls"): robust_old.irls,
-             (robust, "robust_scale"): robust_old.robust_scale, (hetero, "_floored"): robust_old._floored}
-    kept = {k: getattr(*k) for k in saved}
-    try:
-        for (mod, name), fn in saved.items():
-            setattr(mod, name, fn)
-        yield
-    finally:
-        for (mod, name), fn in kept.items():
-            setattr(mod, name, fn)
-
-
-def _cpu(fn, args: tuple, rounds: int, min_s: float = 0.3) -> float:
-    """Best over ``rounds`` of the CPU seconds per call of ``fn(*args)`` (each round repeats it for at least
-    ``min_s``)."""
-    best = np.inf
-    for _ in range(rounds):
-        t, k = time.process_time(), 0
-        while time.process_time() - t < min_s or k == 0:
-            fn(*args)
-            k += 1
-        best = min(best, (time.process_time() - t) / k)
-    return best
+    return swapped({(robust, "irls"): robust_old.irls, (hetero, "irls"): robust_old.irls,
+                    (robust, "robust_scale"): robust_old.robust_scale, (hetero, "_floored"): robust_old._floored})
 
 
 def _problem(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -101,7 +83,7 @@ def part_functions(rounds: int) -> None:
         }
         for name, (new, old, args) in cases.items():
             diff = float(np.max(np.abs(_flat(new(*args)) - _flat(old(*args))), initial=0.0))
-            o, w = _cpu(old, args, rounds), _cpu(new, args, rounds)
+            o, w = cpu_per_call(old, args, rounds, MIN_S), cpu_per_call(new, args, rounds, MIN_S)
             print(f"| {name} | {n} | {o * 1e3:.2f} | {w * 1e3:.2f} | {o / w:.2f} | {diff:.1e} |")
 
 
