@@ -52,6 +52,7 @@ from ..io.atomic import atomic_output, kept_on_success
 from ..io.canlog import SessionFrames, SessionWriter
 from ..io.codec_tables import decode_packed
 from ..io.formats import AUDIO, CAN_LOG, RECORDING, format_of
+from ..io.recordings import save_recording
 from .audio_timeline import TimelineEvents
 from .canio import CanIO, load_io
 from .replay_report import ReplayReport, expected_ticks
@@ -277,8 +278,7 @@ def replay_session(graph: TickProgram, session_path: str | Path, dbc_path: str |
             _replay_audio(graph, io.map.audio, arrays, events.timeline, output_path if out_kind == AUDIO else None,
                           live_audio, report)
         if arrays is not None and out_kind == RECORDING:
-            with open(target, "wb") as fh:
-                np.savez(fh, rate=np.float64(graph.rate), **arrays)
+            save_recording(target, arrays, rate=float(graph.rate))  # the one recording writer, into the atomic output
     if output_path is not None:
         report.output_path = Path(output_path)
     return report
