@@ -21,6 +21,8 @@ from flowtex.runtime.live import LiveConfig, run_live
 from tests.cli.gain_graph import MAP_GRAPH
 from tests.memory import peak_bytes  # noqa: F401  (the replay tests and benchmark take it from here)
 
+AUDIO = "audio:\n  rate: 8000\n  block: 64\n  channels:\n    - {output: vibration, scale: 1.0, clip: 1.0}\n"
+"""An audio section for the session's map (:meth:`LongSession.audio_map`)."""
 FRAMES_PER_TICK = 4
 """Two sensor frames received and two actuator frames sent a tick."""
 
@@ -52,6 +54,12 @@ class LongSession:
         self.exit_block = blocks.pop()[1]
         self.ticks = [b for b in blocks if sorted(m.arbitration_id for m in b[0]) == [0x100, 0x101]]
         assert len(self.ticks) > ticks // 2  # the simulated device sends both sensors nearly every tick
+
+    def audio_map(self) -> Path:
+        """``ma.yaml``: the session's map with an audio section (8 kHz, 64-frame blocks, the vibration played)."""
+        path = self.folder / "ma.yaml"
+        path.write_text(self.map.read_text() + AUDIO)
+        return path
 
     def write(self, path: Path, ticks: int) -> Path:
         """A log of ``ticks`` ticks and the exit block at ``path`` (.blf, .log or .asc)."""

@@ -83,15 +83,12 @@ def test_blocks_rebuild_and_check_what_the_whole_arrays_did(case, longer):
     assert new.lines == old.lines and new.unexplained == old.unexplained
 
 
-AUDIO = "audio:\n  rate: 8000\n  block: 64\n  channels:\n    - {output: vibration, scale: 1.0, clip: 1.0}\n"
-
-
 @pytest.fixture(scope="module")
 def session(tmp_path_factory):
     """A 60-tick session log with a timeline: the lead, a 30-frame resync before tick 5, the fade at the end."""
     folder = tmp_path_factory.mktemp("audiostream")
     s = LongSession(folder, ticks=100)
-    (folder / "ma.yaml").write_text(s.map.read_text() + AUDIO)
+    s.audio_map()
     frames = list(read_session(s.write(folder / "plain.blf", 60)))
     log = folder / "timeline.blf"
     w = SessionWriter(log)

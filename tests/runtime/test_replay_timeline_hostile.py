@@ -13,14 +13,12 @@ from flowtex.io.canlog import SessionWriter, read_session
 from flowtex.runtime.audio_timeline import END, RESYNC, SILENCE, START, event_frame
 from flowtex.runtime.replay import replay_session
 
-AUDIO = "audio:\n  rate: 8000\n  block: 64\n  channels:\n    - {output: vibration, scale: 1.0, clip: 1.0}\n"
-
 
 @pytest.fixture(scope="module")
 def session(tmp_path_factory):
     folder = tmp_path_factory.mktemp("timeline")
     s = LongSession(folder, ticks=100)
-    (folder / "ma.yaml").write_text(s.map.read_text() + AUDIO)
+    s.audio_map()
     return s, list(read_session(s.write(folder / "plain.blf", 60)))
 
 
