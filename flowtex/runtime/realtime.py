@@ -13,7 +13,10 @@ what :func:`enter_realtime` changed.
 every surviving object into the permanent generation (``gc.freeze()``, so later
 collections never scan them) and disables the collector. Measured here, GC pauses of
 10-300 ms otherwise hit the loop. On exit the collector is re-enabled (if it was) and the
-frozen objects are returned to the oldest generation.
+frozen objects are returned to the oldest generation, unless the caller had frozen objects
+itself: Python cannot unfreeze part of the permanent generation, so then everything frozen
+stays frozen, the caller's objects as the caller wanted and the session's survivors with
+them (still freed by reference counting; only cycles among them wait for an unfreeze).
 """
 
 from __future__ import annotations
@@ -109,14 +112,20 @@ def leave_realtime(status: RealtimeStatus) -> None:
 
 @contextlib.contextmanager
 def freeze_gc() -> Iterator[None]:
-    """Collect, freeze and disable the garbage collector for the ``with`` body; restore after."""
+    """Collect, freeze and disable the garbage collector for the ``with`` body; restore after.
+
+    A caller's frozen objects stay frozen (module docstring): unfreezing them would hand the whole of a long-lived
+    process's heap back to every later full collection, which then walks it (a test run's workers, a server that
+    froze its start-up state)."""
     was_enabled = gc.isenabled()
+    caller_froze = gc.get_freeze_count() > 0
     gc.collect()
     gc.freeze()
     gc.disable()
     try:
         yield
     finally:
-        gc.unfreeze()
+        if not caller_froze:
+            gc.unfreeze()
         if was_enabled:
             gc.enable()

@@ -318,18 +318,28 @@ def test_freeze_gc_disables_and_restores():
 
     from flowtex.runtime.realtime import freeze_gc
 
-    assert gc.isenabled()
-    with freeze_gc():
-        assert not gc.isenabled()
-        assert gc.get_freeze_count() > 0
-    assert gc.isenabled() and gc.get_freeze_count() == 0
-    gc.disable()
+    suite_froze = gc.get_freeze_count() > 0  # tests/conftest.py freezes what collection left
+    gc.unfreeze()
     try:
+        assert gc.isenabled()
+        with freeze_gc():
+            assert not gc.isenabled()
+            assert gc.get_freeze_count() > 0
+        assert gc.isenabled() and gc.get_freeze_count() == 0  # nothing was frozen before: nothing stays frozen
+        gc.disable()
+        try:
+            with freeze_gc():
+                pass
+            assert not gc.isenabled()  # restores the previous state, not "enabled"
+        finally:
+            gc.enable()
+        gc.freeze()
+        before = gc.get_freeze_count()
         with freeze_gc():
             pass
-        assert not gc.isenabled()  # restores the previous state, not "enabled"
+        assert gc.get_freeze_count() >= before > 0  # a caller's frozen objects stay frozen
     finally:
-        gc.enable()
+        gc.freeze() if suite_froze else gc.unfreeze()
 
 
 def test_catch_up_runs_passed_deadlines_back_to_back_then_returns_to_schedule():
