@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import os
 import subprocess
 import textwrap
@@ -68,6 +69,27 @@ def pytest_configure(config: pytest.Config) -> None:
         register(config)
     if hasattr(config.option, "loadscopereorder"):
         config.option.loadscopereorder = False  # xdist would order files by their number of tests; keep SLOW_FIRST's
+    _GC_THRESHOLDS.append(gc.get_threshold())
+    gc.set_threshold(COLLECTION_GC_THRESHOLD, *gc.get_threshold()[1:])
+
+
+COLLECTION_GC_THRESHOLD = 50_000
+"""Allocations between the cyclic garbage collector's young-generation passes while the test files are collected
+(Python's default is 700). Collecting imports every test module and rewrites its asserts: millions of short-lived AST
+nodes, which at the default set off full passes over every object numpy, scipy and numba hold: a large share of each
+worker's collection CPU (docs/testing.md). Objects are still collected, only in larger batches."""
+_GC_THRESHOLDS: list[tuple[int, int, int]] = []
+"""The collector's thresholds before collection, restored once it is done."""
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """Back to the default collector once collected, with what collection left frozen: the modules, functions and
+    parameters that live until the run ends are then no longer traversed by each full pass during the tests (objects
+    made by the tests are collected as before)."""
+    gc.collect()
+    gc.freeze()
+    if _GC_THRESHOLDS:
+        gc.set_threshold(*_GC_THRESHOLDS.pop())
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
