@@ -74,6 +74,10 @@ def plot_signals(signals: dict[str, np.ndarray], units: dict[str, str], rate: fl
 def signals_figure(signals: dict[str, np.ndarray], units: dict[str, str], rate: float, title: str = "") -> Any:
     """The figure: one time-series row per signal, a spectrogram row per vibration, a force-speed panel when possible.
 
+    The force-speed panel takes the first signal whose unit is a speed (:func:`~flowtex.io.recording_rules.is_speed_unit`:
+    mm/s, m/s, cm/s, um/s in any spelling ``simplify_unit`` reads) against the force in N, each axis in the unit it is
+    stated in (nothing is converted).
+
     Laid out by matplotlib's constrained layout, so the title never covers the first panel however many rows there
     are. The time panels share one time axis from 0 to the recording's length (s); each spectrogram's colorbar has a
     column of its own, so every time panel has the same width and their times line up.
@@ -82,9 +86,10 @@ def signals_figure(signals: dict[str, np.ndarray], units: dict[str, str], rate: 
 
     from .dsp.spectral import spectrogram_psd
     from .io.figures import FONT_PT
+    from .io.recording_rules import is_speed_unit
 
     vib = [n for n in signals if units[n] == "m/s^2"]
-    speed = next((n for n in signals if units[n] == "mm/s"), None)
+    speed = next((n for n in signals if is_speed_unit(units[n])), None)  # in its stated unit: m/s, cm/s, mm/s ...
     force = "force" if units.get("force") == "N" else next((n for n in signals if units[n] == "N"), None)
     rows = len(signals) + len(vib) + (1 if speed and force else 0)
     fig = plt.figure(figsize=(10, 2.0 * rows + 0.6), layout="constrained")
@@ -125,7 +130,7 @@ def signals_figure(signals: dict[str, np.ndarray], units: dict[str, str], rate: 
     if speed and force:
         ax = fig.add_subplot(grid[k, 0])
         ax.plot(_magnitude(signals[speed]), _magnitude(signals[force]), ".", ms=1.5, alpha=0.5)
-        ax.set_xlabel(f"|{speed}| (mm/s)", fontsize=FONT_PT)
+        ax.set_xlabel(f"|{speed}| ({units[speed]})", fontsize=FONT_PT)
         ax.set_ylabel(f"|{force}| (N)", fontsize=FONT_PT)
         ax.grid(alpha=0.3)
     if title:

@@ -102,3 +102,19 @@ def test_spectrogram_spans_the_whole_recording_and_keeps_its_power():
         assert xs.min() <= 0.0 and xs.max() >= 2.0
     finally:
         plt.close(fig)
+
+
+def test_force_speed_panel_for_a_speed_in_any_stated_unit():
+    """A speed stated in m/s got no force-speed panel (only exactly "mm/s" did); it gets one labelled in m/s."""
+    pytest.importorskip("matplotlib")
+    from flowtex.io.figures import agg_pyplot
+    from flowtex.io.recording_rules import is_speed_unit
+    from flowtex.plotting import signals_figure
+
+    assert [is_speed_unit(u) for u in ("m/s", "m*s^-1", "m s^-1", "cm/s", "mm/s", "m/s^2", "mm", "N")] == [True] * 5 + [False] * 3
+    plt = agg_pyplot("matplotlib")
+    fig = signals_figure({"speed": np.linspace(0, 0.2, 50), "force": np.ones((50, 3))}, {"speed": "m/s", "force": "N"}, 1000.0)
+    try:  # built, not drawn
+        assert [ax.get_xlabel() for ax in fig.axes if ax.get_xlabel() != "time (s)"] == ["|speed| (m/s)"]
+    finally:
+        plt.close(fig)

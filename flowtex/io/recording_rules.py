@@ -99,6 +99,21 @@ def _plain(unit: str) -> str:
     return re.sub(r"\s+", "*", unit)
 
 
+def plain_unit(unit: str) -> str:
+    """``unit`` as units are compared here: read by :func:`_plain`, then :func:`~flowtex.node_decl.simplify_unit`
+    (``m*s^-1``, ``m s^-1`` and ``m/s`` are all ``m/s``)."""
+    return simplify_unit(_plain(unit))
+
+
+SPEED_UNITS = frozenset(plain_unit(f"{length}/s") for length in ("mm", *(a for a, b in UNIT_FACTORS if b == "mm")))
+"""The speed units flowtex recognises (a length of :data:`UNIT_FACTORS` per second: mm/s, m/s, cm/s, um/s)."""
+
+
+def is_speed_unit(unit: str) -> bool:
+    """True if ``unit`` (any spelling :func:`plain_unit` reads) is a length per second of :data:`SPEED_UNITS`."""
+    return plain_unit(unit) in SPEED_UNITS
+
+
 def check_stated_unit(units: Mapping[str, str], name: str, unit: str, path: Path | str, consumer: str) -> None:
     """Refuse signal ``name`` when the file states a unit (``units``, ``Recording.units``) other than ``unit``.
 
@@ -108,8 +123,8 @@ def check_stated_unit(units: Mapping[str, str], name: str, unit: str, path: Path
     rendered 1000x too slow, silently; a fit of an acceleration in g gave a surface 20 dB too quiet.
     """
     raw = str(units.get(name, ""))
-    stated = simplify_unit(_plain(raw))
-    want = simplify_unit(_plain(unit))
+    stated = plain_unit(raw)
+    want = plain_unit(unit)
     if stated in _NO_UNIT or want in _NO_UNIT or stated == want:
         return
     factor = UNIT_FACTORS.get((stated, want))

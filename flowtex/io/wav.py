@@ -6,13 +6,17 @@ writes; compressed formats (FLAC, MP3, ADPCM) are out of scope, so the
 ``soundfile``/libsndfile dependency would buy nothing here. flowtex writes
 float32 (the samples handed to PortAudio, bit for bit). Channels become
 signals ``ch0``, ``ch1``, ... in full-scale units (integer PCM is divided by
-its full scale: 32768 for 16 bit, 2**31 for 32 bit, 128 around 128 for 8 bit).
+its full scale: 32768 for 16 bit, 2**23 for 24 bit, 2**31 for 32 bit, 128 around 128 for 8 bit). The one thing
+read here without scipy is 24-bit PCM block by block (:class:`WavReader`), since scipy cannot memory-map it: the
+headers are walked within :data:`MAX_CHUNKS` chunks (:func:`read_header`) and the samples become the int32 values
+scipy reads (:func:`pcm24_samples`).
 """
 
 from __future__ import annotations
 
 import struct
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -67,22 +71,37 @@ class WavReader:
     """A WAV file read block by block (:meth:`read`), as :func:`read_wav` reads it whole: the same float64 samples in
     full-scale units, in memory of the block asked for whatever the file's length (``--expect-audio`` of a long
     session). The data chunk is memory-mapped (scipy's ``mmap=True``: pages of the file, not allocations, read as the
-    blocks are converted); 24-bit PCM, which scipy cannot map, is read whole within
-    :data:`~flowtex.limits.MAX_RECORDING_VALUES` as :func:`read_wav` reads it. Attributes: ``rate`` (Hz), ``channels``,
-    ``frames`` (in the file), ``position`` (frames read)."""
+    blocks are converted); PCM in 3-byte containers (24-bit), which scipy cannot map, is read from the file block by
+    block (:func:`pcm24_samples`, the int32 values scipy reads). Attributes: ``rate`` (Hz), ``channels``, ``frames``
+    (in the file), ``position`` (frames read)."""
 
     def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self._fh: Any = None
+        self._pcm24: WavHeader | None = None
+        """The headers of a 24-bit PCM file read from ``_fh``; None when scipy maps the data chunk into ``_data``."""
+        self._data: Any = None
+        head = read_header(self.path)
+        if head is not None and head.values == 0:
+            raise DataError(f"{self.path}: the WAV file has no samples (its data chunk is empty)")
+        if (head is not None and head.tag == WAVE_FORMAT_PCM and 0 < head.channels and head.block_align == 3 * head.channels
+                and head.bytes_per_second == head.rate * head.block_align):  # else scipy reads or refuses it
+            self._open_pcm24(head)
+            return
+        rate, data = self._mapped()
+        self._data = data.reshape(data.shape[0], -1)
+        self.rate, self.channels, self.frames, self.position = float(rate), self._data.shape[1], self._data.shape[0], 0
+
+    def _mapped(self) -> tuple[float, np.ndarray]:
+        """(rate, the data chunk as scipy maps it); a container scipy cannot map (5 to 7 bytes; 3 in padded frames) is
+        read whole within :data:`~flowtex.limits.MAX_RECORDING_VALUES` (:func:`read_wav`)."""
         from scipy.io import wavfile
 
-        self.path = Path(path)
-        claimed = data_values(self.path)
-        if claimed == 0:
-            raise DataError(f"{self.path}: the WAV file has no samples (its data chunk is empty)")
         try:
             try:
                 rate, data = wavfile.read(self.path, mmap=True)
             except ValueError as exc:
-                if "24-bit" not in str(exc):
+                if "mmap" not in str(exc):
                     raise
                 rate, whole = read_wav(self.path)  # within MAX_RECORDING_VALUES, refused in one line past it
                 data = np.stack(list(whole.values()), axis=1)
@@ -93,52 +112,149 @@ class WavReader:
         except Exception as exc:  # as read_wav: a broken header is ValueError, EOFError or even UnboundLocalError
             raise DataError(f"{self.path}: not a WAV file scipy can read ({type(exc).__name__}: {exc}); write PCM or float "
                             "WAV") from None
-        self._data: Any = data.reshape(data.shape[0], -1)
-        self.rate, self.channels, self.frames, self.position = float(rate), self._data.shape[1], self._data.shape[0], 0
+        return float(rate), data
+
+    def _open_pcm24(self, head: WavHeader) -> None:
+        """Read 24-bit PCM from the file itself, a block at a time; the data chunk must be whole frames within the file."""
+        if head.data_bytes % head.block_align:
+            raise DataError(f"{self.path}: its data chunk of {head.data_bytes:,} bytes is no whole number of "
+                            f"{head.block_align}-byte frames ({head.channels} channel(s) of 24 bits): the file is damaged; "
+                            "record it again")
+        try:
+            held = self.path.stat().st_size - head.data_offset
+            if head.data_bytes > held:
+                raise DataError(f"{self.path}: its data chunk claims {head.data_bytes:,} bytes but the file holds "
+                                f"{max(held, 0):,} after its headers: the file was cut short; record it again")
+            self._fh = open(self.path, "rb")
+        except OSError as exc:
+            raise DataError(f"{self.path}: cannot read: {exc.strerror or exc}") from None
+        self._pcm24 = head
+        self.rate, self.channels, self.frames, self.position = float(head.rate), head.channels, \
+            head.data_bytes // head.block_align, 0
 
     def read(self, n: int) -> np.ndarray:
         """The next ``n`` frames (fewer at the end of the file) as (frames, channels) float64 in full-scale units."""
         a = self.position
         self.position = min(self.frames, a + max(0, int(n)))
-        return full_scale(np.asarray(self._data[a:self.position]))
+        head = self._pcm24
+        if head is None:
+            return full_scale(np.asarray(self._data[a:self.position]))
+        want = (self.position - a) * head.block_align
+        self._fh.seek(head.data_offset + a * head.block_align)
+        raw = self._fh.read(want)
+        if len(raw) < want:
+            raise DataError(f"{self.path}: the file ended at frame {a + len(raw) // head.block_align:,} of {self.frames:,} "
+                            "while it was read (was it cut or rewritten meanwhile?); read it again once it is complete")
+        return full_scale(pcm24_samples(raw, head.channels, head.big_endian))
 
     def close(self) -> None:
-        """Release the file (its memory map)."""
+        """Release the file (its memory map, or the file read block by block)."""
+        if self._fh is not None:
+            self._fh.close()
+            self._fh = None
+        if self._data is None:
+            return
         mm = getattr(self._data, "_mmap", None)
         self._data = self._data[:0]
         if mm is not None:
             mm.close()
 
 
+WAVE_FORMAT_PCM = 1
+"""``fmt`` chunk format tag of integer PCM."""
+WAVE_FORMAT_EXTENSIBLE = 0xFFFE
+"""``fmt`` tag whose sample format is the first four bytes of a sub-format GUID ending in :data:`_SUBFORMAT_TAIL`."""
+_SUBFORMAT_TAIL = {False: b"\x00\x00\x10\x00\x80\x00\x00\xaa\x00\x38\x9b\x71",
+                   True: b"\x00\x00\x00\x10\x80\x00\x00\xaa\x00\x38\x9b\x71"}
+"""The GUID's last 12 bytes (RFC 2361), as scipy matches them, keyed by big-endian (RIFX)."""
+
+
+@dataclass(frozen=True)
+class WavHeader:
+    """What the headers of a WAV say, read up to its ``data`` chunk without its samples (:func:`read_header`)."""
+
+    tag: int
+    """Sample format: :data:`WAVE_FORMAT_PCM`, 3 for IEEE float (an extensible header's sub-format)."""
+    channels: int
+    rate: int
+    """Frames per second (Hz)."""
+    bits: int
+    """Bits per sample (``wBitsPerSample``); each sample's container is ``block_align // channels`` bytes."""
+    block_align: int
+    """Bytes per frame, all channels."""
+    bytes_per_second: int
+    """``nAvgBytesPerSec``: ``rate * block_align`` in a valid PCM header."""
+    data_offset: int
+    """Where the samples start, in bytes from the start of the file."""
+    data_bytes: int
+    """The size the ``data`` chunk claims (RF64: its ``ds64`` chunk's), which may exceed what the file holds."""
+    big_endian: bool
+    """A ``RIFX`` file: sizes and samples big-endian."""
+
+    @property
+    def values(self) -> int:
+        """Samples (all channels) the data chunk claims."""
+        return self.data_bytes // max(1, self.bits // 8)
+
+
+def read_header(path: Path) -> WavHeader | None:
+    """The headers of the WAV at ``path`` (RIFF, RIFX or RF64), walked chunk by chunk (at most :data:`MAX_CHUNKS`) to
+    its ``data`` chunk, reading a bounded number of bytes; None if the file is no such WAVE or its ``fmt`` chunk is
+    short or does not precede ``data`` (scipy then reports what it finds)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(12)
+            if head[:4] not in (b"RIFF", b"RIFX", b"RF64") or head[8:12] != b"WAVE":
+                return None
+            end = ">" if head[:4] == b"RIFX" else "<"
+            fmt, ds64 = b"", None
+            for _ in range(MAX_CHUNKS):
+                chunk = fh.read(8)
+                if len(chunk) < 8:
+                    return None
+                cid, size = chunk[:4], struct.unpack(end + "I", chunk[4:])[0]
+                if cid == b"data":
+                    if len(fmt) < 16:
+                        return None
+                    tag, channels, rate, per_second, align, bits = struct.unpack(end + "HHIIHH", fmt[:16])
+                    if (tag == WAVE_FORMAT_EXTENSIBLE and len(fmt) >= 40 and struct.unpack(end + "H", fmt[16:18])[0] >= 22
+                            and fmt[28:40] == _SUBFORMAT_TAIL[end == ">"]):
+                        tag = struct.unpack(end + "I", fmt[24:28])[0]
+                    if head[:4] == b"RF64" and size == RIFF_LIMIT and ds64 is not None:
+                        size = ds64
+                    return WavHeader(tag, channels, rate, bits, align, per_second, fh.tell(), size, end == ">")
+                body = fh.read(min(size, 40)) if cid in (b"fmt ", b"ds64") else b""
+                if cid == b"fmt ":
+                    fmt = body
+                elif cid == b"ds64" and len(body) >= 16:
+                    ds64 = struct.unpack("<Q", body[8:16])[0]
+                fh.seek(size - len(body) + (size & 1), 1)
+    except OSError:
+        return None
+    return None
+
+
 def data_values(path: Path) -> int | None:
     """Samples (all channels) the ``data`` chunk of the WAV at ``path`` claims, from its headers alone; None if unknown.
 
     Read before scipy allocates the data: a sparse file of a few KB may claim 600 million samples. Unknown (None) when
-    the file is no plain RIFF/WAVE or its ``fmt`` chunk does not precede ``data``; scipy then reports what it finds.
+    the file is no plain RIFF/WAVE or its ``fmt`` chunk does not precede ``data`` (:func:`read_header`); scipy then
+    reports what it finds.
     """
-    try:
-        with open(path, "rb") as fh:
-            if fh.read(12)[8:12] != b"WAVE":
-                return None
-            sample_bytes = 0
-            for _ in range(MAX_CHUNKS):
-                head = fh.read(8)
-                if len(head) < 8:
-                    return None
-                cid, size = head[:4], struct.unpack("<I", head[4:])[0]
-                if cid == b"fmt ":
-                    fmt = fh.read(min(size, 40))
-                    if len(fmt) < 16:
-                        return None
-                    sample_bytes = max(1, struct.unpack("<H", fmt[14:16])[0] // 8)
-                    fh.seek(size - len(fmt) + (size & 1), 1)
-                elif cid == b"data":
-                    return size // sample_bytes if sample_bytes else None
-                else:
-                    fh.seek(size + (size & 1), 1)
-    except OSError:
-        return None
-    return None
+    head = read_header(path)
+    return None if head is None else head.values
+
+
+def pcm24_samples(raw: bytes, channels: int, big_endian: bool = False) -> np.ndarray:
+    """Frames of 3-byte PCM samples -> (frames, channels) int32 with each sample in the upper three bytes, the values
+    scipy reads (so :func:`full_scale` divides them by 2**31)."""
+    b = np.frombuffer(raw, dtype=np.uint8).reshape(-1, 3)
+    words = np.zeros((b.shape[0], 4), dtype=np.uint8)
+    if big_endian:
+        words[:, :3] = b
+    else:
+        words[:, 1:] = b
+    return words.view(">i4" if big_endian else "<i4").reshape(-1, channels)
 
 
 def _check_rate(path: Path, rate: float) -> None:

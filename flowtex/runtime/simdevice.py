@@ -84,6 +84,22 @@ def check_range(canmap: CanMap, codecs: Mapping[str, MessageCodec], arrays: Mapp
                                 "Scale or cut the recording, or widen the signal in the DBC")
 
 
+def check_units(canmap: CanMap, codecs: Mapping[str, MessageCodec], units: Mapping[str, str], source: str) -> None:
+    """Refuse a recording that states a unit for a sensor signal other than its DBC signal's unit
+    (:func:`~flowtex.io.recording_rules.check_stated_unit`; a unit that states nothing on either side passes).
+
+    ``flowtex simulate-device`` has no graph to take units from; the DBC states each signal's unit, and the device
+    sends the recording's values as that signal's physical values (``physical = (graph - offset) / scale``): a speed
+    stated in m/s played onto a signal in mm/s would arrive 1000x too slow, silently. A component whose map ``scale``
+    is not 1 is left alone: that scale may itself convert units (DBC mm to graph m), to a unit nobody states.
+    """
+    for b in canmap.inputs.values():
+        for j, (m, sig) in enumerate(b.signals):
+            if float(b.scale[j]) == 1.0:
+                unit = codecs[m].layouts[codecs[m].index[sig]].unit
+                check_stated_unit(units, b.name, unit, source, f"DBC signal {m}.{sig} (bound by map {canmap.path.name})")
+
+
 class SimulatedDevice:
     """Publish sensor frames from recorded arrays; decode received actuator frames into graph units.
 
@@ -270,7 +286,8 @@ def run_device(bus_spec: str | None, dbc_path: str, map_path: str, recording: st
     used = set(canmap.sensor_messages()) | set(canmap.actuator_messages())
     codecs = {m.name: MessageCodec(m) for m in db.messages if m.name in used}
     rec = load_recording(recording)
-    check_finite(canmap, rec.arrays, str(recording))  # before the bus or pty opens
+    check_units(canmap, codecs, rec.units, str(recording))  # before the bus or pty opens
+    check_finite(canmap, rec.arrays, str(recording))
     check_range(canmap, codecs, rec.arrays, str(recording))
     rate = float(rate_hz or rec.rate or 1000.0)
     pty_pair = None

@@ -9,6 +9,7 @@ import sys
 
 import cantools
 import numpy as np
+import pytest
 from test_live import DBC, setup  # noqa: F401  (fixture; rootdir-relative import as pytest does)
 
 from flowtex.graph.compiled import load_graph
@@ -107,3 +108,27 @@ def test_simulate_device_needs_bus_or_pty(setup):  # noqa: F811
     p = subprocess.run(base + ["--bus", "socketcan:flowtexnone0", "--duration", "0.1"], capture_output=True, text=True, timeout=60)
     assert p.returncode == 1
     assert p.stderr.strip().count("\n") == 0 and p.stderr.startswith("cannot open CAN bus")
+
+
+def test_simulate_device_refuses_a_stated_unit_other_than_the_dbc_signals(setup):  # noqa: F811
+    """simulate-device has no graph: it used to play a position stated in m onto PosX (DBC unit mm), 1000x off."""
+    from flowtex.errors import DataError
+    from flowtex.io.canmap import load_map
+    from flowtex.io.codec import MessageCodec
+    from flowtex.io.dbc import load_dbc
+    from flowtex.runtime.simdevice import check_units, run_device
+
+    rec = np.load(setup / "rec.npz")
+    np.savez(setup / "m_rec.npz", position=rec["position"] / 1000, normal_force=rec["normal_force"], rate=np.float64(1000),
+             units=np.str_('{"position": "m", "normal_force": "N"}'))
+    with pytest.raises(DataError) as err:  # refused before the bus opens: this bus does not exist
+        run_device("socketcan:flowtexnone0", str(DBC), str(setup / "m.yaml"), str(setup / "m_rec.npz"), duration_s=0.01, status=None)
+    msg = str(err.value)
+    assert msg == (f"{setup / 'm_rec.npz'}: signal 'position' is in 'm' (the file's units) but DBC signal ToolPosition.PosX (bound by "
+                   "map m.yaml) takes mm; flowtex converts no unit: multiply it by 1000 and state its unit as mm"), msg
+    db = load_dbc(DBC)
+    codecs = {m.name: MessageCodec(m) for m in db.messages}
+    canmap = load_map(setup / "m.yaml", db, DBC)
+    check_units(canmap, codecs, {"position": "mm", "normal_force": "-"}, "r.npz")  # the DBC's unit, or none stated: passes
+    (setup / "scaled.yaml").write_text((setup / "m.yaml").read_text().replace("timeout_ms: 5\n", "scale: 0.001\n    timeout_ms: 5\n", 1))
+    check_units(load_map(setup / "scaled.yaml", db, DBC), codecs, {"position": "m"}, "r.npz")  # the map's scale converts
