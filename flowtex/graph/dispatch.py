@@ -27,6 +27,7 @@ business (:mod:`flowtex.compile.service`), given :func:`needed_wrappers`.
 
 from __future__ import annotations
 
+import functools
 import inspect
 from collections.abc import Callable
 from typing import Any
@@ -180,8 +181,9 @@ def dispatch_table(rg: ResolvedGraph, layout: Layout) -> tuple[np.ndarray, list[
     return ints, lines
 
 
+@functools.cache
 def driver_source() -> str:
-    """The driver's source (``flowtex graph --show-code`` prints it for the dispatch tier)."""
+    """The driver's source (``flowtex graph --show-code`` prints it for the dispatch tier), read once a process."""
     return inspect.getsource(_guarded) + "\n\n" + inspect.getsource(block)
 
 

@@ -15,6 +15,7 @@ import hashlib
 import importlib.util
 import inspect
 import sys
+import weakref
 from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
@@ -35,13 +36,30 @@ def kernel_fingerprint(kernel: Callable) -> str:
     installed plugin package's kernel is named by its module and its package's code id, for the same reason.
     """
     func = getattr(kernel, "py_func", kernel)
-    try:
-        source = inspect.getsource(func)
-    except (OSError, TypeError):
-        source = repr(func.__code__.co_code)
     found = plugin_code_of(func)
     module = func.__module__ if found is None else f"{found.name}_{found.code}"
-    return f"{module}.{func.__qualname__}:{hashlib.sha256(source.encode()).hexdigest()}"
+    return f"{module}.{func.__qualname__}:{_source_digest(func)}"
+
+
+_SOURCE_DIGESTS: weakref.WeakKeyDictionary[Callable, str] = weakref.WeakKeyDictionary()
+"""sha256 of each kernel function's source text, by function object."""
+
+
+def _source_digest(func: Callable) -> str:
+    """sha256 of ``func``'s source text, read once per function object.
+
+    A function object runs the code it was defined with, so its source is read the first time it is asked for and
+    kept: reading it again (``inspect.getsource`` tokenizes the file from the definition on) cost every graph build
+    once per kernel and per wrapper, and a file edited after the import would give the new text for the old code.
+    An edited plugin file is imported again (a new function object), and is read then."""
+    digest = _SOURCE_DIGESTS.get(func)
+    if digest is None:
+        try:
+            source = inspect.getsource(func)
+        except (OSError, TypeError):
+            source = repr(func.__code__.co_code)
+        digest = _SOURCE_DIGESTS[func] = hashlib.sha256(source.encode()).hexdigest()
+    return digest
 
 
 _LOADED: dict[str, ModuleType] = {}

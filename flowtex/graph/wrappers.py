@@ -19,6 +19,7 @@ contraction setting, and sealed (:mod:`flowtex.graph.kcache`).
 
 from __future__ import annotations
 
+import functools
 import hashlib
 from collections.abc import Callable
 from pathlib import Path
@@ -64,8 +65,10 @@ def wrapper_source(kernel_name: str, n_in: int, n_out: int) -> str:
     return "\n".join(lines) + "\n"
 
 
+@functools.cache
 def machine_key() -> str:
-    """What makes machine code valid here: numba version, CPU name and features, FMA contraction."""
+    """What makes machine code valid here: numba version, CPU name and features, FMA contraction (asked of LLVM
+    once a process: none of them changes while it runs)."""
     import llvmlite.binding as ll
 
     return f"numba={numba.__version__};cpu={ll.get_host_cpu_name()};features={ll.get_host_cpu_features().flatten()};" \
