@@ -143,6 +143,22 @@ def test_stats_where_no_file_can_be_created_is_refused_before_the_session(setup)
     assert main(args) == 1
 
 
+def _holds_open(pid: int, path: str) -> bool:
+    """True when process ``pid`` has ``path`` open (Linux: its /proc fd links; the slcan pty tests run on Linux only)."""
+    fds = f"/proc/{pid}/fd"
+    try:
+        names = os.listdir(fds)
+    except OSError:
+        return False
+    for name in names:
+        try:
+            if os.readlink(f"{fds}/{name}") == path:
+                return True
+        except OSError:
+            continue
+    return False
+
+
 def _cli(setup, *extra, **kw):  # noqa: F811
     cmd = [sys.executable, "-m", "flowtex", "live", str(setup / "g.yaml"), "--dbc", str(DBC), "--map", str(setup / "m.yaml"), *extra]
     return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=setup, env=ENV, **kw)
@@ -197,7 +213,10 @@ def test_safe_values_not_sent_are_not_claimed_sent(setup):  # noqa: F811
         assert m
         live = _cli(setup, "--bus", m.group(1), "--duration", "60", "--quiet", "--record", str(setup / "s.log"))
         deadline = time.monotonic() + 120
-        while not list(setup.glob(".s.*.part.log")) and time.monotonic() < deadline:  # the loop runs: its log exists
+        pts = m.group(1).split(":", 1)[1]
+        # the loop runs once the runtime holds the pty open and its log exists (the log is created before the bus
+        # opens: on a loaded machine the device was killed before the runtime had opened the pty at all)
+        while not (_holds_open(live.pid, pts) and list(setup.glob(".s.*.part.log"))) and time.monotonic() < deadline:
             assert live.poll() is None, live.communicate()
             time.sleep(0.05)
         time.sleep(0.3)
