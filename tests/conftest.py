@@ -92,6 +92,21 @@ def pytest_collection_finish(session: pytest.Session) -> None:
         gc.set_threshold(*_GC_THRESHOLDS.pop())
 
 
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int | None:
+    """``-n auto``: one worker more than the CPUs this process may run on (``PYTEST_XDIST_AUTO_NUM_WORKERS`` still rules).
+
+    Part of the suite waits on the clock rather than computing: live sessions tick at 1 kHz in real time and the JACK
+    sessions play audio in real time, while their worker's core idles. A worker more than there are cores computes in
+    those waits; a second extra one only adds collection and contention (docs/testing.md has the runs)."""
+    if os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS"):
+        return None  # pytest-xdist's own hook reads it
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cores = os.cpu_count() or 1
+    return cores + 1
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """The files of :data:`SLOW_FIRST` first, in its order; the others after them, in collection order."""
     rank = {name: k for k, name in enumerate(SLOW_FIRST)}
