@@ -94,8 +94,10 @@ _NO_UNIT = ("", "-", "*")
 
 def _plain(unit: str) -> str:
     """``unit`` as :func:`~flowtex.node_decl.simplify_unit` reads it: superscript powers written ``^n`` (``m/s²``, as HDF5
-    writers put it, is ``m/s^2``) and a space between two factors a product (``mm s^-1`` is ``mm*s^-1``)."""
+    writers put it, is ``m/s^2``), a space between two factors a product (``mm s^-1`` is ``mm*s^-1``), and the second
+    spelled out as DBC files often do (``mm/sec``, ``m/second``) the symbol ``s`` (``msec`` stays a millisecond)."""
     unit = re.sub(r"\s*([*/^])\s*", r"\1", unit.strip().replace("\u00b2", "^2").replace("\u00b3", "^3"))
+    unit = re.sub(r"\b(?:secs?|seconds?)\b", "s", unit)
     return re.sub(r"\s+", "*", unit)
 
 
@@ -112,6 +114,13 @@ SPEED_UNITS = frozenset(plain_unit(f"{length}/s") for length in ("mm", *(a for a
 def is_speed_unit(unit: str) -> bool:
     """True if ``unit`` (any spelling :func:`plain_unit` reads) is a length per second of :data:`SPEED_UNITS`."""
     return plain_unit(unit) in SPEED_UNITS
+
+
+def is_unit_of(unit: str, base: str) -> bool:
+    """True if ``unit`` is ``base`` in any spelling :func:`plain_unit` reads, or a unit :data:`UNIT_FACTORS` converts
+    into it (``g`` and ``mm/s^2`` for ``m/s^2``, ``mN`` and ``kN`` for ``N``): the same quantity on another scale."""
+    stated, wanted = plain_unit(unit), plain_unit(base)
+    return stated == wanted or (stated, wanted) in UNIT_FACTORS
 
 
 def check_stated_unit(units: Mapping[str, str], name: str, unit: str, path: Path | str, consumer: str) -> None:
