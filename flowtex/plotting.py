@@ -75,7 +75,8 @@ def signals_figure(signals: dict[str, np.ndarray], units: dict[str, str], rate: 
     """The figure: one time-series row per signal, a spectrogram row per vibration, a force-speed panel when possible.
 
     The force-speed panel takes the first signal whose unit is a speed (:func:`~flowtex.io.recording_rules.is_speed_unit`:
-    mm/s, m/s, cm/s, um/s in any spelling ``simplify_unit`` reads) against the force in N, each axis in the unit it is
+    mm/s, m/s, cm/s, um/s in any spelling ``simplify_unit`` reads) against the force (N, mN or kN), and a vibration is
+    any signal in m/s^2, g or mm/s^2 (:func:`~flowtex.io.recording_rules.is_unit_of`); each axis is in the unit it is
     stated in (nothing is converted).
 
     Laid out by matplotlib's constrained layout, so the title never covers the first panel however many rows there
@@ -86,11 +87,12 @@ def signals_figure(signals: dict[str, np.ndarray], units: dict[str, str], rate: 
 
     from .dsp.spectral import spectrogram_psd
     from .io.figures import FONT_PT
-    from .io.recording_rules import is_speed_unit
+    from .io.recording_rules import is_speed_unit, is_unit_of
 
-    vib = [n for n in signals if units[n] == "m/s^2"]
-    speed = next((n for n in signals if is_speed_unit(units[n])), None)  # in its stated unit: m/s, cm/s, mm/s ...
-    force = "force" if units.get("force") == "N" else next((n for n in signals if units[n] == "N"), None)
+    # each in its stated unit: an acceleration in m/s^2, g or mm/s^2; a speed in m/s, cm/s, mm/s ...; a force in N, mN, kN
+    vib = [n for n in signals if is_unit_of(units[n], "m/s^2")]
+    speed = next((n for n in signals if is_speed_unit(units[n])), None)
+    force = "force" if is_unit_of(units.get("force", ""), "N") else next((n for n in signals if is_unit_of(units[n], "N")), None)
     rows = len(signals) + len(vib) + (1 if speed and force else 0)
     fig = plt.figure(figsize=(10, 2.0 * rows + 0.6), layout="constrained")
     grid = fig.add_gridspec(rows, 2, width_ratios=(1, 0.015))
@@ -131,7 +133,7 @@ def signals_figure(signals: dict[str, np.ndarray], units: dict[str, str], rate: 
         ax = fig.add_subplot(grid[k, 0])
         ax.plot(_magnitude(signals[speed]), _magnitude(signals[force]), ".", ms=1.5, alpha=0.5)
         ax.set_xlabel(f"|{speed}| ({units[speed]})", fontsize=FONT_PT)
-        ax.set_ylabel(f"|{force}| (N)", fontsize=FONT_PT)
+        ax.set_ylabel(f"|{force}| ({units[force]})", fontsize=FONT_PT)
         ax.grid(alpha=0.3)
     if title:
         fig.suptitle(title, fontsize=FONT_PT + 2)

@@ -118,3 +118,28 @@ def test_force_speed_panel_for_a_speed_in_any_stated_unit():
         assert [ax.get_xlabel() for ax in fig.axes if ax.get_xlabel() != "time (s)"] == ["|speed| (m/s)"]
     finally:
         plt.close(fig)
+
+
+def test_a_vibration_in_g_gets_its_spectrogram_and_a_force_in_mn_its_panel():
+    """Only exactly "m/s^2" got a spectrogram and only exactly "N" a force-speed panel: a vibration in g and a force in
+    mN got neither. Each is drawn in its stated unit (built, not drawn)."""
+    pytest.importorskip("matplotlib")
+    from matplotlib.collections import QuadMesh
+
+    from flowtex.io.figures import agg_pyplot
+    from flowtex.io.recording_rules import is_unit_of
+    from flowtex.plotting import signals_figure
+
+    assert [is_unit_of(u, "m/s^2") for u in ("g", "mm/s^2", "m/s/s", "m s^-2", "m/s", "N")] == [True] * 4 + [False] * 2
+    assert [is_unit_of(u, "N") for u in ("N", "mN", "kN", "kg", "")] == [True] * 3 + [False] * 2
+    plt = agg_pyplot("matplotlib")
+    n = 2000
+    fig = signals_figure({"accel": np.sin(np.arange(n)), "speed": np.linspace(50, 200, n), "friction": np.full(n, 300.0)},
+                         {"accel": "g", "speed": "mm/s", "friction": "mN"}, 1000.0)
+    try:
+        spectrograms = [ax for ax in fig.axes if "frequency (Hz)" in ax.get_ylabel()]
+        assert len(spectrograms) == 1 and any(isinstance(c, QuadMesh) for c in spectrograms[0].collections)
+        assert any("(g)^2/Hz" in ax.get_ylabel() for ax in fig.axes)  # its colorbar, in the stated unit
+        assert any(ax.get_xlabel() == "|speed| (mm/s)" and ax.get_ylabel() == "|friction| (mN)" for ax in fig.axes)
+    finally:
+        plt.close(fig)
