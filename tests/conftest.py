@@ -24,8 +24,8 @@ if os.environ.get("NUMBA_CACHE_DIR"):
 for _blas_threads in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     # One BLAS thread per process in the run: pytest-xdist's workers (started after this file is read, so they inherit
     # it) and the processes the tests start. The workers already share the cores; a BLAS with a thread per core in
-    # each of them oversubscribes the cores, and OpenBLAS's idle threads spin (docs/testing.md: the same suite with
-    # about a tenth less CPU). Every comparison of results is within this run's one setting.
+    # each of them oversubscribes the cores, and OpenBLAS's idle threads spin (docs/testing.md has the runs). Every
+    # comparison of results is within this run's one setting.
     os.environ.setdefault(_blas_threads, "1")
 os.environ.setdefault("FLOWTEX_BACKGROUND", "0")  # no background fused compiles (docs/engine.md) competing with the tests
 # The suite runs on the dispatch tier: a structure costs no numba compile once its node types are cached, and both tiers

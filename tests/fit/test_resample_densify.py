@@ -195,10 +195,9 @@ def test_fit_cache_reuses_fits_without_changing_them():
 def test_densified_hatt_set_follows_its_original_when_resampled(hatt_files):
     """HaTT "Carpet 3" to 500 Hz: the worst of HaTT's sets resampled as it is; by default it meets the path target.
 
-    One level of densifying alone is not promised to meet it: its figure depends on fits that differ in their last bits
-    from one CPU to another (docs/fitting.md, what a resampled set keeps across machines): 0.504 dB on one machine of
-    this project, under 0.5 on another. It at least halves the plain resample's miss; ``auto`` adds levels until the
-    target is met."""
+    One level of densifying alone is not promised to meet it: its figure sits at the target and depends on fits that
+    differ in their last bits from one CPU to another (docs/fitting.md, "Across machines"). It at least halves the plain
+    resample's miss; ``auto`` adds levels until the target is met."""
     path = next(p for p in hatt_files if p.name == "Models_Carpet 3.xml")
     src = load_model_set(path)
     walk = lissajous_path(src)
