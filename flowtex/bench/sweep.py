@@ -12,8 +12,10 @@ median ns/tick is reported.
 from __future__ import annotations
 
 import itertools
+import math
 import tempfile
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,6 +25,7 @@ import numpy as np
 from ..dsp.errors import pareto_front, signal_error
 from ..errors import FlowtexError
 from ..io.recordings import Recording
+from ..limits import MAX_CONFIGURATIONS
 from ..runtime.offline import check_recording_fits
 from ..yamlsource import parse_value
 from .scenes import PLAN_KNOB, check_plan_knob, is_plan_knob, is_scene_file, write_planned_graph
@@ -39,6 +42,16 @@ class Config:
     timed_on: str = "local"
 
 
+def check_configuration_count(sizes: Mapping[str, int]) -> None:
+    """Refuse a sweep of more than :data:`~flowtex.limits.MAX_CONFIGURATIONS` configurations: the product of the
+    knobs' numbers of values (``sizes``: knob -> count), named one by one."""
+    count = math.prod(sizes.values())
+    if count > MAX_CONFIGURATIONS:
+        listed = " x ".join(f"{n} ({k})" for k, n in sizes.items())
+        raise FlowtexError(f"--knob: {listed} = {count:,} configurations; bench runs at most {MAX_CONFIGURATIONS} "
+                           "(docs/bench.md): give fewer values")
+
+
 def parse_knob(text: str) -> tuple[str, list[Any]]:
     """``"lookup.every=1,2"`` -> ``("lookup.every", [1, 2])`` (values parsed as YAML scalars)."""
 
@@ -50,6 +63,7 @@ def parse_knob(text: str) -> tuple[str, list[Any]]:
         parts = values.split(";")
     else:
         parts = values.split(",")
+    check_configuration_count({key.strip(): len(parts)})  # before parsing each value: a knob this long can never run
     parsed = [parse_value(v, f"--knob {key.strip()}") for v in parts]
     if is_plan_knob(key.strip()):
         check_plan_knob(key.strip(), parsed)

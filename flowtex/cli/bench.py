@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 from typing import Any
 
 from ..errors import DataError, FlowtexError
-from ..limits import MAX_CONFIGURATIONS
 from .options import add_compile_option, add_graph_options, add_seed_option, int_at_least, overrides, scheduler_address
 from .output import say
 
@@ -39,7 +37,7 @@ def register(sub: Any) -> None:
 
 def cmd_bench(args: argparse.Namespace) -> int:
     from ..bench.report import dask_client, need_matplotlib, pareto_plot, write_csv
-    from ..bench.sweep import build, default_metric, format_table, parse_knob, sweep, table
+    from ..bench.sweep import build, check_configuration_count, default_metric, format_table, parse_knob, sweep, table
     from ..graph.spec import parse_override
     from ..io.atomic import check_output
     from ..io.recordings import load_recording
@@ -52,11 +50,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         if key in knobs:
             raise FlowtexError(f"--set {key}: that parameter is also a --knob; give it once")
         knobs[key] = [value]
-    count = math.prod(len(v) for v in knobs.values())
-    if count > MAX_CONFIGURATIONS:
-        sizes = " x ".join(f"{len(v)} ({k})" for k, v in knobs.items())
-        raise FlowtexError(f"--knob: {sizes} = {count:,} configurations; bench runs at most {MAX_CONFIGURATIONS} "
-                           "(docs/bench.md): give fewer values")
+    check_configuration_count({k: len(v) for k, v in knobs.items()})
     reference = dict(parse_override(r, "--reference") for r in args.reference)
     inputs = [args.graph, args.input]
     check_output(args.output, inputs=inputs, option="-o", suffixes=(".csv",))
