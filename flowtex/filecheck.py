@@ -11,7 +11,9 @@ Graphs are checked by flowtex.graph.compiled.check_graph (the command line adds 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .errors import DataError, FlowtexError
 from .io.formats import (
@@ -30,8 +32,12 @@ from .io.formats import (
     file_kind,
 )
 
+if TYPE_CHECKING:
+    from .io.canmap import CanMap
+    from .node_decl import PortSpec
+
 __all__ = ["CAN_LOG", "COMPLIANCE", "DBC", "DEVICE_MAP", "FRICTION", "GRAPH", "JSON_FORMATS", "MODEL_SET", "PATTERN", "RECORDING", "SCENE",
-           "TAP_LIBRARY", "check_file", "file_kind"]
+           "TAP_LIBRARY", "check_file", "check_map_for_graph", "file_kind"]
 """The kinds and :func:`file_kind` live in the one format registry, :mod:`flowtex.io.formats`."""
 
 
@@ -115,12 +121,28 @@ def _device_map(path: Path, dbc: str | Path | None, *_: object) -> str:
         raise FlowtexError(f"{path}: a device map is checked against its device: give --dbc DEVICE.dbc")
     from .io.canmap import load_map
     from .io.dbc import load_dbc
+
+    return _map_summary(load_map(path, load_dbc(dbc), dbc), dbc)
+
+
+def _map_summary(m: CanMap, dbc: str | Path) -> str:
     from .io.mapsafety import moved_bounds
 
-    m = load_map(path, load_dbc(dbc), dbc)
     moved = [text for b in m.outputs.values() if (text := moved_bounds(b)) is not None]
     onto = f"; moved onto the DBC's LSB grid: {'; '.join(moved)}" if moved else ""
     return f"{len(m.inputs)} inputs, {len(m.outputs)} outputs on {Path(dbc).name}{onto}"
+
+
+def check_map_for_graph(path: str | Path, dbc: str | Path, inputs: Mapping[str, PortSpec],
+                        outputs: Mapping[str, PortSpec]) -> tuple[str, list[str]]:
+    """Check the device map at ``path`` against ``dbc`` and a graph's ports (name -> PortSpec) as ``flowtex live`` loads
+    it (:func:`~flowtex.io.canmap.map_for_ports`: names, widths, units); returns ``PATH: ok (...)`` and the map's
+    warning lines (:attr:`~flowtex.io.canmap.CanMap.warnings`)."""
+    from .io.canmap import map_for_ports
+    from .io.dbc import load_dbc
+
+    m = map_for_ports(path, load_dbc(dbc), dbc, inputs, outputs)
+    return f"{path}: ok ({DEVICE_MAP}, {_map_summary(m, dbc)})", m.warnings
 
 
 def _scene(path: Path, _dbc: object, plugins: tuple[str | Path, ...], _auto_plugins: bool) -> str:

@@ -17,6 +17,8 @@ def register(sub: Any) -> None:
                                         "friction, compliance); one line per problem")
     p.add_argument("graph", metavar="FILE", help="any flowtex file; its kind is read from its content")
     p.add_argument("--dbc", metavar="DEVICE.dbc", help="the device a map file is checked against")
+    p.add_argument("--map", metavar="MAP.yaml", help="with a graph and --dbc: check this device map against the graph as "
+                                                     "'flowtex live' loads it (port names, widths and units)")
     add_graph_options(p)
     p.set_defaults(func=cmd_validate)
 
@@ -80,19 +82,29 @@ def load_graph_from_args(args: argparse.Namespace, path: str | Path | None = Non
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
-    from ..filecheck import GRAPH, check_file, file_kind
+    from ..filecheck import GRAPH, check_file, check_map_for_graph, file_kind
     from ..graph.compiled import check_graph
 
     kind = file_kind(args.graph)
     if kind != GRAPH:
         if args.overrides:
             raise FlowtexError(f"--set: {args.graph} is a {kind}, not a graph; --set applies to graphs only")
+        if args.map is not None:
+            raise FlowtexError(f"--map: {args.graph} is a {kind}, not a graph; check a map against its graph with "
+                               f"'flowtex validate GRAPH --dbc DEVICE.dbc --map {args.map}'")
         say(check_file(args.graph, kind, args.dbc, tuple(args.plugins), not args.no_plugins))
         return 0
+    if args.map is not None and args.dbc is None:
+        raise FlowtexError(f"--map {args.map}: a device map is checked against its device: give --dbc DEVICE.dbc too")
     rg = check_graph(args.graph, overrides(args.overrides), **plugin_kwargs(args))
     report_plugins(args.graph, args)
     dropped = f"; dropped (unused): {', '.join(rg.dropped)}" if rg.dropped else ""
     say(f"{args.graph}: ok ({len(rg.nodes)} nodes, {len(rg.spec.outputs)} outputs{dropped})")
+    if args.map is not None:
+        line, warnings = check_map_for_graph(args.map, args.dbc, rg.input_specs, rg.output_specs)
+        say(line)
+        for w in warnings:
+            note(f"flowtex validate: warning: {w}")
     return 0
 
 

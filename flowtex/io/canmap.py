@@ -26,6 +26,7 @@ read ``map.yaml:LINE:COL: problem (fix)``.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -34,6 +35,7 @@ from cantools.database.can import Database
 
 from ..errors import DataError, Diagnostic, GraphError, Location
 from ..limits import excerpt
+from ..node_decl import PortSpec
 from ..schema import core as schema
 from ..schema.core import INVALID, Collector, check_unknown, value_of
 from ..schema.devmap import DEFAULT_OVERRUN_MS, INPUT_BINDING, MAP, OUTPUT_BINDING, PEAK, PEAK_RECOVER_RATIO, PER_COMPONENT
@@ -42,8 +44,9 @@ from .audiomap import AudioMap, parse_audio
 from .dbc import find_signal, suggest
 from .dbcrange import check_value, sendable_range
 from .mapsafety import GuardBounds, check_clamps, check_transmitters, check_unbound_signals
+from .mapunits import check_binding_units
 
-__all__ = ["DEFAULT_OVERRUN_MS", "CanMap", "InputBinding", "OutputBinding", "load_map"]
+__all__ = ["DEFAULT_OVERRUN_MS", "CanMap", "InputBinding", "OutputBinding", "load_map", "map_for_ports"]
 
 
 @dataclass
@@ -90,6 +93,9 @@ class CanMap:
     overrun_limit_ms: float = DEFAULT_OVERRUN_MS
     audio: AudioMap | None = None
     """The ``audio`` section (:mod:`flowtex.io.audiomap`), if the map has one."""
+    warnings: list[str] = field(default_factory=list)
+    """``map.yaml:LINE:COL: ...`` per pass-through binding whose DBC unit differs from its graph port's by no known factor
+    (:func:`~flowtex.io.mapunits.check_binding_units`); shown by ``flowtex validate`` and before a live session."""
 
     def sensor_messages(self) -> list[str]:
         """Messages read by the runtime, in order of first use."""
@@ -104,12 +110,15 @@ _number = schema.is_number
 
 
 def load_map(path: str | Path, db: Database, dbc_path: str | Path = "DBC",
-             graph_inputs: dict[str, int] | None = None, graph_outputs: dict[str, int] | None = None) -> CanMap:
+             graph_inputs: dict[str, int] | None = None, graph_outputs: dict[str, int] | None = None,
+             input_units: Mapping[str, str] | None = None, output_units: Mapping[str, str] | None = None) -> CanMap:
     """Read and check the map file ``path`` against ``db`` and the graph.
 
     ``graph_inputs``/``graph_outputs`` map port names to widths (number of
     scalars); None skips the graph checks (the stand-alone device simulator).
     Every graph input must be bound; graph outputs may stay unbound (not sent).
+    ``input_units``/``output_units`` (port name -> unit) check each pass-through binding's DBC unit
+    (:func:`~flowtex.io.mapunits.check_binding_units`); None skips that check.
     """
     path = Path(path)
     data = load_yaml(read_source(path, "map file"), str(path))
@@ -157,8 +166,19 @@ def load_map(path: str | Path, db: Database, dbc_path: str | Path = "DBC",
     check_unbound_signals(db, list(outputs.values()), p.add)
     check_clamps(db, list(outputs.values()), p.add)
     audio = parse_audio(data["audio"], data.value_pos["audio"], p, graph_outputs) if "audio" in data else None
+    warnings = check_binding_units(db, list(inputs.values()), list(outputs.values()), input_units or {}, output_units or {},
+                                   p.add) if input_units is not None or output_units is not None else []
     p.raise_if_any()
-    return CanMap(path, inputs, outputs, float(overrun), audio)
+    return CanMap(path, inputs, outputs, float(overrun), audio, warnings)
+
+
+def map_for_ports(path: str | Path, db: Database, dbc_path: str | Path, inputs: Mapping[str, PortSpec],
+                  outputs: Mapping[str, PortSpec]) -> CanMap:
+    """:func:`load_map` against a graph's ports (``inputs``/``outputs``: name -> PortSpec): names, widths, and the DBC
+    unit of every pass-through binding against its port's unit (:func:`~flowtex.io.mapunits.check_binding_units`).
+    What ``flowtex live``, replay and ``flowtex validate GRAPH --map`` load, so they see the same errors and warnings."""
+    return load_map(path, db, dbc_path, {n: s.width for n, s in inputs.items()}, {n: s.width for n, s in outputs.items()},
+                    {n: s.unit for n, s in inputs.items()}, {n: s.unit for n, s in outputs.items()})
 
 
 def _one_message_per_id(p: Collector, db: Database, bindings: list[Binding]) -> None:

@@ -88,7 +88,7 @@ def check_time(time: np.ndarray, path: Path | str) -> None:
 UNIT_FACTORS = {("m/s", "mm/s"): 1e3, ("cm/s", "mm/s"): 10.0, ("m", "mm"): 1e3, ("cm", "mm"): 10.0, ("um", "mm"): 1e-3,
                 ("g", "m/s^2"): 9.80665, ("mm/s^2", "m/s^2"): 1e-3, ("mN", "N"): 1e-3, ("kN", "N"): 1e3}
 """(stated unit, unit taken) -> the factor that converts the first into the second, for the fix a refusal names."""
-_NO_UNIT = ("", "-", "*")
+NO_UNIT = ("", "-", "*")
 """Units that state nothing: a dimensionless signal or input, or a port that takes any unit."""
 
 
@@ -123,6 +123,20 @@ def is_unit_of(unit: str, base: str) -> bool:
     return stated == wanted or (stated, wanted) in UNIT_FACTORS
 
 
+def unit_factor(stated: str, wanted: str) -> float | None:
+    """The factor that converts a value in ``stated`` into ``wanted`` (both as :func:`plain_unit` writes them), read from
+    :data:`UNIT_FACTORS` in either direction or through a unit both convert into (``m/s`` -> ``cm/s`` via ``mm/s``);
+    None when the table knows none (or the units are equal)."""
+    if (stated, wanted) in UNIT_FACTORS:
+        return UNIT_FACTORS[(stated, wanted)]
+    if (wanted, stated) in UNIT_FACTORS:
+        return 1.0 / UNIT_FACTORS[(wanted, stated)]
+    for (a, base), f in UNIT_FACTORS.items():
+        if a == stated and (wanted, base) in UNIT_FACTORS:
+            return f / UNIT_FACTORS[(wanted, base)]
+    return None
+
+
 def check_stated_unit(units: Mapping[str, str], name: str, unit: str, path: Path | str, consumer: str) -> None:
     """Refuse signal ``name`` when the file states a unit (``units``, ``Recording.units``) other than ``unit``.
 
@@ -134,7 +148,7 @@ def check_stated_unit(units: Mapping[str, str], name: str, unit: str, path: Path
     raw = str(units.get(name, ""))
     stated = plain_unit(raw)
     want = plain_unit(unit)
-    if stated in _NO_UNIT or want in _NO_UNIT or stated == want:
+    if stated in NO_UNIT or want in NO_UNIT or stated == want:
         return
     factor = UNIT_FACTORS.get((stated, want))
     fix = (f"multiply it by {factor:g} and state its unit as {want}" if factor is not None

@@ -24,7 +24,7 @@ from numba import njit
 from ..cache import configure_numba_cache
 from ..errors import DataError
 from ..graph.program import TickProgram
-from ..io.canmap import CanMap, load_map
+from ..io.canmap import CanMap, map_for_ports
 from ..io.codec import MessageCodec
 from ..io.codec_tables import _NF, _NI, TableDecoder, TableEncoder, _encode_tables, fast_ok, pack_int64
 from ..io.dbc import load_dbc
@@ -375,9 +375,9 @@ def tick_out(arena, ib, fb, gip, wd_last, payload, tick, overrun_ns, overrun_lim
 
 
 def load_io(graph: TickProgram, dbc_path: str | Path, map_path: str | Path) -> CanIO:
-    """Load the DBC and map (checked against ``graph``) and build the :class:`CanIO`."""
+    """Load the DBC and map (checked against ``graph`` by :func:`map_for_ports`) and build the :class:`CanIO`."""
     db = load_dbc(dbc_path)
-    canmap = load_map(map_path, db, dbc_path, port_widths(graph.inputs), port_widths(graph.outputs))
+    canmap = map_for_ports(map_path, db, dbc_path, graph.inputs, graph.outputs)
     used = set(canmap.sensor_messages()) | set(canmap.actuator_messages())
     codecs = {m.name: MessageCodec(m) for m in db.messages if m.name in used}
     return CanIO(graph, canmap, codecs, float(graph.rate))

@@ -91,9 +91,10 @@ class LiveReport:
     safe_sent: bool = True
     """Every actuator message's safe frame went out at exit (False: the bus refused at least one, see ``error``)."""
     warnings: list[str] = field(default_factory=list)
-    """One line per output whose clamp the DBC's grid narrows noticeably (:func:`~flowtex.io.mapsafety.shrunk_bounds`;
-    also printed on the status stream before the session), then one per output clamped or peak-limited on more than
-    1 % of the ticks (:func:`~flowtex.runtime.status.clamp_warnings`)."""
+    """One line per output whose clamp the DBC's grid narrows noticeably (:func:`~flowtex.io.mapsafety.shrunk_bounds`),
+    one per pass-through binding whose DBC unit differs from its graph port's by no known factor
+    (:attr:`~flowtex.io.canmap.CanMap.warnings`), both also printed on the status stream before the session; then one
+    per output clamped or peak-limited on more than 1 % of the ticks (:func:`~flowtex.runtime.status.clamp_warnings`)."""
 
     @property
     def ok(self) -> bool:
@@ -117,8 +118,8 @@ def run_live(graph: TickProgram, config: LiveConfig) -> LiveReport:
     record, stats_path, record_audio = preflight_live(graph, config)
     dbc_path, map_path, bus = config.dbc_path, config.map_path, config.bus
     io = load_io(graph, dbc_path, map_path)
-    shrunk = shrunk_bounds(io.map.outputs.values())
-    if shrunk and config.status is not None:  # before the session: what the actuator will get differs from the map
+    shrunk = shrunk_bounds(io.map.outputs.values()) + io.map.warnings
+    if shrunk and config.status is not None:  # before the session: what the actuator gets may differ from what the map says
         for line in shrunk:
             print(f"flowtex live: warning: {line}", file=config.status)
     if io.map.audio is not None and record is not None:

@@ -22,8 +22,8 @@ inputs:
   position: {shape: [3], unit: mm}
   normal_force: {unit: N}
 nodes:
-  k: {type: gain, params: {k: 0.01}}
-  v: {type: gain, params: {k: 0.25}}
+  k: {type: gain, params: {k: 0.01, unit: N}}
+  v: {type: gain, params: {k: 0.25, unit: A}}
 edges:
   - position -> k.x
   - normal_force -> v.x

@@ -443,7 +443,7 @@ def test_record_audio_the_disk_refuses_is_one_line_naming_it(setup):
     assert sorted(p.name for p in setup.iterdir() if p.suffix == ".wav") == ["live.wav"]
 
 
-NAN_AUDIO_GRAPH = GRAPH.replace("  v: {type: gain, params: {k: 0.25}}",
+NAN_AUDIO_GRAPH = GRAPH.replace("  v: {type: gain, params: {k: 0.25, unit: A}}",
                                 "  big: {type: gain, params: {k: 1.0e308}}\n  neg: {type: gain, params: {k: -1.0e308}}\n"
                                 "  v: {type: add}").replace(
     "  - normal_force -> v.x", "  - normal_force -> big.x\n  - normal_force -> neg.x\n  - big.y -> v.a\n  - neg.y -> v.b")

@@ -31,8 +31,8 @@ inputs:
   normal_force: {unit: N}
 nodes:
   lp: {type: first_order_lowpass, params: {cutoff_hz: 50}}
-  k: {type: gain, params: {k: 0.01}}
-  v: {type: gain, params: {k: 0.25}}
+  k: {type: gain, params: {k: 0.01, unit: N}}
+  v: {type: gain, params: {k: 0.25, unit: A}}
 edges:
   - position -> lp.x
   - lp.y -> k.x

@@ -139,8 +139,8 @@ def test_a_bus_that_blocks_on_send_ends_the_session_in_one_line(setup):  # noqa:
 
 
 NAN_GRAPH = (textwrap.dedent(GRAPH)
-             .replace("  v: {type: gain, params: {k: 0.25}}",
-                      "  lpf: {type: first_order_lowpass, params: {cutoff_hz: 50}}\n  v: {type: gain, params: {k: 0.01}}")
+             .replace("  v: {type: gain, params: {k: 0.25, unit: A}}",
+                      "  lpf: {type: first_order_lowpass, params: {cutoff_hz: 50}}\n  v: {type: gain, params: {k: 0.01, unit: A}}")
              .replace("  - normal_force -> v.x", "  - normal_force -> lpf.x\n  - lpf.y -> v.x"))
 """test_live's graph with a low-pass (state) between normal_force and the vibration output."""
 

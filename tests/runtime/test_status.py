@@ -30,16 +30,16 @@ def test_format_values_scalars_vectors_units_and_non_finite():
 def test_resolve_shown_reads_the_live_port_views(setup):  # noqa: F811
     g = load_graph(setup / "g.yaml").with_block_rows(1)
     shown = resolve_shown(g, ["vibration", "force[2]", "position"])
-    assert [(label, unit) for label, _, unit in shown] == [("vibration", "N"), ("force[2]", "mm"), ("position", "mm")]  # gains keep units
+    assert [(label, unit) for label, _, unit in shown] == [("vibration", "A"), ("force[2]", "N"), ("position", "mm")]  # the gains state A and N
     g.input_view("position")[:] = [1.5, -2.0, 3.25]
     g.input_view("normal_force")[:] = 2.0
     g.step_block(1)
     # gain k=0.25 on the force; the 50 Hz lowpass's first output is its input times (1 - exp(-2 pi 50 / 1000)) (zero state)
     alpha = 1.0 - math.exp(-2 * math.pi * 50 / 1000)
     text = format_values(shown)
-    assert text.startswith("vibration 0.5 N | force[2] ")
-    assert text.endswith(" mm | position [1.5 -2 3.25] mm")
-    got = float(re.search(r"force\[2\] (\S+) mm", text).group(1))
+    assert text.startswith("vibration 0.5 A | force[2] ")
+    assert text.endswith(" N | position [1.5 -2 3.25] mm")
+    got = float(re.search(r"force\[2\] (\S+) N", text).group(1))
     assert got == pytest.approx(0.01 * 3.25 * alpha, rel=1e-3)  # printed with 4 significant digits
 
 
@@ -62,7 +62,7 @@ def test_live_session_shows_the_chosen_values_on_its_status_line(setup):  # noqa
     r = run_live(g, LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=600, status=out, show=args.show))
     assert r.error is None
     last = [line for line in out.getvalue().replace("\r", "\n").splitlines() if line.startswith("tick ")][-1]
-    vib = float(re.search(r"\| vibration (\S+) N \| force\[0\] \S+ mm$", last).group(1))
+    vib = float(re.search(r"\| vibration (\S+) A \| force\[0\] \S+ N$", last).group(1))
     # the last tick (599) got sample 599 of the recording: 0.25 * (3 + sin(10 pi t)); NormalForce is sent in 0.001 N
     # steps (0.25 * 0.0005 N of error) and printed with 4 significant digits (5e-5 here)
     assert vib == pytest.approx(0.25 * (3 + math.sin(10 * math.pi * 0.599)), abs=2e-4)
