@@ -249,3 +249,21 @@ def test_a_clamp_the_grid_narrows_is_named_when_the_session_starts(setup):  # no
     assert first.startswith("flowtex live: warning: vibration: clamp [-1, 1] guarded as [-0.6, 0.6]") and "too coarse" in first
     assert r.warnings[0] == first.removeprefix("flowtex live: warning: ")
     assert shrunk_bounds(load_map(DBC.parent / "example_scene_map.yaml", load_dbc(DBC), DBC).outputs.values()) == []
+
+
+def test_a_dbc_unit_no_factor_relates_to_the_graphs_is_named_when_the_session_starts(setup):  # noqa: F811
+    """The map's unit check (flowtex.io.mapunits): a pass-through binding whose DBC unit differs from its graph
+    port's by no known factor ("Amp" for the graph's "A") is a warning, not a refusal: the session runs and says so
+    before it starts (status stream) and among its report's warnings, naming the map's line and the binding."""
+    import io
+
+    line = ' SG_ Current : 0|16@1- (0.0001,0) [-2|2] "A" HapticDevice'
+    dbc = setup / "amp.dbc"
+    dbc.write_text(DBC.read_text().replace(line, line.replace('"A"', '"Amp"')))
+    status = io.StringIO()
+    r = run_live(load_graph(setup / "g.yaml"), LiveConfig(dbc, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=20,
+                                                          status=status))
+    assert r.error is None and r.ticks == 20
+    named = [w for w in r.warnings if "VoiceCoilCmd.Current in Amp" in w]
+    assert len(named) == 1 and named[0].startswith(f"{setup / 'm.yaml'}:") and "outputs.vibration" in named[0], r.warnings
+    assert f"flowtex live: warning: {named[0]}" in status.getvalue().splitlines()
