@@ -1,4 +1,4 @@
-"""A map binding with scale 1 and offset 0 passes values through unchanged, so its DBC signal's unit must be the graph port's.
+"""A map binding with scale 1 converts no unit, so its DBC signal's unit must be the graph port's.
 
 flowtex converts no unit (:func:`~flowtex.io.recording_rules.check_stated_unit` refuses a recording whose stated unit
 differs from what it feeds); a map binding is the same seam. A DBC speed signal in m/s bound with ``scale: 1`` to a
@@ -7,27 +7,38 @@ the force the graph meant (the map's clamp is in graph units, so it does not cat
 refuses such a binding when the two units are one quantity on two scales (a factor of
 :data:`~flowtex.io.recording_rules.UNIT_FACTORS`), naming the ``scale`` that converts, and warns when the units differ
 otherwise (DBC unit texts are free-form: ``Amp`` for ``A`` is likely fine, ``deg`` for ``rad`` is not). A binding
-with any other scale or offset is the user's conversion and is not checked.
+with any other scale is the user's conversion and is not checked (:func:`keeps_unit`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 from cantools.database.can import Database
 
 from ..errors import Location
 from .recording_rules import NO_UNIT, plain_unit, unit_factor
 
-__all__ = ["check_binding_units"]
+__all__ = ["check_binding_units", "keeps_unit"]
 
 _UNIT_CHARS = 40
 """A DBC unit text is shown up to this many characters."""
 
 
+def keeps_unit(binding: Any, component: int) -> bool:
+    """Whether a binding component carries its DBC signal's unit into the graph unchanged: its map ``scale`` is 1.
+
+    The scale is the map's unit conversion (DBC mm to graph m is ``scale: 0.001``); an ``offset`` moves the zero in
+    the same unit (a sensor's tare), so a component with scale 1 and any offset must have its DBC signal's unit on
+    the graph side. The device map's unit check and ``flowtex simulate-device``'s recording check both ask this.
+    """
+    return float(binding.scale[component]) == 1.0
+
+
 def check_binding_units(db: Database, inputs: Sequence, outputs: Sequence, input_units: Mapping[str, str],
                         output_units: Mapping[str, str], add: Callable[[Location, str], None]) -> list[str]:
-    """Compare each pass-through component (map ``scale`` 1, ``offset`` 0) of the input and output bindings (``Binding``
+    """Compare each component that keeps its unit (map ``scale`` 1, any ``offset``) of the input and output bindings (``Binding``
     of :mod:`flowtex.io.canmap`) with its graph port's unit (``input_units``/``output_units``: port name -> unit).
 
     Units one factor apart are reported through ``add(location, message)`` at the binding's line with the scale
@@ -39,7 +50,7 @@ def check_binding_units(db: Database, inputs: Sequence, outputs: Sequence, input
         for b in bindings:
             graph_unit = plain_unit(str(units.get(b.name, "")))
             for j, (m, s) in enumerate(b.signals):
-                if (float(b.scale[j]), float(b.offset[j])) != (1.0, 0.0):
+                if not keeps_unit(b, j):
                     continue
                 dbc_unit = plain_unit(str(db.get_message_by_name(m).get_signal_by_name(s).unit or ""))
                 if dbc_unit in NO_UNIT or graph_unit in NO_UNIT or dbc_unit == graph_unit:

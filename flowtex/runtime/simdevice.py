@@ -39,6 +39,7 @@ from ..errors import DataError, FlowtexError
 from ..io.canmap import CanMap, load_map
 from ..io.codec import MessageCodec
 from ..io.dbc import load_dbc
+from ..io.mapunits import keeps_unit
 from ..io.recording_rules import check_stated_unit
 from ..io.recordings import Recording, load_recording
 from .buses import open_bus, parse_bus_spec
@@ -91,11 +92,12 @@ def check_units(canmap: CanMap, codecs: Mapping[str, MessageCodec], units: Mappi
     ``flowtex simulate-device`` has no graph to take units from; the DBC states each signal's unit, and the device
     sends the recording's values as that signal's physical values (``physical = (graph - offset) / scale``): a speed
     stated in m/s played onto a signal in mm/s would arrive 1000x too slow, silently. A component whose map ``scale``
-    is not 1 is left alone: that scale may itself convert units (DBC mm to graph m), to a unit nobody states.
+    is not 1 is left alone (:func:`~flowtex.io.mapunits.keeps_unit`): that scale may itself convert units (DBC mm to
+    graph m), to a unit nobody states.
     """
     for b in canmap.inputs.values():
         for j, (m, sig) in enumerate(b.signals):
-            if float(b.scale[j]) == 1.0:
+            if keeps_unit(b, j):
                 unit = codecs[m].layouts[codecs[m].index[sig]].unit
                 check_stated_unit(units, b.name, unit, source, f"DBC signal {m}.{sig} (bound by map {canmap.path.name})")
 

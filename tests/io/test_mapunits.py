@@ -1,4 +1,4 @@
-"""A pass-through map binding (scale 1, offset 0) whose DBC unit differs from its graph port's unit.
+"""A map binding that converts no unit (scale 1, any offset) whose DBC unit differs from its graph port's unit.
 
 flowtex converts no unit: a DBC signal in kN bound to a graph output in N with scale 1 commands 1000x the force the
 graph meant. The map is refused naming the binding and the scale that converts; a pair of units no factor links warns.
@@ -71,6 +71,13 @@ def test_input_in_mm_per_s_bound_to_an_m_per_s_signal_is_refused_with_the_scale(
     msg = str(e.value)
     assert msg.startswith(f"{m}:3:3: inputs.speed binds ToolPosition.PosX in m/s"), msg
     assert "set scale: 1000 for inputs.speed (DBC m/s -> graph mm/s)" in msg, msg
+
+
+def test_an_offset_with_scale_1_converts_no_unit(tmp_path):
+    """An offset moves the zero in the same unit (a tare), so scale 1 with an offset still binds m/s to mm/s."""
+    dbc, m = _files(tmp_path, posx_unit="m/s", map_text=MAP.replace("timeout_ms: 5}", "timeout_ms: 5, offset: 0.2}"))
+    with pytest.raises(GraphError, match=r"set scale: 1000 for inputs\.speed \(DBC m/s -> graph mm/s\)"):
+        _load(dbc, m)
 
 
 def test_the_refusal_reaches_load_io_and_validate(tmp_path, capsys):
