@@ -150,7 +150,7 @@ def check_stated_unit(units: Mapping[str, str], name: str, unit: str, path: Path
     want = plain_unit(unit)
     if stated in NO_UNIT or want in NO_UNIT or stated == want:
         return
-    factor = UNIT_FACTORS.get((stated, want))
+    factor = unit_factor(stated, want)
     fix = (f"multiply it by {factor:g} and state its unit as {want}" if factor is not None
            else f"convert it to {want} and state that unit")
     raise DataError(f"{path}: signal {excerpt(name)} is in {excerpt(raw.strip())} (the file's units) but {consumer} takes "

@@ -22,3 +22,15 @@ def test_a_millisecond_stays_a_millisecond():
         check_stated_unit({"t": "msec"}, "t", "s", "rec.npz", "input 't'")
     with pytest.raises(DataError, match="multiply it by 1000 and state its unit as mm/s"):
         check_stated_unit({"speed": "m/sec"}, "speed", "mm/s", "rec.npz", "input 'speed'")
+
+
+@pytest.mark.parametrize("stated,wanted,factor", [
+    ("mm", "m", "0.001"),        # the table's pair read backwards (m -> mm is 1000)
+    ("N", "kN", "0.001"),
+    ("m/s", "cm/s", "100"),      # through a unit both convert into (mm/s)
+])
+def test_the_factor_is_named_in_both_directions(stated, wanted, factor):
+    """A refusal names the factor for any pair the unit table relates, as the device map's check does: a position in
+    mm fed to an input in m was told only "convert it to m"."""
+    with pytest.raises(DataError, match=rf"multiply it by {factor} and state its unit as {wanted}$"):
+        check_stated_unit({"x": stated}, "x", wanted, "rec.npz", "input 'x'")
