@@ -58,6 +58,8 @@ class AudioMap:
     Sensor-to-DAC latency grows by the same amount."""
     margin_max_ms: float = DEFAULT_AUDIO_MARGIN_MAX_MS
     """Largest margin, ms (>= ``margin_ms``): a resync raises the margin by the frames the tick was late, up to this."""
+    rate_at: str = ""
+    """Where the map sets ``rate`` (``map.yaml:20:9``), for a device that cannot play it; empty for a default map."""
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(scale, lo, hi) per channel as float64 arrays."""
@@ -93,7 +95,7 @@ def parse_audio(raw: Any, pos: Any, c: Collector, graph_outputs: dict[str, int] 
     if len(c) > before:
         return None
     return AudioMap(rate=float(rate), block=int(block), channels=tuple(channels), device=device, margin_ms=float(margin),
-                    margin_max_ms=float(most))
+                    margin_max_ms=float(most), rate_at=str(c.loc(raw.value_pos["rate"])))
 
 
 def _channels(raw: LocDict, c: Collector, graph_outputs: dict[str, int] | None) -> list[AudioChannel]:

@@ -85,6 +85,18 @@ def _sd() -> Any:
     return sounddevice
 
 
+def _rate_hint(sd: Any, amap: AudioMap) -> str:
+    """The device's own rate when the map asks another: a sound server (JACK, a USB card) runs at one rate and refuses
+    a stream at any other, so the fix is the map's ``audio.rate`` (the interpolator renders any p/q of the graph's rate)."""
+    try:
+        native = float(sd.query_devices(amap.device, "output")["default_samplerate"])
+    except Exception:  # noqa: BLE001 - no device to ask (absent, unplugged): the open error says enough
+        return ""
+    if not native > 0 or native == amap.rate:
+        return ""
+    return f"; the device runs at {native:g} Hz: set audio.rate: {native:g} ({amap.rate_at or 'the map'})"
+
+
 def list_audio_devices() -> str:
     """PortAudio's host APIs and devices, one per line (``flowtex live --list-audio``); ``>`` marks the default output."""
     sd = _sd()
@@ -189,7 +201,8 @@ class AudioOutput:
         except (sd.PortAudioError, ValueError) as exc:
             self.close()
             raise AudioDeviceError(f"audio device {self.device_name}: cannot open {len(a.channels)} channel(s) at {a.rate:g} Hz, "
-                                   f"block {a.block}: {' '.join(str(exc).split())} (flowtex live --list-audio lists the devices)") from None
+                                   f"block {a.block}: {' '.join(str(exc).split())}"
+                                   f"{_rate_hint(sd, a) or ' (flowtex live --list-audio lists the devices)'}") from None
         self._started_ns = time.perf_counter_ns()
         if not self.first_callback.wait(timeout_s):
             self.close()
