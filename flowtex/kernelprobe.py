@@ -11,7 +11,8 @@ went wrong can be named:
 * **unwritten outputs**: two one-pass runs whose output buffers start filled
   with two different sentinels; an element that keeps its sentinel was never
   written (the graph would read whatever the buffer held before);
-* **finite**: for inputs uniform in [-1, 1], every output value is finite;
+* **finite**: for inputs uniform in [-1, 1], every output value is finite and does not grow without bound
+  (:func:`diverging`: a recursion unstable at some parameter value that has not yet reached inf);
 * **inputs untouched**: a kernel must not write into its input arrays (another node's outputs);
 * each check runs at the default parameters and again with each numeric parameter at its declared minimum
   (:func:`parameter_sets`: a size of 0, a divisor of 0), where building must succeed or raise ``ParamError``;
@@ -104,21 +105,32 @@ def parameter_values(cls: type[Node]) -> dict[str, Any]:
 
 MAX_LOW_VARIANTS = 6
 """Parameters built at their declared minimum besides the defaults (:func:`parameter_sets`), at most."""
+MAX_HIGH_VARIANTS = 6
+"""Real-valued parameters built at their declared maximum besides the defaults and minimums, at most."""
 
 
 def parameter_sets(cls: type[Node]) -> list[tuple[str, dict[str, Any]]]:
     """``("", the defaults)``, then per numeric parameter whose declared minimum is allowed and differs from its default
     ``("name=min", the defaults with that one at its minimum)``: a size or a divisor of 0 is the commonest value a kernel
-    or a layout size was not written for (up to :data:`MAX_LOW_VARIANTS` of them)."""
+    or a layout size was not written for (up to :data:`MAX_LOW_VARIANTS` of them). Then per real-valued parameter
+    (``float``, ``floats``) ``("name=max", ...)`` at its declared maximum: a filter coefficient computed by a formula
+    that holds only for small cutoffs (forward Euler ``a = 2 pi fc / fs``) diverges there (up to
+    :data:`MAX_HIGH_VARIANTS`). Integer maximums are not tried: they size buffers and loops, not coefficients."""
     base = parameter_values(cls)
     sets = [("", base)]
-    for name, param in cls.params.items():
-        if param.kind not in ("int", "float", "floats") or param.min is None or param.min_exclusive:
-            continue
-        count = len(base[name]) if isinstance(base[name], tuple) else (param.length[0] if param.length else 1)
-        low = param.coerce([param.min] * max(count, 1) if param.kind == "floats" else param.min, Path.cwd())
-        if low != base[name] and len(sets) <= MAX_LOW_VARIANTS:
-            sets.append((f"{name}={param.min:g}", {**base, name: low}))
+    for bound in ("min", "max"):
+        most = MAX_LOW_VARIANTS if bound == "min" else MAX_HIGH_VARIANTS
+        added = 0
+        for name, param in cls.params.items():
+            value = getattr(param, bound)
+            kinds = ("int", "float", "floats") if bound == "min" else ("float", "floats")
+            if param.kind not in kinds or value is None or getattr(param, f"{bound}_exclusive"):
+                continue
+            count = len(base[name]) if isinstance(base[name], tuple) else (param.length[0] if param.length else 1)
+            at = param.coerce([value] * max(count, 1) if param.kind == "floats" else value, Path.cwd())
+            if at != base[name] and added < most:
+                sets.append((f"{name}={value:g}", {**base, name: at}))
+                added += 1
     return sets
 
 
@@ -143,7 +155,7 @@ def shape_cases(cls: type[Node]) -> list[dict[str, tuple[int, ...]]]:
 def build_probes(cls: type[Node]) -> tuple[list[Probe], list[tuple[int, str]]]:
     """Build ``cls`` at each of :func:`shape_cases` for each of :func:`parameter_sets`, and the problems of building it.
 
-    At the defaults, a failure raises (FlowtexError / the plugin's own exception). At a parameter's minimum, a
+    At the defaults, a failure raises (FlowtexError / the plugin's own exception). At a parameter's bound, a
     FlowtexError (the node refuses the value with a message: well done) skips that set, and any other exception is a
     problem: the graph would accept the value and then fail with the plugin's traceback.
     """
@@ -158,9 +170,9 @@ def build_probes(cls: type[Node]) -> tuple[list[Probe], list[tuple[int, str]]]:
         except Exception as exc:
             if not at:
                 raise
-            problems.append((error_line(exc, inspect.getsourcefile(cls) or ""), f"building the node with {at}, the minimum "
+            problems.append((error_line(exc, inspect.getsourcefile(cls) or ""), f"building the node with {at}, a bound "
                              f"its declaration allows, raised {type(exc).__name__}: {exc}; raise ParamError for a value the "
-                             "node cannot take, or declare a minimum it can"))
+                             "node cannot take, or declare a bound it can"))
     return probes, problems
 
 
@@ -269,7 +281,45 @@ def _problems_at(cls: type[Node], probe: Probe, rng: np.random.Generator, source
             tick = int(np.nonzero(bad.any(axis=1))[0][0])
             problems.append((0, f"output {name!r} is not finite from tick {tick} for inputs uniform in [-1, 1]{at} "
                                 f"(value {a[bad][0]!r})"))
+        elif (growth := diverging(a)) is not None:
+            problems.append((0, f"output {name!r} grows without bound for inputs uniform in [-1, 1]{at}: {growth}; "
+                                "a recursion whose pole left the unit circle (check the coefficient's formula at these "
+                                "parameters, or declare a bound where it holds)"))
     return problems
+
+
+GROWTH_WINDOWS = 3
+"""Windows of :data:`GROWTH_WINDOW` ticks at the end of a probe run in which :func:`diverging` looks for growth."""
+GROWTH_WINDOW = 100
+"""Ticks per window."""
+GROWTH_FACTOR = 10.0
+"""Growth of the largest magnitude from one window to the next that counts as divergence (a pole of radius r grows
+r**100 per window: 10x for r >= 1.024)."""
+STEADY_GROWTH = 0.8
+"""The later window's growth must be at least this fraction of the earlier's: exponential growth keeps its rate, while
+polynomial growth t**k slows from one window of the run's end to the next ((499/399)**k, then (599/499)**k: 0.96**k
+as fast, under this for every k whose growth reaches :data:`GROWTH_FACTOR`), as does the start-up of a stable
+high-order filter approaching its level."""
+
+
+def diverging(y: np.ndarray) -> str | None:
+    """How output ``y`` (ticks x width, finite) grows, when its largest magnitude grows exponentially over the last
+    :data:`GROWTH_WINDOWS` windows (by :data:`GROWTH_FACTOR` or more from each to the next, at a steady rate: an
+    unstable recursion that has not reached inf within the probe's run), else None."""
+    ends = range(y.shape[0] - GROWTH_WINDOWS * GROWTH_WINDOW, y.shape[0] + 1, GROWTH_WINDOW)
+    if ends[0] < 0:
+        return None
+    peaks = [float(np.max(np.abs(y[a:b]), initial=0.0)) for a, b in zip(ends[:-1], ends[1:], strict=False)]
+    if not peaks[0] > 0.0:
+        return None
+    growth = [later / earlier for earlier, later in zip(peaks, peaks[1:], strict=False)]
+    if all(g >= GROWTH_FACTOR for g in growth) and all(b >= STEADY_GROWTH * a for a, b in zip(growth, growth[1:], strict=False)):
+        return ", ".join(f"|max| {v:.3g} at ticks {a}-{a + GROWTH_WINDOW - 1}" for v, a in zip(peaks, ends, strict=False))
+    return None
+    peaks = [float(np.max(np.abs(y[a:b]), initial=0.0)) for a, b in zip(ends[:-1], ends[1:], strict=False)]
+    if peaks[0] > 0.0 and all(later >= GROWTH_FACTOR * earlier for earlier, later in zip(peaks, peaks[1:], strict=False)):
+        return ", ".join(f"|max| {v:.3g} at ticks {a}-{a + GROWTH_WINDOW - 1}" for v, a in zip(peaks, ends, strict=False))
+    return None
 
 
 ALLOCATORS = re.compile(r"call [^@\n]*@(NRT_MemInfo_alloc\w*|NRT_MemInfo_new\w*|NRT_Allocate\w*|NRT_MemInfo_varsize_alloc\w*)")

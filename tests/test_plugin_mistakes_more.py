@@ -5,7 +5,9 @@ the defaults), a kernel writing into its input, a resolve() missing a declared o
 a type named like a built-in one and a parameter named like a Node.processor keyword (both passed; the keyword, or an
 input named like a processor call's ``ticks``, is a note), uses_seed without
 seed_state (passed; the graph then failed with NotImplementedError), a negative fractional latency (printed as is) and
-own_every() returning 0 (an internal IndentationError in the generated code, ZeroDivisionError at run).
+own_every() returning 0 (an internal IndentationError in the generated code, ZeroDivisionError at run), and a smoother
+whose forward-Euler coefficient diverges at the largest cutoff its declaration allows (the probe built only at the
+defaults and minimums, and a finite output growing as 2.1**t passed).
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ def report(tmp_path_factory):
 def test_each_mistake_is_one_problem_at_its_line(report):
     code, lines, err, path = report
     assert code == 1
-    assert err.startswith("m.py: 7 problem(s) in node type(s) ")
+    assert err.startswith("m.py: 8 problem(s) in node type(s) ")
     problems = [line for line in lines if ": note: " not in line]
     want = {
         "in_place": f"m.py:{_line(path, 'def inplace_kernel')}: node 'in_place_pc': kernel writes into its input 'x'",
@@ -46,6 +48,8 @@ def test_each_mistake_is_one_problem_at_its_line(report):
                     "'probe' returned -2.5; return the delay from input to output as a whole number of ticks >= 0"),
         "every": (f"m.py:{_line(path, 'def own_every')}: node 'never_runs_pc': own_every() for graph node 'probe' returned "
                   "0; return None"),
+        "euler": (f"m.py:{_line(path, 'def euler_kernel')}: node 'euler_smoother_pc': output 'y' grows without bound for "
+                  "inputs uniform in [-1, 1] (built with x: scalar; cutoff_hz=500): |max| "),
     }
     zero = [line for line in problems if "node 'zero_taps_pc': kernel reads or writes outside its arrays (built with x: "
             "scalar; taps=0)" in line]

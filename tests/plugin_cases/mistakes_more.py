@@ -140,4 +140,30 @@ class NeverRuns(HalfLatency):
         return 0
 
 
+EULER = Memory(params=Layout("float", [Field("a", 1)]), state=Layout("float", [Field("y", 1)]))
+EULER_A = EULER.params.const("a")
+EULER_Y = EULER.state.const("y")
+
+
+@njit(cache=True)
+def euler_kernel(p, s, si, x, y):
+    for t in range(x.shape[0]):
+        s[EULER_Y] += p[EULER_A] * (x[t, 0] - s[EULER_Y])
+        y[t, 0] = s[EULER_Y]
+
+
+class EulerSmoother(Node):
+    """One-pole smoother with the forward-Euler coefficient a = 2 pi fc / fs: stable only while a < 2 (fc < fs / pi),
+    yet its declaration allows cutoffs up to the Nyquist frequency (at 500 Hz: a pole at 1 - pi, |y| ~ 2.1**t)."""
+    type_name = "euler_smoother_pc"
+    params = {"cutoff_hz": Param("float", default=10.0, unit="Hz", min=0.0, min_exclusive=True, max=500.0)}
+    inputs = {"x": Port((), "*")}
+    outputs = {"y": Port((), "=x")}
+    kernel = euler_kernel
+    memory = EULER
+
+    def build(self, inputs, outputs):
+        return self.pack_state({}, params={"a": 2.0 * np.pi * self.p["cutoff_hz"] / self.context.node_rate})
+
+
 _ = PortSpec  # resolve() of a correct node returns PortSpec values
