@@ -12,8 +12,11 @@ went wrong can be named:
   with two different sentinels; an element that keeps its sentinel was never
   written (the graph would read whatever the buffer held before);
 * **finite**: for inputs uniform in [-1, 1], every output value is finite and does not grow without bound
-  (:func:`diverging`: a recursion unstable at some parameter value that has not yet reached inf);
+  (:func:`flowtex.dsp.growth.diverging`: a recursion unstable at some parameter value that has not yet reached inf);
 * **inputs untouched**: a kernel must not write into its input arrays (another node's outputs);
+* **repeatable**: two one-pass runs from the same built state over the same inputs must agree (a kernel drawing
+  from numba's global ``np.random`` differs), and so must a third whose output buffers start with another sentinel
+  (a kernel reading its output before writing it, ``y[t - 1]`` at ``t = 0``, depends on the buffer's old contents);
 * each check runs at the default parameters and again with each numeric parameter at its declared minimum
   (:func:`parameter_sets`: a size of 0, a divisor of 0), where building must succeed or raise ``ParamError``;
 * **bounds**: this module is run in a child process with ``NUMBA_BOUNDSCHECK=1``
@@ -37,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from .dsp.growth import diverging
 from .errors import FlowtexError, ParamError
 from .node_api import REQUIRED, BuildContext, Node, Param, PortSpec
 from .node_params import load_files
@@ -251,6 +255,7 @@ def _problems_at(cls: type[Node], probe: Probe, rng: np.random.Generator, source
                                 "buffer, which other nodes read too: write only the outputs, s and si"))
             return problems
         other = run_blocks(cls, probe, inputs, [TICKS], SENTINELS[1])
+        again = run_blocks(cls, probe, inputs, [TICKS], SENTINELS[0])
         chunked = run_blocks(cls, probe, inputs, _split(), SENTINELS[0])
         ticked = run_blocks(cls, probe, inputs, [1] * TICKS, SENTINELS[0])
     except IndexError as exc:
@@ -260,26 +265,40 @@ def _problems_at(cls: type[Node], probe: Probe, rng: np.random.Generator, source
     except Exception as exc:
         problems.append((error_line(exc, source), f"kernel raised {type(exc).__name__}: {exc}{at}"))
         return problems
-    for name, a, b in zip(names, one, other, strict=True):
+    unrepeatable = set()
+    for name, a, b, c in zip(names, one, other, again, strict=True):
         stuck = np.isnan(a) & (b == SENTINELS[1])  # kept the sentinel of each run: never written
         if stuck.any():
             cols = sorted({int(c) for c in np.nonzero(stuck)[1]})
             problems.append((0, f"output {name!r}: element(s) {cols} of {a.shape[1]} per tick never written{at}; write "
                                 "every element of every row (the graph reads whatever the buffer held before)"))
+        random = ~_same(a, c)  # one fill, one state, one input
+        reads = ~stuck & ~_same(a, b)  # two fills: written values that depend on what the buffer held
+        if random.any():
+            unrepeatable.add(name)
+            problems.append((0, f"output {name!r}: two runs from the same built state over the same inputs differ from "
+                                f"tick {_first(random)}{at}; the kernel draws numbers kept outside s and si (numba's "
+                                "np.random, a global), so no run can be repeated or a session replayed: set uses_seed = "
+                                "True and draw from seed_state()'s generator in si (flowtex.dsp.rng)"))
+        elif reads.any():
+            unrepeatable.add(name)
+            problems.append((0, f"output {name!r} depends on what its buffer held before the call, from tick "
+                                f"{_first(reads)}{at}; the kernel reads {name!r} before writing it (y[t - 1] at t = 0 "
+                                "reads the block's last row, left from another call or another node): keep values from "
+                                "earlier ticks in s"))
     for k, name in enumerate(names):  # one line per output: the chunked run, else the tick-by-tick one
+        if name in unrepeatable:
+            continue
         for label, runs in (("chunked (blocks of " + ", ".join(map(str, BLOCKS)) + ", ...)", chunked), ("tick-by-tick", ticked)):
-            a, b = one[k], runs[k]
-            differ = ~((a == b) | (np.isnan(a) & np.isnan(b)))
+            differ = ~_same(one[k], runs[k])
             if differ.any():
-                tick = int(np.nonzero(differ.any(axis=1))[0][0])
-                problems.append((0, f"output {name!r}: {label} and one-pass runs differ from tick {tick}{at}; keep every "
+                problems.append((0, f"output {name!r}: {label} and one-pass runs differ from tick {_first(differ)}{at}; keep every "
                                     "value that lives from one call to the next in s or si (live runs call the kernel tick by tick)"))
                 break
     for name, a in zip(names, other, strict=True):  # filled with a finite sentinel: only written values can be non-finite
         bad = ~np.isfinite(a)
         if bad.any():
-            tick = int(np.nonzero(bad.any(axis=1))[0][0])
-            problems.append((0, f"output {name!r} is not finite from tick {tick} for inputs uniform in [-1, 1]{at} "
+            problems.append((0, f"output {name!r} is not finite from tick {_first(bad)} for inputs uniform in [-1, 1]{at} "
                                 f"(value {a[bad][0]!r})"))
         elif (growth := diverging(a)) is not None:
             problems.append((0, f"output {name!r} grows without bound for inputs uniform in [-1, 1]{at}: {growth}; "
@@ -288,38 +307,14 @@ def _problems_at(cls: type[Node], probe: Probe, rng: np.random.Generator, source
     return problems
 
 
-GROWTH_WINDOWS = 3
-"""Windows of :data:`GROWTH_WINDOW` ticks at the end of a probe run in which :func:`diverging` looks for growth."""
-GROWTH_WINDOW = 100
-"""Ticks per window."""
-GROWTH_FACTOR = 10.0
-"""Growth of the largest magnitude from one window to the next that counts as divergence (a pole of radius r grows
-r**100 per window: 10x for r >= 1.024)."""
-STEADY_GROWTH = 0.8
-"""The later window's growth must be at least this fraction of the earlier's: exponential growth keeps its rate, while
-polynomial growth t**k slows from one window of the run's end to the next ((499/399)**k, then (599/499)**k: 0.96**k
-as fast, under this for every k whose growth reaches :data:`GROWTH_FACTOR`), as does the start-up of a stable
-high-order filter approaching its level."""
+def _same(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Elementwise: equal values, or NaN in both."""
+    return (a == b) | (np.isnan(a) & np.isnan(b))
 
 
-def diverging(y: np.ndarray) -> str | None:
-    """How output ``y`` (ticks x width, finite) grows, when its largest magnitude grows exponentially over the last
-    :data:`GROWTH_WINDOWS` windows (by :data:`GROWTH_FACTOR` or more from each to the next, at a steady rate: an
-    unstable recursion that has not reached inf within the probe's run), else None."""
-    ends = range(y.shape[0] - GROWTH_WINDOWS * GROWTH_WINDOW, y.shape[0] + 1, GROWTH_WINDOW)
-    if ends[0] < 0:
-        return None
-    peaks = [float(np.max(np.abs(y[a:b]), initial=0.0)) for a, b in zip(ends[:-1], ends[1:], strict=False)]
-    if not peaks[0] > 0.0:
-        return None
-    growth = [later / earlier for earlier, later in zip(peaks, peaks[1:], strict=False)]
-    if all(g >= GROWTH_FACTOR for g in growth) and all(b >= STEADY_GROWTH * a for a, b in zip(growth, growth[1:], strict=False)):
-        return ", ".join(f"|max| {v:.3g} at ticks {a}-{a + GROWTH_WINDOW - 1}" for v, a in zip(peaks, ends, strict=False))
-    return None
-    peaks = [float(np.max(np.abs(y[a:b]), initial=0.0)) for a, b in zip(ends[:-1], ends[1:], strict=False)]
-    if peaks[0] > 0.0 and all(later >= GROWTH_FACTOR * earlier for earlier, later in zip(peaks, peaks[1:], strict=False)):
-        return ", ".join(f"|max| {v:.3g} at ticks {a}-{a + GROWTH_WINDOW - 1}" for v, a in zip(peaks, ends, strict=False))
-    return None
+def _first(mask: np.ndarray) -> int:
+    """The first tick (row) where ``mask`` holds."""
+    return int(np.nonzero(mask.any(axis=1))[0][0])
 
 
 ALLOCATORS = re.compile(r"call [^@\n]*@(NRT_MemInfo_alloc\w*|NRT_MemInfo_new\w*|NRT_Allocate\w*|NRT_MemInfo_varsize_alloc\w*)")

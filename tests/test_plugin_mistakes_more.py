@@ -7,7 +7,8 @@ input named like a processor call's ``ticks``, is a note), uses_seed without
 seed_state (passed; the graph then failed with NotImplementedError), a negative fractional latency (printed as is) and
 own_every() returning 0 (an internal IndentationError in the generated code, ZeroDivisionError at run), and a smoother
 whose forward-Euler coefficient diverges at the largest cutoff its declaration allows (the probe built only at the
-defaults and minimums, and a finite output growing as 2.1**t passed).
+defaults and minimums, and a finite output growing as 2.1**t passed), a kernel drawing from numba's global np.random
+(reported as lost state: "keep every value ... in s") and one reading its output's last row back at t = 0 (passed).
 """
 
 from __future__ import annotations
@@ -34,7 +35,7 @@ def report(tmp_path_factory):
 def test_each_mistake_is_one_problem_at_its_line(report):
     code, lines, err, path = report
     assert code == 1
-    assert err.startswith("m.py: 8 problem(s) in node type(s) ")
+    assert err.startswith("m.py: 10 problem(s) in node type(s) ")
     problems = [line for line in lines if ": note: " not in line]
     want = {
         "in_place": f"m.py:{_line(path, 'def inplace_kernel')}: node 'in_place_pc': kernel writes into its input 'x'",
@@ -50,6 +51,11 @@ def test_each_mistake_is_one_problem_at_its_line(report):
                   "0; return None"),
         "euler": (f"m.py:{_line(path, 'def euler_kernel')}: node 'euler_smoother_pc': output 'y' grows without bound for "
                   "inputs uniform in [-1, 1] (built with x: scalar; cutoff_hz=500): |max| "),
+        "jitter": (f"m.py:{_line(path, 'def jitter_kernel')}: node 'jitter_pc': output 'y': two runs from the same built "
+                   "state over the same inputs differ from tick 0 (built with x: scalar); the kernel draws numbers kept "
+                   "outside s and si (numba's np.random, a global)"),
+        "previous": (f"m.py:{_line(path, 'def previous_kernel')}: node 'reads_output_pc': output 'y' depends on what its "
+                     "buffer held before the call, from tick 0 (built with x: scalar); the kernel reads 'y' before writing it"),
     }
     zero = [line for line in problems if "node 'zero_taps_pc': kernel reads or writes outside its arrays (built with x: "
             "scalar; taps=0)" in line]

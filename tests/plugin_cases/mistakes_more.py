@@ -166,4 +166,38 @@ class EulerSmoother(Node):
         return self.pack_state({}, params={"a": 2.0 * np.pi * self.p["cutoff_hz"] / self.context.node_rate})
 
 
+@njit(cache=True)
+def jitter_kernel(p, s, si, x, y):
+    for t in range(x.shape[0]):
+        y[t, 0] = x[t, 0] + 0.01 * np.random.randn()
+
+
+class Jitter(Node):
+    """Adds noise from numba's global np.random: no run repeats, no session replays."""
+    type_name = "jitter_pc"
+    inputs = {"x": Port((), "*")}
+    outputs = {"y": Port((), "=x")}
+    kernel = jitter_kernel
+
+    def build(self, inputs, outputs):
+        return NodeState()
+
+
+@njit(cache=True)
+def previous_kernel(p, s, si, x, y):
+    for t in range(x.shape[0]):
+        y[t, 0] = 0.5 * (y[t - 1, 0] + x[t, 0])
+
+
+class ReadsItsOutput(Node):
+    """Averages with its last output read back from y: at t = 0 that is the block's last row, not the last output."""
+    type_name = "reads_output_pc"
+    inputs = {"x": Port((), "*")}
+    outputs = {"y": Port((), "=x")}
+    kernel = previous_kernel
+
+    def build(self, inputs, outputs):
+        return NodeState()
+
+
 _ = PortSpec  # resolve() of a correct node returns PortSpec values

@@ -1,4 +1,4 @@
-"""``plugin check``'s divergence test (flowtex.kernelprobe.diverging): exponential growth is named, stable outputs are not.
+"""``plugin check``'s divergence test (flowtex.dsp.growth.diverging): exponential growth is named, stable outputs are not.
 
 The references are independent of the probe: scipy.signal's Butterworth designs (stable, their start-up rising fast for
 high orders and low cutoffs), polynomials t**k and random walks (growing, but not exponentially), and first-order
@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from flowtex.kernelprobe import TICKS, diverging
+from flowtex.dsp.growth import diverging
+from flowtex.kernelprobe import TICKS
 
 NOISE = np.random.default_rng(7).uniform(-1.0, 1.0, (TICKS, 1))  # what the probe feeds a kernel
 
