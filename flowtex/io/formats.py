@@ -31,6 +31,11 @@ FRICTION = "friction estimate"
 COMPLIANCE = "compliance estimate"
 DBC = "DBC"
 
+TEXT_ENCODING = "utf-8-sig"
+"""How flowtex reads its text files (CSV recordings and grid indexes, JSON documents, DBC files): UTF-8, with a
+leading byte-order mark skipped. Windows editors and Excel's "CSV UTF-8" write one; read as plain UTF-8 it became
+part of the first column's name (a signal ``\ufeffspeed`` that no graph input matches) or made a JSON file invalid."""
+
 
 @dataclass(frozen=True)
 class Format:
@@ -183,7 +188,7 @@ def _read_text(path: Path) -> str:
 
     try:
         check_file_size(path, "flowtex file")
-        return path.read_text(encoding="utf-8")
+        return path.read_text(encoding=TEXT_ENCODING)
     except FileNotFoundError:
         raise DataError(f"{path}: file not found") from None
     except IsADirectoryError:

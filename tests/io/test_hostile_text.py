@@ -1,0 +1,96 @@
+"""Text files that read as something else: a byte-order mark, a key or element given twice, model numbers that are not
+whole, a model that cannot render. Each was read silently wrong (or was an internal error) and is now read as meant
+or refused in one line naming the file and what to fix. Every file is built here, small."""
+
+from __future__ import annotations
+
+import json
+import zipfile
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from flowtex.datasets.model_sets import synthetic_model_set
+from flowtex.errors import DataError
+from flowtex.io.dbc import load_dbc
+from flowtex.io.modelset import load_model_set, save_model_set
+from flowtex.io.recordings import load_recording
+from tests.conftest import REPO
+
+BOM = "\ufeff"
+SET = synthetic_model_set(np.array([50.0, 150.0]), np.array([1.0, 3.0]), ar_order=4, ma_order=3)
+"""A small set (9 models with its silent corners), orders 4/3."""
+
+
+def one_line(call, match: str) -> str:
+    """Run ``call``: one DataError line containing ``match``."""
+    with pytest.raises(DataError) as err:
+        call()
+    text = str(err.value)
+    assert "\n" not in text and match in text, text
+    return text
+
+
+@pytest.mark.parametrize("text, rate", [
+    ("speed,normal_force\r\n1,2\r\n1,2\r\n1,2\r\n", None),
+    ("# rate: 1000\nspeed,normal_force\n1,2\n1,2\n1,2\n", 1000.0),
+])
+def test_a_csv_with_a_byte_order_mark_names_its_first_signal_as_written(tmp_path, text, rate):
+    path = tmp_path / "excel.csv"
+    path.write_bytes((BOM + text).encode("utf-8"))  # Excel's "CSV UTF-8"
+    rec = load_recording(path)
+    assert sorted(rec.arrays) == ["normal_force", "speed"] and rec.rate == rate
+
+
+def test_json_and_dbc_files_with_a_byte_order_mark_read_as_without(tmp_path):
+    plain = save_model_set(SET, tmp_path / "plain.json")
+    marked = tmp_path / "marked.json"
+    marked.write_bytes(BOM.encode() + plain.read_bytes())
+    assert load_model_set(marked).speeds.tolist() == load_model_set(plain).speeds.tolist()
+    dbc = tmp_path / "marked.dbc"
+    dbc.write_bytes(BOM.encode() + (REPO / "graphs" / "devices" / "example.dbc").read_bytes())
+    assert len(load_dbc(dbc).messages) == len(load_dbc(REPO / "graphs" / "devices" / "example.dbc").messages)
+
+
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(key=st.sampled_from(["sample_rate", "mu", "max_speed", "material", "ar_order", "triangles", "models"]),
+       nested=st.booleans())
+def test_a_json_key_given_twice_is_refused_naming_it(tmp_path, key, nested):
+    """Python's reader kept the last of two equal keys: a second "sample_rate" silently changed the set's rate."""
+    doc = json.loads(save_model_set(SET, tmp_path / "s.json").read_text())
+    if nested:  # a key of one model: its speed given twice
+        key = "speed"
+        text = json.dumps(doc).replace('"speed": ', '"speed": 1.0, "speed": ', 1)
+    else:
+        text = "{" + json.dumps(key) + ": " + json.dumps(doc[key]) + ", " + json.dumps(doc)[1:]
+    path = tmp_path / "twice.json"
+    path.write_text(text)
+    one_line(lambda: load_model_set(path), f"{path}: key '{key}' is given twice in one object; keep one")
+
+
+def test_a_json_version_true_is_not_version_1(tmp_path):
+    doc = json.loads(save_model_set(SET, tmp_path / "s.json").read_text())
+    doc["version"] = True
+    path = tmp_path / "v.json"
+    path.write_text(json.dumps(doc))
+    one_line(lambda: load_model_set(path), "format version True is not supported")
+
+
+def test_a_recording_that_states_its_rate_or_units_twice_is_refused(tmp_path):
+    csv = tmp_path / "r.csv"
+    csv.write_text("# rate: 1000\n# rate: 500\nspeed\n1\n2\n3\n")
+    one_line(lambda: load_recording(csv), f"{csv}:2: a second '# rate:' line (the first is line 1)")
+    npz = tmp_path / "r.npz"
+    with zipfile.ZipFile(npz, "w") as z:
+        for name, arr in {"speed": np.arange(3.0), "units": np.array('{"speed": "mm/s", "speed": "m/s"}')}.items():
+            with z.open(name + ".npy", "w") as fh:
+                np.lib.format.write_array(fh, arr)
+    one_line(lambda: load_recording(npz), "'units': key 'speed' is given twice")
+
+
+def test_a_csv_header_problem_names_the_header_line_after_comments(tmp_path):
+    path = tmp_path / "r.csv"
+    path.write_text("# rate: 1000\n# units: {}\nx,x\n1,2\n1,2\n")
+    one_line(lambda: load_recording(path), f"{path}:3: column 'x' appears twice")
