@@ -5,6 +5,7 @@ or refused in one line naming the file and what to fix. Every file is built here
 from __future__ import annotations
 
 import json
+import re
 import zipfile
 
 import numpy as np
@@ -12,9 +13,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from flowtex.cli import main
 from flowtex.datasets.model_sets import synthetic_model_set
 from flowtex.errors import DataError
 from flowtex.io.dbc import load_dbc
+from flowtex.io.hatt import read_hatt_xml, write_hatt_xml
 from flowtex.io.modelset import load_model_set, save_model_set
 from flowtex.io.recordings import load_recording
 from tests.conftest import REPO
@@ -94,3 +97,49 @@ def test_a_csv_header_problem_names_the_header_line_after_comments(tmp_path):
     path = tmp_path / "r.csv"
     path.write_text("# rate: 1000\n# units: {}\nx,x\n1,2\n1,2\n")
     one_line(lambda: load_recording(path), f"{path}:3: column 'x' appears twice")
+
+
+@pytest.fixture
+def hatt(tmp_path):
+    """The text of SET written as a HaTT file, and a function writing a changed text to a file."""
+    text = write_hatt_xml(SET, tmp_path / "Models_Small.xml").read_text()
+
+    def write(new: str):
+        assert new != text
+        path = tmp_path / "Models_Changed.xml"
+        path.write_text(new)
+        return path
+    return text, write
+
+
+@pytest.mark.parametrize("change, match", [
+    (lambda t: t.replace("<SampleRate>", "<SampleRate>500</SampleRate><SampleRate>", 1), "<modelSet>: <SampleRate> appears twice"),
+    (lambda t: t.replace("<mu>", "<mu>5</mu><mu>", 1), "<modelSet>: <mu> appears twice"),
+    (lambda t: re.sub(r"(<forceList[^>]*>.*?</forceList>)", r"\1\1", t, count=1, flags=re.S), "<modelSet>: <forceList> appears twice"),
+    (lambda t: t.replace("<var>", "<var>1e6</var><var>", 1), "<model> element 1: <var> appears twice"),
+])
+def test_a_hatt_element_given_twice_is_refused_not_the_last_one_read(hatt, change, match):
+    text, write = hatt
+    path = write(change(text))
+    one_line(lambda: read_hatt_xml(path), f"{path}: {match}; a HaTT file has one")
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "1.7", "-inf", "1e300"])
+def test_a_model_number_that_is_not_whole_is_refused_in_one_line(hatt, value, capsys):
+    """``<modNum>inf</modNum>`` was an internal error; ``1.7`` was read as model 1."""
+    text, write = hatt
+    path = write(text.replace("<modNum>1</modNum>", f"<modNum>{value}</modNum>", 1))
+    one_line(lambda: read_hatt_xml(path), f"<modNum> (numbered 1..{SET.num_models} by <numMod>) is '{value}'; expected a whole number")
+    counts = write(text.replace(f"<numMod>{SET.num_models}</numMod>", f"<numMod>{value}</numMod>", 1))
+    one_line(lambda: read_hatt_xml(counts), f"<numMod> is '{value}'; expected a whole number from 0 to")
+    corner = write(re.sub(r"(<tri[^>]*>\s*<value>)[^<]*", rf"\g<1>{value}", text, count=1))
+    assert main(["validate", str(corner)]) == 1
+    assert capsys.readouterr().err.strip().endswith(f"<tri> 1 names model {float(value):g}, but models are numbered "
+                                                    f"1..{SET.num_models} (1-based)")
+
+
+def test_a_model_whose_speed_disagrees_with_the_speed_list_is_refused(hatt):
+    text, write = hatt
+    first = re.search(r"<speedMod>([^<]*)</speedMod>", text)
+    path = write(text[:first.start(1)] + "12345.0" + text[first.end(1):])
+    one_line(lambda: read_hatt_xml(path), "<model> modNum 1: <speedMod> is '12345.0' but entry 1 of <speedList> is")
