@@ -226,6 +226,14 @@ class TextureModelSet:
                 fail(f"{model_name(int(bad[0, 0]))}: {n[key]} value {int(bad[0, 1]) + 1} is not a finite number")
             setattr(self, key, arr)
 
+        from ..dsp.interp import UnusableModel, model_output_powers
+
+        try:  # what texture_lookup computes from every model when it builds; validate and load say it first
+            model_output_powers(self.ar_lsf, self.ma_lsf, vec["variance"], vec["gain"])
+        except UnusableModel as exc:
+            fail(f"{model_name(exc.model)}: its LSFs give no stable filter in float64 (neighbouring LSFs, or one and 0 or "
+                 "pi, nearly coincide: a pole on the unit circle), so it cannot render; refit the model or remove it")
+
         tri = np.asarray(self.triangles)
         if tri.ndim != 2 or tri.shape[1] != 3 or tri.shape[0] < 1:
             fail(f"{n['triangles']}: expected at least one triangle of 3 model numbers, got shape {tri.shape}")

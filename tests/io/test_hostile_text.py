@@ -17,7 +17,7 @@ from flowtex.cli import main
 from flowtex.datasets.model_sets import synthetic_model_set
 from flowtex.errors import DataError
 from flowtex.io.dbc import load_dbc
-from flowtex.io.hatt import read_hatt_xml, write_hatt_xml
+from flowtex.io.hatt import HATT_NAMES, read_hatt_xml, write_hatt_xml
 from flowtex.io.modelset import load_model_set, save_model_set
 from flowtex.io.recordings import load_recording
 from tests.conftest import REPO
@@ -143,3 +143,30 @@ def test_a_model_whose_speed_disagrees_with_the_speed_list_is_refused(hatt):
     first = re.search(r"<speedMod>([^<]*)</speedMod>", text)
     path = write(text[:first.start(1)] + "12345.0" + text[first.end(1):])
     one_line(lambda: read_hatt_xml(path), "<model> modNum 1: <speedMod> is '12345.0' but entry 1 of <speedList> is")
+
+
+def near_pole_lsf(order: int) -> list[float]:
+    """Increasing LSFs in pairs 1e-15 rad apart: valid on paper, a pole on the unit circle in float64."""
+    return [0.3 + 0.4 * (k // 2) + (1e-15 if k % 2 else 0.0) for k in range(order)]
+
+
+def test_a_model_that_cannot_render_is_refused_when_read_naming_it(tmp_path, capsys):
+    """``validate`` said ok to a set whose graph then refused to build, naming the model 0-based in a 1-based file."""
+    m = int(np.flatnonzero(SET.variance > 0)[1])
+    doc = json.loads(save_model_set(SET, tmp_path / "s.json").read_text())
+    doc["models"][m]["ar_lsf"] = near_pole_lsf(SET.ar_order)
+    doc["models"][m].pop("ar_coeff", None)
+    for model in doc["models"]:
+        model.pop("ar_coeff", None)
+        model.pop("ma_coeff", None)
+    path = tmp_path / "poles.json"
+    path.write_text(json.dumps(doc))
+    assert main(["validate", str(path)]) == 1
+    assert capsys.readouterr().err.strip() == (
+        f"{path}: models[{m}]: its LSFs give no stable filter in float64 (neighbouring LSFs, or one and 0 or pi, nearly "
+        "coincide: a pole on the unit circle), so it cannot render; refit the model or remove it")
+    xml = write_hatt_xml(load_model_set(tmp_path / "s.json"), tmp_path / "Models_S.xml")
+    ms = read_hatt_xml(xml)
+    ms.ar_lsf[m] = near_pole_lsf(SET.ar_order)
+    ms.ar_coeff = None
+    one_line(lambda: ms.validate(HATT_NAMES), f"<model> modNum {m + 1}: its LSFs give no stable filter")
