@@ -143,3 +143,20 @@ def test_a_vibration_in_g_gets_its_spectrogram_and_a_force_in_mn_its_panel():
         assert any(ax.get_xlabel() == "|speed| (mm/s)" and ax.get_ylabel() == "|friction| (mN)" for ax in fig.axes)
     finally:
         plt.close(fig)
+
+
+def test_values_beyond_what_a_plot_can_draw_are_left_out_and_named(tmp_path, capsys):
+    """A signal reaching 1.7e308 was an internal error (matplotlib's tick arithmetic overflowed); a vibration of 1e200
+    drew a blank spectrogram (its PSD overflowed) without a word. Now both are drawn without those values, and said."""
+    pytest.importorskip("matplotlib")
+    n = 400
+    big = np.where(np.arange(n) % 2, 1.7e308, -1.7e308)
+    np.savez(tmp_path / "out.npz", x=big * (np.arange(n) >= 100), vibration=np.full(n, 1e200) * (np.arange(n) >= 300),
+             rate=np.array(1000.0))
+    assert main(["plot", str(tmp_path / "out.npz"), "-o", str(tmp_path / "p.png")]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err[:2] == [f"warning: {tmp_path / 'out.npz'}: signal 'x': 300 sample(s) beyond +-1e+150 (or infinite) are not drawn, "
+                   "the first at 0.1 s (sample 100)",
+                   f"warning: {tmp_path / 'out.npz'}: signal 'vibration': 100 sample(s) beyond +-1e+150 (or infinite) are not "
+                   "drawn, the first at 0.3 s (sample 300)"]
+    assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
