@@ -114,7 +114,7 @@ def signals_figure(signals: dict[str, np.ndarray], units: dict[str, str], rate: 
     import matplotlib.pyplot as plt
 
     from .dsp.spectral import spectrogram_psd
-    from .io.figures import FONT_PT
+    from .io.figures import FONT_PT, figure_text
     from .io.recording_rules import is_speed_unit, is_unit_of
 
     signals, lines = drawable(signals, rate)
@@ -145,7 +145,7 @@ def signals_figure(signals: dict[str, np.ndarray], units: dict[str, str], rate: 
             ax.plot(t, x2[:, c], lw=0.6, label="xyz"[c] if x2.shape[1] == 3 else None)
         if x2.shape[1] == 3:  # beside the panel, never over its data
             ax.legend(loc="upper left", bbox_to_anchor=(1.002, 1.0), fontsize=FONT_PT, borderaxespad=0.0, handlelength=1.2)
-        ax.set_ylabel(f"{name}\n[{units[name] or '-'}]", fontsize=FONT_PT)
+        ax.set_ylabel(figure_text(f"{name}\n[{units[name] or '-'}]"), fontsize=FONT_PT)
         ax.grid(alpha=0.3)
         k += 1
     for name in vib:
@@ -155,17 +155,17 @@ def signals_figure(signals: dict[str, np.ndarray], units: dict[str, str], rate: 
         top = float(db.max()) if S.max() > 0 else 0.0
         mesh = ax.pcolormesh(tt, f, db, shading="auto", cmap="magma", vmin=top - 60.0, vmax=top)  # 60 dB range; silence is black
         cbar = fig.colorbar(mesh, cax=fig.add_subplot(grid[k, 1]))
-        cbar.set_label(f"dB re 1 ({units[name]})^2/Hz", fontsize=FONT_PT)
+        cbar.set_label(figure_text(f"dB re 1 ({units[name]})^2/Hz"), fontsize=FONT_PT)
         shown = f"|{name}|" if signals[name].ndim > 1 and signals[name].reshape(signals[name].shape[0], -1).shape[1] > 1 else name
-        ax.set_ylabel(f"{shown}\nfrequency (Hz)", fontsize=FONT_PT)
+        ax.set_ylabel(figure_text(f"{shown}\nfrequency (Hz)"), fontsize=FONT_PT)
         k += 1
     time_axes[0].set_xlim(0.0, duration)
     if speed and force:
         ax = fig.add_subplot(grid[k, 0])
         ax.plot(_magnitude(signals[speed]), _magnitude(signals[force]), ".", ms=1.5, alpha=0.5)
-        ax.set_xlabel(f"|{speed}| ({units[speed]})", fontsize=FONT_PT)
-        ax.set_ylabel(f"|{force}| ({units[force]})", fontsize=FONT_PT)
+        ax.set_xlabel(figure_text(f"|{speed}| ({units[speed]})"), fontsize=FONT_PT)
+        ax.set_ylabel(figure_text(f"|{force}| ({units[force]})"), fontsize=FONT_PT)
         ax.grid(alpha=0.3)
     if title:
-        fig.suptitle(title, fontsize=FONT_PT + 2)
+        fig.suptitle(figure_text(title), fontsize=FONT_PT + 2)
     return fig

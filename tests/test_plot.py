@@ -160,3 +160,13 @@ def test_values_beyond_what_a_plot_can_draw_are_left_out_and_named(tmp_path, cap
                    f"warning: {tmp_path / 'out.npz'}: signal 'vibration': 100 sample(s) beyond +-1e+150 (or infinite) are not "
                    "drawn, the first at 0.3 s (sample 300)"]
     assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_file_name_or_unit_that_is_not_utf8_is_drawn_escaped(tmp_path, capsys):
+    """A file name with bytes that are not UTF-8 (Python holds them as lone surrogates) or a JSON unit "\\udcff" was an
+    internal error: matplotlib's font code refused the title or label."""
+    pytest.importorskip("matplotlib")
+    name = tmp_path / "bad\udcffname.npz"  # the name b"bad\xffname.npz" as os.fsdecode gives it
+    np.savez(name, x=np.zeros(200), rate=np.array(1000.0), units=np.array(json.dumps({"x": "m\udcff"})))
+    assert main(["plot", str(name), "-o", str(tmp_path / "p.png")]) == 0, capsys.readouterr().err
+    assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
