@@ -27,6 +27,7 @@ this shape for tests and examples.
 from __future__ import annotations
 
 import math
+import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -55,6 +56,11 @@ HATT_NAMES = {
     "model": "<model> modNum",
 }
 """Element names used in validation messages for HaTT files."""
+
+_XML_CHAR = re.compile("[\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+"""A character XML 1.0 can hold. A material named with a control character (a file name's, or a JSON set's
+``"\\u0001"``) made a file no XML reader reads back, flowtex's included; a lone surrogate (a file name's bytes that are
+not UTF-8) made the write an internal error."""
 
 MAX_COUNT = 10**9
 """Largest count (``numMod``, ``numTri``, an order) read; a file within flowtex.limits.MAX_TEXT_BYTES holds far fewer."""
@@ -323,7 +329,8 @@ def write_hatt_xml(ms: TextureModelSet, path: str | Path, texture: int = 0, digi
         inner = "".join(f"{indent}  <value>{fmt(v)}</value>\n" for v in values)
         return f'{indent}<{tag} type="array">\n{inner}{indent}</{tag}>\n'
 
-    def esc(text: str) -> str:
+    def esc(text: str) -> str:  # markup escaped; what XML 1.0 cannot hold at all written as its Python escape
+        text = "".join(ch if _XML_CHAR.match(ch) else ch.encode("unicode_escape").decode("ascii") for ch in text)
         return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
 
     out = ['<?xml version="1.0" encoding="utf-8"?>\n', f'<modelSet texture="{int(texture)}">\n']
