@@ -22,7 +22,7 @@ from __future__ import annotations
 import csv
 import json
 import re
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -280,6 +280,25 @@ def _load_h5(path: Path) -> Recording:
     return Recording(arrays, rate, units=units)
 
 
+NPZ_ENTRIES = ("rate", UNITS_KEY)
+"""Names a .npz recording keeps for its rate and its units, so no signal may have them there."""
+
+
+def check_writable(path: str | Path, names: Iterable[str]) -> None:
+    """Refuse signal ``names`` that a recording at ``path`` cannot hold (a .npz file's own entries, :data:`NPZ_ENTRIES`).
+
+    Called by :func:`save_recording` and, for ``flowtex run``, with the graph's output names before the run: an output
+    named ``rate`` was an internal error once the run was done."""
+    fmt = format_of(Path(path))
+    if fmt is None or fmt.name != "npz":
+        return
+    for name in names:
+        if name in NPZ_ENTRIES:
+            raise DataError(f"{path}: a signal named {name!r} cannot be written to a .npz recording, whose {name!r} entry "
+                            "holds the recording's own " + ("rate" if name == "rate" else "units") +
+                            "; rename it (a graph output: under outputs:) or write a .csv or .h5 file")
+
+
 def save_recording(path: str | Path, arrays: Mapping[str, np.ndarray], rate: float | None = None,
                    units: Mapping[str, str] | None = None) -> None:
     """Write signals (time first) in the format named by the file's suffix, with their ``units`` if given.
@@ -299,8 +318,14 @@ def save_recording(path: str | Path, arrays: Mapping[str, np.ndarray], rate: flo
         return
     if name is None:
         raise DataError(f"{path}: unknown output format {path.suffix.lower()!r}; use {_USE}")
-    path.parent.mkdir(parents=True, exist_ok=True)
+    check_writable(path, arrays)
     arrays = {name: np.asarray(a, dtype=np.float64) for name, a in arrays.items()}
+    try:  # what load_recording would refuse is not written: a graph output 'time' that does not increase, say
+        check_signals(arrays, path)
+    except DataError as exc:
+        raise DataError(f"{path}: not written, since flowtex would not read it back: {str(exc).removeprefix(f'{path}: ')}"
+                        " (a graph output: rename it under outputs:)") from None
+    path.parent.mkdir(parents=True, exist_ok=True)
     units = {name: str(units[name]) for name in arrays if name in units} if units else {}
     with atomic_output(path) as tmp:
         if name == "npz":
