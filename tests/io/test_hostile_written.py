@@ -1,7 +1,7 @@
 """Recordings flowtex writes are recordings flowtex reads: a graph output named like a .npz file's own entry (``rate``,
 ``units``) was an internal error after the run or lost the file's units, and one named ``time`` that does not increase
 was written into a file every verb then refused. Each is refused in one line, nothing is written, and ``run`` says it
-before the run."""
+before the run. Also: a resampling ratio that cannot be joined names the rates as given."""
 
 from __future__ import annotations
 
@@ -58,3 +58,9 @@ def test_a_time_signal_that_would_be_refused_when_read_is_not_written(tmp_path, 
     assert not out.exists()
     save_recording(out, {"rate": np.zeros(10)} if suffix == ".csv" else {"y": np.zeros(10)}, rate=1000.0)  # what a format holds
     assert load_recording(out).arrays.keys() == ({"rate"} if suffix == ".csv" else {"y"})
+
+
+def test_rates_that_resample_cannot_join_are_named_as_given(tmp_path, rec, capsys):
+    """--rate 999.9999 from 1000 Hz said 'cannot resample 1000 Hz -> 1000 Hz' (both rounded to 6 digits)."""
+    assert main(["resample", str(rec), "--rate", "999.9999", "-o", str(tmp_path / "o.npz")]) == 1
+    assert "cannot resample 1000 Hz -> 999.9999 Hz: the ratio is not p/q" in capsys.readouterr().err
