@@ -194,6 +194,11 @@ class TextureModelSet:
             if bad.size:
                 fail(f"{model_name(int(bad[0]))}: {n[key]} is {float(arr[bad[0]])!r}; it must be a finite number")
             setattr(self, key, arr)
+        for key, unit in (("speeds", "mm/s"), ("forces", "N")):  # magnitudes: the lookup never asks below 0, yet a
+            below = np.flatnonzero(vec[key] < 0)  # model there was blended into every query near 0, silently
+            if below.size:
+                fail(f"{model_name(int(below[0]))}: {n[key]} is {float(vec[key][below[0]])!r} {unit}; a model's "
+                     "speed and force are magnitudes (>= 0): fix the file")
         neg = np.flatnonzero(vec["variance"] < 0)
         if neg.size:
             fail(f"{model_name(int(neg[0]))}: {n['variance']} is {float(vec['variance'][neg[0]])!r}; a variance must be >= 0")

@@ -190,3 +190,15 @@ def test_a_text_output_naming_a_file_whose_name_is_not_utf8_is_written(tmp_path)
     """Reports name their recordings; a name with bytes that are not UTF-8 failed the write after the work was done."""
     path = write_text_atomic(tmp_path / "report.md", "# surface along bad\udcffname.npz\n")
     assert path.read_bytes() == b"# surface along bad\\udcffname.npz\n"
+
+
+@pytest.mark.parametrize("key, unit", [("speed", "mm/s"), ("force", "N")])
+def test_a_model_below_zero_speed_or_force_is_refused(tmp_path, key, unit):
+    """A model at -10 mm/s loaded, and every query near 0 blended it in (the lookup clamps queries to >= 0)."""
+    doc = json.loads(save_model_set(SET, tmp_path / "s.json").read_text())
+    doc["models"][0][key] = -10.0
+    doc["triangles"] = None  # triangulated anew: the model is a vertex of the hull
+    path = tmp_path / "below.json"
+    path.write_text(json.dumps(doc))
+    one_line(lambda: load_model_set(path), f"{path}: models[0]: models[].{key} is -10.0 {unit}; a model's speed and force "
+                                           "are magnitudes (>= 0)")
