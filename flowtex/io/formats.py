@@ -193,7 +193,8 @@ def _read_text(path: Path) -> str:
         raise DataError(f"{path}: file not found") from None
     except IsADirectoryError:
         raise DataError(f"{path}: is a folder; give a file") from None
-    except UnicodeDecodeError:
-        raise DataError(f"{path}: not a text file (and not a recording: {', '.join(suffixes(RECORDING))})") from None
+    except UnicodeDecodeError as exc:  # binary data, or text in another encoding (Latin-1, UTF-16)
+        raise DataError(f"{path}: not UTF-8 text (byte {exc.start}); flowtex's text files are UTF-8: save it as UTF-8, "
+                        f"or give a recording ({', '.join(suffixes(RECORDING))})") from None
     except OSError as exc:
         raise DataError(f"{path}: cannot read ({exc.strerror or exc})") from None

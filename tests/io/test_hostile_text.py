@@ -202,3 +202,14 @@ def test_a_model_below_zero_speed_or_force_is_refused(tmp_path, key, unit):
     path.write_text(json.dumps(doc))
     one_line(lambda: load_model_set(path), f"{path}: models[0]: models[].{key} is -10.0 {unit}; a model's speed and force "
                                            "are magnitudes (>= 0)")
+
+
+def test_a_text_file_in_another_encoding_is_named_as_such_with_the_fix(tmp_path, capsys):
+    """A HaTT file saved as Latin-1 was 'not a text file'."""
+    path = tmp_path / "Models_Latin.xml"
+    text = write_hatt_xml(dataclasses.replace(SET, material="Pl\u00e4stic"), tmp_path / "Models_Utf8.xml").read_text()
+    path.write_bytes(text.encode("latin-1"))
+    assert main(["validate", str(path)]) == 1
+    at = text.encode("latin-1").index(b"\xe4")
+    assert capsys.readouterr().err.strip() == (f"{path}: not UTF-8 text (byte {at}); flowtex's text files are UTF-8: save it as "
+                                               "UTF-8, or give a recording (.npz, .csv, .h5, .hdf5)")
