@@ -1,7 +1,8 @@
 """Recordings flowtex writes are recordings flowtex reads: a graph output named like a .npz file's own entry (``rate``,
 ``units``) was an internal error after the run or lost the file's units, and one named ``time`` that does not increase
 was written into a file every verb then refused. Each is refused in one line, nothing is written, and ``run`` says it
-before the run. Also: a resampling ratio that cannot be joined names the rates as given."""
+before the run. Also: a resampling ratio that cannot be joined names the rates as given, and a graph's free-text name
+is escaped in the DOT source ``flowtex graph --dot`` writes."""
 
 from __future__ import annotations
 
@@ -64,3 +65,12 @@ def test_rates_that_resample_cannot_join_are_named_as_given(tmp_path, rec, capsy
     """--rate 999.9999 from 1000 Hz said 'cannot resample 1000 Hz -> 1000 Hz' (both rounded to 6 digits)."""
     assert main(["resample", str(rec), "--rate", "999.9999", "-o", str(tmp_path / "o.npz")]) == 1
     assert "cannot resample 1000 Hz -> 999.9999 Hz: the ratio is not p/q" in capsys.readouterr().err
+
+
+def test_a_graph_name_cannot_write_dot_of_its_own(tmp_path, capsys):
+    """flowtex graph --dot wrote the free-text graph name between quotes as it was: a quote in it ended the string."""
+    graph = tmp_path / "g.yaml"
+    graph.write_text(GRAPH.format(name="y").replace("name: named", 'name: "x\\" ]; a [label=\\"1\\nnext\\\\"'))
+    assert main(["graph", str(graph), "--dot"]) == 0
+    dot = capsys.readouterr().out
+    assert dot.splitlines()[0] == 'digraph "x\\" ]; a [label=\\"1\\nnext\\\\" {'
