@@ -143,3 +143,30 @@ def test_a_vibration_in_g_gets_its_spectrogram_and_a_force_in_mn_its_panel():
         assert any(ax.get_xlabel() == "|speed| (mm/s)" and ax.get_ylabel() == "|friction| (mN)" for ax in fig.axes)
     finally:
         plt.close(fig)
+
+
+def test_values_beyond_what_a_plot_can_draw_are_left_out_and_named(tmp_path, capsys):
+    """A signal reaching 1.7e308 was an internal error (matplotlib's tick arithmetic overflowed); a vibration of 1e200
+    drew a blank spectrogram (its PSD overflowed) without a word. Now both are drawn without those values, and said."""
+    pytest.importorskip("matplotlib")
+    n = 400
+    big = np.where(np.arange(n) % 2, 1.7e308, -1.7e308)
+    np.savez(tmp_path / "out.npz", x=big * (np.arange(n) >= 100), vibration=np.full(n, 1e200) * (np.arange(n) >= 300),
+             rate=np.array(1000.0))
+    assert main(["plot", str(tmp_path / "out.npz"), "-o", str(tmp_path / "p.png")]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err[:2] == [f"warning: {tmp_path / 'out.npz'}: signal 'x': 300 sample(s) beyond +-1e+150 (or infinite) are not drawn, "
+                   "the first at 0.1 s (sample 100)",
+                   f"warning: {tmp_path / 'out.npz'}: signal 'vibration': 100 sample(s) beyond +-1e+150 (or infinite) are not "
+                   "drawn, the first at 0.3 s (sample 300)"]
+    assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_file_name_or_unit_that_is_not_utf8_is_drawn_escaped(tmp_path, capsys):
+    """A file name with bytes that are not UTF-8 (Python holds them as lone surrogates) or a JSON unit "\\udcff" was an
+    internal error: matplotlib's font code refused the title or label."""
+    pytest.importorskip("matplotlib")
+    name = tmp_path / "bad\udcffname.npz"  # the name b"bad\xffname.npz" as os.fsdecode gives it
+    np.savez(name, x=np.zeros(200), rate=np.array(1000.0), units=np.array(json.dumps({"x": "m\udcff"})))
+    assert main(["plot", str(name), "-o", str(tmp_path / "p.png")]) == 0, capsys.readouterr().err
+    assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -23,6 +23,6 @@ def cmd_plot(args: argparse.Namespace) -> int:
 
     out = Path(args.output) if args.output else Path(args.file).with_suffix(".png")
     check_output(out, inputs=[args.file], option="-o", suffixes=(".png",))
-    n = plot_recording(args.file, args.signals, out)
+    n = plot_recording(args.file, args.signals, out, warn=lambda line: note(f"warning: {args.file}: {line}"))
     note(f"{args.file}: {n} signals -> {out}")
     return 0

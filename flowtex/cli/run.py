@@ -48,9 +48,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     read: dict[str, Any] = {}
 
     def read_recording(resolved: Any) -> None:  # once the graph is checked, before its compile
+        from ..io.recordings import check_writable
         from ..runtime.offline import load_recording_for
 
         read["recording"] = load_recording_for(resolved, args.input)
+        if args.output:  # its outputs' names, before the run: the file's own entries are no signal names
+            check_writable(args.output, resolved.spec.outputs)
 
     def check_replay_files(_resolved: Any) -> None:  # the same, for a replay: the log and the device files it needs
         from ..filecheck import DEVICE_MAP, check_file

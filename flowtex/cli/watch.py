@@ -41,7 +41,8 @@ def _png_writer(path: Path) -> Callable[[dict, Any, int], None]:
     def plot(outputs: dict, graph: Any, run: int) -> None:
         units = {name: spec.unit for name, spec in graph.outputs.items()}
         with atomic_output(path) as tmp:
-            plot_signals(outputs, units, graph.rate, Path(tmp), title=f"{graph.name}: run {run}")
+            plot_signals(outputs, units, graph.rate, Path(tmp), title=f"{graph.name}: run {run}",
+                         warn=lambda line: _say_now(f"  --plot {path}: {line}"))
 
     return plot
 

@@ -44,12 +44,18 @@ def zero_phase_highpass(x: np.ndarray, rate_hz: float, cutoff_hz: float, order: 
     backward (scipy ``sosfiltfilt``: zero phase, twice the order's attenuation); ``x`` as float when ``cutoff_hz`` <= 0.
 
     The preprocessing HaTT applies before fitting (10 Hz, 4th order) and the one comparisons apply to both signals.
+    A signal not longer than scipy's default edge padding (15 samples at order 4) is padded by what it has: scipy
+    refused it (an internal error of ``fit texture``, ``fit taps`` and ``compare`` on a recording of 2 to 15 samples,
+    which each then refuse as too short, with their own reason); a longer one is filtered exactly as before.
     """
     if cutoff_hz <= 0:
         return np.asarray(x, float)
     from scipy.signal import sosfiltfilt
 
-    return sosfiltfilt(butterworth_sos("highpass", order, [cutoff_hz], rate_hz), x)
+    sos = butterworth_sos("highpass", order, [cutoff_hz], rate_hz)
+    n = np.shape(x)[-1]
+    padlen = 3 * (2 * sos.shape[0] + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum())))  # scipy's default
+    return sosfiltfilt(sos, x) if n > padlen else sosfiltfilt(sos, x, padlen=max(n - 1, 0))
 
 
 def resampling_fir(up: int, down: int, atten_db: float, passband: float = 0.8) -> np.ndarray:

@@ -216,12 +216,20 @@ def table_sizes(tab: np.ndarray) -> dict[str, int]:
     return {"p": int(tab[T_P]), "q": int(tab[T_Q]), "nmod": int(tab[T_NMOD]), "ntri": int(tab[T_OFF_MOD] - tab[T_OFF_TRI])}
 
 
+class UnusableModel(ValueError):
+    """A model whose LSFs give no stable filter in float64 (raised by :func:`model_output_powers`); ``model`` is its index."""
+
+    def __init__(self, model: int) -> None:
+        super().__init__(f"model {model}: its LSFs give no stable filter, so it has no output power")
+        self.model = model
+
+
 def model_output_powers(ar_lsf: np.ndarray, ma_lsf: np.ndarray, variance: np.ndarray, gain: np.ndarray) -> np.ndarray:
     """(M,) output power g^2 var ||C/A||^2 of each model, (m/s^2)^2, from its LSFs as the lookup renders them.
 
     Exact (the normalized lattice's sum of squared ladder weights,
     :func:`filter_power`); 0 for a silent model (variance 0). A model whose
-    LSFs give no usable filter raises ValueError.
+    LSFs give no usable filter raises :class:`UnusableModel` (a ValueError).
     """
     ar_lsf = np.ascontiguousarray(ar_lsf, dtype=np.float64)
     ma_lsf = np.ascontiguousarray(ma_lsf, dtype=np.float64)
@@ -238,7 +246,7 @@ def model_output_powers(ar_lsf: np.ndarray, ma_lsf: np.ndarray, variance: np.nda
         lsf_to_poly(ma_lsf[m], ma)
         unit = filter_power(ar, ma, float(gain[m]), work)
         if not unit >= 0.0:
-            raise ValueError(f"model {m}: its LSFs give no stable filter, so it has no output power")
+            raise UnusableModel(m)
         out[m] = variance[m] * unit
     return out
 

@@ -39,7 +39,7 @@ def rational_ratio(rate_in: float, rate_out: float) -> tuple[int, int]:
     ratio = Fraction(float(rate_out)) / Fraction(float(rate_in))
     frac = ratio.limit_denominator(MAX_FACTOR)
     if frac.numerator > MAX_FACTOR or frac.numerator == 0 or abs(float(frac) / float(ratio) - 1.0) > 1e-9:
-        raise ValueError(f"cannot resample {rate_in:g} Hz -> {rate_out:g} Hz: the ratio is not p/q with p, q <= {MAX_FACTOR}")
+        raise ValueError(f"cannot resample {rate_in:.15g} Hz -> {rate_out:.15g} Hz: the ratio is not p/q with p, q <= {MAX_FACTOR}")
     return frac.numerator, frac.denominator
 
 

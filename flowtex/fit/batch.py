@@ -38,8 +38,26 @@ def expand_inputs(items: Sequence[str]) -> list[Path]:
             found = [path]
         if not found:
             raise DataError(f"{item}: no recordings ({', '.join(SUFFIXES)}) found")
-        out += [p for p in found if p not in out]
+        seen = {q.resolve() for q in out}  # one file named twice (a.npz, sub/../a.npz, a glob that overlaps) is fitted once
+        for p in found:
+            if p.resolve() not in seen:
+                out.append(p)
+                seen.add(p.resolve())
     return out
+
+
+def check_distinct_outputs(paths: Sequence[Path], out_dir: Path) -> None:
+    """Refuse recordings whose surfaces would be written to one file of ``out_dir`` (``OUT/<stem>.json``).
+
+    ``a/rec.npz`` and ``b/rec.npz`` (or ``rec.npz`` and ``rec.csv``) both went to ``OUT/rec.json``: the second fit
+    replaced the first, and the summary still counted two surfaces.
+    """
+    first: dict[str, Path] = {}
+    for p in paths:
+        other = first.setdefault(p.stem, p)
+        if other is not p:
+            raise DataError(f"--out-dir {out_dir}: {other} and {p} would both be written to {out_dir / (p.stem + '.json')}; "
+                            "rename one, or fit them into separate --out-dir folders")
 
 
 def fit_one(path: str, job, out_dir: str, xml: bool, report: bool) -> tuple[str, str]:
@@ -75,6 +93,7 @@ def fit_many(paths: Sequence[Path], job, out_dir: Path, workers: int | None, sch
     """Fit every recording (serially, on a local cluster or on ``scheduler``); returns the exit code (1 if any failed)."""
     from tqdm import tqdm
 
+    check_distinct_outputs(paths, out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     show = sys.stderr.isatty()
     results: dict[str, str] = {}

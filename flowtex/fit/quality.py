@@ -78,11 +78,14 @@ def path_lsd_db(original: TextureModelSet, other: TextureModelSet, speeds: np.nd
     """LSD (dB, 15 Hz to 0.9 x the lower Nyquist) between two sets' expected spectra along a (speed, force) path.
 
     At each point the model texture_lookup builds (:func:`models_at`), its PSD at its set's rate; the PSDs
-    averaged over the path are what a long render along it shows, without the noise of a render.
+    averaged over the path are what a long render along it shows, without the noise of a render. 0 when both are
+    silent all along it.
     """
     f = common_band(original, other, nfreq)
-
-    return lsd_db(np.mean(psds_at(other, speeds, forces, f), axis=0), np.mean(psds_at(original, speeds, forces, f), axis=0), f)
+    got, want = np.mean(psds_at(other, speeds, forces, f), axis=0), np.mean(psds_at(original, speeds, forces, f), axis=0)
+    if not np.any(got) and not np.any(want):  # both silent along the path (a silent set, or one saturating in its silent
+        return 0.0  # corners): nothing differs, where the logs of two zeros gave an infinite distance
+    return lsd_db(got, want, f)
 
 
 def lissajous_path(ms: TextureModelSet, points: int = 300, cycles: tuple[float, float] = (7.3, 11.1),

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError
+from ..io.formats import TEXT_ENCODING
 from ..limits import check_file_size
 from ..models.texture import TextureModelSet
 from .inputs import atomic_output, check_highpass, check_not_constant, check_speed_magnitude, load, signal, signals_listed
@@ -93,7 +94,7 @@ def fit_grid_index(index: Path, job: TextureJob) -> TextureFit:
     """Fit a grid: ``index`` is a CSV with columns file, speed (mm/s), force (N); files relative to it."""
     check_file_size(index, "grid index")
     try:
-        with index.open(newline="", encoding="utf-8") as fh:
+        with index.open(newline="", encoding=TEXT_ENCODING) as fh:
             reader = csv.DictReader(fh)
             rows = [(reader.line_num, row) for row in reader]
     except OSError as exc:

@@ -43,10 +43,16 @@ def describe_graph(graph: Graph) -> str:
     return "\n".join(lines)
 
 
+def dot_string(text: str) -> str:
+    """``text`` inside a DOT double-quoted string: backslashes, quotes and line breaks escaped. A graph name is free
+    text; written as it was, ``name: 'x" ]; a [label="1'`` ended the string and wrote DOT of its own."""
+    return text.replace("\\", "\\\\").replace('"', '\\"').replace("\r", "\\r").replace("\n", "\\n")
+
+
 def graph_dot(graph: Graph) -> str:
     """Graphviz source of the graph (dropped nodes dashed)."""
     rg = graph.resolved
-    lines = [f'digraph "{graph.name}" {{', "  rankdir=LR;", '  node [shape=box, fontname="Helvetica"];']
+    lines = [f'digraph "{dot_string(graph.name)}" {{', "  rankdir=LR;", '  node [shape=box, fontname="Helvetica"];']
     for name in rg.input_specs:
         lines.append(f'  "in:{name}" [label="{name}", shape=ellipse];')
     for name, ns in graph.spec.nodes.items():

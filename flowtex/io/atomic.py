@@ -219,8 +219,12 @@ def refused_write(path: str | Path, exc: OSError) -> OutputError:
 
 
 def write_text_atomic(path: str | Path, text: str, *, keep_mode: bool = False) -> Path:
-    """Write ``text`` (UTF-8) to ``path`` through :func:`atomic_output`."""
-    return write_bytes_atomic(path, text.encode("utf-8"), keep_mode=keep_mode)
+    """Write ``text`` (UTF-8) to ``path`` through :func:`atomic_output`.
+
+    A lone surrogate, which is what Python makes of a file name's bytes that are not UTF-8 (a report naming
+    ``bad\\xffname.npz``), is written as its escape ``\\udcff``: UTF-8 cannot hold it, and the write was an internal
+    error after the work was done."""
+    return write_bytes_atomic(path, text.encode("utf-8", "backslashreplace"), keep_mode=keep_mode)
 
 
 def write_json_atomic(path: str | Path, doc: dict[str, Any], *, keep_mode: bool = False) -> Path:

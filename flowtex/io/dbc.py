@@ -18,6 +18,7 @@ from cantools.database.can import Database, Message, Signal
 
 from ..errors import DataError
 from ..limits import MAX_DBC_BYTES, check_file_size
+from .formats import TEXT_ENCODING
 
 
 def load_dbc(path: str | Path) -> Database:
@@ -31,7 +32,7 @@ def load_dbc(path: str | Path) -> Database:
     if not path.is_file():
         raise DataError(f"{path}: DBC file not found")
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
+        text = path.read_text(encoding=TEXT_ENCODING, errors="replace")
     except OSError as exc:
         raise DataError(f"{path}: cannot read DBC file: {exc.strerror or exc}") from None
     check_id_numbers(text, path)

@@ -31,6 +31,13 @@ def agg_pyplot(missing: str | None) -> Any:
     return plt
 
 
+def figure_text(text: str) -> str:
+    """``text`` from a file (its name, a signal's name or unit) as a figure can draw it: a lone surrogate, which is what
+    Python makes of a file name's bytes that are not UTF-8 (``bad\\xffname.npz``) or of a JSON ``"\\udcff"``, is shown
+    as its escape (``\\udcff``); matplotlib's font code refused the string, an internal error."""
+    return text.encode("utf-8", "backslashreplace").decode("utf-8")
+
+
 FONT_PT = 9
 """Smallest font size (points) of flowtex's figures: readable when a figure is printed at its own size."""
 

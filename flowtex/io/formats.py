@@ -31,6 +31,11 @@ FRICTION = "friction estimate"
 COMPLIANCE = "compliance estimate"
 DBC = "DBC"
 
+TEXT_ENCODING = "utf-8-sig"
+"""How flowtex reads its text files (CSV recordings and grid indexes, JSON documents, DBC files): UTF-8, with a
+leading byte-order mark skipped. Windows editors and Excel's "CSV UTF-8" write one; read as plain UTF-8 it became
+part of the first column's name (a signal ``\ufeffspeed`` that no graph input matches) or made a JSON file invalid."""
+
 
 @dataclass(frozen=True)
 class Format:
@@ -183,12 +188,13 @@ def _read_text(path: Path) -> str:
 
     try:
         check_file_size(path, "flowtex file")
-        return path.read_text(encoding="utf-8")
+        return path.read_text(encoding=TEXT_ENCODING)
     except FileNotFoundError:
         raise DataError(f"{path}: file not found") from None
     except IsADirectoryError:
         raise DataError(f"{path}: is a folder; give a file") from None
-    except UnicodeDecodeError:
-        raise DataError(f"{path}: not a text file (and not a recording: {', '.join(suffixes(RECORDING))})") from None
+    except UnicodeDecodeError as exc:  # binary data, or text in another encoding (Latin-1, UTF-16)
+        raise DataError(f"{path}: not UTF-8 text (byte {exc.start}); flowtex's text files are UTF-8: save it as UTF-8, "
+                        f"or give a recording ({', '.join(suffixes(RECORDING))})") from None
     except OSError as exc:
         raise DataError(f"{path}: cannot read ({exc.strerror or exc})") from None

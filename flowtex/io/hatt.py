@@ -27,6 +27,7 @@ this shape for tests and examples.
 from __future__ import annotations
 
 import math
+import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -56,6 +57,14 @@ HATT_NAMES = {
 }
 """Element names used in validation messages for HaTT files."""
 
+_XML_CHAR = re.compile("[\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+"""A character XML 1.0 can hold. A material named with a control character (a file name's, or a JSON set's
+``"\\u0001"``) made a file no XML reader reads back, flowtex's included; a lone surrogate (a file name's bytes that are
+not UTF-8) made the write an internal error."""
+
+MAX_COUNT = 10**9
+"""Largest count (``numMod``, ``numTri``, an order) read; a file within flowtex.limits.MAX_TEXT_BYTES holds far fewer."""
+
 _REQUIRED_SCALARS = ("material", "SampleRate", "numMod", "numTri", "maxSpeed", "maxForce", "numARCoeff", "numMACoeff")
 _MODEL_ARRAYS = ("ARcoeff", "ARlsf", "MAcoeff", "MAlsf")
 _MODEL_SCALARS = ("var", "gain")
@@ -72,6 +81,36 @@ def _values(elem: ET.Element, where: str) -> list[float]:
     except (TypeError, ValueError):
         bad = next((t for t in items if not _is_number(t)), None)
         raise DataError(f"{where}: {bad!r} is not a number") from None
+
+
+def _whole(text: str | None, where: str, low: int, high: int) -> int:
+    """The whole number ``low..high`` that ``text`` states (``40``, ``40.0``), or DataError naming ``where``.
+
+    One rule for the counts and model numbers of the file (numMod, numTri, the orders, modNum): ``1.7`` is not model 1,
+    and ``nan`` or ``inf`` is no count at all.
+    """
+    stripped = (text or "").strip()
+    try:
+        value = float(stripped)
+    except ValueError:
+        raise DataError(f"{where} is {excerpt(stripped)}, not a number") from None
+    if not (math.isfinite(value) and value == int(value) and low <= value <= high):
+        raise DataError(f"{where} is {excerpt(stripped)}; expected a whole number from {low} to {high}")
+    return int(value)
+
+
+def _children(elem: ET.Element, repeated: tuple[str, ...], where: str) -> dict[str, ET.Element]:
+    """``elem``'s children by tag, refusing a tag other than ``repeated`` that appears twice.
+
+    With two ``<SampleRate>`` (or two ``<var>`` in one ``<model>``) the last one used to win without a word; no
+    published file repeats an element, so a second one is a damaged or hand-edited file.
+    """
+    out: dict[str, ET.Element] = {}
+    for child in elem:
+        if child.tag in out and child.tag not in repeated:
+            raise DataError(f"{where}: <{child.tag}> appears twice; a HaTT file has one (delete one)")
+        out[child.tag] = child
+    return out
 
 
 def _is_number(text: str | None) -> bool:
@@ -99,22 +138,11 @@ def read_hatt_xml(path: str | Path) -> TextureModelSet:
     if root.tag != "modelSet":
         raise DataError(f"{name}: root element is <{root.tag}>, expected <modelSet> (is this a HaTT model file?)")
 
-    scalars: dict[str, str] = {}
-    speed_el = force_el = None
-    tris: list[ET.Element] = []
-    models: list[ET.Element] = []
-    for child in root:
-        tag = child.tag
-        if tag == "model":
-            models.append(child)
-        elif tag == "tri":
-            tris.append(child)
-        elif tag == "speedList":
-            speed_el = child
-        elif tag == "forceList":
-            force_el = child
-        else:
-            scalars[tag] = (child.text or "").strip()
+    single = _children(root, ("model", "tri"), f"{name}: <modelSet>")
+    tris = [child for child in root if child.tag == "tri"]
+    models = [child for child in root if child.tag == "model"]
+    speed_el, force_el = single.pop("speedList", None), single.pop("forceList", None)
+    scalars = {tag: (child.text or "").strip() for tag, child in single.items() if tag not in ("model", "tri")}
 
     missing = [k for k in _REQUIRED_SCALARS if k not in scalars]
     if missing:
@@ -134,10 +162,7 @@ def read_hatt_xml(path: str | Path) -> TextureModelSet:
         return value
 
     def integer(key: str) -> int:
-        value = number(key)
-        if value != int(value) or value < 0:
-            raise DataError(f"{name}: <{key}> is {scalars[key]!r}; expected a whole number >= 0")
-        return int(value)
+        return _whole(scalars[key], f"{name}: <{key}>", 0, MAX_COUNT)
 
     num_mod = integer("numMod")
     num_tri = integer("numTri")
@@ -161,25 +186,26 @@ def read_hatt_xml(path: str | Path) -> TextureModelSet:
         if len(vals) != 3:
             raise DataError(f"{name}: <tri> {t + 1} has {len(vals)} values; a triangle names 3 models")
         for v in vals:
-            if v != int(v) or not 1 <= v <= num_mod:
+            if not (math.isfinite(v) and v == int(v) and 1 <= v <= num_mod):  # nan and inf first: int() raises on them
                 raise DataError(f"{name}: <tri> {t + 1} names model {v:g}, but models are numbered 1..{num_mod} (1-based)")
         triangles[t] = [int(v) - 1 for v in vals]
 
     per_model: list[dict[str, list[float] | float] | None] = [None] * num_mod
     for k, el in enumerate(models):
-        fields: dict[str, ET.Element] = {c.tag: c for c in el}
+        fields = _children(el, (), f"{name}: <model> element {k + 1}")
         mod_el = fields.get("modNum")
         if mod_el is None:
             raise DataError(f"{name}: <model> element {k + 1} has no <modNum>")
-        try:
-            mod_num = int(float((mod_el.text or "").strip()))
-        except ValueError:
-            raise DataError(f"{name}: <model> element {k + 1}: <modNum> is {mod_el.text!r}, not a number") from None
+        mod_num = _whole(mod_el.text, f"{name}: <model> element {k + 1}: <modNum> (numbered 1..{num_mod} by <numMod>)",
+                         1, num_mod)
         where = f"{name}: <model> modNum {mod_num}"
-        if not 1 <= mod_num <= num_mod:
-            raise DataError(f"{where}: modNum outside 1..{num_mod} (<numMod>)")
         if per_model[mod_num - 1] is not None:
             raise DataError(f"{where}: two <model> elements have this modNum")
+        for tag, listed, list_tag in (("speedMod", speeds, "speedList"), ("forceMod", forces, "forceList")):
+            own = _values(fields[tag], f"{where} <{tag}>") if tag in fields else [listed[mod_num - 1]]
+            if own != [listed[mod_num - 1]]:  # the renderer reads the list; a model fitted elsewhere is a damaged file
+                raise DataError(f"{where}: <{tag}> is {excerpt(fields[tag].text)} but entry {mod_num} of <{list_tag}> is "
+                                f"{listed[mod_num - 1]!r}; the two must agree (which one is the model's? fix the file)")
         entry: dict[str, list[float] | float] = {}
         for tag in _MODEL_ARRAYS:
             if tag not in fields:
@@ -303,7 +329,8 @@ def write_hatt_xml(ms: TextureModelSet, path: str | Path, texture: int = 0, digi
         inner = "".join(f"{indent}  <value>{fmt(v)}</value>\n" for v in values)
         return f'{indent}<{tag} type="array">\n{inner}{indent}</{tag}>\n'
 
-    def esc(text: str) -> str:
+    def esc(text: str) -> str:  # markup escaped; what XML 1.0 cannot hold at all written as its Python escape
+        text = "".join(ch if _XML_CHAR.match(ch) else ch.encode("unicode_escape").decode("ascii") for ch in text)
         return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
 
     out = ['<?xml version="1.0" encoding="utf-8"?>\n', f'<modelSet texture="{int(texture)}">\n']

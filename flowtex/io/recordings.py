@@ -22,7 +22,7 @@ from __future__ import annotations
 import csv
 import json
 import re
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,7 +30,8 @@ import numpy as np
 
 from ..errors import DataError
 from ..limits import MAX_RECORDING_VALUES, check_regular, check_values, excerpt
-from .formats import AUDIO, CAN_LOG, RECORDING, format_of, listing, suffixes
+from .formats import AUDIO, CAN_LOG, RECORDING, TEXT_ENCODING, format_of, listing, suffixes
+from .jsondoc import DuplicateKey, unique_keys
 from .npzread import read_npz_arrays
 from .recording_rules import check_signals, numeric_signal
 
@@ -92,8 +93,12 @@ UNITS_KEY = "units"
 
 def _parse_units(text: str, path: Path) -> dict[str, str]:
     try:
-        units = json.loads(text)
-    except (ValueError, RecursionError):
+        units = json.loads(text, object_pairs_hook=unique_keys)
+    except DuplicateKey as exc:
+        raise DataError(f"{path}: 'units': {exc}") from None
+    except ValueError:
+        raise DataError(f"{path}: 'units' must be JSON like {{\"y\": \"m/s^2\"}}, got {excerpt(text)}") from None
+    except RecursionError:
         raise DataError(f"{path}: 'units' must be JSON like {{\"y\": \"m/s^2\"}}, got {excerpt(text)}") from None
     if not isinstance(units, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in units.items()):
         raise DataError(f"{path}: 'units' must map signal names to unit strings, got {excerpt(text)}")
@@ -145,7 +150,7 @@ def _bounded_lines(fh, path: Path):
 
 def _load_csv(path: Path) -> Recording:
     try:
-        with path.open(newline="", encoding="utf-8") as fh:
+        with path.open(newline="", encoding=TEXT_ENCODING) as fh:
             return _parse_csv(_bounded_lines(fh, path), path)
     except UnicodeDecodeError as exc:
         raise DataError(f"{path}: not UTF-8 text at byte {exc.start}; a CSV recording is text") from None
@@ -158,6 +163,7 @@ def _load_csv(path: Path) -> Recording:
 def _parse_csv(lines, path: Path) -> Recording:
     rate = None
     units: dict[str, str] = {}
+    stated: dict[str, int] = {}  # 'rate' / 'units' -> the line that states it
     comments = 0
     first = None
     for line in lines:
@@ -166,6 +172,11 @@ def _parse_csv(lines, path: Path) -> Recording:
             break
         comments += 1
         m = re.match(r"#\s*(rate|units)\s*:\s*(.+?)\s*$", line)
+        if m and m.group(1) in stated:
+            raise DataError(f"{path}:{comments}: a second '# {m.group(1)}:' line (the first is line {stated[m.group(1)]}); "
+                            "a recording states it once: delete one")
+        if m:
+            stated[m.group(1)] = comments
         if m and m.group(1) == "rate":
             rate = _stated_rate(m.group(2), path)
         elif m:
@@ -173,7 +184,7 @@ def _parse_csv(lines, path: Path) -> Recording:
     if first is None:
         raise DataError(f"{path}: empty CSV; the first row must name the columns")
     header = next(csv.reader([first]))
-    columns = _csv_columns(header, path)
+    columns = _csv_columns(header, f"{path}:{comments + 1}")
     width = len(header)
     blocks: list[np.ndarray] = []
     rows: list[list[float]] = []
@@ -204,28 +215,30 @@ def _parse_csv(lines, path: Path) -> Recording:
     return Recording(arrays, rate, units=units)
 
 
-def _csv_columns(header: list[str], path: Path) -> dict[str, dict[int, int]]:
-    """Signal name -> {component index (-1 for a scalar): column}; refuses malformed, duplicate and incomplete columns."""
+def _csv_columns(header: list[str], where: str) -> dict[str, dict[int, int]]:
+    """Signal name -> {component index (-1 for a scalar): column}; refuses malformed, duplicate and incomplete columns.
+
+    ``where`` is ``FILE:LINE`` of the header row (after any ``#`` comment lines)."""
     columns: dict[str, dict[int, int]] = {}
     for col, name in enumerate(header):
         m = _COLUMN.match(name.strip())
         if not m:
-            raise DataError(f"{path}:1: column name {excerpt(name)} is not 'name' or 'name[i]'")
+            raise DataError(f"{where}: column name {excerpt(name)} is not 'name' or 'name[i]'")
         index = int(m.group("index")) if m.group("index") is not None else -1
         parts = columns.setdefault(m.group("name"), {})
         if index in parts:
-            raise DataError(f"{path}:1: column {excerpt(name.strip())} appears twice (columns {parts[index] + 1} and {col + 1}); "
+            raise DataError(f"{where}: column {excerpt(name.strip())} appears twice (columns {parts[index] + 1} and {col + 1}); "
                             "rename or delete one")
         if index > len(header):
-            raise DataError(f"{path}:1: column {excerpt(name.strip())} has index {index} but the file has {len(header)} columns")
+            raise DataError(f"{where}: column {excerpt(name.strip())} has index {index} but the file has {len(header)} columns")
         parts[index] = col
     for name, parts in columns.items():
         if -1 in parts and len(parts) > 1:
-            raise DataError(f"{path}:1: column {name!r} appears both as a scalar and as {name}[i]")
+            raise DataError(f"{where}: column {name!r} appears both as a scalar and as {name}[i]")
         if -1 not in parts:
             missing = [i for i in range(max(parts) + 1) if i not in parts]
             if missing:
-                raise DataError(f"{path}:1: vector {name!r} lacks column(s) " + ", ".join(f"{name}[{i}]" for i in missing[:8]))
+                raise DataError(f"{where}: vector {name!r} lacks column(s) " + ", ".join(f"{name}[{i}]" for i in missing[:8]))
     return columns
 
 
@@ -267,6 +280,25 @@ def _load_h5(path: Path) -> Recording:
     return Recording(arrays, rate, units=units)
 
 
+NPZ_ENTRIES = ("rate", UNITS_KEY)
+"""Names a .npz recording keeps for its rate and its units, so no signal may have them there."""
+
+
+def check_writable(path: str | Path, names: Iterable[str]) -> None:
+    """Refuse signal ``names`` that a recording at ``path`` cannot hold (a .npz file's own entries, :data:`NPZ_ENTRIES`).
+
+    Called by :func:`save_recording` and, for ``flowtex run``, with the graph's output names before the run: an output
+    named ``rate`` was an internal error once the run was done."""
+    fmt = format_of(Path(path))
+    if fmt is None or fmt.name != "npz":
+        return
+    for name in names:
+        if name in NPZ_ENTRIES:
+            raise DataError(f"{path}: a signal named {name!r} cannot be written to a .npz recording, whose {name!r} entry "
+                            "holds the recording's own " + ("rate" if name == "rate" else "units") +
+                            "; rename it (a graph output: under outputs:) or write a .csv or .h5 file")
+
+
 def save_recording(path: str | Path, arrays: Mapping[str, np.ndarray], rate: float | None = None,
                    units: Mapping[str, str] | None = None) -> None:
     """Write signals (time first) in the format named by the file's suffix, with their ``units`` if given.
@@ -286,8 +318,14 @@ def save_recording(path: str | Path, arrays: Mapping[str, np.ndarray], rate: flo
         return
     if name is None:
         raise DataError(f"{path}: unknown output format {path.suffix.lower()!r}; use {_USE}")
-    path.parent.mkdir(parents=True, exist_ok=True)
+    check_writable(path, arrays)
     arrays = {name: np.asarray(a, dtype=np.float64) for name, a in arrays.items()}
+    try:  # what load_recording would refuse is not written: a graph output 'time' that does not increase, say
+        check_signals(arrays, path)
+    except DataError as exc:
+        raise DataError(f"{path}: not written, since flowtex would not read it back: {str(exc).removeprefix(f'{path}: ')}"
+                        " (a graph output: rename it under outputs:)") from None
+    path.parent.mkdir(parents=True, exist_ok=True)
     units = {name: str(units[name]) for name in arrays if name in units} if units else {}
     with atomic_output(path) as tmp:
         if name == "npz":

@@ -194,6 +194,11 @@ class TextureModelSet:
             if bad.size:
                 fail(f"{model_name(int(bad[0]))}: {n[key]} is {float(arr[bad[0]])!r}; it must be a finite number")
             setattr(self, key, arr)
+        for key, unit in (("speeds", "mm/s"), ("forces", "N")):  # magnitudes: the lookup never asks below 0, yet a
+            below = np.flatnonzero(vec[key] < 0)  # model there was blended into every query near 0, silently
+            if below.size:
+                fail(f"{model_name(int(below[0]))}: {n[key]} is {float(vec[key][below[0]])!r} {unit}; a model's "
+                     "speed and force are magnitudes (>= 0): fix the file")
         neg = np.flatnonzero(vec["variance"] < 0)
         if neg.size:
             fail(f"{model_name(int(neg[0]))}: {n['variance']} is {float(vec['variance'][neg[0]])!r}; a variance must be >= 0")
@@ -225,6 +230,14 @@ class TextureModelSet:
             if bad.size:
                 fail(f"{model_name(int(bad[0, 0]))}: {n[key]} value {int(bad[0, 1]) + 1} is not a finite number")
             setattr(self, key, arr)
+
+        from ..dsp.interp import UnusableModel, model_output_powers
+
+        try:  # what texture_lookup computes from every model when it builds; validate and load say it first
+            model_output_powers(self.ar_lsf, self.ma_lsf, vec["variance"], vec["gain"])
+        except UnusableModel as exc:
+            fail(f"{model_name(exc.model)}: its LSFs give no stable filter in float64 (neighbouring LSFs, or one and 0 or "
+                 "pi, nearly coincide: a pole on the unit circle), so it cannot render; refit the model or remove it")
 
         tri = np.asarray(self.triangles)
         if tri.ndim != 2 or tri.shape[1] != 3 or tri.shape[0] < 1:

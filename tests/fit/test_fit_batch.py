@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from flowtex.cli import main
 from flowtex.datasets import free_exploration
 
@@ -59,3 +61,21 @@ def test_grid_index(tmp_path, capsys):
     assert sorted(zip(ms.speeds[measured], ms.forces[measured], strict=True)) == [(60.0, 0.8), (60.0, 2.4), (250.0, 0.8), (250.0, 2.4)]
     assert ms.max_speed == 250.0 and ms.max_force == 2.4
     capsys.readouterr()
+
+
+def test_recordings_that_would_share_an_output_file_are_refused_before_any_fit(tmp_path, capsys, monkeypatch):
+    """a/rec.npz and b/rec.npz both went to OUT/rec.json: the second replaced the first, and '2 of 2 surfaces' was said.
+    One file named twice (a path and a glob that covers it, sub/../rec.npz) is one recording, fitted once."""
+    import numpy as np
+
+    import flowtex.fit.batch as batch
+    from flowtex.io.recordings import save_recording
+
+    for folder in ("a", "b"):
+        save_recording(tmp_path / folder / "rec.npz", {"accel": np.zeros(10), "speed": np.ones(10)}, rate=1000.0)
+    monkeypatch.setattr(batch, "fit_one", lambda *a, **k: pytest.fail("a fit started"))
+    a, b, out = tmp_path / "a" / "rec.npz", tmp_path / "b" / "rec.npz", tmp_path / "out"
+    assert main(["fit", "texture", str(a), str(b), "--speed", "speed", "--out-dir", str(out), "--workers", "0"]) == 1
+    assert capsys.readouterr().err.strip() == (f"--out-dir {out}: {a} and {b} would both be written to {out / 'rec.json'}; "
+                                               "rename one, or fit them into separate --out-dir folders")
+    assert batch.expand_inputs([str(a), str(tmp_path / "b" / ".." / "a" / "rec.npz"), str(tmp_path / "a" / "*.npz")]) == [a]

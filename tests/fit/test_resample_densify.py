@@ -222,3 +222,16 @@ def test_cli_models_resample_densify(tmp_path, capsys):
     assert "--densify" in capsys.readouterr().err
     assert main(["models", "resample", str(src), "--rate", "2000", "--densify", "0", "-o", str(out)]) == 0
     assert load_model_set(out).num_models == _set("power").num_models and "densify" not in json.loads(out.read_text())["metadata"]
+
+
+def test_a_set_silent_along_the_check_paths_is_resampled_and_written(tmp_path, capsys):
+    """Two silent spectra were an infinite path LSD: auto densified to its last level, then the set's metadata could not
+    be written as JSON (``metadata is not plain JSON ... inf``), naming a temporary file."""
+    ms = _set("variance")
+    silent = dataclasses.replace(ms, variance=np.zeros_like(ms.variance), source=None)
+    assert path_lsd_db(silent, silent, *lissajous_path(silent)) == 0.0
+    src = save_model_set(silent, tmp_path / "silent.json")
+    assert main(["models", "resample", str(src), "--rate", "2000", "-o", str(tmp_path / "out.json")]) == 0, capsys.readouterr().err
+    out = load_model_set(tmp_path / "out.json")
+    assert out.sample_rate == 2000.0 and not np.any(out.variance) and out.num_models == silent.num_models
+    assert json.loads((tmp_path / "out.json").read_text())["metadata"]["densify"]["path_lsd_db"] == 0.0

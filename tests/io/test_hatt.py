@@ -39,7 +39,7 @@ def handmade(tri_rows=((1, 2, 3), (2, 4, 3)), num_tri=None, ar_lsf=("0.5", "1.5"
                    f'    <MAcoeff type="array">\n{values([1.0, 0.2], "      ")}    </MAcoeff>\n'
                    f'    <MAlsf type="array">\n{values([1.7721542475852274], "      ")}    </MAlsf>\n'
                    f"    <var>{0.0 if k % 2 == 0 else 0.01}</var>\n    <gain>{1.0 + k}</gain>\n"
-                   f"    <speedMod>{speeds[k]}</speedMod>\n    <forceMod>{forces[k]}</forceMod>\n  </model>\n")
+                   f"    <speedMod>{speeds[m - 1]}</speedMod>\n    <forceMod>{forces[m - 1]}</forceMod>\n  </model>\n")
     text = f"""<?xml version="1.0" encoding="utf-8"?>
 <modelSet texture="7">
   <material>Hand Made</material>
