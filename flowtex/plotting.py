@@ -78,6 +78,8 @@ def signals_figure(signals: dict[str, np.ndarray], units: dict[str, str], rate: 
     mm/s, m/s, cm/s, um/s in any spelling ``simplify_unit`` reads) against the force (N, mN or kN), and a vibration is
     any signal in m/s^2, g or mm/s^2 (:func:`~flowtex.io.recording_rules.is_unit_of`); each axis is in the unit it is
     stated in (nothing is converted).
+    A vibration's spectrogram (:func:`~flowtex.dsp.spectral.spectrogram_psd`) sums the PSDs of its axes, each
+    segment's mean removed.
 
     Laid out by matplotlib's constrained layout, so the title never covers the first panel however many rows there
     are. The time panels share one time axis from 0 to the recording's length (s); each spectrogram's colorbar has a
@@ -119,13 +121,14 @@ def signals_figure(signals: dict[str, np.ndarray], units: dict[str, str], rate: 
         k += 1
     for name in vib:
         ax = time_panel(k)
-        f, tt, S = spectrogram_psd(_magnitude(signals[name]), rate)
+        f, tt, S = spectrogram_psd(signals[name], rate)  # several axes: the sum of their PSDs, never the PSD of |x|
         db = 10.0 * np.log10(np.maximum(S, 1e-30))
         top = float(db.max()) if S.max() > 0 else 0.0
         mesh = ax.pcolormesh(tt, f, db, shading="auto", cmap="magma", vmin=top - 60.0, vmax=top)  # 60 dB range; silence is black
         cbar = fig.colorbar(mesh, cax=fig.add_subplot(grid[k, 1]))
         cbar.set_label(f"dB re 1 ({units[name]})^2/Hz", fontsize=FONT_PT)
-        shown = f"|{name}|" if signals[name].ndim > 1 and signals[name].reshape(signals[name].shape[0], -1).shape[1] > 1 else name
+        axes_n = signals[name].reshape(signals[name].shape[0], -1).shape[1]
+        shown = f"{name}, sum of {axes_n} axes" if axes_n > 1 else name
         ax.set_ylabel(f"{shown}\nfrequency (Hz)", fontsize=FONT_PT)
         k += 1
     time_axes[0].set_xlim(0.0, duration)
