@@ -43,7 +43,8 @@ def register_fit(kinds: Any) -> None:
     p.add_argument("-o", "--output", type=Path, help="output model set (native JSON)")
     p.add_argument("--xml", type=Path, help="also write HaTT XML (with --out-dir: one .xml beside each .json)", nargs="?",
                    const=Path("-"))
-    p.add_argument("--report", metavar="DIR", help="write a markdown report with plots into this folder")
+    p.add_argument("--report", metavar="DIR", help="write a markdown report with plots into this folder (with --out-dir: "
+                                                   "DIR/<name>_report per recording)")
     p.add_argument("--holdout", type=lambda t: number_in_range(t, 0.0, 1.0, low_open=True, high_open=True), metavar="FRACTION",
                    help="hold out FRACTION of the recording (see --holdout-split), fit the rest and compare the fit with "
                         "the held-out part (as flowtex compare does)")
@@ -134,8 +135,14 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
     if args.out_dir is not None:
         from ..io.atomic import check_output
 
+        if args.xml not in (None, Path("-")):
+            raise DataError(f"--xml {args.xml}: with --out-dir each surface's XML is OUT/<name>.xml; give --xml without a "
+                            "file name")
         check_output(Path(args.out_dir) / "x.json", inputs=paths, option="--out-dir")
-        code = fit_many(paths, job, Path(args.out_dir), args.workers, args.scheduler, args.xml is not None, args.report is not None)
+        report_dir = None if args.report is None else Path(args.report)
+        if report_dir is not None:
+            check_report_folder(args.report, paths)
+        code = fit_many(paths, job, Path(args.out_dir), args.workers, args.scheduler, args.xml is not None, report_dir)
         if args.xml is not None:
             from ..models.rendering import FITTED_RULE
 
