@@ -154,3 +154,23 @@ def test_held_out_table_names_the_window_of_its_rms_correlation():
     lines = held_out_lines(HeldOut("held out: test", [c], holdout_doc("blocks", "fraction", 0.3, [c])))
     header = next(line for line in lines if line.startswith("| fold"))
     assert f"{CV_WINDOW_S:g}-s window-RMS correlation" in header
+
+
+def test_compare_report_table_states_units_and_the_spectrum_title_the_power_ratios_band(plt, comparison):
+    """The window table's RMS columns had no unit and read 2.3 under 3.06 (three significant digits, trailing zeros
+    dropped); the spectrum's title put the LSD's band after the power ratio, which is measured from 12 Hz to the
+    Nyquist frequency (for a set resampled up, 12-400 Hz was read as the power ratio's band too)."""
+    from dataclasses import replace
+
+    from flowtex.fit.compare_report import spectrum_figure, window_table
+
+    c = replace(comparison, windows=[dict(comparison.windows[0], recorded_rms=2.3, rendered_rms=123.4)],
+                band_hz=[12.0, 400.0])
+    header, _, row = window_table(c)
+    assert "recorded RMS m/s^2" in header and "rendered RMS m/s^2" in header
+    assert "| 2.30 | 123 |" in row
+    fig = spectrum_figure(c, plt)
+    try:
+        assert fig.axes[0].get_title().startswith(f"power ratio {c.power_ratio_db:+.2f} dB (> 12 Hz), LSD")
+    finally:
+        plt.close(fig)
