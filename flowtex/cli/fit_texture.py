@@ -125,7 +125,7 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
         print_table(fit)
         written = write_outputs(fit, args.output, args.xml, job.render_rate, job.allow_misses)
         if args.report:
-            write_report(fit, Path(args.report))
+            write_report(fit, Path(args.report), written=written)
         say(f"-> {args.output}")
         _note_xml_losses(args.xml, written)
         return 0
@@ -169,7 +169,7 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
         write_text_atomic(args.holdout_json, json.dumps(held.doc, indent=1) + "\n")
         say(f"-> {args.holdout_json}")
     if args.report:
-        write_report(fit, Path(args.report), held)
+        write_report(fit, Path(args.report), held, written)
     say(f"-> {args.output}" + (f", {args.xml}" if args.xml else ""))
     _note_xml_losses(args.xml, written)
     return 0

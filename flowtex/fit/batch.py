@@ -52,9 +52,9 @@ def fit_one(path: str, job, out_dir: str, xml: bool, report_dir: str | None) -> 
     out = Path(out_dir) / f"{p.stem}.json"
     try:
         fit = fit_recording(p, job)
-        write_outputs(fit, out, out.with_suffix(".xml") if xml else None, job.render_rate, job.allow_misses)
+        written = write_outputs(fit, out, out.with_suffix(".xml") if xml else None, job.render_rate, job.allow_misses)
         if report_dir is not None:
-            write_report(fit, Path(report_dir) / f"{p.stem}_report")
+            write_report(fit, Path(report_dir) / f"{p.stem}_report", written=written)
         return path, summary_line(fit)
     except FlowtexError as exc:
         return path, f"error: {exc}"

@@ -4,7 +4,7 @@ Model numbers are the models' indices in the written set (the JSON's arrays,
 0-based), in the table, the plots and the report alike. Per model: speed (mm/s), force (N), samples, order (p, q), GFC (Culbertson et al. 2012's
 definition, 1 = same spectral shape), LSD in dB (model PSD against the
 piece's Welch PSD, 256-point segments: > 15 Hz, 40 dB range) and the power
-error (model output power / data variance - 1). The LSD against the data
+error in dB (model output power over its piece's variance). The LSD against the data
 includes the Welch estimate's own scatter (about 4.3 / sqrt(segments) dB),
 so short pieces score worse than their models are; accuracy against a known
 truth is measured in tests/fit.
@@ -32,6 +32,7 @@ from ..dsp.spectral import expected_lsd_db, welch_psd
 from ..io.atomic import write_text_atomic
 from ..io.figures import FONT_PT as FONT
 from ..io.figures import agg_pyplot, save_png
+from ..models.texture import TextureModelSet
 from .crossval import POOLED_LINE
 from .texture import PIECE_NPERSEG, TextureFit
 
@@ -132,10 +133,27 @@ def held_out_lines(held: HeldOut) -> list[str]:
     return md + [""]
 
 
-def write_report(fit: TextureFit, folder: Path, held: HeldOut | None = None) -> Path:
-    """Write ``folder/report.md`` and, with matplotlib, ``spectra.png`` and ``plane.png``; returns the markdown path."""
+def written_lines(fit: TextureFit, written: TextureModelSet | None) -> list[str]:
+    """What the report says of a set written otherwise than fitted (``fit texture --render-rate``: resampled, models
+    added between the fitted ones): its rate, orders, models and triangles, so that the report's numbers are not read
+    as the file's. Nothing when the set was written as fitted."""
+    ms = fit.model_set
+    if written is None or written is ms:
+        return []
+    return [f"Written at {written.sample_rate:g} Hz (--render-rate): resampled from {ms.sample_rate:g} Hz, orders "
+            f"{ms.ar_order},{ms.ma_order} -> {written.ar_order},{written.ma_order}, {written.num_models} models "
+            f"({written.num_models - ms.num_models} added between the fitted ones), {len(written.triangles)} triangles. "
+            f"The table and the figures show the models as fitted, at {ms.sample_rate:g} Hz; the models keep their "
+            "numbers in the file.", ""]
+
+
+def write_report(fit: TextureFit, folder: Path, held: HeldOut | None = None,
+                 written: TextureModelSet | None = None) -> Path:
+    """Write ``folder/report.md`` and, with matplotlib, ``spectra.png`` and ``plane.png``; returns the markdown path.
+    ``written``: the set the fit wrote, when it differs from the fitted one (:func:`written_lines`)."""
     folder.mkdir(parents=True, exist_ok=True)
-    md = [f"# Texture fit: {fit.model_set.material}", "", summary_line(fit), "", "```", *table_lines(fit), "```", ""]
+    md = [f"# Texture fit: {fit.model_set.material}", "", summary_line(fit), "", *written_lines(fit, written), "```",
+          *table_lines(fit), "```", ""]
     dups = near_duplicates(fit.model_set)
     if dups:
         md += ["Near-duplicate models (closer than 2 % of the range on both axes): "

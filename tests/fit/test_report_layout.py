@@ -174,3 +174,31 @@ def test_compare_report_table_states_units_and_the_spectrum_title_the_power_rati
         assert fig.axes[0].get_title().startswith(f"power ratio {c.power_ratio_db:+.2f} dB (> 12 Hz), LSD")
     finally:
         plt.close(fig)
+
+
+def test_report_of_a_set_written_at_another_rate_says_so(fit, tmp_path, monkeypatch):
+    """fit texture --render-rate 2000 --report DIR: the report gave the fitted set's '... N models, T triangles' and
+    orders at 1 kHz and said nothing of the file written (resampled to 2 kHz, other orders, models added between the
+    fitted ones), so its numbers were read as the file's. It now states what was written."""
+    from types import SimpleNamespace
+
+    import flowtex.fit.report as report
+    import flowtex.fit.texture_job as texture_job
+    from flowtex.cli import main
+
+    ms = fit.model_set
+    written = SimpleNamespace(sample_rate=2000.0, ar_order=ms.ar_order + 2, ma_order=ms.ma_order + 2,
+                              num_models=ms.num_models, triangles=ms.triangles)  # what the report reads of it
+    monkeypatch.setattr(texture_job, "fit_recording", lambda path, job: fit)
+    monkeypatch.setattr(texture_job, "write_outputs", lambda *a, **k: written)
+    monkeypatch.setattr(report, "agg_pyplot", lambda hint: None)  # no figures: the text is the point
+    monkeypatch.setattr(report, "print_table", lambda f: None)
+    rec = tmp_path / "rec.npz"
+    rec.write_bytes(b"")
+    argv = ["fit", "texture", str(rec), "--speed", "speed", "--render-rate", "2000", "-o", str(tmp_path / "s.json"),
+            "--report", str(tmp_path / "rep")]
+    assert main(argv) == 0
+    text = (tmp_path / "rep" / "report.md").read_text()
+    assert (f"Written at 2000 Hz (--render-rate): resampled from 1000 Hz, orders {ms.ar_order},{ms.ma_order} -> "
+            f"{ms.ar_order + 2},{ms.ma_order + 2}, {ms.num_models} models (0 added") in text
+    assert report.written_lines(fit, ms) == [] and report.written_lines(fit, None) == []
