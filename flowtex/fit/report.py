@@ -214,8 +214,9 @@ def plane_figure(fit: TextureFit, plt: Any, dups: list[tuple[int, int]]) -> Any:
     ms = fit.model_set
     fig, ax = plt.subplots(figsize=(7, 5.8), layout="constrained")
     if fit.path is not None:
-        ax.plot(fit.path[:, 0], fit.path[:, 1], color="0.8", lw=0.6, zorder=1, label="recorded path")
-    ax.triplot(ms.speeds, ms.forces, ms.triangles, color="0.55", lw=0.6, zorder=2)
+        # a colour of its own: in grey it could not be told from the triangles' edges
+        ax.plot(fit.path[:, 0], fit.path[:, 1], color="C1", alpha=0.45, lw=0.8, zorder=1, label="recorded path")
+    ax.triplot(ms.speeds, ms.forces, ms.triangles, color="0.55", lw=0.6, zorder=2, label="triangulation")
     measured = ms.variance > 0
     pieces = _by_model(fit)
     power = np.array([pc.fit.output_variance for pc in pieces])

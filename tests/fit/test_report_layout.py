@@ -202,3 +202,23 @@ def test_report_of_a_set_written_at_another_rate_says_so(fit, tmp_path, monkeypa
     assert (f"Written at 2000 Hz (--render-rate): resampled from 1000 Hz, orders {ms.ar_order},{ms.ma_order} -> "
             f"{ms.ar_order + 2},{ms.ma_order + 2}, {ms.num_models} models (0 added") in text
     assert report.written_lines(fit, ms) == [] and report.written_lines(fit, None) == []
+
+
+def test_plane_tells_the_recorded_path_from_the_triangulation(plt, fit):
+    """The recorded path was drawn in light grey under the triangulation's grey edges, the two told apart by shade
+    alone: on paper the path could not be followed. It now has a colour of its own, and both are in the legend."""
+    from matplotlib.colors import to_rgb
+
+    from flowtex.fit.report import near_duplicates, plane_figure
+
+    fig = plane_figure(fit, plt, near_duplicates(fit.model_set))
+    try:
+        ax = fig.axes[0]
+        lines = {line.get_label(): line for line in ax.get_lines()}
+        path, edges = lines["recorded path"], lines["triangulation"]
+        r, g, b = to_rgb(path.get_color())
+        assert max(r, g, b) - min(r, g, b) > 0.3  # a colour, not a grey
+        assert to_rgb(path.get_color()) != to_rgb(edges.get_color())
+        assert {"recorded path", "triangulation"} <= {t.get_text() for legend in fig.legends for t in legend.get_texts()}
+    finally:
+        plt.close(fig)
