@@ -45,7 +45,7 @@ def expand_inputs(items: Sequence[str]) -> list[Path]:
 def fit_one(path: str, job, out_dir: str, xml: bool, report_dir: str | None) -> tuple[str, str]:
     """Fit one recording and write its outputs (and, with ``report_dir``, its report into ``report_dir/<stem>_report``);
     returns (recording, one-line summary or 'error: ...')."""
-    from .report import summary_line, write_report
+    from .report import edge_warning, summary_line, write_report
     from .texture_job import fit_recording, write_outputs
 
     p = Path(path)
@@ -55,7 +55,8 @@ def fit_one(path: str, job, out_dir: str, xml: bool, report_dir: str | None) -> 
         written = write_outputs(fit, out, out.with_suffix(".xml") if xml else None, job.render_rate, job.allow_misses)
         if report_dir is not None:
             write_report(fit, Path(report_dir) / f"{p.stem}_report", written=written)
-        return path, summary_line(fit)
+        warning = edge_warning(fit)
+        return path, summary_line(fit) + (f"; warning: {warning}" if warning else "")
     except FlowtexError as exc:
         return path, f"error: {exc}"
 

@@ -22,6 +22,7 @@ without them and a one-line hint says how to get them.
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -87,10 +88,28 @@ def summary_line(fit: TextureFit) -> str:
             f"clipped outliers: {fit.clipped}")
 
 
+EDGE_WARN_DB = 1.0
+"""A fit whose pieces lie this many dB below the pieces with their edge trims gets a warning (:func:`edge_warning`)."""
+
+
+def edge_warning(fit: TextureFit) -> str | None:
+    """A warning when the pieces' edge trims were louder than the pieces (loud bursts at piece boundaries, cut with the
+    transitions): the models then carry a level below the recording's, and nothing else in the fit says so."""
+    if not fit.edge_level_db < -EDGE_WARN_DB:
+        return None
+    return (f"{fit.model_set.material}: the ends cut off each piece (the transitions) were louder than the pieces: the "
+            f"models carry a level {-fit.edge_level_db:.1f} dB below that of the pieces with their ends, and the surface "
+            "renders about that much quieter than the recording (loud bursts at the piece boundaries; flowtex compare "
+            "measures it)")
+
+
 def print_table(fit: TextureFit) -> None:
     for line in table_lines(fit):
         print(line)
     print(summary_line(fit))
+    warning = edge_warning(fit)
+    if warning:
+        print(f"warning: {warning}", file=sys.stderr)
 
 
 def near_duplicates(ms: Any) -> list[tuple[int, int]]:
@@ -152,7 +171,9 @@ def write_report(fit: TextureFit, folder: Path, held: HeldOut | None = None,
     """Write ``folder/report.md`` and, with matplotlib, ``spectra.png`` and ``plane.png``; returns the markdown path.
     ``written``: the set the fit wrote, when it differs from the fitted one (:func:`written_lines`)."""
     folder.mkdir(parents=True, exist_ok=True)
-    md = [f"# Texture fit: {fit.model_set.material}", "", summary_line(fit), "", *written_lines(fit, written), "```",
+    warning = edge_warning(fit)
+    md = [f"# Texture fit: {fit.model_set.material}", "", summary_line(fit), "", *([f"Warning: {warning}.", ""] if warning else []),
+          *written_lines(fit, written), "```",
           *table_lines(fit), "```", ""]
     dups = near_duplicates(fit.model_set)
     if dups:

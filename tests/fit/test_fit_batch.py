@@ -76,6 +76,7 @@ def test_out_dir_writes_each_report_into_the_report_folder_given(tmp_path, monke
     monkeypatch.setattr(texture_job, "write_outputs", lambda fit, out, xml, *a: written.append((out, xml)))
     monkeypatch.setattr(report, "write_report", lambda fit, folder, *a, **k: written.append(folder))
     monkeypatch.setattr(report, "summary_line", lambda fit: f"fitted {fit}")
+    monkeypatch.setattr(report, "edge_warning", lambda fit: None)
     common = ["fit", "texture", str(tmp_path / "in"), "--speed", "speed", "--out-dir", str(tmp_path / "out"), "--workers", "0"]
     assert main([*common, "--report", str(tmp_path / "reports")]) == 0
     assert sorted(w for w in written if not isinstance(w, tuple)) == [tmp_path / "reports" / "a_report",

@@ -222,3 +222,29 @@ def test_plane_tells_the_recorded_path_from_the_triangulation(plt, fit):
         assert {"recorded path", "triangulation"} <= {t.get_text() for legend in fig.legends for t in legend.get_texts()}
     finally:
         plt.close(fig)
+
+
+def test_fit_warns_when_the_pieces_ends_held_the_loud_bursts(fit, capsys):
+    """On a recording with bursts and 6 dB of loudness wander (resonant.textured_exploration(12, seed=5,
+    loudness_db=6, burst=1.5)) the segmenter put two piece boundaries at bursts, the 0.05-s trims cut them away with
+    60 % of the recording's energy, and the fit rendered 2.5 dB too quiet with nothing said. The pieces' level against
+    that of the pieces with their trims is now measured, and a loss of more than 1 dB is a warning."""
+    from types import SimpleNamespace
+
+    from flowtex.fit.report import edge_warning
+    from flowtex.fit.texture import Piece, trimmed_level_db
+
+    rng = np.random.default_rng(0)
+    x = rng.standard_normal(3000)
+    pieces = [Piece(100, 1400, 100.0, 1.0), Piece(1600, 2900, 200.0, 2.0)]
+    assert abs(trimmed_level_db(x, pieces, 100)) < 0.3  # trims like the pieces
+    x[1400:1500] *= 10.0  # a burst in the trim after the first piece
+    level = trimmed_level_db(x, pieces, 100)
+    assert level < -3.0
+    assert trimmed_level_db(np.zeros(3000), pieces, 100) == 0.0
+    warned = edge_warning(SimpleNamespace(edge_level_db=level, model_set=SimpleNamespace(material="m")))
+    assert warned is not None and f"{-level:.1f} dB below" in warned
+    assert edge_warning(SimpleNamespace(edge_level_db=-0.5, model_set=SimpleNamespace(material="m"))) is None
+    # a fit measures its own pieces (the person-like recording of the fixture: no loud ends, no warning)
+    assert fit.edge_level_db == trimmed_level_db(fit.signal, fit.pieces, int(round(0.05 * RATE)))
+    assert edge_warning(fit) is None
