@@ -173,3 +173,20 @@ def test_spectrogram_of_a_3_axis_vibration_with_gravity_shows_its_frequency():
         assert f[np.argmax(db.mean(axis=1))] == pytest.approx(100.0, abs=f[1])
     finally:
         plt.close(fig)
+
+
+def test_force_speed_panel_prefers_the_normal_force():
+    """A recording listing its tangential force before its normal force got a trace of the tangential force against
+    the speed, labelled as the force-speed trace: the normal force is the operating point's."""
+    pytest.importorskip("matplotlib")
+    from flowtex.io.figures import agg_pyplot
+    from flowtex.plotting import signals_figure
+
+    plt = agg_pyplot("matplotlib")
+    n = 500
+    fig = signals_figure({"tangential_force": np.ones(n), "normal_force": np.full(n, 2.0), "speed": np.linspace(50, 200, n)},
+                         {"tangential_force": "N", "normal_force": "N", "speed": "mm/s"}, 1000.0)
+    try:  # built, not drawn
+        assert [ax.get_ylabel() for ax in fig.axes if ax.get_xlabel() == "|speed| (mm/s)"] == ["|normal_force| (N)"]
+    finally:
+        plt.close(fig)
