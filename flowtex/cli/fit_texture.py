@@ -74,9 +74,11 @@ def _job(args: argparse.Namespace) -> Any:
                       allow_misses=args.allow_misses)
 
 
-def check_report_folder(report: str | None, inputs: list, outputs: dict[str, Any] | None = None) -> None:
-    """--report names a folder: refuse an existing file (or an input), or the name of another output of the command
-    (``outputs``: option -> file), before any work."""
+def check_report_folder(report: str | None, inputs: list, outputs: dict[str, Any] | None = None,
+                        writes: tuple[str, ...] = ("report.md",)) -> None:
+    """--report names a folder: refuse an existing file (or an input), the name of another output of the command
+    (``outputs``: option -> file), or another output that is one of the files the report writes into it (``writes``:
+    ``compare --json r/report.md --report r`` lost the JSON under the report), before any work."""
     from ..io.atomic import check_output
 
     if report is None:
@@ -85,8 +87,13 @@ def check_report_folder(report: str | None, inputs: list, outputs: dict[str, Any
     if path.exists() and not path.is_dir():
         raise DataError(f"--report {report}: is a file; --report names a folder to write the report into")
     for option, file in (outputs or {}).items():
-        if file is not None and Path(file).expanduser().absolute() == path.absolute():
+        if file is None:
+            continue
+        if Path(file).expanduser().resolve() == path.resolve():
             raise DataError(f"--report {report}: {option} writes that file; give the report a folder of its own")
+        if any(Path(file).expanduser().resolve() == (path / name).resolve() for name in writes):
+            raise DataError(f"{option} {file}: the report writes that file into {report}; give {option} another name "
+                            "or the report another folder")
     check_output(path / "report.md", inputs=inputs, option="--report")
 
 
@@ -100,7 +107,10 @@ def _check_outputs(args: argparse.Namespace, inputs: list) -> None:
                         f"{args.output} for HaTT's XML")
     if args.xml is not None and Path(args.xml).suffix.lower() == ".json":
         raise DataError(f"--xml {args.xml}: --xml writes HaTT's XML; name it .xml (-o writes the JSON)")
-    check_report_folder(args.report, inputs, {"-o": args.output, "--xml": args.xml, "--holdout-json": args.holdout_json})
+    from ..fit.report import REPORT_FILES
+
+    check_report_folder(args.report, inputs, {"-o": args.output, "--xml": args.xml, "--holdout-json": args.holdout_json},
+                        REPORT_FILES)
 
 
 def cmd_fit_texture(args: argparse.Namespace) -> int:

@@ -166,6 +166,10 @@ def written_lines(fit: TextureFit, written: TextureModelSet | None) -> list[str]
             "numbers in the file.", ""]
 
 
+REPORT_FILES = ("report.md", "spectra.png", "plane.png")
+"""The files :func:`write_report` writes into its folder (no other output of the command may be one of them)."""
+
+
 def write_report(fit: TextureFit, folder: Path, held: HeldOut | None = None,
                  written: TextureModelSet | None = None) -> Path:
     """Write ``folder/report.md`` and, with matplotlib, ``spectra.png`` and ``plane.png``; returns the markdown path.
