@@ -102,9 +102,12 @@ def signals_figure(signals: dict[str, np.ndarray], units: dict[str, str], rate: 
     """The figure: one time-series row per signal, a spectrogram row per vibration, a force-speed panel when possible.
 
     The force-speed panel takes the first signal whose unit is a speed (:func:`~flowtex.io.recording_rules.is_speed_unit`:
-    mm/s, m/s, cm/s, um/s in any spelling ``simplify_unit`` reads) against the force (N, mN or kN), and a vibration is
+    mm/s, m/s, cm/s, um/s in any spelling ``simplify_unit`` reads) against the force (N, mN or kN: ``force``, else the
+    first whose name says normal, else the first), and a vibration is
     any signal in m/s^2, g or mm/s^2 (:func:`~flowtex.io.recording_rules.is_unit_of`); each axis is in the unit it is
     stated in (nothing is converted).
+    A vibration's spectrogram (:func:`~flowtex.dsp.spectral.spectrogram_psd`) sums the PSDs of its axes, each
+    segment's mean removed.
 
     Laid out by matplotlib's constrained layout, so the title never covers the first panel however many rows there
     are. The time panels share one time axis from 0 to the recording's length (s); each spectrogram's colorbar has a
@@ -123,7 +126,9 @@ def signals_figure(signals: dict[str, np.ndarray], units: dict[str, str], rate: 
     # each in its stated unit: an acceleration in m/s^2, g or mm/s^2; a speed in m/s, cm/s, mm/s ...; a force in N, mN, kN
     vib = [n for n in signals if is_unit_of(units[n], "m/s^2")]
     speed = next((n for n in signals if is_speed_unit(units[n])), None)
-    force = "force" if is_unit_of(units.get("force", ""), "N") else next((n for n in signals if is_unit_of(units[n], "N")), None)
+    forces = [n for n in signals if is_unit_of(units[n], "N")]
+    # the normal force before any other (a tangential or texture force listed first is not the trace's operating point)
+    force = "force" if "force" in forces else next((n for n in forces if "normal" in n.lower()), forces[0] if forces else None)
     rows = len(signals) + len(vib) + (1 if speed and force else 0)
     fig = plt.figure(figsize=(10, 2.0 * rows + 0.6), layout="constrained")
     grid = fig.add_gridspec(rows, 2, width_ratios=(1, 0.015))
@@ -150,13 +155,14 @@ def signals_figure(signals: dict[str, np.ndarray], units: dict[str, str], rate: 
         k += 1
     for name in vib:
         ax = time_panel(k)
-        f, tt, S = spectrogram_psd(_magnitude(signals[name]), rate)
+        f, tt, S = spectrogram_psd(signals[name], rate)  # several axes: the sum of their PSDs, never the PSD of |x|
         db = 10.0 * np.log10(np.maximum(S, 1e-30))
         top = float(db.max()) if S.max() > 0 else 0.0
         mesh = ax.pcolormesh(tt, f, db, shading="auto", cmap="magma", vmin=top - 60.0, vmax=top)  # 60 dB range; silence is black
         cbar = fig.colorbar(mesh, cax=fig.add_subplot(grid[k, 1]))
         cbar.set_label(figure_text(f"dB re 1 ({units[name]})^2/Hz"), fontsize=FONT_PT)
-        shown = f"|{name}|" if signals[name].ndim > 1 and signals[name].reshape(signals[name].shape[0], -1).shape[1] > 1 else name
+        axes_n = signals[name].reshape(signals[name].shape[0], -1).shape[1]
+        shown = f"{name}, sum of {axes_n} axes" if axes_n > 1 else name
         ax.set_ylabel(figure_text(f"{shown}\nfrequency (Hz)"), fontsize=FONT_PT)
         k += 1
     time_axes[0].set_xlim(0.0, duration)

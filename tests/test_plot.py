@@ -170,3 +170,50 @@ def test_a_file_name_or_unit_that_is_not_utf8_is_drawn_escaped(tmp_path, capsys)
     np.savez(name, x=np.zeros(200), rate=np.array(1000.0), units=np.array(json.dumps({"x": "m\udcff"})))
     assert main(["plot", str(name), "-o", str(tmp_path / "p.png")]) == 0, capsys.readouterr().err
     assert (tmp_path / "p.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_spectrogram_of_a_3_axis_vibration_with_gravity_shows_its_frequency():
+    """A 100 Hz vibration along (1, 1, 1)/sqrt(3) on an accelerometer reading gravity on z: the spectrogram drew the
+    PSD of the magnitude |a| (a rectified signal: its power at 0 and 200 Hz, 100 Hz 56 dB down) and let the 0 Hz of
+    the offset set the colour range. Now the axes' PSDs are summed with each segment's mean removed: 100 Hz is the
+    brightest row, and the picture's power is the vibration's (Parseval)."""
+    pytest.importorskip("matplotlib")
+    from matplotlib.collections import QuadMesh
+
+    from flowtex.dsp.spectral import spectrogram_psd
+    from flowtex.io.figures import agg_pyplot
+    from flowtex.plotting import signals_figure
+
+    n, rate = 4000, 1000.0
+    vib = 0.05 * np.sin(2 * np.pi * 100.0 * np.arange(n) / rate)
+    accel = np.outer(vib, np.ones(3) / np.sqrt(3.0)) + np.array([0.0, 0.0, 9.81])
+    f, _, s = spectrogram_psd(accel, rate)
+    mean = s.mean(axis=1)
+    assert f[np.argmax(mean)] == pytest.approx(100.0, abs=f[1])
+    assert np.sum(mean) * f[1] == pytest.approx(np.var(vib), rel=0.05)
+    plt = agg_pyplot("matplotlib")
+    fig = signals_figure({"accel": accel}, {"accel": "m/s^2"}, rate)
+    try:
+        ax = next(ax for ax in fig.axes if "frequency (Hz)" in ax.get_ylabel())
+        assert "sum of 3 axes" in ax.get_ylabel()
+        db = next(c for c in ax.collections if isinstance(c, QuadMesh)).get_array().reshape(len(f), -1)
+        assert f[np.argmax(db.mean(axis=1))] == pytest.approx(100.0, abs=f[1])
+    finally:
+        plt.close(fig)
+
+
+def test_force_speed_panel_prefers_the_normal_force():
+    """A recording listing its tangential force before its normal force got a trace of the tangential force against
+    the speed, labelled as the force-speed trace: the normal force is the operating point's."""
+    pytest.importorskip("matplotlib")
+    from flowtex.io.figures import agg_pyplot
+    from flowtex.plotting import signals_figure
+
+    plt = agg_pyplot("matplotlib")
+    n = 500
+    fig = signals_figure({"tangential_force": np.ones(n), "normal_force": np.full(n, 2.0), "speed": np.linspace(50, 200, n)},
+                         {"tangential_force": "N", "normal_force": "N", "speed": "mm/s"}, 1000.0)
+    try:  # built, not drawn
+        assert [ax.get_ylabel() for ax in fig.axes if ax.get_xlabel() == "|speed| (mm/s)"] == ["|normal_force| (N)"]
+    finally:
+        plt.close(fig)

@@ -50,7 +50,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
     one_motion_source(args)
     inputs = [args.surface, args.recording]
     check_output(args.json, inputs=inputs, option="--json")
-    check_report_folder(args.report, inputs, {"--json": args.json})
+    from ..fit.compare_report import FIGURES
+
+    check_report_folder(args.report, inputs, {"--json": args.json}, ("report.md", *FIGURES))
     if args.report is not None:
         from ..fit.compare_report import pyplot
 

@@ -43,7 +43,8 @@ def register_fit(kinds: Any) -> None:
     p.add_argument("-o", "--output", type=Path, help="output model set (native JSON)")
     p.add_argument("--xml", type=Path, help="also write HaTT XML (with --out-dir: one .xml beside each .json)", nargs="?",
                    const=Path("-"))
-    p.add_argument("--report", metavar="DIR", help="write a markdown report with plots into this folder")
+    p.add_argument("--report", metavar="DIR", help="write a markdown report with plots into this folder (with --out-dir: "
+                                                   "DIR/<name>_report per recording)")
     p.add_argument("--holdout", type=lambda t: number_in_range(t, 0.0, 1.0, low_open=True, high_open=True), metavar="FRACTION",
                    help="hold out FRACTION of the recording (see --holdout-split), fit the rest and compare the fit with "
                         "the held-out part (as flowtex compare does)")
@@ -73,9 +74,11 @@ def _job(args: argparse.Namespace) -> Any:
                       allow_misses=args.allow_misses)
 
 
-def check_report_folder(report: str | None, inputs: list, outputs: dict[str, Any] | None = None) -> None:
-    """--report names a folder: refuse an existing file (or an input), or the name of another output of the command
-    (``outputs``: option -> file), before any work."""
+def check_report_folder(report: str | None, inputs: list, outputs: dict[str, Any] | None = None,
+                        writes: tuple[str, ...] = ("report.md",)) -> None:
+    """--report names a folder: refuse an existing file (or an input), the name of another output of the command
+    (``outputs``: option -> file), or another output that is one of the files the report writes into it (``writes``:
+    ``compare --json r/report.md --report r`` lost the JSON under the report), before any work."""
     from ..io.atomic import check_output
 
     if report is None:
@@ -84,8 +87,13 @@ def check_report_folder(report: str | None, inputs: list, outputs: dict[str, Any
     if path.exists() and not path.is_dir():
         raise DataError(f"--report {report}: is a file; --report names a folder to write the report into")
     for option, file in (outputs or {}).items():
-        if file is not None and Path(file).expanduser().absolute() == path.absolute():
+        if file is None:
+            continue
+        if Path(file).expanduser().resolve() == path.resolve():
             raise DataError(f"--report {report}: {option} writes that file; give the report a folder of its own")
+        if any(Path(file).expanduser().resolve() == (path / name).resolve() for name in writes):
+            raise DataError(f"{option} {file}: the report writes that file into {report}; give {option} another name "
+                            "or the report another folder")
     check_output(path / "report.md", inputs=inputs, option="--report")
 
 
@@ -99,7 +107,10 @@ def _check_outputs(args: argparse.Namespace, inputs: list) -> None:
                         f"{args.output} for HaTT's XML")
     if args.xml is not None and Path(args.xml).suffix.lower() == ".json":
         raise DataError(f"--xml {args.xml}: --xml writes HaTT's XML; name it .xml (-o writes the JSON)")
-    check_report_folder(args.report, inputs, {"-o": args.output, "--xml": args.xml, "--holdout-json": args.holdout_json})
+    from ..fit.report import REPORT_FILES
+
+    check_report_folder(args.report, inputs, {"-o": args.output, "--xml": args.xml, "--holdout-json": args.holdout_json},
+                        REPORT_FILES)
 
 
 def cmd_fit_texture(args: argparse.Namespace) -> int:
@@ -124,7 +135,7 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
         print_table(fit)
         written = write_outputs(fit, args.output, args.xml, job.render_rate, job.allow_misses)
         if args.report:
-            write_report(fit, Path(args.report))
+            write_report(fit, Path(args.report), written=written)
         say(f"-> {args.output}")
         _note_xml_losses(args.xml, written)
         return 0
@@ -134,8 +145,14 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
     if args.out_dir is not None:
         from ..io.atomic import check_output
 
+        if args.xml not in (None, Path("-")):
+            raise DataError(f"--xml {args.xml}: with --out-dir each surface's XML is OUT/<name>.xml; give --xml without a "
+                            "file name")
         check_output(Path(args.out_dir) / "x.json", inputs=paths, option="--out-dir")
-        code = fit_many(paths, job, Path(args.out_dir), args.workers, args.scheduler, args.xml is not None, args.report is not None)
+        report_dir = None if args.report is None else Path(args.report)
+        if report_dir is not None:
+            check_report_folder(args.report, paths)
+        code = fit_many(paths, job, Path(args.out_dir), args.workers, args.scheduler, args.xml is not None, report_dir)
         if args.xml is not None:
             from ..models.rendering import FITTED_RULE
 
@@ -162,7 +179,7 @@ def cmd_fit_texture(args: argparse.Namespace) -> int:
         write_text_atomic(args.holdout_json, json.dumps(held.doc, indent=1) + "\n")
         say(f"-> {args.holdout_json}")
     if args.report:
-        write_report(fit, Path(args.report), held)
+        write_report(fit, Path(args.report), held, written)
     say(f"-> {args.output}" + (f", {args.xml}" if args.xml else ""))
     _note_xml_losses(args.xml, written)
     return 0

@@ -60,19 +60,21 @@ def check_distinct_outputs(paths: Sequence[Path], out_dir: Path) -> None:
                             "rename one, or fit them into separate --out-dir folders")
 
 
-def fit_one(path: str, job, out_dir: str, xml: bool, report: bool) -> tuple[str, str]:
-    """Fit one recording and write its outputs; returns (recording, one-line summary or 'error: ...')."""
-    from .report import summary_line, write_report
+def fit_one(path: str, job, out_dir: str, xml: bool, report_dir: str | None) -> tuple[str, str]:
+    """Fit one recording and write its outputs (and, with ``report_dir``, its report into ``report_dir/<stem>_report``);
+    returns (recording, one-line summary or 'error: ...')."""
+    from .report import edge_warning, summary_line, write_report
     from .texture_job import fit_recording, write_outputs
 
     p = Path(path)
     out = Path(out_dir) / f"{p.stem}.json"
     try:
         fit = fit_recording(p, job)
-        write_outputs(fit, out, out.with_suffix(".xml") if xml else None, job.render_rate, job.allow_misses)
-        if report:
-            write_report(fit, Path(out_dir) / f"{p.stem}_report")
-        return path, summary_line(fit)
+        written = write_outputs(fit, out, out.with_suffix(".xml") if xml else None, job.render_rate, job.allow_misses)
+        if report_dir is not None:
+            write_report(fit, Path(report_dir) / f"{p.stem}_report", written=written)
+        warning = edge_warning(fit)
+        return path, summary_line(fit) + (f"; warning: {warning}" if warning else "")
     except FlowtexError as exc:
         return path, f"error: {exc}"
 
@@ -89,12 +91,14 @@ def scheduler_client(address: str) -> Any:
 
 
 def fit_many(paths: Sequence[Path], job, out_dir: Path, workers: int | None, scheduler: str | None, xml: bool = False,
-             report: bool = False) -> int:
-    """Fit every recording (serially, on a local cluster or on ``scheduler``); returns the exit code (1 if any failed)."""
+             report_dir: Path | None = None) -> int:
+    """Fit every recording (serially, on a local cluster or on ``scheduler``) into ``out_dir``, each report (with
+    ``report_dir``) into ``report_dir/<stem>_report``; returns the exit code (1 if any failed)."""
     from tqdm import tqdm
 
     check_distinct_outputs(paths, out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    report = None if report_dir is None else str(report_dir)
     show = sys.stderr.isatty()
     results: dict[str, str] = {}
     if scheduler is None and workers == 0:

@@ -335,9 +335,26 @@ def surface_renders(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, f
                         f"{opt.min_freq_hz:g} Hz where the comparison starts: nothing to compare (is the record right?)")
     if top < opt.max_freq_hz:
         opt = replace(opt, max_freq_hz=top)
+    _check_moving(speed, force, opt.lookup, where)
     renders = render_along(ms, speed, force, range(opt.seeds), opt.lookup)
     _check_rendered(renders, accel, speed, force, where)
     return renders, opt
+
+
+def _check_moving(speed: np.ndarray, force: np.ndarray, lookup: Mapping[str, Any], where: str) -> None:
+    """Refuse a recording on which the tool never moves in contact: texture_lookup renders its rest models there (speed
+    below its ``low_speed``), which a HaTT set leaves a faint residual in, so the render was not silent and the
+    comparison went on, grading HaTT's rest residual against the sensor's noise (-15 dB, LSD 30 dB) under a warning
+    that the speed might be in other units."""
+    from ..nodes.texture import TextureLookup
+
+    rest = float(lookup.get("low_speed", TextureLookup.params["low_speed"].default))
+    contact = force >= CONTACT_ON_N
+    if not contact.any() or np.any(np.abs(speed[contact]) >= rest):
+        return  # out of contact throughout: _check_rendered says so
+    raise DataError(f"{where}: the tool is at rest along this recording: in contact (from {CONTACT_ON_N:g} N) its speed "
+                    f"reaches at most {float(np.max(np.abs(speed[contact]))):g} mm/s, below the {rest:g} mm/s under which "
+                    "texture_lookup renders the set's rest models; compare on a recording of the tool moving in contact")
 
 
 SILENT_RATIO = 1e-6

@@ -33,12 +33,20 @@ def write_compare_report(c: Comparison, folder: Path, title: str) -> Path:
         save_png(figure(c, plt), folder / name)
     md = [f"# {title}", "", "```", *summary_lines(c), "```", "",
           "![spectrum](spectrum.png)", "", "![loudness](loudness.png)", "", "![windows](windows.png)", "",
-          "![octaves](octaves.png)", "",
-          "| start s | recorded RMS | rendered RMS | LSD dB | GFC | centroid Hz (rec / ren) |", "|---|---|---|---|---|---|"]
-    for w in c.windows:
-        md.append(f"| {w['start_s']:.1f} | {w['recorded_rms']:.3g} | {w['rendered_rms']:.3g} | {w['lsd_db']:.2f} | {w['gfc']:.3f} | "
-                  f"{w['centroid_hz']:.0f} / {w['rendered_centroid_hz']:.0f} |")
+          "![octaves](octaves.png)", "", *window_table(c)]
     return write_text_atomic(folder / "report.md", "\n".join(md) + "\n")
+
+
+def window_table(c: Comparison) -> list[str]:
+    """The per-window markdown table: RMS in m/s^2 to three significant digits, trailing zeros kept (2.30, not 2.3,
+    under 3.06), so that the column reads alike."""
+    rows = ["| start s | recorded RMS m/s^2 | rendered RMS m/s^2 | LSD dB | GFC | centroid Hz (rec / ren) |",
+            "|---|---|---|---|---|---|"]
+    for w in c.windows:
+        rms = [f"{w[k]:#.3g}".rstrip(".") for k in ("recorded_rms", "rendered_rms")]
+        rows.append(f"| {w['start_s']:.1f} | {rms[0]} | {rms[1]} | {w['lsd_db']:.2f} | "
+                    f"{w['gfc']:.3f} | {w['centroid_hz']:.0f} / {w['rendered_centroid_hz']:.0f} |")
+    return rows
 
 
 def _legend_beside(ax: Any) -> None:
@@ -58,8 +66,8 @@ def spectrum_figure(c: Comparison, plt: Any) -> Any:
     ax.axvspan(c.band_hz[0], c.band_hz[1], color="0.93", zorder=0, label="compared band")
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("PSD ((m/s^2)^2/Hz)")
-    ax.set_title(f"power ratio {c.power_ratio_db:+.2f} dB, LSD {c.lsd_db:.2f} dB, GFC {c.gfc:.3f} "
-                 f"({c.band_hz[0]:g}-{c.band_hz[1]:g} Hz)", fontsize=FONT_PT + 1)
+    ax.set_title(f"power ratio {c.power_ratio_db:+.2f} dB (> {c.band_hz[0]:g} Hz), LSD {c.lsd_db:.2f} dB, GFC {c.gfc:.3f} "
+                 f"({c.band_hz[0]:g}-{c.band_hz[1]:g} Hz)", fontsize=FONT_PT + 1)  # the power ratio's band is not LSD's
     _legend_beside(ax)
     return fig
 

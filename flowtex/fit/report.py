@@ -4,7 +4,7 @@ Model numbers are the models' indices in the written set (the JSON's arrays,
 0-based), in the table, the plots and the report alike. Per model: speed (mm/s), force (N), samples, order (p, q), GFC (Culbertson et al. 2012's
 definition, 1 = same spectral shape), LSD in dB (model PSD against the
 piece's Welch PSD, 256-point segments: > 15 Hz, 40 dB range) and the power
-error (model output power / data variance - 1). The LSD against the data
+error in dB (model output power over its piece's variance). The LSD against the data
 includes the Welch estimate's own scatter (about 4.3 / sqrt(segments) dB),
 so short pieces score worse than their models are; accuracy against a known
 truth is measured in tests/fit.
@@ -22,6 +22,7 @@ without them and a one-line hint says how to get them.
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -32,6 +33,7 @@ from ..dsp.spectral import expected_lsd_db, welch_psd
 from ..io.atomic import write_text_atomic
 from ..io.figures import FONT_PT as FONT
 from ..io.figures import agg_pyplot, save_png
+from ..models.texture import TextureModelSet
 from .crossval import POOLED_LINE
 from .texture import PIECE_NPERSEG, TextureFit
 
@@ -86,10 +88,28 @@ def summary_line(fit: TextureFit) -> str:
             f"clipped outliers: {fit.clipped}")
 
 
+EDGE_WARN_DB = 1.0
+"""A fit whose pieces lie this many dB below the pieces with their edge trims gets a warning (:func:`edge_warning`)."""
+
+
+def edge_warning(fit: TextureFit) -> str | None:
+    """A warning when the pieces' edge trims were louder than the pieces (loud bursts at piece boundaries, cut with the
+    transitions): the models then carry a level below the recording's, and nothing else in the fit says so."""
+    if not fit.edge_level_db < -EDGE_WARN_DB:
+        return None
+    return (f"{fit.model_set.material}: the ends cut off each piece (the transitions) were louder than the pieces: the "
+            f"models carry a level {-fit.edge_level_db:.1f} dB below that of the pieces with their ends, and the surface "
+            "renders about that much quieter than the recording (loud bursts at the piece boundaries; flowtex compare "
+            "measures it)")
+
+
 def print_table(fit: TextureFit) -> None:
     for line in table_lines(fit):
         print(line)
     print(summary_line(fit))
+    warning = edge_warning(fit)
+    if warning:
+        print(f"warning: {warning}", file=sys.stderr)
 
 
 def near_duplicates(ms: Any) -> list[tuple[int, int]]:
@@ -132,10 +152,33 @@ def held_out_lines(held: HeldOut) -> list[str]:
     return md + [""]
 
 
-def write_report(fit: TextureFit, folder: Path, held: HeldOut | None = None) -> Path:
-    """Write ``folder/report.md`` and, with matplotlib, ``spectra.png`` and ``plane.png``; returns the markdown path."""
+def written_lines(fit: TextureFit, written: TextureModelSet | None) -> list[str]:
+    """What the report says of a set written otherwise than fitted (``fit texture --render-rate``: resampled, models
+    added between the fitted ones): its rate, orders, models and triangles, so that the report's numbers are not read
+    as the file's. Nothing when the set was written as fitted."""
+    ms = fit.model_set
+    if written is None or written is ms:
+        return []
+    return [f"Written at {written.sample_rate:g} Hz (--render-rate): resampled from {ms.sample_rate:g} Hz, orders "
+            f"{ms.ar_order},{ms.ma_order} -> {written.ar_order},{written.ma_order}, {written.num_models} models "
+            f"({written.num_models - ms.num_models} added between the fitted ones), {len(written.triangles)} triangles. "
+            f"The table and the figures show the models as fitted, at {ms.sample_rate:g} Hz; the models keep their "
+            "numbers in the file.", ""]
+
+
+REPORT_FILES = ("report.md", "spectra.png", "plane.png")
+"""The files :func:`write_report` writes into its folder (no other output of the command may be one of them)."""
+
+
+def write_report(fit: TextureFit, folder: Path, held: HeldOut | None = None,
+                 written: TextureModelSet | None = None) -> Path:
+    """Write ``folder/report.md`` and, with matplotlib, ``spectra.png`` and ``plane.png``; returns the markdown path.
+    ``written``: the set the fit wrote, when it differs from the fitted one (:func:`written_lines`)."""
     folder.mkdir(parents=True, exist_ok=True)
-    md = [f"# Texture fit: {fit.model_set.material}", "", summary_line(fit), "", "```", *table_lines(fit), "```", ""]
+    warning = edge_warning(fit)
+    md = [f"# Texture fit: {fit.model_set.material}", "", summary_line(fit), "", *([f"Warning: {warning}.", ""] if warning else []),
+          *written_lines(fit, written), "```",
+          *table_lines(fit), "```", ""]
     dups = near_duplicates(fit.model_set)
     if dups:
         md += ["Near-duplicate models (closer than 2 % of the range on both axes): "
@@ -196,8 +239,9 @@ def plane_figure(fit: TextureFit, plt: Any, dups: list[tuple[int, int]]) -> Any:
     ms = fit.model_set
     fig, ax = plt.subplots(figsize=(7, 5.8), layout="constrained")
     if fit.path is not None:
-        ax.plot(fit.path[:, 0], fit.path[:, 1], color="0.8", lw=0.6, zorder=1, label="recorded path")
-    ax.triplot(ms.speeds, ms.forces, ms.triangles, color="0.55", lw=0.6, zorder=2)
+        # a colour of its own: in grey it could not be told from the triangles' edges
+        ax.plot(fit.path[:, 0], fit.path[:, 1], color="C1", alpha=0.45, lw=0.8, zorder=1, label="recorded path")
+    ax.triplot(ms.speeds, ms.forces, ms.triangles, color="0.55", lw=0.6, zorder=2, label="triangulation")
     measured = ms.variance > 0
     pieces = _by_model(fit)
     power = np.array([pc.fit.output_variance for pc in pieces])

@@ -311,7 +311,8 @@ def texture_index(ms: TextureModelSet) -> int:
 
 
 def write_hatt_xml(ms: TextureModelSet, path: str | Path, texture: int = 0, digits: int | None = None) -> Path:
-    """Write ``ms`` as a HaTT model file (exactly HaTT's documented shape); returns the path.
+    """Write ``ms`` as a HaTT model file (the elements of docs/hatt-format.md, its header in an order of its own); returns
+    the path.
 
     Triangles are written 1-based; ``numARCoeff``/``numMACoeff`` hold the
     orders p and q; ``<mu>`` is left out when ``ms.mu`` is None. Coefficients are ``ms.ar_coeff``/``ms.ma_coeff`` when

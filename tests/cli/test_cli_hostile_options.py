@@ -161,6 +161,39 @@ def test_compare_on_a_recording_that_never_reaches_contact(tmp_path, capsys):
     assert "normal force reaches at most 0 N" in msg and "dB" not in msg
 
 
+@pytest.mark.parametrize("argv, option, name", [
+    (["compare", "s.json", "r.npz", "--speed", "speed"], "--json", "report.md"),
+    (["compare", "s.json", "r.npz", "--speed", "speed"], "--json", "spectrum.png"),
+    (["fit", "texture", "r.npz", "--speed", "speed", "-o", "out.json", "--folds", "2"], "--holdout-json", "report.md"),
+    (["fit", "texture", "r.npz", "--speed", "speed", "-o", "out.json", "--folds", "2"], "--holdout-json", "plane.png"),
+])
+def test_an_output_that_is_a_file_of_the_report_is_refused(tmp_path, capsys, monkeypatch, argv, option, name):
+    """compare --json rep/report.md --report rep wrote the JSON, then the report's markdown over it (and --holdout-json
+    the same with fit texture's report): both were said written, one was lost. Refused before any work, naming both."""
+    monkeypatch.chdir(tmp_path)
+    for f in ("s.json", "r.npz"):
+        (tmp_path / f).write_bytes(b"")
+    cli_one_line(capsys, [*argv, option, f"rep/{name}", "--report", "rep"],
+                 f"{option} rep/{name}: the report writes that file into rep")
+    assert not (tmp_path / "rep" / name).exists()
+
+
+def test_compare_on_a_recording_of_the_tool_at_rest_in_contact(tmp_path, capsys):
+    """A HaTT-rule set (XML: silent corners at speed 0, HaTT's clamp to 0.0001 mm/s) leaves a faint render at rest, so a
+    recording of the tool resting in contact was compared: figures of that residual against the sensor's noise, under
+    a warning that the speed might be in other units. It is refused as at rest, naming the speed and the threshold."""
+    from flowtex.io.hatt import write_hatt_xml
+
+    ms = synthetic_model_set(np.array([50.0, 150.0]), np.array([0.5, 1.5]), ar_order=2, ma_order=2)
+    write_hatt_xml(ms, tmp_path / "s.xml")
+    n = 5000
+    save_recording(tmp_path / "rest.npz", {"accel": 1e-4 * np.random.default_rng(0).normal(size=n), "speed": np.zeros(n),
+                                           "normal_force": np.full(n, 1.0)}, rate=1000.0)
+    msg = cli_one_line(capsys, ["compare", str(tmp_path / "s.xml"), str(tmp_path / "rest.npz"), "--speed", "speed"],
+                       "the tool is at rest along this recording")
+    assert "its speed reaches at most 0 mm/s, below the 0.05 mm/s" in msg and "dB" not in msg
+
+
 @pytest.mark.parametrize("record, says", [
     ([1], "got [1]"), ("x", "got 'x'"), ({"from_hz": True}, "got True"), ({"from_hz": "500"}, "got '500'"),
     ({"from_hz": -5}, "got -5"), ({"from_hz": 0}, "got 0"),

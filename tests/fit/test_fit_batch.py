@@ -79,3 +79,30 @@ def test_recordings_that_would_share_an_output_file_are_refused_before_any_fit(t
     assert capsys.readouterr().err.strip() == (f"--out-dir {out}: {a} and {b} would both be written to {out / 'rec.json'}; "
                                                "rename one, or fit them into separate --out-dir folders")
     assert batch.expand_inputs([str(a), str(tmp_path / "b" / ".." / "a" / "rec.npz"), str(tmp_path / "a" / "*.npz")]) == [a]
+
+
+def test_out_dir_writes_each_report_into_the_report_folder_given(tmp_path, monkeypatch, capsys):
+    """--out-dir OUT --report DIR wrote every report to OUT/<stem>_report and ignored DIR; --xml FILE.xml was ignored
+    too. Now the reports go to DIR/<stem>_report, and a file name for --xml is refused before any fit (the fit is
+    replaced here: the point is where things are written)."""
+    import flowtex.fit.report as report
+    import flowtex.fit.texture_job as texture_job
+
+    (tmp_path / "in").mkdir()
+    for name in ("a", "b"):
+        (tmp_path / "in" / f"{name}.npz").write_bytes(b"")
+    written: list = []
+    monkeypatch.setattr(texture_job, "fit_recording", lambda path, job: path.stem)
+    monkeypatch.setattr(texture_job, "write_outputs", lambda fit, out, xml, *a: written.append((out, xml)))
+    monkeypatch.setattr(report, "write_report", lambda fit, folder, *a, **k: written.append(folder))
+    monkeypatch.setattr(report, "summary_line", lambda fit: f"fitted {fit}")
+    monkeypatch.setattr(report, "edge_warning", lambda fit: None)
+    common = ["fit", "texture", str(tmp_path / "in"), "--speed", "speed", "--out-dir", str(tmp_path / "out"), "--workers", "0"]
+    assert main([*common, "--report", str(tmp_path / "reports")]) == 0
+    assert sorted(w for w in written if not isinstance(w, tuple)) == [tmp_path / "reports" / "a_report",
+                                                                     tmp_path / "reports" / "b_report"]
+    written.clear()
+    assert main([*common, "--xml", str(tmp_path / "x.xml")]) == 1
+    assert "--xml" in capsys.readouterr().err and written == []
+    assert main([*common, "--xml"]) == 0
+    assert sorted(xml for out, xml in written) == [tmp_path / "out" / "a.xml", tmp_path / "out" / "b.xml"]

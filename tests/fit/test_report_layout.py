@@ -154,3 +154,97 @@ def test_held_out_table_names_the_window_of_its_rms_correlation():
     lines = held_out_lines(HeldOut("held out: test", [c], holdout_doc("blocks", "fraction", 0.3, [c])))
     header = next(line for line in lines if line.startswith("| fold"))
     assert f"{CV_WINDOW_S:g}-s window-RMS correlation" in header
+
+
+def test_compare_report_table_states_units_and_the_spectrum_title_the_power_ratios_band(plt, comparison):
+    """The window table's RMS columns had no unit and read 2.3 under 3.06 (three significant digits, trailing zeros
+    dropped); the spectrum's title put the LSD's band after the power ratio, which is measured from 12 Hz to the
+    Nyquist frequency (for a set resampled up, 12-400 Hz was read as the power ratio's band too)."""
+    from dataclasses import replace
+
+    from flowtex.fit.compare_report import spectrum_figure, window_table
+
+    c = replace(comparison, windows=[dict(comparison.windows[0], recorded_rms=2.3, rendered_rms=123.4)],
+                band_hz=[12.0, 400.0])
+    header, _, row = window_table(c)
+    assert "recorded RMS m/s^2" in header and "rendered RMS m/s^2" in header
+    assert "| 2.30 | 123 |" in row
+    fig = spectrum_figure(c, plt)
+    try:
+        assert fig.axes[0].get_title().startswith(f"power ratio {c.power_ratio_db:+.2f} dB (> 12 Hz), LSD")
+    finally:
+        plt.close(fig)
+
+
+def test_report_of_a_set_written_at_another_rate_says_so(fit, tmp_path, monkeypatch):
+    """fit texture --render-rate 2000 --report DIR: the report gave the fitted set's '... N models, T triangles' and
+    orders at 1 kHz and said nothing of the file written (resampled to 2 kHz, other orders, models added between the
+    fitted ones), so its numbers were read as the file's. It now states what was written."""
+    from types import SimpleNamespace
+
+    import flowtex.fit.report as report
+    import flowtex.fit.texture_job as texture_job
+    from flowtex.cli import main
+
+    ms = fit.model_set
+    written = SimpleNamespace(sample_rate=2000.0, ar_order=ms.ar_order + 2, ma_order=ms.ma_order + 2,
+                              num_models=ms.num_models, triangles=ms.triangles)  # what the report reads of it
+    monkeypatch.setattr(texture_job, "fit_recording", lambda path, job: fit)
+    monkeypatch.setattr(texture_job, "write_outputs", lambda *a, **k: written)
+    monkeypatch.setattr(report, "agg_pyplot", lambda hint: None)  # no figures: the text is the point
+    monkeypatch.setattr(report, "print_table", lambda f: None)
+    rec = tmp_path / "rec.npz"
+    rec.write_bytes(b"")
+    argv = ["fit", "texture", str(rec), "--speed", "speed", "--render-rate", "2000", "-o", str(tmp_path / "s.json"),
+            "--report", str(tmp_path / "rep")]
+    assert main(argv) == 0
+    text = (tmp_path / "rep" / "report.md").read_text()
+    assert (f"Written at 2000 Hz (--render-rate): resampled from 1000 Hz, orders {ms.ar_order},{ms.ma_order} -> "
+            f"{ms.ar_order + 2},{ms.ma_order + 2}, {ms.num_models} models (0 added") in text
+    assert report.written_lines(fit, ms) == [] and report.written_lines(fit, None) == []
+
+
+def test_plane_tells_the_recorded_path_from_the_triangulation(plt, fit):
+    """The recorded path was drawn in light grey under the triangulation's grey edges, the two told apart by shade
+    alone: on paper the path could not be followed. It now has a colour of its own, and both are in the legend."""
+    from matplotlib.colors import to_rgb
+
+    from flowtex.fit.report import near_duplicates, plane_figure
+
+    fig = plane_figure(fit, plt, near_duplicates(fit.model_set))
+    try:
+        ax = fig.axes[0]
+        lines = {line.get_label(): line for line in ax.get_lines()}
+        path, edges = lines["recorded path"], lines["triangulation"]
+        r, g, b = to_rgb(path.get_color())
+        assert max(r, g, b) - min(r, g, b) > 0.3  # a colour, not a grey
+        assert to_rgb(path.get_color()) != to_rgb(edges.get_color())
+        assert {"recorded path", "triangulation"} <= {t.get_text() for legend in fig.legends for t in legend.get_texts()}
+    finally:
+        plt.close(fig)
+
+
+def test_fit_warns_when_the_pieces_ends_held_the_loud_bursts(fit, capsys):
+    """On a recording with bursts and 6 dB of loudness wander (resonant.textured_exploration(12, seed=5,
+    loudness_db=6, burst=1.5)) the segmenter put two piece boundaries at bursts, the 0.05-s trims cut them away with
+    60 % of the recording's energy, and the fit rendered 2.5 dB too quiet with nothing said. The pieces' level against
+    that of the pieces with their trims is now measured, and a loss of more than 1 dB is a warning."""
+    from types import SimpleNamespace
+
+    from flowtex.fit.report import edge_warning
+    from flowtex.fit.texture import Piece, trimmed_level_db
+
+    rng = np.random.default_rng(0)
+    x = rng.standard_normal(3000)
+    pieces = [Piece(100, 1400, 100.0, 1.0), Piece(1600, 2900, 200.0, 2.0)]
+    assert abs(trimmed_level_db(x, pieces, 100)) < 0.3  # trims like the pieces
+    x[1400:1500] *= 10.0  # a burst in the trim after the first piece
+    level = trimmed_level_db(x, pieces, 100)
+    assert level < -3.0
+    assert trimmed_level_db(np.zeros(3000), pieces, 100) == 0.0
+    warned = edge_warning(SimpleNamespace(edge_level_db=level, model_set=SimpleNamespace(material="m")))
+    assert warned is not None and f"{-level:.1f} dB below" in warned
+    assert edge_warning(SimpleNamespace(edge_level_db=-0.5, model_set=SimpleNamespace(material="m"))) is None
+    # a fit measures its own pieces (the person-like recording of the fixture: no loud ends, no warning)
+    assert fit.edge_level_db == trimmed_level_db(fit.signal, fit.pieces, int(round(0.05 * RATE)))
+    assert edge_warning(fit) is None
