@@ -25,6 +25,7 @@ import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -259,6 +260,8 @@ def _load_h5(path: Path) -> Recording:
             units = {}
             total = 0
             datasets = [(name, item) for name, item in fh.items() if isinstance(item, h5py.Dataset)]
+            if not datasets:
+                _refuse_grouped(fh, h5py, path)
             for name, item in datasets:  # every dataset's header first: nothing is read from a file that is too large
                 if item.ndim == 0:
                     raise DataError(f"{path}: dataset {excerpt(name)} is a single number; signals need time on the first axis")
@@ -278,6 +281,33 @@ def _load_h5(path: Path) -> Recording:
     except (OSError, KeyError, RuntimeError, ValueError, TypeError) as exc:  # h5py reports damaged files in all of these
         raise DataError(f"{path}: not a readable HDF5 recording ({excerpt(str(exc), 120)})") from None
     return Recording(arrays, rate, units=units)
+
+
+_GROUPED_SHOWN = 3
+"""Datasets inside groups named when a file has none at its root."""
+
+
+def _refuse_grouped(fh: Any, h5py: Any, path: Path) -> None:
+    """Refuse a file whose datasets all sit inside groups (``/trial1/accel``): flowtex reads one dataset per signal at
+    the root, and said only that the file held no signals. Walks groups breadth-first and stops after a few datasets,
+    so a file claiming millions of objects costs no more."""
+    found: list[str] = []
+    queue = [("", fh)]
+    visited = 0
+    while queue and len(found) < _GROUPED_SHOWN and visited < 10_000:
+        prefix, group = queue.pop(0)
+        for name, item in group.items():
+            visited += 1
+            if isinstance(item, h5py.Dataset):
+                found.append(f"{prefix}{name}")
+                if len(found) == _GROUPED_SHOWN:
+                    break
+            elif isinstance(item, h5py.Group):
+                queue.append((f"{prefix}{name}/", item))
+    if found:
+        raise DataError(f"{path}: no dataset at the file's root; its signals are inside groups ({', '.join(map(excerpt, found))}"
+                        f"{', ...' if len(found) == _GROUPED_SHOWN else ''}); flowtex reads one dataset per signal at the "
+                        "root: copy them there (h5py: f[name] = f[group + '/' + name][()])")
 
 
 NPZ_ENTRIES = ("rate", UNITS_KEY)

@@ -166,6 +166,22 @@ def test_h5_with_string_data_is_refused(tmp_path):
     refused(lambda: load_recording(path), "signal 'acc' is complex")
 
 
+def test_an_hdf5_file_whose_signals_are_in_groups_names_them(tmp_path):
+    """Rigs often write /trial1/accel: flowtex reads the root's datasets and said only "holds no signals"."""
+    h5py = pytest.importorskip("h5py")
+    path = tmp_path / "g.h5"
+    with h5py.File(path, "w") as fh:
+        fh.create_group("meta")
+        trial = fh.create_group("trial1")
+        for name in ("accel", "speed", "force", "position"):
+            trial.create_dataset(name, data=np.zeros(10))
+    refused(lambda: load_recording(path), "no dataset at the file's root; its signals are inside groups ('trial1/accel', "
+                                          "'trial1/force', 'trial1/position', ...); flowtex reads one dataset per signal")
+    with h5py.File(path, "w") as fh:
+        fh.create_group("meta")
+    refused(lambda: load_recording(path), "the recording holds no signals")  # nothing anywhere: as before
+
+
 def test_bench_on_a_zero_length_recording(tmp_path, capsys):
     path = tmp_path / "empty.npz"
     np.savez(path, speed=np.zeros(0), rate=1000.0)
