@@ -134,6 +134,12 @@ def short_number(value: float) -> str:
         return excerpt(value, 24)
 
 
+def signed(value: float, digits: int) -> str:
+    """``value`` with its sign and ``digits`` decimals, a value that rounds to zero as ``+0.00`` (``-0.001`` printed
+    ``-0.00`` with ``:+.2f``: a level "below" the recording by nothing)."""
+    return f"{round(float(value), digits) + 0.0:+.{digits}f}"
+
+
 def port_values_problem(shape: tuple[int, ...] | list[int]) -> str | None:
     """Why a port of ``shape`` is refused (more than :data:`MAX_PORT_VALUES` values per tick), or None."""
     count = math.prod(int(s) for s in shape)

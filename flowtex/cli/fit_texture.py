@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import DataError
+from ..limits import signed
 from .options import add_from_rate, int_at_least, number_in_range, one_motion_source, positive_hz, scheduler_address
 from .output import note, say
 
@@ -253,12 +254,12 @@ def _fit_holdout(path: Path, job: Any, args: argparse.Namespace) -> tuple[Any, A
             say(f"fold {k}:")
         for text in summary_lines(c):
             say(text)
-        say(f"  in-sample (the same surface on its training blocks): power ratio {own.power_ratio_db:+.2f} dB, "
-            f"LSD {own.lsd_db:.2f} dB; held out minus in-sample: LSD {c.lsd_db - own.lsd_db:+.2f} dB")
+        say(f"  in-sample (the same surface on its training blocks): power ratio {signed(own.power_ratio_db, 2)} dB, "
+            f"LSD {own.lsd_db:.2f} dB; held out minus in-sample: LSD {signed(c.lsd_db - own.lsd_db, 2)} dB")
     doc = holdout_doc(split, key, value, cmps, cv.pooled, cv.in_sample)
     if len(cmps) > 1:
         m = doc["mean"]
-        say(f"mean over {len(cmps)} folds: power ratio {m['power_ratio_db']:+.2f} dB, LSD {m['lsd_db']:.2f} dB, GFC {m['gfc']:.3f}")
+        say(f"mean over {len(cmps)} folds: power ratio {signed(m['power_ratio_db'], 2)} dB, LSD {m['lsd_db']:.2f} dB, GFC {m['gfc']:.3f}")
     if cv.pooled is not None:
         say(f"pooled over the folds ({POOLED_LINE}):")
         for text in summary_lines(cv.pooled)[1:]:

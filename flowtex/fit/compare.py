@@ -61,6 +61,7 @@ from ..dsp.contact import CONTACT_ON_N
 from ..dsp.filter_design import zero_phase_highpass
 from ..dsp.spectral import gfc, lsd_db, octave_bands, psd_band_power, psd_centroid, welch_psd
 from ..errors import DataError
+from ..limits import signed
 from ..models.texture import TextureModelSet
 from .resampled_band import resampled_band_hz
 
@@ -387,7 +388,7 @@ def correlation_text(c: Comparison) -> str:
 def summary_lines(c: Comparison) -> list[str]:
     """The comparison in a few printable lines."""
     return [f"rendered along the recorded path ({c.seconds:.1f} s, {c.seeds} render(s)):",
-            f"  power ratio {c.power_ratio_db:+.2f} dB (rendered over recorded, > 12 Hz; "
+            f"  power ratio {signed(c.power_ratio_db, 2)} dB (rendered over recorded, > 12 Hz; "
             + (f"one render scatters by {c.power_ratio_spread_db:.2f} dB" if math.isfinite(c.power_ratio_spread_db)
                else "one render: its scatter unknown, --seeds 4 measures it")
             + f"); RMS {c.rendered_rms:.3g} rendered, {c.recorded_rms:.3g} recorded (m/s^2)",
@@ -395,6 +396,6 @@ def summary_lines(c: Comparison) -> list[str]:
             f"centroid {c.rendered_centroid_hz:.0f} Hz rendered, {c.centroid_hz:.0f} Hz recorded "
             f"(band {c.band_hz[0]:g}-{c.band_hz[1]:g} Hz, {c.resolution_hz:.3g} Hz resolution"
             + ("; the set was resampled from another rate)" if math.isfinite(c.max_freq_hz) else ")"),
-            "  octave-band power error (dB): " + ", ".join(f"{b['centre_hz']:g} Hz {b['error_db']:+.1f}" for b in c.octave_bands),
+            "  octave-band power error (dB): " + ", ".join(f"{b['centre_hz']:g} Hz {signed(b['error_db'], 1)}" for b in c.octave_bands),
             f"  {c.windows[0]['seconds'] if c.windows else 0:g}-s window RMS correlation {correlation_text(c)}",
             *(f"  warning: {w}" for w in c.warnings)]

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..io.atomic import write_text_atomic
 from ..io.figures import FONT_PT, agg_pyplot, save_png
+from ..limits import signed
 from .compare import Comparison, correlation_text, summary_lines
 
 PLOT_ERROR = "--report needs matplotlib for its plots: pip install 'flowtex[plot]' (or leave out --report)"
@@ -66,7 +67,7 @@ def spectrum_figure(c: Comparison, plt: Any) -> Any:
     ax.axvspan(c.band_hz[0], c.band_hz[1], color="0.93", zorder=0, label="compared band")
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("PSD ((m/s^2)^2/Hz)")
-    ax.set_title(f"power ratio {c.power_ratio_db:+.2f} dB (> {c.band_hz[0]:g} Hz), LSD {c.lsd_db:.2f} dB, GFC {c.gfc:.3f} "
+    ax.set_title(f"power ratio {signed(c.power_ratio_db, 2)} dB (> {c.band_hz[0]:g} Hz), LSD {c.lsd_db:.2f} dB, GFC {c.gfc:.3f} "
                  f"({c.band_hz[0]:g}-{c.band_hz[1]:g} Hz)", fontsize=FONT_PT + 1)  # the power ratio's band is not LSD's
     _legend_beside(ax)
     return fig

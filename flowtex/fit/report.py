@@ -33,6 +33,7 @@ from ..dsp.spectral import expected_lsd_db, welch_psd
 from ..io.atomic import write_text_atomic
 from ..io.figures import FONT_PT as FONT
 from ..io.figures import agg_pyplot, save_png
+from ..limits import signed
 from ..models.texture import TextureModelSet
 from .crossval import POOLED_LINE
 from .texture import PIECE_NPERSEG, TextureFit
@@ -146,7 +147,7 @@ def held_out_lines(held: HeldOut) -> list[str]:
     bands = held.doc["mean"].get("octave_bands") or []
     if bands:
         md += ["", "Octave-band power error (rendered over recorded, dB, mean over folds): "
-               + ", ".join(f"{b['centre_hz']:g} Hz {b['error_db']:+.1f}" for b in bands if b.get("error_db") is not None)]
+               + ", ".join(f"{b['centre_hz']:g} Hz {signed(b['error_db'], 1)}" for b in bands if b.get("error_db") is not None)]
     warnings = sorted({w for c in held.comparisons for w in c.warnings})
     md += [f"- warning: {w}" for w in warnings]
     return md + [""]

@@ -21,6 +21,7 @@ from ..dsp.lsf import lsf_to_poly_new
 from ..dsp.lsf_roots import poly_to_lsf
 from ..dsp.spectral import lsd_db
 from ..errors import FlowtexError
+from ..limits import signed
 from ..models.texture import TextureModelSet
 from .arma import min_phase_for_lsf
 
@@ -315,7 +316,7 @@ def misses_text(ms: TextureModelSet, limit: int = 5) -> str:
     worst = sorted(misses, key=lambda d: -max(d["lsd_db"] / MAX_LSD_DB, abs(d["band_power_error"]) / MAX_BAND_ERROR,
                                                d["power_above_old_nyquist"] / MAX_POWER_ABOVE))
     items = [f"model {d['model']} ({d['speed']:g} mm/s, {d['force']:g} N): LSD {d['lsd_db']:.2f} dB, band power "
-             f"{100 * d['band_power_error']:+.1f} %, {100 * d['power_above_old_nyquist']:.1f} % above the old Nyquist"
+             f"{signed(100 * d['band_power_error'], 1)} %, {100 * d['power_above_old_nyquist']:.1f} % above the old Nyquist"
              for d in worst[:limit]]
     more = f" and {len(misses) - limit} more" if len(misses) > limit else ""
     return (f"{len(misses)} of {ms.num_models} models miss LSD <= {MAX_LSD_DB} dB / band power within "
