@@ -145,25 +145,6 @@ def _resample_one(ms: TextureModelSet, m: int, rate_to: float, keep_order: bool,
     return _Model(lsf_a, lsf_c, a2, c2, float(ms.gain[m]), v1 * v_unit, lsd, band, above)
 
 
-def check_power(ms: TextureModelSet) -> None:
-    """Raise FlowtexError naming the set's file and model unless every model's power gain^2 x variance is a float64.
-
-    A model whose power overflows (a gain of 1e300, say) cannot be rendered or resampled; before this check
-    `models resample` ended in an internal OverflowError.
-    """
-    with np.errstate(over="ignore", invalid="ignore"):
-        square = np.asarray(ms.gain, dtype=np.float64) ** 2
-        power = square * np.asarray(ms.variance, dtype=np.float64)
-    bad = np.flatnonzero(~(np.isfinite(square) & np.isfinite(power)))
-    if bad.size:
-        m = int(bad[0])
-        where = str(ms.source) if ms.source is not None else f"model set {ms.material!r}"
-        raise FlowtexError(f"{where}: model {m} ({float(ms.speeds[m]):g} mm/s, {float(ms.forces[m]):g} N): gain "
-                           f"{float(ms.gain[m]):g} and variance {float(ms.variance[m]):g}: gain^2 or the vibration power "
-                           "gain^2 x variance is beyond the largest float64 number; fix the model's gain or variance"
-                           + (f" ({bad.size} models affected)" if bad.size > 1 else ""))
-
-
 class _Progress:
     """Counts model fits for the caller's ``progress(done, total)``; the total grows when an attempt is retried."""
 
@@ -260,7 +241,7 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
         raise FlowtexError(f"--extra-order must be an even number from 0 to {MAX_EXTRA_ORDER}, got {extra_order}")
     rate_from = float(ms.sample_rate)
     check_rate_ratio(rate_from, rate_hz, option, "model set")
-    check_power(ms)
+    ms.validate()  # a set built in memory too: a power beyond float64 is named, not an OverflowError
     rate_to = float(rate_hz)
     upsampling = rate_to > rate_from
     direct = rate_to <= DIRECT_MAX_RATIO * (1.0 + 1e-12) * rate_from

@@ -234,10 +234,17 @@ class TextureModelSet:
         from ..dsp.interp import UnusableModel, model_output_powers
 
         try:  # what texture_lookup computes from every model when it builds; validate and load say it first
-            model_output_powers(self.ar_lsf, self.ma_lsf, vec["variance"], vec["gain"])
+            with np.errstate(over="ignore", invalid="ignore"):
+                powers = model_output_powers(self.ar_lsf, self.ma_lsf, vec["variance"], vec["gain"]) + vec["gain"] ** 2
         except UnusableModel as exc:
             fail(f"{model_name(exc.model)}: its LSFs give no stable filter in float64 (neighbouring LSFs, or one and 0 or "
                  "pi, nearly coincide: a pole on the unit circle), so it cannot render; refit the model or remove it")
+        loud = np.flatnonzero(~np.isfinite(powers))  # the rendered power, or gain^2 (blended between models), overflows
+        if loud.size:  # gain 1e300: rendered, resampled and compared in powers beyond float64
+            m = int(loud[0])
+            fail(f"{model_name(m)} ({vec['speeds'][m]:g} mm/s, {vec['forces'][m]:g} N): gain {vec['gain'][m]:g} and variance "
+                 f"{vec['variance'][m]:g}: gain^2 or the vibration power gain^2 x variance is beyond the largest float64 "
+                 "number; fix the model's gain or variance" + (f" ({loud.size} models affected)" if loud.size > 1 else ""))
 
         tri = np.asarray(self.triangles)
         if tri.ndim != 2 or tri.shape[1] != 3 or tri.shape[0] < 1:

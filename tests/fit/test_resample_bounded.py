@@ -9,6 +9,8 @@ measured independently of the resampler: arma_psd of the models rebuilt from the
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -18,6 +20,7 @@ from flowtex.datasets.model_sets import narrow_peak_model_set, synthetic_model_s
 from flowtex.dsp.arma import arma_psd
 from flowtex.dsp.lsf import lsf_to_poly_new
 from flowtex.dsp.spectral import lsd_db
+from flowtex.errors import FlowtexError
 from flowtex.fit.resample import EXTRA_ORDERS, MAX_EXTRA_ORDER, resample_model_set
 from flowtex.io.modelset import load_model_set, save_model_set
 
@@ -93,16 +96,24 @@ def test_extra_order_range(tmp_path, capsys, bad, message):
 @pytest.mark.parametrize("rate", ["2000", "500"])
 def test_gain_whose_power_overflows_is_a_one_line_error_naming_file_and_model(tmp_path, capsys, rate):
     # issue 27: gains of 1e300 ended in "internal error: OverflowError" (gain^2 overflows float64)
+    # refused where the set is read (validate, every verb), in the file's numbering (models[2]); a set built in memory
+    # by resample_model_set itself, numbered from 1 as in-memory sets are
     ms = synthetic_model_set([60.0, 150.0], [0.5, 1.5], ar_order=4, ma_order=2)
-    ms.gain = np.where(np.arange(ms.num_models) == 2, 1e300, ms.gain)
-    src = save_model_set(ms.validate(), tmp_path / "big.json")
+    src = save_model_set(ms, tmp_path / "big.json")
+    doc = json.loads(src.read_text())
+    doc["models"][2]["gain"] = 1e300
+    src.write_text(json.dumps(doc))
     out = tmp_path / "out.json"
-    assert main(["models", "resample", str(src), "--rate", rate, "-o", str(out)]) == 1
-    err = capsys.readouterr().err
-    assert len(err.strip().splitlines()) == 1 and "internal error" not in err
     speed, force = float(ms.speeds[2]), float(ms.forces[2])
-    assert str(src) in err and f"model 2 ({speed:g} mm/s, {force:g} N)" in err and "gain 1e+300" in err
+    for argv in (["models", "resample", str(src), "--rate", rate, "-o", str(out)], ["validate", str(src)]):
+        assert main(argv) == 1
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "internal error" not in err
+        assert str(src) in err and f"models[2] ({speed:g} mm/s, {force:g} N)" in err and "gain 1e+300" in err, err
     assert not out.exists()
+    ms.gain = np.where(np.arange(ms.num_models) == 2, 1e300, ms.gain)
+    with pytest.raises(FlowtexError, match=r"model 3 \(150 mm/s, 0\.5 N\): gain 1e\+300 and variance"):
+        resample_model_set(ms, float(rate))
 
 
 def test_huge_but_finite_power_resamples_like_a_unit_one(tmp_path):
