@@ -345,8 +345,8 @@ def surface_renders(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, f
 def _check_moving(speed: np.ndarray, force: np.ndarray, lookup: Mapping[str, Any], where: str) -> None:
     """Refuse a recording on which the tool never moves in contact: texture_lookup renders its rest models there (speed
     below its ``low_speed``), which a HaTT set leaves a faint residual in, so the render was not silent and the
-    comparison went on, grading HaTT's rest residual against the sensor's noise (-15 dB, LSD 30 dB) under a warning
-    that the speed might be in other units."""
+    comparison went on, grading HaTT's rest residual against the sensor's noise under a warning that the speed might
+    be in other units."""
     from ..nodes.texture import TextureLookup
 
     rest = float(lookup.get("low_speed", TextureLookup.params["low_speed"].default))

@@ -128,9 +128,8 @@ def trimmed_level_db(x: np.ndarray, pieces: Sequence[Piece], trim: int) -> float
     """Mean power (per sample) of the pieces over that of the pieces with the ``trim`` samples cut at each end, in dB.
 
     About 0 when the trims are like the pieces. Negative when the segmenter put the pieces' boundaries at loud bursts
-    and the trims cut them away: on a generated recording with bursts and 6 dB of loudness wander (flowtex.datasets
-    .resonant) two trims held 60 % of the recording's energy, and the fit rendered 2.5 dB too quiet. 0 when there is
-    no power to compare.
+    and the trims cut them away with much of the recording's energy: the fit then renders quieter than the recording
+    (docs/fitting.md). 0 when there is no power to compare.
     """
     n_in = n_all = 0
     e_in = e_all = 0.0
