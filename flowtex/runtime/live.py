@@ -57,7 +57,7 @@ from .safety import all_updated_after, first_stale
 from .simdevice import SimulatedDevice, in_process_device
 from .stats import TickStats
 from .status import Shown, StatusDisplay, clamp_warnings, guard_counts, resolve_shown
-from .tick import rx_decoder, tick_compute, warmer
+from .tick import RefusedFrames, rx_decoder, tick_compute, warmer
 
 __all__ = ["BusError", "CanIO", "LiveConfig", "LiveReport", "load_io", "run_live"]
 
@@ -170,7 +170,8 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
     fused = fuse_tick(graph, io, tick_out, watchdog.last)  # compiled (or loaded) now, before the first deadline
     if fused is None:
         graph.warm()  # the separate calls' block: compiled (or loaded) and run once on scratch arenas now
-    decode_rx = rx_decoder(io, watchdog)
+    refused = RefusedFrames()  # frames of a sensor's ID number not taken as it: named if that sensor seems silent
+    decode_rx = rx_decoder(io, watchdog, refused)
     compute = tick_compute(graph, io, watchdog, fused, decode_rx)
     receive, send_frames = receiver(bus), sender(bus)
     rx: list[Any] = []
@@ -284,7 +285,7 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
             stats.write_json(stats_path, rt_granted, extra={"audio": audio_summary} if audio_summary is not None else None)
         except FlowtexError as exc:  # a full disk: the session is over and its safe values went out; say so in the line
             error = f"{error}; --stats {one_line(exc)}" if error else f"--stats {one_line(exc)}"
-    silent, silence = _silent_sensors(io, watchdog.last, k, stats.frames_in, where)
+    silent, silence = _silent_sensors(io, watchdog.last, k, stats.frames_in, where, refused)
     return LiveReport(ticks=k, frames_in=stats.frames_in, frames_out=stats.frames_out, watchdog_events=watchdog.events,
                       guard_events=guard_events, exit_reason="error" if error else (stop[0] or "duration"), error=error,
                       summary=stats.summary(rt_granted), rt_message=rt_message, send_offset_ns=send_offset[:min(k, capacity)],
@@ -308,14 +309,17 @@ def _arrival_ns(rx: list[Any], wall_minus_perf: int) -> int:
     return int(newest * 1e9) - wall_minus_perf if newest > 0.0 else 0
 
 
-def _silent_sensors(io: CanIO, last: np.ndarray, ticks: int, frames_in: int, where: str) -> tuple[list[str], str | None]:
-    """The map's sensor messages of which no frame arrived (watchdog stamps never set), and one line saying so."""
+def _silent_sensors(io: CanIO, last: np.ndarray, ticks: int, frames_in: int, where: str,
+                    refused: RefusedFrames) -> tuple[list[str], str | None]:
+    """The map's sensor messages of which no frame arrived (watchdog stamps never set), and one line saying so, with
+    what arrived under each one's ID number that the DBC does not describe as it (``refused``)."""
     heard = {m for (_, m), t in zip(io.watchdog_keys, last, strict=True) if t >= 0}
     silent = [m for m in io.map.sensor_messages() if m not in heard]
     if not silent or not ticks:
         return silent, None
     # an extended message says so: a device sending it as a standard frame (or the reverse) sends another message
-    names = ", ".join(f"{m} ({'extended ' if io.codecs[m].is_extended else ''}id {io.codecs[m].frame_id:#x})" for m in silent)
+    names = ", ".join(f"{m} ({'extended ' if io.codecs[m].is_extended else ''}id {io.codecs[m].frame_id:#x}{refused.describe(io, m)})"
+                      for m in silent)
     if len(silent) == len(io.map.sensor_messages()):
         other = f"; the {frames_in} frame(s) that arrived were none of them" if frames_in else ""
         return silent, (f"no sensor frame received in {ticks} ticks on {where}: expected {names}{other}. Outputs stayed at their "

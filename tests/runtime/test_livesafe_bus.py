@@ -6,15 +6,23 @@ Every DBC is built from the bundled example by editing one line (test_livesafe_d
 
 from __future__ import annotations
 
+import math
+import re
+import threading
+
 import can
 import pytest
-from test_live import setup  # noqa: F401  (fixture; rootdir-relative import as pytest does)
+from test_live import DBC, setup  # noqa: F401  (fixture; rootdir-relative import as pytest does)
 from test_livesafe_dbc import _dbc
+from test_livesafe_frames import nan_setup
+from test_nan_frames import frame as nan_frame
 
 from flowtex.errors import GraphError
 from flowtex.graph.compiled import load_graph
+from flowtex.io.codec_tables import decode_packed
 from flowtex.io.slcan_protocol import encode_frame
 from flowtex.runtime.live import LiveConfig, load_io, run_live
+from flowtex.runtime.tick import RefusedFrames, rx_decoder
 
 FD_ATTRIBUTE = ('\nBA_DEF_ BO_ "VFrameFormat" ENUM "StandardCAN","ExtendedCAN",' + '"reserved",' * 12 + '"StandardCAN_FD","ExtendedCAN_FD";\n'
                 'BA_DEF_DEF_ "VFrameFormat" "StandardCAN";\nBA_ "VFrameFormat" BO_ 512 14;\n')
@@ -52,3 +60,64 @@ def test_a_sensor_message_longer_than_a_classic_frame_is_not_judged(setup):  # n
     """A device may send a long sensor message in CAN FD frames, which the decoder takes whatever the DBC says."""
     dbc = _dbc(setup, "BO_ 257 ToolForce: 8 HapticDevice", "BO_ 257 ToolForce: 12 HapticDevice", "long.dbc")
     assert load_io(load_graph(setup / "g.yaml"), dbc, setup / "m.yaml").map.inputs["normal_force"]
+
+
+def _inject(channel: str, frames: list[can.Message]) -> tuple[threading.Event, threading.Thread, can.BusABC]:
+    """Another node on the virtual bus sending ``frames`` every 0.5 ms until the event is set."""
+    injector = can.Bus(interface="virtual", channel=channel, receive_own_messages=False)
+    stop = threading.Event()
+
+    def flood() -> None:
+        while not stop.is_set():
+            for m in frames:
+                injector.send(m)
+            stop.wait(0.0005)
+
+    thread = threading.Thread(target=flood, daemon=True)
+    thread.start()
+    return stop, thread, injector
+
+
+def test_a_sensor_whose_frames_the_dbc_does_not_describe_is_named_with_what_came(setup):  # noqa: F811
+    """A device sending ToolForce in 6 bytes (the DBC says 8) and ToolPosition as extended frames: every frame is
+    refused, rightly (outputs safe throughout, exit code 3), but the line said only 'no sensor frame received ... the
+    N frame(s) that arrived were none of them', sending its user to check cables and power. It now says, per message,
+    what arrived under its ID number that the DBC does not describe as it."""
+    channel = "livesafe-mismatch"
+    stop, thread, injector = _inject(channel, [
+        can.Message(arbitration_id=0x101, is_extended_id=False, data=bytes(6)),
+        can.Message(arbitration_id=0x100, is_extended_id=True, data=bytes(8))])
+    try:
+        r = run_live(load_graph(setup / "g.yaml"), LiveConfig(DBC, setup / "m.yaml", bus=f"virtual:{channel}", max_ticks=300,
+                                                              status=None))
+    finally:
+        stop.set()
+        thread.join()
+        injector.shutdown()
+    assert r.error is None and r.no_sensor_frames and r.frames_in > 0
+    line = r.silence
+    assert re.search(r"ToolPosition \(id 0x100; \d+ frame\(s\) of its ID number as extended frames arrived, which the DBC "
+                     r"does not describe as ToolPosition\)", line), line
+    assert re.search(r"ToolForce \(id 0x101; \d+ frame\(s\) shorter than the DBC's 8 data bytes \(the last of 6\) arrived", line), line
+
+
+@pytest.mark.parametrize("longer", [False, True], ids=["compiled-slot", "python-codec"])
+def test_a_sensor_sending_only_nan_is_named_with_what_came(setup, longer):  # noqa: F811
+    """Only NaN CoilTemperature frames (dropped whole, rightly): the silent sensor is named with them, on the compiled
+    slot (frames of the DBC's length, dropped inside the compiled decoder) and the Python codec (longer frames)."""
+    m = nan_setup(setup)
+    g = load_graph(setup / "nan.yaml", block_rows=1)
+    io = load_io(g, DBC, m)
+    wd = io.new_watchdog(2_000_000)
+    refused = RefusedFrames()
+    decode = rx_decoder(io, wd, refused)
+    td = io.codec.decoder
+    for k in range(3):
+        mask = decode([nan_frame(math.nan, longer)], k, td.words)
+        if mask:
+            decode_packed(td.ibuf, td.fbuf, mask, k, io.codec.arena, wd.last)
+    assert (wd.last < 0).all()
+    count = "3" if longer else "some"
+    assert refused.describe(io, "DeviceStatus") == (f"; {count} frame(s) with a float signal NaN or inf (no measurement) arrived, "
+                                                    "which the DBC does not describe as DeviceStatus")
+    assert RefusedFrames().describe(load_io(g, DBC, m), "DeviceStatus") == ""  # nothing came: nothing to say
