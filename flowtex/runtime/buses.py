@@ -9,11 +9,13 @@ one ``recv``/``send`` per frame otherwise), once, before the loop starts.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import can
+from can.interfaces.virtual import VirtualBus
 
 from ..errors import FlowtexError
 from ..io.dbc import one_line
@@ -55,17 +57,39 @@ def parse_bus_spec(spec: str) -> tuple[str, str | None, dict[str, Any]]:
     return interface, (channel or None), kwargs
 
 
-def open_bus(spec: str, bitrate: int | None = None) -> can.BusABC:
-    """Open the python-can bus named by ``spec`` (bitrate in bit/s); :class:`BusError` (one line) if that fails."""
+def open_bus(spec: str, bitrate: int | None = None, fd_messages: Sequence[str] = ()) -> can.BusABC:
+    """Open the python-can bus named by ``spec`` (bitrate in bit/s); :class:`BusError` (one line) if that fails.
+
+    ``fd_messages``: the session's CAN FD messages (DBC). With any, the bus is opened for CAN FD (python-can's ``fd``;
+    socketcan's raw socket otherwise refuses to send an FD frame and never delivers one), and a bus that still speaks
+    classic CAN only (its ``protocol``; flowtex_slcan, for one) is refused before any frame: the session used to start
+    and end at its first send, unable to send the safe values either. The ``virtual`` bus carries any frame."""
     interface, channel, kwargs = parse_bus_spec(spec)
     if bitrate:
         kwargs["bitrate"] = int(bitrate)
+    if fd_messages:
+        kwargs["fd"] = True
     if interface not in can.VALID_INTERFACES:
         raise BusError(f"--bus {spec!r}: unknown interface {interface!r}; python-can knows {', '.join(sorted(can.VALID_INTERFACES))}")
     try:
-        return can.Bus(interface=interface, channel=channel, **kwargs)
+        bus = can.Bus(interface=interface, channel=channel, **kwargs)
     except Exception as exc:  # python-can raises CanError, OSError, ImportError, ValueError, serial errors...
         raise BusError(f"cannot open CAN bus {spec!r}: {one_line(exc)}") from None
+    check_fd(bus, f"--bus {spec!r}", fd_messages)
+    return bus
+
+
+def check_fd(bus: can.BusABC, what: str, fd_messages: Sequence[str]) -> None:
+    """Shut ``bus`` (named ``what`` in the message) and raise :class:`BusError` when the session has CAN FD messages
+    (``fd_messages``) and the bus speaks classic CAN only (python-can's ``protocol``; the ``virtual`` bus, which
+    carries any frame whatever its protocol says, is not judged)."""
+    if not fd_messages or isinstance(bus, VirtualBus) or getattr(bus, "protocol", None) != can.CanProtocol.CAN_20:
+        return
+    with contextlib.suppress(Exception):
+        bus.shutdown()
+    raise BusError(f"{what} carries classic CAN frames only, but the DBC makes {', '.join(fd_messages)} CAN FD: no "
+                   "frame of it could be sent or received (the safe values neither); use an adapter and interface that "
+                   "speak CAN FD, or give the message at most 8 bytes and no CAN FD mark in the DBC")
 
 
 def receiver(bus: can.BusABC) -> Callable[[list[Any]], None]:

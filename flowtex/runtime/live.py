@@ -132,7 +132,7 @@ def run_live(graph: TickProgram, config: LiveConfig) -> LiveReport:
         bus_obj, dev_bus, device = in_process_device(bus, io.map, io.codecs, config.simulate, float(graph.rate), config.drop,
                                                      graph.name, {n: spec.unit for n, spec in graph.inputs.items()})
     else:
-        bus_obj = open_bus(bus, config.bitrate)
+        bus_obj = open_bus(bus, config.bitrate, [m for m, c in io.codecs.items() if c.is_fd])
     writer = None
     try:
         writer = SessionWriter(record, "--record") if record is not None else None

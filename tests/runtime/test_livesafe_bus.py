@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import re
 import threading
+from io import StringIO
 
 import can
 import pytest
@@ -21,7 +22,10 @@ from flowtex.errors import GraphError
 from flowtex.graph.compiled import load_graph
 from flowtex.io.codec_tables import decode_packed
 from flowtex.io.slcan_protocol import encode_frame
+from flowtex.io.slcan_pty import open_pty
+from flowtex.runtime.buses import BusError, open_bus
 from flowtex.runtime.live import LiveConfig, load_io, run_live
+from flowtex.runtime.simdevice import run_device
 from flowtex.runtime.tick import RefusedFrames, rx_decoder
 
 FD_ATTRIBUTE = ('\nBA_DEF_ BO_ "VFrameFormat" ENUM "StandardCAN","ExtendedCAN",' + '"reserved",' * 12 + '"StandardCAN_FD","ExtendedCAN_FD";\n'
@@ -47,13 +51,65 @@ def test_an_actuator_message_longer_than_a_classic_frame_must_be_can_fd(setup): 
     with pytest.raises(ValueError):  # why: what the runtime sent before, a classic frame of 12 bytes, no adapter carries
         encode_frame(can.Message(arbitration_id=0x200, is_extended_id=False, data=bytes(12)))
 
-    fd = setup / "fd.dbc"
-    fd.write_text(dbc.read_text() + FD_ATTRIBUTE)
-    io = load_io(g, fd, setup / "m.yaml")
-    coil = next(m for m in io.tx if m.arbitration_id == 0x200)
+    fd = _fd_dbc(setup)
+    coil = next(m for m in load_io(g, fd, setup / "m.yaml").tx if m.arbitration_id == 0x200)
     assert coil.is_fd and len(coil.data) == 12
     r = run_live(g, LiveConfig(fd, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=5, status=None))
     assert r.error is None and r.ticks == 5
+
+
+def _fd_dbc(folder):
+    """The example DBC with VoiceCoilCmd a CAN FD message of 12 bytes."""
+    dbc = _dbc(folder, "BO_ 512 VoiceCoilCmd: 4 Host", "BO_ 512 VoiceCoilCmd: 12 Host", "long.dbc")
+    dbc.write_text(dbc.read_text() + FD_ATTRIBUTE)
+    return dbc
+
+
+def test_a_bus_that_speaks_classic_can_only_is_refused_for_can_fd_messages(setup):  # noqa: F811
+    """VoiceCoilCmd is CAN FD and the bus is flowtex_slcan (slcan carries classic frames only): the session started
+    and ended at its first send, 'tick 0: ValueError: slcan_fast: CAN FD and error frames are not supported; could not
+    send the safe values ... make it safe by hand'. Refused now before any frame, in one line naming the bus and the
+    message, no log left; and simulate-device --pty (an slcan adapter) likewise, before its pty is announced."""
+    dbc = _fd_dbc(setup)
+    pty = open_pty()
+    try:
+        with pytest.raises(BusError) as e:
+            run_live(load_graph(setup / "g.yaml"), LiveConfig(dbc, setup / "m.yaml", bus=f"flowtex_slcan:{pty.slave_path}",
+                                                              max_ticks=5, status=None, record=setup / "s.blf"))
+    finally:
+        pty.close()
+    assert str(e.value).startswith(f"--bus 'flowtex_slcan:{pty.slave_path}' carries classic CAN frames only, but the DBC makes "
+                                   "VoiceCoilCmd CAN FD"), str(e.value)
+    assert not list(setup.glob("*s.*blf"))
+    announced = StringIO()
+    with pytest.raises(BusError, match=r"^--pty \(an slcan adapter\) carries classic CAN frames only"):
+        run_device(None, str(dbc), str(setup / "m.yaml"), str(setup / "rec.npz"), duration_s=0.05, pty=True, status=None,
+                   announce=announced)
+    assert announced.getvalue() == ""
+
+
+def test_a_bus_is_opened_for_can_fd_when_the_session_has_can_fd_messages(setup, monkeypatch):  # noqa: F811
+    """python-can's socketcan opens a classic raw socket unless asked for ``fd``: it refused to send the FD frames (the
+    safe ones too) and never delivered one. open_bus asks for it when the DBC makes a bound message CAN FD, only then."""
+    asked: list[dict] = []
+
+    class Fake:
+        protocol = can.CanProtocol.CAN_FD
+
+        def __init__(self, **kw):
+            asked.append(kw)
+
+        def shutdown(self) -> None:
+            pass
+
+    monkeypatch.setattr(can, "Bus", Fake)
+    open_bus("socketcan:can0", 500000, ["VoiceCoilCmd"])
+    open_bus("socketcan:can0", 500000)
+    assert asked == [{"interface": "socketcan", "channel": "can0", "bitrate": 500000, "fd": True},
+                     {"interface": "socketcan", "channel": "can0", "bitrate": 500000}]
+    Fake.protocol = can.CanProtocol.CAN_20  # an interface that did not take the request
+    with pytest.raises(BusError, match="carries classic CAN frames only"):
+        open_bus("socketcan:can0", None, ["VoiceCoilCmd"])
 
 
 def test_a_sensor_message_longer_than_a_classic_frame_is_not_judged(setup):  # noqa: F811
