@@ -197,94 +197,97 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
     error: str | None = None
     guard_events = k = lateness = overrun = 0
     tx, now = io.tx, time.perf_counter_ns
-    with _stop_signals(stop, config.install_signals), freeze_gc(), prompt_callbacks(audio is not None):
-        try:
-            if audio is not None:
-                audio.start()  # plays silence until the stream has settled, then places tick 0 a margin ahead of it
-                if writer is not None:
-                    audio.log_timeline = True
-                    writer.write(audio.start_event(), False)
-            if device is not None:  # tick 0's sensor frames, just before tick 0 (their arrival starts its latency)
-                device.publish(0)
-            clock.start()
-            while True:
-                receive(rx)  # 2. whatever arrived since prepare() (bus time, not compute)
-                t0 = now()
-                guard_events += compute(rx, k, overrun)  # 3.-5. decode, graph tick, watchdog, guard, encode
-                t1 = now()
-                send_frames(tx)  # 6.
-                t2 = now()
-                stats.record(lateness, t1 - t0)  # 7. the slack
-                send_offset[k % capacity] = t2 - clock.deadline_ns
-                stats.frames_in += len(rx)
-                stats.frames_out += len(tx)
-                if audio is not None and audio.push(k, _arrival_ns(rx, wall_minus_perf), _audio_held(watchdog, k)):
-                    clock.catch_up_ns = int(audio.catch_up_s() * 1e9)  # the margin grew after a stall: catch up as far
-                if writer is not None:
-                    writer.write_tick(rx, tx)
-                    if audio is not None:
-                        for m in audio.take_events():
-                            writer.write(m, False)
-                    if writer.error is not None:  # a full disk: the log would miss this session's rest, so it ends here
-                        raise RecordError(writer.error)
-                rx.clear()
-                k += 1
-                if device is not None:
-                    device.collect(k - 1)
-                    device.publish(k)
-                if stop[0] is not None or (n_ticks is not None and k >= n_ticks):
-                    break
-                if display is not None:
-                    display.tick(k)
+    # the stop handlers stay until the session's files are written: a second Ctrl-C, SIGTERM or SIGHUP while they are
+    # (the first ended the loop) raised in the middle of them, and the log was discarded, --stats not written
+    with _stop_signals(stop, config.install_signals):
+        with freeze_gc(), prompt_callbacks(audio is not None):
+            try:
                 if audio is not None:
-                    audio.check()
-                    clock.shift(audio.pace(k - 1, clock.deadline_ns + period))
-                lateness = overrun = clock.wait()  # 1. the next deadline
-                if clock.skipped:  # a stall: the skipped deadlines count as late, until now
-                    stats.record_skipped(clock.skipped, lateness, period)
-                    overrun = lateness + clock.skipped * period
-        except (can.CanError, BusError, OSError) as exc:
-            error = f"CAN bus error at tick {k}: {one_line(exc)}"
-        except FlowtexError as exc:
-            error = f"tick {k}: {one_line(exc)}"
-        except Exception as exc:  # an exception inside the graph or a codec must still end in safe values
-            error = f"tick {k}: {type(exc).__name__}: {one_line(exc)}"
-        finally:
-            safe_error = _send_safe(io, bus, writer)
-            if audio is not None:
-                try:  # fade, stop, write --record-audio; a failure here must not skip what follows
-                    audio_error = audio.stop()
-                except Exception as exc:
-                    audio_error = f"audio output: {type(exc).__name__}: {one_line(exc)}"
-                safe_error = "; ".join(e for e in (safe_error, audio_error) if e) or None
-                if writer is not None:
-                    for m in audio.take_events():  # the last runs of silence and the END event
-                        writer.write(m, False)
-            if device is not None:
-                device.collect(k)
-            if rt_status is not None:
-                leave_realtime(rt_status)
-    if writer is not None:  # renamed into place now that the exit block is in; a failed write discards it
-        try:
-            writer.close()
-        except RecordError as exc:
-            if error is None or str(exc) not in error:
-                error = f"{error}; {exc}" if error else str(exc)
-    safe_sent = safe_error is None or not safe_error.startswith(SAFE_NOT_SENT)
-    if safe_error:
-        error = f"{error}; {safe_error}" if error else safe_error
-    stats.watchdog_events = watchdog.events
-    stats.timeouts = watchdog.stale_events
-    stats.guard = guard_counts(io, audio)
-    rt_granted = rt_status is not None and bool(rt_status.granted)
-    if display is not None:
-        display.finish(rt_granted)
-    audio_summary = audio.summary() if audio is not None else None
-    if stats_path is not None:
-        try:
-            stats.write_json(stats_path, rt_granted, extra={"audio": audio_summary} if audio_summary is not None else None)
-        except FlowtexError as exc:  # a full disk: the session is over and its safe values went out; say so in the line
-            error = f"{error}; --stats {one_line(exc)}" if error else f"--stats {one_line(exc)}"
+                    audio.start()  # plays silence until the stream has settled, then places tick 0 a margin ahead of it
+                    if writer is not None:
+                        audio.log_timeline = True
+                        writer.write(audio.start_event(), False)
+                if device is not None:  # tick 0's sensor frames, just before tick 0 (their arrival starts its latency)
+                    device.publish(0)
+                clock.start()
+                while True:
+                    receive(rx)  # 2. whatever arrived since prepare() (bus time, not compute)
+                    t0 = now()
+                    guard_events += compute(rx, k, overrun)  # 3.-5. decode, graph tick, watchdog, guard, encode
+                    t1 = now()
+                    send_frames(tx)  # 6.
+                    t2 = now()
+                    stats.record(lateness, t1 - t0)  # 7. the slack
+                    send_offset[k % capacity] = t2 - clock.deadline_ns
+                    stats.frames_in += len(rx)
+                    stats.frames_out += len(tx)
+                    if audio is not None and audio.push(k, _arrival_ns(rx, wall_minus_perf), _audio_held(watchdog, k)):
+                        clock.catch_up_ns = int(audio.catch_up_s() * 1e9)  # the margin grew after a stall: catch up as far
+                    if writer is not None:
+                        writer.write_tick(rx, tx)
+                        if audio is not None:
+                            for m in audio.take_events():
+                                writer.write(m, False)
+                        if writer.error is not None:  # a full disk: the log would miss this session's rest, so it ends here
+                            raise RecordError(writer.error)
+                    rx.clear()
+                    k += 1
+                    if device is not None:
+                        device.collect(k - 1)
+                        device.publish(k)
+                    if stop[0] is not None or (n_ticks is not None and k >= n_ticks):
+                        break
+                    if display is not None:
+                        display.tick(k)
+                    if audio is not None:
+                        audio.check()
+                        clock.shift(audio.pace(k - 1, clock.deadline_ns + period))
+                    lateness = overrun = clock.wait()  # 1. the next deadline
+                    if clock.skipped:  # a stall: the skipped deadlines count as late, until now
+                        stats.record_skipped(clock.skipped, lateness, period)
+                        overrun = lateness + clock.skipped * period
+            except (can.CanError, BusError, OSError) as exc:
+                error = f"CAN bus error at tick {k}: {one_line(exc)}"
+            except FlowtexError as exc:
+                error = f"tick {k}: {one_line(exc)}"
+            except Exception as exc:  # an exception inside the graph or a codec must still end in safe values
+                error = f"tick {k}: {type(exc).__name__}: {one_line(exc)}"
+            finally:
+                safe_error = _send_safe(io, bus, writer)
+                if audio is not None:
+                    try:  # fade, stop, write --record-audio; a failure here must not skip what follows
+                        audio_error = audio.stop()
+                    except Exception as exc:
+                        audio_error = f"audio output: {type(exc).__name__}: {one_line(exc)}"
+                    safe_error = "; ".join(e for e in (safe_error, audio_error) if e) or None
+                    if writer is not None:
+                        for m in audio.take_events():  # the last runs of silence and the END event
+                            writer.write(m, False)
+                if device is not None:
+                    device.collect(k)
+                if rt_status is not None:
+                    leave_realtime(rt_status)
+        if writer is not None:  # renamed into place now that the exit block is in; a failed write discards it
+            try:
+                writer.close()
+            except RecordError as exc:
+                if error is None or str(exc) not in error:
+                    error = f"{error}; {exc}" if error else str(exc)
+        safe_sent = safe_error is None or not safe_error.startswith(SAFE_NOT_SENT)
+        if safe_error:
+            error = f"{error}; {safe_error}" if error else safe_error
+        stats.watchdog_events = watchdog.events
+        stats.timeouts = watchdog.stale_events
+        stats.guard = guard_counts(io, audio)
+        rt_granted = rt_status is not None and bool(rt_status.granted)
+        if display is not None:
+            display.finish(rt_granted)
+        audio_summary = audio.summary() if audio is not None else None
+        if stats_path is not None:
+            try:
+                stats.write_json(stats_path, rt_granted, extra={"audio": audio_summary} if audio_summary is not None else None)
+            except FlowtexError as exc:  # a full disk: the session is over and its safe values went out; say so in the line
+                error = f"{error}; --stats {one_line(exc)}" if error else f"--stats {one_line(exc)}"
     silent, silence = _silent_sensors(io, watchdog.last, k, stats.frames_in, where, refused)
     return LiveReport(ticks=k, frames_in=stats.frames_in, frames_out=stats.frames_out, watchdog_events=watchdog.events,
                       guard_events=guard_events, exit_reason="error" if error else (stop[0] or "duration"), error=error,

@@ -7,7 +7,9 @@ Every DBC is built from the bundled example by editing one line (test_livesafe_d
 from __future__ import annotations
 
 import math
+import os
 import re
+import signal
 import threading
 from io import StringIO
 
@@ -20,6 +22,7 @@ from test_nan_frames import frame as nan_frame
 
 from flowtex.errors import GraphError
 from flowtex.graph.compiled import load_graph
+from flowtex.io.canlog import SessionWriter, read_session
 from flowtex.io.codec_tables import decode_packed
 from flowtex.io.slcan_protocol import encode_frame
 from flowtex.io.slcan_pty import open_pty
@@ -177,3 +180,34 @@ def test_a_sensor_sending_only_nan_is_named_with_what_came(setup, longer):  # no
     assert refused.describe(io, "DeviceStatus") == (f"; {count} frame(s) with a float signal NaN or inf (no measurement) arrived, "
                                                     "which the DBC does not describe as DeviceStatus")
     assert RefusedFrames().describe(load_io(g, DBC, m), "DeviceStatus") == ""  # nothing came: nothing to say
+
+
+class Interrupted(Exception):
+    """What the test's own SIGINT handler raises: the handler in place before the session and after it."""
+
+
+def test_a_second_ctrl_c_while_the_session_writes_its_files_keeps_them(setup, monkeypatch):  # noqa: F811
+    """The first Ctrl-C ends the loop (safe values last); an impatient second one arrives while the log is closed and
+    --stats written. The loop's stop handlers were gone by then: the second raised in the middle of the close, the
+    log was discarded (a BLF cut in its flush left its .part file), --stats was not written and the session reported
+    nothing (flowtex live: 'interrupted', exit 130). The handlers now stay until the files are written."""
+    real_close = SessionWriter.close
+
+    def close_after_a_ctrl_c(self, keep=True):
+        os.kill(os.getpid(), signal.SIGINT)  # delivered to the main thread at its next bytecode: inside this close
+        return real_close(self, keep)
+
+    def before(signum, frame):
+        raise Interrupted
+
+    monkeypatch.setattr(SessionWriter, "close", close_after_a_ctrl_c)
+    old = signal.signal(signal.SIGINT, before)
+    try:
+        r = run_live(load_graph(setup / "g.yaml"), LiveConfig(DBC, setup / "m.yaml", simulate=setup / "rec.npz", max_ticks=50,
+                                                              status=None, record=setup / "s.blf", stats_path=setup / "st.json"))
+        assert signal.getsignal(signal.SIGINT) is before  # the session's handlers are gone again
+    finally:
+        signal.signal(signal.SIGINT, old)
+    assert r.error is None and r.ticks == 50 and r.exit_reason == "SIGINT"
+    assert (setup / "st.json").is_file() and sorted(p.name for p in setup.iterdir() if p.name.startswith(("s", ".s"))) == ["s.blf", "st.json"]
+    assert len([m for m in read_session(setup / "s.blf") if not m.is_rx]) == 2 * 51  # 50 ticks and the exit block
