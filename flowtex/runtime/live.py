@@ -45,6 +45,7 @@ from ..io.canlog import RecordError, SessionWriter
 from ..io.dbc import one_line
 from ..io.mapsafety import shrunk_bounds
 from .audio import AudioOutput, prompt_callbacks
+from .audio_ring import sensor_arrival_ns
 from .audio_timeline import check_event_ids
 from .buses import SEND_TIMEOUT_S, BusError, open_bus, receiver, sender
 from .canio import CanIO, load_io, tick_out
@@ -221,7 +222,7 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
                     send_offset[k % capacity] = t2 - clock.deadline_ns
                     stats.frames_in += len(rx)
                     stats.frames_out += len(tx)
-                    if audio is not None and audio.push(k, _arrival_ns(rx, wall_minus_perf), _audio_held(watchdog, k)):
+                    if audio is not None and audio.push(k, sensor_arrival_ns(rx, wall_minus_perf, io.decoders, t2), _audio_held(watchdog, k)):
                         clock.catch_up_ns = int(audio.catch_up_s() * 1e9)  # the margin grew after a stall: catch up as far
                     if writer is not None:
                         writer.write_tick(rx, tx)
@@ -301,15 +302,6 @@ def _audio_held(watchdog: Any, k: int) -> bool:
     """Whether tick ``k`` plays safe silence: while the input watchdog holds the outputs (a stale sensor, or no frame
     yet). The overrun watchdog holds the CAN outputs only: a late tick whose samples are still in time plays."""
     return watchdog.tripped and (watchdog.reason != "overrun" or first_stale(watchdog.last, watchdog.timeouts, k) >= 0)
-
-
-def _arrival_ns(rx: list[Any], wall_minus_perf: int) -> int:
-    """perf_counter time (ns) at which the newest received frame arrived (its bus timestamp), 0 without frames."""
-    newest = 0.0
-    for m in rx:
-        if m.timestamp > newest:
-            newest = m.timestamp
-    return int(newest * 1e9) - wall_minus_perf if newest > 0.0 else 0
 
 
 def _silent_sensors(io: CanIO, last: np.ndarray, ticks: int, frames_in: int, where: str,

@@ -15,6 +15,8 @@ from io import StringIO
 
 import can
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 from test_live import DBC, setup  # noqa: F401  (fixture; rootdir-relative import as pytest does)
 from test_livesafe_dbc import _dbc
 from test_livesafe_frames import nan_setup
@@ -26,6 +28,7 @@ from flowtex.io.canlog import SessionWriter, read_session
 from flowtex.io.codec_tables import decode_packed
 from flowtex.io.slcan_protocol import encode_frame
 from flowtex.io.slcan_pty import open_pty
+from flowtex.runtime.audio_ring import ARRIVAL_WINDOW_NS, sensor_arrival_ns
 from flowtex.runtime.buses import BusError, open_bus
 from flowtex.runtime.live import LiveConfig, load_io, run_live
 from flowtex.runtime.simdevice import run_device
@@ -211,3 +214,34 @@ def test_a_second_ctrl_c_while_the_session_writes_its_files_keeps_them(setup, mo
     assert r.error is None and r.ticks == 50 and r.exit_reason == "SIGINT"
     assert (setup / "st.json").is_file() and sorted(p.name for p in setup.iterdir() if p.name.startswith(("s", ".s"))) == ["s.blf", "st.json"]
     assert len([m for m in read_session(setup / "s.blf") if not m.is_rx]) == 2 * 51  # 50 ticks and the exit block
+
+
+SENSORS = {0x100: (None, (0,), False), 0x101: (None, (1,), False)}
+"""A CanIO.decoders of two standard sensor messages, as sensor_arrival_ns reads it."""
+WALL_MINUS_PERF = 1_700_000_000_000_000_000
+NOW = 5_000_000_000  # perf_counter ns of the tick: wall time 1700000005 s
+
+
+def _at(seconds: float, fid: int = 0x100, **kw) -> can.Message:
+    return can.Message(arbitration_id=fid, data=bytes(8), timestamp=seconds, **{"is_extended_id": False, **kw})
+
+
+def test_the_audio_latency_starts_at_the_newest_sensor_frame_in_the_hosts_clock():
+    """The audio latency ran from the newest timestamp of any frame of the tick: another node's frame (or an error or
+    remote frame) after the sensor's made it shorter than it was; an adapter's own clock (seconds since it started)
+    gave latencies of decades; an infinite timestamp ended the session ('tick k: OverflowError')."""
+    sensor = _at(1_700_000_004.998)
+    want = int(1_700_000_004.998 * 1e9) - WALL_MINUS_PERF
+    later = [_at(1_700_000_004.9995, 0x300), _at(1_700_000_004.9995, 0x101, is_extended_id=True),
+             _at(1_700_000_004.9995, 0x101, is_error_frame=True), _at(1_700_000_004.9995, 0x101, is_remote_frame=True)]
+    assert sensor_arrival_ns([sensor, *later], WALL_MINUS_PERF, SENSORS, NOW) == want
+    assert sensor_arrival_ns(later, WALL_MINUS_PERF, SENSORS, NOW) == 0  # no sensor frame: no latency sample
+    for clock in (12.5, 1_700_000_100.0, math.inf, -math.inf, math.nan, -3.0):  # an adapter's clock, the future, nonsense
+        assert sensor_arrival_ns([_at(clock)], WALL_MINUS_PERF, SENSORS, NOW) == 0, clock
+        assert sensor_arrival_ns([_at(clock), sensor], WALL_MINUS_PERF, SENSORS, NOW) in (want, 0), clock
+
+
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=6))
+def test_any_timestamps_give_a_latency_sample_in_the_window_or_none(stamps):
+    arrival = sensor_arrival_ns([_at(t, 0x100 + i % 2) for i, t in enumerate(stamps)], WALL_MINUS_PERF, SENSORS, NOW)
+    assert arrival == 0 or ARRIVAL_WINDOW_NS[0] <= NOW - arrival <= ARRIVAL_WINDOW_NS[1]
