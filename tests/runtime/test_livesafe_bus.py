@@ -245,3 +245,23 @@ def test_the_audio_latency_starts_at_the_newest_sensor_frame_in_the_hosts_clock(
 def test_any_timestamps_give_a_latency_sample_in_the_window_or_none(stamps):
     arrival = sensor_arrival_ns([_at(t, 0x100 + i % 2) for i, t in enumerate(stamps)], WALL_MINUS_PERF, SENSORS, NOW)
     assert arrival == 0 or ARRIVAL_WINDOW_NS[0] <= NOW - arrival <= ARRIVAL_WINDOW_NS[1]
+
+
+@pytest.mark.parametrize("suffix", [".log", ".blf", ".asc"])
+def test_a_received_frame_without_a_time_is_logged_and_read_back(tmp_path, suffix):
+    """An interface's frame stamped NaN or inf (or None): a .log wrote '(nan)', which flowtex's reader refuses ('t.log:1:1:
+    timestamp '(nan)' is not '(SECONDS)'': the session could not be replayed), and a .blf or .asc ended the session
+    ('frame time nan s cannot be written ...'). The frame is written at the log's last time now; the replay reads
+    frames in order, never by their times, so every frame reads back, in order."""
+    path = tmp_path / f"s{suffix}"
+    w = SessionWriter(path)
+    sent = can.Message(arbitration_id=0x200, is_extended_id=False, data=bytes(4))
+    for k, stamp in enumerate([1_700_000_000.0, math.nan, math.inf, -math.inf, None]):
+        got = can.Message(arbitration_id=0x100, is_extended_id=False, data=bytes([k]) * 8, timestamp=1.0)
+        got.timestamp = stamp
+        w.write_tick([got], [sent])
+    w.close()
+    frames = list(read_session(path))
+    assert [(m.arbitration_id, m.is_rx, bytes(m.data[:1])) for m in frames] == [
+        f for k in range(5) for f in ((0x100, True, bytes([k])), (0x200, False, b"\0"))]
+    assert all(math.isfinite(m.timestamp) for m in frames)
