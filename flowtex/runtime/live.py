@@ -95,6 +95,7 @@ class LiveReport:
     """One line per output whose clamp the DBC's grid narrows noticeably (:func:`~flowtex.io.mapsafety.shrunk_bounds`),
     one per pass-through binding whose DBC unit differs from its graph port's by no known factor
     (:attr:`~flowtex.io.canmap.CanMap.warnings`), both also printed on the status stream before the session; then one
+    per actuator message another node sent too (:meth:`~flowtex.runtime.tick.RefusedFrames.foreign_warnings`), and one
     per output clamped or peak-limited on more than 1 % of the ticks (:func:`~flowtex.runtime.status.clamp_warnings`)."""
 
     @property
@@ -295,7 +296,7 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
                       summary=stats.summary(rt_granted), rt_message=rt_message, send_offset_ns=send_offset[:min(k, capacity)],
                       device=device, silent_messages=silent, silence=silence,
                       no_sensor_frames=bool(k) and len(silent) == len(io.map.sensor_messages()) > 0,
-                      warnings=clamp_warnings(io, k), audio=audio_summary, safe_sent=safe_sent)
+                      warnings=refused.foreign_warnings(io, where) + clamp_warnings(io, k), audio=audio_summary, safe_sent=safe_sent)
 
 
 def _audio_held(watchdog: Any, k: int) -> bool:

@@ -47,6 +47,9 @@ class RefusedFrames:
     def __init__(self) -> None:
         self.counts: dict[int, list[int]] = {}
         """ID number -> [frames of the other format, frames too short, frames not finite, the last short one's length]."""
+        self.foreign: dict[int, int] = {}
+        """Actuator message's ID number -> frames of it (its format, not remote) that arrived: another node sending
+        the commands this session sends (:meth:`foreign_warnings`)."""
 
     def note(self, msg: Any, length: int, extended: bool) -> None:
         """Count ``msg``, which the decoder did not take as the message of ``length`` bytes and frame format ``extended``."""
@@ -78,6 +81,15 @@ class RefusedFrames:
         return f"; {' and '.join(parts)} arrived, which the DBC does not describe as {message}" if parts else ""
 
 
+    def foreign_warnings(self, io: CanIO, where: str) -> list[str]:
+        """One line per actuator message of which frames arrived from another node."""
+        names = {m.arbitration_id: name for name, m in zip(io.map.actuator_messages(), io.tx, strict=True)}
+        return [f"{n} frame(s) of actuator message {names[fid]} (id {fid:#x}) arrived from another node on {where}: the "
+                "device also took commands that were not this session's, which none of its clamps or safe values govern "
+                "(its exit frames included); find and stop the other sender (another flowtex live, a test tool, an ECU)"
+                for fid, n in self.foreign.items()]
+
+
 def rx_decoder(io: CanIO, watchdog: Watchdog, refused: RefusedFrames | None = None) -> Callable[[list[Any], int, Any], int]:
     """``decode_rx(rx, tick, words) -> mask``: step 2 of a tick for the received frames ``rx``.
 
@@ -92,7 +104,9 @@ def rx_decoder(io: CanIO, watchdog: Watchdog, refused: RefusedFrames | None = No
     skipped. An error frame reporting bus-off raises :class:`BusError`. ``refused`` counts the
     frames of a sensor message's ID number not taken as it (:class:`RefusedFrames`).
     """
-    note = (refused if refused is not None else RefusedFrames()).note
+    refused = refused if refused is not None else RefusedFrames()
+    note, foreign = refused.note, refused.foreign
+    actuator = dict(io.tx_ids)  # ID number -> extended
     td = io.codec.decoder
     slot_get = td.slot_of.get if td is not None else {}.get
     slot_len = td.lengths if td is not None else []
@@ -142,6 +156,8 @@ def rx_decoder(io: CanIO, watchdog: Watchdog, refused: RefusedFrames | None = No
                         fresh(w, tick)
                 else:
                     note(msg, length_of[msg.arbitration_id], entry[2])
+            elif actuator.get(msg.arbitration_id) == msg.is_extended_id and not msg.is_remote_frame:
+                foreign[msg.arbitration_id] = foreign.get(msg.arbitration_id, 0) + 1  # another sender of our commands
         return mask
 
     return decode_rx

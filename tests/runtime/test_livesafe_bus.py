@@ -265,3 +265,25 @@ def test_a_received_frame_without_a_time_is_logged_and_read_back(tmp_path, suffi
     assert [(m.arbitration_id, m.is_rx, bytes(m.data[:1])) for m in frames] == [
         f for k in range(5) for f in ((0x100, True, bytes([k])), (0x200, False, b"\0"))]
     assert all(math.isfinite(m.timestamp) for m in frames)
+
+
+def test_another_node_sending_the_actuator_commands_is_named(setup):  # noqa: F811
+    """A second sender of VoiceCoilCmd on the bus (another flowtex live left running, a test tool) commands the coil
+    with values no clamp or safe value of this session governs, its exit frames included. The session ignored those
+    frames without a word; it now ends with a warning naming the message, its ID and the bus."""
+    channel = "livesafe-two-senders"
+    stop, thread, injector = _inject(channel, [can.Message(arbitration_id=0x200, is_extended_id=False, data=bytes(4)),
+                                               can.Message(arbitration_id=0x200, is_extended_id=False, is_remote_frame=True,
+                                                           dlc=4)])
+    try:
+        r = run_live(load_graph(setup / "g.yaml"), LiveConfig(DBC, setup / "m.yaml", bus=f"virtual:{channel}",
+                                                              simulate=setup / "rec.npz", max_ticks=200, status=None))
+    finally:
+        stop.set()
+        thread.join()
+        injector.shutdown()
+    assert r.error is None
+    line = next(w for w in r.warnings if "VoiceCoilCmd" in w)
+    assert re.fullmatch(r"\d+ frame\(s\) of actuator message VoiceCoilCmd \(id 0x200\) arrived from another node on the "
+                        r"simulated device's virtual bus: the device also took commands that were not this session's, .*", line)
+    assert not any("ForceCmd" in w for w in r.warnings)  # nobody else sent that one; a remote frame is no command
