@@ -19,6 +19,7 @@ from can.interfaces.virtual import VirtualBus
 
 from ..errors import FlowtexError
 from ..io.dbc import one_line
+from ..limits import MAX_TICK_FRAMES
 
 CAN_ERR_BUSOFF = 0x40
 """Bit of a SocketCAN error frame's id that reports bus-off."""
@@ -28,6 +29,11 @@ SEND_TIMEOUT_S = 0.5
 full that long (an adapter that stopped reading its tty, a socket queue that no longer drains) is a bus error: without
 a bound the loop would wait in the send forever, where no Ctrl-C or SIGTERM reaches it. As long as the sound card
 may stop calling back before the session ends (flowtex.runtime.audio)."""
+
+
+TICK_FRAMES = MAX_TICK_FRAMES
+"""Most frames one live tick receives (:func:`receiver`): what the replay reads in one tick (flowtex.limits), so a
+session's log always replays."""
 
 
 class BusError(FlowtexError):
@@ -94,19 +100,28 @@ def check_fd(bus: can.BusABC, what: str, fd_messages: Sequence[str]) -> None:
 
 def receiver(bus: can.BusABC) -> Callable[[list[Any]], None]:
     """``receive(frames)``: append every frame pending on ``bus`` (``recv_available()`` if the bus has it, else
-    ``recv(timeout=0)`` until None)."""
+    ``recv(timeout=0)`` until None), up to :data:`TICK_FRAMES` in ``frames``.
+
+    Without the bound a bus delivering frames faster than the loop reads them (a flood on a ``vcan`` interface, which
+    has no bitrate) kept the loop in its receive for ever: no tick, no watchdog, the outputs frozen at their last live
+    values, and no Ctrl-C or SIGTERM obeyed (the loop checks them between ticks). The frames left wait for the next
+    tick; a tick that late trips the overrun watchdog. flowtex's slcan reads its tty in chunks of a few thousand
+    frames at most, far below the bound."""
+    limit = TICK_FRAMES
     recv_available = getattr(bus, "recv_available", None)
     if recv_available is not None:
         def receive(frames: list[Any]) -> None:
-            frames.extend(recv_available())
+            if len(frames) < limit:
+                frames.extend(recv_available())
         return receive
     recv = bus.recv
 
     def receive_each(frames: list[Any]) -> None:
-        msg = recv(0.0)
-        while msg is not None:
-            frames.append(msg)
+        while len(frames) < limit:
             msg = recv(0.0)
+            if msg is None:
+                return
+            frames.append(msg)
 
     return receive_each
 

@@ -28,6 +28,7 @@ from flowtex.io.canlog import SessionWriter, read_session
 from flowtex.io.codec_tables import decode_packed
 from flowtex.io.slcan_protocol import encode_frame
 from flowtex.io.slcan_pty import open_pty
+from flowtex.runtime import buses
 from flowtex.runtime.audio_ring import ARRIVAL_WINDOW_NS, sensor_arrival_ns
 from flowtex.runtime.buses import BusError, open_bus
 from flowtex.runtime.live import LiveConfig, load_io, run_live
@@ -287,3 +288,36 @@ def test_another_node_sending_the_actuator_commands_is_named(setup):  # noqa: F8
     assert re.fullmatch(r"\d+ frame\(s\) of actuator message VoiceCoilCmd \(id 0x200\) arrived from another node on the "
                         r"simulated device's virtual bus: the device also took commands that were not this session's, .*", line)
     assert not any("ForceCmd" in w for w in r.warnings)  # nobody else sent that one; a remote frame is no command
+
+
+class FloodBus(can.BusABC):
+    """A bus with ``flood`` frames of another node pending (a flood faster than the loop reads), then quiet."""
+
+    def __init__(self, flood: int):
+        super().__init__(channel="flood")
+        self.left = flood
+        self.read_before_send: list[int] = []
+        self._flood = flood
+
+    def _recv_internal(self, timeout):
+        if self.left == 0:
+            return None, False
+        self.left -= 1
+        return can.Message(arbitration_id=0x555, is_extended_id=False, data=bytes(8)), False
+
+    def send(self, msg, timeout=None):
+        self.read_before_send.append(self._flood - self.left)
+
+
+def test_a_flood_of_frames_does_not_keep_the_loop_from_its_tick(setup, monkeypatch):  # noqa: F811
+    """The receive read until the bus was empty: a bus delivering frames faster than the loop reads them (a flood on a
+    vcan interface, which has no bitrate) kept it there for ever, no tick, no watchdog, outputs frozen at their last
+    live values, Ctrl-C unheard. A tick now takes at most buses.TICK_FRAMES (the replay's limit; 1000 here) and leaves
+    the rest for the next one. Here a finite flood of 5000 frames: tick 0 read them all before its first frame went out."""
+    bus = FloodBus(5000)
+    monkeypatch.setattr(buses, "TICK_FRAMES", 1000, raising=False)  # (the old code had none: it read all)
+    monkeypatch.setattr("flowtex.runtime.live.open_bus", lambda *a, **k: bus)
+    r = run_live(load_graph(setup / "g.yaml"), LiveConfig(DBC, setup / "m.yaml", bus="virtual:flood", max_ticks=8, status=None))
+    assert r.error is None and r.ticks == 8 and r.frames_in == 5000 and r.no_sensor_frames
+    sends_per_tick = 2  # VoiceCoilCmd, ForceCmd
+    assert bus.read_before_send[::sends_per_tick][:6] == [1000, 2000, 3000, 4000, 5000, 5000]
