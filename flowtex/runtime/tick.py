@@ -48,8 +48,8 @@ class RefusedFrames:
         self.counts: dict[int, list[int]] = {}
         """ID number -> [frames of the other format, frames too short, frames not finite, the last short one's length]."""
         self.foreign: dict[int, int] = {}
-        """Actuator message's ID number -> frames of it (its format, not remote) that arrived: another node sending
-        the commands this session sends (:meth:`foreign_warnings`)."""
+        """Actuator message's ID number -> frames of it (its format, received: not an echo of our own, not remote)
+        that arrived: another node sending the commands this session sends (:meth:`foreign_warnings`)."""
 
     def note(self, msg: Any, length: int, extended: bool) -> None:
         """Count ``msg``, which the decoder did not take as the message of ``length`` bytes and frame format ``extended``."""
@@ -156,8 +156,9 @@ def rx_decoder(io: CanIO, watchdog: Watchdog, refused: RefusedFrames | None = No
                         fresh(w, tick)
                 else:
                     note(msg, length_of[msg.arbitration_id], entry[2])
-            elif actuator.get(msg.arbitration_id) == msg.is_extended_id and not msg.is_remote_frame:
-                foreign[msg.arbitration_id] = foreign.get(msg.arbitration_id, 0) + 1  # another sender of our commands
+            elif actuator.get(msg.arbitration_id) == msg.is_extended_id and msg.is_rx and not msg.is_remote_frame:
+                # another sender of our commands (an adapter's echo of our own frame, as neoVI's by default, is not rx)
+                foreign[msg.arbitration_id] = foreign.get(msg.arbitration_id, 0) + 1
         return mask
 
     return decode_rx

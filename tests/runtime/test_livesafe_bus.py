@@ -288,6 +288,12 @@ def test_another_node_sending_the_actuator_commands_is_named(setup):  # noqa: F8
     assert re.fullmatch(r"\d+ frame\(s\) of actuator message VoiceCoilCmd \(id 0x200\) arrived from another node on the "
                         r"simulated device's virtual bus: the device also took commands that were not this session's, .*", line)
     assert not any("ForceCmd" in w for w in r.warnings)  # nobody else sent that one; a remote frame is no command
+    # an adapter's echo of a frame this session sent (neoVI's default; python-can marks it not received) is no other sender
+    io = load_io(load_graph(setup / "g.yaml", block_rows=1), DBC, setup / "m.yaml")
+    refused = RefusedFrames()
+    echo = can.Message(arbitration_id=0x201, is_extended_id=False, data=bytes(6), is_rx=False)
+    rx_decoder(io, io.new_watchdog(2_000_000), refused)([echo], 0, io.codec.decoder.words)
+    assert refused.foreign == {}
 
 
 class FloodBus(can.BusABC):
