@@ -10,7 +10,9 @@ one ``recv``/``send`` per frame otherwise), once, before the loop starts.
 from __future__ import annotations
 
 import contextlib
+import errno
 import functools
+import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -136,6 +138,35 @@ def sender(bus: can.BusABC, timeout_s: float = SEND_TIMEOUT_S) -> Callable[[Sequ
 
     def send_each(frames: Sequence[can.Message]) -> None:
         for m in frames:
-            send(m, timeout_s)
+            try:
+                send(m, timeout_s)
+            except can.CanOperationError as exc:
+                send_when_queued(send, m, timeout_s, exc)
 
     return send_each
+
+
+QUEUE_RETRY_S = 0.0002
+"""Pause between tries of a frame the interface's transmit queue had no room for, s (a frame takes 0.05-0.25 ms on a
+1 Mbit/s bus)."""
+
+
+def send_when_queued(send: Callable[..., None], msg: can.Message, timeout_s: float, exc: can.CanOperationError) -> None:
+    """``send(msg, timeout_s)`` failed with ``exc``: when that is a full transmit queue (socketcan's ENOBUFS: the
+    interface's queue, 10 frames by default, filled while the bus was busy; python-can's ``select`` does not wait for
+    it), try again for up to ``timeout_s``, as :data:`SEND_TIMEOUT_S` allows any frame; any other failure, or a queue
+    still full then, is raised. One full moment ended the session, and at its exit left the safe values unsent
+    ('could not send the safe values ... make it safe by hand') when the queue had room again a millisecond later."""
+    if exc.error_code != errno.ENOBUFS:
+        raise exc
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        time.sleep(QUEUE_RETRY_S)
+        try:
+            send(msg, timeout_s)
+            return
+        except can.CanOperationError as again:
+            if again.error_code != errno.ENOBUFS:
+                raise
+    raise can.CanOperationError(f"{exc}: the interface's transmit queue stayed full for {timeout_s:g} s (is the device "
+                                "connected and acknowledging frames?)", errno.ENOBUFS) from None

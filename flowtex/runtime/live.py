@@ -47,7 +47,7 @@ from ..io.mapsafety import shrunk_bounds
 from .audio import AudioOutput, prompt_callbacks
 from .audio_ring import sensor_arrival_ns
 from .audio_timeline import check_event_ids
-from .buses import SEND_TIMEOUT_S, BusError, open_bus, receiver, sender
+from .buses import SEND_TIMEOUT_S, BusError, open_bus, receiver, send_when_queued, sender
 from .canio import CanIO, load_io, tick_out
 from .clock import DeadlineClock
 from .fused import fuse_tick
@@ -368,7 +368,10 @@ def _send_safe(io: CanIO, bus: can.BusABC, writer: SessionWriter | None) -> str 
     reason = ""
     for m in io.tx:
         try:
-            bus.send(m, SEND_TIMEOUT_S)
+            try:
+                bus.send(m, SEND_TIMEOUT_S)
+            except can.CanOperationError as exc:  # a full transmit queue gets SEND_TIMEOUT_S to take the frame
+                send_when_queued(bus.send, m, SEND_TIMEOUT_S, exc)
         except Exception as exc:  # keep trying the other messages
             failed.append(f"{m.arbitration_id:#x}")
             reason = one_line(exc)

@@ -6,6 +6,7 @@ Every DBC is built from the bundled example by editing one line (test_livesafe_d
 
 from __future__ import annotations
 
+import errno
 import math
 import os
 import re
@@ -30,7 +31,7 @@ from flowtex.io.slcan_protocol import encode_frame
 from flowtex.io.slcan_pty import open_pty
 from flowtex.runtime import buses
 from flowtex.runtime.audio_ring import ARRIVAL_WINDOW_NS, sensor_arrival_ns
-from flowtex.runtime.buses import BusError, open_bus
+from flowtex.runtime.buses import BusError, open_bus, send_when_queued
 from flowtex.runtime.live import LiveConfig, load_io, run_live
 from flowtex.runtime.simdevice import run_device
 from flowtex.runtime.tick import RefusedFrames, rx_decoder
@@ -327,3 +328,47 @@ def test_a_flood_of_frames_does_not_keep_the_loop_from_its_tick(setup, monkeypat
     assert r.error is None and r.ticks == 8 and r.frames_in == 5000 and r.no_sensor_frames
     sends_per_tick = 2  # VoiceCoilCmd, ForceCmd
     assert bus.read_before_send[::sends_per_tick][:6] == [1000, 2000, 3000, 4000, 5000, 5000]
+
+
+class QueueFullBus(can.BusABC):
+    """A socketcan-like bus whose transmit queue is full (ENOBUFS) on the sends numbered in ``full``; no sensor frames."""
+
+    def __init__(self, full: set[int]):
+        super().__init__(channel="queue")
+        self.full, self.calls, self.sent = full, 0, []
+
+    def _recv_internal(self, timeout):
+        return None, False
+
+    def send(self, msg, timeout=None):
+        self.calls += 1
+        if self.calls in self.full:
+            raise can.CanOperationError("Failed to transmit: No buffer space available", errno.ENOBUFS)
+        self.sent.append((msg.arbitration_id, bytes(msg.data)))
+
+
+def test_a_transmit_queue_full_for_a_moment_does_not_end_the_session_or_leave_it_unsafe(setup, monkeypatch):  # noqa: F811
+    """socketcan's ENOBUFS (the interface's queue of 10 frames filled while the bus was busy; python-can's select does not
+    wait for it) ended the session at once, and at the exit left the safe values unsent ('could not send the safe values
+    ... make it safe by hand') though the queue had room a moment later. A full queue now gets the send timeout (0.5 s)."""
+    bus = QueueFullBus({3, 4, 5, 13})  # tick 1's second frame three times; the exit block's first frame once
+    monkeypatch.setattr("flowtex.runtime.live.open_bus", lambda *a, **k: bus)
+    r = run_live(load_graph(setup / "g.yaml"), LiveConfig(DBC, setup / "m.yaml", bus="virtual:queue", max_ticks=5, status=None))
+    assert r.error is None and r.safe_sent and r.ticks == 5
+    assert [fid for fid, _ in bus.sent] == [0x200, 0x201] * 6  # every tick's frames and the exit block, in order
+
+
+def test_a_transmit_queue_that_stays_full_is_a_bus_error_naming_it():
+    calls = []
+
+    def full(msg, timeout):
+        calls.append(timeout)
+        raise can.CanOperationError("Failed to transmit: No buffer space available", errno.ENOBUFS)
+
+    first = can.CanOperationError("Failed to transmit: No buffer space available", errno.ENOBUFS)
+    with pytest.raises(can.CanOperationError, match=r"transmit queue stayed full for 0\.01 s \(is the device connected"):
+        send_when_queued(full, can.Message(arbitration_id=0x200), 0.01, first)
+    assert calls  # it tried again
+    other = can.CanOperationError("Failed to transmit: Network is down", errno.ENETDOWN)
+    with pytest.raises(can.CanOperationError, match="Network is down"):  # any other failure at once
+        send_when_queued(full, can.Message(arbitration_id=0x200), 0.01, other)
