@@ -13,14 +13,16 @@ import contextlib
 import errno
 import functools
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import can
 from can.interfaces.virtual import VirtualBus
 
 from ..errors import FlowtexError
+from ..io.codec import MessageCodec
 from ..io.dbc import one_line
+from ..io.mapsafety import CLASSIC_MAX_BYTES
 from ..limits import MAX_TICK_FRAMES
 
 CAN_ERR_BUSOFF = 0x40
@@ -65,17 +67,18 @@ def parse_bus_spec(spec: str) -> tuple[str, str | None, dict[str, Any]]:
     return interface, (channel or None), kwargs
 
 
-def open_bus(spec: str, bitrate: int | None = None, fd_messages: Sequence[str] = ()) -> can.BusABC:
+def open_bus(spec: str, bitrate: int | None = None, fd: bool = False, needs_fd: Sequence[str] = ()) -> can.BusABC:
     """Open the python-can bus named by ``spec`` (bitrate in bit/s); :class:`BusError` (one line) if that fails.
 
-    ``fd_messages``: the session's CAN FD messages (DBC). With any, the bus is opened for CAN FD (python-can's ``fd``;
-    socketcan's raw socket otherwise refuses to send an FD frame and never delivers one), and a bus that still speaks
-    classic CAN only (its ``protocol``; flowtex_slcan, for one) is refused before any frame: the session used to start
-    and end at its first send, unable to send the safe values either. The ``virtual`` bus carries any frame."""
+    ``fd`` (the session has CAN FD messages in its DBC) or any ``needs_fd``: the bus is opened for CAN FD (python-can's
+    ``fd``; socketcan's raw socket otherwise refuses to send an FD frame and never delivers one). ``needs_fd``: the
+    messages this end can carry only in CAN FD frames (:func:`fd_needed`); a bus that speaks classic CAN only (its
+    ``protocol``; flowtex_slcan, for one) is then refused before any frame (:func:`check_fd`): the session used to
+    start and end at its first send, unable to send the safe values either. The ``virtual`` bus carries any frame."""
     interface, channel, kwargs = parse_bus_spec(spec)
     if bitrate:
         kwargs["bitrate"] = int(bitrate)
-    if fd_messages:
+    if fd or needs_fd:
         kwargs["fd"] = True
     if interface not in can.VALID_INTERFACES:
         raise BusError(f"--bus {spec!r}: unknown interface {interface!r}; python-can knows {', '.join(sorted(can.VALID_INTERFACES))}")
@@ -83,21 +86,29 @@ def open_bus(spec: str, bitrate: int | None = None, fd_messages: Sequence[str] =
         bus = can.Bus(interface=interface, channel=channel, **kwargs)
     except Exception as exc:  # python-can raises CanError, OSError, ImportError, ValueError, serial errors...
         raise BusError(f"cannot open CAN bus {spec!r}: {one_line(exc)}") from None
-    check_fd(bus, f"--bus {spec!r}", fd_messages)
+    check_fd(bus, f"--bus {spec!r}", needs_fd)
     return bus
 
 
-def check_fd(bus: can.BusABC, what: str, fd_messages: Sequence[str]) -> None:
-    """Shut ``bus`` (named ``what`` in the message) and raise :class:`BusError` when the session has CAN FD messages
-    (``fd_messages``) and the bus speaks classic CAN only (python-can's ``protocol``; the ``virtual`` bus, which
-    carries any frame whatever its protocol says, is not judged)."""
-    if not fd_messages or isinstance(bus, VirtualBus) or getattr(bus, "protocol", None) != can.CanProtocol.CAN_20:
+def fd_needed(codecs: Mapping[str, MessageCodec], sends: Sequence[str], receives: Sequence[str]) -> list[str]:
+    """The messages one end of a session can carry only in CAN FD frames: the CAN FD messages (DBC) it ``sends`` (an FD
+    frame does not go out as a classic one), and those it ``receives`` that are longer than a classic frame (a CAN FD
+    message of at most 8 bytes may arrive in classic frames, which the decoder takes)."""
+    return ([m for m in sends if codecs[m].is_fd]
+            + [m for m in receives if codecs[m].is_fd and codecs[m].length > CLASSIC_MAX_BYTES])
+
+
+def check_fd(bus: can.BusABC, what: str, needs_fd: Sequence[str]) -> None:
+    """Shut ``bus`` (named ``what`` in the message) and raise :class:`BusError` when messages need CAN FD
+    (``needs_fd``, :func:`fd_needed`) and the bus speaks classic CAN only (python-can's ``protocol``; the ``virtual``
+    bus, which carries any frame whatever its protocol says, is not judged)."""
+    if not needs_fd or isinstance(bus, VirtualBus) or getattr(bus, "protocol", None) != can.CanProtocol.CAN_20:
         return
     with contextlib.suppress(Exception):
         bus.shutdown()
-    raise BusError(f"{what} carries classic CAN frames only, but the DBC makes {', '.join(fd_messages)} CAN FD: no "
-                   "frame of it could be sent or received (the safe values neither); use an adapter and interface that "
-                   "speak CAN FD, or give the message at most 8 bytes and no CAN FD mark in the DBC")
+    raise BusError(f"{what} carries classic CAN frames only, but the DBC makes {', '.join(needs_fd)} CAN FD: no "
+                   "frame of it could go through (the safe values neither); use an adapter and interface that speak CAN "
+                   "FD, or give the message at most 8 bytes and no CAN FD mark in the DBC")
 
 
 def receiver(bus: can.BusABC) -> Callable[[list[Any]], None]:

@@ -47,7 +47,7 @@ from ..io.mapsafety import shrunk_bounds
 from .audio import AudioOutput, prompt_callbacks
 from .audio_ring import sensor_arrival_ns
 from .audio_timeline import check_event_ids
-from .buses import SEND_TIMEOUT_S, BusError, open_bus, receiver, send_when_queued, sender
+from .buses import SEND_TIMEOUT_S, BusError, fd_needed, open_bus, receiver, send_when_queued, sender
 from .canio import CanIO, load_io, tick_out
 from .clock import DeadlineClock
 from .fused import fuse_tick
@@ -134,7 +134,8 @@ def run_live(graph: TickProgram, config: LiveConfig) -> LiveReport:
         bus_obj, dev_bus, device = in_process_device(bus, io.map, io.codecs, config.simulate, float(graph.rate), config.drop,
                                                      graph.name, {n: spec.unit for n, spec in graph.inputs.items()})
     else:
-        bus_obj = open_bus(bus, config.bitrate, [m for m, c in io.codecs.items() if c.is_fd])
+        bus_obj = open_bus(bus, config.bitrate, any(c.is_fd for c in io.codecs.values()),
+                           fd_needed(io.codecs, io.map.actuator_messages(), io.map.sensor_messages()))
     writer = None
     try:
         writer = SessionWriter(record, "--record") if record is not None else None

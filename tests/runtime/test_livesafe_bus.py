@@ -96,6 +96,23 @@ def test_a_bus_that_speaks_classic_can_only_is_refused_for_can_fd_messages(setup
     assert announced.getvalue() == ""
 
 
+def test_a_short_can_fd_sensor_message_may_come_classic(setup):  # noqa: F811
+    """ToolForce marked CAN FD in 8 bytes: a device may send it in classic frames, which the decoder takes, so a classic
+    bus is not refused for it (the session runs), while simulate-device --pty, which would send it, is."""
+    dbc = _dbc(setup, "BO_ 512 VoiceCoilCmd: 4 Host", "BO_ 512 VoiceCoilCmd: 4 Host", "short.dbc")
+    dbc.write_text(dbc.read_text() + FD_ATTRIBUTE.replace("BO_ 512 14", "BO_ 257 14"))
+    pty = open_pty()
+    try:
+        r = run_live(load_graph(setup / "g.yaml"), LiveConfig(dbc, setup / "m.yaml", bus=f"flowtex_slcan:{pty.slave_path}",
+                                                              max_ticks=3, status=None))
+    finally:
+        pty.close()
+    assert r.ticks == 3 and r.error is None
+    with pytest.raises(BusError, match=r"^--pty \(an slcan adapter\) carries classic CAN frames only, but the DBC makes ToolForce"):
+        run_device(None, str(dbc), str(setup / "m.yaml"), str(setup / "rec.npz"), duration_s=0.05, pty=True, status=None,
+                   announce=StringIO())
+
+
 def test_a_bus_is_opened_for_can_fd_when_the_session_has_can_fd_messages(setup, monkeypatch):  # noqa: F811
     """python-can's socketcan opens a classic raw socket unless asked for ``fd``: it refused to send the FD frames (the
     safe ones too) and never delivered one. open_bus asks for it when the DBC makes a bound message CAN FD, only then."""
@@ -111,13 +128,16 @@ def test_a_bus_is_opened_for_can_fd_when_the_session_has_can_fd_messages(setup, 
             pass
 
     monkeypatch.setattr(can, "Bus", Fake)
-    open_bus("socketcan:can0", 500000, ["VoiceCoilCmd"])
+    open_bus("socketcan:can0", 500000, needs_fd=["VoiceCoilCmd"])
     open_bus("socketcan:can0", 500000)
+    open_bus("socketcan:can0", 500000, fd=True)  # FD messages that may also come classic: opened for FD, not judged
     assert asked == [{"interface": "socketcan", "channel": "can0", "bitrate": 500000, "fd": True},
-                     {"interface": "socketcan", "channel": "can0", "bitrate": 500000}]
+                     {"interface": "socketcan", "channel": "can0", "bitrate": 500000},
+                     {"interface": "socketcan", "channel": "can0", "bitrate": 500000, "fd": True}]
     Fake.protocol = can.CanProtocol.CAN_20  # an interface that did not take the request
     with pytest.raises(BusError, match="carries classic CAN frames only"):
-        open_bus("socketcan:can0", None, ["VoiceCoilCmd"])
+        open_bus("socketcan:can0", None, needs_fd=["VoiceCoilCmd"])
+    open_bus("socketcan:can0", None, fd=True)  # nothing needs FD: a classic bus passes
 
 
 def test_a_sensor_message_longer_than_a_classic_frame_is_not_judged(setup):  # noqa: F811
