@@ -8,6 +8,7 @@ keep the direction, so :func:`read_session` gives it back unchanged.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, replace
@@ -73,6 +74,8 @@ class SessionWriter:
             raise DataError(f"{self.path}: cannot write CAN log: {exc.strerror or exc}") from None
         self._blf = suffix == ".blf"
         self.frames = 0
+        self._last_time = time.time()
+        """The time of the last frame written, s (the wall time before the first)."""
 
     def write(self, msg: can.Message, is_rx: bool) -> None:
         """Log ``msg`` as received (``is_rx``) or sent by the runtime. ``msg`` may be reused afterwards."""
@@ -81,6 +84,11 @@ class SessionWriter:
         msg.is_rx = is_rx
         if self._blf:
             msg.channel = None  # BLF stores small channel numbers; bus channel names (e.g. virtual's) do not fit
+        if not isinstance(msg.timestamp, (int, float)) or not math.isfinite(msg.timestamp):
+            # an interface's frame without a time (NaN, inf, None): written at the log's last time, as the replay reads
+            # frames in order, never by their times. A .log wrote it as '(nan)', which no reader reads back (flowtex's
+            # refuses the line, python-can's skips it); a .blf or .asc refused it and ended the session
+            msg.timestamp = self._last_time
         try:
             self._writer.on_message_received(msg)
         except OSError as exc:
@@ -90,6 +98,7 @@ class SessionWriter:
             self._undated(msg.timestamp, exc)
             return
         self.frames += 1
+        self._last_time = msg.timestamp
 
     def _undated(self, stamp: float | None, exc: Exception) -> None:
         what = f"frame time {stamp:g} s" if stamp is not None else "a frame time"

@@ -43,7 +43,7 @@ from ..yamlsource import LocDict, LocList, load_yaml, read_source
 from .audiomap import AudioMap, parse_audio
 from .dbc import find_signal, suggest
 from .dbcrange import check_value, sendable_range
-from .mapsafety import GuardBounds, check_clamps, check_transmitters, check_unbound_signals
+from .mapsafety import GuardBounds, check_clamps, check_frame_lengths, check_transmitters, check_unbound_signals
 from .mapunits import check_binding_units
 
 __all__ = ["DEFAULT_OVERRUN_MS", "CanMap", "InputBinding", "OutputBinding", "load_map", "map_for_ports"]
@@ -163,6 +163,7 @@ def load_map(path: str | Path, db: Database, dbc_path: str | Path = "DBC",
                   "a message is either sensor or actuator")
     _one_message_per_id(p, db, [*inputs.values(), *outputs.values()])
     check_transmitters(db, list(inputs.values()), list(outputs.values()), p.add)
+    check_frame_lengths(db, list(outputs.values()), p.add)
     check_unbound_signals(db, list(outputs.values()), p.add)
     check_clamps(db, list(outputs.values()), p.add)
     audio = parse_audio(data["audio"], data.value_pos["audio"], p, graph_outputs) if "audio" in data else None

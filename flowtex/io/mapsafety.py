@@ -5,7 +5,8 @@ bind are sent as physical 0 (:mod:`flowtex.io.codec`, rule 4), so that 0 must su
 output's safe value must (:func:`flowtex.io.dbcrange.check_value`): a DBC ``Enable [1|1]`` would otherwise send
 "enabled" in every frame meant to make the device safe. And the host must not transmit a message the DBC says the
 device itself transmits (its ``BO_`` line's transmitter): two senders on one CAN ID. And what the guard lets through
-must arrive within the clamp (:func:`check_clamps`): the bounds it clamps to are moved inward onto the DBC's grid.
+must arrive within the clamp (:func:`check_clamps`): the bounds it clamps to are moved inward onto the DBC's grid. And
+a message longer than 8 bytes must be CAN FD to be sent at all (:func:`check_frame_lengths`).
 """
 
 from __future__ import annotations
@@ -68,6 +69,32 @@ def check_transmitters(db: Database, inputs: Sequence, outputs: Sequence, add: R
                     f"output {b.name!r} writes message {m!r} (CAN ID {msg.frame_id:#x}), which the DBC says {both[0]} "
                     f"transmits, as it does {device[both[0]]!r} that this map reads: the host would send on the device's own "
                     f"ID; bind the output to a message the host transmits")
+
+
+CLASSIC_MAX_BYTES = 8
+"""Most data bytes a classic CAN frame carries (CAN FD: 64)."""
+
+
+def check_frame_lengths(db: Database, outputs: Sequence, add: Report) -> None:
+    """Refuse an actuator message longer than a classic CAN frame that the DBC does not mark CAN FD.
+
+    The runtime sends such a message as a classic frame of more than 8 bytes, which no bus takes: the session failed on
+    its first send, before any frame reached the device, and could not send the safe values either (python-can's
+    virtual bus, and so ``--simulate``, carries it without a word). A sensor message is not judged: a device may send
+    it in CAN FD frames, which the decoder takes whatever the DBC says.
+    """
+    seen: set[str] = set()
+    for b in outputs:
+        for m in dict.fromkeys(m for m, _ in b.signals):
+            msg = db.get_message_by_name(m)
+            if m in seen or msg.length <= CLASSIC_MAX_BYTES or msg.is_fd:
+                continue
+            seen.add(m)
+            add((b.loc.line, b.loc.column),
+                f"output {b.name!r} sends message {m!r} (CAN ID {msg.frame_id:#x}), which the DBC gives {msg.length} data bytes "
+                f"but does not mark CAN FD: a classic CAN frame carries at most {CLASSIC_MAX_BYTES}, so no bus would take it "
+                "(nor the safe values); mark the message CAN FD in the DBC (its VFrameFormat attribute: StandardCAN_FD or "
+                f"ExtendedCAN_FD) or give it at most {CLASSIC_MAX_BYTES} bytes in its BO_ line")
 
 
 def peak_low(lo: np.ndarray, hi: np.ndarray, limit: np.ndarray) -> np.ndarray:

@@ -26,6 +26,9 @@ the runs of silence are the session's audio timeline, which the session log keep
 
 from __future__ import annotations
 
+import math
+from typing import Any
+
 import numpy as np
 from numba import njit
 
@@ -207,3 +210,29 @@ class AudioRing:
     def latencies_ms(self) -> np.ndarray:
         """Sensor-to-DAC latency of every tick played so far, ms."""
         return self.latency[:int(self.istate[LATENCIES])] / 1e6
+
+
+ARRIVAL_WINDOW_NS = (-1_000_000_000, 60_000_000_000)
+"""How far before (a clock adjusted since the session started) and after a sensor frame's bus timestamp the tick that
+used it may be, ns. A timestamp outside is in another clock than the host's wall clock (an adapter's own, counted from
+its start), or jumped: it gives no latency sample (it gave latencies of decades, or a negative one)."""
+
+
+def sensor_arrival_ns(rx: list[Any], wall_minus_perf: int, sensors: dict[int, tuple[Any, Any, bool]], now_ns: int) -> int:
+    """perf_counter time (ns) at which the newest sensor frame of ``rx`` arrived (its bus timestamp), for the audio
+    latency; 0 (no latency sample) without one, or when that timestamp does not lie within :data:`ARRIVAL_WINDOW_NS`
+    before ``now_ns`` (perf_counter ns), or is not finite (an infinite one ended the session with an OverflowError).
+    ``sensors``: :attr:`flowtex.runtime.canio.CanIO.decoders` (frame id -> (decoder, entries, extended)); other
+    frames (another node's, error and remote frames) say nothing of when the sensor's value arrived: the newest of
+    them made the latency look shorter than it was."""
+    newest = 0.0
+    for m in rx:
+        entry = sensors.get(m.arbitration_id)
+        if (entry is not None and entry[2] == m.is_extended_id and not m.is_error_frame and not m.is_remote_frame
+                and m.timestamp > newest and math.isfinite(m.timestamp)):
+            newest = m.timestamp
+    age_s = (now_ns + wall_minus_perf) * 1e-9 - newest
+    if newest <= 0.0 or not ARRIVAL_WINDOW_NS[0] * 1e-9 - 1.0 <= age_s <= ARRIVAL_WINDOW_NS[1] * 1e-9 + 1.0:
+        return 0  # far outside the window (in float seconds first: 1e300 s is no integer of nanoseconds either)
+    arrival = int(newest * 1e9) - wall_minus_perf
+    return arrival if ARRIVAL_WINDOW_NS[0] <= now_ns - arrival <= ARRIVAL_WINDOW_NS[1] else 0

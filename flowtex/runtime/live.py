@@ -45,8 +45,9 @@ from ..io.canlog import RecordError, SessionWriter
 from ..io.dbc import one_line
 from ..io.mapsafety import shrunk_bounds
 from .audio import AudioOutput, prompt_callbacks
+from .audio_ring import sensor_arrival_ns
 from .audio_timeline import check_event_ids
-from .buses import SEND_TIMEOUT_S, BusError, open_bus, receiver, sender
+from .buses import SEND_TIMEOUT_S, BusError, fd_needed, open_bus, receiver, send_when_queued, sender
 from .canio import CanIO, load_io, tick_out
 from .clock import DeadlineClock
 from .fused import fuse_tick
@@ -57,7 +58,7 @@ from .safety import all_updated_after, first_stale
 from .simdevice import SimulatedDevice, in_process_device
 from .stats import TickStats
 from .status import Shown, StatusDisplay, clamp_warnings, guard_counts, resolve_shown
-from .tick import rx_decoder, tick_compute, warmer
+from .tick import RefusedFrames, rx_decoder, tick_compute, warmer
 
 __all__ = ["BusError", "CanIO", "LiveConfig", "LiveReport", "load_io", "run_live"]
 
@@ -94,6 +95,7 @@ class LiveReport:
     """One line per output whose clamp the DBC's grid narrows noticeably (:func:`~flowtex.io.mapsafety.shrunk_bounds`),
     one per pass-through binding whose DBC unit differs from its graph port's by no known factor
     (:attr:`~flowtex.io.canmap.CanMap.warnings`), both also printed on the status stream before the session; then one
+    per actuator message another node sent too (:meth:`~flowtex.runtime.tick.RefusedFrames.foreign_warnings`), and one
     per output clamped or peak-limited on more than 1 % of the ticks (:func:`~flowtex.runtime.status.clamp_warnings`)."""
 
     @property
@@ -132,7 +134,8 @@ def run_live(graph: TickProgram, config: LiveConfig) -> LiveReport:
         bus_obj, dev_bus, device = in_process_device(bus, io.map, io.codecs, config.simulate, float(graph.rate), config.drop,
                                                      graph.name, {n: spec.unit for n, spec in graph.inputs.items()})
     else:
-        bus_obj = open_bus(bus, config.bitrate)
+        bus_obj = open_bus(bus, config.bitrate, any(c.is_fd for c in io.codecs.values()),
+                           fd_needed(io.codecs, io.map.actuator_messages(), io.map.sensor_messages()))
     writer = None
     try:
         writer = SessionWriter(record, "--record") if record is not None else None
@@ -170,7 +173,8 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
     fused = fuse_tick(graph, io, tick_out, watchdog.last)  # compiled (or loaded) now, before the first deadline
     if fused is None:
         graph.warm()  # the separate calls' block: compiled (or loaded) and run once on scratch arenas now
-    decode_rx = rx_decoder(io, watchdog)
+    refused = RefusedFrames()  # frames of a sensor's ID number not taken as it: named if that sensor seems silent
+    decode_rx = rx_decoder(io, watchdog, refused)
     compute = tick_compute(graph, io, watchdog, fused, decode_rx)
     receive, send_frames = receiver(bus), sender(bus)
     rx: list[Any] = []
@@ -196,101 +200,104 @@ def _loop(graph: TickProgram, io: CanIO, bus: can.BusABC, device: SimulatedDevic
     error: str | None = None
     guard_events = k = lateness = overrun = 0
     tx, now = io.tx, time.perf_counter_ns
-    with _stop_signals(stop, config.install_signals), freeze_gc(), prompt_callbacks(audio is not None):
-        try:
-            if audio is not None:
-                audio.start()  # plays silence until the stream has settled, then places tick 0 a margin ahead of it
-                if writer is not None:
-                    audio.log_timeline = True
-                    writer.write(audio.start_event(), False)
-            if device is not None:  # tick 0's sensor frames, just before tick 0 (their arrival starts its latency)
-                device.publish(0)
-            clock.start()
-            while True:
-                receive(rx)  # 2. whatever arrived since prepare() (bus time, not compute)
-                t0 = now()
-                guard_events += compute(rx, k, overrun)  # 3.-5. decode, graph tick, watchdog, guard, encode
-                t1 = now()
-                send_frames(tx)  # 6.
-                t2 = now()
-                stats.record(lateness, t1 - t0)  # 7. the slack
-                send_offset[k % capacity] = t2 - clock.deadline_ns
-                stats.frames_in += len(rx)
-                stats.frames_out += len(tx)
-                if audio is not None and audio.push(k, _arrival_ns(rx, wall_minus_perf), _audio_held(watchdog, k)):
-                    clock.catch_up_ns = int(audio.catch_up_s() * 1e9)  # the margin grew after a stall: catch up as far
-                if writer is not None:
-                    writer.write_tick(rx, tx)
-                    if audio is not None:
-                        for m in audio.take_events():
-                            writer.write(m, False)
-                    if writer.error is not None:  # a full disk: the log would miss this session's rest, so it ends here
-                        raise RecordError(writer.error)
-                rx.clear()
-                k += 1
-                if device is not None:
-                    device.collect(k - 1)
-                    device.publish(k)
-                if stop[0] is not None or (n_ticks is not None and k >= n_ticks):
-                    break
-                if display is not None:
-                    display.tick(k)
+    # the stop handlers stay until the session's files are written: a second Ctrl-C, SIGTERM or SIGHUP while they are
+    # (the first ended the loop) raised in the middle of them, and the log was discarded, --stats not written
+    with _stop_signals(stop, config.install_signals):
+        with freeze_gc(), prompt_callbacks(audio is not None):
+            try:
                 if audio is not None:
-                    audio.check()
-                    clock.shift(audio.pace(k - 1, clock.deadline_ns + period))
-                lateness = overrun = clock.wait()  # 1. the next deadline
-                if clock.skipped:  # a stall: the skipped deadlines count as late, until now
-                    stats.record_skipped(clock.skipped, lateness, period)
-                    overrun = lateness + clock.skipped * period
-        except (can.CanError, BusError, OSError) as exc:
-            error = f"CAN bus error at tick {k}: {one_line(exc)}"
-        except FlowtexError as exc:
-            error = f"tick {k}: {one_line(exc)}"
-        except Exception as exc:  # an exception inside the graph or a codec must still end in safe values
-            error = f"tick {k}: {type(exc).__name__}: {one_line(exc)}"
-        finally:
-            safe_error = _send_safe(io, bus, writer)
-            if audio is not None:
-                try:  # fade, stop, write --record-audio; a failure here must not skip what follows
-                    audio_error = audio.stop()
-                except Exception as exc:
-                    audio_error = f"audio output: {type(exc).__name__}: {one_line(exc)}"
-                safe_error = "; ".join(e for e in (safe_error, audio_error) if e) or None
-                if writer is not None:
-                    for m in audio.take_events():  # the last runs of silence and the END event
-                        writer.write(m, False)
-            if device is not None:
-                device.collect(k)
-            if rt_status is not None:
-                leave_realtime(rt_status)
-    if writer is not None:  # renamed into place now that the exit block is in; a failed write discards it
-        try:
-            writer.close()
-        except RecordError as exc:
-            if error is None or str(exc) not in error:
-                error = f"{error}; {exc}" if error else str(exc)
-    safe_sent = safe_error is None or not safe_error.startswith(SAFE_NOT_SENT)
-    if safe_error:
-        error = f"{error}; {safe_error}" if error else safe_error
-    stats.watchdog_events = watchdog.events
-    stats.timeouts = watchdog.stale_events
-    stats.guard = guard_counts(io, audio)
-    rt_granted = rt_status is not None and bool(rt_status.granted)
-    if display is not None:
-        display.finish(rt_granted)
-    audio_summary = audio.summary() if audio is not None else None
-    if stats_path is not None:
-        try:
-            stats.write_json(stats_path, rt_granted, extra={"audio": audio_summary} if audio_summary is not None else None)
-        except FlowtexError as exc:  # a full disk: the session is over and its safe values went out; say so in the line
-            error = f"{error}; --stats {one_line(exc)}" if error else f"--stats {one_line(exc)}"
-    silent, silence = _silent_sensors(io, watchdog.last, k, stats.frames_in, where)
+                    audio.start()  # plays silence until the stream has settled, then places tick 0 a margin ahead of it
+                    if writer is not None:
+                        audio.log_timeline = True
+                        writer.write(audio.start_event(), False)
+                if device is not None:  # tick 0's sensor frames, just before tick 0 (their arrival starts its latency)
+                    device.publish(0)
+                clock.start()
+                while True:
+                    receive(rx)  # 2. whatever arrived since prepare() (bus time, not compute)
+                    t0 = now()
+                    guard_events += compute(rx, k, overrun)  # 3.-5. decode, graph tick, watchdog, guard, encode
+                    t1 = now()
+                    send_frames(tx)  # 6.
+                    t2 = now()
+                    stats.record(lateness, t1 - t0)  # 7. the slack
+                    send_offset[k % capacity] = t2 - clock.deadline_ns
+                    stats.frames_in += len(rx)
+                    stats.frames_out += len(tx)
+                    if audio is not None and audio.push(k, sensor_arrival_ns(rx, wall_minus_perf, io.decoders, t2), _audio_held(watchdog, k)):
+                        clock.catch_up_ns = int(audio.catch_up_s() * 1e9)  # the margin grew after a stall: catch up as far
+                    if writer is not None:
+                        writer.write_tick(rx, tx)
+                        if audio is not None:
+                            for m in audio.take_events():
+                                writer.write(m, False)
+                        if writer.error is not None:  # a full disk: the log would miss this session's rest, so it ends here
+                            raise RecordError(writer.error)
+                    rx.clear()
+                    k += 1
+                    if device is not None:
+                        device.collect(k - 1)
+                        device.publish(k)
+                    if stop[0] is not None or (n_ticks is not None and k >= n_ticks):
+                        break
+                    if display is not None:
+                        display.tick(k)
+                    if audio is not None:
+                        audio.check()
+                        clock.shift(audio.pace(k - 1, clock.deadline_ns + period))
+                    lateness = overrun = clock.wait()  # 1. the next deadline
+                    if clock.skipped:  # a stall: the skipped deadlines count as late, until now
+                        stats.record_skipped(clock.skipped, lateness, period)
+                        overrun = lateness + clock.skipped * period
+            except (can.CanError, BusError, OSError) as exc:
+                error = f"CAN bus error at tick {k}: {one_line(exc)}"
+            except FlowtexError as exc:
+                error = f"tick {k}: {one_line(exc)}"
+            except Exception as exc:  # an exception inside the graph or a codec must still end in safe values
+                error = f"tick {k}: {type(exc).__name__}: {one_line(exc)}"
+            finally:
+                safe_error = _send_safe(io, bus, writer)
+                if audio is not None:
+                    try:  # fade, stop, write --record-audio; a failure here must not skip what follows
+                        audio_error = audio.stop()
+                    except Exception as exc:
+                        audio_error = f"audio output: {type(exc).__name__}: {one_line(exc)}"
+                    safe_error = "; ".join(e for e in (safe_error, audio_error) if e) or None
+                    if writer is not None:
+                        for m in audio.take_events():  # the last runs of silence and the END event
+                            writer.write(m, False)
+                if device is not None:
+                    device.collect(k)
+                if rt_status is not None:
+                    leave_realtime(rt_status)
+        if writer is not None:  # renamed into place now that the exit block is in; a failed write discards it
+            try:
+                writer.close()
+            except RecordError as exc:
+                if error is None or str(exc) not in error:
+                    error = f"{error}; {exc}" if error else str(exc)
+        safe_sent = safe_error is None or not safe_error.startswith(SAFE_NOT_SENT)
+        if safe_error:
+            error = f"{error}; {safe_error}" if error else safe_error
+        stats.watchdog_events = watchdog.events
+        stats.timeouts = watchdog.stale_events
+        stats.guard = guard_counts(io, audio)
+        rt_granted = rt_status is not None and bool(rt_status.granted)
+        if display is not None:
+            display.finish(rt_granted)
+        audio_summary = audio.summary() if audio is not None else None
+        if stats_path is not None:
+            try:
+                stats.write_json(stats_path, rt_granted, extra={"audio": audio_summary} if audio_summary is not None else None)
+            except FlowtexError as exc:  # a full disk: the session is over and its safe values went out; say so in the line
+                error = f"{error}; --stats {one_line(exc)}" if error else f"--stats {one_line(exc)}"
+    silent, silence = _silent_sensors(io, watchdog.last, k, stats.frames_in, where, refused)
     return LiveReport(ticks=k, frames_in=stats.frames_in, frames_out=stats.frames_out, watchdog_events=watchdog.events,
                       guard_events=guard_events, exit_reason="error" if error else (stop[0] or "duration"), error=error,
                       summary=stats.summary(rt_granted), rt_message=rt_message, send_offset_ns=send_offset[:min(k, capacity)],
                       device=device, silent_messages=silent, silence=silence,
                       no_sensor_frames=bool(k) and len(silent) == len(io.map.sensor_messages()) > 0,
-                      warnings=clamp_warnings(io, k), audio=audio_summary, safe_sent=safe_sent)
+                      warnings=refused.foreign_warnings(io, where) + clamp_warnings(io, k), audio=audio_summary, safe_sent=safe_sent)
 
 
 def _audio_held(watchdog: Any, k: int) -> bool:
@@ -299,23 +306,17 @@ def _audio_held(watchdog: Any, k: int) -> bool:
     return watchdog.tripped and (watchdog.reason != "overrun" or first_stale(watchdog.last, watchdog.timeouts, k) >= 0)
 
 
-def _arrival_ns(rx: list[Any], wall_minus_perf: int) -> int:
-    """perf_counter time (ns) at which the newest received frame arrived (its bus timestamp), 0 without frames."""
-    newest = 0.0
-    for m in rx:
-        if m.timestamp > newest:
-            newest = m.timestamp
-    return int(newest * 1e9) - wall_minus_perf if newest > 0.0 else 0
-
-
-def _silent_sensors(io: CanIO, last: np.ndarray, ticks: int, frames_in: int, where: str) -> tuple[list[str], str | None]:
-    """The map's sensor messages of which no frame arrived (watchdog stamps never set), and one line saying so."""
+def _silent_sensors(io: CanIO, last: np.ndarray, ticks: int, frames_in: int, where: str,
+                    refused: RefusedFrames) -> tuple[list[str], str | None]:
+    """The map's sensor messages of which no frame arrived (watchdog stamps never set), and one line saying so, with
+    what arrived under each one's ID number that the DBC does not describe as it (``refused``)."""
     heard = {m for (_, m), t in zip(io.watchdog_keys, last, strict=True) if t >= 0}
     silent = [m for m in io.map.sensor_messages() if m not in heard]
     if not silent or not ticks:
         return silent, None
     # an extended message says so: a device sending it as a standard frame (or the reverse) sends another message
-    names = ", ".join(f"{m} ({'extended ' if io.codecs[m].is_extended else ''}id {io.codecs[m].frame_id:#x})" for m in silent)
+    names = ", ".join(f"{m} ({'extended ' if io.codecs[m].is_extended else ''}id {io.codecs[m].frame_id:#x}{refused.describe(io, m)})"
+                      for m in silent)
     if len(silent) == len(io.map.sensor_messages()):
         other = f"; the {frames_in} frame(s) that arrived were none of them" if frames_in else ""
         return silent, (f"no sensor frame received in {ticks} ticks on {where}: expected {names}{other}. Outputs stayed at their "
@@ -368,7 +369,10 @@ def _send_safe(io: CanIO, bus: can.BusABC, writer: SessionWriter | None) -> str 
     reason = ""
     for m in io.tx:
         try:
-            bus.send(m, SEND_TIMEOUT_S)
+            try:
+                bus.send(m, SEND_TIMEOUT_S)
+            except can.CanOperationError as exc:  # a full transmit queue gets SEND_TIMEOUT_S to take the frame
+                send_when_queued(bus.send, m, SEND_TIMEOUT_S, exc)
         except Exception as exc:  # keep trying the other messages
             failed.append(f"{m.arbitration_id:#x}")
             reason = one_line(exc)

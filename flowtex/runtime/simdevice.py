@@ -42,7 +42,7 @@ from ..io.dbc import load_dbc
 from ..io.mapunits import keeps_unit
 from ..io.recording_rules import check_stated_unit
 from ..io.recordings import Recording, load_recording
-from .buses import open_bus, parse_bus_spec
+from .buses import BusError, check_fd, fd_needed, open_bus, parse_bus_spec
 from .clock import DeadlineClock
 
 
@@ -292,6 +292,7 @@ def run_device(bus_spec: str | None, dbc_path: str, map_path: str, recording: st
     check_finite(canmap, rec.arrays, str(recording))
     check_range(canmap, codecs, rec.arrays, str(recording))
     rate = float(rate_hz or rec.rate or 1000.0)
+    needs_fd = fd_needed(codecs, canmap.sensor_messages(), canmap.actuator_messages())  # the device sends the sensors'
     pty_pair = None
     if pty:
         from ..io.slcan_fast import FastSlcanBus
@@ -299,8 +300,13 @@ def run_device(bus_spec: str | None, dbc_path: str, map_path: str, recording: st
 
         pty_pair = open_pty()
         bus = FastSlcanBus(pty_pair.master_fd, role="device")
+        try:
+            check_fd(bus, "--pty (an slcan adapter)", needs_fd)
+        except BusError:
+            pty_pair.close()
+            raise
     else:
-        bus = open_bus(bus_spec, bitrate)
+        bus = open_bus(bus_spec, bitrate, any(c.is_fd for c in codecs.values()), needs_fd)
     stop: list[bool] = [False]
 
     def handler(signum: int, frame: Any) -> None:

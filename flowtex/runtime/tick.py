@@ -36,7 +36,61 @@ def entry_point(fn: Any) -> Callable[..., Any]:
     return fn.overloads[sigs[0]].entry_point if len(sigs) == 1 else fn
 
 
-def rx_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[Any], int, Any], int]:
+class RefusedFrames:
+    """Frames with a sensor message's ID number that the decoder did not take as that message, counted per ID number
+    on the refusing branches only (the frames it takes cost nothing more): in the other frame format (extended or
+    standard), shorter than the DBC's length (a remote frame has no data), or with a bound float signal NaN or inf.
+    When a sensor message seems silent at the session's end, they say what came instead: a device that sends another
+    length than the DBC states, or its messages in the other frame format, is a common mismatch, and "no frame
+    received" sent its user looking for a cable."""
+
+    def __init__(self) -> None:
+        self.counts: dict[int, list[int]] = {}
+        """ID number -> [frames of the other format, frames too short, frames not finite, the last short one's length]."""
+        self.foreign: dict[int, int] = {}
+        """Actuator message's ID number -> frames of it (its format, received: not an echo of our own, not remote)
+        that arrived: another node sending the commands this session sends (:meth:`foreign_warnings`)."""
+
+    def note(self, msg: Any, length: int, extended: bool) -> None:
+        """Count ``msg``, which the decoder did not take as the message of ``length`` bytes and frame format ``extended``."""
+        c = self.counts.setdefault(msg.arbitration_id, [0, 0, 0, 0])
+        if msg.is_extended_id != extended:
+            c[0] += 1
+        elif len(msg.data) < length:
+            c[1] += 1
+            c[3] = len(msg.data)
+        else:
+            c[2] += 1
+
+    def describe(self, io: CanIO, message: str) -> str:
+        """What arrived with sensor ``message``'s ID number without being taken as it (``""``: nothing), for a message
+        no frame of which was decoded. The compiled decoder drops a frame of the DBC's length that is not finite
+        without a count; a payload word it kept for the message says that such frames came."""
+        codec = io.codecs[message]
+        other, short, nonfinite, short_len = self.counts.get(codec.frame_id, [0, 0, 0, 0])
+        td = io.codec.decoder
+        slot = td.slot_of.get(codec.frame_id) if td is not None else None
+        parts = []
+        if other:
+            parts.append(f"{other} frame(s) of its ID number as {'standard' if codec.is_extended else 'extended'} frames")
+        if short:
+            parts.append(f"{short} frame(s) shorter than the DBC's {codec.length} data bytes (the last of {short_len}"
+                         f"{'; a remote frame carries none' if short_len == 0 else ''})")
+        if nonfinite or (slot is not None and td.words[slot] != 0):
+            parts.append(f"{nonfinite or 'some'} frame(s) with a float signal NaN or inf (no measurement)")
+        return f"; {' and '.join(parts)} arrived, which the DBC does not describe as {message}" if parts else ""
+
+
+    def foreign_warnings(self, io: CanIO, where: str) -> list[str]:
+        """One line per actuator message of which frames arrived from another node."""
+        names = {m.arbitration_id: name for name, m in zip(io.map.actuator_messages(), io.tx, strict=True)}
+        return [f"{n} frame(s) of actuator message {names[fid]} (id {fid:#x}) arrived from another node on {where}: the "
+                "device also took commands that were not this session's, which none of its clamps or safe values govern "
+                "(its exit frames included); find and stop the other sender (another flowtex live, a test tool, an ECU)"
+                for fid, n in self.foreign.items()]
+
+
+def rx_decoder(io: CanIO, watchdog: Watchdog, refused: RefusedFrames | None = None) -> Callable[[list[Any], int, Any], int]:
     """``decode_rx(rx, tick, words) -> mask``: step 2 of a tick for the received frames ``rx``.
 
     A frame the compiled decoder takes has its payload stored as one integer in
@@ -47,8 +101,12 @@ def rx_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[Any], int, Any],
     (the compiled decoder drops a slot whose stored payload is one; a later frame replaces
     an earlier one only if finite; the Python codec writes nothing for one). A frame of the
     other format (extended or standard) than its ID number's message is another message:
-    skipped. An error frame reporting bus-off raises :class:`BusError`.
+    skipped. An error frame reporting bus-off raises :class:`BusError`. ``refused`` counts the
+    frames of a sensor message's ID number not taken as it (:class:`RefusedFrames`).
     """
+    refused = refused if refused is not None else RefusedFrames()
+    note, foreign = refused.note, refused.foreign
+    actuator = dict(io.tx_ids)  # ID number -> extended
     td = io.codec.decoder
     slot_get = td.slot_of.get if td is not None else {}.get
     slot_len = td.lengths if td is not None else []
@@ -57,6 +115,7 @@ def rx_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[Any], int, Any],
     finite = td.finite if td is not None else None
     from_bytes = int.from_bytes
     decoders = io.decoders
+    length_of = {c.frame_id: c.length for c in io.codecs.values() if c.frame_id in decoders and c.is_extended == decoders[c.frame_id][2]}
     fresh = watchdog.fresh
 
     def decode_rx(rx: list[Any], tick: int, words: Any) -> int:
@@ -69,6 +128,7 @@ def rx_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[Any], int, Any],
             j = slot_get(msg.arbitration_id)
             if j is not None:
                 if msg.is_extended_id != slot_ext[j]:
+                    note(msg, slot_len[j], slot_ext[j])
                     continue
                 data = msg.data
                 if len(data) == slot_len[j]:
@@ -86,11 +146,19 @@ def rx_decoder(io: CanIO, watchdog: Watchdog) -> Callable[[list[Any], int, Any],
                     mask &= ~(1 << j)
                     for w in entry[1]:
                         fresh(w, tick)
-                continue  # a shorter one (a remote frame has no data) decodes nothing and leaves an earlier frame be
+                else:  # a shorter one (a remote frame has no data) decodes nothing and leaves an earlier frame be
+                    note(msg, slot_len[j], slot_ext[j])
+                continue
             entry = decoders.get(msg.arbitration_id)
-            if entry is not None and msg.is_extended_id == entry[2] and entry[0](msg.data):
-                for w in entry[1]:
-                    fresh(w, tick)
+            if entry is not None:
+                if msg.is_extended_id == entry[2] and entry[0](msg.data):
+                    for w in entry[1]:
+                        fresh(w, tick)
+                else:
+                    note(msg, length_of[msg.arbitration_id], entry[2])
+            elif actuator.get(msg.arbitration_id) == msg.is_extended_id and msg.is_rx and not msg.is_remote_frame:
+                # another sender of our commands (an adapter's echo of our own frame, as neoVI's by default, is not rx)
+                foreign[msg.arbitration_id] = foreign.get(msg.arbitration_id, 0) + 1
         return mask
 
     return decode_rx
