@@ -26,11 +26,11 @@ from typing import Any
 import numpy as np
 
 from .dsp.nonfinite import NONFINITE_POLICIES, apply_nonfinite_policy
-from .errors import FlowtexError, InputError, ParamError
+from .errors import DataError, FlowtexError, InputError, ParamError
 from .limits import check_ticks, excerpt, port_values_problem
 from .node_decl import BuildContext, PortSpec, expected_shape, suggest
 from .node_params import checked_params, load_files
-from .nodecheck import check_kernel_compiles, checked_outputs, is_plugin, scheduled_every
+from .nodecheck import check_kernel_compiles, checked_outputs, is_plugin, plugin_raised, scheduled_every
 from .pyvalues import float_signal, plain, whole_count
 from .schema.core import Field, checked
 from .schema.graph import GRAPH, NODE
@@ -42,7 +42,18 @@ def _params(cls: type, given: dict[str, Any], base_dir: Path) -> tuple[dict[str,
     values, problems = checked_params(cls, {k: plain(v) for k, v in given.items()}, base_dir)
     if problems:
         raise ParamError(problems[0].key, f"node type {cls.type_name!r}: {problems[0].message}")
-    return load_files(cls, values)
+    try:
+        return load_files(cls, values)
+    except ParamError as exc:
+        raise _labelled(cls, exc) from None
+
+
+def _labelled(cls: type, exc: FlowtexError) -> FlowtexError:
+    """``exc`` (raised by the node's own code: a file it reads, a value its ``resolve`` or ``build`` refuses) with the
+    node type and the parameter it names in front, as a graph names the node and places it at the parameter's line."""
+    param = getattr(exc, "param", None)
+    text = f"node type {cls.type_name!r} processor: " + (f"parameter {param!r}: " if param else "") + str(exc)
+    return ParamError(param, text) if isinstance(exc, ParamError) else type(exc)(text)
 
 
 def given_params(cls: type, mapping: Any, keywords: dict[str, Any]) -> dict[str, Any]:
@@ -187,14 +198,14 @@ class Processor:
         """Build the node for the inputs given; nothing is kept unless every step succeeds (a failed first call can be
         retried with other arrays)."""
         specs = self._specs(arrays)
-        outputs = checked_outputs(self.cls, self.name, self.node.resolve(specs))  # a wrong result: at its resolve() line
+        outputs = checked_outputs(self.cls, self.name, self._node_call("resolve", specs))  # a wrong result: at its line
         if is_plugin(self.cls):  # a kernel that does not compile: its own line and numba's reason, not a TypingError
             check_kernel_compiles(self.cls)
         for port_name, spec in outputs.items():
             problem = port_values_problem(spec.shape)
             if problem:
                 raise InputError(f"node type {self.cls.type_name!r}: output {port_name!r}: {problem}")
-        built = self.node.build(specs, outputs)
+        built = self._node_call("build", specs, outputs)
         p = np.ascontiguousarray(built.params, dtype=np.float64)
         s = np.ascontiguousarray(built.state, dtype=np.float64)
         si = np.ascontiguousarray(built.istate, dtype=np.int64)
@@ -206,6 +217,20 @@ class Processor:
         self._provided = set(arrays)
         self.input_specs = specs
         self._holds = {k: np.zeros(spec.width) for k, spec in outputs.items()}
+
+    def _node_call(self, method: str, *args: Any) -> Any:
+        """The node's ``resolve`` or ``build``; what it refuses is raised with the node type and parameter in front, and
+        a plugin's own exception at its line (as a graph reports both), never a bare message or traceback."""
+        try:
+            return getattr(self.node, method)(*args)
+        except (ParamError, DataError) as exc:
+            raise _labelled(self.cls, exc) from None
+        except FlowtexError:
+            raise
+        except Exception as exc:
+            if not is_plugin(self.cls):
+                raise  # flowtex's own bug: an internal error
+            raise plugin_raised(self.cls, self.name, method, exc) from None
 
     def reset(self) -> None:
         """Back to the state right after build (as a graph's ``reset()``): the schedule starts again at tick 0."""

@@ -1,0 +1,72 @@
+"""The in-memory API as a notebook uses it: what a researcher hands over by mistake is refused in one line, never
+used as other numbers, and a node's own refusal names the node type and the parameter.
+
+* a masked array (``np.ma``) converted as it is keeps the values under its mask as data: refused when anything is
+  masked, by ``Graph.run`` and ``Node.processor`` alike;
+* 64-bit integers above 2**53 and extended floats (``np.longdouble``) become other numbers in float64: refused when
+  a sample would change, accepted when every sample is exact;
+* a processor's parameter refused by the node's ``resolve``/``build`` or by the file it reads (a cutoff above
+  Nyquist, a missing model file) says which node type and which parameter, as a graph's message does.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from flowtex.errors import InputError, ParamError
+from flowtex.graph.builder import GraphBuilder
+from flowtex.pyvalues import float_signal
+from flowtex.registry import load_registry
+
+
+def _lowpass():
+    return load_registry().types["first_order_lowpass"].processor(rate=1000.0, cutoff_hz=50.0)
+
+
+@pytest.fixture(scope="module")
+def gain_graph():
+    return GraphBuilder("g").input("x").node("f", "gain", k=2.0).edge("x -> f.x").output("y", "f.y").build()
+
+
+def test_a_masked_sample_is_refused_by_a_processor_and_a_graph_naming_the_input_and_the_fix(gain_graph):
+    x = np.ma.array([1.0, 2.0, 3.0, 4.0], mask=[0, 0, 1, 0])
+    for call in (lambda: _lowpass()(x=x), lambda: gain_graph.run({"x": x})):
+        with pytest.raises(InputError, match=r"input 'x' is a masked array with 1 masked sample\(s\) \(the first at "
+                                             r"index 2\).*x\.filled\(np\.nan\)"):
+            call()
+
+
+def test_a_masked_array_with_nothing_masked_runs_as_its_data(gain_graph):
+    x = np.ma.array([1.0, 2.0, 3.0])
+    assert np.array_equal(gain_graph.run({"x": x})["y"].ravel(), [2.0, 4.0, 6.0])
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.integers(-(2**63), 2**63 - 1), min_size=1, max_size=20))
+def test_int64_samples_run_exactly_or_are_refused(values):
+    arr = np.array(values, dtype=np.int64)
+    exact = all(int(float(v)) == v for v in values)
+    if exact:
+        assert np.array_equal(float_signal("x", arr), np.array(values, dtype=float))
+    else:
+        with pytest.raises(InputError, match="input 'x' \\(dtype int64\\) holds .* float64 cannot hold exactly"):
+            float_signal("x", arr)
+
+
+def test_an_extended_float_that_float64_rounds_is_refused_and_an_exact_one_runs():
+    with pytest.raises(InputError, match=r"dtype float128\) holds 1 sample\(s\) .*the first at index 1"):
+        _lowpass()(x=np.array([1.0, 1.0, 2.0], dtype=np.longdouble) / np.array([1, 3, 1], dtype=np.longdouble))
+    assert _lowpass()(x=np.arange(3, dtype=np.longdouble))["y"].dtype == np.float64
+
+
+def test_a_parameter_the_node_refuses_at_build_names_the_node_type_and_the_parameter():
+    lp = load_registry().types["butterworth"].processor(rate=1000.0, order=2, cutoff_hz=600.0)
+    with pytest.raises(ParamError, match=r"^node type 'butterworth' processor: parameter 'cutoff_hz': cutoff 600 Hz must "
+                                         r"lie between 0 and the Nyquist frequency 500 Hz") as err:
+        lp(x=np.zeros(4))
+    assert err.value.param == "cutoff_hz"
+    with pytest.raises(ParamError, match=r"^node type 'texture_lookup' processor: parameter 'models': nowhere\.xml: "):
+        load_registry().types["texture_lookup"].processor(models="nowhere.xml")
