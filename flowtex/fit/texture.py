@@ -58,6 +58,7 @@ from ..io.modelset import delaunay_triangles
 from ..models.rendering import FITTED_RULE
 from ..models.texture import TextureModelSet
 from .arma import ArmaFit, fit_arma, select_shared_order
+from .inputs import api_signals
 from .pooling import neighbour_groups, pooled_data, trend_factors
 
 CORNERS = 8
@@ -301,8 +302,9 @@ def fit_texture(accel: np.ndarray, speed: np.ndarray, force: np.ndarray, rate: f
     first, so the ranges are never spliced together and no filter transient is made at their edges.
     """
     opt = opt or TextureOptions()
+    rate, (accel, speed, force) = api_signals(where, rate, accel=accel, speed=speed, force=force)
     x, clipped = preprocess(accel, rate, opt.highpass_hz, opt.outlier_sigma)
-    pieces, dropped = find_pieces(x, np.asarray(speed, float), np.asarray(force, float), rate, opt, where, within)
+    pieces, dropped = find_pieces(x, speed, force, rate, opt, where, within)
     pool = max(1, min(opt.pool_pieces, len(pieces)))
     fit_pieces(x, pieces, rate, opt, where, pool)
     order = pieces[0].fit.order if pieces[0].fit is not None else (0, 0)
