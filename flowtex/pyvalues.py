@@ -48,6 +48,14 @@ def whole_count(what: str, value: Any, least: int) -> int:
     return value
 
 
+def positive_rate(what: str, value: Any) -> float:
+    """``value`` as a positive, finite float of Hz (numpy numbers too), or :class:`InputError` naming ``what``."""
+    rate = plain(value)
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not (np.isfinite(rate) and rate > 0):
+        raise InputError(f"{what} must be a positive number of Hz, got {excerpt(value)}")
+    return float(rate)
+
+
 _REFUSED_KINDS = {"c": "complex", "M": "timestamps (datetime64)", "m": "durations (timedelta64)",
                   "U": "text", "S": "bytes", "V": "structured records", "O": "Python objects"}
 """numpy dtype kinds a signal may not have, and what to call them."""
@@ -92,8 +100,8 @@ def _refuse_masked(name: str, value: np.ma.MaskedArray, what: str) -> None:
     masked = _bad_rows(np.ma.getmaskarray(value))
     if masked.size:
         raise InputError(f"{what} {name!r} is a masked array with {masked.size} masked sample(s) (the first at index "
-                         f"{masked[0]}), whose values would be used as data; pass x.filled(np.nan) (then nonfinite= decides "
-                         "what they become) or x.filled(value)")
+                         f"{masked[0]}), whose values would be used as data; pass x.filled(value), or x.filled(np.nan) "
+                         "where NaN is handled (nonfinite= of Graph.run and Node.processor)")
 
 
 def _refuse_rounded(name: str, arr: np.ndarray, x: np.ndarray, what: str) -> None:

@@ -3,7 +3,7 @@
 Every function returns a :class:`SyntheticRecording`: the signals a sensor
 would record (``accel`` in m/s^2, ``position`` in mm, ``normal`` (unit
 vector), ``normal_force`` in N, plus ``speed`` in mm/s and, for friction,
-``friction_force`` in N) at ``rate`` Hz, and the ``truth`` that made them.
+``tangential_force`` in N) at ``rate`` Hz, and the ``truth`` that made them.
 The vibration, tap transients and friction forces are rendered through
 flowtex's own graphs (:mod:`flowtex.datasets.graphs`), so a fit can be
 compared with the exact models the nodes render. ``save(path)`` writes the

@@ -19,8 +19,7 @@ from ..errors import DataError, InputError
 from ..io.atomic import atomic_output  # noqa: F401 -- the one writer, re-exported for the fit modules
 from ..io.recording_rules import check_stated_unit
 from ..io.recordings import Recording, load_recording
-from ..limits import excerpt
-from ..pyvalues import float_signal, plain
+from ..pyvalues import float_signal, positive_rate
 
 
 def load(path: str | Path, rate: float | None) -> tuple[Recording, float]:
@@ -157,27 +156,30 @@ def check_not_constant(a: np.ndarray, label: str) -> None:
         raise DataError(f"{label} is constant; check that the right signal is named and that the sensor was recording")
 
 
-def api_signals(where: str, rate: Any, **signals: Any) -> tuple[float, list[np.ndarray]]:
+def api_signals(where: str, rate: Any, vectors: tuple[str, ...] = (), **signals: Any) -> tuple[float | None, list[np.ndarray | None]]:
     """``rate`` (Hz) and ``signals`` as Python code hands them to a fit function (lists, float32, (n, 1) columns) made
-    a positive float and 1-D float64 arrays of one length with no NaN/inf, as the CLI's readers check a file's
+    a positive float (``rate=None``: none taken) and float64 arrays of one length, 1-D or (n, 3) for the signals
+    named in ``vectors``, with no NaN/inf (a signal given as None stays None), as the CLI's readers check a file's
     (:func:`signal`); else one error naming the argument and the fix, before any fit math runs on wrong arrays.
     """
-    value = plain(rate)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (np.isfinite(value) and value > 0):
-        raise InputError(f"{where}: rate must be a positive number of Hz, got {excerpt(rate)}")
-    arrays = []
+    value = None if rate is None else positive_rate(f"{where}: rate", rate)
+    arrays: list[np.ndarray | None] = []
     for name, given in signals.items():
-        a = float_signal(name, given, "signal")
-        if a.ndim == 2 and a.shape[1] == 1:
-            a = a[:, 0]
-        if a.ndim != 1:
-            axes = "; reduce 3 axes to one with flowtex.dsp.dft321.dft321" if a.ndim == 2 and a.shape[1] == 3 else ""
-            raise InputError(f"{where}: signal {name!r} has shape {a.shape}; pass a 1-D array, one sample per tick{axes}")
+        a = None if given is None else float_signal(name, given, "signal")
+        if a is not None and name in vectors:
+            if a.ndim != 2 or a.shape[1] != 3:
+                raise InputError(f"{where}: signal {name!r} has shape {a.shape}; pass an (n, 3) array, one row per tick")
+        elif a is not None:
+            if a.ndim == 2 and a.shape[1] == 1:
+                a = a[:, 0]
+            if a.ndim != 1:
+                axes = "; reduce 3 axes to one with flowtex.dsp.dft321.dft321" if a.ndim == 2 and a.shape[1] == 3 else ""
+                raise InputError(f"{where}: signal {name!r} has shape {a.shape}; pass a 1-D array, one sample per tick{axes}")
         arrays.append(a)
-    lengths = {a.shape[0] for a in arrays}
-    if len(lengths) > 1:
+    given = {name: a for name, a in zip(signals, arrays, strict=True) if a is not None}
+    if len({a.shape[0] for a in given.values()}) > 1:
         raise InputError(f"{where}: signals have different lengths ("
-                         + ", ".join(f"{name} {a.shape[0]}" for name, a in zip(signals, arrays, strict=True)) + "); pass one sample per tick of each")
-    for name, a in zip(signals, arrays, strict=True):
+                         + ", ".join(f"{name} {a.shape[0]}" for name, a in given.items()) + "); pass one sample per tick of each")
+    for name, a in given.items():
         check_finite(a, f"{where}: signal {name!r}")
-    return float(value), arrays
+    return value, arrays

@@ -47,3 +47,46 @@ def test_compare_surface_refuses_wrong_arrays_naming_the_signal(args, error, mes
 def test_compare_surface_names_a_path_given_for_the_surface():
     with pytest.raises(InputError, match=r"the surface must be a TextureModelSet \(flowtex.io.modelset.load_model_set"):
         compare_surface("cork.json", ACCEL, SPEED, FORCE, 1000.0)
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"x": ACCEL + 1j, "order": (4, 2)}, r"fit_arma: signal 'x' holds complex"),
+    ({"x": np.ma.array(ACCEL, mask=ACCEL > 2), "order": (4, 2)}, r"fit_arma: signal 'x' is a masked array"),
+    ({"x": ACCEL, "order": (4,)}, r"ARMA order must be two non-negative integers \(p, q\), e.g. order=\(19, 17\); got \(4,\)"),
+    ({"x": ACCEL, "order": (4.5, 2)}, r"ARMA order must be two non-negative integers .*got \(4.5, 2\)"),
+    ({"x": ACCEL, "order": "4,2"}, r"ARMA order must be two non-negative integers"),
+    ({"x": ACCEL, "max_order": "5"}, r"fit_arma: max_order must be an integer >= 0, got '5'"),
+])
+def test_fit_arma_refuses_what_it_would_change_or_misread(kwargs, message):
+    from flowtex.fit import fit_arma
+
+    with pytest.raises((InputError, DataError), match=message):
+        fit_arma(**kwargs)
+
+
+def test_an_arma_fit_s_spectrum_refuses_a_rate_that_is_no_positive_number():
+    from flowtex.fit import fit_arma
+
+    fit = fit_arma(ACCEL, order=(2, 0))
+    for rate in (0, -1000.0, "1000", float("nan")):
+        with pytest.raises(InputError, match=r"ArmaFit.psd: rate_hz must be a positive number of Hz"):
+            fit.psd(np.linspace(0.0, 500.0, 5), rate)
+        with pytest.raises(InputError, match=r"ArmaFit.lsd_db: rate_hz must be a positive number of Hz"):
+            fit.lsd_db(ACCEL, rate)
+
+
+def test_fit_friction_and_fit_taps_refuse_signals_of_different_lengths_and_complex_values():
+    from flowtex.fit.friction import fit_friction
+    from flowtex.fit.taps import fit_taps
+
+    with pytest.raises(InputError, match=r"signals have different lengths \(normal 397, tangential 400\)"):
+        fit_friction(FORCE[:-3], 0.3 * FORCE)
+    with pytest.raises(InputError, match=r"signal 'tangential' holds complex"):
+        fit_friction(FORCE, 0.3 * FORCE + 0j)
+    position = np.zeros((N, 3))
+    with pytest.raises(InputError, match=r"signals have different lengths \(accel 397, force 400, position 400\)"):
+        fit_taps(ACCEL[:-3], FORCE, 1000.0, position=position)
+    with pytest.raises(InputError, match=r"signal 'position' has shape \(400,\); pass an \(n, 3\) array"):
+        fit_taps(ACCEL, FORCE, 1000.0, position=position[:, 0])
+    with pytest.raises(DataError, match=r"signal 'accel': 1 NaN/inf sample\(s\)"):
+        fit_taps(np.r_[ACCEL[:-1], np.nan], FORCE, 1000.0, position=position)
