@@ -64,7 +64,7 @@ def check_edges(ck: GraphChecker, nodes: dict[str, ResolvedNode]) -> dict[tuple[
         key = (dst.node, dst.port)
         if key in edge_of:
             first = edge_of[key]
-            ck.error(edge.loc, f"input {dst.node}.{dst.port} is connected twice (also at line {first.loc.line}); an input takes exactly one edge")
+            ck.error(edge.loc, f"input {dst.node}.{dst.port} is connected twice (also at {_where(first.loc)}); an input takes exactly one edge")
             continue
         if ok:
             edge_of[key] = edge
@@ -112,3 +112,8 @@ def check_unconnected(ck: GraphChecker, nodes: dict[str, ResolvedNode]) -> None:
     for edge in ck.spec.edges:
         if edge.dst.node in nodes and edge.dst.port in nodes[edge.dst.node].cls.inputs:
             nodes[edge.dst.node].sources[edge.dst.port] = edge.src
+
+
+def _where(loc: Location) -> str:
+    """``line N`` of the same file, or the builder call that placed an item without a line."""
+    return f"line {loc.line}" if loc.line > 0 else str(loc)

@@ -70,3 +70,19 @@ def test_a_parameter_the_node_refuses_at_build_names_the_node_type_and_the_param
     assert err.value.param == "cutoff_hz"
     with pytest.raises(ParamError, match=r"^node type 'texture_lookup' processor: parameter 'models': nowhere\.xml: "):
         load_registry().types["texture_lookup"].processor(models="nowhere.xml")
+
+
+def test_an_input_connected_twice_in_the_builder_names_both_builder_calls_not_line_0():
+    from flowtex.errors import GraphError
+
+    b = GraphBuilder("g").input("x").input("z").node("f", "gain", k=1.0).edge("x -> f.x").edge("z -> f.x").output("y", "f.y")
+    with pytest.raises(GraphError, match=r"^GraphBuilder.edge\('z -> f.x'\): input f.x is connected twice \(also at "
+                                         r"GraphBuilder.edge\('x -> f.x'\)\); an input takes exactly one edge$"):
+        b.resolve()
+
+
+def test_step_given_a_list_for_a_scalar_input_says_to_pass_one_number(gain_graph):
+    from flowtex.errors import FlowtexError
+
+    with pytest.raises(FlowtexError, match=r"input 'x' is a scalar; step\(\) got \[1.0\]; pass one number, e.g. \{'x': 1.0\}"):
+        gain_graph.step({"x": [1.0]})
