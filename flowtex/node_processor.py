@@ -113,7 +113,10 @@ def _schedule(cls: type, name: str, values: dict[str, Any], rate: float, every: 
         raise ParamError("input_every", f"node type {cls.type_name!r} has no input {unknown[0]!r}"
                                         f"{suggest(str(unknown[0]), list(cls.inputs))}; its inputs are: {', '.join(cls.inputs) or 'none'}")
     ports = {port: _graph_setting(cls, f"input_every[{port!r}]", input_every.get(port, 1), INPUT_EVERY) for port in cls.inputs}
-    own = scheduled_every(cls, name, values, rate, ports)
+    try:
+        own = scheduled_every(cls, name, values, rate, ports)
+    except ParamError as exc:
+        raise _labelled(cls, exc) from None
     if own is not None and every not in (1, own):
         raise ParamError("every", f"node type {cls.type_name!r} processor: its parameters make it run every {own} ticks, "
                                   f"but every={every} was given; drop every=")
@@ -155,7 +158,7 @@ class Processor:
         values, files = _params(cls, params, Path(base_dir))
         self.every, ports_every = _schedule(cls, self.name, values, rate, every, input_every)
         self.context = BuildContext(rate=rate, base_dir=Path(base_dir), every=self.every, input_every=ports_every, files=files)
-        self.node = cls(self.name, values, self.context)
+        self.node = self._node_call("__init__", cls, self.name, values, self.context)
         self.kernel = cls.get_kernel()
         self.input_specs: dict[str, PortSpec] | None = None
         self.output_specs: dict[str, PortSpec] = {}
@@ -198,14 +201,14 @@ class Processor:
         """Build the node for the inputs given; nothing is kept unless every step succeeds (a failed first call can be
         retried with other arrays)."""
         specs = self._specs(arrays)
-        outputs = checked_outputs(self.cls, self.name, self._node_call("resolve", specs))  # a wrong result: at its line
+        outputs = checked_outputs(self.cls, self.name, self._node_call("resolve", self.node.resolve, specs))  # a wrong result: at its line
         if is_plugin(self.cls):  # a kernel that does not compile: its own line and numba's reason, not a TypingError
             check_kernel_compiles(self.cls)
         for port_name, spec in outputs.items():
             problem = port_values_problem(spec.shape)
             if problem:
                 raise InputError(f"node type {self.cls.type_name!r}: output {port_name!r}: {problem}")
-        built = self._node_call("build", specs, outputs)
+        built = self._node_call("build", self.node.build, specs, outputs)
         p = np.ascontiguousarray(built.params, dtype=np.float64)
         s = np.ascontiguousarray(built.state, dtype=np.float64)
         si = np.ascontiguousarray(built.istate, dtype=np.int64)
@@ -218,11 +221,12 @@ class Processor:
         self.input_specs = specs
         self._holds = {k: np.zeros(spec.width) for k, spec in outputs.items()}
 
-    def _node_call(self, method: str, *args: Any) -> Any:
-        """The node's ``resolve`` or ``build``; what it refuses is raised with the node type and parameter in front, and
-        a plugin's own exception at its line (as a graph reports both), never a bare message or traceback."""
+    def _node_call(self, method: str, call: Any, *args: Any) -> Any:
+        """``call(*args)``: the node's ``__init__``, ``resolve`` or ``build`` (``method``); what it refuses is raised with
+        the node type and parameter in front, and a plugin's own exception at its line (as a graph reports both), never
+        a bare message or traceback."""
         try:
-            return getattr(self.node, method)(*args)
+            return call(*args)
         except (ParamError, DataError) as exc:
             raise _labelled(self.cls, exc) from None
         except FlowtexError:

@@ -101,3 +101,15 @@ def test_a_graph_pickled_mid_run_continues_in_the_copy_bit_for_bit():
     copy = pickle.loads(pickle.dumps(g))
     assert np.array_equal(np.concatenate([first, copy.process({"x": x[250:]})["y"]]), whole)
     assert copy.ticks == 600 and g.ticks == 250
+
+
+def test_a_processor_at_another_rate_than_its_model_or_input_names_the_node_type_and_the_parameter():
+    from flowtex.datasets.model_sets import cork_like_model_set
+
+    types = load_registry().types
+    with pytest.raises(ParamError, match=r"^node type 'texture_lookup' processor: parameter 'models': the model set "
+                                         r"'cork-like' given in memory is for 1000 Hz but the graph runs at 2000 Hz"):
+        types["texture_lookup"].processor(rate=2000.0, models=cork_like_model_set())
+    with pytest.raises(ParamError, match=r"^node type 'resample' processor: parameter 'from_hz': from_hz is 1000 Hz but "
+                                         r"input 'x' arrives at 2000 Hz"):
+        types["resample"].processor(rate=2000.0, from_hz=1000.0, to_hz=500.0)
