@@ -9,11 +9,13 @@ Parameter values may be loaded objects where a node type accepts them (e.g. a ``
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from ..errors import Diagnostic, GraphError, Location
+from ..limits import excerpt
 from ..pyvalues import plain
 from ..schema.graph import FORMAT_VERSION
 from ..yamlsource import LocDict, LocList
@@ -54,6 +56,9 @@ class GraphBuilder:
                  description: str = ""):
         self.name = name
         self._where = Location(f"GraphBuilder({name!r})")
+        if base_dir is not None and not isinstance(base_dir, (str, os.PathLike)):
+            raise GraphError([Diagnostic(self._where, f"base_dir must be a folder path (str or pathlib.Path), got "
+                                                      f"{excerpt(base_dir)}")])
         self._path = Path(base_dir if base_dir is not None else ".") / f"<GraphBuilder {name}>"
         self._data = _mapping(self._where)
         for key, value in (("flowtex", FORMAT_VERSION), ("name", name), ("rate", rate), ("seed", seed)):
@@ -126,4 +131,4 @@ class GraphBuilder:
         folders; ``$FLOWTEX_PLUGINS`` is read as for a file; ``tier``: fused, dispatch or auto)."""
         from .compiled import DEFAULT_BLOCK_ROWS, Graph
 
-        return Graph(self.resolve(overrides, plugins), block_rows or DEFAULT_BLOCK_ROWS, tier)
+        return Graph(self.resolve(overrides, plugins), DEFAULT_BLOCK_ROWS if block_rows is None else block_rows, tier)

@@ -113,3 +113,12 @@ def test_a_processor_at_another_rate_than_its_model_or_input_names_the_node_type
     with pytest.raises(ParamError, match=r"^node type 'resample' processor: parameter 'from_hz': from_hz is 1000 Hz but "
                                          r"input 'x' arrives at 2000 Hz"):
         types["resample"].processor(rate=2000.0, from_hz=1000.0, to_hz=500.0)
+
+
+def test_the_builder_refuses_a_base_dir_that_is_no_path_and_block_rows_0_instead_of_ignoring_it():
+    from flowtex.errors import GraphError
+
+    with pytest.raises(GraphError, match=r"^GraphBuilder\('g'\): base_dir must be a folder path \(str or pathlib.Path\), got 5$"):
+        GraphBuilder("g", base_dir=5)
+    with pytest.raises(InputError, match=r"block_rows must be an integer >= 1, got 0"):
+        GraphBuilder("g").input("x").output("y", "x").build(block_rows=0)
