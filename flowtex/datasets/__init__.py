@@ -26,13 +26,15 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import InputError
 from ..io.recordings import save_recording
+from ..limits import excerpt
 from ..models.taps import TapLibrary
 from ..models.texture import TextureModelSet
 from .graphs import FRICTION_GRAPH, TAP_GRAPH, run_graph
 from .model_sets import synthetic_model_set
 from .taps import synthetic_tap_library
-from .trajectories import Plateau, circle_path, plateau_trajectory, sweep_trajectory
+from .trajectories import Plateau, circle_path, plateau_trajectory, recording_ticks, sweep_trajectory
 
 __all__ = ["Plateau", "SyntheticRecording", "default_surface", "free_exploration", "friction_session", "render_texture",
            "tap_session"]
@@ -108,9 +110,11 @@ def free_exploration(duration_s: float = 60.0, rate: float = 1000.0, surface: Te
     sample ranges and nominal speed/force), ``outliers`` (indices), ``clean``
     (the noise-free vibration).
     """
+    n, rate = recording_ticks(duration_s, rate, seed, surface)
+    if axes not in (1, 3):
+        raise InputError(f"axes must be 1 (accel of shape (n,)) or 3 (accel of shape (n, 3)), got {excerpt(axes)}")
     ms = surface if surface is not None else default_surface(sample_rate=rate)
     rng = np.random.default_rng(seed)
-    n = int(round(duration_s * rate))
     lim_s = (0.15 * ms.max_speed, 0.95 * ms.max_speed)
     lim_f = (0.15 * ms.max_force, 0.95 * ms.max_force)
     if sweep:
@@ -182,8 +186,8 @@ def friction_session(mu: float = 0.4, duration_s: float = 20.0, rate: float = 10
     tangential force sensor noise only). ``friction_force`` is the (n, 3)
     measured force vector: tangential along x, normal along +z.
     """
+    n, rate = recording_ticks(duration_s, rate, seed)
     rng = np.random.default_rng(seed)
-    n = int(round(duration_s * rate))
     t = np.arange(n) / rate
     fn = 1.65 + 1.35 * np.sin(2 * np.pi * 0.23 * t) * np.cos(2 * np.pi * 0.07 * t + 0.5)
     velocity = np.column_stack([np.full(n, 150.0), np.zeros(n), np.zeros(n)])
