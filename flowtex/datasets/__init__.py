@@ -183,7 +183,7 @@ def friction_session(mu: float = 0.4, duration_s: float = 20.0, rate: float = 10
     variables); ``spikes`` stiction spikes (50 ms
     at 2.5 x the kinetic force, at motion restarts after ``lifts`` lift-offs
     and at random times); ``lifts`` lift-offs of 0.5 s (normal force ~ 0, the
-    tangential force sensor noise only). ``friction_force`` is the (n, 3)
+    tangential force sensor noise only). ``force`` is the (n, 3)
     measured force vector: tangential along x, normal along +z.
     """
     n, rate = recording_ticks(duration_s, rate, seed)
