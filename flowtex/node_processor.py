@@ -53,7 +53,7 @@ def _labelled(cls: type, exc: FlowtexError) -> FlowtexError:
     node type and the parameter it names in front, as a graph names the node and places it at the parameter's line."""
     param = getattr(exc, "param", None)
     text = f"node type {cls.type_name!r} processor: " + (f"parameter {param!r}: " if param else "") + str(exc)
-    return ParamError(param, text) if isinstance(exc, ParamError) else type(exc)(text)
+    return ParamError(param, text) if isinstance(exc, ParamError) else DataError(text)  # a subclass may take other arguments
 
 
 def given_params(cls: type, mapping: Any, keywords: dict[str, Any]) -> dict[str, Any]:

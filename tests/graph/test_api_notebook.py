@@ -122,3 +122,41 @@ def test_the_builder_refuses_a_base_dir_that_is_no_path_and_block_rows_0_instead
         GraphBuilder("g", base_dir=5)
     with pytest.raises(InputError, match=r"block_rows must be an integer >= 1, got 0"):
         GraphBuilder("g").input("x").output("y", "x").build(block_rows=0)
+
+
+def _raising_node(raised: Exception):
+    """A node type whose build() raises ``raised``, as a plugin written in a notebook might."""
+    from numba import njit
+
+    from flowtex.node_api import Node, Port
+
+    @njit(cache=False)
+    def kernel(p, s, si, x, y):
+        for t in range(x.shape[0]):
+            y[t, 0] = x[t, 0]
+
+    class Raising(Node):
+        """Raises in build."""
+
+        type_name = "raising_build"
+        inputs = {"x": Port((), "*")}
+        outputs = {"y": Port((), "=x")}
+
+        def build(self, inputs, outputs):
+            raise raised
+
+    Raising.kernel = kernel
+    return Raising
+
+
+def test_a_plugin_build_that_raises_is_reported_at_its_line_and_a_data_error_subclass_keeps_its_message():
+    from flowtex.errors import DataError, FlowtexError
+
+    class OddDataError(DataError):
+        def __init__(self, path, reason):
+            super().__init__(f"{path}: {reason}")
+
+    with pytest.raises(DataError, match=r"^node type 'raising_build' processor: table.csv: no header$"):
+        _raising_node(OddDataError("table.csv", "no header")).processor()(x=np.zeros(2))
+    with pytest.raises(FlowtexError, match=r"build\(\) of graph node 'raising_build' raised KeyError: 'gain'"):
+        _raising_node(KeyError("gain")).processor()(x=np.zeros(2))
