@@ -125,27 +125,18 @@ def test_the_builder_refuses_a_base_dir_that_is_no_path_and_block_rows_0_instead
 
 
 def _raising_node(raised: Exception):
-    """A node type whose build() raises ``raised``, as a plugin written in a notebook might."""
-    from numba import njit
+    """A node type whose build() raises ``raised``, as a plugin written in a notebook might (built-in ``gain``'s
+    ports and kernel, defined outside flowtex)."""
+    gain = load_registry().types["gain"]
 
-    from flowtex.node_api import Node, Port
-
-    @njit(cache=False)
-    def kernel(p, s, si, x, y):
-        for t in range(x.shape[0]):
-            y[t, 0] = x[t, 0]
-
-    class Raising(Node):
+    class Raising(gain):
         """Raises in build."""
 
         type_name = "raising_build"
-        inputs = {"x": Port((), "*")}
-        outputs = {"y": Port((), "=x")}
 
         def build(self, inputs, outputs):
             raise raised
 
-    Raising.kernel = kernel
     return Raising
 
 
@@ -157,6 +148,6 @@ def test_a_plugin_build_that_raises_is_reported_at_its_line_and_a_data_error_sub
             super().__init__(f"{path}: {reason}")
 
     with pytest.raises(DataError, match=r"^node type 'raising_build' processor: table.csv: no header$"):
-        _raising_node(OddDataError("table.csv", "no header")).processor()(x=np.zeros(2))
+        _raising_node(OddDataError("table.csv", "no header")).processor(k=1.0)(x=np.zeros(2))
     with pytest.raises(FlowtexError, match=r"build\(\) of graph node 'raising_build' raised KeyError: 'gain'"):
-        _raising_node(KeyError("gain")).processor()(x=np.zeros(2))
+        _raising_node(KeyError("gain")).processor(k=1.0)(x=np.zeros(2))
