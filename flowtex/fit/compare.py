@@ -197,6 +197,9 @@ def compare_signals(recorded: np.ndarray, renders: list[np.ndarray], rate: float
     ``ranges``: (start, stop) sample ranges to compare (default: all); the first ``skip_s`` are left out either way.
     """
     opt = opt or CompareOptions()
+    if not isinstance(renders, (list, tuple)) or not renders:
+        raise InputError(f"renders must be a non-empty list of rendered signals, got {excerpt(renders)}")
+    rate, (recorded, *renders) = api_signals("recording", rate, recorded=recorded, **{f"renders[{k}]": r for k, r in enumerate(renders)})
     return compare_highpassed(highpassed(recorded, rate, opt), [highpassed(r, rate, opt) for r in renders], rate, opt, ranges)
 
 

@@ -10,6 +10,7 @@ through the one writer, :mod:`flowtex.io.atomic`.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -156,19 +157,22 @@ def check_not_constant(a: np.ndarray, label: str) -> None:
         raise DataError(f"{label} is constant; check that the right signal is named and that the sensor was recording")
 
 
-def api_signals(where: str, rate: Any, vectors: tuple[str, ...] = (), **signals: Any) -> tuple[float | None, list[np.ndarray | None]]:
+def api_signals(where: str, rate: Any, vectors: Mapping[str, int | None] | None = None,
+                **signals: Any) -> tuple[float | None, list[np.ndarray | None]]:
     """``rate`` (Hz) and ``signals`` as Python code hands them to a fit function (lists, float32, (n, 1) columns) made
-    a positive float (``rate=None``: none taken) and float64 arrays of one length, 1-D or (n, 3) for the signals
-    named in ``vectors``, with no NaN/inf (a signal given as None stays None), as the CLI's readers check a file's
+    a positive float (``rate=None``: none taken) and float64 arrays of one length, 1-D, or for a signal named in
+    ``vectors`` (n, width) (width None: (n,) or (n, any)), with no NaN/inf (a signal given as None stays None), as the CLI's readers check a file's
     (:func:`signal`); else one error naming the argument and the fix, before any fit math runs on wrong arrays.
     """
     value = None if rate is None else positive_rate(f"{where}: rate", rate)
     arrays: list[np.ndarray | None] = []
     for name, given in signals.items():
         a = None if given is None else float_signal(name, given, "signal")
-        if a is not None and name in vectors:
-            if a.ndim != 2 or a.shape[1] != 3:
-                raise InputError(f"{where}: signal {name!r} has shape {a.shape}; pass an (n, 3) array, one row per tick")
+        width = (vectors or {}).get(name, 1)
+        if a is not None and width != 1:
+            if not (a.ndim == 2 and width in (None, a.shape[1])) and not (a.ndim == 1 and width is None):
+                want = "a 1-D or 2-D array" if width is None else f"an (n, {width}) array"
+                raise InputError(f"{where}: signal {name!r} has shape {a.shape}; pass {want}, one row per tick")
         elif a is not None:
             if a.ndim == 2 and a.shape[1] == 1:
                 a = a[:, 0]

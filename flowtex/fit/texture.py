@@ -53,8 +53,9 @@ from ..dsp.lsf_roots import poly_to_lsf
 from ..dsp.robust import clamp_outliers
 from ..dsp.segment import segment
 from ..dsp.spectral import gfc_data_model
-from ..errors import DataError
+from ..errors import DataError, InputError
 from ..io.modelset import delaunay_triangles
+from ..limits import excerpt
 from ..models.rendering import FITTED_RULE
 from ..models.texture import TextureModelSet
 from .arma import ArmaFit, fit_arma, select_shared_order
@@ -322,7 +323,11 @@ def fit_grid(cells: Sequence[tuple[np.ndarray, float, float]], rate: float, opt:
     xs, pieces = [], []
     offset = 0
     clipped = 0
-    for accel, s, f in cells:
+    for k, cell in enumerate(cells):
+        if not (isinstance(cell, (list, tuple)) and len(cell) == 3):
+            raise InputError(f"{where}: cells[{k}] must be (accel, speed mm/s, force N), got {excerpt(cell)}")
+        rate, (accel,) = api_signals(f"{where}: cells[{k}]", rate, accel=cell[0])
+        s, f = cell[1], cell[2]
         x, c = preprocess(accel, rate, opt.highpass_hz, opt.outlier_sigma)
         trim = min(int(round(opt.trim_s * rate)), x.shape[0] // 4)
         xs.append(x)

@@ -90,3 +90,25 @@ def test_fit_friction_and_fit_taps_refuse_signals_of_different_lengths_and_compl
         fit_taps(ACCEL, FORCE, 1000.0, position=position[:, 0])
     with pytest.raises(DataError, match=r"signal 'accel': 1 NaN/inf sample\(s\)"):
         fit_taps(np.r_[ACCEL[:-1], np.nan], FORCE, 1000.0, position=position)
+
+
+def test_compare_signals_fit_pattern_and_fit_grid_refuse_what_they_would_misread():
+    from flowtex.fit.compare import compare_signals
+    from flowtex.fit.pattern import fit_pattern
+    from flowtex.fit.texture import fit_grid
+
+    with pytest.raises(InputError, match=r"signals have different lengths \(recorded 400, renders\[0\] 395\)"):
+        compare_signals(ACCEL, [ACCEL[:-5]], 1000.0)
+    with pytest.raises(InputError, match=r"^renders must be a non-empty list of rendered signals"):
+        compare_signals(ACCEL, ACCEL, 1000.0)
+    with pytest.raises(DataError, match=r"signal 'recorded': 1 NaN/inf sample"):
+        compare_signals(np.r_[ACCEL[:-1], np.nan], [ACCEL], 1000.0)
+    position = np.c_[np.linspace(0.0, 40.0, N), np.zeros(N), np.zeros(N)]
+    with pytest.raises(InputError, match=r"signals have different lengths \(accel 395, position 400\)"):
+        fit_pattern(ACCEL[:-5], position, 1000.0)
+    with pytest.raises(InputError, match=r"signal 'position' has shape \(400,\); pass an \(n, 3\) array"):
+        fit_pattern(ACCEL, position[:, 0], 1000.0)
+    with pytest.raises(InputError, match=r"signal 'accel' holds complex"):
+        fit_grid([(ACCEL + 0j, 100.0, 1.0)], 1000.0)
+    with pytest.raises(InputError, match=r"^grid: cells\[0\] must be \(accel, speed mm/s, force N\)"):
+        fit_grid([(ACCEL, 100.0)], 1000.0)
