@@ -151,3 +151,12 @@ def test_a_plugin_build_that_raises_is_reported_at_its_line_and_a_data_error_sub
         _raising_node(OddDataError("table.csv", "no header")).processor(k=1.0)(x=np.zeros(2))
     with pytest.raises(FlowtexError, match=r"build\(\) of graph node 'raising_build' raised KeyError: 'gain'"):
         _raising_node(KeyError("gain")).processor(k=1.0)(x=np.zeros(2))
+
+
+@pytest.mark.parametrize("path", [5, None, b"graph.yaml"])
+def test_load_graph_given_no_path_says_so_in_one_graph_error(path):
+    import flowtex
+    from flowtex.errors import GraphError
+
+    with pytest.raises(GraphError, match=r"a graph file is named by a path \(str or pathlib.Path\), got "):
+        flowtex.load_graph(path)
