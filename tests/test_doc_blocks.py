@@ -7,10 +7,14 @@ the line before its fence says so:
 * ``<!-- doc-test: fragment (why) -->``: a piece of a larger program (a test for the reader's own suite);
 * ``<!-- doc-test: hatt (why) -->``: it reads HaTT's published model sets as ``models/``; runs when
   ``FLOWTEX_HATT_DIR`` names their folder (research licence: never committed), skipped otherwise.
+
+Every dotted name the prose quotes (```flowtex.fit.resample.resample_model_set```) names a module or an attribute
+that exists, so a renamed or moved function is caught where the documentation still sends readers.
 """
 
 from __future__ import annotations
 
+import importlib
 import re
 import runpy
 import shutil
@@ -65,3 +69,28 @@ def test_doc_block_runs_as_written(where, source, mark, tmp_path, monkeypatch):
     script.write_text(source, encoding="utf-8")
     monkeypatch.chdir(tmp_path)
     runpy.run_path(str(script), run_name="__doc_block__")
+
+
+DOTTED = re.compile(r"`(flowtex(?:\.[A-Za-z_][A-Za-z0-9_]*)+)")
+
+
+def _resolves(name: str) -> bool:
+    """True if ``name`` is an importable module, or an attribute (chain) of the longest importable module prefix."""
+    parts = name.split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        for attr in parts[i:]:
+            if not hasattr(obj, attr):
+                return False
+            obj = getattr(obj, attr)
+        return True
+    return False
+
+
+def test_every_dotted_flowtex_name_in_the_documentation_exists():
+    names = {(m.group(1), doc.name) for doc in DOCS for m in DOTTED.finditer(doc.read_text(encoding="utf-8"))}
+    assert len(names) > 50
+    assert [(doc, name) for name, doc in sorted(names) if not _resolves(name)] == []
