@@ -23,7 +23,7 @@ length before anything is allocated."""
 def recording_ticks(duration_s: Any, rate: Any, seed: Any, surface: Any = None) -> tuple[int, float]:
     """(samples, rate Hz) of a generated recording of ``duration_s`` seconds, its arguments checked first: a positive
     duration and rate, a seed >= 0, at least 2 samples and no more than a recording may hold, ``surface`` None or a
-    :class:`TextureModelSet`; else one :class:`InputError` naming the argument (not numpy's error, or a memory error
+    :class:`TextureModelSet` at ``rate``; else one :class:`InputError` naming the argument (not numpy's error, or a memory error
     after allocating)."""
     rate = positive_rate("rate", rate)
     seconds = plain(duration_s)
@@ -33,6 +33,9 @@ def recording_ticks(duration_s: Any, rate: Any, seed: Any, surface: Any = None) 
     if surface is not None and not isinstance(surface, TextureModelSet):
         raise InputError(f"surface must be a TextureModelSet (flowtex.io.modelset.load_model_set(path) loads one), got "
                          f"{type(surface).__name__} {excerpt(surface)}")
+    if surface is not None and abs(surface.sample_rate - rate) > 1e-9 * rate:
+        raise InputError(f"surface {surface.material!r} is for {surface.sample_rate:g} Hz but rate is {rate:g} Hz; pass "
+                         f"rate={surface.sample_rate:g} or resample it (flowtex.fit.resample.resample_model_set)")
     n = seconds * rate
     check_ticks("duration_s x rate: samples", int(min(n, 2**62)), SIGNAL_VALUES_PER_TICK, "generate a shorter recording")
     if round(n) < 2:

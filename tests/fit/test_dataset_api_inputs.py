@@ -14,6 +14,7 @@ import pytest
 
 from flowtex import datasets
 from flowtex.datasets import dragging, realistic, resonant
+from flowtex.datasets.model_sets import cork_like_model_set
 from flowtex.datasets.taps import synthetic_tap_library
 from flowtex.errors import InputError
 from flowtex.fit.resample import resample_model_set
@@ -38,9 +39,12 @@ def test_a_generator_names_a_wrong_duration_rate_or_seed(generate, kwargs, messa
         generate(**kwargs)
 
 
-def test_free_exploration_names_a_surface_given_as_a_path_and_axes_that_are_neither_1_nor_3():
+def test_free_exploration_names_a_surface_given_as_a_path_or_at_another_rate_and_axes_neither_1_nor_3():
     with pytest.raises(InputError, match=r"^surface must be a TextureModelSet \(flowtex.io.modelset.load_model_set"):
         datasets.free_exploration(duration_s=2.0, surface="cork.json")
+    with pytest.raises(InputError, match=r"^surface 'cork-like' is for 1000 Hz but rate is 2000 Hz; pass rate=1000 or "
+                                         r"resample it \(flowtex.fit.resample.resample_model_set\)$"):
+        datasets.free_exploration(duration_s=2.0, rate=2000.0, surface=cork_like_model_set())
     with pytest.raises(InputError, match=r"^axes must be 1 \(accel of shape \(n,\)\) or 3 .*got 2$"):
         datasets.free_exploration(duration_s=2.0, axes=2)
 
