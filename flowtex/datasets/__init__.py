@@ -31,6 +31,7 @@ from ..io.recordings import save_recording
 from ..limits import excerpt
 from ..models.taps import TapLibrary
 from ..models.texture import TextureModelSet
+from ..pyvalues import plain
 from .graphs import FRICTION_GRAPH, TAP_GRAPH, run_graph
 from .model_sets import synthetic_model_set
 from .taps import synthetic_tap_library
@@ -144,6 +145,13 @@ def tap_session(speeds: tuple[float, ...] = (30.0, 55.0, 70.0, 90.0, 120.0, 160.
     lifts off; taps are ``gap_s`` + ``contact_s`` apart. ``truth``:
     ``library``, ``onsets`` (first sample with force above 0.1 N), ``speeds``.
     """
+    try:
+        values = np.asarray(plain(speeds), dtype=float)
+    except (TypeError, ValueError):  # text, ragged lists: refused below as no list of speeds
+        values = np.zeros(0)
+    if values.ndim != 1 or not values.size or not np.all(np.isfinite(values) & (values > 0)):
+        raise InputError(f"speeds must be a non-empty list of incoming speeds > 0 mm/s, got {excerpt(speeds)}")
+    recording_ticks(gap_s + contact_s, rate, seed)
     lib = library if library is not None else synthetic_tap_library(sample_rate_hz=rate)
     rng = np.random.default_rng(seed)
     period = int(round((gap_s + contact_s) * rate))

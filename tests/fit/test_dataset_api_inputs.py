@@ -55,3 +55,9 @@ def test_resampling_names_a_path_for_the_model_set_and_a_rate_that_is_no_positiv
     with pytest.raises(InputError, match=r"^resample_tap_library: sample_rate_hz must be a positive number of Hz, got 0$"):
         resample_tap_library(synthetic_tap_library(), 0)
     assert resample_tap_library(synthetic_tap_library(), np.int64(2000)).sample_rate_hz == 2000.0
+
+
+@pytest.mark.parametrize("speeds", [(), (-5.0,), (np.nan,), 5.0, ("fast",)])
+def test_tap_session_refuses_speeds_that_are_not_positive_incoming_speeds(speeds):
+    with pytest.raises(InputError, match=r"^speeds must be a non-empty list of incoming speeds > 0 mm/s, got "):
+        datasets.tap_session(speeds=speeds)
