@@ -98,13 +98,19 @@ def check_outputs(ck: GraphChecker, nodes: dict[str, ResolvedNode]) -> None:
 
 
 def check_unconnected(ck: GraphChecker, nodes: dict[str, ResolvedNode]) -> None:
-    """Every required input is connected; fills each node's ``sources`` (input -> producer, None if unconnected)."""
+    """Every required input is connected; fills each node's ``sources`` (input -> producer, None if unconnected).
+
+    A node that an edge aims at an input it lacks (a misspelt port, reported by :func:`check_edges` with its inputs)
+    gets no second error for the input that edge meant: one mistake, one message."""
     connected = {(e.dst.node, e.dst.port) for e in ck.spec.edges}
+    misaimed = {e.dst.node for e in ck.spec.edges if e.dst.node in nodes and e.dst.port not in nodes[e.dst.node].cls.inputs}
     for name, rn in nodes.items():
         for port_name, port in rn.cls.inputs.items():
             if (name, port_name) in connected:
                 rn.sources[port_name] = None  # filled below
             elif not port.optional:
+                if name in misaimed:
+                    continue
                 ck.error(rn.spec.loc, f"node {name!r} ({rn.cls.type_name}): input {port_name!r} is not connected; "
                                       f"add an edge '... -> {name}.{port_name}'")
             else:
