@@ -6,6 +6,7 @@ Each problem is reported at its file:line:col into the shared :class:`~flowtex.g
 
 from __future__ import annotations
 
+import difflib
 from typing import Any
 
 from ..errors import Location
@@ -101,9 +102,14 @@ def check_unconnected(ck: GraphChecker, nodes: dict[str, ResolvedNode]) -> None:
     """Every required input is connected; fills each node's ``sources`` (input -> producer, None if unconnected).
 
     A node that an edge aims at an input it lacks (a misspelt port, reported by :func:`check_edges` with its inputs)
-    gets no second error for the input that edge meant: one mistake, one message."""
+    gets no second error for the input that edge meant, nor does the node an edge to a misspelt node name meant
+    (the closest name, reported by :func:`check_edges`): one mistake, one message."""
     connected = {(e.dst.node, e.dst.port) for e in ck.spec.edges}
     misaimed = {e.dst.node for e in ck.spec.edges if e.dst.node in nodes and e.dst.port not in nodes[e.dst.node].cls.inputs}
+    for e in ck.spec.edges:
+        meant = difflib.get_close_matches(str(e.dst.node), list(ck.spec.nodes), n=1, cutoff=0.6)
+        if e.dst.node not in ck.spec.nodes and meant:
+            misaimed.add(meant[0])
     for name, rn in nodes.items():
         for port_name, port in rn.cls.inputs.items():
             if (name, port_name) in connected:

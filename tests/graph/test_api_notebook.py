@@ -162,11 +162,14 @@ def test_load_graph_given_no_path_says_so_in_one_graph_error(path):
         flowtex.load_graph(path)
 
 
-def test_a_misspelt_input_port_is_one_error_not_a_second_one_for_the_input_it_meant():
+@pytest.mark.parametrize(("edge", "message"), [
+    ("x -> f.xx", "edge 'x -> f.xx': node 'f' (gain) has no input 'xx' (did you mean 'x'?); its inputs are: x"),
+    ("x -> ff.x", "edge 'x -> ff.x': no node 'ff' (did you mean 'f'?)"),
+])
+def test_a_misspelt_input_port_or_node_is_one_error_not_a_second_one_for_the_input_it_meant(edge, message):
     from flowtex.errors import GraphError
 
-    b = GraphBuilder("g").input("x").node("f", "gain", k=1.0).edge("x -> f.xx").output("y", "f.y")
+    b = GraphBuilder("g").input("x").node("f", "gain", k=1.0).edge(edge).output("y", "f.y")
     with pytest.raises(GraphError) as err:
         b.resolve()
-    assert [d.message for d in err.value.diagnostics] == [
-        "edge 'x -> f.xx': node 'f' (gain) has no input 'xx' (did you mean 'x'?); its inputs are: x"]
+    assert [d.message for d in err.value.diagnostics] == [message]
