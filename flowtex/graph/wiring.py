@@ -6,10 +6,10 @@ Each problem is reported at its file:line:col into the shared :class:`~flowtex.g
 
 from __future__ import annotations
 
-import difflib
 from typing import Any
 
 from ..errors import Location
+from ..limits import close_names
 from ..node_api import Node, Port, suggest
 from ..node_params import checked_params
 from .resolved import GraphChecker, ResolvedNode
@@ -107,7 +107,7 @@ def check_unconnected(ck: GraphChecker, nodes: dict[str, ResolvedNode]) -> None:
     connected = {(e.dst.node, e.dst.port) for e in ck.spec.edges}
     misaimed = {e.dst.node for e in ck.spec.edges if e.dst.node in nodes and e.dst.port not in nodes[e.dst.node].cls.inputs}
     for e in ck.spec.edges:
-        meant = difflib.get_close_matches(str(e.dst.node), list(ck.spec.nodes), n=1, cutoff=0.6)
+        meant = close_names(str(e.dst.node), list(ck.spec.nodes), 1)
         if e.dst.node not in ck.spec.nodes and meant:
             misaimed.add(meant[0])
     for name, rn in nodes.items():
