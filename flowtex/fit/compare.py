@@ -63,7 +63,7 @@ from ..dsp.spectral import gfc, lsd_db, octave_bands, psd_band_power, psd_centro
 from ..errors import DataError, InputError
 from ..limits import excerpt
 from ..models.texture import TextureModelSet
-from .inputs import api_signals
+from .inputs import api_signals, sample_ranges
 from .resampled_band import resampled_band_hz
 
 MIN_WINDOWS = 10
@@ -200,6 +200,7 @@ def compare_signals(recorded: np.ndarray, renders: list[np.ndarray], rate: float
     if not isinstance(renders, (list, tuple)) or not renders:
         raise InputError(f"renders must be a non-empty list of rendered signals, got {excerpt(renders)}")
     rate, (recorded, *renders) = api_signals("recording", rate, recorded=recorded, **{f"renders[{k}]": r for k, r in enumerate(renders)})
+    ranges = sample_ranges("recording", "ranges", ranges, recorded.shape[0])
     return compare_highpassed(highpassed(recorded, rate, opt), [highpassed(r, rate, opt) for r in renders], rate, opt, ranges)
 
 
@@ -295,6 +296,7 @@ def compare_surface(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, f
     """
     opt = opt or CompareOptions()
     rate, (accel, speed, force) = api_signals(where, rate, accel=accel, speed=speed, force=force)
+    ranges = sample_ranges(where, "ranges", ranges, accel.shape[0])
     renders, opt = surface_renders(ms, accel, speed, force, rate, opt, where)
     cmp = compare_highpassed(highpassed(accel, rate, opt), [highpassed(r, rate, opt) for r in renders], rate, opt,
                              ranges, where)

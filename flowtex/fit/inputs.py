@@ -20,7 +20,8 @@ from ..errors import DataError, InputError
 from ..io.atomic import atomic_output  # noqa: F401 -- the one writer, re-exported for the fit modules
 from ..io.recording_rules import check_stated_unit
 from ..io.recordings import Recording, load_recording
-from ..pyvalues import float_signal, positive_rate
+from ..limits import excerpt
+from ..pyvalues import float_signal, plain, positive_rate
 
 
 def load(path: str | Path, rate: float | None) -> tuple[Recording, float]:
@@ -187,3 +188,23 @@ def api_signals(where: str, rate: Any, vectors: Mapping[str, int | None] | None 
     for name, a in given.items():
         check_finite(a, f"{where}: signal {name!r}")
     return value, arrays
+
+
+def sample_ranges(where: str, name: str, ranges: Any, n: int) -> list[tuple[int, int]] | None:
+    """``ranges`` (None, or (start, stop) sample index pairs of a recording of ``n`` samples) as int pairs with
+    0 <= start < stop <= n; else one :class:`InputError` naming the argument (``within``, ``ranges``) and the pair,
+    where a reversed or negative pair was an empty selection or counted from the end."""
+    if ranges is None:
+        return None
+    pairs = plain(ranges)
+    if not isinstance(pairs, list) or not pairs:
+        raise InputError(f"{where}: {name} must be a non-empty list of (start, stop) sample ranges, got {excerpt(ranges)}")
+    out = []
+    for k, pair in enumerate(pairs):
+        pair = plain(pair)
+        ok = isinstance(pair, list) and len(pair) == 2 and all(isinstance(v, int) and not isinstance(v, bool) for v in pair)
+        if not (ok and 0 <= pair[0] < pair[1] <= n):
+            raise InputError(f"{where}: {name}[{k}] = {excerpt(pair)}: a range is (start, stop) sample indices, integers "
+                             f"with 0 <= start < stop <= {n} (the recording's length)")
+        out.append((pair[0], pair[1]))
+    return out

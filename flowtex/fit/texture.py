@@ -59,7 +59,7 @@ from ..limits import excerpt
 from ..models.rendering import FITTED_RULE
 from ..models.texture import TextureModelSet
 from .arma import ArmaFit, fit_arma, select_shared_order
-from .inputs import api_signals
+from .inputs import api_signals, sample_ranges
 from .pooling import neighbour_groups, pooled_data, trend_factors
 
 CORNERS = 8
@@ -304,6 +304,7 @@ def fit_texture(accel: np.ndarray, speed: np.ndarray, force: np.ndarray, rate: f
     """
     opt = opt or TextureOptions()
     rate, (accel, speed, force) = api_signals(where, rate, accel=accel, speed=speed, force=force)
+    within = sample_ranges(where, "within", within, accel.shape[0])
     x, clipped = preprocess(accel, rate, opt.highpass_hz, opt.outlier_sigma)
     pieces, dropped = find_pieces(x, speed, force, rate, opt, where, within)
     pool = max(1, min(opt.pool_pieces, len(pieces)))

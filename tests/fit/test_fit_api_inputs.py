@@ -112,3 +112,17 @@ def test_compare_signals_fit_pattern_and_fit_grid_refuse_what_they_would_misread
         fit_grid([(ACCEL + 0j, 100.0, 1.0)], 1000.0)
     with pytest.raises(InputError, match=r"^grid: cells\[0\] must be \(accel, speed mm/s, force N\)"):
         fit_grid([(ACCEL, 100.0)], 1000.0)
+
+
+@pytest.mark.parametrize("pairs", [[(300, 100)], [(-100, 100)], [(0.5, 100.5)], [(0, 401)], (0, 100), []])
+def test_within_and_ranges_refuse_pairs_that_are_not_sample_ranges_of_the_recording(pairs):
+    from flowtex.fit.compare import compare_signals
+
+    message = r"(within|ranges)(\[0\] = .*: a range is \(start, stop\) sample indices, integers with 0 <= start < stop " \
+              r"<= 400| must be a non-empty list of \(start, stop\) sample ranges)"
+    with pytest.raises(InputError, match=message):
+        fit_texture(ACCEL, SPEED, FORCE, 1000.0, within=pairs)
+    with pytest.raises(InputError, match=message):
+        compare_surface(cork_like_model_set(), ACCEL, SPEED, FORCE, 1000.0, ranges=pairs)
+    with pytest.raises(InputError, match=message):
+        compare_signals(ACCEL, [ACCEL], 1000.0, ranges=pairs)
