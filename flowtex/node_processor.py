@@ -257,8 +257,9 @@ class Processor:
                              f"{suggest(unknown[0], list(self.cls.inputs))}; its inputs are: {', '.join(self.cls.inputs) or 'none'}")
         if ticks is not None:
             ticks = whole_count(f"node type {self.cls.type_name!r}: ticks (the number of ticks to run)", ticks, 0)
+        held = dict(self._held)  # kept only if the call succeeds: a refused call leaves the held values as they were
         arrays = apply_nonfinite_policy({k: _as_rows(k, v) for k, v in inputs.items()}, self.nonfinite,
-                                        fix="or build the processor with nonfinite='hold' or 'zero'", held=self._held)
+                                        fix="or build the processor with nonfinite='hold' or 'zero'", held=held)
         lengths = {a.shape[0] for a in arrays.values()}
         if len(lengths) > 1:
             raise InputError(f"node type {self.cls.type_name!r}: inputs have different numbers of ticks: "
@@ -294,6 +295,7 @@ class Processor:
         if runs is not None:
             outs = self._held_between_runs(outs, runs, n)
         self._tick += n
+        self._held = held
         return outs
 
     def _check_ticks(self, n: int) -> None:

@@ -173,3 +173,11 @@ def test_a_misspelt_input_port_or_node_is_one_error_not_a_second_one_for_the_inp
     with pytest.raises(GraphError) as err:
         b.resolve()
     assert [d.message for d in err.value.diagnostics] == [message]
+
+
+def test_a_refused_call_leaves_the_value_a_hold_processor_holds_as_it_was():
+    add = load_registry().types["add"].processor(nonfinite="hold")
+    add(a=np.array([1.0]), b=np.array([0.0]))
+    with pytest.raises(InputError, match="inputs have different numbers of ticks"):
+        add(a=np.array([7.0]), b=np.array([1.0, 2.0]))  # refused: its 7.0 must not become the held value
+    assert add(a=np.array([np.nan]), b=np.array([0.0]))["y"].ravel().tolist() == [1.0]
