@@ -16,6 +16,7 @@ caller's data.
 
 from __future__ import annotations
 
+import inspect
 import math
 import zlib
 from collections.abc import Mapping
@@ -27,7 +28,7 @@ import numpy as np
 
 from .dsp.nonfinite import NONFINITE_POLICIES, apply_nonfinite_policy
 from .errors import DataError, FlowtexError, InputError, ParamError
-from .limits import check_ticks, excerpt, port_values_problem
+from .limits import check_ticks, close_names, excerpt, port_values_problem
 from .node_decl import BuildContext, PortSpec, expected_shape, suggest
 from .node_params import checked_params, load_files
 from .nodecheck import check_kernel_compiles, checked_outputs, is_plugin, plugin_raised, scheduled_every
@@ -60,9 +61,15 @@ def given_params(cls: type, mapping: Any, keywords: dict[str, Any]) -> dict[str,
     """Node parameters given as ``params={...}`` and as keywords, merged; a parameter given both ways, or a ``params``
     that is not a mapping, is a :class:`ParamError`. ``params=`` reaches every parameter, including one named like a
     processor setting (``rate``, ``seed``, ...), which the keyword form cannot set."""
+    where = f"node type {cls.type_name!r} processor"
+    for key in keywords:  # a misspelt setting (rat=, evry=) is named as the setting, not as a node parameter
+        meant = close_names(key, [*cls.params, *PROCESSOR_SETTINGS], 1) if key not in cls.params else []
+        if meant and meant[0] in PROCESSOR_SETTINGS:
+            raise ParamError(key, f"{where}: {key!r} is neither a parameter nor a setting (did you mean the setting "
+                                  f"{meant[0]!r}?); settings: {', '.join(PROCESSOR_SETTINGS)}; parameters: "
+                                  f"{', '.join(cls.params) or 'none'}")
     if mapping is None:
         return keywords
-    where = f"node type {cls.type_name!r} processor"
     if not isinstance(mapping, Mapping):
         raise ParamError("params", f"{where}: params must be a mapping of parameter name to value, e.g. "
                                    f"params={{'k': 2.0}}; got {excerpt(mapping)}")
@@ -329,3 +336,8 @@ class Processor:
             if runs.size:
                 self._holds[k] = ran[-1].copy()
         return full
+
+
+PROCESSOR_SETTINGS = (*(k for k in inspect.signature(Processor.__init__).parameters if k not in ("self", "cls", "params")),
+                      "params")
+"""The keywords ``Node.processor`` takes besides the node's parameters (what a misspelt keyword may have meant)."""

@@ -181,3 +181,11 @@ def test_a_refused_call_leaves_the_value_a_hold_processor_holds_as_it_was():
     with pytest.raises(InputError, match="inputs have different numbers of ticks"):
         add(a=np.array([7.0]), b=np.array([1.0, 2.0]))  # refused: its 7.0 must not become the held value
     assert add(a=np.array([np.nan]), b=np.array([0.0]))["y"].ravel().tolist() == [1.0]
+
+
+@pytest.mark.parametrize(("keyword", "setting"), [("rat", "rate"), ("sed", "seed"), ("nonfinit", "nonfinite"),
+                                                  ("evry", "every"), ("input_evry", "input_every")])
+def test_a_misspelt_processor_setting_is_named_as_the_setting_not_as_an_unknown_node_parameter(keyword, setting):
+    with pytest.raises(ParamError, match=rf"^node type 'butterworth' processor: '{keyword}' is neither a parameter nor a "
+                                         rf"setting \(did you mean the setting '{setting}'\?\); settings: rate, seed"):
+        load_registry().types["butterworth"].processor(order=2, cutoff_hz=10.0, **{keyword: 1})
