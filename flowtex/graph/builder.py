@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import Diagnostic, GraphError, Location
-from ..limits import excerpt
+from ..limits import close_names, excerpt
 from ..pyvalues import plain
 from ..schema.graph import FORMAT_VERSION
 from ..yamlsource import LocDict, LocList
@@ -41,6 +41,20 @@ def _put(d: LocDict, key: str, value: Any, where: Location) -> None:
     d[key] = plain(value)  # numpy scalars and arrays, paths: what a graph file would hold (flowtex.pyvalues)
     d.key_pos[key] = where  # type: ignore[assignment]
     d.value_pos[key] = where  # type: ignore[assignment]
+
+
+def _misspelt_every(name: str, type: str, key: str, value: Any) -> None:
+    """Refuse a keyword of :meth:`GraphBuilder.node` that looks like ``every`` (``evry=4``) and that the built-in node
+    type does not take, naming ``every``: it would be reported as an unknown parameter of the node type."""
+    if key == "every" or not close_names(key, ["every"]):
+        return
+    from ..registry import load_registry
+
+    cls = load_registry().types.get(type)  # a plugin type (known at build()) is checked there, as any parameter
+    if cls is not None and key not in cls.params:
+        raise GraphError([Diagnostic(Location(f"GraphBuilder.node({name!r}, {type!r}, {key}=...)"),
+                                     f"node {name!r} ({type}): {key!r} is no parameter of {type!r}; did you mean "
+                                     f"every={excerpt(value)} (run the node every k ticks)?")])
 
 
 class GraphBuilder:
@@ -89,6 +103,7 @@ class GraphBuilder:
         _put(value, "every", every, where)
         p = _mapping(where)
         for key, v in params.items():
+            _misspelt_every(name, type, key, v)
             _put(p, key, v, Location(f"GraphBuilder.node({name!r}, {type!r}, {key}=...)"))
         _put(value, "params", p, where)
         _put(self._nodes, name, value, where)

@@ -189,3 +189,11 @@ def test_a_misspelt_processor_setting_is_named_as_the_setting_not_as_an_unknown_
     with pytest.raises(ParamError, match=rf"^node type 'butterworth' processor: '{keyword}' is neither a parameter nor a "
                                          rf"setting \(did you mean the setting '{setting}'\?\); settings: rate, seed"):
         load_registry().types["butterworth"].processor(order=2, cutoff_hz=10.0, **{keyword: 1})
+
+
+def test_a_misspelt_every_in_the_builder_is_named_as_every():
+    from flowtex.errors import GraphError
+
+    with pytest.raises(GraphError, match=r"^GraphBuilder.node\('a', 'gain', evry=...\): node 'a' \(gain\): 'evry' is no "
+                                         r"parameter of 'gain'; did you mean every=4 \(run the node every k ticks\)\?$"):
+        GraphBuilder("g").input("x").node("a", "gain", k=1.0, evry=4)
