@@ -313,8 +313,9 @@ class Graph:
             shape = self.resolved.input_specs[name].shape
             flat_ok = arr.ndim == 2 and arr.shape[1] == w  # e.g. a CSV's name[0..k] columns
             if arr.ndim == 0 or (arr.shape[1:] != shape and not flat_ok):
+                turned = "; pass its transpose (x.T): time goes first" if arr.ndim == 2 and arr.shape[::-1][1:] == shape else ""
                 raise InputError(
-                    f"input {name!r}: expected shape (n, {', '.join(map(str, shape))}) with time first, got {arr.shape}"
+                    f"input {name!r}: expected shape (n, {', '.join(map(str, shape))}) with time first, got {arr.shape}{turned}"
                     if shape else f"input {name!r}: expected a 1-D array over time, got shape {arr.shape}")
             if total is None:
                 total = arr.shape[0]

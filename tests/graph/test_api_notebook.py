@@ -197,3 +197,10 @@ def test_a_misspelt_every_in_the_builder_is_named_as_every():
     with pytest.raises(GraphError, match=r"^GraphBuilder.node\('a', 'gain', evry=...\): node 'a' \(gain\): 'evry' is no "
                                          r"parameter of 'gain'; did you mean every=4 \(run the node every k ticks\)\?$"):
         GraphBuilder("g").input("x").node("a", "gain", k=1.0, evry=4)
+
+
+def test_a_transposed_vector_input_is_named_with_the_transpose_as_the_fix():
+    g = GraphBuilder("v").input("p", shape=(3,)).node("n", "norm").edge("p -> n.x").output("y", "n.y").build()
+    with pytest.raises(InputError, match=r"^input 'p': expected shape \(n, 3\) with time first, got \(3, 10\); pass its "
+                                         r"transpose \(x.T\): time goes first$"):
+        g.run({"p": np.ones((3, 10))})
