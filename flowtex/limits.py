@@ -246,9 +246,14 @@ def too_deep(path: Path | str, kind: str) -> DataError:
                      "(is this the right file?)")
 
 
+def close_names(word: str, candidates: Sequence[str], n: int = 3) -> list[str]:
+    """The up to ``n`` names of ``candidates`` close enough to ``word`` to be what was meant, closest first."""
+    return difflib.get_close_matches(word, list(candidates), n=n, cutoff=0.6)
+
+
 def suggest(word: str, candidates: Sequence[str]) -> str:
     """A ``" (did you mean 'x'?)"`` hint, or ``""`` when nothing is close."""
-    close = difflib.get_close_matches(word, list(candidates), n=3, cutoff=0.6)
+    close = close_names(word, candidates)
     if not close:
         return ""
     return " (did you mean " + " or ".join(repr(c) for c in close) + "?)"

@@ -16,6 +16,7 @@ caller's data.
 
 from __future__ import annotations
 
+import inspect
 import math
 import zlib
 from collections.abc import Mapping
@@ -26,11 +27,11 @@ from typing import Any
 import numpy as np
 
 from .dsp.nonfinite import NONFINITE_POLICIES, apply_nonfinite_policy
-from .errors import FlowtexError, InputError, ParamError
-from .limits import check_ticks, excerpt, port_values_problem
+from .errors import DataError, FlowtexError, InputError, ParamError
+from .limits import check_ticks, close_names, excerpt, port_values_problem
 from .node_decl import BuildContext, PortSpec, expected_shape, suggest
 from .node_params import checked_params, load_files
-from .nodecheck import check_kernel_compiles, checked_outputs, is_plugin, scheduled_every
+from .nodecheck import check_kernel_compiles, checked_outputs, is_plugin, plugin_raised, scheduled_every
 from .pyvalues import float_signal, plain, whole_count
 from .schema.core import Field, checked
 from .schema.graph import GRAPH, NODE
@@ -42,16 +43,33 @@ def _params(cls: type, given: dict[str, Any], base_dir: Path) -> tuple[dict[str,
     values, problems = checked_params(cls, {k: plain(v) for k, v in given.items()}, base_dir)
     if problems:
         raise ParamError(problems[0].key, f"node type {cls.type_name!r}: {problems[0].message}")
-    return load_files(cls, values)
+    try:
+        return load_files(cls, values)
+    except ParamError as exc:
+        raise _labelled(cls, exc) from None
+
+
+def _labelled(cls: type, exc: FlowtexError) -> FlowtexError:
+    """``exc`` (raised by the node's own code: a file it reads, a value its ``resolve`` or ``build`` refuses) with the
+    node type and the parameter it names in front, as a graph names the node and places it at the parameter's line."""
+    param = getattr(exc, "param", None)
+    text = f"node type {cls.type_name!r} processor: " + (f"parameter {param!r}: " if param else "") + str(exc)
+    return ParamError(param, text) if isinstance(exc, ParamError) else DataError(text)  # a subclass may take other arguments
 
 
 def given_params(cls: type, mapping: Any, keywords: dict[str, Any]) -> dict[str, Any]:
     """Node parameters given as ``params={...}`` and as keywords, merged; a parameter given both ways, or a ``params``
     that is not a mapping, is a :class:`ParamError`. ``params=`` reaches every parameter, including one named like a
     processor setting (``rate``, ``seed``, ...), which the keyword form cannot set."""
+    where = f"node type {cls.type_name!r} processor"
+    for key in keywords:  # a misspelt setting (rat=, evry=) is named as the setting, not as a node parameter
+        meant = close_names(key, [*cls.params, *PROCESSOR_SETTINGS], 1) if key not in cls.params else []
+        if meant and meant[0] in PROCESSOR_SETTINGS:
+            raise ParamError(key, f"{where}: {key!r} is neither a parameter nor a setting (did you mean the setting "
+                                  f"{meant[0]!r}?); settings: {', '.join(PROCESSOR_SETTINGS)}; parameters: "
+                                  f"{', '.join(cls.params) or 'none'}")
     if mapping is None:
         return keywords
-    where = f"node type {cls.type_name!r} processor"
     if not isinstance(mapping, Mapping):
         raise ParamError("params", f"{where}: params must be a mapping of parameter name to value, e.g. "
                                    f"params={{'k': 2.0}}; got {excerpt(mapping)}")
@@ -102,7 +120,10 @@ def _schedule(cls: type, name: str, values: dict[str, Any], rate: float, every: 
         raise ParamError("input_every", f"node type {cls.type_name!r} has no input {unknown[0]!r}"
                                         f"{suggest(str(unknown[0]), list(cls.inputs))}; its inputs are: {', '.join(cls.inputs) or 'none'}")
     ports = {port: _graph_setting(cls, f"input_every[{port!r}]", input_every.get(port, 1), INPUT_EVERY) for port in cls.inputs}
-    own = scheduled_every(cls, name, values, rate, ports)
+    try:
+        own = scheduled_every(cls, name, values, rate, ports)
+    except ParamError as exc:
+        raise _labelled(cls, exc) from None
     if own is not None and every not in (1, own):
         raise ParamError("every", f"node type {cls.type_name!r} processor: its parameters make it run every {own} ticks, "
                                   f"but every={every} was given; drop every=")
@@ -144,7 +165,7 @@ class Processor:
         values, files = _params(cls, params, Path(base_dir))
         self.every, ports_every = _schedule(cls, self.name, values, rate, every, input_every)
         self.context = BuildContext(rate=rate, base_dir=Path(base_dir), every=self.every, input_every=ports_every, files=files)
-        self.node = cls(self.name, values, self.context)
+        self.node = self._node_call("__init__", cls, self.name, values, self.context)
         self.kernel = cls.get_kernel()
         self.input_specs: dict[str, PortSpec] | None = None
         self.output_specs: dict[str, PortSpec] = {}
@@ -187,14 +208,14 @@ class Processor:
         """Build the node for the inputs given; nothing is kept unless every step succeeds (a failed first call can be
         retried with other arrays)."""
         specs = self._specs(arrays)
-        outputs = checked_outputs(self.cls, self.name, self.node.resolve(specs))  # a wrong result: at its resolve() line
+        outputs = checked_outputs(self.cls, self.name, self._node_call("resolve", self.node.resolve, specs))  # a wrong result: at its line
         if is_plugin(self.cls):  # a kernel that does not compile: its own line and numba's reason, not a TypingError
             check_kernel_compiles(self.cls)
         for port_name, spec in outputs.items():
             problem = port_values_problem(spec.shape)
             if problem:
                 raise InputError(f"node type {self.cls.type_name!r}: output {port_name!r}: {problem}")
-        built = self.node.build(specs, outputs)
+        built = self._node_call("build", self.node.build, specs, outputs)
         p = np.ascontiguousarray(built.params, dtype=np.float64)
         s = np.ascontiguousarray(built.state, dtype=np.float64)
         si = np.ascontiguousarray(built.istate, dtype=np.int64)
@@ -206,6 +227,21 @@ class Processor:
         self._provided = set(arrays)
         self.input_specs = specs
         self._holds = {k: np.zeros(spec.width) for k, spec in outputs.items()}
+
+    def _node_call(self, method: str, call: Any, *args: Any) -> Any:
+        """``call(*args)``: the node's ``__init__``, ``resolve`` or ``build`` (``method``); what it refuses is raised with
+        the node type and parameter in front, and a plugin's own exception at its line (as a graph reports both), never
+        a bare message or traceback."""
+        try:
+            return call(*args)
+        except (ParamError, DataError) as exc:
+            raise _labelled(self.cls, exc) from None
+        except FlowtexError:
+            raise
+        except Exception as exc:
+            if not is_plugin(self.cls):
+                raise  # flowtex's own bug: an internal error
+            raise plugin_raised(self.cls, self.name, method, exc) from None
 
     def reset(self) -> None:
         """Back to the state right after build (as a graph's ``reset()``): the schedule starts again at tick 0."""
@@ -228,8 +264,9 @@ class Processor:
                              f"{suggest(unknown[0], list(self.cls.inputs))}; its inputs are: {', '.join(self.cls.inputs) or 'none'}")
         if ticks is not None:
             ticks = whole_count(f"node type {self.cls.type_name!r}: ticks (the number of ticks to run)", ticks, 0)
+        held = dict(self._held)  # kept only if the call succeeds: a refused call leaves the held values as they were
         arrays = apply_nonfinite_policy({k: _as_rows(k, v) for k, v in inputs.items()}, self.nonfinite,
-                                        fix="or build the processor with nonfinite='hold' or 'zero'", held=self._held)
+                                        fix="or build the processor with nonfinite='hold' or 'zero'", held=held)
         lengths = {a.shape[0] for a in arrays.values()}
         if len(lengths) > 1:
             raise InputError(f"node type {self.cls.type_name!r}: inputs have different numbers of ticks: "
@@ -265,6 +302,7 @@ class Processor:
         if runs is not None:
             outs = self._held_between_runs(outs, runs, n)
         self._tick += n
+        self._held = held
         return outs
 
     def _check_ticks(self, n: int) -> None:
@@ -298,3 +336,8 @@ class Processor:
             if runs.size:
                 self._holds[k] = ran[-1].copy()
         return full
+
+
+PROCESSOR_SETTINGS = (*(k for k in inspect.signature(Processor.__init__).parameters if k not in ("self", "cls", "params")),
+                      "params")
+"""The keywords ``Node.processor`` takes besides the node's parameters (what a misspelt keyword may have meant)."""

@@ -48,6 +48,14 @@ def whole_count(what: str, value: Any, least: int) -> int:
     return value
 
 
+def positive_rate(what: str, value: Any) -> float:
+    """``value`` as a positive, finite float of Hz (numpy numbers too), or :class:`InputError` naming ``what``."""
+    rate = plain(value)
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not (np.isfinite(rate) and rate > 0):
+        raise InputError(f"{what} must be a positive number of Hz, got {excerpt(value)}")
+    return float(rate)
+
+
 _REFUSED_KINDS = {"c": "complex", "M": "timestamps (datetime64)", "m": "durations (timedelta64)",
                   "U": "text", "S": "bytes", "V": "structured records", "O": "Python objects"}
 """numpy dtype kinds a signal may not have, and what to call them."""
@@ -57,6 +65,9 @@ def float_signal(name: str, value: Any, what: str = "input") -> np.ndarray:
     """Signal ``value`` as a float64 array (a view when it already is one), or :class:`InputError` naming ``what
     name`` when its values are not real numbers (complex, text, timestamps, objects that are not numbers)."""
     arr = value if isinstance(value, np.ndarray) else None
+    if isinstance(value, np.ma.MaskedArray):
+        _refuse_masked(name, value, what)
+        arr = value.data
     if arr is None:
         try:
             arr = np.asarray(value)
@@ -73,4 +84,31 @@ def float_signal(name: str, value: Any, what: str = "input") -> np.ndarray:
             "; pass numbers in the signal's unit (time is the row index: one row per tick)"
         raise InputError(f"{what} {name!r} holds {_REFUSED_KINDS[kind]} (dtype {arr.dtype}), not real numbers{fix}; "
                          f"got {excerpt(value)}")
-    return np.asarray(arr, dtype=np.float64)
+    x = np.asarray(arr, dtype=np.float64)
+    if (kind in "iu" and arr.dtype.itemsize >= 8) or (kind == "f" and arr.dtype.itemsize > 8):
+        _refuse_rounded(name, arr, x, what)
+    return x
+
+
+def _bad_rows(bad: np.ndarray) -> np.ndarray:
+    """Indices of the rows (ticks) of a boolean array with any True value (a 0-D array is one row)."""
+    return np.flatnonzero(bad.reshape(bad.shape[0], -1).any(axis=1) if bad.ndim and bad.size else bad.reshape(-1))
+
+
+def _refuse_masked(name: str, value: np.ma.MaskedArray, what: str) -> None:
+    """Refuse a masked array with masked samples: converting it keeps the values under the mask as if they were data."""
+    masked = _bad_rows(np.ma.getmaskarray(value))
+    if masked.size:
+        raise InputError(f"{what} {name!r} is a masked array with {masked.size} masked sample(s) (the first at index "
+                         f"{masked[0]}), whose values would be used as data; pass x.filled(value), or x.filled(np.nan) "
+                         "where NaN is handled (nonfinite= of Graph.run and Node.processor)")
+
+
+def _refuse_rounded(name: str, arr: np.ndarray, x: np.ndarray, what: str) -> None:
+    """Refuse 64-bit integers or extended floats that float64 cannot hold exactly: the run would use other numbers."""
+    with np.errstate(invalid="ignore", over="ignore"):  # a value beyond the integer range casts back to another one
+        changed = _bad_rows(x.astype(arr.dtype) != arr)
+    if changed.size:
+        raise InputError(f"{what} {name!r} (dtype {arr.dtype}) holds {changed.size} sample(s) that float64 cannot hold "
+                         f"exactly (the first at index {changed[0]}); flowtex computes in float64: rescale the signal "
+                         "(e.g. to its physical unit) or pass it as float64")

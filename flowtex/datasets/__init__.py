@@ -3,7 +3,7 @@
 Every function returns a :class:`SyntheticRecording`: the signals a sensor
 would record (``accel`` in m/s^2, ``position`` in mm, ``normal`` (unit
 vector), ``normal_force`` in N, plus ``speed`` in mm/s and, for friction,
-``friction_force`` in N) at ``rate`` Hz, and the ``truth`` that made them.
+``tangential_force`` in N) at ``rate`` Hz, and the ``truth`` that made them.
 The vibration, tap transients and friction forces are rendered through
 flowtex's own graphs (:mod:`flowtex.datasets.graphs`), so a fit can be
 compared with the exact models the nodes render. ``save(path)`` writes the
@@ -26,13 +26,16 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import InputError
 from ..io.recordings import save_recording
+from ..limits import excerpt
 from ..models.taps import TapLibrary
 from ..models.texture import TextureModelSet
+from ..pyvalues import plain
 from .graphs import FRICTION_GRAPH, TAP_GRAPH, run_graph
 from .model_sets import synthetic_model_set
 from .taps import synthetic_tap_library
-from .trajectories import Plateau, circle_path, plateau_trajectory, sweep_trajectory
+from .trajectories import Plateau, circle_path, plateau_trajectory, recording_ticks, sweep_trajectory
 
 __all__ = ["Plateau", "SyntheticRecording", "default_surface", "free_exploration", "friction_session", "render_texture",
            "tap_session"]
@@ -108,9 +111,11 @@ def free_exploration(duration_s: float = 60.0, rate: float = 1000.0, surface: Te
     sample ranges and nominal speed/force), ``outliers`` (indices), ``clean``
     (the noise-free vibration).
     """
+    n, rate = recording_ticks(duration_s, rate, seed, surface)
+    if axes not in (1, 3):
+        raise InputError(f"axes must be 1 (accel of shape (n,)) or 3 (accel of shape (n, 3)), got {excerpt(axes)}")
     ms = surface if surface is not None else default_surface(sample_rate=rate)
     rng = np.random.default_rng(seed)
-    n = int(round(duration_s * rate))
     lim_s = (0.15 * ms.max_speed, 0.95 * ms.max_speed)
     lim_f = (0.15 * ms.max_force, 0.95 * ms.max_force)
     if sweep:
@@ -140,6 +145,13 @@ def tap_session(speeds: tuple[float, ...] = (30.0, 55.0, 70.0, 90.0, 120.0, 160.
     lifts off; taps are ``gap_s`` + ``contact_s`` apart. ``truth``:
     ``library``, ``onsets`` (first sample with force above 0.1 N), ``speeds``.
     """
+    try:
+        values = np.asarray(plain(speeds), dtype=float)
+    except (TypeError, ValueError):  # text, ragged lists: refused below as no list of speeds
+        values = np.zeros(0)
+    if values.ndim != 1 or not values.size or not np.all(np.isfinite(values) & (values > 0)):
+        raise InputError(f"speeds must be a non-empty list of incoming speeds > 0 mm/s, got {excerpt(speeds)}")
+    recording_ticks(gap_s + contact_s, rate, seed)
     lib = library if library is not None else synthetic_tap_library(sample_rate_hz=rate)
     rng = np.random.default_rng(seed)
     period = int(round((gap_s + contact_s) * rate))
@@ -179,11 +191,11 @@ def friction_session(mu: float = 0.4, duration_s: float = 20.0, rate: float = 10
     variables); ``spikes`` stiction spikes (50 ms
     at 2.5 x the kinetic force, at motion restarts after ``lifts`` lift-offs
     and at random times); ``lifts`` lift-offs of 0.5 s (normal force ~ 0, the
-    tangential force sensor noise only). ``friction_force`` is the (n, 3)
+    tangential force sensor noise only). ``force`` is the (n, 3)
     measured force vector: tangential along x, normal along +z.
     """
+    n, rate = recording_ticks(duration_s, rate, seed)
     rng = np.random.default_rng(seed)
-    n = int(round(duration_s * rate))
     t = np.arange(n) / rate
     fn = 1.65 + 1.35 * np.sin(2 * np.pi * 0.23 * t) * np.cos(2 * np.pi * 0.07 * t + 0.5)
     velocity = np.column_stack([np.full(n, 150.0), np.zeros(n), np.zeros(n)])

@@ -33,6 +33,7 @@ from . import SyntheticRecording
 from .graphs import FRICTION_GRAPH, run_graph
 from .realistic import wander
 from .resonant import FORCE_RANGE, SPEED_RANGE, bounded_path
+from .trajectories import recording_ticks
 
 
 def student_noise(n: int, rng: np.random.Generator, tail_dof: float) -> np.ndarray:
@@ -71,8 +72,8 @@ def stiction_drag(mu: float = 0.4, duration_s: float = 20.0, rate: float = 1000.
     ``force`` ((n, 3) N: tangential along x, normal along +z), ``normal`` (+z), ``velocity`` ((n, 3) mm/s, along x)
     and ``speed`` (mm/s).
     """
+    n, rate = recording_ticks(duration_s, rate, seed)
     rng = np.random.default_rng(seed)
-    n = int(round(duration_s * rate))
     speed, fn = bounded_path(n, rate, rng, speed_range, force_range)
     velocity = np.column_stack([speed, np.zeros(n), np.zeros(n)])
     out = run_graph(FRICTION_GRAPH, rate, {"friction.mu": float(mu)}, {"velocity": velocity, "normal_force": fn}, seed)

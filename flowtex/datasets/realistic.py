@@ -118,11 +118,11 @@ def human_exploration(duration_s: float = 20.0, rate: float = 1000.0, surface: T
     ``surface``, ``clean`` (the noise-free vibration), ``mu``.
     """
     from . import SyntheticRecording, render_texture
-    from .trajectories import circle_path
+    from .trajectories import circle_path, recording_ticks
 
+    n, rate = recording_ticks(duration_s, rate, seed, surface)
     ms = surface if surface is not None else loud_surface(sample_rate=rate)
     rng = np.random.default_rng(seed)
-    n = int(round(duration_s * rate))
     speed, force = human_trajectory(n, rate, rng, speed_range, force_range)
     accel = render_texture(ms, speed, force, rate, seed)
     rms = float(np.sqrt(np.mean(accel ** 2))) or 1.0

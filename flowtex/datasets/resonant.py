@@ -146,11 +146,11 @@ def textured_exploration(duration_s: float = 20.0, rate: float = 1000.0, surface
     """
     from ..fit.texture_graph import texture_builder
     from . import SyntheticRecording
-    from .trajectories import circle_path
+    from .trajectories import circle_path, recording_ticks
 
+    n, rate = recording_ticks(duration_s, rate, seed, surface)
     ms = surface if surface is not None else resonant_surface(sample_rate=rate)
     rng = np.random.default_rng(seed)
-    n = int(round(duration_s * rate))
     speed, force = bounded_path(n, rate, rng, speed_range, force_range)
     factor, level_db = wander_power(n, rate, rng, loudness_db, burst, burst_hz)
     graph = texture_builder(ms, rate, scaled=True).build()

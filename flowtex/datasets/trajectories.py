@@ -6,8 +6,41 @@ Units: speed mm/s, force N, position mm; ``n`` samples at ``rate`` Hz.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+
+from ..errors import InputError
+from ..limits import check_ticks, excerpt
+from ..models.texture import TextureModelSet
+from ..pyvalues import plain, positive_rate, whole_count
+
+SIGNAL_VALUES_PER_TICK = 16
+"""Values a generated recording holds per sample at most (signals, their 3-axis forms, the truth): what bounds its
+length before anything is allocated."""
+
+
+def recording_ticks(duration_s: Any, rate: Any, seed: Any, surface: Any = None) -> tuple[int, float]:
+    """(samples, rate Hz) of a generated recording of ``duration_s`` seconds, its arguments checked first: a positive
+    duration and rate, a seed >= 0, at least 2 samples and no more than a recording may hold, ``surface`` None or a
+    :class:`TextureModelSet` at ``rate``; else one :class:`InputError` naming the argument (not numpy's error, or a memory error
+    after allocating)."""
+    rate = positive_rate("rate", rate)
+    seconds = plain(duration_s)
+    if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not (np.isfinite(seconds) and seconds > 0):
+        raise InputError(f"duration_s must be a positive number of seconds, got {excerpt(duration_s)}")
+    whole_count("seed", seed, 0)
+    if surface is not None and not isinstance(surface, TextureModelSet):
+        raise InputError(f"surface must be a TextureModelSet (flowtex.io.modelset.load_model_set(path) loads one), got "
+                         f"{type(surface).__name__} {excerpt(surface)}")
+    if surface is not None and abs(surface.sample_rate - rate) > 1e-9 * rate:
+        raise InputError(f"surface {surface.material!r} is for {surface.sample_rate:g} Hz but rate is {rate:g} Hz; pass "
+                         f"rate={surface.sample_rate:g} or resample it (flowtex.fit.resample.resample_model_set)")
+    n = seconds * rate
+    check_ticks("duration_s x rate: samples", int(min(n, 2**62)), SIGNAL_VALUES_PER_TICK, "generate a shorter recording")
+    if round(n) < 2:
+        raise InputError(f"duration_s={seconds:g} s at {rate:g} Hz gives {round(n)} sample(s); a recording needs at least 2")
+    return int(round(n)), rate
 
 
 @dataclass(frozen=True)

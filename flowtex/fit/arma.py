@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -30,6 +31,8 @@ from ..dsp.lsf import is_valid_lsf
 from ..dsp.lsf_roots import poly_to_lsf
 from ..dsp.spectral import gfc_data_model, lsd_db, welch_psd
 from ..errors import DataError
+from ..limits import excerpt
+from ..pyvalues import float_signal, plain, positive_rate, whole_count
 
 REFINE_CANDIDATES = 4
 """Number of best orders by the screening BIC that get a quick refinement before the neighbour walk."""
@@ -90,17 +93,18 @@ class ArmaFit:
 
     def psd(self, freqs_hz: np.ndarray, rate_hz: float) -> np.ndarray:
         """One-sided PSD S(f) in (units of x)^2 / Hz at ``freqs_hz`` for a signal sampled at ``rate_hz``."""
-        return arma_psd(self.ar, self.ma, self.gain, self.variance, freqs_hz, rate_hz)
+        return arma_psd(self.ar, self.ma, self.gain, self.variance, freqs_hz, positive_rate("ArmaFit.psd: rate_hz", rate_hz))
 
     def lsd_db(self, x: np.ndarray, rate_hz: float, nperseg: int = 1024) -> float:
         """LSD (dB) of the model's PSD against the Welch PSD of ``x`` (the project's definition: > 15 Hz, 40 dB range),
         its segments spread over all of ``x`` (``welch_psd(whole=True)``: a short piece's last samples count too)."""
-        freqs, s_data = welch_psd(np.asarray(x, dtype=np.float64), rate_hz, nperseg, whole=True)
+        rate_hz = positive_rate("ArmaFit.lsd_db: rate_hz", rate_hz)
+        freqs, s_data = welch_psd(float_signal("x", x, "ArmaFit.lsd_db: signal"), rate_hz, nperseg, whole=True)
         return lsd_db(self.psd(freqs, rate_hz), s_data, freqs)
 
 
 def _check_signal(x: np.ndarray) -> np.ndarray:
-    x = np.asarray(x, dtype=np.float64)
+    x = float_signal("x", x, "fit_arma: signal")  # complex, masked or text refused: converting would change them
     if x.ndim != 1:
         raise DataError(f"fit_arma needs a 1-D signal, got shape {x.shape}: pass one axis (or reduce 3 axes with DFT321)")
     bad = ~np.isfinite(x)
@@ -189,11 +193,18 @@ def fit_arma(x: np.ndarray, order: tuple[int, int] | None = None, max_order: int
     for a signal that is not 1-D, has NaN/inf, is constant or too short.
     """
     if order is not None:
-        p, q = (int(v) for v in order)
-        if p < 0 or q < 0:
-            raise DataError(f"ARMA order must be non-negative, got {order}")
+        p, q = _order(order)
         return _fit_order(_prepare(x, p, q), p, q)
-    return fit_arma_auto([x], max_order)[0]
+    return fit_arma_auto([x], whole_count("fit_arma: max_order", max_order, 0))[0]
+
+
+def _order(order: Any) -> tuple[int, int]:
+    """``order`` as two non-negative ints (p, q); numpy integers too, but never a float cut to an int."""
+    value = plain(order)
+    if not (isinstance(value, list) and len(value) == 2
+            and all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in value)):
+        raise DataError(f"ARMA order must be two non-negative integers (p, q), e.g. order=(19, 17); got {excerpt(order)}")
+    return value[0], value[1]
 
 
 def select_order(bic_grid: np.ndarray, count: int = REFINE_CANDIDATES) -> list[tuple[int, int]]:

@@ -60,9 +60,10 @@ import numpy as np
 from ..dsp.contact import CONTACT_ON_N
 from ..dsp.filter_design import zero_phase_highpass
 from ..dsp.spectral import gfc, lsd_db, octave_bands, psd_band_power, psd_centroid, welch_psd
-from ..errors import DataError
-from ..limits import signed
+from ..errors import DataError, InputError
+from ..limits import excerpt, signed
 from ..models.texture import TextureModelSet
+from .inputs import api_signals, sample_ranges
 from .resampled_band import resampled_band_hz
 
 MIN_WINDOWS = 10
@@ -196,6 +197,10 @@ def compare_signals(recorded: np.ndarray, renders: list[np.ndarray], rate: float
     ``ranges``: (start, stop) sample ranges to compare (default: all); the first ``skip_s`` are left out either way.
     """
     opt = opt or CompareOptions()
+    if not isinstance(renders, (list, tuple)) or not renders:
+        raise InputError(f"renders must be a non-empty list of rendered signals, got {excerpt(renders)}")
+    rate, (recorded, *renders) = api_signals("recording", rate, recorded=recorded, **{f"renders[{k}]": r for k, r in enumerate(renders)})
+    ranges = sample_ranges("recording", "ranges", ranges, recorded.shape[0])
     return compare_highpassed(highpassed(recorded, rate, opt), [highpassed(r, rate, opt) for r in renders], rate, opt, ranges)
 
 
@@ -290,6 +295,8 @@ def compare_surface(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, f
     ``ranges``: compare only these (start, stop) sample ranges of the whole path's render (held-out blocks).
     """
     opt = opt or CompareOptions()
+    rate, (accel, speed, force) = api_signals(where, rate, accel=accel, speed=speed, force=force)
+    ranges = sample_ranges(where, "ranges", ranges, accel.shape[0])
     renders, opt = surface_renders(ms, accel, speed, force, rate, opt, where)
     cmp = compare_highpassed(highpassed(accel, rate, opt), [highpassed(r, rate, opt) for r in renders], rate, opt,
                              ranges, where)
@@ -323,6 +330,9 @@ def surface_renders(ms: TextureModelSet, accel: np.ndarray, speed: np.ndarray, f
                     opt: CompareOptions, where: str = "recording") -> tuple[list[np.ndarray], CompareOptions]:
     """(``opt.seeds`` renders of ``ms`` along the recorded path, ``opt`` with the band a resampled set knows): what
     :func:`compare_surface` compares, checked (matching rate, at least one seed, something rendered)."""
+    if not isinstance(ms, TextureModelSet):
+        raise InputError(f"the surface must be a TextureModelSet (flowtex.io.modelset.load_model_set(path) loads one), "
+                         f"got {type(ms).__name__} {excerpt(ms)}")
     if opt.seeds < 1:
         raise DataError(f"--seeds must be at least 1, got {opt.seeds}")
     if abs(ms.sample_rate - rate) > 1e-9 * rate:

@@ -46,7 +46,7 @@ from ..dsp.contact import CONTACT_ON_N
 from ..dsp.hetero import false_rejection_rate, irls_line_hetero, rejected_stretches
 from ..dsp.robust import BISQUARE_C, RobustLine, irls_line
 from ..errors import DataError
-from .inputs import atomic_output, check_not_constant, load, signal, signals_listed
+from .inputs import api_signals, atomic_output, check_not_constant, load, signal, signals_listed
 
 DEFAULT_MIN_FORCE_N = CONTACT_ON_N
 """Samples below this normal force are out of contact (the contact node's on threshold)."""
@@ -137,8 +137,7 @@ def fit_friction(normal: np.ndarray, tangential: np.ndarray, min_force: float = 
     """
     if noise not in NOISE_MODELS:
         raise DataError(f"--noise {noise}: use one of {', '.join(NOISE_MODELS)}")
-    normal = np.asarray(normal, float)
-    tangential = np.asarray(tangential, float)
+    _, (normal, tangential) = api_signals(where, None, normal=normal, tangential=tangential)
     keep = normal >= min_force
     count = int(keep.sum())
     if count == 0:

@@ -10,14 +10,18 @@ through the one writer, :mod:`flowtex.io.atomic`.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from ..errors import DataError
+from ..errors import DataError, InputError
 from ..io.atomic import atomic_output  # noqa: F401 -- the one writer, re-exported for the fit modules
 from ..io.recording_rules import check_stated_unit
 from ..io.recordings import Recording, load_recording
+from ..limits import excerpt
+from ..pyvalues import float_signal, plain, positive_rate
 
 
 def load(path: str | Path, rate: float | None) -> tuple[Recording, float]:
@@ -152,3 +156,55 @@ def check_not_constant(a: np.ndarray, label: str) -> None:
     """Raise DataError when ``a`` does not vary (nothing to fit)."""
     if a.size == 0 or float(np.ptp(a)) == 0.0:
         raise DataError(f"{label} is constant; check that the right signal is named and that the sensor was recording")
+
+
+def api_signals(where: str, rate: Any, vectors: Mapping[str, int | None] | None = None,
+                **signals: Any) -> tuple[float | None, list[np.ndarray | None]]:
+    """``rate`` (Hz) and ``signals`` as Python code hands them to a fit function (lists, float32, (n, 1) columns) made
+    a positive float (``rate=None``: none taken) and float64 arrays of one length, 1-D, or for a signal named in
+    ``vectors`` (n, width) (width None: (n,) or (n, any)), with no NaN/inf (a signal given as None stays None), as the CLI's readers check a file's
+    (:func:`signal`); else one error naming the argument and the fix, before any fit math runs on wrong arrays.
+    """
+    value = None if rate is None else positive_rate(f"{where}: rate", rate)
+    arrays: list[np.ndarray | None] = []
+    for name, given in signals.items():
+        a = None if given is None else float_signal(name, given, "signal")
+        width = (vectors or {}).get(name, 1)
+        if a is not None and width != 1:
+            if not (a.ndim == 2 and width in (None, a.shape[1])) and not (a.ndim == 1 and width is None):
+                want = "a 1-D or 2-D array" if width is None else f"an (n, {width}) array"
+                raise InputError(f"{where}: signal {name!r} has shape {a.shape}; pass {want}, one row per tick")
+        elif a is not None:
+            if a.ndim == 2 and a.shape[1] == 1:
+                a = a[:, 0]
+            if a.ndim != 1:
+                axes = "; reduce 3 axes to one with flowtex.dsp.dft321.dft321" if a.ndim == 2 and a.shape[1] == 3 else ""
+                raise InputError(f"{where}: signal {name!r} has shape {a.shape}; pass a 1-D array, one sample per tick{axes}")
+        arrays.append(a)
+    given = {name: a for name, a in zip(signals, arrays, strict=True) if a is not None}
+    if len({a.shape[0] for a in given.values()}) > 1:
+        raise InputError(f"{where}: signals have different lengths ("
+                         + ", ".join(f"{name} {a.shape[0]}" for name, a in given.items()) + "); pass one sample per tick of each")
+    for name, a in given.items():
+        check_finite(a, f"{where}: signal {name!r}")
+    return value, arrays
+
+
+def sample_ranges(where: str, name: str, ranges: Any, n: int) -> list[tuple[int, int]] | None:
+    """``ranges`` (None, or (start, stop) sample index pairs of a recording of ``n`` samples) as int pairs with
+    0 <= start < stop <= n; else one :class:`InputError` naming the argument (``within``, ``ranges``) and the pair,
+    where a reversed or negative pair was an empty selection or counted from the end."""
+    if ranges is None:
+        return None
+    pairs = plain(ranges)
+    if not isinstance(pairs, list) or not pairs:
+        raise InputError(f"{where}: {name} must be a non-empty list of (start, stop) sample ranges, got {excerpt(ranges)}")
+    out = []
+    for k, pair in enumerate(pairs):
+        pair = plain(pair)
+        ok = isinstance(pair, list) and len(pair) == 2 and all(isinstance(v, int) and not isinstance(v, bool) for v in pair)
+        if not (ok and 0 <= pair[0] < pair[1] <= n):
+            raise InputError(f"{where}: {name}[{k}] = {excerpt(pair)}: a range is (start, stop) sample indices, integers "
+                             f"with 0 <= start < stop <= {n} (the recording's length)")
+        out.append((pair[0], pair[1]))
+    return out

@@ -25,7 +25,7 @@ from ..dsp.prony import fit_iir, impulse_response, ring_length
 from ..dsp.spectral import welch_psd
 from ..errors import DataError
 from ..models.patterns import Pattern
-from .inputs import load, signal
+from .inputs import api_signals, load, signal
 
 MIN_SAMPLES = 256
 """Shortest recording a pattern is fitted to: one Welch segment."""
@@ -53,7 +53,9 @@ def fit_pattern(accel: np.ndarray, position: np.ndarray, rate_hz: float, orders:
     """Fit a :class:`Pattern` to acceleration (n,) or (n, axes) m/s^2 recorded along ``position`` (n, 3) mm."""
     import scipy.signal
 
-    accel = np.asarray(accel, dtype=np.float64)
+    rate, (accel, position) = api_signals("recording", rate_hz, {"accel": None, "position": 3}, accel=accel, position=position)
+    assert rate is not None and accel is not None and position is not None
+    rate_hz = rate
     if accel.ndim == 2 and accel.shape[1] > 1:  # project on the principal vibration axis
         accel = (accel - accel.mean(axis=0)) @ np.linalg.svd(accel - accel.mean(axis=0), full_matrices=False)[2][0]
     a = accel.ravel() - np.mean(accel)

@@ -20,9 +20,10 @@ from ..dsp.arma_resample import DIRECT_MAX_RATIO, resample_arma_lsf
 from ..dsp.lsf import lsf_to_poly_new
 from ..dsp.lsf_roots import poly_to_lsf
 from ..dsp.spectral import lsd_db
-from ..errors import FlowtexError
-from ..limits import signed
+from ..errors import FlowtexError, InputError
+from ..limits import excerpt, signed
 from ..models.texture import TextureModelSet
+from ..pyvalues import positive_rate
 from .arma import min_phase_for_lsf
 
 
@@ -235,8 +236,10 @@ def resample_model_set(ms: TextureModelSet, rate_hz: float, progress: Callable[[
     ``option`` names the rate in errors. The rate may change by at most :data:`MAX_RATE_RATIO` either way.
     ``cache``: fits kept from an earlier call on a set sharing models (:data:`FitCache`), reused and extended.
     """
-    if not (isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0):
-        raise FlowtexError(f"{option} must be a positive number of Hz, got {rate_hz!r}")
+    if not isinstance(ms, TextureModelSet):
+        raise InputError(f"resample_model_set takes a TextureModelSet (flowtex.io.modelset.load_model_set(path) loads "
+                         f"one), got {type(ms).__name__} {excerpt(ms)}")
+    rate_hz = positive_rate(option, rate_hz)  # numpy numbers too
     if extra_order is not None and not (0 <= extra_order <= MAX_EXTRA_ORDER and extra_order % 2 == 0):
         raise FlowtexError(f"--extra-order must be an even number from 0 to {MAX_EXTRA_ORDER}, got {extra_order}")
     rate_from = float(ms.sample_rate)

@@ -38,7 +38,7 @@ from ..dsp.spectral import signal_centroid
 from ..errors import DataError
 from ..io.taplib import write_tap_library
 from ..models.taps import TapLibrary, spectral_centroid
-from .inputs import atomic_output, check_highpass, check_not_constant, load, signal
+from .inputs import api_signals, atomic_output, check_highpass, check_not_constant, load, signal
 
 
 @dataclass(frozen=True)
@@ -107,6 +107,8 @@ def fit_taps(accel: np.ndarray, force: np.ndarray, rate: float, position: np.nda
              speed: np.ndarray | None = None, length_s: float = 0.1, approach_s: float = 0.01, on: float = CONTACT_ON_N, off: float = CONTACT_OFF_N,
              where: str = "recording", quiet_s: float = DEFAULT_QUIET_S) -> tuple[list[Tap], list[str]]:
     """Detected taps (sorted by onset) and notes on dropped ones; see the module docstring."""
+    rate, (accel, force, position, normal, speed) = api_signals(where, rate, {"position": 3, "normal": 3}, accel=accel, force=force,
+                                                                position=position, normal=normal, speed=speed)
     length = int(round(length_s * rate))
     window = max(1, int(round(approach_s * rate)))
     onsets = contact_onsets(force, on, off, int(round(quiet_s * rate)))

@@ -53,11 +53,13 @@ from ..dsp.lsf_roots import poly_to_lsf
 from ..dsp.robust import clamp_outliers
 from ..dsp.segment import segment
 from ..dsp.spectral import gfc_data_model
-from ..errors import DataError
+from ..errors import DataError, InputError
 from ..io.modelset import delaunay_triangles
+from ..limits import excerpt
 from ..models.rendering import FITTED_RULE
 from ..models.texture import TextureModelSet
 from .arma import ArmaFit, fit_arma, select_shared_order
+from .inputs import api_signals, sample_ranges
 from .pooling import neighbour_groups, pooled_data, trend_factors
 
 CORNERS = 8
@@ -300,8 +302,10 @@ def fit_texture(accel: np.ndarray, speed: np.ndarray, force: np.ndarray, rate: f
     first, so the ranges are never spliced together and no filter transient is made at their edges.
     """
     opt = opt or TextureOptions()
+    rate, (accel, speed, force) = api_signals(where, rate, accel=accel, speed=speed, force=force)
+    within = sample_ranges(where, "within", within, accel.shape[0])
     x, clipped = preprocess(accel, rate, opt.highpass_hz, opt.outlier_sigma)
-    pieces, dropped = find_pieces(x, np.asarray(speed, float), np.asarray(force, float), rate, opt, where, within)
+    pieces, dropped = find_pieces(x, speed, force, rate, opt, where, within)
     pool = max(1, min(opt.pool_pieces, len(pieces)))
     fit_pieces(x, pieces, rate, opt, where, pool)
     order = pieces[0].fit.order if pieces[0].fit is not None else (0, 0)
@@ -319,7 +323,11 @@ def fit_grid(cells: Sequence[tuple[np.ndarray, float, float]], rate: float, opt:
     xs, pieces = [], []
     offset = 0
     clipped = 0
-    for accel, s, f in cells:
+    for k, cell in enumerate(cells):
+        if not (isinstance(cell, (list, tuple)) and len(cell) == 3):
+            raise InputError(f"{where}: cells[{k}] must be (accel, speed mm/s, force N), got {excerpt(cell)}")
+        rate, (accel,) = api_signals(f"{where}: cells[{k}]", rate, accel=cell[0])
+        s, f = cell[1], cell[2]
         x, c = preprocess(accel, rate, opt.highpass_hz, opt.outlier_sigma)
         trim = min(int(round(opt.trim_s * rate)), x.shape[0] // 4)
         xs.append(x)

@@ -9,11 +9,13 @@ Parameter values may be loaded objects where a node type accepts them (e.g. a ``
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from ..errors import Diagnostic, GraphError, Location
+from ..limits import close_names, excerpt
 from ..pyvalues import plain
 from ..schema.graph import FORMAT_VERSION
 from ..yamlsource import LocDict, LocList
@@ -41,6 +43,20 @@ def _put(d: LocDict, key: str, value: Any, where: Location) -> None:
     d.value_pos[key] = where  # type: ignore[assignment]
 
 
+def _misspelt_every(name: str, type: str, key: str, value: Any) -> None:
+    """Refuse a keyword of :meth:`GraphBuilder.node` that looks like ``every`` (``evry=4``) and that the built-in node
+    type does not take, naming ``every``: it would be reported as an unknown parameter of the node type."""
+    if key == "every" or not close_names(key, ["every"]):
+        return
+    from ..registry import load_registry
+
+    cls = load_registry().types.get(type)  # a plugin type (known at build()) is checked there, as any parameter
+    if cls is not None and key not in cls.params:
+        raise GraphError([Diagnostic(Location(f"GraphBuilder.node({name!r}, {type!r}, {key}=...)"),
+                                     f"node {name!r} ({type}): {key!r} is no parameter of {type!r}; did you mean "
+                                     f"every={excerpt(value)} (run the node every k ticks)?")])
+
+
 class GraphBuilder:
     """Build a graph in Python: ``GraphBuilder("g", rate=1000.0).input("x", unit="N").node("f", "gain", k=2.0)
     .edge("x -> f.x").output("y", "f.y").build()``.
@@ -54,6 +70,9 @@ class GraphBuilder:
                  description: str = ""):
         self.name = name
         self._where = Location(f"GraphBuilder({name!r})")
+        if base_dir is not None and not isinstance(base_dir, (str, os.PathLike)):
+            raise GraphError([Diagnostic(self._where, f"base_dir must be a folder path (str or pathlib.Path), got "
+                                                      f"{excerpt(base_dir)}")])
         self._path = Path(base_dir if base_dir is not None else ".") / f"<GraphBuilder {name}>"
         self._data = _mapping(self._where)
         for key, value in (("flowtex", FORMAT_VERSION), ("name", name), ("rate", rate), ("seed", seed)):
@@ -84,6 +103,7 @@ class GraphBuilder:
         _put(value, "every", every, where)
         p = _mapping(where)
         for key, v in params.items():
+            _misspelt_every(name, type, key, v)
             _put(p, key, v, Location(f"GraphBuilder.node({name!r}, {type!r}, {key}=...)"))
         _put(value, "params", p, where)
         _put(self._nodes, name, value, where)
@@ -126,4 +146,4 @@ class GraphBuilder:
         folders; ``$FLOWTEX_PLUGINS`` is read as for a file; ``tier``: fused, dispatch or auto)."""
         from .compiled import DEFAULT_BLOCK_ROWS, Graph
 
-        return Graph(self.resolve(overrides, plugins), block_rows or DEFAULT_BLOCK_ROWS, tier)
+        return Graph(self.resolve(overrides, plugins), DEFAULT_BLOCK_ROWS if block_rows is None else block_rows, tier)

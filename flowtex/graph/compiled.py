@@ -82,6 +82,12 @@ class Graph:
         """Input -> its last value after ``nonfinite="hold"``, held into the next :meth:`process` chunk."""
         self._seed_nodes()  # the arenas are as placed: a reset's copies would only touch every page of them again
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickling (Dask, a process pool) ships the checked graph, its tier and its state, not compiled code: the
+        receiving process compiles (or loads from its cache) and continues from the same tick, bit for bit."""
+        return _unpickled, (self.resolved, self.layout.block_rows, self.requested_tier, self.seed, self.f.copy(),
+                            self.i.copy(), self._held)
+
     # --- description -------------------------------------------------
     @property
     def name(self) -> str:
@@ -307,8 +313,9 @@ class Graph:
             shape = self.resolved.input_specs[name].shape
             flat_ok = arr.ndim == 2 and arr.shape[1] == w  # e.g. a CSV's name[0..k] columns
             if arr.ndim == 0 or (arr.shape[1:] != shape and not flat_ok):
+                turned = "; pass its transpose (x.T): time goes first" if arr.ndim == 2 and arr.shape[::-1][1:] == shape else ""
                 raise InputError(
-                    f"input {name!r}: expected shape (n, {', '.join(map(str, shape))}) with time first, got {arr.shape}"
+                    f"input {name!r}: expected shape (n, {', '.join(map(str, shape))}) with time first, got {arr.shape}{turned}"
                     if shape else f"input {name!r}: expected a 1-D array over time, got shape {arr.shape}")
             if total is None:
                 total = arr.shape[0]
@@ -340,6 +347,15 @@ class Graph:
         check_ticks(f"graph {self.name!r}: {method} n", n, int(self.i[OUT_WIDTH]) + sum(w for _c, w in self.layout.in_columns.values()),
                     "run fewer ticks")
         return n
+
+
+def _unpickled(resolved: ResolvedGraph, block_rows: int, tier: str, seed: int, f: np.ndarray, i: np.ndarray,
+               held: dict[str, np.ndarray]) -> Graph:
+    """A pickled :class:`Graph` rebuilt, its arenas (state, tick, held inputs) as they were when it was pickled."""
+    graph = Graph(resolved, block_rows, tier)
+    graph.seed, graph._held = seed, held
+    graph.f[:], graph.i[:] = f, i  # the same resolved graph lays out the same arenas
+    return graph
 
 
 def load_graph(path: str | Path, overrides: Mapping[str, Any] | None = None,

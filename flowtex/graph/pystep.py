@@ -74,7 +74,8 @@ def _bad_scalar(graph: Any, values: Mapping[str, Any]) -> None:
             try:
                 float(values[name])
             except (TypeError, ValueError):
-                raise FlowtexError(f"input {name!r} is a scalar; step() got {values[name]!r}") from None
+                raise FlowtexError(f"input {name!r} is a scalar; step() got {excerpt(values[name])}; pass one number, "
+                                   f"e.g. {{{name!r}: 1.0}}") from None
     raise FlowtexError("step(): scalar inputs must be numbers")
 
 

@@ -6,6 +6,7 @@ that need node types (parameters, ports, units) live in ``wiring.py`` and ``port
 
 from __future__ import annotations
 
+import os
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -89,6 +90,9 @@ class GraphSpec:
 
 def load_spec(path: str | Path, overrides: dict[str, Any] | None = None) -> GraphSpec:
     """Read and shape-check a graph file. Raises :class:`GraphError`."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise GraphError([Diagnostic(Location(repr(path)), f"a graph file is named by a path (str or pathlib.Path), got "
+                                                           f"{type(path).__name__} {excerpt(path)}")])
     path = Path(path)
     return parse_spec(read_source(path, "graph file"), path, overrides)
 

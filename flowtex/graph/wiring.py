@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import Any
 
 from ..errors import Location
+from ..limits import close_names
 from ..node_api import Node, Port, suggest
 from ..node_params import checked_params
 from .resolved import GraphChecker, ResolvedNode
@@ -64,7 +65,7 @@ def check_edges(ck: GraphChecker, nodes: dict[str, ResolvedNode]) -> dict[tuple[
         key = (dst.node, dst.port)
         if key in edge_of:
             first = edge_of[key]
-            ck.error(edge.loc, f"input {dst.node}.{dst.port} is connected twice (also at line {first.loc.line}); an input takes exactly one edge")
+            ck.error(edge.loc, f"input {dst.node}.{dst.port} is connected twice (also at {_where(first.loc)}); an input takes exactly one edge")
             continue
         if ok:
             edge_of[key] = edge
@@ -98,13 +99,24 @@ def check_outputs(ck: GraphChecker, nodes: dict[str, ResolvedNode]) -> None:
 
 
 def check_unconnected(ck: GraphChecker, nodes: dict[str, ResolvedNode]) -> None:
-    """Every required input is connected; fills each node's ``sources`` (input -> producer, None if unconnected)."""
+    """Every required input is connected; fills each node's ``sources`` (input -> producer, None if unconnected).
+
+    A node that an edge aims at an input it lacks (a misspelt port, reported by :func:`check_edges` with its inputs)
+    gets no second error for the input that edge meant, nor does the node an edge to a misspelt node name meant
+    (the closest name, reported by :func:`check_edges`): one mistake, one message."""
     connected = {(e.dst.node, e.dst.port) for e in ck.spec.edges}
+    misaimed = {e.dst.node for e in ck.spec.edges if e.dst.node in nodes and e.dst.port not in nodes[e.dst.node].cls.inputs}
+    for e in ck.spec.edges:
+        meant = close_names(str(e.dst.node), list(ck.spec.nodes), 1)
+        if e.dst.node not in ck.spec.nodes and meant:
+            misaimed.add(meant[0])
     for name, rn in nodes.items():
         for port_name, port in rn.cls.inputs.items():
             if (name, port_name) in connected:
                 rn.sources[port_name] = None  # filled below
             elif not port.optional:
+                if name in misaimed:
+                    continue
                 ck.error(rn.spec.loc, f"node {name!r} ({rn.cls.type_name}): input {port_name!r} is not connected; "
                                       f"add an edge '... -> {name}.{port_name}'")
             else:
@@ -112,3 +124,8 @@ def check_unconnected(ck: GraphChecker, nodes: dict[str, ResolvedNode]) -> None:
     for edge in ck.spec.edges:
         if edge.dst.node in nodes and edge.dst.port in nodes[edge.dst.node].cls.inputs:
             nodes[edge.dst.node].sources[edge.dst.port] = edge.src
+
+
+def _where(loc: Location) -> str:
+    """``line N`` of the same file, or the builder call that placed an item without a line."""
+    return f"line {loc.line}" if loc.line > 0 else str(loc)

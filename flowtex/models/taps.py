@@ -15,6 +15,8 @@ from fractions import Fraction
 
 import numpy as np
 
+from ..pyvalues import positive_rate
+
 
 @dataclass(frozen=True)
 class TapLibrary:
@@ -73,6 +75,7 @@ def resample_tap_library(lib: TapLibrary, sample_rate_hz: float) -> TapLibrary:
     """The library at another sample rate (polyphase resampling with scipy, same duration)."""
     from scipy.signal import resample_poly
 
+    sample_rate_hz = positive_rate("resample_tap_library: sample_rate_hz", sample_rate_hz)
     if sample_rate_hz == lib.sample_rate_hz:
         return lib
     ratio = Fraction(sample_rate_hz / lib.sample_rate_hz).limit_denominator(1000)

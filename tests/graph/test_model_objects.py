@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -126,7 +127,8 @@ def test_an_unreadable_file_is_named_by_its_parameter_in_a_graph_and_in_a_proces
     from flowtex.errors import ParamError
 
     missing = tmp_path / "nowhere.json"
-    with pytest.raises(ParamError, match=f"^{missing}: no such model file$") as err:
+    with pytest.raises(ParamError, match=f"^node type 'coulomb_friction' processor: parameter 'models': "
+                                         f"{re.escape(str(missing))}: no such model file$") as err:
         load_registry().types["coulomb_friction"].processor(models=str(missing))
     assert err.value.param == "models"
     with pytest.raises(GraphError, match=rf"GraphBuilder.node\('lookup', 'texture_lookup', models=...\): node 'lookup' "
@@ -139,9 +141,11 @@ def test_a_pattern_or_tap_library_in_memory_at_another_rate_is_refused_by_what_i
     from flowtex.errors import ParamError
 
     types = load_registry().types
-    with pytest.raises(ParamError, match="^the pattern given in memory: pattern filters are sampled at 1000 Hz but this node "
+    with pytest.raises(ParamError, match="^node type 'patterned_texture' processor: parameter 'pattern': "
+                                         "the pattern given in memory: pattern filters are sampled at 1000 Hz but this node "
                                          "runs at 2000 Hz"):
         types["patterned_texture"].processor(rate=2000.0, pattern=_pattern())(position=np.zeros((4, 3)))
-    with pytest.raises(ParamError, match=r"^the tap library given in memory is sampled at 1000 Hz but this node runs at 2000 Hz; "
+    with pytest.raises(ParamError, match=r"^node type 'tap_player' processor: parameter 'library': "
+                                         r"the tap library given in memory is sampled at 1000 Hz but this node runs at 2000 Hz; "
                                          r"resample it \(flowtex.models.taps.resample_tap_library\)"):
         types["tap_player"].processor(rate=2000.0, library=synthetic_tap_library())(in_contact=np.zeros(4), incoming_speed=np.zeros(4))
