@@ -45,6 +45,7 @@ pass); ``rms_rtol`` sets the RMS-relative tolerance (0 turns it off);
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -91,8 +92,12 @@ def compare_outputs(actual: Mapping[str, np.ndarray], expected: Mapping[str, np.
     NaN and inf the same inf), or if both are finite and
     ``|actual - expected| <= atol + rtol * |expected| + rms_rtol * RMS(expected output)``,
     where RMS is over all finite values of that output in the expected set.
-    Integer and boolean arrays, and everything when ``exact`` is true, must be identical.
+    Integer and boolean arrays, and everything when ``exact`` is true, must be identical. A tolerance must be a finite
+    number >= 0 (a negative one made every comparison stricter than exact, silently): ValueError naming it otherwise.
     """
+    for label, tol in (("rtol", rtol), ("atol", atol), ("rms_rtol", rms_rtol)):
+        if isinstance(tol, bool) or not isinstance(tol, (int, float, np.integer, np.floating)) or not 0.0 <= tol < math.inf:
+            raise ValueError(f"compare_outputs: {label} must be a finite number >= 0, got {tol!r}")
     problems = []
     for name in sorted(set(actual) | set(expected)):
         if name not in expected:

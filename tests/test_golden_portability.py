@@ -135,6 +135,15 @@ def test_exact_mode_and_numpy_style_tolerances():
     assert compare_outputs(a, e, atol=1e-13, rms_rtol=0.0)
 
 
+@pytest.mark.parametrize("bad", [{"rtol": -1.0}, {"atol": float("nan")}, {"rms_rtol": float("inf")}, {"atol": "1e-6"},
+                                 {"rtol": True}])
+def test_a_tolerance_that_is_no_finite_number_at_least_0_is_refused(bad):
+    """rtol=-1 was accepted and made every comparison stricter than exact, silently."""
+    e = {"y": np.array([1.0, 2.0])}
+    with pytest.raises(ValueError, match=rf"compare_outputs: {next(iter(bad))} must be a finite number >= 0"):
+        compare_outputs(e, e, **bad)
+
+
 @pytest.fixture
 def numba_registries_loaded() -> None:
     """numba's CPU target with its extra registries loaded (what its first compile in a process imports).
