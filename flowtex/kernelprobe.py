@@ -266,26 +266,19 @@ def _problems_at(cls: type[Node], probe: Probe, rng: np.random.Generator, source
         problems.append((error_line(exc, source), f"kernel raised {type(exc).__name__}: {exc}{at}"))
         return problems
     unrepeatable = set()
-    for name, a, b, c in zip(names, one, other, again, strict=True):
+    for name, a, b, a_again in zip(names, one, other, again, strict=True):
         stuck = np.isnan(a) & (b == SENTINELS[1])  # kept the sentinel of each run: never written
         if stuck.any():
             cols = sorted({int(c) for c in np.nonzero(stuck)[1]})
             problems.append((0, f"output {name!r}: element(s) {cols} of {a.shape[1]} per tick never written{at}; write "
                                 "every element of every row (the graph reads whatever the buffer held before)"))
-        random = ~_same(a, c)  # one fill, one state, one input
+        random = ~_same(a, a_again)  # one fill, one state, one input
         reads = ~stuck & ~_same(a, b)  # two fills: written values that depend on what the buffer held
-        if random.any():
-            unrepeatable.add(name)
-            problems.append((0, f"output {name!r}: two runs from the same built state over the same inputs differ from "
-                                f"tick {_first(random)}{at}; the kernel draws numbers kept outside s and si (numba's "
-                                "np.random, a global), so no run can be repeated or a session replayed: set uses_seed = "
-                                "True and draw from seed_state()'s generator in si (flowtex.dsp.rng)"))
-        elif reads.any():
-            unrepeatable.add(name)
-            problems.append((0, f"output {name!r} depends on what its buffer held before the call, from tick "
-                                f"{_first(reads)}{at}; the kernel reads {name!r} before writing it (y[t - 1] at t = 0 "
-                                "reads the block's last row, left from another call or another node): keep values from "
-                                "earlier ticks in s"))
+        for mask, message in ((random, UNREPEATABLE), (reads, READS_OUTPUT)):
+            if mask.any():
+                unrepeatable.add(name)
+                problems.append((0, message.format(name=name, tick=_first(mask), at=at)))
+                break
     for k, name in enumerate(names):  # one line per output: the chunked run, else the tick-by-tick one
         if name in unrepeatable:
             continue
@@ -305,6 +298,16 @@ def _problems_at(cls: type[Node], probe: Probe, rng: np.random.Generator, source
                                 "a recursion whose pole left the unit circle (check the coefficient's formula at these "
                                 "parameters, or declare a bound where it holds)"))
     return problems
+
+
+UNREPEATABLE = ("output {name!r}: two runs from the same built state over the same inputs differ from tick {tick}{at}; "
+                "the kernel draws numbers kept outside s and si (numba's np.random, a global), so no run can be repeated "
+                "or a session replayed: set uses_seed = True and draw from seed_state()'s generator in si (flowtex.dsp.rng)")
+"""The problem of an output that differs between two identical runs (``name``, first ``tick``, ``at``: built with)."""
+READS_OUTPUT = ("output {name!r} depends on what its buffer held before the call, from tick {tick}{at}; the kernel reads "
+                "{name!r} before writing it (y[t - 1] at t = 0 reads the block's last row, left from another call or "
+                "another node): keep values from earlier ticks in s")
+"""The problem of an output that differs only with the buffer's prior fill."""
 
 
 def _same(a: np.ndarray, b: np.ndarray) -> np.ndarray:

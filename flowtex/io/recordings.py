@@ -285,6 +285,8 @@ def _load_h5(path: Path) -> Recording:
 
 _GROUPED_SHOWN = 3
 """Datasets inside groups named when a file has none at its root."""
+_GROUPED_VISITS = 10_000
+"""Most objects the search for grouped datasets looks at, whatever the file claims to hold."""
 
 
 def _refuse_grouped(fh: Any, h5py: Any, path: Path) -> None:
@@ -294,10 +296,12 @@ def _refuse_grouped(fh: Any, h5py: Any, path: Path) -> None:
     found: list[str] = []
     queue = [("", fh)]
     visited = 0
-    while queue and len(found) < _GROUPED_SHOWN and visited < 10_000:
+    while queue and len(found) < _GROUPED_SHOWN and visited < _GROUPED_VISITS:
         prefix, group = queue.pop(0)
         for name, item in group.items():
             visited += 1
+            if visited > _GROUPED_VISITS:
+                break
             if isinstance(item, h5py.Dataset):
                 found.append(f"{prefix}{name}")
                 if len(found) == _GROUPED_SHOWN:

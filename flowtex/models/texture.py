@@ -235,11 +235,12 @@ class TextureModelSet:
 
         try:  # what texture_lookup computes from every model when it builds; validate and load say it first
             with np.errstate(over="ignore", invalid="ignore"):
-                powers = model_output_powers(self.ar_lsf, self.ma_lsf, vec["variance"], vec["gain"]) + vec["gain"] ** 2
+                powers = model_output_powers(self.ar_lsf, self.ma_lsf, vec["variance"], vec["gain"])
+                gain_squared = vec["gain"] ** 2
         except UnusableModel as exc:
             fail(f"{model_name(exc.model)}: its LSFs give no stable filter in float64 (neighbouring LSFs, or one and 0 or "
                  "pi, nearly coincide: a pole on the unit circle), so it cannot render; refit the model or remove it")
-        loud = np.flatnonzero(~np.isfinite(powers))  # the rendered power, or gain^2 (blended between models), overflows
+        loud = np.flatnonzero(~(np.isfinite(powers) & np.isfinite(gain_squared)))  # gain^2 is blended between models
         if loud.size:  # gain 1e300: rendered, resampled and compared in powers beyond float64
             m = int(loud[0])
             fail(f"{model_name(m)} ({vec['speeds'][m]:g} mm/s, {vec['forces'][m]:g} N): gain {vec['gain'][m]:g} and variance "
